@@ -1,0 +1,33 @@
+#pragma once
+// The reference evaluator: batched fp32 inference through Eigen GEMMs, multi-threaded with
+// OpenMP over fixed-size chunks of queries (so a query's arithmetic does not depend on the thread
+// count). Its semantics define the model; every other evaluator is tested against it.
+#include <memory>
+
+#include "Evaluator/FieldEvaluator.h"
+#include "Model/InrModel.h"
+
+namespace inr {
+
+struct CpuEvaluatorOptions {
+  int chunkSize = 256;  // queries per GEMM batch; fixed, never derived from the thread count
+  int threads = 0;      // 0 = OpenMP default
+};
+
+class CpuInrEvaluator final : public FieldEvaluator {
+public:
+  explicit CpuInrEvaluator(const InrModel& model, CpuEvaluatorOptions options = {});
+  ~CpuInrEvaluator() override;
+  void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
+  std::string name() const override { return "cpu-eigen-fp32"; }
+
+  // Network output before the output mapping, for inputs already in network coordinates
+  // (inputDim floats per query, network input order). For tests and tools.
+  void evaluateNetwork(const float* inputs, std::size_t n, float* out) const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace inr

@@ -1,0 +1,57 @@
+#pragma once
+// Test-only: builds INR Volume files in memory (safetensors bytes) so unit tests can construct
+// exact models and damaged variants without files on disk.
+#include <cstdint>
+#include <cstring>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace inr::test {
+
+struct TensorSpec {
+  std::string name;
+  std::vector<std::int64_t> shape;
+  std::vector<float> values;
+};
+
+inline std::vector<std::uint8_t> buildSafeTensors(const std::vector<TensorSpec>& tensors,
+                                                  const std::map<std::string, std::string>& metadata) {
+  nlohmann::ordered_json header;
+  std::uint64_t offset = 0;
+  for (const auto& t : tensors) {
+    const std::uint64_t bytes = t.values.size() * 4;
+    header[t.name] = {{"dtype", "F32"}, {"shape", t.shape}, {"data_offsets", {offset, offset + bytes}}};
+    offset += bytes;
+  }
+  header["__metadata__"] = metadata;
+  std::string h = header.dump();
+  while (h.size() % 8) h += ' ';
+  std::vector<std::uint8_t> out(8 + h.size() + offset);
+  std::uint64_t len = h.size();
+  for (int i = 0; i < 8; ++i) out[i] = std::uint8_t(len >> (8 * i));
+  std::memcpy(out.data() + 8, h.data(), h.size());
+  std::uint8_t* p = out.data() + 8 + h.size();
+  for (const auto& t : tensors) {
+    std::memcpy(p, t.values.data(), t.values.size() * 4);
+    p += t.values.size() * 4;
+  }
+  return out;
+}
+
+// Metadata for a model with the given architecture JSON and a default unit-box domain.
+inline std::map<std::string, std::string> modelMetadata(const nlohmann::json& architecture,
+                                                        const nlohmann::json& domain = nlohmann::json(),
+                                                        const nlohmann::json& output = nlohmann::json()) {
+  std::map<std::string, std::string> m;
+  m["format"] = "inr-volume";
+  m["format_version"] = "1";
+  m["architecture"] = architecture.dump();
+  m["domain"] = (domain.is_null() ? nlohmann::json{{"bounds", {-1, 1, -1, 1, -1, 1}}, {"time_range", {-1, 1}}}
+                                  : domain).dump();
+  if (!output.is_null()) m["output"] = output.dump();
+  return m;
+}
+
+}  // namespace inr::test
