@@ -1,0 +1,126 @@
+#!/usr/bin/env python3
+"""End-to-end checks of the `inr` CLI (standard library only).
+
+usage: test_cli.py INR_EXECUTABLE DATA_DIR CHECK
+CHECK is one of the functions named check_* below; exit 0 = pass.
+"""
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+
+
+def run(inr, *args, stdin=None):
+    p = subprocess.run([inr, *args], input=stdin, capture_output=True, text=True, timeout=300)
+    if p.returncode < 0:
+        raise AssertionError("inr %s crashed with signal %d\n%s" % (" ".join(args), -p.returncode, p.stderr))
+    return p
+
+
+def expect(cond, msg):
+    if not cond:
+        raise AssertionError(msg)
+
+
+def read_control(data):
+    """The tiny SIREN of the malformed corpus, read with the standard library."""
+    raw = open(os.path.join(data, "malformed", "valid_control.inr"), "rb").read()
+    n = struct.unpack("<Q", raw[:8])[0]
+    header = json.loads(raw[8:8 + n])
+    base = 8 + n
+    t = {}
+    for name, e in header.items():
+        if name == "__metadata__":
+            continue
+        b, end = e["data_offsets"]
+        t[name] = struct.unpack("<%df" % ((end - b) // 4), raw[base + b:base + end])
+    return t
+
+
+def control_value(t, x, y, z, time):
+    # domain: box [0,1]^3 and time [0,1], node-centred onto [-1,1]
+    inp = [2 * x - 1, 2 * y - 1, 2 * z - 1, 2 * time - 1]
+    h = [math.sin(30 * (sum(t["l0.weight"][o * 4 + j] * inp[j] for j in range(4)) + t["l0.bias"][o]))
+         for o in range(8)]
+    return sum(t["l1.weight"][j] * h[j] for j in range(8)) + t["l1.bias"][0]
+
+
+def check_eval_matches_reference(inr, data):
+    t = read_control(data)
+    pts = [(0.1, 0.2, 0.3), (0.9, 0.5, 0.0), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), (0.33, 0.66, 0.99)]
+    text = "# comment line\n" + "\n".join("%r %r %r" % p for p in pts) + "\n\n"
+    for time in (0.0, 0.25, 1.0):
+        p = run(inr, "eval", os.path.join(data, "malformed", "valid_control.inr"), "--time", str(time), stdin=text)
+        expect(p.returncode == 0, "eval failed: " + p.stderr)
+        got = [float(v) for v in p.stdout.split()]
+        expect(len(got) == len(pts), "expected %d values, got %d" % (len(pts), len(got)))
+        for g, q in zip(got, pts):
+            want = control_value(t, *q, time)
+            expect(abs(g - want) <= 1e-5 * max(1.0, abs(want)), "eval %s t=%g: %r vs %r" % (q, time, g, want))
+
+
+def check_eval_points_file_and_errors(inr, data):
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        pts = os.path.join(d, "pts.txt")
+        open(pts, "w").write("0.5 0.5 0.5\n0.1 0.1 0.1\n")
+        p = run(inr, "eval", model, "--time", "0.5", "--points", pts)
+        expect(p.returncode == 0 and len(p.stdout.split()) == 2, "points file: " + p.stderr)
+        open(pts, "w").write("0.5 0.5\n")
+        p = run(inr, "eval", model, "--time", "0.5", "--points", pts)
+        expect(p.returncode == 1 and "pts.txt:1" in p.stderr, "malformed point line not reported: " + p.stderr)
+    p = run(inr, "eval", model, stdin="0 0 0\n")
+    expect(p.returncode == 2 and "--time" in p.stderr, "missing --time not a usage error: " + p.stderr)
+    p = run(inr, "eval", model, "--time", "abc", stdin="0 0 0\n")
+    expect(p.returncode == 2 and "abc" in p.stderr, "bad --time not a usage error: " + p.stderr)
+    p = run(inr, "eval", os.path.join(data, "no_such_model.inr"), "--time", "0", stdin="")
+    expect(p.returncode == 1 and "cannot open" in p.stderr, "missing model: " + p.stderr)
+    p = run(inr, "frobnicate")
+    expect(p.returncode == 2, "unknown command must be a usage error")
+
+
+def check_info(inr, data):
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    p = run(inr, "info", model)
+    expect(p.returncode == 0, p.stderr)
+    for s in ("linear(4->8) sine(30) linear(8->1)", "parameters:    49", "time range:    [0, 1]"):
+        expect(s in p.stdout, "info lacks %r:\n%s" % (s, p.stdout))
+    p = run(inr, "info", model, "--json")
+    j = json.loads(p.stdout)
+    expect(j["parameters"] == 49 and j["input_order"] == "xyzt" and j["time_dependent"], str(j))
+    lo, hi = j["sampled_value_range"]["min"], j["sampled_value_range"]["max"]
+    expect(lo < hi, "sampled range empty")
+
+
+def check_malformed_files_fail_cleanly(inr, data):
+    manifest = json.load(open(os.path.join(data, "malformed", "manifest.json")))
+    for case in manifest:
+        path = os.path.join(data, "malformed", case["file"])
+        p = run(inr, "info", path)
+        expect(p.returncode == 1, "%s: exit %d, want 1" % (case["file"], p.returncode))
+        expect(path in p.stderr and case["expect"] in p.stderr,
+               "%s: stderr lacks file name or %r: %s" % (case["file"], case["expect"], p.stderr))
+        expect(p.stdout == "", "%s: printed to stdout on failure" % case["file"])
+
+
+def check_slice_png(inr, data):
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "s.png")
+        p = run(inr, "slice", model, "--time", "0.5", "--axis", "y", "--size", "40", "-o", out)
+        expect(p.returncode == 0, p.stderr)
+        raw = open(out, "rb").read()
+        expect(raw[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG")
+        w, h = struct.unpack(">II", raw[16:24])
+        expect((w, h) == (40, 40), "PNG is %dx%d" % (w, h))
+        p = run(inr, "slice", model, "--time", "0.5", "-o", os.path.join(d, "s.bmp"))
+        expect(p.returncode == 1 and "extension" in p.stderr, "bad extension: " + p.stderr)
+
+
+if __name__ == "__main__":
+    inr, data, check = sys.argv[1:4]
+    globals()["check_" + check](inr, data)
+    print("PASS", check)

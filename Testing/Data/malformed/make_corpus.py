@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""Writes the malformed-model corpus: one damaged INR Volume file per failure class the loader
+must reject, plus manifest.json (file -> failure class -> a substring the error must contain).
+
+Standard library only, deterministic. Re-run after changing it:
+    /usr/bin/python3 Testing/Data/malformed/make_corpus.py
+"""
+import json
+import math
+import os
+import struct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+ARCH = {"input_dim": 4, "layers": [
+    {"type": "linear", "weight": "l0.weight", "bias": "l0.bias"},
+    {"type": "sine", "w0": 30},
+    {"type": "linear", "weight": "l1.weight", "bias": "l1.bias"}]}
+DOMAIN = {"bounds": [0, 1, 0, 1, 0, 1], "time_range": [0, 1]}
+
+
+def tensors():
+    """A valid tiny SIREN 4->8->1 with deterministic weights."""
+    vals = lambda n, s: [((i * 37 + s * 11) % 17 - 8) / 40.0 for i in range(n)]
+    return [("l0.weight", "F32", [8, 4], vals(32, 1)), ("l0.bias", "F32", [8], vals(8, 2)),
+            ("l1.weight", "F32", [1, 8], vals(8, 3)), ("l1.bias", "F32", [1], vals(1, 4))]
+
+
+def metadata(arch=ARCH, domain=DOMAIN, **extra):
+    m = {"format": "inr-volume", "format_version": "1",
+         "architecture": json.dumps(arch), "domain": json.dumps(domain)}
+    m.update(extra)
+    return m
+
+
+def pack(dtype, values):
+    fmt = {"F32": "f", "F64": "d", "I32": "i"}[dtype]
+    return struct.pack("<%d%s" % (len(values), fmt), *values)
+
+
+def build(ts=None, meta=None, header_patch=None, data_patch=None):
+    ts = tensors() if ts is None else ts
+    header, blob = {}, b""
+    for name, dtype, shape, values in ts:
+        raw = pack(dtype, values)
+        header[name] = {"dtype": dtype, "shape": shape, "data_offsets": [len(blob), len(blob) + len(raw)]}
+        blob += raw
+    header["__metadata__"] = metadata() if meta is None else meta
+    if header_patch:
+        header_patch(header)
+    if data_patch:
+        blob = data_patch(blob)
+    h = json.dumps(header).encode()
+    h += b" " * (-len(h) % 8)
+    return struct.pack("<Q", len(h)) + h + blob
+
+
+def with_header_bytes(raw_header, blob=b""):
+    return struct.pack("<Q", len(raw_header)) + raw_header + blob
+
+
+def replace(ts, name, **kw):
+    out = []
+    for t in ts:
+        if t[0] == name:
+            t = (t[0], kw.get("dtype", t[1]), kw.get("shape", t[2]), kw.get("values", t[3]))
+        out.append(t)
+    return out
+
+
+CASES = []
+
+
+def case(cls, fname, expect, data):
+    CASES.append({"file": fname, "class": cls, "expect": expect})
+    with open(os.path.join(HERE, fname), "wb") as f:
+        f.write(data)
+
+
+def main():
+    good = build()
+    with open(os.path.join(HERE, "valid_control.inr"), "wb") as f:
+        f.write(good)  # the undamaged base: must load, so each failure below is its own
+    case("truncated file", "truncated.inr", "too short", good[:5])
+    case("header length beyond the file", "header_past_end.inr", "runs past the end",
+         struct.pack("<Q", len(good)) + good[8:])
+    case("absurd header length", "header_absurd.inr", "absurdly large", struct.pack("<Q", 1 << 62) + good[8:])
+    case("malformed JSON", "bad_json.inr", "not valid JSON", with_header_bytes(b'{"l0.weight": {"dtype": "F32",'))
+    case("header not an object", "header_not_object.inr", "must be a JSON object", with_header_bytes(b"[1, 2, 3]"))
+    case("unsupported dtype", "dtype_int32.inr", "unsupported dtype 'I32'",
+         build(replace(tensors(), "l0.bias", dtype="I32", values=[1] * 8)))
+
+    def overlap(h):
+        h["l0.bias"]["data_offsets"] = [0, 32]
+    case("overlapping tensors", "offsets_overlap.inr", "overlaps", build(header_patch=overlap))
+
+    def out_of_range(h):
+        b, e = h["l1.bias"]["data_offsets"]
+        h["l1.bias"]["data_offsets"] = [b + 4096, e + 4096]
+    case("offsets out of range", "offsets_out_of_range.inr", "run past the end", build(header_patch=out_of_range))
+    case("trailing bytes not covered", "offsets_trailing.inr", "trailing bytes",
+         build(data_patch=lambda blob: blob + b"\0" * 16))
+
+    def gap(h):
+        for name in ("l0.weight", "l0.bias", "l1.weight", "l1.bias"):
+            b, e = h[name]["data_offsets"]
+            h[name]["data_offsets"] = [b + 8, e + 8]
+    case("gap in the data", "offsets_gap.inr", "unaccounted bytes",
+         build(header_patch=gap, data_patch=lambda blob: b"\0" * 8 + blob))
+
+    def size_mismatch(h):
+        h["l0.bias"]["shape"] = [9]
+    case("byte size disagrees with shape", "shape_bytes_mismatch.inr", "needs 36", build(header_patch=size_mismatch))
+    case("shape inconsistent with architecture", "shape_mismatch.inr", "expects [8]",
+         build([("l0.weight", "F32", [8, 4], tensors()[0][3]), ("l0.bias", "F32", [4], [0.0] * 4),
+                ("l1.weight", "F32", [1, 8], tensors()[2][3]), ("l1.bias", "F32", [1], [0.0])]))
+    case("wrong input width", "input_width_mismatch.inr", "must be [out, 4]",
+         build([("l0.weight", "F32", [8, 3], [0.1] * 24), ("l0.bias", "F32", [8], [0.0] * 8),
+                ("l1.weight", "F32", [1, 8], [0.1] * 8), ("l1.bias", "F32", [1], [0.0])]))
+    case("missing tensor", "missing_tensor.inr", "not in the file", build(tensors()[:3]))
+    case("extra tensor", "extra_tensor.inr", "not used by the architecture",
+         build(tensors() + [("stray", "F32", [2], [1.0, 2.0])]))
+    case("NaN weight", "nan_weight.inr", "non-finite",
+         build(replace(tensors(), "l1.weight", values=[0.1] * 3 + [math.nan] + [0.1] * 4)))
+    case("Inf weight", "inf_weight.inr", "non-finite",
+         build(replace(tensors(), "l0.bias", values=[math.inf] + [0.0] * 7)))
+    arch = json.loads(json.dumps(ARCH))
+    arch["layers"][1] = {"type": "gelu"}
+    case("unknown layer kind", "unknown_layer.inr", "unknown layer type 'gelu'", build(meta=metadata(arch=arch)))
+    arch = json.loads(json.dumps(ARCH))
+    arch["layers"][1] = {"type": "sine", "omega": 30}
+    case("unknown layer field", "unknown_layer_field.inr", "unknown field 'omega'", build(meta=metadata(arch=arch)))
+    arch = json.loads(json.dumps(ARCH))
+    arch["layers"] = arch["layers"][:2]
+    case("output width not 1", "output_width.inr", "must end at width 1",
+         build(tensors()[:2], meta=metadata(arch=arch)))
+    case("empty box", "empty_box.inr", "empty box",
+         build(meta=metadata(domain={"bounds": [0, 1, 2, 2, 0, 1], "time_range": [0, 1]})))
+    case("t0 >= t1", "bad_time_range.inr", "t0 < t1",
+         build(meta=metadata(domain={"bounds": [0, 1, 0, 1, 0, 1], "time_range": [5, 5]})))
+    case("input order inconsistent", "bad_input_order.inr", "input_order",
+         build(meta=metadata(domain={"bounds": [0, 1, 0, 1, 0, 1], "time_range": [0, 1],
+                                     "input_order": ["x", "x", "z", "t"]})))
+    meta = metadata()
+    del meta["architecture"]
+    case("missing architecture", "missing_architecture.inr", "'architecture' is missing", build(meta=meta))
+    meta = metadata()
+    meta["architecture"] = "{layers: oops"
+    case("architecture not JSON", "architecture_bad_json.inr", "'architecture' is not valid JSON", build(meta=meta))
+    meta = metadata()
+    del meta["format"]
+    case("not an INR model (plain safetensors)", "plain_safetensors.inr", "not an INR Volume model", build(meta=meta))
+    case("unsupported format version", "future_version.inr", "not supported",
+         build(meta=metadata(format_version="99")))
+    with open(os.path.join(HERE, "manifest.json"), "w") as f:
+        json.dump(CASES, f, indent=1)
+        f.write("\n")
+    print("wrote %d malformed files to %s" % (len(CASES), HERE))
+
+
+if __name__ == "__main__":
+    main()
