@@ -1,0 +1,54 @@
+#pragma once
+// Stage IV — finalisation: turn the ray's result into this frame's premultiplied colour, fold it
+// into the accumulation buffer (running mean) and compute the convergence residual r_i (paper
+// Eq. divergence): the mean absolute RGB difference between the new displayed colour and the
+// previous running average, both composited over the background as the user sees them.
+#include <cstdint>
+
+#include "Render/RayState.h"
+
+namespace inr {
+
+struct AccumulationView {
+  Vec4f* accum = nullptr;               // running mean of premultiplied RGBA (alpha = coverage)
+  std::uint32_t* sampleCount = nullptr;  // frames accumulated per pixel
+  float* residual = nullptr;            // r_i of the last frame that rendered the pixel
+};
+
+// This frame's estimate for pixel i: premultiplied emission of the real collision, shaded by the
+// light's visibility when shadows are on; (0,0,0,0) when the ray escaped.
+INR_HD Vec4f frameEstimate(const FrameConstants& fc, const RayStateView& rs, int i) {
+  Vec4f c = rs.radiance[i];
+  if ((rs.flags[i] & kRayHit) && fc.shadows) {
+    const float shade = fc.ambient + (1.f - fc.ambient) * rs.visibility[i];
+    c.x *= shade;
+    c.y *= shade;
+    c.z *= shade;
+  }
+  return c;
+}
+
+INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
+  return Vec3f{c.x + (1.f - c.w) * bg.x, c.y + (1.f - c.w) * bg.y, c.z + (1.f - c.w) * bg.z};
+}
+
+INR_HD void finalizePixel(const FrameConstants& fc, const RayStateView& rs,
+                          const AccumulationView& acc, int i) {
+  const Vec4f c = frameEstimate(fc, rs, i);
+  const std::uint32_t n = acc.sampleCount[i];
+  const Vec4f prev = acc.accum[i];
+  if (n == 0) {
+    acc.residual[i] = 1.f;  // nothing to compare with: maximally unstable
+    acc.accum[i] = c;
+  } else {
+    const Vec3f a = overBackground(c, fc.background), b = overBackground(prev, fc.background);
+    const float r = (fabsf(a.x - b.x) + fabsf(a.y - b.y) + fabsf(a.z - b.z)) * (1.f / 3.f);
+    acc.residual[i] = clampf(r, 0.f, 1.f);
+    const float w = 1.f / float(n + 1);
+    acc.accum[i] = Vec4f{prev.x + (c.x - prev.x) * w, prev.y + (c.y - prev.y) * w,
+                         prev.z + (c.z - prev.z) * w, prev.w + (c.w - prev.w) * w};
+  }
+  acc.sampleCount[i] = n + 1;
+}
+
+}  // namespace inr

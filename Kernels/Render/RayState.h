@@ -1,0 +1,76 @@
+#pragma once
+// Persistent per-ray state (the paper's TraversalState) and the per-frame constants every stage
+// reads. Struct-of-arrays: each stage touches only the fields it needs (the evaluation scatter
+// writes `sample` only, finalisation reads `radiance`/`visibility`/`flags` only), and on the
+// GPU consecutive lanes then read consecutive words. Host objects own the arrays; the stages see
+// plain pointers through RayStateView, so the same INR_HD stage functions run on CPU and GPU.
+//
+// Ray i is the ray of pixel i (row-major, row 0 at the top); budgeting schemes that skip pixels
+// simply leave a pixel's ray inactive.
+#include <cstdint>
+
+#include "Render/CameraView.h"
+#include "Render/MajorantGrid.h"
+#include "Render/RenderMath.h"
+#include "Render/TransferFunctionTable.h"
+
+namespace inr {
+
+enum RayFlag : std::uint8_t {
+  kRayActive = 1u << 0,     // still traversing (primary or shadow)
+  kRayPending = 1u << 1,    // a candidate collision waits for its INR query
+  kRayHit = 1u << 2,        // the primary ray had a real collision (radiance holds its colour)
+  kRayShadow = 1u << 3,     // the ray is currently a shadow ray towards the light
+  kRayBadSample = 1u << 4,  // the evaluator returned NaN/Inf for the pending query
+};
+
+enum class ShadowEstimator : int {
+  Delta = 0,  // binary visibility: stop at the first real collision (fewest queries)
+  Ratio = 1,  // transmittance product over all tentative collisions (less noise, more queries)
+};
+
+struct RayStateView {
+  int count = 0;
+  Vec3f* origin = nullptr;
+  Vec3f* direction = nullptr;  // unit length: ray parameters are world distances
+  float* t = nullptr;          // current position (candidate collision while pending)
+  float* tEnd = nullptr;       // end of the segment: box exit, depth limit or light exit
+  std::uint32_t* rngCounter = nullptr;  // draw index of the ray's counter-based stream
+  std::uint8_t* flags = nullptr;
+  // Scalar returned by the evaluator for the pending query; NaN while the query is pending.
+  float* sample = nullptr;
+  // Delta tracking: xi * majorant, drawn when the candidate is emitted, so the acceptance test
+  // after evaluation is `collisionProduct < sigma(sample)` and neither xi nor the majorant has
+  // to be stored. Ratio-tracked shadow rays store the majorant itself.
+  float* collisionProduct = nullptr;
+  Int3* cell = nullptr;    // DDA: current majorant cell
+  Vec3f* tNext = nullptr;  // DDA: ray parameter of the next crossing per axis
+  // Frame result: premultiplied colour of the primary collision (rgb) and coverage (w = 1 on a
+  // real collision, 0 when the ray escaped), and visibility towards the light.
+  Vec4f* radiance = nullptr;
+  float* visibility = nullptr;
+};
+
+// Everything the stages read that is constant for one frame.
+struct FrameConstants {
+  CameraView camera;
+  Box3f box;                          // the model's world box
+  const float* depthLimit = nullptr;  // per pixel ray distance to opaque geometry, or null
+  float time = 0.f;                   // world time of every query
+  std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)
+  int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing)
+  int shadows = 0;
+  float ambient = 0.2f;               // shading = ambient + (1 - ambient) * visibility
+  Vec3f toLight{0.f, 0.f, 1.f};       // unit vector towards the (directional) light
+  Vec3f background{0.f, 0.f, 0.f};
+  ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+};
+
+// What traversal tracks against: the majorant grid and the transfer function. Ghost passes swap
+// in their own pair over the same macrocell bounds.
+struct TrackingMedium {
+  MajorantGridView grid;
+  TransferFunctionView tf;
+};
+
+}  // namespace inr

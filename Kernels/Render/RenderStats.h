@@ -1,0 +1,28 @@
+#pragma once
+// Per-frame statistics every renderer reports (CLI, benchmarks, plugin status line).
+#include <cstddef>
+#include <string>
+
+namespace inr {
+
+struct FrameStats {
+  std::string method;          // "delta", "naive", "raymarch", "ghost"
+  int frame = 0;               // accumulation index of this frame (0 = first)
+  std::size_t pixels = 0;
+  std::size_t rays = 0;        // primary rays that entered the volume
+  std::size_t queries = 0;     // primary-ray INR queries
+  int iterations = 0;          // primary traverse-evaluate iterations (evaluation batches)
+  std::size_t shadowRays = 0;
+  std::size_t shadowQueries = 0;
+  int shadowIterations = 0;
+  std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
+  // Milliseconds per stage. `updateMs`: majorant/working-grid updates done before the frame.
+  double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
+         shadowEvaluateMs = 0, finalizeMs = 0, totalMs = 0;
+
+  std::size_t totalQueries() const { return queries + shadowQueries; }
+  // Sums counts and times (for run totals); keeps the later frame index.
+  FrameStats& operator+=(const FrameStats& o);
+};
+
+}  // namespace inr

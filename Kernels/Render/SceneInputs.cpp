@@ -1,0 +1,288 @@
+#include "Render/SceneInputs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+namespace inr {
+
+// ---------------------------------------------------------------- camera
+
+Camera Camera::framing(const Box3f& box, double viewAngleDegrees) {
+  Camera c;
+  const double cx = 0.5 * (double(box.lo.x) + box.hi.x), cy = 0.5 * (double(box.lo.y) + box.hi.y),
+               cz = 0.5 * (double(box.lo.z) + box.hi.z);
+  const double hx = 0.5 * (double(box.hi.x) - box.lo.x), hy = 0.5 * (double(box.hi.y) - box.lo.y),
+               hz = 0.5 * (double(box.hi.z) - box.lo.z);
+  const double radius = std::sqrt(hx * hx + hy * hy + hz * hz);
+  const double pi = 3.14159265358979323846;
+  const double distance = radius / std::sin(0.5 * viewAngleDegrees * pi / 180.0);
+  c.focalPoint = {cx, cy, cz};
+  c.position = {cx, cy, cz + distance};
+  c.viewUp = {0, 1, 0};
+  c.viewAngle = viewAngleDegrees;
+  c.parallelScale = radius;
+  return c;
+}
+
+CameraView Camera::view(int width, int height) const {
+  if (width <= 0 || height <= 0) throw std::invalid_argument("camera: image size must be positive");
+  const Vec3f pos{float(position[0]), float(position[1]), float(position[2])};
+  const Vec3f focal{float(focalPoint[0]), float(focalPoint[1]), float(focalPoint[2])};
+  const Vec3f upHint{float(viewUp[0]), float(viewUp[1]), float(viewUp[2])};
+  const Vec3f toFocal = focal - pos;
+  if (!(length(toFocal) > 0.f)) throw std::invalid_argument("camera: position equals focal point");
+  CameraView v{};
+  v.forward = normalize(toFocal);
+  const Vec3f r = cross(v.forward, upHint);
+  if (!(length(r) > 1e-6f * length(upHint))) {
+    throw std::invalid_argument("camera: view-up is parallel to the view direction (or zero)");
+  }
+  v.right = normalize(r);
+  v.up = cross(v.right, v.forward);
+  v.position = pos;
+  if (parallelProjection) {
+    if (!(parallelScale > 0.0)) throw std::invalid_argument("camera: parallel scale must be > 0");
+    v.halfHeight = float(parallelScale);
+  } else {
+    if (!(viewAngle > 0.0 && viewAngle < 180.0)) {
+      throw std::invalid_argument("camera: view angle must be in (0, 180) degrees");
+    }
+    v.halfHeight = float(std::tan(0.5 * viewAngle * 3.14159265358979323846 / 180.0));
+  }
+  v.aspect = float(width) / float(height);
+  v.width = width;
+  v.height = height;
+  v.parallel = parallelProjection ? 1 : 0;
+  return v;
+}
+
+std::array<double, 3> defaultLightDirection(const Camera& camera) {
+  const CameraView v = camera.view(1, 1);
+  const Vec3f d = normalize(v.forward * -1.f + v.up * 0.8f + v.right * -0.5f);
+  return {d.x, d.y, d.z};
+}
+
+// ---------------------------------------------------------------- transfer function
+
+namespace {
+
+double piecewiseSegment(double s, double y1, double y2, double midpoint, double sharpness) {
+  // vtkPiecewiseFunction's node semantics: the midpoint moves where the value is halfway, the
+  // sharpness blends from linear (0) through a Hermite curve to a step (1).
+  midpoint = std::clamp(midpoint, 0.00001, 0.99999);
+  s = s < midpoint ? 0.5 * s / midpoint : 0.5 + 0.5 * (s - midpoint) / (1.0 - midpoint);
+  if (sharpness > 0.99) return s < 0.5 ? y1 : y2;
+  if (sharpness < 0.01) return (1.0 - s) * y1 + s * y2;
+  if (s < 0.5) {
+    s = 0.5 * std::pow(s * 2.0, 1.0 + 10.0 * sharpness);
+  } else if (s > 0.5) {
+    s = 1.0 - 0.5 * std::pow((1.0 - s) * 2.0, 1.0 + 10.0 * sharpness);
+  }
+  const double ss = s * s, sss = ss * s;
+  const double h1 = 2 * sss - 3 * ss + 1, h2 = -2 * sss + 3 * ss, h3 = sss - 2 * ss + s,
+               h4 = sss - ss;
+  const double tangent = (1.0 - sharpness) * (y2 - y1);
+  const double v = h1 * y1 + h2 * y2 + h3 * tangent + h4 * tangent;
+  return std::clamp(v, std::min(y1, y2), std::max(y1, y2));
+}
+
+std::vector<double> numberArray(const nlohmann::json& j, const char* key, std::size_t tuple,
+                                const std::string& label) {
+  const auto& a = j.at(key);
+  if (!a.is_array()) throw std::runtime_error(label + ": '" + key + "' must be an array of numbers");
+  std::vector<double> v;
+  for (const auto& e : a) {
+    if (!e.is_number()) throw std::runtime_error(label + ": '" + key + "' must hold numbers only");
+    v.push_back(e.get<double>());
+    if (!std::isfinite(v.back())) throw std::runtime_error(label + ": '" + key + "' holds NaN/Inf");
+  }
+  if (v.empty() || v.size() % tuple != 0) {
+    throw std::runtime_error(label + ": '" + key + "' must hold groups of " + std::to_string(tuple) +
+                             " numbers, found " + std::to_string(v.size()));
+  }
+  return v;
+}
+
+}  // namespace
+
+TransferFunction TransferFunction::fromParaViewJsonFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open transfer function file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return fromParaViewJson(ss.str(), path);
+}
+
+TransferFunction TransferFunction::fromParaViewJson(const std::string& text,
+                                                    const std::string& label) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(label + ": not valid JSON (" + e.what() + ")");
+  }
+  if (j.is_array()) {
+    if (j.empty()) throw std::runtime_error(label + ": empty preset list");
+    j = j[0];  // ParaView exports a list of presets; the first one is the colour map
+  }
+  if (!j.is_object() || !j.contains("RGBPoints")) {
+    throw std::runtime_error(label + ": expected a ParaView colour map with 'RGBPoints'");
+  }
+  TransferFunction tf;
+  const auto rgb = numberArray(j, "RGBPoints", 4, label);
+  for (std::size_t i = 0; i < rgb.size(); i += 4) tf.color.push_back({rgb[i], rgb[i + 1], rgb[i + 2], rgb[i + 3]});
+  if (j.contains("Points")) {
+    const auto pts = numberArray(j, "Points", 4, label);
+    for (std::size_t i = 0; i < pts.size(); i += 4) {
+      if (pts[i + 1] < 0.0 || pts[i + 1] > 1.0) {
+        throw std::runtime_error(label + ": opacity " + std::to_string(pts[i + 1]) +
+                                 " in 'Points' is outside [0, 1]");
+      }
+      tf.opacity.push_back({pts[i], pts[i + 1], pts[i + 2], pts[i + 3]});
+    }
+  } else {
+    const auto r = tf.range();
+    tf.opacity = {{r[0], 0.0}, {r[1], 1.0}};
+  }
+  if (j.contains("ColorSpace") && j["ColorSpace"].is_string()) tf.colorSpace = j["ColorSpace"];
+  auto byX = [](const auto& a, const auto& b) { return a.x < b.x; };
+  std::stable_sort(tf.color.begin(), tf.color.end(), byX);
+  std::stable_sort(tf.opacity.begin(), tf.opacity.end(), byX);
+  return tf;
+}
+
+TransferFunction TransferFunction::preset(double lo, double hi, double maxOpacity) {
+  TransferFunction tf;
+  const double mid = 0.5 * (lo + hi);
+  // ParaView's "Cool to Warm" end and centre colours (interpolated in RGB here).
+  tf.color = {{lo, 0.231, 0.298, 0.753}, {mid, 0.865, 0.865, 0.865}, {hi, 0.706, 0.016, 0.150}};
+  tf.opacity = {{lo, 0.0}, {hi, maxOpacity}};
+  return tf;
+}
+
+TransferFunction TransferFunction::transparent(double lo, double hi) {
+  TransferFunction tf = preset(lo, hi);
+  tf.opacity = {{lo, 0.0}, {hi, 0.0}};
+  return tf;
+}
+
+TransferFunction TransferFunction::cosineBump(double lo, double hi, double centre,
+                                              double halfWidth, double peakOpacity) {
+  TransferFunction tf;
+  tf.color = {{lo, 1, 1, 1}, {hi, 1, 1, 1}};
+  const int n = 17;  // samples of the bump; the table interpolates between them
+  const double pi = 3.14159265358979323846;
+  tf.opacity.push_back({std::min(lo, centre - halfWidth) - 1e-6, 0.0});
+  for (int k = 0; k < n; ++k) {
+    const double u = -1.0 + 2.0 * k / (n - 1);
+    tf.opacity.push_back({centre + u * halfWidth, peakOpacity * 0.5 * (1.0 + std::cos(pi * u))});
+  }
+  tf.opacity.push_back({std::max(hi, centre + halfWidth) + 1e-6, 0.0});
+  return tf;
+}
+
+void TransferFunction::rescale(double lo, double hi) {
+  const auto r = range();
+  const double span = r[1] - r[0];
+  auto map = [&](double x) { return span > 0 ? lo + (x - r[0]) / span * (hi - lo) : lo; };
+  for (auto& p : color) p.x = map(p.x);
+  for (auto& p : opacity) p.x = map(p.x);
+}
+
+std::array<double, 2> TransferFunction::range() const {
+  double lo = INFINITY, hi = -INFINITY;
+  for (const auto& p : color) lo = std::min(lo, p.x), hi = std::max(hi, p.x);
+  for (const auto& p : opacity) lo = std::min(lo, p.x), hi = std::max(hi, p.x);
+  if (!(lo <= hi)) return {0.0, 1.0};
+  return {lo, hi};
+}
+
+std::string TransferFunction::colorSpaceWarning() const {
+  if (colorSpace == "RGB" || color.size() < 2) return {};
+  return "colour space '" + colorSpace +
+         "' is interpolated in RGB (only RGB is implemented); colours between points may differ "
+         "from ParaView's";
+}
+
+double TransferFunction::opacityAt(double x) const {
+  if (opacity.empty()) return 0.0;
+  if (x <= opacity.front().x) return opacity.front().alpha;
+  if (x >= opacity.back().x) return opacity.back().alpha;
+  for (std::size_t k = 1; k < opacity.size(); ++k) {
+    if (x <= opacity[k].x) {
+      const auto& a = opacity[k - 1];
+      const auto& b = opacity[k];
+      if (b.x <= a.x) return b.alpha;
+      return piecewiseSegment((x - a.x) / (b.x - a.x), a.alpha, b.alpha, a.midpoint, a.sharpness);
+    }
+  }
+  return opacity.back().alpha;
+}
+
+std::array<double, 3> TransferFunction::colorAt(double x) const {
+  if (color.empty()) return {1, 1, 1};
+  auto rgb = [](const ColorPoint& p) { return std::array<double, 3>{p.r, p.g, p.b}; };
+  if (x <= color.front().x) return rgb(color.front());
+  if (x >= color.back().x) return rgb(color.back());
+  for (std::size_t k = 1; k < color.size(); ++k) {
+    if (x <= color[k].x) {
+      const auto& a = color[k - 1];
+      const auto& b = color[k];
+      const double f = b.x > a.x ? (x - a.x) / (b.x - a.x) : 1.0;
+      return {a.r + f * (b.r - a.r), a.g + f * (b.g - a.g), a.b + f * (b.b - a.b)};
+    }
+  }
+  return rgb(color.back());
+}
+
+TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int size) {
+  if (size < 2) throw std::invalid_argument("transfer function table needs >= 2 entries");
+  if (!(tf.unitDistance > 0.0)) {
+    throw std::invalid_argument("scalar opacity unit distance must be > 0");
+  }
+  const auto r = tf.range();
+  size_ = size;
+  lo_ = float(r[0]);
+  hi_ = float(r[1]);
+  if (!(hi_ > lo_)) hi_ = lo_ + 1.f;  // a single point: constant function, any span works
+  invUnitDistance_ = float(1.0 / tf.unitDistance);
+  rgba_.resize(size);
+  for (int i = 0; i < size; ++i) {
+    const double x = double(lo_) + (double(hi_) - lo_) * i / (size - 1);
+    const auto c = tf.colorAt(x);
+    const float a = float(std::clamp(tf.opacityAt(x), 0.0, 1.0));
+    rgba_[i] = Vec4f{float(c[0]), float(c[1]), float(c[2]), a};
+    maxOpacity_ = std::max(maxOpacity_, a);
+  }
+  // Sparse table: level L holds max over [i, i + 2^L) (clamped at the end).
+  levels_ = floorLog2(unsigned(size)) + 1;
+  opacityMax_.resize(std::size_t(levels_) * size);
+  for (int i = 0; i < size; ++i) opacityMax_[i] = rgba_[i].w;
+  for (int L = 1; L < levels_; ++L) {
+    const int half = 1 << (L - 1);
+    for (int i = 0; i < size; ++i) {
+      const float a = opacityMax_[std::size_t(L - 1) * size + i];
+      const float b = opacityMax_[std::size_t(L - 1) * size + std::min(i + half, size - 1)];
+      opacityMax_[std::size_t(L) * size + i] = std::max(a, b);
+    }
+  }
+}
+
+TransferFunctionView TransferFunctionTable::view() const {
+  TransferFunctionView v;
+  v.rgba = rgba_.data();
+  v.opacityMax = opacityMax_.data();
+  v.size = size_;
+  v.levels = levels_;
+  v.lo = lo_;
+  v.hi = hi_;
+  v.invUnitDistance = invUnitDistance_;
+  return v;
+}
+
+}  // namespace inr

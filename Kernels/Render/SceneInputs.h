@@ -1,0 +1,115 @@
+#pragma once
+// Host-side scene inputs shared by every renderer (delta tracking, naive, ray marching): a camera
+// with VTK's conventions, a transfer function with VTK's semantics, the light, the background and
+// an optional depth limit. The renderers turn them into the device-facing views.
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "Render/CameraView.h"
+#include "Render/RayState.h"
+#include "Render/TransferFunctionTable.h"
+
+namespace inr {
+
+// A vtkCamera's parameters. The view plane normal is position - focal point; the vertical view
+// angle is in degrees (VTK's default 30); parallel projection shows 2 * parallelScale world units
+// vertically.
+struct Camera {
+  std::array<double, 3> position{0, 0, 1};
+  std::array<double, 3> focalPoint{0, 0, 0};
+  std::array<double, 3> viewUp{0, 1, 0};
+  double viewAngle = 30.0;
+  bool parallelProjection = false;
+  double parallelScale = 1.0;
+
+  // vtkRenderer::ResetCamera's framing of a box from the default direction (+z, up +y): focal
+  // point at the centre, the bounding sphere exactly filling the view angle.
+  static Camera framing(const Box3f& box, double viewAngleDegrees = 30.0);
+  // Throws std::invalid_argument when degenerate (coincident points, up parallel to the view).
+  CameraView view(int width, int height) const;
+};
+
+// Piecewise-linear colour and scalar-opacity functions (vtkColorTransferFunction and
+// vtkPiecewiseFunction), over scalar values. Opacity is per `unitDistance` (VTK's scalar opacity
+// unit distance, in world units).
+struct TransferFunction {
+  struct ColorPoint {
+    double x, r, g, b;
+  };
+  struct OpacityPoint {
+    double x, alpha, midpoint = 0.5, sharpness = 0.0;  // vtkPiecewiseFunction node semantics
+  };
+  std::vector<ColorPoint> color;
+  std::vector<OpacityPoint> opacity;
+  double unitDistance = 1.0;
+  // ParaView's "ColorSpace" (RGB, Lab, Diverging, HSV...). Only RGB interpolation is
+  // implemented; others are interpolated in RGB and `colorSpaceWarning` says so.
+  std::string colorSpace = "RGB";
+
+  // ParaView's exported colour-map JSON (a list with one preset, or the preset object): keys
+  // `RGBPoints` (x r g b ...), `Points` (x alpha midpoint sharpness ...), `ColorSpace`. Without
+  // `Points` the opacity is a linear ramp 0..1 over the colour range (ParaView's default).
+  // Throws std::runtime_error naming the file and the problem.
+  static TransferFunction fromParaViewJsonFile(const std::string& path);
+  static TransferFunction fromParaViewJson(const std::string& text, const std::string& label);
+  // Our default: a cool-to-warm colour ramp with a linear opacity ramp 0..maxOpacity over [lo, hi].
+  static TransferFunction preset(double lo, double hi, double maxOpacity = 1.0);
+  // A transfer function with zero opacity everywhere (renders the background, costs no queries).
+  static TransferFunction transparent(double lo, double hi);
+  // Ghost-pass TF: a cosine bump of opacity centred at `centre` with half-width `halfWidth`.
+  static TransferFunction cosineBump(double lo, double hi, double centre, double halfWidth,
+                                     double peakOpacity);
+
+  // Maps the points linearly so their range becomes [lo, hi] (ParaView's "rescale").
+  void rescale(double lo, double hi);
+  // Scalar range covered by the points (colour and opacity together).
+  std::array<double, 2> range() const;
+  std::string colorSpaceWarning() const;  // empty when the colour space is interpolated exactly
+  double opacityAt(double x) const;       // the piecewise (midpoint/sharpness) function
+  std::array<double, 3> colorAt(double x) const;
+};
+
+// Host owner of a TransferFunctionView: the sampled table and its range-max levels. Building it
+// is the whole cost of a TF edit besides the majorant update.
+class TransferFunctionTable {
+public:
+  explicit TransferFunctionTable(const TransferFunction& tf, int size = 1024);
+  TransferFunctionView view() const;
+  float maxOpacity() const { return maxOpacity_; }
+
+private:
+  std::vector<Vec4f> rgba_;
+  std::vector<float> opacityMax_;
+  int size_ = 0, levels_ = 0;
+  float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
+};
+
+// Everything that defines the picture, shared by all renderers. Changing the camera, light,
+// background, depth limit or shadow settings restarts accumulation; changing the transfer
+// function also recomputes the majorants; changing the time rebuilds the working grid.
+struct RenderScene {
+  Camera camera;
+  TransferFunction transferFunction;
+  std::array<float, 3> background{0.f, 0.f, 0.f};
+  double time = 0.0;
+  // Per-pixel depth limit (row-major, row 0 at the top): world distance along each pixel's ray
+  // (from its origin, unit direction) to the first opaque surface. Empty = none.
+  std::vector<float> depthLimit;
+  bool shadows = false;
+  std::array<double, 3> toLight{0.0, 0.0, 1.0};  // direction towards the directional light
+  float ambient = 0.2f;  // with shadows: emission * (ambient + (1 - ambient) * visibility)
+  ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+};
+
+struct RenderSettings {
+  int width = 256, height = 256;
+  std::uint32_t seed = 1;
+  bool pixelJitter = true;  // sub-pixel jitter per frame (antialiasing through accumulation)
+};
+
+// A light direction that looks good for most views: from above-left-behind the camera.
+std::array<double, 3> defaultLightDirection(const Camera& camera);
+
+}  // namespace inr

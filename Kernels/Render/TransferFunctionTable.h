@@ -1,0 +1,78 @@
+#pragma once
+// The transfer function as the per-ray code sees it: a table of colour and opacity sampled
+// uniformly over [lo, hi] and interpolated linearly (the way VTK's volume mappers sample their
+// transfer functions into a texture), plus a range-max table (sparse table of opacity maxima) so
+// that the maximum extinction over any scalar interval is O(1) — which is what majorants need.
+//
+// Optical model (VTK semantics): the table holds opacity alpha "per scalar opacity unit
+// distance" u; the extinction coefficient is sigma = -ln(1 - alpha) / u, so a slab of thickness
+// u has opacity alpha, exactly VTK's opacity correction 1 - (1 - alpha)^(ds / u) in the limit.
+// Emission is the colour: L = integral T(s) sigma(s) c(s) ds + T_total * background.
+// Scalars outside [lo, hi] clamp to the end entries (VTK's default clamping).
+#include <cstdint>
+
+#include "Render/RenderMath.h"
+
+namespace inr {
+
+// Opacity 1 would make sigma infinite; VTK shows it as "opaque at the first sample". We clamp
+// alpha to this, i.e. sigma <= 11.5 / u: the medium is 99.999% opaque after one unit distance.
+constexpr float kMaxTableOpacity = 0.99999f;
+
+struct TransferFunctionView {
+  const Vec4f* rgba = nullptr;      // size entries: colour (x,y,z) and opacity (w)
+  const float* opacityMax = nullptr;  // levels * size: level L, entry i = max opacity of [i, i + 2^L)
+  int size = 0;
+  int levels = 0;
+  float lo = 0.f, hi = 1.f;          // scalar range the table spans
+  float invUnitDistance = 1.f;       // 1 / u
+};
+
+INR_HD float opacityToExtinction(float alpha, float invUnitDistance) {
+  const float a = clampf(alpha, 0.f, kMaxTableOpacity);
+  return -log1pf(-a) * invUnitDistance;
+}
+
+// Continuous table coordinate of scalar s, clamped to [0, size - 1].
+INR_HD float tableCoordinate(const TransferFunctionView& tf, float s) {
+  const float x = (s - tf.lo) / (tf.hi - tf.lo) * float(tf.size - 1);
+  if (!(x > 0.f)) return 0.f;  // also maps NaN to the low end rather than into the index math
+  return minf(x, float(tf.size - 1));
+}
+
+INR_HD Vec4f lookupTransferFunction(const TransferFunctionView& tf, float s) {
+  const float x = tableCoordinate(tf, s);
+  int i = int(x);
+  if (i > tf.size - 2) i = tf.size - 2;
+  if (i < 0) i = 0;
+  const float f = x - float(i);
+  const Vec4f a = tf.rgba[i], b = tf.rgba[i + 1];
+  return Vec4f{a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.z + (b.z - a.z) * f,
+               a.w + (b.w - a.w) * f};
+}
+
+INR_HD float extinctionAt(const TransferFunctionView& tf, float s) {
+  return opacityToExtinction(lookupTransferFunction(tf, s).w, tf.invUnitDistance);
+}
+
+INR_HD int floorLog2(unsigned v) {
+  int r = 0;
+  while (v >>= 1) ++r;
+  return r;
+}
+
+// Maximum extinction the TF assigns to any scalar in [sMin, sMax]. Conservative: the table is
+// linear between entries, so the maximum over the covering entries bounds it exactly.
+INR_HD float maxExtinctionOver(const TransferFunctionView& tf, float sMin, float sMax) {
+  if (!(sMin <= sMax)) return 0.f;  // empty (or NaN) range: nothing to bound
+  int i0 = int(floorf(tableCoordinate(tf, sMin)));
+  int i1 = int(ceilf(tableCoordinate(tf, sMax)));
+  i0 = clampi(i0, 0, tf.size - 1);
+  i1 = clampi(i1, i0, tf.size - 1);
+  const int level = floorLog2(unsigned(i1 - i0 + 1));
+  const float* row = tf.opacityMax + level * tf.size;
+  const float alpha = maxf(row[i0], row[i1 - (1 << level) + 1]);
+  return opacityToExtinction(alpha, tf.invUnitDistance);
+}
+
+}  // namespace inr
