@@ -84,3 +84,14 @@ function(inr_add_gtest)
     INR_TEST_DATA_DIR="${PROJECT_SOURCE_DIR}/Testing/Data")
   gtest_discover_tests(${T_NAME} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${T_LABELS}")
 endfunction()
+
+# CPU code (the Eigen evaluator, the CPU backend) is built for the machine that builds it: AVX2/FMA
+# roughly double the evaluator's throughput. Turn off for binaries that must run elsewhere.
+option(INR_NATIVE_ARCH "Compile CPU code with -march=native" ON)
+if(INR_NATIVE_ARCH)
+  include(CheckCXXCompilerFlag)
+  check_cxx_compiler_flag(-march=native INR_HAS_MARCH_NATIVE)
+  if(INR_HAS_MARCH_NATIVE)
+    add_compile_options($<$<COMPILE_LANGUAGE:CXX>:-march=native>)
+  endif()
+endif()
