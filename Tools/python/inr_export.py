@@ -228,7 +228,7 @@ def _act(name, w0):
 # ---------------------------------------------------------------------------- layouts
 def _siren_notebook(K, o):
     layers, width, i = [], None, 0
-    while K.has("net.%d.linear.weight" % i):
+    while K.has("net.%d.linear.weight" % i) or K.has("net.%d.linear.bias" % i):
         lin, width = K.linear("net.%d.linear.weight" % i, "net.%d.linear.bias" % i, width)
         if i == 0:
             in_dim = K.raw_shape("net.0.linear.weight")[1]
@@ -251,7 +251,7 @@ def _siren_modules(K, o):
         K.linear("net.net.0.0.weight", None, None)  # raises "missing key"
     layers, width, i = [], None, 0
     in_dim = K.raw_shape(p + "0.0.weight")[1]
-    while K.has("%s%d.0.weight" % (p, i)):
+    while K.has("%s%d.0.weight" % (p, i)) or K.has("%s%d.0.bias" % (p, i)):
         if i > 0:
             layers += _act(o.nonlinearity, o.w0 if i > 1 else o.first_w0)
         lin, width = K.linear("%s%d.0.weight" % (p, i), "%s%d.0.bias" % (p, i), width)
@@ -267,7 +267,7 @@ def _coordnet(K, o):
     relu = K.has("net.0.net.2.linear.weight")
     layers, width, i = [], None, 0
     in_dim = None
-    while K.has("net.%d.net.0.linear.weight" % i):
+    while K.has("net.%d.net.0.linear.weight" % i) or K.has("net.%d.net.0.linear.bias" % i):
         p = "net.%d." % i
         if in_dim is None:
             in_dim = K.raw_shape(p + "net.0.linear.weight")[1]
@@ -308,8 +308,9 @@ def _coordnet(K, o):
 
 def _neurcomp(K, o):
     n = 0
-    while any(K.has("net_layers.%d.%s" % (n, s))
-              for s in ("linear.weight", "linear_1.weight", "weight")):
+    while any(K.has("net_layers.%d.%s" % (n, s)) for s in (
+            "linear.weight", "linear.bias", "linear_1.weight", "linear_1.bias", "linear_2.weight",
+            "weight", "bias")):
         n += 1
     if n == 0:
         K.linear("net_layers.0.linear.weight", None, None)  # raises "missing key"
@@ -322,10 +323,10 @@ def _neurcomp(K, o):
         if i == n - 1:
             lin, width = K.linear(p + "weight", p + "bias", width)
             layers.append(lin)
-        elif K.has(p + "linear.weight"):
+        elif K.has(p + "linear.weight") or K.has(p + "linear.bias"):
             lin, width = K.linear(p + "linear.weight", p + "linear.bias", width)
             layers += [lin, {"type": "sine", "w0": float(o.first_w0 if i == 0 else o.w0)}]
-        elif K.has(p + "linear_1.weight"):
+        elif any(K.has(p + k) for k in ("linear_1.weight", "linear_1.bias", "linear_2.weight")):
             if i == 0:
                 raise ExportError("%s: key %r: the first neurcomp layer must be a SineLayer "
                                   "(net_layers.0.linear.*)" % (K.where, p + "linear_1.weight"))

@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""Exporter error cases: each bad input must make Tools/python/inr_export.py exit non-zero
+with a message that names the offending file and key (or option), and leave no output file.
+
+    test_export_errors.py
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import inr_test_util as U
+
+torch = U.require_torch()
+import inr_torch_layouts as L  # noqa: E402
+
+
+def export(args):
+    cmd = [sys.executable, os.path.join(U.TOOLS, "inr_export.py")] + args
+    r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       universal_newlines=True)
+    return r.returncode, r.stderr.strip()
+
+
+def main():
+    torch.manual_seed(0)
+    ok_all = True
+    with tempfile.TemporaryDirectory() as tmp:
+        def save(sd, name):
+            p = os.path.join(tmp, name)
+            torch.save(sd, p)
+            return p
+
+        siren = L.SirenNotebook(4, 16, 1).state_dict()
+        coord = L.CoordNet(4, 1, 8, 1).state_dict()
+        neur = L.NeurcompFieldNet(3, [12] * 3).state_dict()
+        reed = L.ReedFFN(3, 8, 1.0).state_dict()
+
+        sd = dict(siren)
+        del sd["net.1.linear.weight"]
+        p_siren_missing = save(sd, "siren_missing.pth")
+        sd = dict(siren)
+        sd["net.1.linear.weight"] = torch.zeros(16, 15)
+        p_siren_shape = save(sd, "siren_shape.pth")
+        sd = dict(coord)
+        del sd["net.0.transform.linear.weight"]
+        del sd["net.0.transform.linear.bias"]
+        p_coord_missing = save(sd, "coord_missing.pth")
+        sd = dict(neur)
+        del sd["net_layers.2.linear_2.weight"]
+        p_neur_missing = save(sd, "neur_missing.pth")
+        sd = dict(neur)
+        sd["net_layers.1.linear_1.bias"] = torch.zeros(11)
+        p_neur_shape = save(sd, "neur_shape.pth")
+        p_reed = save(reed, "reed.pth")
+        bad_b = os.path.join(tmp, "badB.npy")
+        import numpy as np
+        np.save(bad_b, np.zeros((3, 5), np.float32))
+        sd = dict(siren)
+        sd["net.0.linear.bias"] = sd["net.0.linear.bias"].clone()
+        sd["net.0.linear.bias"][3] = float("nan")
+        p_nan = save(sd, "siren_nan.pth")
+        sd = dict(siren)
+        sd["extra.weight"] = torch.zeros(3)
+        p_extra = save(sd, "siren_extra.pth")
+        two = L.SirenNotebook(4, 16, 1, out_features=2).state_dict()
+        p_two = save(two, "siren_two_outputs.pth")
+        p_siren = save(siren, "siren_ok.pth")
+        spec = os.path.join(tmp, "spec.json")
+        with open(spec, "w") as f:
+            json.dump({"layers": [{"type": "linear", "weight": "net.0.linear.weight",
+                                   "bias": "net.0.linear.bias"}, {"type": "sine"},
+                                  {"type": "linear", "weight": "net.9.weight",
+                                   "bias": None}]}, f)
+        table = os.path.join(tmp, "table.txt")
+        with open(table, "w") as f:
+            f.write("0 0 1\n5 0 1\n3 0 1\n")
+        p_coord = save(coord, "coord_ok.pth")
+
+        out = os.path.join(tmp, "out.inr")
+        # (name, args, strings that must appear in the message)
+        cases = [
+            ("missing key", ["siren-notebook", p_siren_missing, out],
+             ["siren_missing.pth", "'net.1.linear.weight'", "missing"]),
+            ("wrong shape", ["siren-notebook", p_siren_shape, out],
+             ["siren_shape.pth", "'net.1.linear.weight'", "[16, 15]"]),
+            ("coordnet missing transform", ["coordnet", p_coord_missing, out],
+             ["coord_missing.pth", "'net.0.transform.linear.weight'"]),
+            ("neurcomp missing key", ["neurcomp", p_neur_missing, out],
+             ["neur_missing.pth", "'net_layers.2.linear_2.weight'"]),
+            ("neurcomp wrong bias shape", ["neurcomp", p_neur_shape, out],
+             ["neur_shape.pth", "'net_layers.1.linear_1.bias'", "[11]"]),
+            ("wrong layout", ["coordnet", p_siren, out],
+             ["siren_ok.pth", "'net.0.net.0.linear.weight'"]),
+            ("reed without B", ["reed-ffn", p_reed, out], ["reed.pth", "--fourier-B"]),
+            ("reed bad B", ["reed-ffn", p_reed, out, "--fourier-B", bad_b],
+             ["badB.npy", "[3, 5]"]),
+            ("NaN weight", ["siren-notebook", p_nan, out],
+             ["siren_nan.pth", "'net.0.linear.bias'", "NaN"]),
+            ("extra key", ["siren-notebook", p_extra, out], ["siren_extra.pth", "'extra.weight'"]),
+            ("two outputs", ["siren-notebook", p_two, out], ["siren_two_outputs.pth", "outputs"]),
+            ("generic unknown key", ["generic", p_siren, out, "--layers", spec],
+             ["siren_ok.pth", "'net.9.weight'"]),
+            ("no such file", ["siren-notebook", os.path.join(tmp, "nope.pth"), out],
+             ["nope.pth", "no such file"]),
+            ("bad per-time table", ["coordnet", p_coord, out, "--per-time-table", table],
+             ["table.txt", "increase"]),
+            ("cell without resolution", ["siren-notebook", p_siren, out, "--centering", "cell"],
+             ["--resolution"]),
+            ("empty box", ["siren-notebook", p_siren, out, "--bounds", "0", "1", "0", "1",
+                           "2", "2"], ["--bounds"]),
+            ("input order", ["siren-notebook", p_siren, out, "--input-order", "x,y,t"],
+             ["--input-order"]),
+        ]
+        for name, args, needles in cases:
+            rc, msg = export(args)
+            bad = []
+            if rc == 0:
+                bad.append("exit status 0")
+            bad += ["message lacks %r" % s for s in needles if s not in msg]
+            if os.path.exists(out):
+                bad.append("left %s behind" % out)
+                os.remove(out)
+            print("%s %-28s rc=%d  %s" % ("FAIL" if bad else "ok  ", name, rc,
+                                          msg.splitlines()[-1] if msg else "(no message)"))
+            if bad:
+                print("     " + "; ".join(bad))
+                ok_all = False
+        # and the good inputs do export (so the failures above are about the defects)
+        for name, args in (("good siren", ["siren-notebook", p_siren, out]),
+                           ("good reed", ["reed-ffn", p_reed, out, "--reed-sigma", "1"])):
+            rc, msg = export(args)
+            print("%s %-28s rc=%d" % ("ok  " if rc == 0 else "FAIL", name, rc))
+            if rc != 0:
+                print("     " + msg)
+                ok_all = False
+    return 0 if ok_all else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
