@@ -1,1 +1,289 @@
 #include <gtest/gtest.h>
+
+#include <omp.h>
+
+#include <cmath>
+
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/RayMarcher.h"
+#include "Render/TestFields.h"
+
+namespace inr {
+namespace {
+
+const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+
+MacrocellOptions cells(int n) {
+  MacrocellOptions o;
+  o.dims = Int3{n, n, n};
+  o.temporalSlices = 4;
+  return o;
+}
+
+TransferFunction flatOpacity(double alpha, double unitDistance) {
+  TransferFunction tf;
+  tf.color = {{0, 0.2, 0.6, 1.0}, {1, 0.2, 0.6, 1.0}};
+  tf.opacity = {{0, alpha}, {1, alpha}};
+  tf.unitDistance = unitDistance;
+  return tf;
+}
+
+// Orthographic view down -z through the cube: every ray crosses exactly 2 units of medium.
+Camera topDown() {
+  Camera c = Camera::framing(kBox);
+  c.parallelProjection = true;
+  c.parallelScale = 0.9;
+  return c;
+}
+
+double meanCoverage(const ImageRGBA& premultiplied) {
+  double s = 0;
+  for (int i = 0; i < premultiplied.width * premultiplied.height; ++i) s += premultiplied.data[4 * i + 3];
+  return s / (premultiplied.width * premultiplied.height);
+}
+
+TEST(DeltaTracking, HomogeneousMediumTransmittance) {
+  test::FunctionField f([](const QueryPoint&) { return 0.5f; });
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer r(f, grid);
+  RenderSettings s;
+  s.width = s.height = 48;
+  s.seed = 11;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = topDown();
+  scene.transferFunction = flatOpacity(0.3, 0.5);
+  r.setScene(scene);
+  const int frames = 20;
+  for (int k = 0; k < frames; ++k) r.renderFrame();
+  const double sigma = -std::log(1.0 - 0.3) / 0.5;
+  const double p = 1.0 - std::exp(-sigma * 2.0);  // probability of a real collision
+  const double n = 48.0 * 48.0 * frames;
+  const double bound = 4.0 * std::sqrt(p * (1 - p) / n);
+  const ImageRGBA img = r.premultipliedImage();
+  EXPECT_NEAR(meanCoverage(img), p, bound);
+  EXPECT_NEAR(img.data[4 * 100 + 2] / img.data[4 * 100 + 3], 1.0f, 1e-5);  // emission = colour
+}
+
+TEST(DeltaTracking, PiecewiseMediumUsesLocalMajorants) {
+  // Two slabs with different extinction, cell faces on the interface: transmittance is
+  // exp(-sigma1 - sigma2) for the unit thickness of each.
+  test::FunctionField f([](const QueryPoint& p) { return p.z > 0.f ? 1.0f : 0.25f; });
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer r(f, grid);
+  RenderSettings s;
+  s.width = s.height = 48;
+  s.seed = 5;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = topDown();
+  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
+  scene.transferFunction.unitDistance = 1.0;
+  r.setScene(scene);
+  const int frames = 20;
+  FrameStats total;
+  for (int k = 0; k < frames; ++k) total += r.renderFrame();
+  const double s1 = -std::log(1 - 0.8), s2 = -std::log(1 - 0.2);
+  const double p = 1.0 - std::exp(-s1 - s2);
+  const double n = 48.0 * 48.0 * frames;
+  EXPECT_NEAR(meanCoverage(r.premultipliedImage()), p, 4.0 * std::sqrt(p * (1 - p) / n));
+  // The lattice bounds of each slab are exact, so every candidate is a real collision: at most
+  // one query per ray, one traverse-evaluate iteration per frame.
+  EXPECT_EQ(total.iterations, frames);
+  EXPECT_LE(total.queries, total.rays);
+  EXPECT_GT(total.queries, total.rays / 2);
+  EXPECT_EQ(total.rays, std::size_t(48 * 48 * frames));
+}
+
+struct SceneSetup {
+  RenderSettings settings;
+  RenderScene scene;
+};
+
+SceneSetup smoothScene(int size, bool shadows) {
+  SceneSetup s;
+  s.settings.width = s.settings.height = size;
+  s.settings.seed = 3;
+  s.settings.pixelJitter = false;  // compare the integral per pixel centre
+  s.scene.camera = Camera::framing(kBox);
+  s.scene.camera.position = {2.2, 1.6, 3.4};
+  s.scene.transferFunction = TransferFunction::preset(0.2, 0.9, 0.5);
+  s.scene.transferFunction.unitDistance = 0.25;
+  s.scene.background = {0.1f, 0.2f, 0.3f};
+  s.scene.time = 0.3;
+  s.scene.shadows = shadows;
+  s.scene.ambient = 0.3f;
+  s.scene.toLight = defaultLightDirection(s.scene.camera);
+  return s;
+}
+
+void convergedVsRayMarch(bool shadows, int frames, double minPsnr) {
+  test::FunctionField f(test::smoothField);
+  const SceneSetup setup = smoothScene(32, shadows);
+  MacrocellGrid grid(f, kBox, 0, 1, cells(16));
+  DeltaTrackingRenderer dt(f, grid);
+  dt.setSettings(setup.settings);
+  dt.setScene(setup.scene);
+  for (int k = 0; k < frames; ++k) dt.renderFrame();
+  RayMarchOptions ro;
+  ro.step = 2.f / 512.f;
+  ro.shadowStep = 2.f / 128.f;
+  RayMarchRenderer rm(f, kBox, ro);
+  rm.setSettings(setup.settings);
+  rm.setScene(setup.scene);
+  rm.renderFrame();
+  const double psnr = psnrRgb(dt.image(), rm.image());
+  std::printf("converged delta tracking (%d frames%s) vs ray marching: PSNR %.2f dB\n", frames,
+              shadows ? ", shadows" : "", psnr);
+  EXPECT_GE(psnr, minPsnr);
+}
+
+TEST(DeltaTracking, ConvergesToRayMarchingAnalytic) { convergedVsRayMarch(false, 1000, 40.0); }
+TEST(DeltaTracking, ConvergesToRayMarchingAnalyticWithShadows) { convergedVsRayMarch(true, 1000, 40.0); }
+
+TEST(DeltaTracking, NotConvergedAfterOneFrame) {
+  // Guards the test above against a comparison that cannot fail.
+  test::FunctionField f(test::smoothField);
+  const SceneSetup setup = smoothScene(32, false);
+  MacrocellGrid grid(f, kBox, 0, 1, cells(16));
+  DeltaTrackingRenderer dt(f, grid);
+  dt.setSettings(setup.settings);
+  dt.setScene(setup.scene);
+  dt.renderFrame();
+  RayMarchRenderer rm(f, kBox);
+  rm.setSettings(setup.settings);
+  rm.setScene(setup.scene);
+  rm.renderFrame();
+  EXPECT_LT(psnrRgb(dt.image(), rm.image()), 30.0);
+}
+
+std::vector<float> renderWithThreads(int threads, bool naive) {
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  test::FunctionField f(test::smoothField);
+  SceneSetup setup = smoothScene(40, true);
+  setup.settings.pixelJitter = true;
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  TrackingOptions topt;
+  topt.ghostPassesOnUpdate = 2;
+  DeltaTrackingRenderer r(f, grid, topt);
+  r.setSettings(setup.settings);
+  r.setScene(setup.scene);
+  for (int k = 0; k < 3; ++k) naive ? r.renderFrameNaive() : r.renderFrame();
+  omp_set_num_threads(saved);
+  return r.image().data;
+}
+
+TEST(DeltaTracking, IdenticalImagesForOneAndManyThreads) {
+  const auto one = renderWithThreads(1, false);
+  const auto many = renderWithThreads(4, false);
+  ASSERT_EQ(one.size(), many.size());
+  EXPECT_TRUE(one == many);
+}
+
+TEST(DeltaTracking, NaiveTrackerIsTheSameEstimator) {
+  // Same random streams, same majorants: the unbatched baseline reproduces the wavefront image.
+  EXPECT_TRUE(renderWithThreads(2, false) == renderWithThreads(2, true));
+}
+
+TEST(DeltaTracking, EmptyTransferFunctionRendersBackgroundWithoutQueries) {
+  test::FunctionField f(test::smoothField);
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer r(f, grid);
+  SceneSetup setup = smoothScene(32, true);
+  setup.scene.transferFunction = TransferFunction::transparent(0.0, 1.0);
+  r.setSettings(setup.settings);
+  r.setScene(setup.scene);
+  f.resetCounts();
+  const FrameStats st = r.renderFrame();
+  EXPECT_EQ(f.points(), 0u);
+  EXPECT_EQ(st.totalQueries(), 0u);
+  EXPECT_EQ(st.iterations, 0);
+  const ImageRGBA img = r.image();
+  for (int i = 0; i < img.width * img.height; ++i) {
+    ASSERT_EQ(img.data[4 * i + 0], 0.1f);
+    ASSERT_EQ(img.data[4 * i + 1], 0.2f);
+    ASSERT_EQ(img.data[4 * i + 2], 0.3f);
+  }
+}
+
+TEST(DeltaTracking, DepthLimitStopsRays) {
+  test::FunctionField f([](const QueryPoint&) { return 0.5f; });
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer r(f, grid);
+  RenderSettings s;
+  s.width = s.height = 48;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = topDown();
+  scene.transferFunction = flatOpacity(0.3, 0.5);
+  const float tEnter = float(scene.camera.position[2]) - 1.f;  // parallel rays start at the eye plane
+  scene.depthLimit.assign(48 * 48, tEnter + 1.f);               // opaque surface at z = 0
+  for (int i = 0; i < 48 * 24; ++i) scene.depthLimit[i] = tEnter - 0.5f;  // top half: in front of the box
+  r.setScene(scene);
+  FrameStats total;
+  const int frames = 20;
+  for (int k = 0; k < frames; ++k) total += r.renderFrame();
+  EXPECT_EQ(total.rays, std::size_t(48 * 24 * frames));  // top-half rays never start
+  const ImageRGBA img = r.premultipliedImage();
+  double top = 0, bottom = 0;
+  for (int i = 0; i < 48 * 24; ++i) top += img.data[4 * i + 3];
+  for (int i = 48 * 24; i < 48 * 48; ++i) bottom += img.data[4 * i + 3];
+  EXPECT_EQ(top, 0.0);
+  const double p = 1.0 - std::exp(-(-std::log(0.7) / 0.5) * 1.0);  // one unit of medium
+  const double n = 48.0 * 24 * frames;
+  EXPECT_NEAR(bottom / (48 * 24), p, 4 * std::sqrt(p * (1 - p) / n));
+  // The ray marcher honours the same limit.
+  RayMarchRenderer rm(f, kBox);
+  rm.setSettings(s);
+  rm.setScene(scene);
+  rm.renderFrame();
+  EXPECT_NEAR(rm.premultipliedImage().data[4 * (48 * 40 + 10) + 3], p, 1e-3);
+  EXPECT_EQ(rm.premultipliedImage().data[4 * 10 + 3], 0.f);
+}
+
+TEST(DeltaTracking, ResidualAndAccumulation) {
+  test::FunctionField f(test::smoothField);
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer r(f, grid);
+  const SceneSetup setup = smoothScene(24, false);
+  r.setSettings(setup.settings);
+  r.setScene(setup.scene);
+  r.renderFrame();
+  for (float v : r.residual()) ASSERT_EQ(v, 1.f);
+  const ImageRGBA first = r.image();
+  r.renderFrame();
+  const ImageRGBA mean2 = r.image();
+  // r_i = mean |C2 - C1| and the accumulation is the mean of both: C2 = 2 * mean2 - C1.
+  for (int i = 0; i < 24 * 24; i += 7) {
+    double rr = 0;
+    for (int c = 0; c < 3; ++c) rr += std::fabs(2.0 * (mean2.data[4 * i + c] - first.data[4 * i + c]));
+    ASSERT_NEAR(r.residual()[i], rr / 3.0, 1e-5);
+  }
+  EXPECT_EQ(r.accumulatedFrames(), 2);
+  r.setScene(setup.scene);  // identical scene: keeps accumulating
+  EXPECT_EQ(r.accumulatedFrames(), 2);
+  RenderScene moved = setup.scene;
+  moved.camera.position[0] += 0.1;
+  r.setScene(moved);
+  EXPECT_EQ(r.accumulatedFrames(), 0);
+}
+
+TEST(DeltaTracking, RatioTrackedShadowsAgreeWithDeltaShadows) {
+  test::FunctionField f(test::smoothField);
+  SceneSetup setup = smoothScene(24, true);
+  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
+  DeltaTrackingRenderer a(f, grid), b(f, grid);
+  a.setSettings(setup.settings);
+  b.setSettings(setup.settings);
+  a.setScene(setup.scene);
+  setup.scene.shadowEstimator = ShadowEstimator::Ratio;
+  b.setScene(setup.scene);
+  FrameStats sa, sb;
+  for (int k = 0; k < 400; ++k) sa += a.renderFrame(), sb += b.renderFrame();
+  EXPECT_GT(psnrRgb(a.image(), b.image()), 35.0);
+  EXPECT_GT(sb.shadowQueries, sa.shadowQueries);  // ratio tracking never stops early
+}
+
+}  // namespace
+}  // namespace inr

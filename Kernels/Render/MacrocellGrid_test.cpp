@@ -1,1 +1,243 @@
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/MacrocellGrid.h"
+#include "Render/TestFields.h"
+
+namespace inr {
+namespace {
+
+const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+
+MacrocellOptions options(int n, int T) {
+  MacrocellOptions o;
+  o.dims = Int3{n, n, n};
+  o.temporalSlices = T;
+  return o;
+}
+
+TEST(MacrocellGrid, LatticeBoundsExactForLinearField) {
+  // A linear field's extrema over a cell are at its corners, which are lattice points: the
+  // lattice bounds are exact, and the 27-point mean is the cell-centre value.
+  test::FunctionField f([](const QueryPoint& p) { return 2.f * p.x - p.y + 0.5f * p.z + p.t; });
+  MacrocellGrid grid(f, kBox, 0.0, 1.0, options(6, 2));  // 6 = one full and one partial tile
+  grid.setTime(0.0);
+  const Vec3f cs = grid.cellSize();
+  for (int z = 0; z < 6; ++z)
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 6; ++x) {
+        const int c = linearCellIndex(grid.dims(), Int3{x, y, z});
+        const float x0 = -1 + x * cs.x, y0 = -1 + y * cs.y, z0 = -1 + z * cs.z;
+        const float lo = 2 * x0 - (y0 + cs.y) + 0.5f * z0;
+        const float hi = 2 * (x0 + cs.x) - y0 + 0.5f * (z0 + cs.z);
+        ASSERT_NEAR(grid.workingMin()[c], lo, 1e-5);
+        ASSERT_NEAR(grid.workingMax()[c], hi, 1e-5);
+        ASSERT_NEAR(grid.workingMean()[c], 0.5f * (lo + hi), 1e-5);
+      }
+}
+
+TEST(MacrocellGrid, WorkingGridInterpolationExactAndLazy) {
+  test::FunctionField f([](const QueryPoint&) { return 0.f; });
+  MacrocellGrid grid(f, kBox, 10.0, 20.0, options(2, 3));  // slices at t = 10, 15, 20
+  const int n = grid.cellCount();
+  std::vector<float> a0(n), a1(n), b0(n), b1(n), m0(n), m1(n);
+  for (int c = 0; c < n; ++c) {
+    a0[c] = float(c);
+    a1[c] = float(c) + 4.f;
+    b0[c] = 10.f * c;
+    b1[c] = 10.f * c + 8.f;
+    m0[c] = 1.f;
+    m1[c] = 3.f;
+  }
+  grid.setSlice(0, a0, a1, m0);
+  grid.setSlice(1, b0, b1, m1);
+  grid.setTime(11.25);  // a quarter of the way from slice 0 to slice 1
+  int k0, k1;
+  float w;
+  grid.interpolationWeights(11.25, k0, k1, w);
+  EXPECT_EQ(k0, 0);
+  EXPECT_EQ(k1, 1);
+  EXPECT_FLOAT_EQ(w, 0.25f);
+  for (int c = 0; c < n; ++c) {
+    EXPECT_FLOAT_EQ(grid.workingMin()[c], 0.75f * a0[c] + 0.25f * b0[c]);
+    EXPECT_FLOAT_EQ(grid.workingMax()[c], 0.75f * a1[c] + 0.25f * b1[c]);
+    EXPECT_FLOAT_EQ(grid.workingMean()[c], 1.5f);
+  }
+  EXPECT_EQ(f.points(), 0u);  // both slices given: nothing evaluated
+  EXPECT_FALSE(grid.slice(2).built);
+  grid.setTime(15.0);  // exactly on slice 1: slice 2 still not needed
+  EXPECT_FALSE(grid.slice(2).built);
+  EXPECT_EQ(f.points(), 0u);
+  grid.setTime(25.0);  // clamped to the last slice: built on demand
+  EXPECT_TRUE(grid.slice(2).built);
+  EXPECT_EQ(f.points(), std::size_t(729));  // one tile of 9^3 lattice points
+}
+
+TEST(MacrocellGrid, LazyBuildsOnlyNeededSlicesAndReportsProgress) {
+  test::FunctionField f(test::smoothField);
+  MacrocellGrid lazy(f, kBox, 0.0, 1.0, options(8, 8));
+  std::vector<double> fractions;
+  lazy.setProgressCallback([&](int, double fr) { fractions.push_back(fr); });
+  lazy.setTime(0.5);  // between slices 3 and 4
+  EXPECT_EQ(lazy.buildStats().slicesBuilt, 2);
+  EXPECT_EQ(f.points(), 2u * 8u * 729u);  // 2 slices x 8 tiles x 9^3
+  ASSERT_FALSE(fractions.empty());
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.begin() + fractions.size() / 2));
+  EXPECT_DOUBLE_EQ(fractions.back(), 1.0);
+  f.resetCounts();
+  MacrocellOptions eager = options(8, 8);
+  eager.lazySlices = false;
+  MacrocellGrid all(f, kBox, 0.0, 1.0, eager);
+  EXPECT_EQ(all.buildStats().slicesBuilt, 8);
+  EXPECT_EQ(f.points(), 8u * 8u * 729u);
+}
+
+TEST(MacrocellGrid, MajorantUpdateAfterTfChangeIsExact) {
+  test::FunctionField f([](const QueryPoint&) { return 0.f; });
+  MacrocellGrid grid(f, kBox, 0.0, 1.0, options(2, 1));
+  const int n = grid.cellCount();  // 8 cells with known ranges
+  std::vector<float> mn(n), mx(n), mean(n, 0.f);
+  for (int c = 0; c < n; ++c) {
+    mn[c] = 0.125f * c;
+    mx[c] = 0.125f * c + 0.125f;
+  }
+  grid.setSlice(0, mn, mx, mean);
+  grid.setTime(0.0);
+  auto expected = [&](const TransferFunction& tf, int c) {
+    // Knots on table entries: the maximum over [lo, hi] of the linear pieces is at a knot or an end.
+    double a = 0.0;
+    for (double x : {double(mn[c]), double(mx[c])}) a = std::max(a, tf.opacityAt(x));
+    for (const auto& p : tf.opacity)
+      if (p.x >= mn[c] && p.x <= mx[c]) a = std::max(a, p.alpha);
+    return -std::log(1.0 - a) / tf.unitDistance;
+  };
+  TransferFunction tfA;
+  tfA.color = {{0, 1, 1, 1}, {1, 1, 1, 1}};
+  tfA.opacity = {{0, 0.0}, {1, 0.8}};
+  tfA.unitDistance = 0.5;
+  TransferFunction tfB = tfA;
+  tfB.opacity = {{0, 0.0}, {0.25, 0.0}, {0.5, 0.9}, {0.625, 0.1}, {1, 0.1}};
+  std::vector<float> maj;
+  for (const TransferFunction* tf : {&tfA, &tfB}) {
+    const TransferFunctionTable table(*tf, 1025);  // 1/1024 spacing: every knot is an entry
+    grid.computeMajorants(table.view(), maj);
+    for (int c = 0; c < n; ++c) EXPECT_NEAR(maj[c], expected(*tf, c), 1e-5) << "cell " << c;
+  }
+  // Refinement widens a cell and only that cell's majorant is recomputed.
+  const TransferFunctionTable tableB(tfB, 1025);
+  grid.computeMajorants(tableB.view(), maj);
+  EXPECT_TRUE(grid.refine(0, 0.5f));  // cell 0 was [0, 0.125]
+  EXPECT_FALSE(grid.refine(0, 0.3f));  // now inside
+  const auto dirty = grid.takeDirtyCells();
+  ASSERT_EQ(dirty, std::vector<int>{0});
+  grid.updateMajorants(tableB.view(), dirty, maj);
+  EXPECT_NEAR(maj[0], -std::log(1.0 - 0.9) / 0.5, 1e-5);
+  EXPECT_FLOAT_EQ(grid.slice(0).max[0], 0.5f);  // fix kept in the slice for later time changes
+}
+
+// A narrow bump between lattice points: lattice sampling under-estimates its cell's maximum.
+float bumpField(const QueryPoint& p) {
+  const float dx = p.x - 0.31f, dy = p.y + 0.07f, dz = p.z - 0.19f;
+  return 0.1f + 0.9f * std::exp(-(dx * dx + dy * dy + dz * dz) / (2.f * 0.06f * 0.06f));
+}
+
+float worstUnderestimate(const MacrocellGrid& grid, const FieldEvaluator& f) {
+  // Dense sampling (8^3 per cell) of every cell; returns max(value - cell max).
+  const Int3 d = grid.dims();
+  const Vec3f cs = grid.cellSize();
+  float worst = 0.f;
+  for (int z = 0; z < d.z; ++z)
+    for (int y = 0; y < d.y; ++y)
+      for (int x = 0; x < d.x; ++x) {
+        std::vector<QueryPoint> pts;
+        for (int k = 0; k < 8; ++k)
+          for (int j = 0; j < 8; ++j)
+            for (int i = 0; i < 8; ++i)
+              pts.push_back({-1 + (x + (i + 0.5f) / 8) * cs.x, -1 + (y + (j + 0.5f) / 8) * cs.y,
+                             -1 + (z + (k + 0.5f) / 8) * cs.z, 0.f});
+        std::vector<float> v(pts.size());
+        f.evaluate(pts.data(), pts.size(), v.data());
+        const int c = linearCellIndex(d, Int3{x, y, z});
+        for (float s : v) {
+          worst = std::max(worst, s - grid.workingMax()[c]);
+          worst = std::max(worst, grid.workingMin()[c] - s);
+        }
+      }
+  return worst;
+}
+
+TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
+  test::FunctionField f(bumpField);
+  MacrocellGrid grid(f, kBox, 0.0, 1.0, options(8, 1));
+  TrackingOptions topt;
+  topt.ghostPixelStride = 1;
+  DeltaTrackingRenderer r(f, grid, topt);
+  RenderSettings s;
+  s.width = s.height = 64;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = Camera::framing(kBox);
+  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.2);
+  scene.transferFunction.unitDistance = 0.1;
+  r.setScene(scene);
+  const float before = worstUnderestimate(grid, f);
+  EXPECT_GT(before, 0.2f);  // the bump's peak is missed by the lattice
+  const FrameStats g = r.runGhostPasses(8);
+  EXPECT_GT(g.queries, 0u);
+  EXPECT_GT(g.refinements, 0u);
+  for (int k = 0; k < 4; ++k) r.renderFrame();
+  const float after = worstUnderestimate(grid, f);
+  EXPECT_LT(after, 0.5f * before);
+
+  // Padding as a documented alternative: enough padding covers the miss outright.
+  MacrocellOptions padded = options(8, 1);
+  padded.boundsPadding = 3.0;  // x the sampled value range
+  MacrocellGrid pgrid(f, kBox, 0.0, 1.0, padded);
+  pgrid.setTime(0.0);
+  EXPECT_LE(worstUnderestimate(pgrid, f), 0.f);
+}
+
+TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
+  // After rendering, the refined bounds contain every value the renderer has seen.
+  struct Recorder : FieldEvaluator {
+    mutable std::vector<QueryPoint> pts;
+    mutable std::vector<float> vals;
+    bool recording = false;
+    void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
+      for (std::size_t i = 0; i < n; ++i) {
+        out[i] = bumpField(p[i]);
+        if (recording) pts.push_back(p[i]), vals.push_back(out[i]);
+      }
+    }
+    std::string name() const override { return "recorder"; }
+  } rec;
+  MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
+  DeltaTrackingRenderer r(rec, grid);
+  RenderSettings s;
+  s.width = s.height = 48;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = Camera::framing(kBox);
+  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.3);
+  scene.transferFunction.unitDistance = 0.2;
+  rec.recording = true;
+  r.setScene(scene);
+  for (int k = 0; k < 3; ++k) r.renderFrame();
+  ASSERT_GT(rec.pts.size(), 1000u);
+  const Vec3f cs = grid.cellSize();
+  int outside = 0;
+  for (std::size_t i = 0; i < rec.pts.size(); ++i) {
+    const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
+                 std::min(7, int((rec.pts[i].z + 1) / cs.z))};
+    const int idx = linearCellIndex(grid.dims(), c);
+    // Points exactly on a face may belong to either neighbour: allow a rounding slack.
+    if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
+  }
+  EXPECT_LE(outside, int(rec.pts.size() / 1000));
+}
+
+}  // namespace
+}  // namespace inr

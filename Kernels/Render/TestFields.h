@@ -1,0 +1,40 @@
+#pragma once
+// Analytic FieldEvaluators for the render tests (no network needed), and a counting wrapper.
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <string>
+#include <utility>
+
+#include "Evaluator/FieldEvaluator.h"
+
+namespace inr::test {
+
+class FunctionField : public FieldEvaluator {
+public:
+  explicit FunctionField(std::function<float(const QueryPoint&)> f, std::string name = "analytic")
+      : f_(std::move(f)), name_(std::move(name)) {}
+  void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
+    calls_ += 1;
+    points_ += n;
+    for (std::size_t i = 0; i < n; ++i) out[i] = f_(p[i]);
+  }
+  std::string name() const override { return name_; }
+  std::size_t points() const { return points_; }
+  std::size_t calls() const { return calls_; }
+  void resetCounts() { points_ = 0, calls_ = 0; }
+
+private:
+  std::function<float(const QueryPoint&)> f_;
+  std::string name_;
+  mutable std::size_t points_ = 0, calls_ = 0;
+};
+
+// Smooth time-varying field on [-1,1]^3 with values in about [0, 1].
+inline float smoothField(const QueryPoint& p) {
+  return 0.5f + 0.35f * std::sin(2.2f * p.x + 0.7f * p.t) * std::cos(1.7f * p.y - 0.4f * p.t) *
+                    std::sin(1.9f * p.z + 1.1f) +
+         0.15f * std::exp(-4.f * ((p.x - 0.3f) * (p.x - 0.3f) + p.y * p.y + (p.z + 0.2f) * (p.z + 0.2f)));
+}
+
+}  // namespace inr::test
