@@ -1,0 +1,340 @@
+// `inr render`: volume rendering of a model with the engine's CPU backend (delta tracking, or
+// the ray-marching / naive baselines), accumulated over frames, written as PNG or linear PFM.
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "Args.h"
+#include "Commands.h"
+#include "Common/ImageIO.h"
+#include "Evaluator/CpuInrEvaluator.h"
+#include "Evaluator/ValueRange.h"
+#include "Model/InrModel.h"
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/RayMarcher.h"
+
+namespace inr::cli {
+
+namespace {
+
+const char* kRenderUsage =
+    "usage: inr render MODEL -o OUT.png|.pfm [options]\n"
+    "scene:\n"
+    "  --time T                 world time (default: start of the model's time range)\n"
+    "  --size WxH               image size (default 512x512)\n"
+    "  --camera PX,PY,PZ,FX,FY,FZ,UX,UY,UZ,ANGLE\n"
+    "                           VTK camera: position, focal point, view-up, vertical view angle\n"
+    "                           in degrees (default: ParaView's reset-camera view of the box)\n"
+    "  --parallel-scale S       parallel projection showing 2*S world units vertically\n"
+    "  --tf FILE                ParaView colour-map JSON (RGBPoints, Points); default: cool-to-warm\n"
+    "                           with a linear opacity ramp over the model's value range\n"
+    "  --tf-range LO,HI         rescale the transfer function to this scalar range\n"
+    "  --opacity-unit-distance U  scalar opacity unit distance (default: box diagonal / 64)\n"
+    "  --background R,G,B       background colour (default 0,0,0)\n"
+    "  --shadows                ray-traced shadows from a directional light\n"
+    "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"
+    "  --ambient A              unshadowed fraction of the emission with --shadows (default 0.2)\n"
+    "  --shadow-estimator delta|ratio  shadow transmittance estimator (default delta)\n"
+    "rendering:\n"
+    "  --method delta|raymarch|naive  wavefront delta tracking (default), fixed-step ray marching,\n"
+    "                           or the naive per-ray delta tracker (one query per network call)\n"
+    "  --frames N               frames accumulated (default 64; ray marching: 1 unless jittered)\n"
+    "  --seed S                 random seed (default 1)\n"
+    "  --no-jitter              sample pixel centres (no antialiasing)\n"
+    "  --macrocells N|NX,NY,NZ  macrocell grid resolution (default 32)\n"
+    "  --time-slices T          temporal macrocell slices over the time range (default 16)\n"
+    "  --eager-slices           build every temporal slice at start-up (default: only those needed)\n"
+    "  --bounds-padding F       widen macrocell bounds by F x value range (default 0)\n"
+    "  --ghost-passes G         ghost passes after building the working grid (default 0)\n"
+    "  --no-refine              do not refine under-estimated macrocells from samples\n"
+    "  --step S                 ray-march step in world units (default: box diagonal / 512)\n"
+    "  --shadow-step S          ray-march shadow step (default: 2 x step)\n"
+    "  --threads N              CPU threads (default: all)\n"
+    "output:\n"
+    "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float)\n"
+    "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells\n"
+    "  --quiet                  only the summary line\n";
+
+std::array<double, 3> list3(const Args& args, const std::string& name) {
+  const auto v = args.getList(name, 3);
+  return {v[0], v[1], v[2]};
+}
+
+nlohmann::json statsJson(const FrameStats& s) {
+  return {{"frame", s.frame},
+          {"pixels", s.pixels},
+          {"rays", s.rays},
+          {"queries", s.queries},
+          {"iterations", s.iterations},
+          {"shadow_rays", s.shadowRays},
+          {"shadow_queries", s.shadowQueries},
+          {"shadow_iterations", s.shadowIterations},
+          {"refinements", s.refinements},
+          {"ms",
+           {{"update", s.updateMs},
+            {"init", s.initMs},
+            {"traverse", s.traverseMs},
+            {"evaluate", s.evaluateMs},
+            {"shadow_traverse", s.shadowTraverseMs},
+            {"shadow_evaluate", s.shadowEvaluateMs},
+            {"finalize", s.finalizeMs},
+            {"total", s.totalMs}}}};
+}
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+}  // namespace
+
+int runRender(int argc, char** argv) {
+  Args args(argc, argv,
+            {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
+             "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
+             "stats-json", "macrocells", "time-slices", "bounds-padding", "ghost-passes", "step",
+             "shadow-step", "threads", "output"},
+            {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet"});
+  if (args.has("help")) {
+    std::fputs(kRenderUsage, stdout);
+    return 0;
+  }
+  if (args.positional().size() != 1) throw UsageError("expects exactly one MODEL file (see --help)");
+  if (!args.has("output")) throw UsageError("-o OUT.png|.pfm is required");
+  const std::string out = args.get("output");
+  if (!endsWith(out, ".png") && !endsWith(out, ".pfm")) {
+    throw UsageError("-o: output must end in .png or .pfm, got '" + out + "'");
+  }
+  const std::string method = args.get("method", "delta");
+  if (method != "delta" && method != "raymarch" && method != "naive") {
+    throw UsageError("--method must be delta, raymarch or naive, got '" + method + "'");
+  }
+  const bool quiet = args.has("quiet");
+
+  // --- image settings
+  RenderSettings settings;
+  {
+    const std::string size = args.get("size", "512x512");
+    const auto x = size.find('x');
+    if (x == std::string::npos) throw UsageError("--size must be WxH, e.g. 512x512");
+    const long w = parseInt(size.substr(0, x), "--size width"), h = parseInt(size.substr(x + 1), "--size height");
+    if (w < 1 || h < 1 || w > 16384 || h > 16384) throw UsageError("--size: each side must be in [1, 16384]");
+    settings.width = int(w);
+    settings.height = int(h);
+  }
+  const long seed = args.getInt("seed", 1);
+  if (seed < 0 || seed > 0xffffffffL) throw UsageError("--seed must be in [0, 2^32)");
+  settings.seed = std::uint32_t(seed);
+  settings.pixelJitter = !args.has("no-jitter");
+  const long frames = args.getInt("frames", method == "raymarch" && !settings.pixelJitter ? 1 : 64);
+  if (frames < 1 || frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
+  if (args.has("threads")) {
+    const long t = args.getInt("threads", 0);
+    if (t < 1 || t > 4096) throw UsageError("--threads must be >= 1");
+    omp_set_num_threads(int(t));
+  }
+
+  // --- model and evaluator
+  const InrModel model = InrModel::loadFile(args.positional()[0]);
+  CpuEvaluatorOptions eopts;
+  eopts.threads = int(args.getInt("threads", 0));
+  const CpuInrEvaluator evaluator(model, eopts);
+  const auto& b = model.domain.bounds;
+  const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+  const double diagonal = length(box.hi - box.lo);
+
+  // --- scene
+  RenderScene scene;
+  scene.time = args.getDouble("time", model.domain.timeBegin);
+  if (scene.time < model.domain.timeBegin || scene.time > model.domain.timeEnd) {
+    std::fprintf(stderr, "inr render: warning: --time %g is outside the model's time range [%g, %g]\n",
+                 scene.time, model.domain.timeBegin, model.domain.timeEnd);
+  }
+  scene.camera = Camera::framing(box);
+  if (args.has("camera")) {
+    const auto c = args.getList("camera", 10);
+    scene.camera.position = {c[0], c[1], c[2]};
+    scene.camera.focalPoint = {c[3], c[4], c[5]};
+    scene.camera.viewUp = {c[6], c[7], c[8]};
+    scene.camera.viewAngle = c[9];
+  }
+  if (args.has("parallel-scale")) {
+    scene.camera.parallelProjection = true;
+    scene.camera.parallelScale = args.getDouble("parallel-scale", 1.0);
+  }
+  try {
+    scene.camera.view(settings.width, settings.height);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--camera: ") + e.what());
+  }
+  if (args.has("tf")) {
+    scene.transferFunction = TransferFunction::fromParaViewJsonFile(args.get("tf"));
+    const std::string warning = scene.transferFunction.colorSpaceWarning();
+    if (!warning.empty()) std::fprintf(stderr, "inr render: warning: %s\n", warning.c_str());
+  } else {
+    const auto range = valueRangeFor(model, evaluator);
+    scene.transferFunction = TransferFunction::preset(range[0], range[1]);
+  }
+  if (args.has("tf-range")) {
+    const auto r = args.getList("tf-range", 2);
+    if (!(r[1] > r[0])) throw UsageError("--tf-range LO,HI needs LO < HI");
+    scene.transferFunction.rescale(r[0], r[1]);
+  }
+  scene.transferFunction.unitDistance = args.getDouble("opacity-unit-distance", diagonal / 64.0);
+  if (!(scene.transferFunction.unitDistance > 0)) throw UsageError("--opacity-unit-distance must be > 0");
+  if (args.has("background")) {
+    const auto bg = list3(args, "background");
+    scene.background = {float(bg[0]), float(bg[1]), float(bg[2])};
+  }
+  scene.shadows = args.has("shadows");
+  scene.toLight = args.has("light") ? list3(args, "light") : defaultLightDirection(scene.camera);
+  if (!(std::hypot(scene.toLight[0], scene.toLight[1], scene.toLight[2]) > 0)) {
+    throw UsageError("--light must be a non-zero direction");
+  }
+  scene.ambient = float(args.getDouble("ambient", 0.2));
+  if (scene.ambient < 0.f || scene.ambient > 1.f) throw UsageError("--ambient must be in [0, 1]");
+  const std::string estimator = args.get("shadow-estimator", "delta");
+  if (estimator != "delta" && estimator != "ratio") throw UsageError("--shadow-estimator must be delta or ratio");
+  scene.shadowEstimator = estimator == "ratio" ? ShadowEstimator::Ratio : ShadowEstimator::Delta;
+
+  // --- macrocells
+  MacrocellOptions mopts;
+  if (args.has("macrocells")) {
+    const auto m = args.getList("macrocells", 0);
+    if (m.size() != 1 && m.size() != 3) throw UsageError("--macrocells takes N or NX,NY,NZ");
+    for (double v : m)
+      if (v < 1 || v > 1024 || v != std::floor(v)) throw UsageError("--macrocells: each must be an integer in [1, 1024]");
+    mopts.dims = m.size() == 1 ? Int3{int(m[0]), int(m[0]), int(m[0])} : Int3{int(m[0]), int(m[1]), int(m[2])};
+  }
+  const long slices = args.getInt("time-slices", model.domain.usesTime() ? 16 : 1);
+  if (slices < 1 || slices > 4096) throw UsageError("--time-slices must be in [1, 4096]");
+  mopts.temporalSlices = int(slices);
+  mopts.lazySlices = !args.has("eager-slices");
+  mopts.boundsPadding = args.getDouble("bounds-padding", 0.0);
+  if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
+  const long ghost = args.getInt("ghost-passes", 0);
+  if (ghost < 0 || ghost > 1000) throw UsageError("--ghost-passes must be in [0, 1000]");
+
+  RayMarchOptions ropts;
+  ropts.step = float(args.getDouble("step", 0.0));
+  ropts.shadowStep = float(args.getDouble("shadow-step", 0.0));
+  if (args.has("step") && !(ropts.step > 0)) throw UsageError("--step must be > 0");
+  if (args.has("shadow-step") && !(ropts.shadowStep > 0)) throw UsageError("--shadow-step must be > 0");
+
+  nlohmann::json report;
+  report["model"] = args.positional()[0];
+  report["method"] = method;
+  report["width"] = settings.width;
+  report["height"] = settings.height;
+  report["time"] = scene.time;
+  report["frames_requested"] = frames;
+  report["threads"] = omp_get_max_threads();
+  report["evaluator"] = evaluator.name();
+
+  FrameStats total;
+  std::vector<nlohmann::json> perFrame;
+  ImageRGBA image;
+  auto progressLine = [&](const FrameStats& st, long k) {
+    if (quiet) return;
+    std::printf("frame %ld/%ld: %zu rays, %zu queries (+%zu shadow) in %d (+%d) iterations, %.1f ms\n",
+                k + 1, frames, st.rays, st.queries, st.shadowQueries, st.iterations, st.shadowIterations,
+                st.totalMs);
+    std::fflush(stdout);
+  };
+
+  if (method == "raymarch") {
+    RayMarchRenderer renderer(evaluator, box, ropts);
+    renderer.setSettings(settings);
+    renderer.setScene(scene);
+    report["step"] = renderer.step();
+    report["shadow_step"] = renderer.shadowStep();
+    for (long k = 0; k < frames; ++k) {
+      const FrameStats st = renderer.renderFrame();
+      progressLine(st, k);
+      total += st;
+      perFrame.push_back(statsJson(st));
+    }
+    image = renderer.image();
+  } else {
+    MacrocellGrid grid(evaluator, box, model.domain.timeBegin, model.domain.timeEnd, mopts);
+    double lastShown = -1.0;
+    if (!quiet) {
+      grid.setProgressCallback([&](int slice, double fraction) {
+        if (fraction == 0.0 || fraction == 1.0 || fraction - lastShown >= 0.25) {
+          std::printf("macrocells: slice %d (t=%g) %3.0f%%\n", slice, grid.sliceTime(slice), 100.0 * fraction);
+          std::fflush(stdout);
+          lastShown = fraction == 1.0 ? -1.0 : fraction;
+        }
+      });
+    }
+    TrackingOptions topts;
+    topts.refineMacrocells = !args.has("no-refine");
+    DeltaTrackingRenderer renderer(evaluator, grid, topts);
+    renderer.setSettings(settings);
+    const auto t0 = std::chrono::steady_clock::now();
+    renderer.setScene(scene);
+    const double setupMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const auto& bs = grid.buildStats();
+    const double perSlice = bs.slicesBuilt ? bs.seconds / bs.slicesBuilt : 0.0;
+    if (!quiet) {
+      std::printf("macrocells: %dx%dx%d x %d slices; built %d slice(s) in %.3f s (%zu lattice queries)%s\n",
+                  mopts.dims.x, mopts.dims.y, mopts.dims.z, grid.temporalSlices(), bs.slicesBuilt, bs.seconds,
+                  bs.evaluations,
+                  mopts.lazySlices && grid.temporalSlices() > bs.slicesBuilt ? "; lazy build" : "");
+      if (mopts.lazySlices && grid.temporalSlices() > bs.slicesBuilt) {
+        std::printf("macrocells: building all %d slices up front would take about %.2f s more\n",
+                    grid.temporalSlices(), perSlice * (grid.temporalSlices() - bs.slicesBuilt));
+      }
+    }
+    report["macrocells"] = {{"dims", {mopts.dims.x, mopts.dims.y, mopts.dims.z}},
+                            {"temporal_slices", grid.temporalSlices()},
+                            {"slices_built", bs.slicesBuilt},
+                            {"build_seconds", bs.seconds},
+                            {"lattice_queries", bs.evaluations},
+                            {"setup_ms", setupMs},
+                            {"lazy", mopts.lazySlices}};
+    if (ghost > 0) {
+      const FrameStats g = renderer.runGhostPasses(int(ghost));
+      if (!quiet) {
+        std::printf("ghost passes: %ld, %zu queries, %zu cells refined, %.1f ms\n", ghost, g.queries,
+                    g.refinements, g.totalMs);
+      }
+      report["ghost_passes"] = statsJson(g);
+    }
+    for (long k = 0; k < frames; ++k) {
+      const FrameStats st = method == "naive" ? renderer.renderFrameNaive() : renderer.renderFrame();
+      progressLine(st, k);
+      total += st;
+      perFrame.push_back(statsJson(st));
+    }
+    report["macrocells"]["refinements"] = grid.refinementCount();
+    image = renderer.image();
+  }
+
+  writeImage(out, image);
+  const double n = double(frames);
+  std::printf("%s: %s %dx%d, %ld frame(s), t=%g: %.0f rays, %.0f queries (+%.0f shadow), %.1f iterations per "
+              "frame; %.1f ms per frame (traverse %.1f, evaluate %.1f, shadows %.1f, finalize %.1f) -> %s\n",
+              args.positional()[0].c_str(), method.c_str(), settings.width, settings.height, frames, scene.time,
+              total.rays / n, total.queries / n, total.shadowQueries / n, total.iterations / n, total.totalMs / n,
+              total.traverseMs / n, total.evaluateMs / n, (total.shadowTraverseMs + total.shadowEvaluateMs) / n,
+              total.finalizeMs / n, out.c_str());
+  if (args.has("stats-json")) {
+    report["total"] = statsJson(total);
+    report["frames"] = perFrame;
+    std::ofstream js(args.get("stats-json"));
+    if (!js) throw std::runtime_error(args.get("stats-json") + ": cannot write statistics");
+    js << report.dump(2) << "\n";
+  }
+  return 0;
+}
+
+}  // namespace inr::cli
