@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "Render/CpuParallel.h"
 #include "Render/Evaluate.h"
 #include "Render/RayInit.h"
 #include "Render/Shadows.h"
@@ -201,7 +202,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
   const Int3 dims = macrocells_.dims();
   for (;;) {
     auto t0 = Clock::now();
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
     for (int i = 0; i < n; ++i) traverseRay(fc, medium, rs, i);
     traverseMs += msSince(t0);
 
@@ -245,7 +246,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
 
   auto t0 = Clock::now();
   std::size_t active = 0;
-#pragma omp parallel for schedule(static) reduction(+ : active)
+#pragma omp parallel for schedule(static) reduction(+ : active) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) {
     initPrimaryRay(fc, medium.grid, rs, i);
     active += (rs.flags[i] & kRayActive) ? 1 : 0;
@@ -258,7 +259,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   if (fc.shadows) {
     t0 = Clock::now();
     std::size_t shadowRays = 0;
-#pragma omp parallel for schedule(static) reduction(+ : shadowRays)
+#pragma omp parallel for schedule(static) reduction(+ : shadowRays) if (n >= kParallelMinItems)
     for (int i = 0; i < n; ++i) {
       spawnShadowRay(fc, medium.grid, rs, i);
       shadowRays += (rs.flags[i] & kRayActive) ? 1 : 0;
@@ -271,7 +272,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
 
   t0 = Clock::now();
   const AccumulationView acc = accumulationView();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) finalizePixel(fc, rs, acc, i);
   st.finalizeMs = msSince(t0);
   ++frameIndex_;
@@ -360,7 +361,7 @@ FrameStats DeltaTrackingRenderer::runGhostPasses(int count) {
     FrameConstants fc = frameConstants(0x80000000u + ghostFrame_++);
     fc.shadows = 0;
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
     for (int i = 0; i < n; ++i) {
       const int px = i % settings_.width, py = i / settings_.width;
       if (px % stride == 0 && py % stride == 0) {

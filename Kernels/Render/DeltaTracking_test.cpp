@@ -161,7 +161,8 @@ std::vector<float> renderWithThreads(int threads, bool naive) {
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
   test::FunctionField f(test::smoothField);
-  SceneSetup setup = smoothScene(40, true);
+  // 96^2 rays: above kParallelMinItems, so the stage loops really run on several threads.
+  SceneSetup setup = smoothScene(96, true);
   setup.settings.pixelJitter = true;
   MacrocellGrid grid(f, kBox, 0, 1, cells(8));
   TrackingOptions topt;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "Render/CpuParallel.h"
+
 namespace inr {
 
 MacrocellGrid::MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
@@ -95,7 +97,7 @@ void MacrocellGrid::buildSlice(int k) {
 
   for (long long first = 0; first < tiles; first += tilesPerBatch) {
     const long long count = std::min(tilesPerBatch, tiles - first);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (count >= kParallelMinTiles)
     for (long long b = 0; b < count; ++b) {
       const long long tile = first + b;
       const int ix = int(tile % tx), iy = int((tile / tx) % ty), iz = int(tile / (tx * ty));
@@ -114,7 +116,7 @@ void MacrocellGrid::buildSlice(int k) {
     }
     evaluator_.evaluate(points.data(), std::size_t(count) * P, values.data());
     stats_.evaluations += std::size_t(count) * P;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (count >= kParallelMinTiles)
     for (long long b = 0; b < count; ++b) {
       const long long tile = first + b;
       const int ix = int(tile % tx), iy = int((tile / tx) % ty), iz = int(tile / (tx * ty));
@@ -180,7 +182,7 @@ void MacrocellGrid::interpolateWorkingGrid() {
       }
     if (lo <= hi) pad = float(options_.boundsPadding * (double(hi) - lo));
   }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (cellCount_ >= kParallelMinItems)
   for (int c = 0; c < cellCount_; ++c) {
     const bool aValid = a.min[c] <= a.max[c], bValid = b.min[c] <= b.max[c];
     if (aValid && bValid) {
@@ -212,7 +214,7 @@ std::array<float, 2> MacrocellGrid::workingValueRange() const {
 void MacrocellGrid::computeMajorants(const TransferFunctionView& tf,
                                      std::vector<float>& majorants) const {
   majorants.resize(cellCount_);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (cellCount_ >= kParallelMinItems)
   for (int c = 0; c < cellCount_; ++c) majorants[c] = maxExtinctionOver(tf, workMin_[c], workMax_[c]);
 }
 

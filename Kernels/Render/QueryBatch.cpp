@@ -1,5 +1,6 @@
 #include "Render/QueryBatch.h"
 
+#include "Render/CpuParallel.h"
 #include "Render/Evaluate.h"
 
 namespace inr {
@@ -13,7 +14,7 @@ std::size_t QueryBatch::gather(const RayStateView& rs, float time) {
   const int n = rs.count;
   const int chunks = (n + kChunk - 1) / kChunk;
   chunkOffsets_.assign(std::size_t(chunks) + 1, 0);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int c = 0; c < chunks; ++c) {
     std::size_t k = 0;
     const int end = std::min(n, (c + 1) * kChunk);
@@ -27,7 +28,7 @@ std::size_t QueryBatch::gather(const RayStateView& rs, float time) {
     rays_.resize(count_);
     values_.resize(count_);
   }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int c = 0; c < chunks; ++c) {
     std::size_t k = chunkOffsets_[c];
     const int end = std::min(n, (c + 1) * kChunk);
@@ -47,7 +48,7 @@ void QueryBatch::evaluate(const FieldEvaluator& evaluator) {
 
 void QueryBatch::scatter(const RayStateView& rs) const {
   const long long n = (long long)count_;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (long long k = 0; k < n; ++k) storeQueryResult(rs, rays_[k], values_[k]);
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "Render/CpuParallel.h"
 #include "Render/CounterRng.h"
 #include "Render/Finalize.h"
 
@@ -113,7 +114,7 @@ FrameStats RayMarchRenderer::renderFrame() {
     }
     points.resize(total);
     values.resize(total);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (total >= kParallelMinItems)
     for (int k = 0; k < chunkN; ++k) {
       const RaySeg& s = segs[k];
       for (int j = 0; j < s.count; ++j) {
@@ -180,7 +181,7 @@ FrameStats RayMarchRenderer::renderFrame() {
     }
 
     t0 = Clock::now();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (total >= kParallelMinItems)
     for (int k = 0; k < chunkN; ++k) {
       const RaySeg& s = segs[k];
       double T = 1.0, r = 0.0, g = 0.0, b = 0.0;
