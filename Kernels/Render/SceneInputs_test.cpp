@@ -142,3 +142,19 @@ TEST(Camera, FollowsVtkConventions) {
 
 }  // namespace
 }  // namespace inr
+
+namespace inr {
+namespace {
+
+TEST(TransferFunctionJson, ReadsShippedParaViewFile) {
+  const TransferFunction tf =
+      TransferFunction::fromParaViewJsonFile(std::string(INR_TEST_DATA_DIR) + "/render/paraview-colormap.json");
+  ASSERT_EQ(tf.color.size(), 3u);
+  ASSERT_EQ(tf.opacity.size(), 3u);
+  EXPECT_DOUBLE_EQ(tf.opacityAt(0.75), 0.35);
+  EXPECT_DOUBLE_EQ(tf.colorAt(0.5)[0], 0.865);
+  EXPECT_EQ(tf.range()[1], 1.0);
+}
+
+}  // namespace
+}  // namespace inr
