@@ -1,0 +1,50 @@
+/**
+ * @class pqInrRefinementBehavior
+ * @brief GUI-side progressive refinement for the "INR Volume" representation (auto-start).
+ *
+ * ParaView re-renders a view only when something changes; our mapper adds at least one frame per
+ * render. After every render of a render view, this behaviour asks each visible INR Volume
+ * representation (information property "InrConverged", pulled from the rendering server, so it
+ * works through pvserver too) whether it is still refining, and if so schedules another render
+ * after a short pause (event loop first, so the UI never freezes). Any change re-renders through
+ * ParaView as usual; the mapper restarts accumulation and this loop picks it up again. The loop
+ * stops by itself at convergence or at the representation's Maximum Frames.
+ *
+ * It also colours a freshly shown INR Volume representation by its "value" array and rescales
+ * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour
+ * map editor is the transfer function from the start (once per representation; a later choice
+ * of the user is kept).
+ */
+#ifndef pqInrRefinementBehavior_h
+#define pqInrRefinementBehavior_h
+
+#include <QObject>
+#include <QPointer>
+#include <QSet>
+#include <QTimer>
+
+class pqView;
+class pqPipelineSource;
+
+class pqInrRefinementBehavior : public QObject
+{
+  Q_OBJECT
+public:
+  pqInrRefinementBehavior(QObject* parent = nullptr);
+  ~pqInrRefinementBehavior() override;
+
+  void onStartup();
+  void onShutdown();
+
+private Q_SLOTS:
+  void onViewAdded(pqView* view);
+  void onEndRender();
+  void refine();
+
+private:
+  QTimer Timer;
+  QList<QPointer<pqView>> Pending;
+  QSet<void*> AutoColored;
+};
+
+#endif

@@ -1,0 +1,284 @@
+#include "vtkInrVolumeReader.h"
+
+#include "vtkDoubleArray.h"
+#include "vtkFieldData.h"
+#include "vtkFloatArray.h"
+#include "vtkImageData.h"
+#include "vtkInformation.h"
+#include "vtkInformationVector.h"
+#include "vtkNew.h"
+#include "vtkObjectFactory.h"
+#include "vtkPointData.h"
+#include "vtkSmartPointer.h"
+#include "vtkStreamingDemandDrivenPipeline.h"
+#include "vtkUnsignedCharArray.h"
+
+#include "Evaluator/CpuInrEvaluator.h"
+#include "Evaluator/ValueRange.h"
+#include "Model/InrModel.h"
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <sys/stat.h>
+#include <vector>
+
+struct vtkInrVolumeReader::Internals
+{
+  std::string loadedPath;
+  long long loadedMTime = -1;
+  long long loadedSize = -1;
+  bool ok = false;
+  inr::InrModel model;
+  std::unique_ptr<inr::CpuInrEvaluator> evaluator;
+  vtkSmartPointer<vtkUnsignedCharArray> bytes;  // shared by every output (same pointer over time)
+};
+
+vtkStandardNewMacro(vtkInrVolumeReader);
+
+vtkInrVolumeReader::vtkInrVolumeReader()
+  : Internal(new Internals)
+{
+  this->SetNumberOfInputPorts(0);
+}
+
+vtkInrVolumeReader::~vtkInrVolumeReader()
+{
+  this->SetFileName(nullptr);
+  delete this->Internal;
+}
+
+void vtkInrVolumeReader::SetFileName(const char* name)
+{
+  if (name && this->FileName && std::strcmp(name, this->FileName) == 0)
+  {
+    return;
+  }
+  delete[] this->FileName;
+  this->FileName = nullptr;
+  if (name)
+  {
+    this->FileName = new char[std::strlen(name) + 1];
+    std::strcpy(this->FileName, name);
+  }
+  this->Modified();
+}
+
+int vtkInrVolumeReader::CanReadFile(const char* fileName)
+{
+  if (!fileName)
+  {
+    return 0;
+  }
+  std::ifstream in(fileName, std::ios::binary);
+  unsigned char n8[8];
+  if (!in.read(reinterpret_cast<char*>(n8), 8))
+  {
+    return 0;
+  }
+  unsigned long long n = 0;
+  for (int i = 7; i >= 0; --i)
+  {
+    n = (n << 8) | n8[i];
+  }
+  if (n < 2 || n > (100ull << 20))
+  {
+    return 0;
+  }
+  std::string header(static_cast<std::size_t>(n), '\0');
+  if (!in.read(&header[0], static_cast<std::streamsize>(n)))
+  {
+    return 0;
+  }
+  return header[0] == '{' && header.find("inr-volume") != std::string::npos ? 1 : 0;
+}
+
+bool vtkInrVolumeReader::LoadModel()
+{
+  Internals& I = *this->Internal;
+  if (!this->FileName || !*this->FileName)
+  {
+    vtkErrorMacro("No FileName set: give the INR Volume model (.inr) to read.");
+    I.ok = false;
+    return false;
+  }
+  struct stat st;
+  if (::stat(this->FileName, &st) != 0)
+  {
+    vtkErrorMacro(<< this->FileName << ": cannot open the file (does it exist?)");
+    I.ok = false;
+    I.loadedPath.clear();
+    return false;
+  }
+  const long long mtime = static_cast<long long>(st.st_mtime);
+  const long long size = static_cast<long long>(st.st_size);
+  if (I.loadedPath == this->FileName && I.loadedMTime == mtime && I.loadedSize == size)
+  {
+    return I.ok;  // cached (also remembers a failure, so it is reported once per change)
+  }
+  I.loadedPath = this->FileName;
+  I.loadedMTime = mtime;
+  I.loadedSize = size;
+  I.ok = false;
+  I.evaluator.reset();
+  I.bytes = nullptr;
+  try
+  {
+    std::ifstream in(this->FileName, std::ios::binary);
+    std::vector<char> data(static_cast<std::size_t>(size));
+    if (!in.read(data.data(), size))
+    {
+      throw inr::ModelError(std::string(this->FileName) + ": cannot read the file");
+    }
+    I.model = inr::InrModel::loadBytes(
+      reinterpret_cast<const std::uint8_t*>(data.data()), data.size(), this->FileName);
+    I.model.path = this->FileName;
+    I.evaluator = std::make_unique<inr::CpuInrEvaluator>(I.model);
+    const auto vr = inr::valueRangeFor(I.model, *I.evaluator);
+    this->ValueRange[0] = vr[0];
+    this->ValueRange[1] = vr[1];
+    this->TimeRange[0] = I.model.domain.timeBegin;
+    this->TimeRange[1] = I.model.domain.timeEnd;
+    I.bytes = vtkSmartPointer<vtkUnsignedCharArray>::New();
+    I.bytes->SetName("InrModel");
+    I.bytes->SetNumberOfTuples(static_cast<vtkIdType>(data.size()));
+    std::memcpy(I.bytes->GetPointer(0), data.data(), data.size());
+    I.ok = true;
+  }
+  catch (const std::exception& e)
+  {
+    vtkErrorMacro(<< e.what());
+    I.evaluator.reset();
+    I.bytes = nullptr;
+  }
+  return I.ok;
+}
+
+int vtkInrVolumeReader::RequestInformation(
+  vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
+{
+  if (!this->LoadModel())
+  {
+    return 0;
+  }
+  const inr::Domain& d = this->Internal->model.domain;
+  vtkInformation* outInfo = outputVector->GetInformationObject(0);
+  const int r = this->PreviewResolution;
+  int extent[6] = { 0, r - 1, 0, r - 1, 0, r - 1 };
+  double origin[3] = { d.bounds[0], d.bounds[2], d.bounds[4] };
+  double spacing[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    spacing[a] = (d.bounds[2 * a + 1] - d.bounds[2 * a]) / (r - 1);
+  }
+  outInfo->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
+  outInfo->Set(vtkDataObject::ORIGIN(), origin, 3);
+  outInfo->Set(vtkDataObject::SPACING(), spacing, 3);
+  vtkDataObject::SetPointDataActiveScalarInfo(outInfo, VTK_FLOAT, 1);
+  outInfo->Remove(vtkStreamingDemandDrivenPipeline::TIME_STEPS());
+  if (d.usesTime() && d.timeEnd > d.timeBegin)
+  {
+    // Continuous time: a range and no steps, so the time slider and animations move freely.
+    outInfo->Set(vtkStreamingDemandDrivenPipeline::TIME_RANGE(), this->TimeRange, 2);
+  }
+  else
+  {
+    outInfo->Remove(vtkStreamingDemandDrivenPipeline::TIME_RANGE());
+  }
+  return 1;
+}
+
+int vtkInrVolumeReader::RequestData(
+  vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
+{
+  vtkInformation* outInfo = outputVector->GetInformationObject(0);
+  vtkImageData* output = vtkImageData::GetData(outInfo);
+  if (!output || !this->LoadModel())
+  {
+    return 0;
+  }
+  Internals& I = *this->Internal;
+  const inr::Domain& d = I.model.domain;
+
+  double t = d.timeBegin;
+  if (outInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_TIME_STEP()))
+  {
+    t = outInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_TIME_STEP());
+  }
+  t = std::min(std::max(t, d.timeBegin), d.timeEnd);
+  if (!d.usesTime())
+  {
+    t = 0.5 * (d.timeBegin + d.timeEnd);
+  }
+
+  const int piece = outInfo->Has(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
+    ? outInfo->Get(vtkStreamingDemandDrivenPipeline::UPDATE_PIECE_NUMBER())
+    : 0;
+  const int r = this->PreviewResolution;
+  output->SetOrigin(d.bounds[0], d.bounds[2], d.bounds[4]);
+  output->SetSpacing((d.bounds[1] - d.bounds[0]) / (r - 1), (d.bounds[3] - d.bounds[2]) / (r - 1),
+    (d.bounds[5] - d.bounds[4]) / (r - 1));
+  if (piece > 0)
+  {
+    // Parallel runs: the model lives on piece 0 only, so it is rendered exactly once.
+    output->SetExtent(0, -1, 0, -1, 0, -1);
+    output->GetInformation()->Set(vtkDataObject::DATA_TIME_STEP(), t);
+    return 1;
+  }
+  output->SetExtent(0, r - 1, 0, r - 1, 0, r - 1);
+
+  const std::size_t n = static_cast<std::size_t>(r) * r * r;
+  std::vector<inr::QueryPoint> pts(n);
+  std::size_t k = 0;
+  for (int z = 0; z < r; ++z)
+  {
+    for (int y = 0; y < r; ++y)
+    {
+      for (int x = 0; x < r; ++x, ++k)
+      {
+        double p[3];
+        output->GetPoint(static_cast<vtkIdType>(k), p);
+        pts[k] = inr::QueryPoint{ float(p[0]), float(p[1]), float(p[2]), float(t) };
+      }
+    }
+  }
+  vtkNew<vtkFloatArray> values;
+  values->SetName("value");
+  values->SetNumberOfTuples(static_cast<vtkIdType>(n));
+  try
+  {
+    I.evaluator->evaluate(pts.data(), n, values->GetPointer(0));
+  }
+  catch (const std::exception& e)
+  {
+    vtkErrorMacro(<< I.loadedPath << ": evaluation failed: " << e.what());
+    return 0;
+  }
+  output->GetPointData()->SetScalars(values);
+
+  vtkFieldData* fd = output->GetFieldData();
+  fd->AddArray(I.bytes);
+  vtkNew<vtkDoubleArray> range;
+  range->SetName("InrValueRange");
+  range->SetNumberOfTuples(2);
+  range->SetValue(0, this->ValueRange[0]);
+  range->SetValue(1, this->ValueRange[1]);
+  fd->AddArray(range);
+  vtkNew<vtkDoubleArray> time;
+  time->SetName("InrTime");
+  time->SetNumberOfTuples(1);
+  time->SetValue(0, t);
+  fd->AddArray(time);
+  output->GetInformation()->Set(vtkDataObject::DATA_TIME_STEP(), t);
+  return 1;
+}
+
+void vtkInrVolumeReader::PrintSelf(ostream& os, vtkIndent indent)
+{
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "FileName: " << (this->FileName ? this->FileName : "(none)") << "\n";
+  os << indent << "PreviewResolution: " << this->PreviewResolution << "\n";
+  os << indent << "TimeRange: " << this->TimeRange[0] << " " << this->TimeRange[1] << "\n";
+  os << indent << "ValueRange: " << this->ValueRange[0] << " " << this->ValueRange[1] << "\n";
+}

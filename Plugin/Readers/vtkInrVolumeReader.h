@@ -1,0 +1,75 @@
+/**
+ * @class vtkInrVolumeReader
+ * @brief Reads an INR Volume model (.inr: safetensors weights + JSON architecture/domain) as a
+ * continuous, time-dependent source.
+ *
+ * Output: a vtkImageData covering the model's world box with `PreviewResolution`^3 node-centred
+ * samples of the field at the requested time (point array "value"), for ParaView's other filters
+ * (slices, contours). The volume mapper never uses these samples: it evaluates the network itself.
+ * Field data carries the model downstream, so it also reaches a remote render server:
+ *  - "InrModel":      vtkUnsignedCharArray, the file's raw bytes (rebuilt with InrModel::loadBytes)
+ *  - "InrValueRange": vtkDoubleArray, 2 tuples: the model's value range (hint or sampled)
+ *  - "InrTime":       vtkDoubleArray, 1 tuple: the world time of this output
+ * Information: a continuous TIME_RANGE (no TIME_STEPS, so time moves continuously); static models
+ * report no time at all. Errors (unreadable or malformed file) are reported with vtkErrorMacro and
+ * the loader's message; the request fails, nothing crashes.
+ *
+ * In parallel (several pieces), piece 0 carries the whole model and preview; other pieces are
+ * empty, so the volume is rendered exactly once.
+ */
+#ifndef vtkInrVolumeReader_h
+#define vtkInrVolumeReader_h
+
+#include "InrVolumeReadersModule.h"
+#include "vtkImageAlgorithm.h"
+
+class INRVOLUMEREADERS_EXPORT vtkInrVolumeReader : public vtkImageAlgorithm
+{
+public:
+  static vtkInrVolumeReader* New();
+  vtkTypeMacro(vtkInrVolumeReader, vtkImageAlgorithm);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
+
+  ///@{
+  /// The model file.
+  virtual void SetFileName(const char* name);
+  vtkGetStringMacro(FileName);
+  ///@}
+
+  ///@{
+  /// Samples per axis of the preview grid (2..256, default 8). 2 = only the box corners
+  /// (effectively off); raise it to slice or contour the model with other filters.
+  vtkSetClampMacro(PreviewResolution, int, 2, 256);
+  vtkGetMacro(PreviewResolution, int);
+  ///@}
+
+  /// 1 if the file looks like a safetensors file with INR Volume metadata (cheap check).
+  static int CanReadFile(const char* fileName);
+
+  ///@{
+  /// Filled by RequestInformation: the model's time range and value range.
+  vtkGetVector2Macro(TimeRange, double);
+  vtkGetVector2Macro(ValueRange, double);
+  ///@}
+
+protected:
+  vtkInrVolumeReader();
+  ~vtkInrVolumeReader() override;
+
+  int RequestInformation(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
+  int RequestData(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
+
+private:
+  vtkInrVolumeReader(const vtkInrVolumeReader&) = delete;
+  void operator=(const vtkInrVolumeReader&) = delete;
+  bool LoadModel();
+
+  char* FileName = nullptr;
+  int PreviewResolution = 8;
+  double TimeRange[2] = { 0, 0 };
+  double ValueRange[2] = { 0, 1 };
+  struct Internals;
+  Internals* Internal;
+};
+
+#endif

@@ -1,0 +1,153 @@
+/**
+ * @class vtkInrVolumeMapper
+ * @brief Volume mapper that renders an INR Volume model straight from its weights with the
+ * engine's delta-tracking renderer, composited into the render window.
+ *
+ * The input is the output of vtkInrVolumeReader (a vtkImageData whose field data carries the model
+ * bytes "InrModel", the value range "InrValueRange" and the time "InrTime"); the preview samples
+ * are ignored. Each Render():
+ *  - rebuilds the engine only when the model bytes (hash), the macrocell resolution, the temporal
+ *    slices or the backend change;
+ *  - hands the engine the VTK camera, the volume property's colour function (sampled, so every
+ *    VTK colour space is honoured), its scalar-opacity function (nodes with midpoint/sharpness) and
+ *    ScalarOpacityUnitDistance, the time, the light and a per-pixel depth limit read from the depth
+ *    buffer (world distance to the opaque geometry drawn before); the engine's setScene decides
+ *    what to redo (time: working grid + majorants; TF: majorants; camera/light/depth: restart
+ *    accumulation; nothing: keep accumulating);
+ *  - accumulates frames (at least one new frame while not converged, and up to FramesPerRender
+ *    in total, never beyond MaximumFrames or past the convergence target);
+ *  - draws the accumulated premultiplied image over the framebuffer (blend ONE, ONE_MINUS_SRC_ALPHA).
+ * Progressive refinement is driven from outside: call Render() again while !GetConverged()
+ * (ParaView's GUI does this through the plugin's pqInrRefinementBehavior).
+ */
+#ifndef vtkInrVolumeMapper_h
+#define vtkInrVolumeMapper_h
+
+#include "InrVolumeRepresentationsModule.h"
+#include "vtkVolumeMapper.h"
+
+class vtkRenderer;
+class vtkVolume;
+class vtkWindow;
+
+class INRVOLUMEREPRESENTATIONS_EXPORT vtkInrVolumeMapper : public vtkVolumeMapper
+{
+public:
+  static vtkInrVolumeMapper* New();
+  vtkTypeMacro(vtkInrVolumeMapper, vtkVolumeMapper);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
+
+  enum
+  {
+    BACKEND_AUTO = 0,
+    BACKEND_CPU = 1,
+    BACKEND_CUDA = 2
+  };
+
+  ///@{
+  /// Backend: AUTO (CUDA when usable, else CPU), CPU, or CUDA (falls back to CPU with a warning
+  /// when this build or machine has no usable CUDA renderer).
+  vtkSetClampMacro(Backend, int, 0, 2);
+  vtkGetMacro(Backend, int);
+  ///@}
+
+  ///@{
+  /// Macrocells per axis (default 32) and temporal slices (default 16) of the majorant grid.
+  vtkSetClampMacro(MacrocellResolution, int, 2, 256);
+  vtkGetMacro(MacrocellResolution, int);
+  vtkSetClampMacro(TemporalSlices, int, 1, 4096);
+  vtkGetMacro(TemporalSlices, int);
+  ///@}
+
+  ///@{
+  /// Shadows from one directional light. LightDirection points towards the light (world space);
+  /// (0,0,0) = automatic: above-left-behind the camera, following it. Ambient in [0,1].
+  /// ShadowEstimator: 0 delta (binary visibility), 1 ratio tracking (less noise, more queries).
+  vtkSetMacro(Shadows, int);
+  vtkGetMacro(Shadows, int);
+  vtkSetVector3Macro(LightDirection, double);
+  vtkGetVector3Macro(LightDirection, double);
+  vtkSetClampMacro(Ambient, double, 0.0, 1.0);
+  vtkGetMacro(Ambient, double);
+  vtkSetClampMacro(ShadowEstimator, int, 0, 1);
+  vtkGetMacro(ShadowEstimator, int);
+  ///@}
+
+  ///@{
+  /// Refinement control. MaximumFrames (default 256): accumulation stops there.
+  /// ConvergenceTarget (default 0.002, 0 = off): accumulation stops when the estimated standard
+  /// error of the displayed image, mean_pixels(residual) / sqrt(frames), falls below it (RGB in
+  /// [0,1]). FramesPerRender (default 1): one Render() call accumulates until the image holds at
+  /// least this many frames (scripts set it to N to get an N-frame image from one render).
+  vtkSetClampMacro(MaximumFrames, int, 1, 1 << 20);
+  vtkGetMacro(MaximumFrames, int);
+  vtkSetClampMacro(ConvergenceTarget, double, 0.0, 1.0);
+  vtkGetMacro(ConvergenceTarget, double);
+  vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
+  vtkGetMacro(FramesPerRender, int);
+  ///@}
+
+  ///@{
+  /// Seed of the random streams (fixed seed + same inputs = same image).
+  vtkSetMacro(Seed, int);
+  vtkGetMacro(Seed, int);
+  ///@}
+
+  ///@{
+  /// When on, ignore the volume property and use the engine's default transfer function (cool to
+  /// warm colours, linear opacity ramp) over the model's value range. ParaView's representation
+  /// turns this on while the representation is not coloured by an array.
+  vtkSetMacro(UseDefaultTransferFunction, int);
+  vtkGetMacro(UseDefaultTransferFunction, int);
+  ///@}
+
+  /// Forget the accumulated frames (the next Render starts a new estimate).
+  void ResetAccumulation();
+
+  ///@{
+  /// State after the last Render().
+  int GetAccumulatedFrames();
+  int GetConverged();
+  double GetConvergenceEstimate();
+  /// e.g. "CPU (auto: this build has no CUDA renderer)".
+  const char* GetBackendInUse();
+  /// Working-grid / majorant update time reported by the engine during the last Render (ms).
+  double GetLastUpdateMilliseconds();
+  /// Macrocell slices built since the engine was created (time changes build new ones lazily).
+  int GetSlicesBuilt();
+  /// How many times the engine (evaluator, macrocells, renderer) was (re)built.
+  int GetEngineBuilds();
+  /// INR queries issued during the last Render (primary + shadow).
+  double GetLastQueries();
+  ///@}
+
+  void Render(vtkRenderer* ren, vtkVolume* vol) override;
+  void ReleaseGraphicsResources(vtkWindow* win) override;
+
+protected:
+  vtkInrVolumeMapper();
+  ~vtkInrVolumeMapper() override;
+  int FillInputPortInformation(int port, vtkInformation* info) override;
+
+private:
+  vtkInrVolumeMapper(const vtkInrVolumeMapper&) = delete;
+  void operator=(const vtkInrVolumeMapper&) = delete;
+
+  int Backend = BACKEND_AUTO;
+  int MacrocellResolution = 32;
+  int TemporalSlices = 16;
+  int Shadows = 0;
+  double LightDirection[3] = { 0, 0, 0 };
+  double Ambient = 0.2;
+  int ShadowEstimator = 0;
+  int MaximumFrames = 256;
+  double ConvergenceTarget = 0.002;
+  int FramesPerRender = 1;
+  int Seed = 1;
+  int UseDefaultTransferFunction = 0;
+
+  struct Internals;
+  Internals* Internal;
+};
+
+#endif

@@ -1,0 +1,88 @@
+#include "vtkInrVolumeRepresentation.h"
+
+#include "vtkDataObject.h"
+#include "vtkInformation.h"
+#include "vtkInrVolumeMapper.h"
+#include "vtkObjectFactory.h"
+#include "vtkPVLODVolume.h"
+#include "vtkSmartPointer.h"
+
+vtkStandardNewMacro(vtkInrVolumeRepresentation);
+
+vtkInrVolumeRepresentation::vtkInrVolumeRepresentation()
+{
+  this->VolumeMapper = vtkSmartPointer<vtkInrVolumeMapper>::New();
+}
+
+vtkInrVolumeRepresentation::~vtkInrVolumeRepresentation() = default;
+
+vtkInrVolumeMapper* vtkInrVolumeRepresentation::GetInrMapper()
+{
+  return vtkInrVolumeMapper::SafeDownCast(this->VolumeMapper);
+}
+
+void vtkInrVolumeRepresentation::UpdateMapperParameters()
+{
+  this->Superclass::UpdateMapperParameters();
+  const char* colorArray = nullptr;
+  if (vtkInformation* info = this->GetInputArrayInformation(0))
+  {
+    if (info->Has(vtkDataObject::FIELD_NAME()))
+    {
+      colorArray = info->Get(vtkDataObject::FIELD_NAME());
+    }
+  }
+  const bool colored = colorArray && colorArray[0];
+  this->GetInrMapper()->SetUseDefaultTransferFunction(colored ? 0 : 1);
+  // The superclass hides the volume when no array is selected; ours renders the network itself.
+  this->Actor->SetVisibility(this->GetVisibility() ? 1 : 0);
+}
+
+#define INR_FORWARD(Name, Type)                                                                    \
+  void vtkInrVolumeRepresentation::SetInr##Name(Type v)                                            \
+  {                                                                                                \
+    this->GetInrMapper()->Set##Name(v);                                                            \
+    this->Modified();                                                                              \
+  }
+INR_FORWARD(Backend, int)
+INR_FORWARD(MacrocellResolution, int)
+INR_FORWARD(TemporalSlices, int)
+INR_FORWARD(Shadows, int)
+INR_FORWARD(Ambient, double)
+INR_FORWARD(ShadowEstimator, int)
+INR_FORWARD(MaximumFrames, int)
+INR_FORWARD(ConvergenceTarget, double)
+INR_FORWARD(FramesPerRender, int)
+INR_FORWARD(Seed, int)
+#undef INR_FORWARD
+
+void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)
+{
+  this->GetInrMapper()->SetLightDirection(x, y, z);
+  this->Modified();
+}
+
+int vtkInrVolumeRepresentation::GetInrAccumulatedFrames()
+{
+  return this->GetInrMapper()->GetAccumulatedFrames();
+}
+
+int vtkInrVolumeRepresentation::GetInrConverged()
+{
+  return this->GetInrMapper()->GetConverged();
+}
+
+double vtkInrVolumeRepresentation::GetInrConvergenceEstimate()
+{
+  return this->GetInrMapper()->GetConvergenceEstimate();
+}
+
+const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
+{
+  return this->GetInrMapper()->GetBackendInUse();
+}
+
+void vtkInrVolumeRepresentation::PrintSelf(ostream& os, vtkIndent indent)
+{
+  this->Superclass::PrintSelf(os, indent);
+}

@@ -1,0 +1,92 @@
+"""Shared helpers of the ParaView plugin tests (pvpython / pvbatch / paraview --script)."""
+import os
+
+# The scene every scripted test renders: the plugin test model, a fixed camera, a fixed
+# colour map (ParaView's Cool to Warm) and opacity ramp, ParaView's default background.
+CAMERA = dict(position=[3.6, -3.4, 2.9], focal_point=[1.0, 0.0, 0.5], view_up=[0.0, 0.0, 1.0],
+              view_angle=30.0)
+OPACITY_POINTS = [0.55, 0.0, 0.5, 0.0, 0.85, 0.5, 0.5, 0.0, 1.17, 1.0, 0.5, 0.0]
+VALUE_RANGE = [-0.14, 1.17]
+BACKGROUND = [0.32, 0.34, 0.43]
+UNIT_DISTANCE = 0.1
+
+
+def load_plugin(path, remote):
+    from paraview import simple
+    if path:
+        simple.LoadPlugin(path, remote=False, ns=globals())
+        if remote:
+            simple.LoadPlugin(path, remote=True, ns=globals())
+
+
+def setup_view(size):
+    from paraview import simple
+    view = simple.GetActiveViewOrCreate("RenderView")
+    view.ViewSize = list(size)
+    view.OrientationAxesVisibility = 0
+    try:
+        view.UseColorPaletteForBackground = 0
+    except AttributeError:
+        pass
+    view.Background = BACKGROUND
+    view.CameraPosition = CAMERA["position"]
+    view.CameraFocalPoint = CAMERA["focal_point"]
+    view.CameraViewUp = CAMERA["view_up"]
+    view.CameraViewAngle = CAMERA["view_angle"]
+    view.CameraParallelProjection = 0
+    return view
+
+
+def apply_colormap(display, view):
+    from paraview import simple
+    simple.ColorBy(display, ("POINTS", "value"))
+    lut = simple.GetColorTransferFunction("value")
+    lut.ApplyPreset("Cool to Warm", True)
+    lut.AutomaticRescaleRangeMode = "Never"
+    lut.RescaleTransferFunction(*VALUE_RANGE)
+    pwf = simple.GetOpacityTransferFunction("value")
+    pwf.Points = OPACITY_POINTS
+    pwf.AutomaticRescaleRangeMode = "Never"
+    display.ScalarOpacityUnitDistance = UNIT_DISTANCE
+    display.SetScalarBarVisibility(view, False)
+
+
+def info(display, name):
+    """An information-only property of the INR Volume representation, pulled from the server."""
+    proxy = display.SMProxy
+    prop = proxy.GetProperty(name)
+    proxy.UpdatePropertyInformation(prop)
+    return prop.GetElement(0)
+
+
+def read_png(path):
+    import numpy as np
+    from vtkmodules.vtkIOImage import vtkPNGReader
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    if not os.path.exists(path):
+        raise FileNotFoundError(path)
+    r = vtkPNGReader()
+    r.SetFileName(path)
+    r.Update()
+    img = r.GetOutput()
+    w, h, _ = img.GetDimensions()
+    a = vtk_to_numpy(img.GetPointData().GetScalars()).reshape(h, w, -1)
+    return a[:, :, :3].astype(np.float64)
+
+
+def psnr(a, b):
+    import numpy as np
+    mse = float(np.mean((a - b) ** 2))
+    return 999.0 if mse == 0 else 10.0 * np.log10(255.0 ** 2 / mse)
+
+
+def compare(out_png, baseline, min_psnr, max_abs):
+    """Strict comparison of two 8-bit RGB images; returns (ok, message)."""
+    import numpy as np
+    a, b = read_png(out_png), read_png(baseline)
+    if a.shape != b.shape:
+        return False, f"size {a.shape} differs from baseline {b.shape}"
+    p = psnr(a, b)
+    m = int(np.max(np.abs(a - b)))
+    ok = p >= min_psnr and m <= max_abs
+    return ok, f"PSNR {p:.2f} dB (>= {min_psnr}), max abs error {m} (<= {max_abs})"

@@ -1,0 +1,59 @@
+"""GUI smoke test: paraview --script=gui_smoke.py --test-script=gui_pause.xml --exit.
+Checks: the screenshot exists and is not empty (enough pixels differ from the background), the
+representation is INR Volume, and during the pause the view kept refining by itself (the
+accumulated frame count grew beyond 1 without any script render).
+  pvpython run_gui_smoke.py --paraview PARAVIEW --model M.inr --out DIR"""
+import argparse
+import os
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import inr_pv_common as C  # noqa: E402
+
+ap = argparse.ArgumentParser()
+ap.add_argument("--paraview", required=True)
+ap.add_argument("--model", required=True)
+ap.add_argument("--out", required=True)
+args = ap.parse_args()
+here = os.path.dirname(os.path.abspath(__file__))
+for f in ("gui_smoke.png", "gui_frames.txt"):
+    if os.path.exists(os.path.join(args.out, f)):
+        os.remove(os.path.join(args.out, f))
+env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_MODEL=args.model)
+cmd = [args.paraview, "--dr", f"--script={os.path.join(here, 'gui_smoke.py')}",
+       f"--test-script={os.path.join(here, 'gui_pause.xml')}", "--exit"]
+p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                   timeout=400)
+print(p.stdout[-4000:])
+fail = []
+png = os.path.join(args.out, "gui_smoke.png")
+if not os.path.exists(png):
+    fail.append("no screenshot")
+else:
+    import numpy as np
+    a = C.read_png(png)
+    corner = a[0, 0]
+    differs = float(np.mean(np.any(np.abs(a - corner) > 8, axis=2)))
+    print(f"screenshot {a.shape[1]}x{a.shape[0]}: {100 * differs:.1f}% of pixels differ from the background")
+    if differs < 0.02:
+        fail.append("screenshot is empty")
+frames = []
+text = ""
+if os.path.exists(os.path.join(args.out, "gui_frames.txt")):
+    text = open(os.path.join(args.out, "gui_frames.txt")).read()
+    for line in text.splitlines():
+        parts = line.split()
+        if parts and parts[0].isdigit():
+            frames.append(int(parts[0]))
+print("representation lines:", [l for l in text.splitlines() if l.startswith("representation")])
+print("accumulated frames seen after renders:", frames[:8], "...", frames[-3:] if frames else [])
+if "representation INR Volume" not in text:
+    fail.append("not shown as INR Volume")
+if not frames or max(frames) < 8:
+    fail.append("the GUI did not keep refining by itself (max frames %s)" % (max(frames) if frames else None))
+if p.returncode != 0:
+    fail.append(f"paraview exit status {p.returncode}")
+print("RESULT:", "PASS" if not fail else "FAIL: " + "; ".join(fail))
+sys.stdout.flush()
+os._exit(0 if not fail else 1)
