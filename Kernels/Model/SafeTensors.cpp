@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "Common/Half.h"
 #include "Model/InrModel.h"
 
 namespace inr {
@@ -25,33 +26,6 @@ std::size_t dtypeSize(const std::string& dtype) {
   return 0;
 }
 
-float halfToFloat(std::uint16_t h) {
-  const std::uint32_t sign = std::uint32_t(h & 0x8000u) << 16;
-  std::uint32_t exponent = (h >> 10) & 0x1fu;
-  std::uint32_t mantissa = h & 0x3ffu;
-  std::uint32_t bits;
-  if (exponent == 0) {
-    if (mantissa == 0) {
-      bits = sign;
-    } else {  // subnormal: renormalise
-      exponent = 127 - 15 + 1;
-      while ((mantissa & 0x400u) == 0) {
-        mantissa <<= 1;
-        --exponent;
-      }
-      mantissa &= 0x3ffu;
-      bits = sign | (exponent << 23) | (mantissa << 13);
-    }
-  } else if (exponent == 0x1f) {
-    bits = sign | 0x7f800000u | (mantissa << 13);
-  } else {
-    bits = sign | ((exponent + 127 - 15) << 23) | (mantissa << 13);
-  }
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
-
 void convert(const std::string& dtype, const std::uint8_t* src, std::size_t count, float* dst) {
   // The file is little-endian; so is every machine we build for (x86-64, aarch64).
   if (dtype == "F32") {
@@ -66,7 +40,7 @@ void convert(const std::string& dtype, const std::uint8_t* src, std::size_t coun
     for (std::size_t i = 0; i < count; ++i) {
       std::uint16_t h;
       std::memcpy(&h, src + 2 * i, 2);
-      dst[i] = halfToFloat(h);
+      dst[i] = halfBitsToFloat(h);
     }
   } else {  // BF16: the top half of an fp32
     for (std::size_t i = 0; i < count; ++i) {

@@ -1,0 +1,331 @@
+#include "Cuda/CudaInrEvaluator.h"
+
+#include <cublas_v2.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "Cuda/CudaCheck.h"
+#include "Cuda/CudaDevice.h"
+#include "Cuda/FusedMlpKernel.cuh"
+#include "Cuda/MlpProgram.h"
+
+namespace inr {
+namespace {
+
+template <typename T>
+struct DeviceArray {
+  T* ptr = nullptr;
+  std::size_t count = 0;
+  DeviceArray() = default;
+  DeviceArray(const DeviceArray&) = delete;
+  DeviceArray& operator=(const DeviceArray&) = delete;
+  ~DeviceArray() {
+    if (ptr) cudaFree(ptr);
+  }
+  void resize(std::size_t n) {
+    if (n <= count) return;
+    if (ptr) cudaFree(ptr);
+    ptr = nullptr;
+    INR_CUDA_CHECK(cudaMalloc(&ptr, std::max<std::size_t>(n, 1) * sizeof(T)));
+    count = n;
+  }
+  void upload(const std::vector<T>& v) {
+    resize(v.size());
+    if (!v.empty()) INR_CUDA_CHECK(cudaMemcpy(ptr, v.data(), v.size() * sizeof(T), cudaMemcpyHostToDevice));
+  }
+};
+
+void cublasCheck(cublasStatus_t s, const char* what) {
+  if (s != CUBLAS_STATUS_SUCCESS)
+    throw std::runtime_error(std::string("cuBLAS error in ") + what + ": status " + std::to_string(int(s)));
+}
+
+// ---- generic fp32 path: one kernel (or cuBLAS call) per instruction over a chunk of queries.
+// Activations: column per query, `ld` floats per column.
+
+__device__ inline float genericAct(MlpAct a, float v) {
+  switch (a) {
+    case MlpAct::None: return v;
+    case MlpAct::Sine: return sinf(v);
+    case MlpAct::SiLU: return v / (1.f + expf(-v));
+    case MlpAct::ReLU: return fmaxf(v, 0.f);
+    case MlpAct::Sigmoid: return 1.f / (1.f + expf(-v));
+    case MlpAct::Tanh: return tanhf(v);
+  }
+  return v;
+}
+
+__global__ void genericCoords(cuda::FusedParams P, const float4* points, int n, float* coords) {
+  const int q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  const float4 p = points[q];
+  const float w[4] = {p.x, p.y, p.z, p.w};
+  for (int i = 0; i < 4; ++i) coords[q * 4 + i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
+}
+
+__global__ void genericEpilogue(MlpInstr in, const float* bias, float* y, const float* other, int ld, int n) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int o = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || o >= in.nPad) return;
+  float v = 0.f;
+  if (o < in.outWidth) {
+    v = genericAct(in.act, y[q * ld + o] + bias[o]);
+    if (other) v = in.combineScale * (v + other[q * ld + o]);
+  }
+  y[q * ld + o] = v;
+}
+
+__global__ void genericElementwise(MlpInstr in, const float* coords, float* dst, const float* a, const float* other,
+                                   int ld, int n, int inputDim) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int c = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || c >= in.nPad) return;
+  float v = 0.f;
+  if (in.op == MlpOp::LoadInput) {
+    v = c < inputDim ? coords[q * 4 + c] : 0.f;
+  } else if (in.op == MlpOp::Activation) {
+    v = c < in.outWidth ? genericAct(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
+  } else {  // Combine
+    v = in.combineScale * (a[q * ld + c] + (other ? other[q * ld + c] : 0.f));
+  }
+  dst[q * ld + c] = v;
+}
+
+__global__ void genericFourier(MlpInstr in, const float* B, const float* src, int srcLd, float* dst, int ld, int n) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int c = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || c >= in.nPad) return;
+  const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
+  const int sinBase = in.includeInput == 1 ? in.inWidth : 0;
+  const int at = in.includeInput == 1 ? 0 : 2 * m;
+  float v = 0.f;
+  if (in.includeInput && c >= at && c < at + in.inWidth) {
+    v = src[q * srcLd + c - at];
+  } else if (c >= sinBase && c < sinBase + 2 * m) {
+    const int j = (c - sinBase) % m;
+    float proj = 0.f;
+    for (int k = 0; k < in.inWidth; ++k) proj += B[j * in.inWidth + k] * src[q * srcLd + k];
+    v = c < sinBase + m ? sinf(proj) : cosf(proj);
+  }
+  dst[q * ld + c] = v;
+}
+
+__global__ void genericOutput(MlpInstr in, const float* W, const float* bias, const float* src, int srcLd,
+                              cuda::OutputMap map, const float4* points, int n, int offset, float* out,
+                              const int* scatter) {
+  const int q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  float net;
+  if (W) {
+    float acc = 0.f;
+    for (int k = 0; k < in.inWidth; ++k) acc += W[k] * src[q * srcLd + k];
+    net = genericAct(in.act, acc + bias[0]);
+  } else {
+    net = src[q * srcLd];
+  }
+  float a, b;
+  cuda::outputAffine(map, points[q].w, a, b);
+  const int g = offset + q;
+  out[scatter ? scatter[g] : g] = a * net + b;
+}
+
+}  // namespace
+
+struct CudaInrEvaluator::Impl {
+  CudaDeviceInfo device;
+  MlpProgram program;
+  CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
+  int tile = 64;
+  std::size_t sharedBytes = 0;
+  int gridBlocks = 0;
+  cuda::FusedParams params;
+  DeviceArray<MlpInstr> instrs;
+  DeviceArray<__half> halfW;
+  DeviceArray<float> floatW;
+  DeviceArray<float> outputTable;
+  // host-interface staging
+  mutable DeviceArray<float4> stagePoints;
+  mutable DeviceArray<float> stageOut;
+  // generic path
+  cublasHandle_t cublas = nullptr;
+  mutable DeviceArray<float> genericBuffers, genericCoords;
+  static constexpr int kGenericChunk = 1 << 16;
+};
+
+CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.device = queryCudaDevice(options.device);
+  if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);
+  INR_CUDA_CHECK(cudaSetDevice(options.device));
+  I.program = MlpProgram::compile(model.architecture);
+  const MlpProgram& prog = I.program;
+
+  // Input mapping in network input order; output mapping as a (t, a, b) table.
+  auto& P = I.params;
+  P.inputDim = model.architecture.inputDim;
+  for (int i = 0; i < P.inputDim; ++i) {
+    const int w = model.domain.inputOrder[i];
+    P.inputCoord[i] = w;
+    P.inScale[i] = float(model.domain.toNetwork[w].scale);
+    P.inOffset[i] = float(model.domain.toNetwork[w].offset);
+  }
+  std::vector<float> table;
+  if (model.output.perTime) {
+    for (double t : model.output.perTime->times) {
+      float a, b;
+      model.output.affineAt(t, a, b);
+      table.insert(table.end(), {float(t), a, b});
+    }
+    I.outputTable.upload(table);
+    P.output.count = int(model.output.perTime->times.size());
+    P.output.table = I.outputTable.ptr;
+  } else {
+    P.output.a = model.output.scale;
+    P.output.b = model.output.offset;
+  }
+
+  I.instrs.upload(prog.instrs);
+  std::vector<__half> hw(prog.halfWeights.size());
+  for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(prog.halfWeights[i]);
+  I.halfW.upload(hw);
+  I.floatW.upload(prog.floatWeights);
+  P.instrs = I.instrs.ptr;
+  P.numInstrs = int(prog.instrs.size());
+  P.halfWeights = I.halfW.ptr;
+  P.floatWeights = I.floatW.ptr;
+  P.numBuffers = std::max(1, prog.numBuffers);
+  P.maxWidthPad = prog.maxWidthPad;
+  P.ldAct = prog.maxWidthPad + 8;
+
+  // Path and tile size.
+  bool fused = prog.fusable && options.path != CudaEvaluatorPath::Generic;
+  std::string why = prog.whyNotFused;
+  if (fused) {
+    const int tiles[2] = {64, 32};
+    I.tile = 0;
+    for (int t : tiles) {
+      if (options.tileQueries && options.tileQueries != t) continue;
+      const std::size_t bytes = cuda::fusedSharedBytes(t, P.numBuffers, P.ldAct, P.maxWidthPad);
+      if (bytes <= I.device.sharedMemPerBlockOptin) {
+        I.tile = t;
+        I.sharedBytes = bytes;
+        break;
+      }
+    }
+    if (!I.tile) {
+      fused = false;
+      why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
+    }
+  }
+  if (options.path == CudaEvaluatorPath::Fused && !fused)
+    throw std::runtime_error("fused CUDA evaluator requested but impossible for this model: " + why);
+  I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
+  if (fused) {
+    auto kernel = I.tile == 64 ? cuda::fusedMlpKernel<64> : cuda::fusedMlpKernel<32>;
+    INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(I.sharedBytes)));
+    int perSm = 0;
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kFusedThreads, I.sharedBytes));
+    I.gridBlocks = std::max(1, perSm) * I.device.multiprocessors;
+  } else {
+    cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
+  }
+}
+
+CudaInrEvaluator::~CudaInrEvaluator() {
+  if (impl_ && impl_->cublas) cublasDestroy(impl_->cublas);
+}
+
+CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
+
+std::string CudaInrEvaluator::name() const {
+  const Impl& I = *impl_;
+  return I.path == CudaEvaluatorPath::Fused
+             ? "cuda-fused-fp16 (tile " + std::to_string(I.tile) + ", " + std::to_string(I.sharedBytes / 1024) +
+                   " KB smem) on " + I.device.name
+             : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
+                   I.device.name;
+}
+
+std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
+
+void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, const int* scatter,
+                                      cudaStream_t stream) const {
+  const Impl& I = *impl_;
+  if (n <= 0) return;
+  if (I.path == CudaEvaluatorPath::Fused) {
+    const int tiles = (n + I.tile - 1) / I.tile;
+    const int grid = std::min(tiles, I.gridBlocks);
+    if (I.tile == 64)
+      cuda::fusedMlpKernel<64><<<grid, cuda::kFusedThreads, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
+    else
+      cuda::fusedMlpKernel<32><<<grid, cuda::kFusedThreads, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
+    INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
+    return;
+  }
+  // Generic fp32 path, chunk by chunk.
+  const MlpProgram& prog = I.program;
+  const int ld = prog.maxWidthPad;
+  const int chunk = Impl::kGenericChunk;
+  I.genericBuffers.resize(std::size_t(std::max(1, prog.numBuffers)) * ld * chunk);
+  I.genericCoords.resize(std::size_t(4) * chunk);
+  cublasCheck(cublasSetStream(I.cublas, stream), "cublasSetStream");
+  const float one = 1.f, zero = 0.f;
+  for (int begin = 0; begin < n; begin += chunk) {
+    const int m = std::min(chunk, n - begin);
+    auto buf = [&](int b) { return I.genericBuffers.ptr + std::size_t(b) * ld * chunk; };
+    genericCoords<<<(m + 255) / 256, 256, 0, stream>>>(I.params, points + begin, m, I.genericCoords.ptr);
+    INR_CUDA_CHECK_LAUNCH("genericCoords");
+    for (const MlpInstr& in : prog.instrs) {
+      const float* src = in.src < 0 ? I.genericCoords.ptr : buf(in.src);
+      const int srcLd = in.src < 0 ? 4 : ld;
+      const dim3 block(32, 8), grid2((std::max(in.nPad, 1) + 31) / 32, (m + 7) / 8);
+      switch (in.op) {
+        case MlpOp::DenseFp32:
+        case MlpOp::Gemm:
+          cublasCheck(cublasSgemm(I.cublas, CUBLAS_OP_T, CUBLAS_OP_N, in.outWidth, m, in.inWidth, &one,
+                                  I.floatW.ptr + in.floatOffset, in.inWidth, src, srcLd, &zero, buf(in.dst), ld),
+                      "cublasSgemm");
+          genericEpilogue<<<grid2, block, 0, stream>>>(in, I.floatW.ptr + in.biasOffset, buf(in.dst),
+                                                      in.other >= 0 ? buf(in.other) : nullptr, ld, m);
+          INR_CUDA_CHECK_LAUNCH("genericEpilogue");
+          break;
+        case MlpOp::Fourier:
+          genericFourier<<<grid2, block, 0, stream>>>(in, I.floatW.ptr + in.floatOffset, src, srcLd, buf(in.dst), ld, m);
+          INR_CUDA_CHECK_LAUNCH("genericFourier");
+          break;
+        case MlpOp::LoadInput:
+        case MlpOp::Activation:
+        case MlpOp::Combine:
+          genericElementwise<<<grid2, block, 0, stream>>>(in, I.genericCoords.ptr, buf(in.dst),
+                                                         in.src >= 0 ? buf(in.src) : nullptr,
+                                                         in.other >= 0 ? buf(in.other) : nullptr, ld, m, prog.inputDim);
+          INR_CUDA_CHECK_LAUNCH("genericElementwise");
+          break;
+        case MlpOp::OutputDot:
+        case MlpOp::Output:
+          genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(
+              in, in.op == MlpOp::OutputDot ? I.floatW.ptr + in.floatOffset : nullptr, I.floatW.ptr + in.biasOffset, src,
+              srcLd, I.params.output, points + begin, m, begin, out, scatter);
+          INR_CUDA_CHECK_LAUNCH("genericOutput");
+          break;
+      }
+    }
+  }
+}
+
+void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* out) const {
+  const Impl& I = *impl_;
+  if (n == 0) return;
+  if (n > std::size_t(1) << 30) throw std::runtime_error("CudaInrEvaluator::evaluate: batch larger than 2^30 queries");
+  static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
+  I.stagePoints.resize(n);
+  I.stageOut.resize(n);
+  INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.ptr, points, n * sizeof(float4), cudaMemcpyHostToDevice));
+  evaluateDevice(I.stagePoints.ptr, int(n), I.stageOut.ptr, nullptr, nullptr);
+  INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.ptr, n * sizeof(float), cudaMemcpyDeviceToHost));
+}
+
+}  // namespace inr

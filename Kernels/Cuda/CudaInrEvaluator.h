@@ -1,0 +1,49 @@
+#pragma once
+// The GPU evaluator: the model compiled to an MlpProgram and run either by the fused
+// tensor-core kernel (one kernel through the whole network, fp16 weights and activations, fp32
+// accumulation, first layer / encoding and final dot in fp32) or, for graphs it cannot hold
+// (wider than 256, too many live buffers), by a generic fp32 layer-by-layer path on cuBLAS.
+// The choice is automatic and reported by path().
+//
+// Host interface: FieldEvaluator (host arrays in and out). Device interface: evaluateDevice(),
+// which reads float4 world points from device memory and writes (optionally scattered through an
+// index array) straight into device memory — how the GPU pipeline writes into its rays' state.
+#include <cuda_runtime.h>
+
+#include <memory>
+
+#include "Evaluator/FieldEvaluator.h"
+#include "Model/InrModel.h"
+
+namespace inr {
+
+enum class CudaEvaluatorPath { Auto, Fused, Generic };
+
+struct CudaEvaluatorOptions {
+  int device = 0;
+  CudaEvaluatorPath path = CudaEvaluatorPath::Auto;
+  int tileQueries = 0;  // fused kernel queries per block tile: 0 = choose (64, or 32 when shared memory is short)
+};
+
+class CudaInrEvaluator final : public FieldEvaluator {
+public:
+  // Throws std::runtime_error when no usable device (message says why) or the path is impossible.
+  explicit CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options = {});
+  ~CudaInrEvaluator() override;
+
+  void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
+  std::string name() const override;
+
+  // points: n world-space (x, y, z, t) as float4 in device memory. out[scatter ? scatter[i] : i]
+  // receives the value of points[i]. Asynchronous on `stream`.
+  void evaluateDevice(const float4* points, int n, float* out, const int* scatter, cudaStream_t stream) const;
+
+  CudaEvaluatorPath path() const;
+  std::string describeProgram() const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace inr

@@ -1,0 +1,157 @@
+// GPU evaluator against the CPU references (ctest label `cuda`). Without a usable GPU every test
+// here is reported as skipped, with the reason.
+#include "Cuda/CudaInrEvaluator.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+#include "../../Benchmarks/PaperArchitectures.h"
+#include "Cuda/CudaCheck.h"
+#include "Cuda/CudaDevice.h"
+#include "Cuda/MlpProgram.h"
+#include "Evaluator/CpuInrEvaluator.h"
+
+namespace inr {
+namespace {
+
+#define REQUIRE_GPU()                                              \
+  do {                                                             \
+    const CudaDeviceInfo dev = queryCudaDevice();                  \
+    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason;     \
+  } while (0)
+
+std::vector<QueryPoint> randomPoints(const InrModel& m, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  const auto& b = m.domain.bounds;
+  auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
+  std::vector<QueryPoint> pts(n);
+  for (auto& p : pts) p = {u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), u(m.domain.timeBegin, m.domain.timeEnd)};
+  return pts;
+}
+
+struct Err {
+  double maxAbs = 0, meanAbs = 0;
+};
+
+Err compare(const std::vector<float>& a, const std::vector<float>& b) {
+  Err e;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double d = std::abs(double(a[i]) - double(b[i]));
+    if (!std::isfinite(a[i])) return {INFINITY, INFINITY};
+    e.maxAbs = std::max(e.maxAbs, d);
+    e.meanAbs += d / a.size();
+  }
+  return e;
+}
+
+std::vector<std::pair<std::string, InrModel>> allModels() {
+  std::vector<std::pair<std::string, InrModel>> out;
+  out.emplace_back("SIREN paper", bench::sirenPaper());
+  out.emplace_back("FFN paper", bench::ffnPaper());
+  out.emplace_back("CoordNet paper", bench::coordNetPaper());
+  for (const char* sub : {"models", "real"}) {
+    const auto dir = std::filesystem::path(INR_TEST_DATA_DIR) / sub;
+    if (!std::filesystem::exists(dir)) continue;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.path().extension() == ".inr") out.emplace_back(e.path().filename().string(), InrModel::loadFile(e.path()));
+  }
+  return out;
+}
+
+TEST(CudaInrEvaluator, FusedMatchesCpuReferenceOnEveryModel) {
+  REQUIRE_GPU();
+  for (const auto& [name, model] : allModels()) {
+    const CudaInrEvaluator gpu(model);
+    const auto pts = randomPoints(model, 20011, 3);  // not a multiple of the tile
+    std::vector<float> ref(pts.size()), got(pts.size(), NAN);
+    CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
+    gpu.evaluate(pts.data(), pts.size(), got.data());
+    const Err e = compare(got, ref);
+    float lo = *std::min_element(ref.begin(), ref.end()), hi = *std::max_element(ref.begin(), ref.end());
+    std::printf("%-30s %-44s max abs %.3g  mean abs %.3g  (range %.3g)\n", name.c_str(), gpu.name().substr(0, 44).c_str(),
+                e.maxAbs, e.meanAbs, hi - lo);
+    const double scale = std::max(1.0, double(hi - lo));
+    EXPECT_LT(e.meanAbs, 2e-3 * scale) << name;
+    EXPECT_LT(e.maxAbs, 3e-2 * scale) << name;
+  }
+}
+
+TEST(CudaInrEvaluator, FusedMatchesItsCpuEmulationClosely) {
+  REQUIRE_GPU();
+  // Same arithmetic (fp16 storage, fp32 accumulation): differences come only from summation
+  // order and fast-math sine, so the bound is much tighter than against fp32.
+  for (const auto& [name, model] : allModels()) {
+    const MlpProgram program = MlpProgram::compile(model.architecture);
+    if (!program.fusable) continue;
+    const auto pts = randomPoints(model, 4000, 9);
+    std::vector<float> net(pts.size() * model.architecture.inputDim);
+    for (std::size_t q = 0; q < pts.size(); ++q) {
+      const double w[4] = {pts[q].x, pts[q].y, pts[q].z, pts[q].t};
+      for (int i = 0; i < model.architecture.inputDim; ++i) {
+        const int c = model.domain.inputOrder[i];
+        net[q * model.architecture.inputDim + i] = float(model.domain.toNetwork[c].apply(w[c]));
+      }
+    }
+    std::vector<float> emu(pts.size()), got(pts.size());
+    emulateFusedProgram(program, net.data(), pts.size(), emu.data());
+    for (std::size_t q = 0; q < pts.size(); ++q) {
+      float a, b;
+      model.output.affineAt(pts[q].t, a, b);
+      emu[q] = a * emu[q] + b;
+    }
+    CudaInrEvaluator(model).evaluate(pts.data(), pts.size(), got.data());
+    const Err e = compare(got, emu);
+    std::printf("%-30s fused vs emulation: max abs %.3g mean abs %.3g\n", name.c_str(), e.maxAbs, e.meanAbs);
+    EXPECT_LT(e.meanAbs, 5e-4) << name;
+  }
+}
+
+TEST(CudaInrEvaluator, GenericPathMatchesCpuInFp32) {
+  REQUIRE_GPU();
+  for (const auto& [name, model] : allModels()) {
+    CudaEvaluatorOptions o;
+    o.path = CudaEvaluatorPath::Generic;
+    const CudaInrEvaluator gpu(model, o);
+    const auto pts = randomPoints(model, 70001, 5);  // spans two generic chunks
+    std::vector<float> ref(pts.size()), got(pts.size(), NAN);
+    CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
+    gpu.evaluate(pts.data(), pts.size(), got.data());
+    const Err e = compare(got, ref);
+    std::printf("%-30s generic fp32: max abs %.3g mean abs %.3g\n", name.c_str(), e.maxAbs, e.meanAbs);
+    EXPECT_LT(e.maxAbs, 1e-3) << name;
+    EXPECT_LT(e.meanAbs, 1e-4) << name;
+  }
+}
+
+TEST(CudaInrEvaluator, ScatterWritesThroughTheIndexArray) {
+  REQUIRE_GPU();
+  const InrModel model = bench::sirenPaper();
+  const CudaInrEvaluator gpu(model);
+  const int n = 1000;
+  const auto pts = randomPoints(model, n, 1);
+  std::vector<int> idx(n);
+  for (int i = 0; i < n; ++i) idx[i] = (i * 7919) % n;  // a permutation (7919 prime, coprime to n)
+  float4* dPts;
+  float* dOut;
+  int* dIdx;
+  INR_CUDA_CHECK(cudaMalloc(&dPts, n * sizeof(float4)));
+  INR_CUDA_CHECK(cudaMalloc(&dOut, n * sizeof(float)));
+  INR_CUDA_CHECK(cudaMalloc(&dIdx, n * sizeof(int)));
+  INR_CUDA_CHECK(cudaMemcpy(dPts, pts.data(), n * sizeof(float4), cudaMemcpyHostToDevice));
+  INR_CUDA_CHECK(cudaMemcpy(dIdx, idx.data(), n * sizeof(int), cudaMemcpyHostToDevice));
+  INR_CUDA_CHECK(cudaMemset(dOut, 0xff, n * sizeof(float)));  // NaN poison
+  gpu.evaluateDevice(dPts, n, dOut, dIdx, nullptr);
+  std::vector<float> scattered(n), direct(n);
+  INR_CUDA_CHECK(cudaMemcpy(scattered.data(), dOut, n * sizeof(float), cudaMemcpyDeviceToHost));
+  gpu.evaluate(pts.data(), n, direct.data());
+  for (int i = 0; i < n; ++i) ASSERT_EQ(scattered[idx[i]], direct[i]) << i;
+  cudaFree(dPts);
+  cudaFree(dOut);
+  cudaFree(dIdx);
+}
+
+}  // namespace
+}  // namespace inr

@@ -1,0 +1,417 @@
+#include "Cuda/MlpProgram.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "Common/Half.h"
+
+namespace inr {
+namespace {
+
+int pad16(int w) { return (w + 15) / 16 * 16; }
+
+MlpAct actOf(LayerKind k) {
+  switch (k) {
+    case LayerKind::Sine: return MlpAct::Sine;
+    case LayerKind::SiLU: return MlpAct::SiLU;
+    case LayerKind::ReLU: return MlpAct::ReLU;
+    case LayerKind::Sigmoid: return MlpAct::Sigmoid;
+    case LayerKind::Tanh: return MlpAct::Tanh;
+    default: return MlpAct::None;
+  }
+}
+
+bool isActivation(LayerKind k) {
+  return k == LayerKind::Sine || k == LayerKind::SiLU || k == LayerKind::ReLU || k == LayerKind::Sigmoid ||
+         k == LayerKind::Tanh || k == LayerKind::Identity;
+}
+
+// A value flowing through the graph: a buffer, or the raw coordinates (buf = -1).
+struct Value {
+  int buf = -1;
+  int width = 0;
+  bool owned = false;  // this list may free / overwrite it
+};
+
+class Compiler {
+public:
+  explicit Compiler(MlpProgram& p) : p_(p) {}
+
+  int alloc() {
+    for (std::size_t i = 0; i < inUse_.size(); ++i)
+      if (!inUse_[i]) {
+        inUse_[i] = true;
+        return int(i);
+      }
+    inUse_.push_back(true);
+    p_.numBuffers = std::max<int>(p_.numBuffers, int(inUse_.size()));
+    return int(inUse_.size()) - 1;
+  }
+  void release(const Value& v) {
+    if (v.owned && v.buf >= 0) inUse_[v.buf] = false;
+  }
+  void noteWidth(int w) { p_.maxWidthPad = std::max(p_.maxWidthPad, pad16(w)); }
+
+  Value materialise(const Value& v) {
+    if (v.buf >= 0) return v;
+    MlpInstr in;
+    in.op = MlpOp::LoadInput;
+    in.dst = alloc();
+    in.outWidth = v.width;
+    in.nPad = pad16(v.width);
+    noteWidth(v.width);
+    p_.instrs.push_back(in);
+    return {in.dst, v.width, true};
+  }
+
+  std::int64_t pushFloats(const std::vector<float>& v) {
+    const std::int64_t off = std::int64_t(p_.floatWeights.size());
+    p_.floatWeights.insert(p_.floatWeights.end(), v.begin(), v.end());
+    return off;
+  }
+
+  // A linear layer (weights scaled by inScale for folded scale layers) with its following
+  // activation fused. `finalOutput`: the network's last layer, to width 1.
+  Value linear(const Layer& L, Value x, float inScale, MlpAct act, float w0, bool finalOutput) {
+    std::vector<float> W(L.weight.size());
+    std::vector<float> b(L.outWidth, 0.f);
+    const float s = act == MlpAct::Sine ? w0 : 1.f;
+    for (std::size_t i = 0; i < W.size(); ++i) W[i] = L.weight[i] * inScale * s;
+    for (int o = 0; o < L.outWidth; ++o) b[o] = (L.bias.empty() ? 0.f : L.bias[o]) * s;
+    MlpInstr in;
+    in.src = x.buf;
+    in.inWidth = L.inWidth;
+    in.outWidth = L.outWidth;
+    in.kPad = pad16(L.inWidth);
+    in.nPad = pad16(L.outWidth);
+    in.act = act;
+    std::vector<float> bp(in.nPad, 0.f);
+    std::copy(b.begin(), b.end(), bp.begin());
+    in.biasOffset = pushFloats(bp);
+    if (finalOutput) {
+      in.op = MlpOp::OutputDot;
+      in.floatOffset = pushFloats(W);
+      p_.instrs.push_back(in);
+      release(x);
+      return {-1, 1, false};
+    }
+    noteWidth(L.outWidth);
+    if (x.buf < 0 || L.inWidth <= 16) {
+      in.op = MlpOp::DenseFp32;
+      in.floatOffset = pushFloats(W);
+    } else {
+      in.op = MlpOp::Gemm;
+      in.floatOffset = pushFloats(W);  // fp32 copy for the generic (cuBLAS) path
+      in.halfOffset = std::int64_t(p_.halfWeights.size());
+      p_.halfWeights.resize(p_.halfWeights.size() + std::size_t(in.nPad) * in.kPad, 0);
+      for (int o = 0; o < L.outWidth; ++o)
+        for (int k = 0; k < L.inWidth; ++k)
+          p_.halfWeights[in.halfOffset + std::int64_t(o) * in.kPad + k] = floatToHalfBits(W[std::size_t(o) * L.inWidth + k]);
+    }
+    release(x);  // consumed; free before allocating dst only if owned (dst must differ from src)
+    in.dst = alloc();
+    if (in.dst == x.buf) {  // never write a GEMM over its own input: take another buffer
+      in.dst = alloc();
+      inUse_[x.buf] = false;
+    }
+    p_.instrs.push_back(in);
+    return {in.dst, L.outWidth, true};
+  }
+
+  Value list(const std::vector<Layer>& layers, Value x, bool topLevel) {
+    Value cur = x;
+    float pendingScale = 1.f;
+    for (std::size_t i = 0; i < layers.size(); ++i) {
+      const Layer& L = layers[i];
+      const bool last = topLevel && i + 1 == layers.size();
+      switch (L.kind) {
+        case LayerKind::Scale:
+          if (i + 1 < layers.size() && layers[i + 1].kind == LayerKind::Linear) {
+            pendingScale *= L.param;  // folded into the next linear's weights
+          } else {
+            cur = ownedCopy(cur);
+            MlpInstr in;
+            in.op = MlpOp::Activation;
+            in.dst = in.src = cur.buf;
+            in.outWidth = cur.width;
+            in.nPad = pad16(cur.width);
+            in.actScale = L.param;
+            p_.instrs.push_back(in);
+          }
+          break;
+        case LayerKind::Linear: {
+          MlpAct act = MlpAct::None;
+          float w0 = 1.f;
+          bool fusedAct = false;
+          if (i + 1 < layers.size() && isActivation(layers[i + 1].kind)) {
+            act = actOf(layers[i + 1].kind);
+            w0 = layers[i + 1].param;
+            fusedAct = true;
+          }
+          const bool isFinal = topLevel && L.outWidth == 1 && (i + 1 == layers.size() || (fusedAct && i + 2 == layers.size()));
+          cur = linear(L, cur, pendingScale, act, w0, isFinal);
+          pendingScale = 1.f;
+          if (fusedAct) ++i;
+          if (isFinal) return cur;
+          break;
+        }
+        case LayerKind::Fourier: {
+          MlpInstr in;
+          in.op = MlpOp::Fourier;
+          in.src = cur.buf;
+          in.inWidth = L.inWidth;
+          in.outWidth = L.outWidth;
+          in.kPad = pad16(L.inWidth);
+          in.nPad = pad16(L.outWidth);
+          in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
+          std::vector<float> B(L.weight.size());
+          for (std::size_t k = 0; k < B.size(); ++k) B[k] = L.weight[k] * L.param;
+          in.floatOffset = pushFloats(B);
+          noteWidth(L.outWidth);
+          release(cur);
+          in.dst = alloc();
+          if (in.dst == cur.buf) {
+            in.dst = alloc();
+            inUse_[cur.buf] = false;
+          }
+          p_.instrs.push_back(in);
+          cur = {in.dst, L.outWidth, true};
+          break;
+        }
+        case LayerKind::Identity: break;
+        case LayerKind::Sine:
+        case LayerKind::SiLU:
+        case LayerKind::ReLU:
+        case LayerKind::Sigmoid:
+        case LayerKind::Tanh: {
+          cur = ownedCopy(cur);
+          MlpInstr in;
+          in.op = MlpOp::Activation;
+          in.dst = in.src = cur.buf;
+          in.outWidth = cur.width;
+          in.nPad = pad16(cur.width);
+          in.act = actOf(L.kind);
+          in.actScale = L.kind == LayerKind::Sine ? L.param : 1.f;
+          p_.instrs.push_back(in);
+          break;
+        }
+        case LayerKind::Residual: cur = residual(L, cur); break;
+      }
+      (void)last;
+    }
+    if (topLevel) {
+      MlpInstr in;
+      in.op = MlpOp::Output;
+      cur = materialise(cur);
+      in.src = cur.buf;
+      in.inWidth = cur.width;
+      p_.instrs.push_back(in);
+      release(cur);
+      return {-1, 1, false};
+    }
+    return cur;
+  }
+
+  // A buffer this list may overwrite: the value itself if owned, else a copy.
+  Value ownedCopy(const Value& v) {
+    if (v.owned && v.buf >= 0) return v;
+    if (v.buf < 0) return materialise(v);
+    MlpInstr in;  // copy = combine with scale 1 and no other... use Activation(None) on a copy
+    in.op = MlpOp::Combine;
+    in.src = v.buf;
+    in.other = -1;
+    in.dst = alloc();
+    in.outWidth = v.width;
+    in.nPad = pad16(v.width);
+    in.combineScale = 1.f;
+    p_.instrs.push_back(in);
+    return {in.dst, v.width, true};
+  }
+
+  Value residual(const Layer& L, Value x) {
+    // Shortcut first (it needs x, as does the body), so the body's last GEMM can fold the sum
+    // into its epilogue: out = scale * (act(acc) + shortcut).
+    Value borrowed = x;
+    borrowed.owned = false;
+    Value s;
+    if (L.shortcut.empty()) {
+      s = x.buf >= 0 ? borrowed : materialise(x);  // coordinates stay available to the body
+    } else {
+      s = list(L.shortcut, borrowed, false);
+    }
+    const std::size_t bodyStart = p_.instrs.size();
+    // The body reads x but never frees it: x is released once, below, after the sum.
+    Value bodyIn = x;
+    bodyIn.owned = false;
+    Value b = list(L.body, bodyIn, false);
+    MlpInstr& lastBody = p_.instrs.back();
+    const bool canFold = p_.instrs.size() > bodyStart && lastBody.op == MlpOp::Gemm && lastBody.dst == b.buf &&
+                         lastBody.other < 0 && s.buf != b.buf;
+    if (canFold) {
+      lastBody.other = s.buf;
+      lastBody.combineScale = L.residualScale;
+    } else {
+      b = ownedCopy(b);
+      MlpInstr in;
+      in.op = MlpOp::Combine;
+      in.src = b.buf;
+      in.other = s.buf;
+      in.dst = b.buf;
+      in.outWidth = b.width;
+      in.nPad = pad16(b.width);
+      in.combineScale = L.residualScale;
+      p_.instrs.push_back(in);
+    }
+    if (s.buf != x.buf) release(s);
+    release(x);
+    return b;
+  }
+
+private:
+  MlpProgram& p_;
+  std::vector<bool> inUse_;
+};
+
+const char* opName(MlpOp op) {
+  switch (op) {
+    case MlpOp::LoadInput: return "load-input";
+    case MlpOp::DenseFp32: return "dense-fp32";
+    case MlpOp::Fourier: return "fourier-fp32";
+    case MlpOp::Gemm: return "gemm-fp16";
+    case MlpOp::Activation: return "activation";
+    case MlpOp::Combine: return "combine";
+    case MlpOp::OutputDot: return "output-dot-fp32";
+    case MlpOp::Output: return "output";
+  }
+  return "?";
+}
+
+const char* actName(MlpAct a) {
+  switch (a) {
+    case MlpAct::None: return "none";
+    case MlpAct::Sine: return "sine";
+    case MlpAct::SiLU: return "silu";
+    case MlpAct::ReLU: return "relu";
+    case MlpAct::Sigmoid: return "sigmoid";
+    case MlpAct::Tanh: return "tanh";
+  }
+  return "?";
+}
+
+inline float applyAct(MlpAct a, float v) {
+  switch (a) {
+    case MlpAct::None: return v;
+    case MlpAct::Sine: return std::sin(v);
+    case MlpAct::SiLU: return v / (1.f + std::exp(-v));
+    case MlpAct::ReLU: return v > 0.f ? v : 0.f;
+    case MlpAct::Sigmoid: return 1.f / (1.f + std::exp(-v));
+    case MlpAct::Tanh: return std::tanh(v);
+  }
+  return v;
+}
+
+}  // namespace
+
+MlpProgram MlpProgram::compile(const Architecture& arch) {
+  MlpProgram p;
+  p.inputDim = arch.inputDim;
+  p.maxWidthPad = 16;
+  Compiler c(p);
+  c.list(arch.layers, Value{-1, arch.inputDim, false}, true);
+  if (p.maxWidthPad > kMaxFusedWidth) {
+    p.fusable = false;
+    p.whyNotFused = "a layer is " + std::to_string(p.maxWidthPad) + " wide (fused kernel: up to " +
+                    std::to_string(kMaxFusedWidth) + ")";
+  } else if (p.numBuffers > kMaxFusedBuffers) {
+    p.fusable = false;
+    p.whyNotFused = "the graph needs " + std::to_string(p.numBuffers) + " live activation buffers (fused kernel: up to " +
+                    std::to_string(kMaxFusedBuffers) + "; deeply nested residual blocks)";
+  }
+  return p;
+}
+
+std::string MlpProgram::describe() const {
+  std::ostringstream s;
+  for (const MlpInstr& in : instrs) {
+    s << opName(in.op) << " " << (in.src < 0 ? std::string("in") : "b" + std::to_string(in.src)) << "->"
+      << (in.dst < 0 ? std::string("out") : "b" + std::to_string(in.dst)) << " " << in.inWidth << "->" << in.outWidth;
+    if (in.act != MlpAct::None) s << " " << actName(in.act);
+    if (in.other >= 0) s << " +b" << in.other << " x" << in.combineScale;
+    s << "\n";
+  }
+  s << numBuffers << " buffers, width " << maxWidthPad << (fusable ? ", fused" : ", generic: " + whyNotFused);
+  return s.str();
+}
+
+void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n, float* out) {
+  const int W = p.maxWidthPad;
+  std::vector<std::vector<float>> buf(std::max(p.numBuffers, 1), std::vector<float>(W, 0.f));
+  std::vector<float> tmp(W);
+  auto h = [](float v) { return roundToHalf(v); };
+  for (std::size_t q = 0; q < n; ++q) {
+    const float* x = inputs + q * p.inputDim;
+    auto srcAt = [&](int src, int k) -> float { return src < 0 ? (k < p.inputDim ? x[k] : 0.f) : buf[src][k]; };
+    for (const MlpInstr& in : p.instrs) {
+      switch (in.op) {
+        case MlpOp::LoadInput:
+          for (int c = 0; c < W; ++c) buf[in.dst][c] = c < p.inputDim ? h(x[c]) : 0.f;
+          break;
+        case MlpOp::DenseFp32:
+        case MlpOp::Gemm:
+          for (int o = 0; o < in.nPad; ++o) {
+            float v = 0.f;
+            if (o < in.outWidth) {
+              float acc = 0.f;
+              for (int k = 0; k < in.inWidth; ++k) {
+                const float w = in.op == MlpOp::Gemm
+                                    ? halfBitsToFloat(p.halfWeights[in.halfOffset + std::int64_t(o) * in.kPad + k])
+                                    : p.floatWeights[in.floatOffset + std::int64_t(o) * in.inWidth + k];
+                acc += w * srcAt(in.src, k);
+              }
+              v = applyAct(in.act, acc + p.floatWeights[in.biasOffset + o]);
+              if (in.other >= 0) v = in.combineScale * (v + buf[in.other][o]);
+            }
+            tmp[o] = h(v);
+          }
+          for (int o = 0; o < W; ++o) buf[in.dst][o] = o < in.nPad ? tmp[o] : 0.f;
+          break;
+        case MlpOp::Fourier: {
+          const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
+          const int base = in.includeInput == 1 ? in.inWidth : 0;
+          std::fill(tmp.begin(), tmp.end(), 0.f);
+          for (int j = 0; j < m; ++j) {
+            float proj = 0.f;
+            for (int k = 0; k < in.inWidth; ++k) proj += p.floatWeights[in.floatOffset + j * in.inWidth + k] * srcAt(in.src, k);
+            tmp[base + j] = h(std::sin(proj));
+            tmp[base + m + j] = h(std::cos(proj));
+          }
+          if (in.includeInput) {
+            const int at = in.includeInput == 1 ? 0 : 2 * m;
+            for (int k = 0; k < in.inWidth; ++k) tmp[at + k] = h(srcAt(in.src, k));
+          }
+          buf[in.dst] = tmp;
+          break;
+        }
+        case MlpOp::Activation:
+          for (int c = 0; c < in.outWidth; ++c) buf[in.dst][c] = h(applyAct(in.act, in.actScale * buf[in.dst][c]));
+          break;
+        case MlpOp::Combine:
+          for (int c = 0; c < in.outWidth; ++c)
+            tmp[c] = h(in.combineScale * (buf[in.src][c] + (in.other >= 0 ? buf[in.other][c] : 0.f)));
+          for (int c = 0; c < in.outWidth; ++c) buf[in.dst][c] = tmp[c];
+          break;
+        case MlpOp::OutputDot: {
+          float acc = 0.f;
+          for (int k = 0; k < in.inWidth; ++k) acc += p.floatWeights[in.floatOffset + k] * srcAt(in.src, k);
+          out[q] = applyAct(in.act, acc + p.floatWeights[in.biasOffset]);
+          break;
+        }
+        case MlpOp::Output: out[q] = buf[in.src][0]; break;
+      }
+    }
+  }
+}
+
+}  // namespace inr

@@ -1,0 +1,70 @@
+#pragma once
+// The GPU evaluators' view of a network: the layer graph compiled into a flat list of
+// instructions over a few activation buffers, with packed weights. Host-only and CUDA-free, so
+// the compiler and an exact CPU emulation of the fused kernel's arithmetic are tested on
+// machines without a GPU.
+//
+// Buffers hold one row of activations per query (fp16 in the fused kernel), padded to a
+// multiple of 16 columns with zeros. Instructions:
+//   LoadInput    coordinates -> dst (when a buffer must hold the raw inputs)
+//   DenseFp32    src (coordinates or buffer) -> dst, fp32 FMA: first layers, where coordinate
+//                precision matters, and any linear with K <= 16
+//   Fourier      src (coordinates or buffer) -> dst, fp32 [sin(Bx), cos(Bx)] (+x), B pre-scaled
+//   Gemm         src -> dst on tensor cores, fp32 accumulate, + bias, activation epilogue,
+//                optionally dst = combineScale * (act(acc) + other)
+//   Activation   dst = act(actScale * dst) in place (standalone activations)
+//   Combine      dst = combineScale * (src + other)
+//   OutputDot    value = act(w . src + b) in fp32 (a final linear to width 1)
+//   Output       value = src[0]
+// Sine's w0 and standalone scale layers feeding a linear are folded into that linear's weights.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "Model/InrModel.h"
+
+namespace inr {
+
+enum class MlpOp : std::int32_t { LoadInput, DenseFp32, Fourier, Gemm, Activation, Combine, OutputDot, Output };
+enum class MlpAct : std::int32_t { None, Sine, SiLU, ReLU, Sigmoid, Tanh };
+
+struct MlpInstr {
+  MlpOp op = MlpOp::Output;
+  std::int32_t src = -1, dst = -1, other = -1;  // buffer indices; -1 = coordinates / none
+  std::int32_t inWidth = 0, outWidth = 0;       // logical widths
+  std::int32_t kPad = 0, nPad = 0;              // padded to multiples of 16
+  MlpAct act = MlpAct::None;
+  float actScale = 1.f;      // Activation: scale before the activation (scale layers)
+  float combineScale = 1.f;  // Combine / Gemm with `other`
+  std::int32_t includeInput = 0;  // Fourier: 0 none, 1 first, 2 last
+  std::int64_t halfOffset = -1;   // Gemm: fp16 weights [nPad][kPad] in MlpProgram::halfWeights
+  std::int64_t floatOffset = -1;  // fp32 weights [out][in] (B [m][in]); Gemm: the generic path's copy
+  std::int64_t biasOffset = -1;   // fp32 bias [nPad] in floatWeights, -1 = none
+};
+
+struct MlpProgram {
+  std::vector<MlpInstr> instrs;
+  std::vector<std::uint16_t> halfWeights;  // fp16 bit patterns
+  std::vector<float> floatWeights;
+  int inputDim = 0;
+  int numBuffers = 0;
+  int maxWidthPad = 0;  // widest buffer, multiple of 16
+  // Whether the fused tensor-core kernel can run it (widths <= kMaxFusedWidth, buffers <=
+  // kMaxFusedBuffers, encodings only on the coordinates); otherwise `whyNotFused` says why and
+  // the generic path is used.
+  bool fusable = true;
+  std::string whyNotFused;
+
+  static constexpr int kMaxFusedWidth = 256;
+  static constexpr int kMaxFusedBuffers = 4;
+
+  static MlpProgram compile(const Architecture& arch);
+  std::string describe() const;  // one line per instruction, for logs and `inr info`
+};
+
+// Runs the program on the CPU exactly as the fused kernel does arithmetically (fp16 weights and
+// activations, fp32 accumulation and epilogues), on network-space inputs (inputDim floats per
+// query). Slow; for tests and for explaining fp16 error.
+void emulateFusedProgram(const MlpProgram& program, const float* inputs, std::size_t n, float* out);
+
+}  // namespace inr
