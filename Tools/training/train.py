@@ -68,7 +68,7 @@ def _siren(width, hidden_layers):
 def specs_for(config):
     paper = config == "paper"
     s = []
-    w, hl = (256, 4) if paper else (48, 2)
+    w, hl = (256, 4) if paper else (64, 2)
     for case in ("cylinder", "sphere_plate"):
         s.append(Spec(
             name="siren_%s_vorticity" % case, dataset="gerris_%s_vorticity" % case,
@@ -77,8 +77,8 @@ def specs_for(config):
                      "first/hidden omega_0 = 30)",
             arch="4 -> %s -> 1 (sine w0=30, linear output)" % " -> ".join([str(w)] * (hl + 1)),
             build=_siren(w, hl), inputs="xyzt", target="minmax",
-            lr=1e-4 if paper else 5e-4, batch=65536 if paper else 8192))
-    nf, hc, sigma = (128, 5, 3.0) if paper else (24, 2, 2.0)
+            lr=1e-4 if paper else 5e-4, batch=65536 if paper else 2048))
+    nf, hc, sigma = (128, 5, 3.0) if paper else (32, 2, 2.0)
     s.append(Spec(
         name="ffn_mri_head", dataset="mri_head_deform", family="FFN", layout="reed-ffn",
         official="awreed/DynamicCTReconstruction nn_models.py `INR_3D` (1x1x1 Conv3d, Swish, "
@@ -88,8 +88,8 @@ def specs_for(config):
         build=lambda: L.ReedFFN(num_input_channels=4, nf=nf, sigma=sigma, seed=SEED % 1000,
                                 hidden_convs=hc),
         inputs="xyzt", target="sigmoid", sigma=sigma,
-        lr=1e-3 if paper else 2e-3, batch=65536 if paper else 8192))
-    f0, nres = (48, 6) if paper else (8, 1)
+        lr=1e-3 if paper else 2e-3, batch=65536 if paper else 2048))
+    f0, nres = (48, 6) if paper else (12, 1)
     s.append(Spec(
         name="coordnet_cylinder_u", dataset="gerris_cylinder_u", family="CoordNet",
         layout="coordnet",
@@ -99,7 +99,7 @@ def specs_for(config):
              "[sine transform | identity]), w0=30" % (f0, 2 * f0, 4 * f0, nres, 4 * f0),
         build=lambda: L.CoordNet(4, 1, init_features=f0, num_res=nres),
         inputs="tzyx", target="per_time",
-        lr=1e-4 if paper else 5e-4, batch=32768 if paper else 8192))
+        lr=1e-4 if paper else 5e-4, batch=32768 if paper else 2048))
     for sp in s:
         if not paper:
             sp.name += "_small"
@@ -432,6 +432,8 @@ def main(argv=None):
     ap.add_argument("--eval-max", type=int, default=None,
                     help="max grid points for the PSNR [all on CUDA, 1M on CPU]")
     ap.add_argument("--threads", type=int, default=None, help="CPU threads [all cores]")
+    ap.add_argument("--batch", type=int, default=None, help="override every model's batch size")
+    ap.add_argument("--lr-scale", type=float, default=1.0, help="multiply every learning rate")
     ap.add_argument("--list", action="store_true")
     a = ap.parse_args(argv)
     specs = specs_for(a.config)
@@ -445,6 +447,10 @@ def main(argv=None):
         if unknown:
             raise SystemExit("unknown model(s) %s (see --list)" % ", ".join(sorted(unknown)))
         specs = [s for s in specs if s.name in a.only]
+    for s in specs:
+        if a.batch:
+            s.batch = a.batch
+        s.lr *= a.lr_scale
     if a.device == "auto":
         device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     else:
