@@ -35,9 +35,10 @@ public:
   }
   InrModel finish(const nlohmann::json& layers, const std::string& label) {
     nlohmann::json arch = {{"input_dim", 4}, {"layers", layers}};
-    const auto bytes = test::buildSafeTensors(tensors_, test::modelMetadata(arch));
-    return InrModel::loadBytes(bytes.data(), bytes.size(), label);
+    bytes_ = test::buildSafeTensors(tensors_, test::modelMetadata(arch));
+    return InrModel::loadBytes(bytes_.data(), bytes_.size(), label);
   }
+  const std::vector<std::uint8_t>& bytes() const { return bytes_; }
 
 private:
   void add(const std::string& name, std::vector<std::int64_t> shape, float bound) {
@@ -50,9 +51,10 @@ private:
   }
   std::mt19937 rng_;
   std::vector<test::TensorSpec> tensors_;
+  std::vector<std::uint8_t> bytes_;
 };
 
-inline InrModel sirenPaper(unsigned seed = 1) {
+inline InrModel sirenPaper(unsigned seed = 1, std::vector<std::uint8_t>* file = nullptr) {
   ArchitectureBuilder b(seed);
   nlohmann::json layers = nlohmann::json::array();
   int in = 4;
@@ -62,10 +64,12 @@ inline InrModel sirenPaper(unsigned seed = 1) {
     in = 256;
   }
   layers.push_back(b.sirenLinear(256, 1, false));
-  return b.finish(layers, "SIREN 4->256x5->1");
+  InrModel m = b.finish(layers, "SIREN 4->256x5->1");
+  if (file) *file = b.bytes();
+  return m;
 }
 
-inline InrModel ffnPaper(unsigned seed = 2) {
+inline InrModel ffnPaper(unsigned seed = 2, std::vector<std::uint8_t>* file = nullptr) {
   ArchitectureBuilder b(seed);
   nlohmann::json layers = nlohmann::json::array();
   layers.push_back(b.fourier(4, 256, 10.f));
@@ -76,10 +80,13 @@ inline InrModel ffnPaper(unsigned seed = 2) {
     in = 256;
   }
   layers.push_back(b.linear(256, 1, std::sqrt(6.f / 256)));
-  return b.finish(layers, "FFN 256ff 5x256 SiLU");
+  InrModel m = b.finish(layers, "FFN 256ff 5x256 SiLU");
+  if (file) *file = b.bytes();
+  return m;
 }
 
-inline InrModel coordNetPaper(unsigned seed = 3, int init = 48, int residualBlocks = 6) {
+inline InrModel coordNetPaper(unsigned seed = 3, std::vector<std::uint8_t>* file = nullptr, int init = 48,
+                              int residualBlocks = 6) {
   ArchitectureBuilder b(seed);
   auto block = [&](int in, int out) {
     nlohmann::json body = {b.sirenLinear(in, out, in == 4), {{"type", "sine"}, {"w0", 30}},
@@ -94,7 +101,9 @@ inline InrModel coordNetPaper(unsigned seed = 3, int init = 48, int residualBloc
   layers.push_back(block(2 * init, 4 * init));
   for (int i = 0; i < residualBlocks; ++i) layers.push_back(block(4 * init, 4 * init));
   layers.push_back(block(4 * init, 1));
-  return b.finish(layers, "CoordNet init48 6res");
+  InrModel m = b.finish(layers, "CoordNet init48 6res");
+  if (file) *file = b.bytes();
+  return m;
 }
 
 }  // namespace inr::bench
