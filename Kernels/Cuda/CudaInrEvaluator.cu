@@ -131,6 +131,17 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   out[scatter ? scatter[g] : g] = a * net + b;
 }
 
+using FusedKernel = void (*)(cuda::FusedParams, const float4*, int, float*, const int*);
+
+// Tile of 32*WR queries, 4*WR warps.
+FusedKernel fusedKernelFor(int tile) {
+  switch (tile) {
+    case 128: return cuda::fusedMlpKernel<4>;
+    case 64: return cuda::fusedMlpKernel<2>;
+    default: return cuda::fusedMlpKernel<1>;
+  }
+}
+
 }  // namespace
 
 struct CudaInrEvaluator::Impl {
@@ -197,19 +208,26 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   P.halfWeights = I.halfW.ptr;
   P.floatWeights = I.floatW.ptr;
   P.numBuffers = std::max(1, prog.numBuffers);
-  P.maxWidthPad = prog.maxWidthPad;
-  P.ldAct = prog.maxWidthPad + 8;
+  for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
+  P.maxGemmOutPad = std::max(16, prog.maxGemmOutPad);
 
   // Path and tile size.
   bool fused = prog.fusable && options.path != CudaEvaluatorPath::Generic;
   std::string why = prog.whyNotFused;
+  if (fused && int(prog.instrs.size()) > cuda::kMaxFusedInstrs) {
+    fused = false;
+    why = "the program has " + std::to_string(prog.instrs.size()) + " instructions (fused kernel: up to " +
+          std::to_string(cuda::kMaxFusedInstrs) + ")";
+  }
   if (fused) {
-    const int tiles[2] = {64, 32};
+    // The largest tile whose shared memory fits: 128 queries (16 warps), 64 (8) or 32 (4).
     I.tile = 0;
-    for (int t : tiles) {
+    for (int t : {128, 64, 32}) {
       if (options.tileQueries && options.tileQueries != t) continue;
-      const std::size_t bytes = cuda::fusedSharedBytes(t, P.numBuffers, P.ldAct, P.maxWidthPad);
-      if (bytes <= I.device.sharedMemPerBlockOptin) {
+      cudaFuncAttributes attr{};
+      INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, fusedKernelFor(t)));
+      const std::size_t bytes = cuda::fusedSharedBytes(t, P);
+      if (bytes + attr.sharedSizeBytes <= I.device.sharedMemPerBlockOptin) {
         I.tile = t;
         I.sharedBytes = bytes;
         break;
@@ -224,10 +242,10 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     throw std::runtime_error("fused CUDA evaluator requested but impossible for this model: " + why);
   I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
   if (fused) {
-    auto kernel = I.tile == 64 ? cuda::fusedMlpKernel<64> : cuda::fusedMlpKernel<32>;
+    auto kernel = fusedKernelFor(I.tile);
     INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(I.sharedBytes)));
     int perSm = 0;
-    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kFusedThreads, I.sharedBytes));
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, I.tile * 4, I.sharedBytes));
     I.gridBlocks = std::max(1, perSm) * I.device.multiprocessors;
   } else {
     cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
@@ -258,10 +276,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, c
   if (I.path == CudaEvaluatorPath::Fused) {
     const int tiles = (n + I.tile - 1) / I.tile;
     const int grid = std::min(tiles, I.gridBlocks);
-    if (I.tile == 64)
-      cuda::fusedMlpKernel<64><<<grid, cuda::kFusedThreads, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
-    else
-      cuda::fusedMlpKernel<32><<<grid, cuda::kFusedThreads, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
+    fusedKernelFor(I.tile)<<<grid, I.tile * 4, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
     INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
     return;
   }

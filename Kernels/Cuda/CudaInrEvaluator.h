@@ -22,7 +22,7 @@ enum class CudaEvaluatorPath { Auto, Fused, Generic };
 struct CudaEvaluatorOptions {
   int device = 0;
   CudaEvaluatorPath path = CudaEvaluatorPath::Auto;
-  int tileQueries = 0;  // fused kernel queries per block tile: 0 = choose (64, or 32 when shared memory is short)
+  int tileQueries = 0;  // fused kernel queries per block tile: 0 = the largest of 128/64/32 whose shared memory fits
 };
 
 class CudaInrEvaluator final : public FieldEvaluator {

@@ -1,23 +1,23 @@
 #pragma once
-// The fused INR evaluation kernel: a persistent grid of 8-warp blocks; each block takes tiles of
-// M queries and runs the whole MlpProgram on them without leaving the SM. Activations live in
-// shared memory as fp16 rows (one per query, stride ldAct halves); GEMM layers run on tensor
-// cores through WMMA (16x16x16, fp16 in, fp32 accumulate) with weights streamed through a
-// double-buffered shared-memory stage in K chunks of 64; epilogues (bias, activation, residual
-// sum) run in fp32 on a per-warp scratch tile. Coordinates, Fourier encodings, the first linear
-// layer and the final dot product stay in fp32.
+// The fused INR evaluation kernel: a persistent grid of blocks of 4*WR warps; each block takes
+// tiles of M = 32*WR queries and runs the whole MlpProgram on them without leaving the SM.
+// Activations live in shared memory as fp16 rows (one per query, per-buffer stride). GEMM layers
+// run on tensor cores with mma.sync m16n8k16 (fp16 in, fp32 accumulate), operands fetched with
+// ldmatrix, weights streamed through a double-buffered shared-memory stage in K chunks of 64
+// (cp.async). The accumulator layout of mma.sync is documented, so epilogues (bias, activation,
+// residual sum) run in registers and store half2 straight into the destination buffer.
+// Coordinates, Fourier encodings, the first linear layer and the final dot product stay fp32.
 #include <cuda_fp16.h>
 #include <cuda_pipeline.h>
-#include <mma.h>
 
 #include "Cuda/MlpProgram.h"
 
 namespace inr::cuda {
 
-constexpr int kFusedWarps = 8;
-constexpr int kFusedThreads = kFusedWarps * 32;
-constexpr int kWeightChunk = 64;                    // K rows of weights staged per step
-constexpr int kWeightStride = kWeightChunk + 8;     // halves; +8 staggers banks
+constexpr int kWeightChunk = 64;                 // K columns of weights staged per step
+constexpr int kWeightStride = kWeightChunk + 8;  // halves per staged row; +8 keeps ldmatrix conflict-free
+constexpr int kMaxBuffers = MlpProgram::kMaxFusedBuffers;
+constexpr int kMaxFusedInstrs = 64;
 
 struct OutputMap {
   // value = a(t) * net + b(t); a, b piecewise linear over `count` (t, a, b) entries (clamped),
@@ -36,16 +36,17 @@ struct FusedParams {
   int inputCoord[4] = {0, 1, 2, 3};  // world coordinate feeding each network input
   float inScale[4] = {1, 1, 1, 1}, inOffset[4] = {0, 0, 0, 0};
   int numBuffers = 1;
-  int ldAct = 24;      // activation row stride, halves (maxWidthPad + 8)
-  int maxWidthPad = 16;
+  int bufferLd[kMaxBuffers] = {};  // halves per row (width + 8)
+  int maxGemmOutPad = 16;          // rows of the weight stage
   OutputMap output;
 };
 
-__host__ __device__ inline std::size_t fusedSharedBytes(int M, int numBuffers, int ldAct, int maxWidthPad) {
-  return std::size_t(numBuffers) * M * ldAct * 2           // activation buffers (fp16)
-         + std::size_t(2) * maxWidthPad * kWeightStride * 2  // weight chunk double buffer (fp16)
-         + std::size_t(M) * 4 * 4                             // network-space coordinates (fp32)
-         + std::size_t(kFusedWarps) * 256 * 4;                // per-warp epilogue scratch (fp32)
+// Shared memory for a tile of M queries: activation buffers, weight double buffer, coordinates.
+inline std::size_t fusedSharedBytes(int M, const FusedParams& P) {
+  std::size_t halves = 0;
+  for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
+  halves += std::size_t(2) * P.maxGemmOutPad * kWeightStride;
+  return halves * 2 + std::size_t(M) * 4 * 4;
 }
 
 __device__ inline float applyActivation(MlpAct a, float v) {
@@ -84,115 +85,167 @@ __device__ inline void outputAffine(const OutputMap& m, float t, float& a, float
   b = T[3 * (m.count - 1) + 2];
 }
 
-template <int M>
-__global__ void __launch_bounds__(kFusedThreads) fusedMlpKernel(FusedParams P, const float4* __restrict__ points,
-                                                                int n, float* __restrict__ out,
-                                                                const int* __restrict__ scatter) {
-  using namespace nvcuda;
-  static_assert(M == 32 || M == 64, "tile must be 32 or 64 queries");
-  constexpr int RF = M / 32;  // row fragments per warp (warps are 2 row groups x 4 column groups)
+__device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
+
+__device__ inline void ldmatrixX4(unsigned (&r)[4], const __half* p) {
+  asm volatile("ldmatrix.sync.aligned.m8n8.x4.shared.b16 {%0,%1,%2,%3}, [%4];\n"
+               : "=r"(r[0]), "=r"(r[1]), "=r"(r[2]), "=r"(r[3])
+               : "r"(smemAddress(p)));
+}
+
+// D += A(16x16) * B(16x8), fp16 operands, fp32 accumulators. Turing (sm_75) has no m16n8k16
+// for f16: it runs as two m16n8k8 halves over k with the same register fragments.
+__device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned b0, unsigned b1) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  asm(
+      "mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+      "{%0,%1,%2,%3};\n"
+      : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+      : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b0), "r"(b1));
+#else
+  asm("mma.sync.aligned.m16n8k8.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5}, {%6}, {%0,%1,%2,%3};\n"
+               : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+               : "r"(a[0]), "r"(a[1]), "r"(b0));
+  asm("mma.sync.aligned.m16n8k8.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5}, {%6}, {%0,%1,%2,%3};\n"
+               : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+               : "r"(a[2]), "r"(a[3]), "r"(b1));
+#endif
+}
+
+template <int WR>
+__global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+                                                          float* __restrict__ out, const int* __restrict__ scatter) {
+  constexpr int M = 32 * WR;  // queries per tile
+  constexpr int THREADS = WR * 128;
+  constexpr int WARPS = THREADS / 32;
   extern __shared__ __align__(128) unsigned char smem[];
-  __half* acts = reinterpret_cast<__half*>(smem);
-  __half* wbuf = acts + std::size_t(P.numBuffers) * M * P.ldAct;
-  float* coords = reinterpret_cast<float*>(wbuf + 2 * P.maxWidthPad * kWeightStride);
-  float* scratchAll = coords + M * 4;
+  // The program and the buffer layout are read from shared memory (uniform, indexable without
+  // local-memory spills), loaded once per block.
+  __shared__ MlpInstr program[kMaxFusedInstrs];
+  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
+  __half* const actBase = reinterpret_cast<__half*>(smem);
+  for (int i = threadIdx.x; i < P.numInstrs; i += THREADS) program[i] = P.instrs[i];
+  if (threadIdx.x == 0) {
+    int at = 0;
+    for (int b = 0; b < kMaxBuffers; ++b) {
+      bufferStart[b] = at;
+      bufferLd[b] = P.bufferLd[b];
+      if (b < P.numBuffers) at += M * P.bufferLd[b];
+    }
+  }
+  int actHalves = 0;
+  for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
+  __half* const wstage = actBase + actHalves;
+  float* const coords = reinterpret_cast<float*>(wstage + 2 * P.maxGemmOutPad * kWeightStride);
+  __syncthreads();
 
   const int tid = threadIdx.x;
   const int warp = tid >> 5, lane = tid & 31;
-  float* scratch = scratchAll + warp * 256;
+  const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
   const int rowGroup = warp >> 2, colGroup = warp & 3;
-  auto buffer = [&](int b) { return acts + std::size_t(b) * M * P.ldAct; };
-  // Reads input k of row r from the coordinates (src < 0) or a buffer.
-  auto srcValue = [&](int src, int r, int k) -> float {
-    return src < 0 ? (k < P.inputDim ? coords[r * 4 + k] : 0.f) : __half2float(buffer(src)[r * P.ldAct + k]);
-  };
 
   for (int tile = blockIdx.x; tile * M < n; tile += gridDim.x) {
     const int base = tile * M;
     const int rows = min(M, n - base);
-    for (int r = tid; r < M; r += kFusedThreads) {
-      float4 p = r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f);
+    for (int r = tid; r < M; r += THREADS) {
+      const float4 p = r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f);
       const float w[4] = {p.x, p.y, p.z, p.w};
+#pragma unroll
       for (int i = 0; i < 4; ++i)
         coords[r * 4 + i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
     }
     __syncthreads();
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
-      const MlpInstr in = P.instrs[ip];
+      const MlpInstr& in = program[ip];
+      const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
+      const int ldSrc = in.src >= 0 ? bufferLd[in.src] : 0;
+      __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
+      const __half* src = in.src >= 0 ? actBase + bufferStart[in.src] : nullptr;
+      const __half* other = in.other >= 0 ? actBase + bufferStart[in.other] : nullptr;
+      const int ldOther = in.other >= 0 ? bufferLd[in.other] : 0;
+      auto input = [&](int r, int k) -> float {
+        return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]);
+      };
       switch (in.op) {
-        case MlpOp::LoadInput: {
-          __half* dst = buffer(in.dst);
-          for (int e = tid; e < M * in.nPad; e += kFusedThreads) {
-            const int r = e / in.nPad, c = e % in.nPad;
-            dst[r * P.ldAct + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+        case MlpOp::LoadInput:
+          for (int e = tid; e < M * in.nPad; e += THREADS) {
+            const int r = e / in.nPad, c = e - r * in.nPad;
+            dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
           }
           break;
-        }
-        case MlpOp::DenseFp32: {
-          __half* dst = buffer(in.dst);
-          const float* W = P.floatWeights + in.floatOffset;
-          const float* bias = P.floatWeights + in.biasOffset;
-          for (int e = tid; e < M * in.nPad; e += kFusedThreads) {
-            const int r = e / in.nPad, o = e % in.nPad;
-            float v = 0.f;
-            if (o < in.outWidth) {
-              float acc = bias[o];
-              for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), srcValue(in.src, r, k), acc);
-              v = applyActivation(in.act, acc);
-              if (in.other >= 0) v = in.combineScale * (v + __half2float(buffer(in.other)[r * P.ldAct + o]));
-            }
-            dst[r * P.ldAct + o] = __float2half(v);
-          }
-          break;
-        }
+        case MlpOp::DenseFp32:
         case MlpOp::Fourier: {
-          __half* dst = buffer(in.dst);
-          const float* B = P.floatWeights + in.floatOffset;
-          const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
-          const int sinBase = in.includeInput == 1 ? in.inWidth : 0;
-          for (int e = tid; e < M * m; e += kFusedThreads) {
-            const int r = e / m, j = e % m;
-            float proj = 0.f;
-            for (int k = 0; k < in.inWidth; ++k) proj = fmaf(__ldg(B + j * in.inWidth + k), srcValue(in.src, r, k), proj);
-            float s, c;
-            sincosf(proj, &s, &c);
-            dst[r * P.ldAct + sinBase + j] = __float2half(s);
-            dst[r * P.ldAct + sinBase + m + j] = __float2half(c);
+          // One thread per output column (its weights in registers), looping over the rows.
+          const bool fourier = in.op == MlpOp::Fourier;
+          const int inc = fourier && in.includeInput ? in.inWidth : 0;
+          const int m = fourier ? (in.outWidth - inc) / 2 : in.outWidth;  // computed columns
+          const int sinBase = fourier && in.includeInput == 1 ? in.inWidth : 0;
+          const float* W = P.floatWeights + in.floatOffset;
+          const int colsPerPass = min(m, THREADS), rowsPerPass = THREADS / colsPerPass;
+          for (int c0 = 0; c0 < m; c0 += colsPerPass) {
+            const int o = c0 + tid % colsPerPass;
+            if (tid >= rowsPerPass * colsPerPass || o >= m) continue;
+            float w[16];
+#pragma unroll
+            for (int k = 0; k < 16; ++k) w[k] = k < in.inWidth ? __ldg(W + o * in.inWidth + k) : 0.f;
+            const float bias = fourier ? 0.f : __ldg(P.floatWeights + in.biasOffset + o);
+            for (int r = tid / colsPerPass; r < M; r += rowsPerPass) {
+              float acc = bias;
+              if (in.inWidth <= 16) {
+#pragma unroll
+                for (int k = 0; k < 16; ++k)
+                  if (k < in.inWidth) acc = fmaf(w[k], input(r, k), acc);
+              } else {
+                for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), input(r, k), acc);
+              }
+              if (fourier) {
+                float s, c;
+                __sincosf(acc, &s, &c);
+                dst[r * ldDst + sinBase + o] = __float2half(s);
+                dst[r * ldDst + sinBase + m + o] = __float2half(c);
+              } else {
+                float v = applyActivation(in.act, acc);
+                if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
+                dst[r * ldDst + o] = __float2half(v);
+              }
+            }
           }
-          const int at = in.includeInput == 1 ? 0 : 2 * m;
-          for (int e = tid; e < M * in.nPad; e += kFusedThreads) {
-            const int r = e / in.nPad, c = e % in.nPad;
-            if (in.includeInput && c >= at && c < at + in.inWidth)
-              dst[r * P.ldAct + c] = __float2half(srcValue(in.src, r, c - at));
-            else if (c >= in.outWidth)
-              dst[r * P.ldAct + c] = __float2half(0.f);
+          // Included inputs and zero padding.
+          const int at = fourier && in.includeInput == 1 ? 0 : 2 * m;
+          for (int e = tid; e < M * in.nPad; e += THREADS) {
+            const int r = e / in.nPad, c = e - r * in.nPad;
+            if (inc && c >= at && c < at + inc) dst[r * ldDst + c] = __float2half(input(r, c - at));
+            else if (c >= in.outWidth) dst[r * ldDst + c] = __float2half(0.f);
           }
           break;
         }
         case MlpOp::Gemm: {
-          const __half* src = buffer(in.src);
-          __half* dst = buffer(in.dst);
           const __half* Wg = P.halfWeights + in.halfOffset;
-          const int nFrags = in.nPad / 16;
+          const int c16Count = in.nPad / 16;
           const int numChunks = (in.kPad + kWeightChunk - 1) / kWeightChunk;
-          wmma::fragment<wmma::accumulator, 16, 16, 16, float> acc[RF][4];
+          float acc[2][4][2][4];  // [m16 tile][16-column block][n8 half][fragment]
 #pragma unroll
-          for (int r = 0; r < RF; ++r)
+          for (int a = 0; a < 2; ++a)
 #pragma unroll
-            for (int j = 0; j < 4; ++j) wmma::fill_fragment(acc[r][j], 0.f);
+            for (int j = 0; j < 4; ++j)
+#pragma unroll
+              for (int h = 0; h < 2; ++h)
+#pragma unroll
+                for (int f = 0; f < 4; ++f) acc[a][j][h][f] = 0.f;
 
           auto stage = [&](int chunk) {
             const int k0 = chunk * kWeightChunk;
             const int segs = min(kWeightChunk, in.kPad - k0) / 8;  // 16-byte segments per row
-            __half* dstW = wbuf + (chunk & 1) * P.maxWidthPad * kWeightStride;
-            for (int idx = tid; idx < in.nPad * segs; idx += kFusedThreads) {
-              const int row = idx / segs, seg = idx % segs;
+            __half* dstW = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
+            for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
+              const int row = idx / segs, seg = idx - row * segs;
               __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, Wg + std::size_t(row) * in.kPad + k0 + seg * 8,
                                       16);
             }
             __pipeline_commit();
           };
+          const int rowBase = rowGroup * 32;
           stage(0);
           for (int chunk = 0; chunk < numChunks; ++chunk) {
             if (chunk + 1 < numChunks) {
@@ -202,85 +255,89 @@ __global__ void __launch_bounds__(kFusedThreads) fusedMlpKernel(FusedParams P, c
               __pipeline_wait_prior(0);
             }
             __syncthreads();
-            const __half* Wc = wbuf + (chunk & 1) * P.maxWidthPad * kWeightStride;
+            const __half* Wc = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
             const int kLen = min(kWeightChunk, in.kPad - chunk * kWeightChunk);
             for (int kk = 0; kk < kLen; kk += 16) {
-              wmma::fragment<wmma::matrix_a, 16, 16, 16, __half, wmma::row_major> a[RF];
+              const int kAbs = chunk * kWeightChunk + kk;
+              unsigned a[2][4];
 #pragma unroll
-              for (int r = 0; r < RF; ++r)
-                wmma::load_matrix_sync(a[r], src + (rowGroup * (M / 2) + r * 16) * P.ldAct + chunk * kWeightChunk + kk,
-                                       P.ldAct);
+              for (int mt = 0; mt < 2; ++mt) {
+                const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
+                ldmatrixX4(a[mt], src + r * ldSrc + kAbs + (lane >> 4) * 8);
+              }
 #pragma unroll
               for (int j = 0; j < 4; ++j) {
-                const int col = colGroup + 4 * j;
-                if (col < nFrags) {
-                  wmma::fragment<wmma::matrix_b, 16, 16, 16, __half, wmma::col_major> b;
-                  wmma::load_matrix_sync(b, Wc + col * 16 * kWeightStride + kk, kWeightStride);
+                const int c16 = colGroup + 4 * j;
+                if (c16 < c16Count) {
+                  unsigned b[4];  // b[0], b[1]: n8 tile 0 (k lo, k hi); b[2], b[3]: n8 tile 1
+                  const int nrow = c16 * 16 + (lane >> 4) * 8 + (lane & 7);
+                  ldmatrixX4(b, Wc + nrow * kWeightStride + kk + ((lane >> 3) & 1) * 8);
 #pragma unroll
-                  for (int r = 0; r < RF; ++r) wmma::mma_sync(acc[r][j], a[r], b, acc[r][j]);
+                  for (int mt = 0; mt < 2; ++mt) {
+                    mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
+                    mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
+                  }
                 }
               }
             }
             __syncthreads();  // the next stage() overwrites this buffer
           }
-          // Epilogue in fp32: bias, activation, residual sum, padding columns to zero.
+          // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
           const float* bias = P.floatWeights + in.biasOffset;
-          const __half* other = in.other >= 0 ? buffer(in.other) : nullptr;
 #pragma unroll
-          for (int r = 0; r < RF; ++r)
+          for (int j = 0; j < 4; ++j) {
+            const int c16 = colGroup + 4 * j;
+            if (c16 >= c16Count) continue;
 #pragma unroll
-            for (int j = 0; j < 4; ++j) {
-              const int col = colGroup + 4 * j;
-              if (col < nFrags) {
-                wmma::store_matrix_sync(scratch, acc[r][j], 16, wmma::mem_row_major);
-                __syncwarp();
-                const int row0 = rowGroup * (M / 2) + r * 16;
-                for (int e = lane; e < 256; e += 32) {
-                  const int rr = row0 + (e >> 4), cc = col * 16 + (e & 15);
-                  float v = 0.f;
-                  if (cc < in.outWidth) {
-                    v = applyActivation(in.act, scratch[e] + bias[cc]);
-                    if (other) v = in.combineScale * (v + __half2float(other[rr * P.ldAct + cc]));
+            for (int h = 0; h < 2; ++h) {
+              const int col = c16 * 16 + h * 8 + 2 * t4;
+              const float2 bb = *reinterpret_cast<const float2*>(bias + col);
+#pragma unroll
+              for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                for (int half = 0; half < 2; ++half) {
+                  const int row = rowBase + mt * 16 + g + half * 8;
+                  float v0 = applyActivation(in.act, acc[mt][j][h][2 * half] + bb.x);
+                  float v1 = applyActivation(in.act, acc[mt][j][h][2 * half + 1] + bb.y);
+                  if (other) {
+                    const float2 o = __half22float2(*reinterpret_cast<const __half2*>(other + row * ldOther + col));
+                    v0 = in.combineScale * (v0 + o.x);
+                    v1 = in.combineScale * (v1 + o.y);
                   }
-                  dst[rr * P.ldAct + cc] = __float2half(v);
+                  if (col >= in.outWidth) v0 = 0.f;
+                  if (col + 1 >= in.outWidth) v1 = 0.f;
+                  *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
                 }
-                __syncwarp();
-              }
             }
-          break;
-        }
-        case MlpOp::Activation: {
-          __half* dst = buffer(in.dst);
-          for (int e = tid; e < M * in.outWidth; e += kFusedThreads) {
-            const int r = e / in.outWidth, c = e % in.outWidth;
-            dst[r * P.ldAct + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * P.ldAct + c])));
           }
           break;
         }
+        case MlpOp::Activation:
+          for (int e = tid; e < M * in.outWidth; e += THREADS) {
+            const int r = e / in.outWidth, c = e - r * in.outWidth;
+            dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
+          }
+          break;
         case MlpOp::Combine: {
-          const __half* a = buffer(in.src);
-          const __half* o = in.other >= 0 ? buffer(in.other) : nullptr;
-          __half* dst = buffer(in.dst);
-          for (int e = tid; e < M * in.nPad; e += kFusedThreads) {
-            const int r = e / in.nPad, c = e % in.nPad;
-            float v = __half2float(a[r * P.ldAct + c]) + (o ? __half2float(o[r * P.ldAct + c]) : 0.f);
-            dst[r * P.ldAct + c] = __float2half(in.combineScale * v);
+          for (int e = tid; e < M * in.nPad; e += THREADS) {
+            const int r = e / in.nPad, c = e - r * in.nPad;
+            const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
+            dst[r * ldDst + c] = __float2half(in.combineScale * v);
           }
           break;
         }
         case MlpOp::OutputDot:
         case MlpOp::Output: {
           const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
-          for (int r = warp; r < rows; r += kFusedWarps) {
+          for (int r = warp; r < rows; r += WARPS) {
             float acc = 0.f;
             if (W) {
-              for (int k = lane; k < in.inWidth; k += 32) acc = fmaf(__ldg(W + k), srcValue(in.src, r, k), acc);
+              for (int k = lane; k < in.inWidth; k += 32) acc = fmaf(__ldg(W + k), input(r, k), acc);
 #pragma unroll
               for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
             }
             if (lane == 0) {
-              const float net =
-                  W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : srcValue(in.src, r, 0);
+              const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
               float a, b;
               outputAffine(P.output, points[base + r].w, a, b);
               const int q = base + r;

@@ -67,6 +67,8 @@ public:
   }
 
   std::int64_t pushFloats(const std::vector<float>& v) {
+    // 16-byte aligned, so the kernels can read biases as float2/float4.
+    while (p_.floatWeights.size() % 4) p_.floatWeights.push_back(0.f);
     const std::int64_t off = std::int64_t(p_.floatWeights.size());
     p_.floatWeights.insert(p_.floatWeights.end(), v.begin(), v.end());
     return off;
@@ -320,7 +322,16 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   p.maxWidthPad = 16;
   Compiler c(p);
   c.list(arch.layers, Value{-1, arch.inputDim, false}, true);
-  if (p.maxWidthPad > kMaxFusedWidth) {
+  p.bufferWidthPad.assign(std::max(p.numBuffers, 1), 16);
+  for (const MlpInstr& in : p.instrs) {
+    if (in.dst >= 0) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);
+    if (in.op == MlpOp::Gemm) p.maxGemmOutPad = std::max(p.maxGemmOutPad, in.nPad);
+  }
+  if (p.maxGemmOutPad > kMaxFusedGemmOut) {
+    p.fusable = false;
+    p.whyNotFused = "a linear layer has " + std::to_string(p.maxGemmOutPad) + " outputs (fused kernel: up to " +
+                    std::to_string(kMaxFusedGemmOut) + ")";
+  } else if (p.maxWidthPad > kMaxFusedWidth) {
     p.fusable = false;
     p.whyNotFused = "a layer is " + std::to_string(p.maxWidthPad) + " wide (fused kernel: up to " +
                     std::to_string(kMaxFusedWidth) + ")";

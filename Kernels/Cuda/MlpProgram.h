@@ -49,13 +49,16 @@ struct MlpProgram {
   int inputDim = 0;
   int numBuffers = 0;
   int maxWidthPad = 0;  // widest buffer, multiple of 16
-  // Whether the fused tensor-core kernel can run it (widths <= kMaxFusedWidth, buffers <=
-  // kMaxFusedBuffers, encodings only on the coordinates); otherwise `whyNotFused` says why and
-  // the generic path is used.
+  std::vector<int> bufferWidthPad;  // per buffer: widest value it ever holds (multiple of 16)
+  int maxGemmOutPad = 0;            // widest tensor-core layer output (rows of staged weights)
+  // Whether the fused tensor-core kernel can run it (activation widths <= kMaxFusedWidth, GEMM
+  // outputs <= kMaxFusedGemmOut, buffers <= kMaxFusedBuffers); otherwise `whyNotFused` says why
+  // and the generic path is used.
   bool fusable = true;
   std::string whyNotFused;
 
-  static constexpr int kMaxFusedWidth = 256;
+  static constexpr int kMaxFusedWidth = 512;
+  static constexpr int kMaxFusedGemmOut = 256;
   static constexpr int kMaxFusedBuffers = 4;
 
   static MlpProgram compile(const Architecture& arch);
