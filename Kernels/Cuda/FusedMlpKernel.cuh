@@ -169,10 +169,8 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
       };
       switch (in.op) {
         case MlpOp::LoadInput:
-          for (int e = tid; e < M * in.nPad; e += THREADS) {
-            const int r = e / in.nPad, c = e - r * in.nPad;
-            dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
-          }
+          for (int r = warp; r < M; r += WARPS)
+            for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
           break;
         case MlpOp::DenseFp32:
         case MlpOp::Fourier: {
@@ -211,12 +209,11 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
               }
             }
           }
-          // Included inputs and zero padding.
+          // Included inputs and zero padding: only those columns.
           const int at = fourier && in.includeInput == 1 ? 0 : 2 * m;
-          for (int e = tid; e < M * in.nPad; e += THREADS) {
-            const int r = e / in.nPad, c = e - r * in.nPad;
-            if (inc && c >= at && c < at + inc) dst[r * ldDst + c] = __float2half(input(r, c - at));
-            else if (c >= in.outWidth) dst[r * ldDst + c] = __float2half(0.f);
+          for (int r = warp; r < M; r += WARPS) {
+            for (int c = lane; c < inc; c += 32) dst[r * ldDst + at + c] = __float2half(input(r, c));
+            for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
           }
           break;
         }
@@ -236,12 +233,19 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
 
           auto stage = [&](int chunk) {
             const int k0 = chunk * kWeightChunk;
-            const int segs = min(kWeightChunk, in.kPad - k0) / 8;  // 16-byte segments per row
             __half* dstW = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
-            for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
-              const int row = idx / segs, seg = idx - row * segs;
-              __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, Wg + std::size_t(row) * in.kPad + k0 + seg * 8,
-                                      16);
+            const __half* srcW = Wg + k0;
+            if (in.kPad - k0 >= kWeightChunk) {  // full chunk: 8 16-byte segments per row, no division
+              for (int idx = tid; idx < in.nPad * 8; idx += THREADS) {
+                const int row = idx >> 3, seg = idx & 7;
+                __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+              }
+            } else {
+              const int segs = (in.kPad - k0) / 8;
+              for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
+                const int row = idx / segs, seg = idx - row * segs;
+                __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+              }
             }
             __pipeline_commit();
           };
@@ -257,6 +261,7 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
             __syncthreads();
             const __half* Wc = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
             const int kLen = min(kWeightChunk, in.kPad - chunk * kWeightChunk);
+#pragma unroll 4
             for (int kk = 0; kk < kLen; kk += 16) {
               const int kAbs = chunk * kWeightChunk + kk;
               unsigned a[2][4];
@@ -313,17 +318,16 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
           break;
         }
         case MlpOp::Activation:
-          for (int e = tid; e < M * in.outWidth; e += THREADS) {
-            const int r = e / in.outWidth, c = e - r * in.outWidth;
-            dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
-          }
+          for (int r = warp; r < M; r += WARPS)
+            for (int c = lane; c < in.outWidth; c += 32)
+              dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
           break;
         case MlpOp::Combine: {
-          for (int e = tid; e < M * in.nPad; e += THREADS) {
-            const int r = e / in.nPad, c = e - r * in.nPad;
-            const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
-            dst[r * ldDst + c] = __float2half(in.combineScale * v);
-          }
+          for (int r = warp; r < M; r += WARPS)
+            for (int c = lane; c < in.nPad; c += 32) {
+              const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
+              dst[r * ldDst + c] = __float2half(in.combineScale * v);
+            }
           break;
         }
         case MlpOp::OutputDot:
