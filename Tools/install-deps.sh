@@ -5,7 +5,16 @@ set -euo pipefail
 PACKAGES=(build-essential cmake ninja-build pkg-config
   libeigen3-dev nlohmann-json3-dev libgtest-dev libpng-dev
   python3 python3-numpy python3-torch
-  xvfb xauth)
+  xvfb xauth
+  # ParaView plugin: Debian's ParaView 5.11 SDK. find_package(ParaView) makes every module's
+  # dependency required, hence the -dev list (../shared/PLATFORM.md; do NOT add libvtk9-dev).
+  paraview paraview-dev python3-paraview openmpi-bin mpi-default-dev libhdf5-mpi-dev
+  qtbase5-dev qttools5-dev libqt5svg5-dev libqt5opengl5-dev libglm-dev libboost-dev libgdal-dev
+  libnetcdf-dev libutfcpp-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
+  libgl2ps-dev libglew-dev libtheora-dev libxml2-dev libexpat1-dev liblzma-dev liblz4-dev
+  libdouble-conversion-dev libjpeg-dev libtiff-dev libfreetype-dev zlib1g-dev libx11-dev libxt-dev
+  libgl-dev libpython3-dev python3-dev
+  iproute2)  # `ip link set lo up` for the pvserver test in a private network namespace
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -11,7 +11,10 @@
 #include "vtkSMProperty.h"
 #include "vtkSMPropertyHelper.h"
 #include "vtkSMProxy.h"
+#include "vtkSMSession.h"
 #include "vtkSMTransferFunctionProxy.h"
+#include "vtkClientServerStream.h"
+#include "vtkPVSession.h"
 
 #include <cstring>
 
@@ -22,6 +25,31 @@ bool isInrVolume(vtkSMProxy* proxy)
   vtkSMProperty* p = proxy ? proxy->GetProperty("Representation") : nullptr;
   const char* type = p ? vtkSMPropertyHelper(p).GetAsString() : nullptr;
   return type && std::strcmp(type, "INR Volume") == 0;
+}
+
+// Asks the representation object on the render server (the process that renders; the client's
+// copy does not render in client/server mode, so information properties pulled from the client
+// would say nothing) whether it is still refining.
+bool stillRefining(vtkSMProxy* proxy)
+{
+  vtkSMProperty* prop = proxy->GetProperty("InrConverged");
+  vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
+  vtkSMSession* session = inr ? inr->GetSession() : nullptr;
+  if (!session)
+  {
+    return false;
+  }
+  vtkClientServerStream stream;
+  stream << vtkClientServerStream::Invoke << VTKOBJECT(inr) << "GetInrConverged"
+         << vtkClientServerStream::End;
+  session->ExecuteStream(vtkPVSession::RENDER_SERVER_ROOT, stream, false);
+  const vtkClientServerStream& result = session->GetLastResult(vtkPVSession::RENDER_SERVER_ROOT);
+  int converged = 1;
+  if (result.GetNumberOfMessages() < 1 || !result.GetArgument(0, 0, &converged))
+  {
+    return false;
+  }
+  return converged == 0;
 }
 }
 
@@ -135,20 +163,16 @@ void pqInrRefinementBehavior::refine()
           continue;
         }
       }
-      vtkSMProperty* converged = proxy->GetProperty("InrConverged");
-      if (!converged)
-      {
-        continue;
-      }
-      proxy->UpdatePropertyInformation(converged);
-      if (vtkSMPropertyHelper(converged).GetAsInt() == 0)
+      if (stillRefining(proxy))
       {
         again = true;
       }
     }
     if (again)
     {
-      view->render();
+      // A direct render from this (idle-time) timer callback: pqView::render()'s own deferred
+      // timer is held back while test playback pauses, and we are already outside any render.
+      view->forceRender();
     }
   }
 }

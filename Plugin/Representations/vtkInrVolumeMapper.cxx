@@ -32,6 +32,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -94,6 +96,7 @@ struct vtkInrVolumeMapper::Internals
   int uploadedFrames = -1;
   bool textureValid = false;
   std::vector<float> depth;
+  inr::RenderScene lastScene;  // for the INR_VOLUME_DEBUG report of what changed
 };
 
 vtkStandardNewMacro(vtkInrVolumeMapper);
@@ -494,14 +497,41 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     scene.ambient = static_cast<float>(this->Ambient);
     scene.shadowEstimator =
       this->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
+    if (std::getenv("INR_VOLUME_DEBUG"))
+    {
+      const inr::RenderScene& o = I.lastScene;
+      std::string what;
+      if (o.camera.position != scene.camera.position || o.camera.focalPoint != scene.camera.focalPoint ||
+        o.camera.viewUp != scene.camera.viewUp || o.camera.viewAngle != scene.camera.viewAngle ||
+        o.camera.parallelScale != scene.camera.parallelScale)
+        what += " camera";
+      if (o.time != scene.time)
+        what += " time";
+      if (o.depthLimit != scene.depthLimit)
+        what += " depth";
+      if (o.toLight != scene.toLight || o.shadows != scene.shadows)
+        what += " light";
+      if (o.transferFunction.color.size() != scene.transferFunction.color.size() ||
+        o.transferFunction.opacity.size() != scene.transferFunction.opacity.size() ||
+        o.transferFunction.unitDistance != scene.transferFunction.unitDistance ||
+        (!o.transferFunction.opacity.empty() &&
+          (o.transferFunction.opacity.back().x != scene.transferFunction.opacity.back().x ||
+            o.transferFunction.opacity.front().x != scene.transferFunction.opacity.front().x)))
+        what += " tf";
+      std::fprintf(stderr, "INR Volume: render %dx%d, frames %d, changed:%s\n", width, height,
+        I.renderer->accumulatedFrames(), what.empty() ? " nothing" : what.c_str());
+      I.lastScene = scene;
+    }
     I.renderer->setScene(scene);
 
     int frames = I.renderer->accumulatedFrames();
     if (frames == 0 || frames < framesBefore)
     {
-      I.converged = false;
       I.estimate = std::numeric_limits<double>::infinity();
     }
+    // Re-evaluated every render: the limits may have changed since the last one.
+    I.converged = frames >= this->MaximumFrames ||
+      (this->ConvergenceTarget > 0.0 && frames >= 4 && I.estimate < this->ConvergenceTarget);
     const int goal = std::min(this->MaximumFrames, std::max(frames + 1, this->FramesPerRender));
     I.lastUpdateMs = 0.0;
     I.lastQueries = 0.0;
@@ -525,6 +555,11 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     if (frames >= this->MaximumFrames)
     {
       I.converged = true;
+    }
+    if (std::getenv("INR_VOLUME_DEBUG") && renderedAny)
+    {
+      std::fprintf(stderr, "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d\n",
+        frames, I.lastQueries, I.lastUpdateMs, int(I.converged));
     }
   }
   catch (const std::exception& e)

@@ -6,6 +6,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPVLODVolume.h"
 #include "vtkSmartPointer.h"
+#include "vtkVolumeMapper.h"
 
 vtkStandardNewMacro(vtkInrVolumeRepresentation);
 
@@ -34,6 +35,12 @@ void vtkInrVolumeRepresentation::UpdateMapperParameters()
   }
   const bool colored = colorArray && colorArray[0];
   this->GetInrMapper()->SetUseDefaultTransferFunction(colored ? 0 : 1);
+  if (!colored)
+  {
+    // vtkPVLODVolume renders a volume only when its mapper finds the selected scalars: point at
+    // the active point scalars (the reader's "value"), which our mapper never reads anyway.
+    this->VolumeMapper->SetScalarMode(VTK_SCALAR_MODE_DEFAULT);
+  }
   // The superclass hides the volume when no array is selected; ours renders the network itself.
   this->Actor->SetVisibility(this->GetVisibility() ? 1 : 0);
 }

@@ -162,6 +162,7 @@ int main(int argc, char* argv[])
   const std::string model = argv[2];
   std::string baseline, outDir;
   bool write = false;
+  int seed = 7;
   for (int i = 3; i < argc; ++i)
   {
     const std::string a = argv[i];
@@ -172,6 +173,10 @@ int main(int argc, char* argv[])
     else if (a == "-T" && i + 1 < argc)
     {
       outDir = argv[++i];
+    }
+    else if (a == "--seed" && i + 1 < argc)
+    {
+      seed = std::atoi(argv[++i]);  // noise studies: another seed gives an independent estimate
     }
     else if (a == "--write-baseline")
     {
@@ -185,7 +190,7 @@ int main(int argc, char* argv[])
   vtkNew<vtkInrVolumeMapper> mapper;
   mapper->SetInputConnection(reader->GetOutputPort());
   mapper->SetBackend(vtkInrVolumeMapper::BACKEND_CPU);
-  mapper->SetSeed(7);
+  mapper->SetSeed(seed);
   mapper->SetMacrocellResolution(16);
   mapper->SetTemporalSlices(16);
   mapper->SetConvergenceTarget(0.0);
@@ -223,7 +228,7 @@ int main(int argc, char* argv[])
   ren->GetActiveCamera()->OrthogonalizeViewUp();
   ren->ResetCameraClippingRange();
 
-  const int frames = 96;
+  const int frames = 64;
   if (testCase == "ea" || testCase == "depth")
   {
     mapper->SetMaximumFrames(frames);

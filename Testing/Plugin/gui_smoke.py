@@ -9,6 +9,10 @@ out = os.environ["INR_GUI_OUT"]
 model = os.environ["INR_GUI_MODEL"]
 reader = simple.OpenDataFile(model)
 view = simple.GetActiveViewOrCreate("RenderView")
+try:
+    simple.GetLayout(view).SetSize(240, 240)  # small view: CPU frames stay cheap on CI
+except Exception as e:  # noqa: BLE001
+    print("layout size not set:", e)
 display = simple.Show(reader, view)
 display.InrMaximumFrames = 48
 display.InrFramesPerRender = 1
@@ -28,6 +32,6 @@ def on_end(obj, event):
 
 
 view.GetRenderWindow().AddObserver("EndEvent", on_end)
-simple.SaveScreenshot(os.path.join(out, "gui_smoke.png"), view, ImageResolution=[300, 300])
+simple.SaveScreenshot(os.path.join(out, "gui_smoke.png"), view, ImageResolution=[240, 240])
 log.write(f"representation {display.Representation}\n")
 log.flush()

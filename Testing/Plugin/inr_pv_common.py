@@ -3,7 +3,7 @@ import os
 
 # The scene every scripted test renders: the plugin test model, a fixed camera, a fixed
 # colour map (ParaView's Cool to Warm) and opacity ramp, ParaView's default background.
-CAMERA = dict(position=[3.6, -3.4, 2.9], focal_point=[1.0, 0.0, 0.5], view_up=[0.0, 0.0, 1.0],
+CAMERA = dict(position=[4.6, -4.6, 3.6], focal_point=[1.0, 0.0, 0.5], view_up=[0.0, 0.0, 1.0],
               view_angle=30.0)
 OPACITY_POINTS = [0.55, 0.0, 0.5, 0.0, 0.85, 0.5, 0.5, 0.0, 1.17, 1.0, 0.5, 0.0]
 VALUE_RANGE = [-0.14, 1.17]
@@ -12,11 +12,15 @@ UNIT_DISTANCE = 0.1
 
 
 def load_plugin(path, remote):
+    """Loads the plugin on the client (and the server); already loaded (PV_PLUGIN_PATH) is fine."""
     from paraview import simple
-    if path:
-        simple.LoadPlugin(path, remote=False, ns=globals())
-        if remote:
-            simple.LoadPlugin(path, remote=True, ns=globals())
+    if not path:
+        return
+    for where in ([False, True] if remote else [False]):
+        try:
+            simple.LoadPlugin(path, remote=where, ns=globals())
+        except RuntimeError as e:
+            print(f"note: LoadPlugin(remote={where}): {e} (already loaded through PV_PLUGIN_PATH?)")
 
 
 def setup_view(size):
@@ -46,7 +50,6 @@ def apply_colormap(display, view):
     lut.RescaleTransferFunction(*VALUE_RANGE)
     pwf = simple.GetOpacityTransferFunction("value")
     pwf.Points = OPACITY_POINTS
-    pwf.AutomaticRescaleRangeMode = "Never"
     display.ScalarOpacityUnitDistance = UNIT_DISTANCE
     display.SetScalarBarVisibility(view, False)
 

@@ -15,7 +15,7 @@ ap.add_argument("--plugin", default="")
 ap.add_argument("--out", required=True)
 ap.add_argument("--frames", type=int, default=256)
 ap.add_argument("--resolution", type=int, default=128)
-ap.add_argument("--min-psnr", type=float, default=30.0)
+ap.add_argument("--min-psnr", type=float, default=38.0)  # measured 44.5 dB here
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
@@ -54,4 +54,5 @@ with open(os.path.join(args.out, "consistency.txt"), "w") as f:
 ok = p >= args.min_psnr and covered > 0.05
 print("RESULT:", "PASS" if ok else "FAIL", flush=True)
 sys.stdout.flush()
-os._exit(0 if ok else 1)
+if not ok:
+    sys.exit(1)
