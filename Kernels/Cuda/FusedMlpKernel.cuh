@@ -61,6 +61,24 @@ __device__ inline float applyActivation(MlpAct a, float v) {
   return v;
 }
 
+template <MlpAct A>
+struct ActTag {
+  static constexpr MlpAct value = A;
+};
+
+// Calls f(ActTag<A>{}) for the runtime activation, so loops inside f see it as a constant.
+template <typename F>
+__device__ inline void dispatchActivation(MlpAct a, F&& f) {
+  switch (a) {
+    case MlpAct::None: f(ActTag<MlpAct::None>{}); break;
+    case MlpAct::Sine: f(ActTag<MlpAct::Sine>{}); break;
+    case MlpAct::SiLU: f(ActTag<MlpAct::SiLU>{}); break;
+    case MlpAct::ReLU: f(ActTag<MlpAct::ReLU>{}); break;
+    case MlpAct::Sigmoid: f(ActTag<MlpAct::Sigmoid>{}); break;
+    case MlpAct::Tanh: f(ActTag<MlpAct::Tanh>{}); break;
+  }
+}
+
 __device__ inline void outputAffine(const OutputMap& m, float t, float& a, float& b) {
   if (m.count == 0) {
     a = m.a;
@@ -157,7 +175,7 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
     __syncthreads();
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
-      const MlpInstr& in = program[ip];
+      const MlpInstr in = program[ip];  // a copy: fields stay in registers inside the loops
       const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
       const int ldSrc = in.src >= 0 ? bufferLd[in.src] : 0;
       __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
@@ -188,25 +206,36 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
 #pragma unroll
             for (int k = 0; k < 16; ++k) w[k] = k < in.inWidth ? __ldg(W + o * in.inWidth + k) : 0.f;
             const float bias = fourier ? 0.f : __ldg(P.floatWeights + in.biasOffset + o);
-            for (int r = tid / colsPerPass; r < M; r += rowsPerPass) {
+            const int rStart = tid / colsPerPass;
+            auto dot = [&](int r) {
               float acc = bias;
-              if (in.inWidth <= 16) {
+              if (in.src < 0) {  // coordinates: one 16-byte load; weights past inputDim are zero
+                const float4 c = reinterpret_cast<const float4*>(coords)[r];
+                acc = fmaf(w[0], c.x, fmaf(w[1], c.y, fmaf(w[2], c.z, fmaf(w[3], c.w, acc))));
+              } else if (in.inWidth <= 16) {
 #pragma unroll
                 for (int k = 0; k < 16; ++k)
                   if (k < in.inWidth) acc = fmaf(w[k], input(r, k), acc);
               } else {
                 for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), input(r, k), acc);
               }
-              if (fourier) {
-                float s, c;
-                __sincosf(acc, &s, &c);
-                dst[r * ldDst + sinBase + o] = __float2half(s);
-                dst[r * ldDst + sinBase + m + o] = __float2half(c);
-              } else {
-                float v = applyActivation(in.act, acc);
-                if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
-                dst[r * ldDst + o] = __float2half(v);
+              return acc;
+            };
+            if (fourier) {
+              for (int r = rStart; r < M; r += rowsPerPass) {
+                float sn, cs;
+                __sincosf(dot(r), &sn, &cs);
+                dst[r * ldDst + sinBase + o] = __float2half(sn);
+                dst[r * ldDst + sinBase + m + o] = __float2half(cs);
               }
+            } else {
+              dispatchActivation(in.act, [&](auto A) {
+                for (int r = rStart; r < M; r += rowsPerPass) {
+                  float v = applyActivation(decltype(A)::value, dot(r));
+                  if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
+                  dst[r * ldDst + o] = __float2half(v);
+                }
+              });
             }
           }
           // Included inputs and zero padding: only those columns.
@@ -289,32 +318,34 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
           }
           // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
           const float* bias = P.floatWeights + in.biasOffset;
+          dispatchActivation(in.act, [&](auto A) {
 #pragma unroll
-          for (int j = 0; j < 4; ++j) {
-            const int c16 = colGroup + 4 * j;
-            if (c16 >= c16Count) continue;
+            for (int j = 0; j < 4; ++j) {
+              const int c16 = colGroup + 4 * j;
+              if (c16 >= c16Count) continue;
 #pragma unroll
-            for (int h = 0; h < 2; ++h) {
-              const int col = c16 * 16 + h * 8 + 2 * t4;
-              const float2 bb = *reinterpret_cast<const float2*>(bias + col);
+              for (int h = 0; h < 2; ++h) {
+                const int col = c16 * 16 + h * 8 + 2 * t4;
+                const float2 bb = *reinterpret_cast<const float2*>(bias + col);
+                const bool keep0 = col < in.outWidth, keep1 = col + 1 < in.outWidth;
 #pragma unroll
-              for (int mt = 0; mt < 2; ++mt)
+                for (int mt = 0; mt < 2; ++mt)
 #pragma unroll
-                for (int half = 0; half < 2; ++half) {
-                  const int row = rowBase + mt * 16 + g + half * 8;
-                  float v0 = applyActivation(in.act, acc[mt][j][h][2 * half] + bb.x);
-                  float v1 = applyActivation(in.act, acc[mt][j][h][2 * half + 1] + bb.y);
-                  if (other) {
-                    const float2 o = __half22float2(*reinterpret_cast<const __half2*>(other + row * ldOther + col));
-                    v0 = in.combineScale * (v0 + o.x);
-                    v1 = in.combineScale * (v1 + o.y);
+                  for (int half = 0; half < 2; ++half) {
+                    const int row = rowBase + mt * 16 + g + half * 8;
+                    float v0 = applyActivation(decltype(A)::value, acc[mt][j][h][2 * half] + bb.x);
+                    float v1 = applyActivation(decltype(A)::value, acc[mt][j][h][2 * half + 1] + bb.y);
+                    if (other) {
+                      const float2 o = __half22float2(*reinterpret_cast<const __half2*>(other + row * ldOther + col));
+                      v0 = in.combineScale * (v0 + o.x);
+                      v1 = in.combineScale * (v1 + o.y);
+                    }
+                    *reinterpret_cast<__half2*>(dst + row * ldDst + col) =
+                        __floats2half2_rn(keep0 ? v0 : 0.f, keep1 ? v1 : 0.f);
                   }
-                  if (col >= in.outWidth) v0 = 0.f;
-                  if (col + 1 >= in.outWidth) v1 = 0.f;
-                  *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
-                }
+              }
             }
-          }
+          });
           break;
         }
         case MlpOp::Activation:

@@ -1,0 +1,53 @@
+#pragma once
+// The naive baseline's network: every GPU thread evaluates the whole network for its own query,
+// in fp32, instruction by instruction from the MlpProgram (no batching, no tensor cores, no
+// shared weights tiles). Deliberately the straightforward per-thread implementation a delta
+// tracker written for voxel textures gets when its texture fetch becomes a network inference —
+// the baseline of benchmark 4c. Activations live in a global scratch array, one slice per thread
+// (coalesced: consecutive threads read consecutive words).
+#include <cuda_runtime.h>
+
+#include <memory>
+#include <vector>
+
+#include "Evaluator/FieldEvaluator.h"
+#include "Model/InrModel.h"
+
+namespace inr {
+
+struct MlpInstr;
+
+// What a kernel needs to evaluate the network per thread (device pointers).
+struct PerThreadMlpView {
+  const MlpInstr* instrs = nullptr;
+  int numInstrs = 0;
+  const float* weights = nullptr;  // MlpProgram::floatWeights
+  int inputDim = 4;
+  int inputCoord[4] = {0, 1, 2, 3};
+  float inScale[4] = {1, 1, 1, 1}, inOffset[4] = {0, 0, 0, 0};
+  float outA = 1.f, outB = 0.f;  // value = outA * net + outB at the frame's time
+  float* scratch = nullptr;      // numBuffers * width * stride floats
+  int numBuffers = 1, width = 16, stride = 0;  // stride = threads sharing the scratch
+};
+
+class CudaPerThreadMlp final : public FieldEvaluator {
+public:
+  explicit CudaPerThreadMlp(const InrModel& model);
+  ~CudaPerThreadMlp() override;
+
+  // View for `threads` concurrent threads at world time `time` (the output mapping may depend on
+  // time). Grows the scratch array as needed; the view is valid until the next call.
+  PerThreadMlpView view(int threads, float time) const;
+  // Scratch bytes one thread needs.
+  std::size_t scratchBytesPerThread() const;
+
+  // FieldEvaluator (host arrays; for tests): one thread per query through the same device code.
+  void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
+  std::string name() const override { return "cuda-per-thread-fp32"; }
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace inr
