@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "Cuda/CudaCheck.h"
-#include "Render/TransferFunctionTable.h"
+#include "Render/SceneInputs.h"
 
 namespace inr::cuda {
 
