@@ -120,6 +120,45 @@ def check_slice_png(inr, data):
         expect(p.returncode == 1 and "extension" in p.stderr, "bad extension: " + p.stderr)
 
 
+def shipped_models(data):
+    out = []
+    for sub in ("models", "real"):
+        d = os.path.join(data, sub)
+        if os.path.isdir(d):
+            out += sorted(os.path.join(d, f) for f in os.listdir(d) if f.endswith(".inr"))
+    return out
+
+
+def check_every_shipped_model(inr, data):
+    """info, eval and a small render work on every shipped model, values are finite and inside a
+    sane envelope of the model's value range, and the render is not empty."""
+    models = shipped_models(data)
+    expect(len(models) >= 5, "expected the shipped test models, found %d" % len(models))
+    with tempfile.TemporaryDirectory() as d:
+        for m in models:
+            p = run(inr, "info", m, "--json")
+            expect(p.returncode == 0, "%s: info failed: %s" % (m, p.stderr))
+            j = json.loads(p.stdout)
+            b, (t0, t1) = j["bounds"], j["time_range"]
+            pts = "\n".join("%r %r %r" % (b[0] + f * (b[1] - b[0]), b[2] + f * (b[3] - b[2]), b[4] + f * (b[5] - b[4]))
+                            for f in (0.1, 0.5, 0.9)) + "\n"
+            p = run(inr, "eval", m, "--time", repr((t0 + t1) / 2), stdin=pts)
+            expect(p.returncode == 0, "%s: eval failed: %s" % (m, p.stderr))
+            vals = [float(v) for v in p.stdout.split()]
+            lo, hi = j["sampled_value_range"]["min"], j["sampled_value_range"]["max"]
+            span = max(hi - lo, 1e-6)
+            expect(len(vals) == 3 and all(math.isfinite(v) and lo - span <= v <= hi + span for v in vals),
+                   "%s: eval values %s outside [%g, %g] +- span" % (m, vals, lo, hi))
+            out = os.path.join(d, "r.pfm")
+            p = run(inr, "render", m, "--time", repr(t0), "--size", "24x24", "--frames", "2", "--quiet", "-o", out)
+            expect(p.returncode == 0, "%s: render failed: %s" % (m, p.stderr))
+            raw = open(out, "rb").read()
+            header_end = raw.index(b"\n", raw.index(b"\n", 3) + 1) + 1
+            floats = struct.unpack("<%df" % ((len(raw) - header_end) // 4), raw[header_end:])
+            expect(len(floats) == 24 * 24 * 3 and all(math.isfinite(v) for v in floats), "%s: bad PFM" % m)
+            expect(max(floats) > 0.0, "%s: render is empty (all background)" % m)
+
+
 if __name__ == "__main__":
     inr, data, check = sys.argv[1:4]
     globals()["check_" + check](inr, data)
