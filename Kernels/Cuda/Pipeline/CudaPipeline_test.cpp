@@ -1,1 +1,413 @@
+// GPU pipeline against the CPU backend (ctest label `cuda`). Without a usable GPU every test here
+// is reported as skipped, with the reason.
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+
+#include "Cuda/CudaDevice.h"
+#include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
+#include "Cuda/Pipeline/CudaMacrocellGrid.h"
+#include "Cuda/Pipeline/CudaPerThreadMlp.h"
+#include "Cuda/Pipeline/CudaRayMarcher.h"
+#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Evaluator/CpuInrEvaluator.h"
+#include "Evaluator/ValueRange.h"
+#include "Model/InrModel.h"
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/RayMarcher.h"
+
+namespace inr {
+namespace {
+
+namespace fs = std::filesystem;
+
+#define REQUIRE_GPU()                                          \
+  do {                                                         \
+    const CudaDeviceInfo dev = queryCudaDevice();              \
+    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason; \
+  } while (0)
+
+std::vector<std::string> shippedModels() {
+  std::vector<std::string> out;
+  const fs::path dir = fs::path(INR_TEST_DATA_DIR) / "models";
+  if (!fs::is_directory(dir)) return out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().extension() == ".inr") out.push_back(e.path().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+Box3f boxOf(const InrModel& m) {
+  const auto& b = m.domain.bounds;
+  return Box3f{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+}
+
+int envInt(const char* name, int fallback) {
+  const char* v = std::getenv(name);
+  return v ? std::max(1, std::atoi(v)) : fallback;
+}
+
+// The scene of Render/ModelRender_test.cpp: oblique view, preset TF, ratio-tracked shadows.
+RenderScene testScene(const InrModel& model, const std::array<float, 2>& range, bool shadows) {
+  const Box3f box = boxOf(model);
+  RenderScene scene;
+  scene.camera = Camera::framing(box);
+  const auto& f = scene.camera.focalPoint;
+  const double d = scene.camera.position[2] - f[2];
+  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
+  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
+  scene.transferFunction.unitDistance = length(box.hi - box.lo) / 12.0;
+  scene.background = {0.1f, 0.1f, 0.15f};
+  scene.shadows = shadows;
+  scene.ambient = 0.3f;
+  scene.toLight = defaultLightDirection(scene.camera);
+  scene.shadowEstimator = ShadowEstimator::Ratio;
+  return scene;
+}
+
+MacrocellOptions testMacrocells() {
+  MacrocellOptions o;
+  o.dims = Int3{16, 16, 16};
+  o.temporalSlices = 8;
+  return o;
+}
+
+std::size_t nonFinitePixels(const ImageRGBA& img) {
+  std::size_t bad = 0;
+  for (float v : img.data) bad += std::isfinite(v) ? 0 : 1;
+  return bad;
+}
+
+TEST(CudaPipeline, MacrocellGridsMatchCpu) {
+  REQUIRE_GPU();
+  const auto models = shippedModels();
+  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
+  for (const auto& path : models) {
+    const InrModel model = InrModel::loadFile(path);
+    const CudaInrEvaluator gpuEval(model);
+    const CpuInrEvaluator cpuEval(model);
+    const Box3f box = boxOf(model);
+    MacrocellOptions o;
+    o.dims = Int3{18, 16, 13};  // partial tiles on every axis
+    o.temporalSlices = 5;
+    CudaMacrocellGrid gpu(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
+    MacrocellGrid sameEval(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
+    MacrocellGrid cpuRef(cpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
+    const double t = model.domain.timeBegin + 0.37 * (model.domain.timeEnd - model.domain.timeBegin);
+    gpu.setTime(t);
+    sameEval.setTime(t);
+    cpuRef.setTime(t);
+    int k0, k1;
+    float w;
+    gpu.interpolationWeights(t, k0, k1, w);
+    std::vector<float> mn, mx, mean;
+    double range = 0;
+    for (float v : cpuRef.slice(k0).max) range = std::max(range, double(v));
+    double lo = INFINITY;
+    for (float v : cpuRef.slice(k0).min) lo = std::min(lo, double(v));
+    range = std::max(1.0, range - lo);
+    double maxSame = 0, maxRef = 0;
+    for (int k : {k0, k1}) {
+      ASSERT_TRUE(gpu.sliceBuilt(k));
+      gpu.downloadSlice(k, mn, mx, mean);
+      const auto& a = sameEval.slice(k);
+      const auto& b = cpuRef.slice(k);
+      for (int c = 0; c < gpu.cellCount(); ++c) {
+        maxSame = std::max({maxSame, std::abs(double(mn[c]) - a.min[c]), std::abs(double(mx[c]) - a.max[c]),
+                            std::abs(double(mean[c]) - a.mean[c])});
+        maxRef = std::max({maxRef, std::abs(double(mn[c]) - b.min[c]), std::abs(double(mx[c]) - b.max[c])});
+      }
+    }
+    std::vector<float> wMin, wMax, wMean;
+    gpu.downloadWorking(wMin, wMax, wMean);
+    double maxWork = 0;
+    for (int c = 0; c < gpu.cellCount(); ++c)
+      maxWork = std::max({maxWork, std::abs(double(wMin[c]) - sameEval.workingMin()[c]),
+                          std::abs(double(wMax[c]) - sameEval.workingMax()[c])});
+    // Majorants from the same working bounds and TF.
+    const TransferFunctionTable table(TransferFunction::preset(lo, lo + range, 0.8));
+    cuda::DeviceTransferFunction dtf;
+    dtf.upload(table, nullptr);
+    cuda::DeviceBuffer<float> dMaj(gpu.cellCount());
+    gpu.computeMajorants(dtf.view(), dMaj.get());
+    const std::vector<float> maj = dMaj.download(nullptr);
+    std::vector<float> cpuMaj;
+    sameEval.computeMajorants(table.view(), cpuMaj);
+    double maxMaj = 0;
+    for (int c = 0; c < gpu.cellCount(); ++c) maxMaj = std::max(maxMaj, std::abs(double(maj[c]) - cpuMaj[c]));
+    std::printf("%-24s slices vs CPU grid (same GPU evaluator) %.3g, vs CPU fp32 evaluator %.3g (range %.3g); "
+                "working %.3g; majorants %.3g\n",
+                fs::path(path).filename().c_str(), maxSame, maxRef, range, maxWork, maxMaj);
+    EXPECT_LE(maxSame, 1e-6 * range) << path;
+    EXPECT_LE(maxWork, 1e-6 * range) << path;
+    EXPECT_LE(maxMaj, 1e-4) << path;
+    EXPECT_LE(maxRef, 3e-2 * range) << path;  // the fp16 evaluator's bound
+  }
+}
+
+TEST(CudaPipeline, ConvergedGpuImageMatchesCpuImage) {
+  REQUIRE_GPU();
+  const auto models = shippedModels();
+  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
+  const int size = envInt("INR_GPU_TEST_SIZE", 64), frames = envInt("INR_GPU_TEST_FRAMES", 256);
+  for (const auto& path : models) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpuEval(model);
+    const CudaInrEvaluator gpuEval(model);
+    const auto range = valueRangeFor(model, cpuEval);
+    const Box3f box = boxOf(model);
+    for (bool shadows : {false, true}) {
+      RenderSettings settings;
+      settings.width = settings.height = size;
+      settings.seed = 9;
+      settings.pixelJitter = false;
+      const RenderScene scene = testScene(model, range, shadows);
+
+      MacrocellGrid cpuGrid(cpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
+      DeltaTrackingRenderer cpu(cpuEval, cpuGrid);
+      cpu.setSettings(settings);
+      cpu.setScene(scene);
+      FrameStats cpuTotal;
+      for (int k = 0; k < frames; ++k) cpuTotal += cpu.renderFrame();
+
+      CudaMacrocellGrid gpuGrid(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
+      CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid);
+      gpu.setSettings(settings);
+      gpu.setScene(scene);
+      FrameStats gpuTotal;
+      for (int k = 0; k < frames; ++k) gpuTotal += gpu.renderFrame();
+
+      const ImageRGBA a = gpu.image(), b = cpu.image();
+      const double psnr = psnrRgb(a, b);
+      std::printf("%-24s%s %dx%d, %d frames: PSNR GPU vs CPU %.2f dB; queries/frame GPU %zu CPU %zu; "
+                  "iterations/frame GPU %.1f CPU %.1f\n",
+                  fs::path(path).filename().c_str(), shadows ? " (shadows)" : "", size, size, frames, psnr,
+                  gpuTotal.totalQueries() / frames, cpuTotal.totalQueries() / frames,
+                  double(gpuTotal.iterations + gpuTotal.shadowIterations) / frames,
+                  double(cpuTotal.iterations + cpuTotal.shadowIterations) / frames);
+      EXPECT_GE(psnr, 40.0) << path << (shadows ? " with shadows" : "");
+      EXPECT_EQ(nonFinitePixels(a), 0u) << path;
+      EXPECT_EQ(gpu.counters().truncatedFrames, 0) << path;
+      EXPECT_EQ(gpu.accumulatedFrames(), frames);
+      const std::vector<float> r = gpu.residual();
+      for (float v : r) ASSERT_TRUE(v >= 0.f && v <= 1.f) << path;
+    }
+  }
+}
+
+TEST(CudaPipeline, PerThreadNetworkMatchesCpuReference) {
+  REQUIRE_GPU();
+  for (const auto& path : shippedModels()) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpu(model);
+    const CudaPerThreadMlp naive(model);
+    std::mt19937 rng(5);
+    const auto& b = model.domain.bounds;
+    auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
+    const float t = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
+    std::vector<QueryPoint> pts(5003);
+    for (auto& p : pts) p = {u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), t};
+    std::vector<float> ref(pts.size()), got(pts.size());
+    cpu.evaluate(pts.data(), pts.size(), ref.data());
+    naive.evaluate(pts.data(), pts.size(), got.data());
+    double maxErr = 0, lo = INFINITY, hi = -INFINITY;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      maxErr = std::max(maxErr, std::abs(double(got[i]) - ref[i]));
+      lo = std::min(lo, double(ref[i]));
+      hi = std::max(hi, double(ref[i]));
+    }
+    std::printf("%-24s per-thread fp32 network vs CPU: max abs %.3g (range %.3g)\n", fs::path(path).filename().c_str(),
+                maxErr, hi - lo);
+    EXPECT_LE(maxErr, 1e-3 * std::max(1.0, hi - lo)) << path;
+  }
+}
+
+TEST(CudaPipeline, NaiveTrackerConvergesToWavefrontImage) {
+  REQUIRE_GPU();
+  const auto models = shippedModels();
+  if (models.empty()) GTEST_SKIP() << "no models";
+  const InrModel model = InrModel::loadFile(models.front());
+  const CudaInrEvaluator gpuEval(model);
+  const CudaPerThreadMlp naiveNet(model);
+  const auto range = valueRangeFor(model, gpuEval);
+  for (bool shadows : {false, true}) {
+    RenderSettings settings;
+    settings.width = settings.height = 48;
+    settings.pixelJitter = false;
+    const RenderScene scene = testScene(model, range, shadows);
+    auto render = [&](bool naive) {
+      CudaMacrocellGrid grid(gpuEval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
+      CudaDeltaTrackingRenderer r(gpuEval, grid);
+      r.setSettings(settings);
+      r.setScene(scene);
+      for (int k = 0; k < 128; ++k) naive ? r.renderFrameNaive(naiveNet) : r.renderFrame();
+      return r.image();
+    };
+    const ImageRGBA a = render(true), b = render(false);
+    const double psnr = psnrRgb(a, b);
+    std::printf("naive vs wavefront%s: PSNR %.2f dB\n", shadows ? " (shadows)" : "", psnr);
+    EXPECT_GE(psnr, 40.0);
+    EXPECT_EQ(nonFinitePixels(a), 0u);
+  }
+}
+
+TEST(CudaPipeline, GpuRayMarcherMatchesCpuRayMarcher) {
+  REQUIRE_GPU();
+  for (const auto& path : shippedModels()) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpuEval(model);
+    const CudaInrEvaluator gpuEval(model);
+    const auto range = valueRangeFor(model, cpuEval);
+    RenderSettings settings;
+    settings.width = settings.height = 40;
+    const RenderScene scene = testScene(model, range, false);
+    RayMarchOptions o;
+    o.step = length(boxOf(model).hi - boxOf(model).lo) / 256.f;
+    RayMarchRenderer cpu(cpuEval, boxOf(model), o);
+    CudaRayMarcher gpu(gpuEval, boxOf(model), o);
+    cpu.setSettings(settings);
+    gpu.setSettings(settings);
+    cpu.setScene(scene);
+    gpu.setScene(scene);
+    const FrameStats a = cpu.renderFrame(), b = gpu.renderFrame();
+    const double psnr = psnrRgb(cpu.image(), gpu.image());
+    std::printf("%-24s ray marcher GPU vs CPU: PSNR %.2f dB, queries %zu vs %zu\n", fs::path(path).filename().c_str(),
+                psnr, b.queries, a.queries);
+    EXPECT_EQ(a.queries, b.queries) << path;
+    EXPECT_GE(psnr, 40.0) << path;
+  }
+}
+
+class GpuSceneTest : public ::testing::Test {
+protected:
+  void SetUp() override {
+    const CudaDeviceInfo dev = queryCudaDevice();
+    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason;
+    const auto models = shippedModels();
+    if (models.empty()) GTEST_SKIP() << "no models";
+    model = std::make_unique<InrModel>(InrModel::loadFile(models.front()));
+    eval = std::make_unique<CudaInrEvaluator>(*model);
+    range = valueRangeFor(*model, *eval);
+    grid = std::make_unique<CudaMacrocellGrid>(*eval, boxOf(*model), model->domain.timeBegin, model->domain.timeEnd,
+                                               testMacrocells());
+  }
+  std::unique_ptr<InrModel> model;
+  std::unique_ptr<CudaInrEvaluator> eval;
+  std::unique_ptr<CudaMacrocellGrid> grid;
+  std::array<float, 2> range{};
+};
+
+TEST_F(GpuSceneTest, EmptyTransferFunctionCostsNoQueries) {
+  CudaDeltaTrackingRenderer r(*eval, *grid);
+  RenderSettings settings;
+  settings.width = settings.height = 64;
+  r.setSettings(settings);
+  RenderScene scene = testScene(*model, range, true);
+  scene.shadowEstimator = ShadowEstimator::Delta;
+  scene.transferFunction = TransferFunction::transparent(range[0], range[1]);
+  r.setScene(scene);
+  for (int k = 0; k < 3; ++k) {
+    const FrameStats st = r.renderFrame();
+    EXPECT_EQ(st.queries, 0u);
+    EXPECT_EQ(st.shadowQueries, 0u);
+    EXPECT_EQ(st.iterations, 0);
+    EXPECT_GT(st.rays, 0u);
+  }
+  for (float m : r.majorants()) ASSERT_EQ(m, 0.f);
+  const ImageRGBA img = r.image();
+  for (std::size_t i = 0; i < img.data.size(); i += 4) {
+    ASSERT_FLOAT_EQ(img.data[i], scene.background[0]);
+    ASSERT_FLOAT_EQ(img.data[i + 3], 0.f);
+  }
+}
+
+TEST_F(GpuSceneTest, SceneChangesDoOnlyTheWorkTheyNeed) {
+  CudaDeltaTrackingRenderer r(*eval, *grid);
+  RenderSettings settings;
+  settings.width = settings.height = 32;
+  r.setSettings(settings);
+  RenderScene scene = testScene(*model, range, false);
+  r.setScene(scene);
+  const CudaPipelineCounters c0 = r.counters();
+  EXPECT_EQ(c0.workingGridUpdates, 1);
+  EXPECT_EQ(c0.majorantUpdates, 1);
+  r.renderFrame();
+  r.renderFrame();
+  r.setScene(scene);  // unchanged: nothing to do, keeps accumulating
+  r.renderFrame();
+  EXPECT_EQ(r.accumulatedFrames(), 3);
+  EXPECT_EQ(r.counters().workingGridUpdates, 1);
+  EXPECT_EQ(r.counters().majorantUpdates, 1);
+  EXPECT_EQ(r.counters().accumulationResets, c0.accumulationResets);
+
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.3);  // TF edit: majorants only
+  r.setScene(scene);
+  EXPECT_EQ(r.counters().workingGridUpdates, 1);
+  EXPECT_EQ(r.counters().majorantUpdates, 2);
+  EXPECT_EQ(r.accumulatedFrames(), 0);
+
+  scene.time = model->domain.timeBegin + 0.8 * (model->domain.timeEnd - model->domain.timeBegin);
+  r.setScene(scene);  // time: working grid + majorants
+  EXPECT_EQ(r.counters().workingGridUpdates, 2);
+  EXPECT_EQ(r.counters().majorantUpdates, 3);
+
+  r.renderFrame();
+  scene.camera.position[0] += 0.1;  // camera: accumulation reset only
+  r.setScene(scene);
+  EXPECT_EQ(r.counters().workingGridUpdates, 2);
+  EXPECT_EQ(r.counters().majorantUpdates, 3);
+  EXPECT_EQ(r.accumulatedFrames(), 0);
+  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
+}
+
+TEST_F(GpuSceneTest, NoNanPixelsUnderExtremeInputs) {
+  TrackingOptions topts;
+  topts.ghostPassesOnUpdate = 2;
+  CudaDeltaTrackingRenderer r(*eval, *grid, topts);
+  RenderSettings settings;
+  settings.width = 37;
+  settings.height = 23;  // odd sizes: partial blocks and warps
+  r.setSettings(settings);
+  RenderScene scene = testScene(*model, range, true);
+  scene.shadowEstimator = ShadowEstimator::Delta;
+  // Camera inside the box looking through it.
+  const Box3f box = boxOf(*model);
+  const Vec3f c = (box.lo + box.hi) * 0.5f;
+  scene.camera.position = {c.x + 0.01, c.y - 0.02, c.z + 0.03};
+  scene.camera.focalPoint = {c.x + 1.0, c.y + 0.3, c.z - 0.2};
+  scene.camera.viewUp = {0, 0, 1};
+  // Depth limits: NaN, negative, zero, infinite, tiny.
+  scene.depthLimit.assign(std::size_t(settings.width) * settings.height, INFINITY);
+  for (std::size_t i = 0; i < scene.depthLimit.size(); i += 5) scene.depthLimit[i] = NAN;
+  for (std::size_t i = 1; i < scene.depthLimit.size(); i += 7) scene.depthLimit[i] = -1.f;
+  for (std::size_t i = 2; i < scene.depthLimit.size(); i += 11) scene.depthLimit[i] = 0.f;
+  for (std::size_t i = 3; i < scene.depthLimit.size(); i += 13) scene.depthLimit[i] = 1e-6f;
+  // Nearly opaque TF over a tiny unit distance, and a time outside the model's range.
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], 1.0);
+  scene.transferFunction.unitDistance = 1e-4;
+  scene.time = model->domain.timeEnd + 10.0;
+  r.setScene(scene);
+  for (int k = 0; k < 4; ++k) r.renderFrame();
+  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
+  // Parallel projection, transparent-to-opaque step TF, shadows with ratio tracking.
+  scene.camera = Camera::framing(box);
+  scene.camera.parallelProjection = true;
+  scene.camera.parallelScale = 0.5 * length(box.hi - box.lo);
+  scene.depthLimit.clear();
+  scene.shadowEstimator = ShadowEstimator::Ratio;
+  scene.transferFunction.unitDistance = 1e3;
+  r.setScene(scene);
+  for (int k = 0; k < 4; ++k) r.renderFrame();
+  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
+  EXPECT_EQ(r.counters().truncatedFrames, 0);
+}
+
+}  // namespace
+}  // namespace inr
