@@ -1,16 +1,40 @@
 #!/usr/bin/env bash
-# The main job on the bundled example model: installs dependencies, builds, then describes the
-# model, evaluates it at a few points and renders it at three times into example-output/.
+# The main job on the bundled example model: installs dependencies, builds, renders the model at
+# three times through ParaView (pvpython + the INR Volume plugin) into example-output/, then
+# describes it with the CLI, evaluates it at a few points and writes CLI slices/renders too.
 # Another model: INR_EXAMPLE_MODEL=path/to/model.inr bash Tools/run-example.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash Tools/install-deps.sh
 bash Tools/build.sh "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
-INR="$BUILD_DIR/Tools/inr/inr"
+INR="$BUILD_DIR/bin/inr"
 MODEL=${INR_EXAMPLE_MODEL:-Testing/Data/models/siren_blobs.inr}
+[ -f "$MODEL" ] || MODEL=Testing/Data/Plugin/clouds.inr  # plugin test model as a fallback
 OUT=example-output
 mkdir -p "$OUT"
+
+# --- ParaView: open the model, show it as "INR Volume", render three times (64 frames each).
+PLUGIN_DIR="$BUILD_DIR/lib/paraview-plugins/InrVolume"
+if command -v pvpython >/dev/null && [ -f "$PLUGIN_DIR/InrVolume.so" ]; then
+  XVFB_PID=""
+  if [ -z "${DISPLAY:-}" ] && command -v Xvfb >/dev/null; then
+    for n in $(seq 90 110); do
+      [ -e /tmp/.X11-unix/X$n ] || [ -e /tmp/.X$n-lock ] && continue
+      Xvfb :$n -screen 0 1280x1024x24 -nolisten tcp >/dev/null 2>&1 &
+      XVFB_PID=$!
+      for _ in $(seq 50); do [ -e /tmp/.X11-unix/X$n ] && break; sleep 0.1; done
+      export DISPLAY=:$n
+      break
+    done
+  fi
+  echo "== ParaView (pvpython + INR Volume plugin): $MODEL at three times"
+  PV_PLUGIN_PATH="$(cd "$PLUGIN_DIR" && pwd)" pvpython --force-offscreen-rendering \
+    Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 48 --out "$OUT"
+  if [ -n "$XVFB_PID" ]; then kill "$XVFB_PID" 2>/dev/null || true; unset DISPLAY; fi
+else
+  echo "== ParaView plugin not built (no ParaView SDK?): skipping the ParaView renders"
+fi
 
 echo "== inr info $MODEL"
 "$INR" info "$MODEL"

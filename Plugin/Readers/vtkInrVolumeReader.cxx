@@ -65,35 +65,6 @@ void vtkInrVolumeReader::SetFileName(const char* name)
   this->Modified();
 }
 
-int vtkInrVolumeReader::CanReadFile(const char* fileName)
-{
-  if (!fileName)
-  {
-    return 0;
-  }
-  std::ifstream in(fileName, std::ios::binary);
-  unsigned char n8[8];
-  if (!in.read(reinterpret_cast<char*>(n8), 8))
-  {
-    return 0;
-  }
-  unsigned long long n = 0;
-  for (int i = 7; i >= 0; --i)
-  {
-    n = (n << 8) | n8[i];
-  }
-  if (n < 2 || n > (100ull << 20))
-  {
-    return 0;
-  }
-  std::string header(static_cast<std::size_t>(n), '\0');
-  if (!in.read(&header[0], static_cast<std::streamsize>(n)))
-  {
-    return 0;
-  }
-  return header[0] == '{' && header.find("inr-volume") != std::string::npos ? 1 : 0;
-}
-
 bool vtkInrVolumeReader::LoadModel()
 {
   Internals& I = *this->Internal;

@@ -43,8 +43,8 @@ public:
   vtkGetMacro(PreviewResolution, int);
   ///@}
 
-  /// 1 if the file looks like a safetensors file with INR Volume metadata (cheap check).
-  static int CanReadFile(const char* fileName);
+  // No CanReadFile on purpose: ParaView picks this reader by the .inr extension, and a broken
+  // file then gets the loader's precise message instead of "no reader found".
 
   ///@{
   /// Filled by RequestInformation: the model's time range and value range.
