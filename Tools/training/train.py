@@ -65,7 +65,7 @@ def _siren(width, hidden_layers):
                                    first_omega_0=30.0, hidden_omega_0=30.0)
 
 
-def specs_for(config):
+def specs_for(config, ffn_sigma=None):
     paper = config == "paper"
     s = []
     w, hl = (256, 4) if paper else (64, 2)
@@ -78,7 +78,8 @@ def specs_for(config):
             arch="4 -> %s -> 1 (sine w0=30, linear output)" % " -> ".join([str(w)] * (hl + 1)),
             build=_siren(w, hl), inputs="xyzt", target="minmax",
             lr=1e-4 if paper else 5e-4, batch=65536 if paper else 2048))
-    nf, hc, sigma = (128, 5, 3.0) if paper else (32, 2, 2.0)
+    nf, hc, sigma = (128, 5, 1.0) if paper else (32, 2, 0.5)
+    sigma = ffn_sigma or sigma
     s.append(Spec(
         name="ffn_mri_head", dataset="mri_head_deform", family="FFN", layout="reed-ffn",
         official="awreed/DynamicCTReconstruction nn_models.py `INR_3D` (1x1x1 Conv3d, Swish, "
@@ -304,9 +305,9 @@ def transfer_function(spec, vol):
     elif spec.dataset.startswith("mri"):
         rgb = [q(0.0), 0.0, 0.0, 0.0, q(0.12), 0.35, 0.15, 0.1, q(0.3), 0.8, 0.5, 0.35,
                q(0.6), 0.95, 0.85, 0.7, q(1.0), 1.0, 1.0, 1.0]
-        pts = [q(0.0), 0.0, 0.5, 0.0, q(0.1), 0.0, 0.5, 0.0, q(0.2), 0.08, 0.5, 0.0,
-               q(0.45), 0.35, 0.5, 0.0, q(1.0), 0.9, 0.5, 0.0]
-        note = "bone/skin ramp; air and background transparent"
+        pts = [q(0.0), 0.0, 0.5, 0.0, q(0.15), 0.0, 0.5, 0.0, q(0.3), 0.04, 0.5, 0.0,
+               q(0.6), 0.3, 0.5, 0.0, q(1.0), 0.8, 0.5, 0.0]
+        note = "skin/tissue ramp; air, background and faint tissue nearly transparent"
     else:  # velocity component: diverging, recirculation (u < 0) and the fast stream visible
         rgb = [lo, 0.23, 0.30, 0.75, 0.0, 0.55, 0.65, 0.95, 1.0, 0.87, 0.87, 0.87,
                max(1.0, q(0.85)), 0.95, 0.55, 0.4, hi, 0.7, 0.02, 0.15]
@@ -316,7 +317,7 @@ def transfer_function(spec, vol):
                               hi, 0.8, 0.5, 0.0], 4)
         note = "cool-warm around u = 1 (free stream, transparent); wake deficit/recirculation " \
                "(u < 0.6) blue, over-speed red"
-    return [{"Name": spec.name, "ColorSpace": "Lab", "RGBPoints": rgb, "Points": pts,
+    return [{"Name": spec.name, "ColorSpace": "RGB", "RGBPoints": rgb, "Points": pts,
              "Annotation": note, "ValueRange": [lo, hi]}]
 
 
@@ -433,10 +434,12 @@ def main(argv=None):
                     help="max grid points for the PSNR [all on CUDA, 1M on CPU]")
     ap.add_argument("--threads", type=int, default=None, help="CPU threads [all cores]")
     ap.add_argument("--batch", type=int, default=None, help="override every model's batch size")
+    ap.add_argument("--ffn-sigma", type=float, default=None,
+                    help="std of the Fourier matrix B [paper 1.0, small 0.5]")
     ap.add_argument("--lr-scale", type=float, default=1.0, help="multiply every learning rate")
     ap.add_argument("--list", action="store_true")
     a = ap.parse_args(argv)
-    specs = specs_for(a.config)
+    specs = specs_for(a.config, a.ffn_sigma)
     if a.list:
         for s in specs:
             print("%-34s %-9s %-15s on %-28s %s" % (s.name, s.family, s.layout, s.dataset,
