@@ -216,7 +216,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
 }
 
 // 4d: setTime (working-grid interpolation) + majorants, all slices prebuilt; median of 21 changes.
-void benchTimeStep(const InrModel& model, int m, int slices) {
+void benchTimeStep(const std::string& name, const InrModel& model, int m, int slices) {
   const CudaInrEvaluator eval(model);
   MacrocellOptions mo;
   mo.dims = Int3{m, m, m};
@@ -257,7 +257,7 @@ void benchTimeStep(const InrModel& model, int m, int slices) {
   std::sort(wallMs.begin(), wallMs.end());
   Row r;
   r.group = "4d";
-  r.model = model.name.empty() ? "model" : model.name;
+  r.model = name;
   r.variant = "timestep " + std::to_string(m) + "^3";
   r.size = m;
   r.frameMs = gpuMs[gpuMs.size() / 2];
@@ -339,7 +339,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::printf("GPU render benchmark on %s; %d^2, %d frames after %d warm-up, %d^3 macrocells x %d slices\n",
-              dev.name.c_str(), o.size, o.frames, o.warmup, o.macrocells, o.macrocells, o.slices);
+              dev.name.c_str(), o.size, o.frames, o.warmup, o.macrocells, o.slices);
   try {
     std::vector<std::pair<std::string, InrModel>> models;
     if (o.paper) {
@@ -350,8 +350,9 @@ int main(int argc, char** argv) {
     for (const auto& p : o.models) models.emplace_back(std::filesystem::path(p).filename().string(), InrModel::loadFile(p));
     for (const auto& [name, model] : models) benchModel(name, model, o);
     std::printf("\n== 4d time-step update latency\n");
-    const InrModel& m = models.empty() ? bench::sirenPaper() : models.front().second;
-    for (int cells : {64, 128}) benchTimeStep(m, cells, o.slices);
+    const InrModel m = models.empty() ? bench::sirenPaper() : models.front().second;
+    const std::string mName = models.empty() ? "SIREN 4-256x5-1 (synthetic)" : models.front().first;
+    for (int cells : {64, 128}) benchTimeStep(mName, m, cells, o.slices);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     printTable();
