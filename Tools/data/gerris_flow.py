@@ -3,24 +3,26 @@
 grid: vorticity magnitude and the streamwise velocity component, many snapshots.
 
     /usr/bin/python3 Tools/data/gerris_flow.py CASE [--out .data] [--level 5]
-                     [--t-start 3.5] [--t-end 7.85] [--dt 0.15] [--work DIR] [--keep]
+                     [--t-start T0] [--t-end T1] [--dt 0.15] [--work DIR] [--keep]
     CASE: cylinder | sphere_plate
 
 Needs Debian's ``gerris`` with ``libgfs-dev pkg-config`` (gerris3D compiles the solid and
 initial-condition expressions at run time) and numpy. Run it in the background, nice'd; with
-the defaults (30 snapshots, t = 3.5 ... 7.85) each case needs ~8 min of CPU, 20-40 min on
-the shared 2-core development machine.
+the defaults (30 snapshots each) a case needs ~5-8 min of CPU, 20-40 min on the shared
+2-core development machine.
 
 Set-up (Gerris units; U = 1 inflow, lengths in box units):
 
 * domain: 3 unit boxes along x, x in [-0.5, 2.5], y, z in [-0.5, 0.5]; inflow U = 1 on the
   left (Dirichlet), outflow on the right, slip walls elsewhere (Gerris' default boundary).
 * ``cylinder``: a finite circular cylinder, axis along z, radius 0.125 (D = 0.25), length
-  0.6 (z in [-0.3, 0.3]), centred at (0, 0.02): a von Karman street whose rollers bend and
-  connect to the tip vortices, so the wake is fully 3D. Re = U D / nu = 250.
+  0.6 (z in [-0.3, 0.3]), centred at (0, 0.02), impulsively started: the starting vortex
+  loop (spanwise rollers joined by the tip vortices) forms, separates and is swept
+  downstream. Re = U D / nu = 250. Snapshots t = 0.15 ... 4.5. (At this resolution the wake
+  of this short cylinder becomes steady after t ~ 5, hence the start-up window.)
 * ``sphere_plate``: a sphere (radius 0.14 at (0, 0.16, 0.1)) beside a thin flat plate normal
-  to the flow (0.05 x 0.28 x 0.44 at (0.05, -0.17, -0.06)); their wakes interact.
-  Re(sphere) = 280.
+  to the flow (0.05 x 0.28 x 0.44 at (0.05, -0.17, -0.06)); their wakes interact and the
+  plate sheds vortices continuously. Re(sphere) = 280. Snapshots t = 3.5 ... 7.85.
 * viscosity nu = 0.001; initial U = 1 plus a small non-divergence-free V perturbation (the
   projection removes its divergent part) so that shedding starts early.
 * mesh: adaptive octree, uniform ``--level - 1`` everywhere, ``--level`` (default 5, i.e.
@@ -105,15 +107,15 @@ def _union(*parts):
 CASES = {
     "cylinder": dict(
         solid=lambda: _cyl(0.0, 0.02, 0.125, 0.3),
-        description="finite circular cylinder (D = 0.25, length 0.6, axis z) in a uniform "
-                    "stream, Re = 250",
-        length=0.25),
+        description="finite circular cylinder (D = 0.25, length 0.6, axis z) in an "
+                    "impulsively started uniform stream, Re = 250",
+        length=0.25, t_start=0.15, t_end=4.5),
     "sphere_plate": dict(
         solid=lambda: _union(_sphere(0.0, 0.16, 0.1, 0.14),
                              _box(0.05, -0.17, -0.06, 0.025, 0.14, 0.22)),
         description="sphere (D = 0.28) beside a flat plate (0.05 x 0.28 x 0.44) normal to a "
                     "uniform stream, Re(sphere) = 280",
-        length=0.28),
+        length=0.28, t_start=3.5, t_end=7.85),
 }
 
 
@@ -188,13 +190,19 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(REPO, ".data"))
     ap.add_argument("--work", help="work directory [OUT/work/gerris_CASE]")
     ap.add_argument("--level", type=int, default=5)
-    ap.add_argument("--t-start", type=float, default=3.5)
-    ap.add_argument("--t-end", type=float, default=7.85)
+    ap.add_argument("--t-start", type=float, default=None,
+                    help="first snapshot [cylinder 0.15, sphere_plate 3.5]")
+    ap.add_argument("--t-end", type=float, default=None,
+                    help="end of the run = last snapshot [cylinder 4.5, sphere_plate 7.85]")
     ap.add_argument("--dt", type=float, default=0.15)
     ap.add_argument("--keep", action="store_true", help="keep the Gerris snapshots")
     ap.add_argument("--sample-only", action="store_true",
                     help="do not run Gerris, only resample existing snapshots in --work")
     a = ap.parse_args(argv)
+    if a.t_start is None:
+        a.t_start = CASES[a.case]["t_start"]
+    if a.t_end is None:
+        a.t_end = CASES[a.case]["t_end"]
     for tool in ("gerris3D", "gfs2oogl3D"):
         if shutil.which(tool) is None:
             raise SystemExit("%s not found: apt-get install gerris libgfs-dev pkg-config" % tool)
