@@ -83,8 +83,11 @@ function(inr_add_gtest)
   target_compile_definitions(${T_NAME} PRIVATE
     INR_TEST_DATA_DIR="${PROJECT_SOURCE_DIR}/Testing/Data")
   # A GTEST_SKIP (e.g. no GPU) is reported by ctest as skipped, not passed.
-  gtest_discover_tests(${T_NAME} DISCOVERY_TIMEOUT 60
-    PROPERTIES LABELS "${T_LABELS}" SKIP_REGULAR_EXPRESSION "  SKIPPED ")
+  set(props SKIP_REGULAR_EXPRESSION "  SKIPPED ")
+  if(T_LABELS)
+    list(APPEND props LABELS "${T_LABELS}")
+  endif()
+  gtest_discover_tests(${T_NAME} DISCOVERY_TIMEOUT 60 PROPERTIES ${props})
 endfunction()
 
 # CPU code (the Eigen evaluator, the CPU backend) is built for the machine that builds it: AVX2/FMA
