@@ -105,10 +105,11 @@ __device__ inline void outputAffine(const OutputMap& m, float t, float& a, float
 
 __device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
 
-__device__ inline void ldmatrixX4(unsigned (&r)[4], const __half* p) {
+// Loads four 8x8 b16 matrices; `addr` is this lane's shared-memory byte address (its row).
+__device__ inline void ldmatrixX4(unsigned (&r)[4], unsigned addr) {
   asm volatile("ldmatrix.sync.aligned.m8n8.x4.shared.b16 {%0,%1,%2,%3}, [%4];\n"
                : "=r"(r[0]), "=r"(r[1]), "=r"(r[2]), "=r"(r[3])
-               : "r"(smemAddress(p)));
+               : "r"(addr));
 }
 
 // D += A(16x16) * B(16x8), fp16 operands, fp32 accumulators. Turing (sm_75) has no m16n8k16
@@ -128,6 +129,28 @@ __device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned 
                : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
                : "r"(a[2]), "r"(a[3]), "r"(b1));
 #endif
+}
+
+// Starts the asynchronous copy of K-chunk `chunk` of a GEMM's fp16 weights ([nPad][kPad] rows)
+// into stage buffer (chunk & 1): 16-byte cp.async per thread, one commit group.
+template <int THREADS>
+__device__ inline void stageWeightChunk(const FusedParams& P, const MlpInstr& in, __half* wstage, int chunk, int tid) {
+  const int k0 = chunk * kWeightChunk;
+  __half* dstW = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
+  const __half* srcW = P.halfWeights + in.halfOffset + k0;
+  if (in.kPad - k0 >= kWeightChunk) {  // full chunk: 8 segments per row, no division
+    for (int idx = tid; idx < in.nPad * 8; idx += THREADS) {
+      const int row = idx >> 3, seg = idx & 7;
+      __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+    }
+  } else {
+    const int segs = (in.kPad - k0) / 8;
+    for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
+      const int row = idx / segs, seg = idx - row * segs;
+      __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+    }
+  }
+  __pipeline_commit();
 }
 
 template <int WR>
@@ -162,7 +185,9 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
   const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
   const int rowGroup = warp >> 2, colGroup = warp & 3;
 
-  for (int tile = blockIdx.x; tile * M < n; tile += gridDim.x) {
+  const int numTiles = (n + M - 1) / M;
+  bool firstChunkStaged = false;  // the coming GEMM's chunk 0 is already in flight
+  for (int tile = blockIdx.x; tile < numTiles; tile += gridDim.x) {
     const int base = tile * M;
     const int rows = min(M, n - base);
     for (int r = tid; r < M; r += THREADS) {
@@ -247,7 +272,6 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
           break;
         }
         case MlpOp::Gemm: {
-          const __half* Wg = P.halfWeights + in.halfOffset;
           const int c16Count = in.nPad / 16;
           const int numChunks = (in.kPad + kWeightChunk - 1) / kWeightChunk;
           float acc[2][4][2][4];  // [m16 tile][16-column block][n8 half][fragment]
@@ -260,26 +284,42 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
 #pragma unroll
                 for (int f = 0; f < 4; ++f) acc[a][j][h][f] = 0.f;
 
-          auto stage = [&](int chunk) {
-            const int k0 = chunk * kWeightChunk;
-            __half* dstW = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
-            const __half* srcW = Wg + k0;
-            if (in.kPad - k0 >= kWeightChunk) {  // full chunk: 8 16-byte segments per row, no division
-              for (int idx = tid; idx < in.nPad * 8; idx += THREADS) {
-                const int row = idx >> 3, seg = idx & 7;
-                __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
-              }
-            } else {
-              const int segs = (in.kPad - k0) / 8;
-              for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
-                const int row = idx / segs, seg = idx - row * segs;
-                __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+          auto stage = [&](int chunk) { stageWeightChunk<THREADS>(P, in, wstage, chunk, tid); };
+          const int rowBase = rowGroup * 32;
+          // Per-lane shared-memory byte addresses for ldmatrix, computed once per layer; the k
+          // steps inside a chunk only add immediates.
+          unsigned aAddr[2];
+#pragma unroll
+          for (int mt = 0; mt < 2; ++mt) {
+            const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
+            aAddr[mt] = smemAddress(src + r * ldSrc + (lane >> 4) * 8);
+          }
+          unsigned bAddr[4];
+#pragma unroll
+          for (int j = 0; j < 4; ++j) {
+            const int nrow = (colGroup + 4 * j) * 16 + (lane >> 4) * 8 + (lane & 7);
+            bAddr[j] = smemAddress(wstage + nrow * kWeightStride + ((lane >> 3) & 1) * 8);
+          }
+          const unsigned stageBytes = unsigned(P.maxGemmOutPad * kWeightStride * 2);
+          auto kStep = [&](unsigned aOff, unsigned bOff) {
+            unsigned a[2][4];
+#pragma unroll
+            for (int mt = 0; mt < 2; ++mt) ldmatrixX4(a[mt], aAddr[mt] + aOff);
+#pragma unroll
+            for (int j = 0; j < 4; ++j) {
+              if (colGroup + 4 * j < c16Count) {
+                unsigned b[4];  // b[0], b[1]: n8 tile 0 (k lo, k hi); b[2], b[3]: n8 tile 1
+                ldmatrixX4(b, bAddr[j] + bOff);
+#pragma unroll
+                for (int mt = 0; mt < 2; ++mt) {
+                  mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
+                  mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
+                }
               }
             }
-            __pipeline_commit();
           };
-          const int rowBase = rowGroup * 32;
-          stage(0);
+          if (!firstChunkStaged) stage(0);  // else prefetched by the previous GEMM
+          firstChunkStaged = false;
           for (int chunk = 0; chunk < numChunks; ++chunk) {
             if (chunk + 1 < numChunks) {
               stage(chunk + 1);
@@ -288,33 +328,21 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
               __pipeline_wait_prior(0);
             }
             __syncthreads();
-            const __half* Wc = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
+            const unsigned aChunk = unsigned(chunk * kWeightChunk * 2), bChunk = (chunk & 1) * stageBytes;
             const int kLen = min(kWeightChunk, in.kPad - chunk * kWeightChunk);
-#pragma unroll 4
-            for (int kk = 0; kk < kLen; kk += 16) {
-              const int kAbs = chunk * kWeightChunk + kk;
-              unsigned a[2][4];
+            if (kLen == kWeightChunk) {
 #pragma unroll
-              for (int mt = 0; mt < 2; ++mt) {
-                const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
-                ldmatrixX4(a[mt], src + r * ldSrc + kAbs + (lane >> 4) * 8);
-              }
-#pragma unroll
-              for (int j = 0; j < 4; ++j) {
-                const int c16 = colGroup + 4 * j;
-                if (c16 < c16Count) {
-                  unsigned b[4];  // b[0], b[1]: n8 tile 0 (k lo, k hi); b[2], b[3]: n8 tile 1
-                  const int nrow = c16 * 16 + (lane >> 4) * 8 + (lane & 7);
-                  ldmatrixX4(b, Wc + nrow * kWeightStride + kk + ((lane >> 3) & 1) * 8);
-#pragma unroll
-                  for (int mt = 0; mt < 2; ++mt) {
-                    mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
-                    mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
-                  }
-                }
-              }
+              for (int kk = 0; kk < kWeightChunk; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
+            } else {
+              for (int kk = 0; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
             }
             __syncthreads();  // the next stage() overwrites this buffer
+          }
+          // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
+          // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
+          if (in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles)) {
+            stageWeightChunk<THREADS>(P, program[in.nextGemm], wstage, 0, tid);
+            firstChunkStaged = true;
           }
           // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
           const float* bias = P.floatWeights + in.biasOffset;

@@ -322,6 +322,10 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   p.maxWidthPad = 16;
   Compiler c(p);
   c.list(arch.layers, Value{-1, arch.inputDim, false}, true);
+  std::vector<int> gemms;
+  for (std::size_t i = 0; i < p.instrs.size(); ++i)
+    if (p.instrs[i].op == MlpOp::Gemm) gemms.push_back(int(i));
+  for (std::size_t g = 0; g < gemms.size(); ++g) p.instrs[gemms[g]].nextGemm = gemms[(g + 1) % gemms.size()];
   p.bufferWidthPad.assign(std::max(p.numBuffers, 1), 16);
   for (const MlpInstr& in : p.instrs) {
     if (in.dst >= 0) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);

@@ -40,6 +40,9 @@ struct MlpInstr {
   std::int64_t halfOffset = -1;   // Gemm: fp16 weights [nPad][kPad] in MlpProgram::halfWeights
   std::int64_t floatOffset = -1;  // fp32 weights [out][in] (B [m][in]); Gemm: the generic path's copy
   std::int64_t biasOffset = -1;   // fp32 bias [nPad] in floatWeights, -1 = none
+  // Gemm: index of the next Gemm in execution order (wrapping to the first one, whose weights
+  // the next tile needs), so the kernel can prefetch its first weight chunk; -1 if none.
+  std::int32_t nextGemm = -1;
 };
 
 struct MlpProgram {
