@@ -10,7 +10,8 @@
 #   gerris_cylinder_vorticity, gerris_sphere_plate_vorticity, gerris_cylinder_u,
 #   mri_head_deform
 # Default budget 1.6 min per model (4 models, ~7.5 min in all on one H100 with start-up and
-# evaluation). Uses CUDA when present, the CPU otherwise. PYTHON overrides the interpreter.
+# evaluation). Uses CUDA when present, the CPU otherwise. PYTHON overrides the interpreter
+# (default: the first of python3, /usr/bin/python3 that imports torch and numpy).
 set -eu
 if [ $# -lt 1 ]; then
     echo "usage: $0 OUTDIR [MINUTES_PER_MODEL] [train.py options]" >&2
@@ -26,7 +27,15 @@ fi
 HERE=$(cd "$(dirname "$0")" && pwd)
 REPO=$(cd "$HERE/../.." && pwd)
 if [ -z "${PYTHON:-}" ]; then
-    if [ -x /usr/bin/python3 ]; then PYTHON=/usr/bin/python3; else PYTHON=python3; fi
+    # the first interpreter that has torch and numpy (GPU machine: python3 on PATH;
+    # Debian development machine: /usr/bin/python3, the PATH one may be a pyenv without torch)
+    for c in python3 /usr/bin/python3; do
+        if "$c" -c "import torch, numpy" > /dev/null 2>&1; then PYTHON=$c; break; fi
+    done
+    if [ -z "${PYTHON:-}" ]; then
+        echo "$0: no python3 with torch and numpy found (set PYTHON=...)" >&2
+        exit 1
+    fi
 fi
 for d in gerris_cylinder_vorticity gerris_sphere_plate_vorticity gerris_cylinder_u \
          mri_head_deform; do
