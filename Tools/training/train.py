@@ -425,7 +425,7 @@ def main(argv=None):
     ap.add_argument("--config", choices=("paper", "small"), default="small")
     ap.add_argument("--device", default="auto", help="auto | cpu | cuda | cuda:N [auto]")
     ap.add_argument("--minutes", type=float, default=None,
-                    help="training time per model [paper 1.6, small 3]")
+                    help="training time per model [paper 1.6, small 4]")
     ap.add_argument("--steps", type=int, default=None, help="fixed step count per model")
     ap.add_argument("--data", default=os.path.join(REPO, ".data"))
     ap.add_argument("--out", default=None, help="[Testing/Data/real for small]")
@@ -463,7 +463,7 @@ def main(argv=None):
     if device.type == "cuda":
         torch.backends.cuda.matmul.allow_tf32 = True
         torch.backends.cudnn.allow_tf32 = True
-    minutes = a.minutes if a.minutes is not None else (1.6 if a.config == "paper" else 3.0)
+    minutes = a.minutes if a.minutes is not None else (1.6 if a.config == "paper" else 4.0)
     eval_max = a.eval_max or (1 << 30 if device.type == "cuda" else 1 << 20)
     out = a.out or os.path.join(REPO, "Testing", "Data", "real")
     os.makedirs(out, exist_ok=True)

@@ -51,6 +51,19 @@ python3 Tools/training/write_real_readme.py      # regenerate this file
 Timed training on a shared CPU is not bit-reproducible (the step count depends on speed);
 `--steps N` is.
 
+Paper-size models (SIREN 4->256x5->1 on both flows, Reed FFN 6x256 on the head, CoordNet
+48/6 on the cylinder velocity; 1.0-2.2 MB each) come from `train_paper_models.sh` on a GPU:
+copy `OUTDIR/*.inr *.json *.tf.json` here and rerun `write_real_readme.py`. The datasets it
+reads (`.data/`, ~33 MB) are made by `Tools/data/make_all.sh`.
+
+Check that every model loads and evaluates in the C++ CLI like the numpy reference:
+
+```sh
+/usr/bin/python3 Tools/training/check_cli.py build/Tools/inr Testing/Data/real
+build/Tools/inr render Testing/Data/real/siren_sphere_plate_vorticity_small.inr --time 6 \
+    --tf Testing/Data/real/siren_sphere_plate_vorticity_small.tf.json -o wake.png
+```
+
 """
 
 
