@@ -24,10 +24,8 @@
 #include "vtkVolumeProperty.h"
 #include "vtk_glew.h"
 
-#include "Evaluator/CpuInrEvaluator.h"
 #include "Model/InrModel.h"
-#include "Render/DeltaTrackingRenderer.h"
-#include "Render/MacrocellGrid.h"
+#include "Backends/RenderSession.h"
 #include "Render/SceneInputs.h"
 
 #include <algorithm>
@@ -66,9 +64,8 @@ struct vtkInrVolumeMapper::Internals
   std::uint64_t reportedBadHash = 0;
 
   inr::InrModel model;
-  std::unique_ptr<inr::CpuInrEvaluator> evaluator;
-  std::unique_ptr<inr::MacrocellGrid> grid;
-  std::unique_ptr<inr::DeltaTrackingRenderer> renderer;
+  // The engine session: evaluator + macrocells + renderer on the chosen backend.
+  std::unique_ptr<inr::RenderSession> renderer;
   int builtResolution = 0, builtSlices = 0, builtBackend = -1;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
@@ -154,7 +151,7 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  return this->Internal->grid ? this->Internal->grid->buildStats().slicesBuilt : 0;
+  return this->Internal->renderer ? this->Internal->renderer->macrocellInfo().slicesBuilt : 0;
 }
 
 int vtkInrVolumeMapper::GetEngineBuilds()
@@ -219,8 +216,6 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       I.hash = h;
       I.modelOk = false;
       I.renderer.reset();
-      I.grid.reset();
-      I.evaluator.reset();
       try
       {
         I.model = inr::InrModel::loadBytes(bytes->GetPointer(0),
@@ -242,48 +237,29 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
 
-  // --- backend and engine objects
-  int backend = BACKEND_CPU;
-  std::string backendText;
-  if (this->Backend == BACKEND_CUDA)
-  {
-    if (!I.warnedCuda)
-    {
-      vtkWarningMacro("INR Volume: the CUDA backend was requested but this build has no CUDA "
-                      "renderer usable here; rendering on the CPU.");
-      I.warnedCuda = true;
-    }
-    backendText = "CPU (CUDA requested but not available in this build)";
-  }
-  else if (this->Backend == BACKEND_AUTO)
-  {
-    backendText = "CPU (auto: no CUDA renderer available in this build)";
-  }
-  else
-  {
-    backendText = "CPU";
-  }
+  // --- backend and engine objects (rebuilt when the model, macrocells or backend change)
+  const int backend = this->Backend;
   if (!I.renderer || I.builtResolution != this->MacrocellResolution ||
     I.builtSlices != this->TemporalSlices || I.builtBackend != backend)
   {
     try
     {
       I.renderer.reset();
-      I.grid.reset();
-      if (!I.evaluator)
-      {
-        I.evaluator = std::make_unique<inr::CpuInrEvaluator>(I.model);
-      }
-      const auto& b = I.model.domain.bounds;
-      inr::Box3f box{ inr::Vec3f{ float(b[0]), float(b[2]), float(b[4]) },
-        inr::Vec3f{ float(b[1]), float(b[3]), float(b[5]) } };
-      inr::MacrocellOptions mo;
+      inr::RenderSessionOptions so;
+      so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
+        : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
+                                          : inr::RenderBackend::Auto;
+      so.allowFallback = true;
       const int n = this->MacrocellResolution;
-      mo.dims = inr::Int3{ n, n, n };
-      mo.temporalSlices = I.model.domain.usesTime() ? this->TemporalSlices : 1;
-      I.grid = std::make_unique<inr::MacrocellGrid>(
-        *I.evaluator, box, I.model.domain.timeBegin, I.model.domain.timeEnd, mo);
-      I.renderer = std::make_unique<inr::DeltaTrackingRenderer>(*I.evaluator, *I.grid);
+      so.macrocells.dims = inr::Int3{ n, n, n };
+      so.macrocells.temporalSlices = I.model.domain.usesTime() ? this->TemporalSlices : 1;
+      I.renderer = inr::RenderSession::create(I.model, so);
+      if (backend == BACKEND_CUDA && I.renderer->backend() != inr::RenderBackend::Cuda && !I.warnedCuda)
+      {
+        vtkWarningMacro("INR Volume: the CUDA backend was requested but is not usable here; "
+                        "rendering on the CPU (" << I.renderer->description() << ").");
+        I.warnedCuda = true;
+      }
       I.builtResolution = this->MacrocellResolution;
       I.builtSlices = this->TemporalSlices;
       I.builtBackend = backend;
@@ -297,6 +273,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       return;
     }
   }
+  const std::string backendText = I.renderer->description();
   I.backendInUse = backendText;
 
   // --- image size, camera

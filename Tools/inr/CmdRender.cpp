@@ -1,5 +1,5 @@
-// `inr render`: volume rendering of a model with the engine's CPU backend (delta tracking, or
-// the ray-marching / naive baselines), accumulated over frames, written as PNG or linear PFM.
+// `inr render`: volume rendering of a model (delta tracking on the CPU or CUDA backend, or the
+// ray-marching / naive baselines), accumulated over frames, written as PNG or linear PFM.
 #include <omp.h>
 
 #include <algorithm>
@@ -19,6 +19,7 @@
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
+#include "Backends/RenderSession.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/RayMarcher.h"
 
@@ -59,6 +60,8 @@ const char* kRenderUsage =
     "  --step S                 ray-march step in world units (default: box diagonal / 512)\n"
     "  --shadow-step S          ray-march shadow step (default: 2 x step)\n"
     "  --threads N              CPU threads (default: all)\n"
+    "  --backend B              auto (default: CUDA when a usable GPU is present, else CPU), cpu or cuda;\n"
+    "                           the ray marcher evaluates through the chosen backend's evaluator\n"
     "output:\n"
     "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float)\n"
     "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells\n"
@@ -101,7 +104,7 @@ int runRender(int argc, char** argv) {
             {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "ghost-passes", "step",
-             "shadow-step", "threads", "output"},
+             "shadow-step", "threads", "backend", "output"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet"});
   if (args.has("help")) {
     std::fputs(kRenderUsage, stdout);
@@ -144,12 +147,53 @@ int runRender(int argc, char** argv) {
 
   // --- model and evaluator
   const InrModel model = InrModel::loadFile(args.positional()[0]);
-  CpuEvaluatorOptions eopts;
-  eopts.threads = int(args.getInt("threads", 0));
-  const CpuInrEvaluator evaluator(model, eopts);
   const auto& b = model.domain.bounds;
   const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
   const double diagonal = length(box.hi - box.lo);
+
+  // --- macrocells
+  MacrocellOptions mopts;
+  if (args.has("macrocells")) {
+    const auto m = args.getList("macrocells", 0);
+    if (m.size() != 1 && m.size() != 3) throw UsageError("--macrocells takes N or NX,NY,NZ");
+    for (double v : m)
+      if (v < 1 || v > 1024 || v != std::floor(v)) throw UsageError("--macrocells: each must be an integer in [1, 1024]");
+    mopts.dims = m.size() == 1 ? Int3{int(m[0]), int(m[0]), int(m[0])} : Int3{int(m[0]), int(m[1]), int(m[2])};
+  }
+  const long slices = args.getInt("time-slices", model.domain.usesTime() ? 16 : 1);
+  if (slices < 1 || slices > 4096) throw UsageError("--time-slices must be in [1, 4096]");
+  mopts.temporalSlices = int(slices);
+  mopts.lazySlices = !args.has("eager-slices");
+  mopts.boundsPadding = args.getDouble("bounds-padding", 0.0);
+  if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
+  const long ghost = args.getInt("ghost-passes", 0);
+  if (ghost < 0 || ghost > 1000) throw UsageError("--ghost-passes must be in [0, 1000]");
+
+
+  // --- backend session (evaluator, macrocells, renderer)
+  RenderSessionOptions sopts;
+  try {
+    sopts.backend = parseRenderBackend(args.get("backend", "auto"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--backend: ") + e.what());
+  }
+  sopts.allowFallback = false;  // an explicit --backend cuda that cannot run is an error
+  sopts.macrocells = mopts;
+  sopts.tracking.refineMacrocells = !args.has("no-refine");
+  sopts.cpuThreads = int(args.getInt("threads", 0));
+  double lastShown = -1.0;
+  if (!quiet) {
+    sopts.progress = [&](int slice, double fraction) {
+      if (fraction == 0.0 || fraction == 1.0 || fraction - lastShown >= 0.25) {
+        std::printf("macrocells: slice %d %3.0f%%\n", slice, 100.0 * fraction);
+        std::fflush(stdout);
+        lastShown = fraction == 1.0 ? -1.0 : fraction;
+      }
+    };
+  }
+  const std::unique_ptr<RenderSession> session = RenderSession::create(model, sopts);
+  const FieldEvaluator& evaluator = session->evaluator();
+  if (!quiet) std::printf("backend: %s\n", session->description().c_str());
 
   // --- scene
   RenderScene scene;
@@ -205,24 +249,6 @@ int runRender(int argc, char** argv) {
   if (estimator != "delta" && estimator != "ratio") throw UsageError("--shadow-estimator must be delta or ratio");
   scene.shadowEstimator = estimator == "ratio" ? ShadowEstimator::Ratio : ShadowEstimator::Delta;
 
-  // --- macrocells
-  MacrocellOptions mopts;
-  if (args.has("macrocells")) {
-    const auto m = args.getList("macrocells", 0);
-    if (m.size() != 1 && m.size() != 3) throw UsageError("--macrocells takes N or NX,NY,NZ");
-    for (double v : m)
-      if (v < 1 || v > 1024 || v != std::floor(v)) throw UsageError("--macrocells: each must be an integer in [1, 1024]");
-    mopts.dims = m.size() == 1 ? Int3{int(m[0]), int(m[0]), int(m[0])} : Int3{int(m[0]), int(m[1]), int(m[2])};
-  }
-  const long slices = args.getInt("time-slices", model.domain.usesTime() ? 16 : 1);
-  if (slices < 1 || slices > 4096) throw UsageError("--time-slices must be in [1, 4096]");
-  mopts.temporalSlices = int(slices);
-  mopts.lazySlices = !args.has("eager-slices");
-  mopts.boundsPadding = args.getDouble("bounds-padding", 0.0);
-  if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
-  const long ghost = args.getInt("ghost-passes", 0);
-  if (ghost < 0 || ghost > 1000) throw UsageError("--ghost-passes must be in [0, 1000]");
-
   RayMarchOptions ropts;
   ropts.step = float(args.getDouble("step", 0.0));
   ropts.shadowStep = float(args.getDouble("shadow-step", 0.0));
@@ -238,6 +264,7 @@ int runRender(int argc, char** argv) {
   report["frames_requested"] = frames;
   report["threads"] = omp_get_max_threads();
   report["evaluator"] = evaluator.name();
+  report["backend"] = session->description();
 
   FrameStats total;
   std::vector<nlohmann::json> perFrame;
@@ -264,41 +291,26 @@ int runRender(int argc, char** argv) {
     }
     image = renderer.image();
   } else {
-    MacrocellGrid grid(evaluator, box, model.domain.timeBegin, model.domain.timeEnd, mopts);
-    double lastShown = -1.0;
-    if (!quiet) {
-      grid.setProgressCallback([&](int slice, double fraction) {
-        if (fraction == 0.0 || fraction == 1.0 || fraction - lastShown >= 0.25) {
-          std::printf("macrocells: slice %d (t=%g) %3.0f%%\n", slice, grid.sliceTime(slice), 100.0 * fraction);
-          std::fflush(stdout);
-          lastShown = fraction == 1.0 ? -1.0 : fraction;
-        }
-      });
-    }
-    TrackingOptions topts;
-    topts.refineMacrocells = !args.has("no-refine");
-    DeltaTrackingRenderer renderer(evaluator, grid, topts);
+    RenderSession& renderer = *session;
     renderer.setSettings(settings);
     const auto t0 = std::chrono::steady_clock::now();
     renderer.setScene(scene);
     const double setupMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    const auto& bs = grid.buildStats();
-    const double perSlice = bs.slicesBuilt ? bs.seconds / bs.slicesBuilt : 0.0;
+    const MacrocellInfo mi = renderer.macrocellInfo();
     if (!quiet) {
       std::printf("macrocells: %dx%dx%d x %d slices; built %d slice(s) in %.3f s (%zu lattice queries)%s\n",
-                  mopts.dims.x, mopts.dims.y, mopts.dims.z, grid.temporalSlices(), bs.slicesBuilt, bs.seconds,
-                  bs.evaluations,
-                  mopts.lazySlices && grid.temporalSlices() > bs.slicesBuilt ? "; lazy build" : "");
-      if (mopts.lazySlices && grid.temporalSlices() > bs.slicesBuilt) {
-        std::printf("macrocells: building all %d slices up front would take about %.2f s more\n",
-                    grid.temporalSlices(), perSlice * (grid.temporalSlices() - bs.slicesBuilt));
+                  mi.dims.x, mi.dims.y, mi.dims.z, mi.temporalSlices, mi.slicesBuilt, mi.buildSeconds,
+                  mi.latticeQueries, mopts.lazySlices && mi.temporalSlices > mi.slicesBuilt ? "; lazy build" : "");
+      if (mopts.lazySlices && mi.temporalSlices > mi.slicesBuilt) {
+        std::printf("macrocells: building all %d slices up front would take about %.2f s more\n", mi.temporalSlices,
+                    mi.sliceSeconds() * (mi.temporalSlices - mi.slicesBuilt));
       }
     }
-    report["macrocells"] = {{"dims", {mopts.dims.x, mopts.dims.y, mopts.dims.z}},
-                            {"temporal_slices", grid.temporalSlices()},
-                            {"slices_built", bs.slicesBuilt},
-                            {"build_seconds", bs.seconds},
-                            {"lattice_queries", bs.evaluations},
+    report["macrocells"] = {{"dims", {mi.dims.x, mi.dims.y, mi.dims.z}},
+                            {"temporal_slices", mi.temporalSlices},
+                            {"slices_built", mi.slicesBuilt},
+                            {"build_seconds", mi.buildSeconds},
+                            {"lattice_queries", mi.latticeQueries},
                             {"setup_ms", setupMs},
                             {"lazy", mopts.lazySlices}};
     if (ghost > 0) {
@@ -315,7 +327,7 @@ int runRender(int argc, char** argv) {
       total += st;
       perFrame.push_back(statsJson(st));
     }
-    report["macrocells"]["refinements"] = grid.refinementCount();
+    report["macrocells"]["refinements"] = renderer.macrocellInfo().refinements;
     image = renderer.image();
   }
 

@@ -1,0 +1,153 @@
+#include "Backends/RenderSession.h"
+
+#include <algorithm>
+#include <cctype>
+#include <stdexcept>
+
+#include "Evaluator/CpuInrEvaluator.h"
+
+#ifdef INR_HAVE_CUDA
+#include "Cuda/CudaDevice.h"
+#include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
+#include "Cuda/Pipeline/CudaMacrocellGrid.h"
+#include "Cuda/Pipeline/CudaPerThreadMlp.h"
+#endif
+
+namespace inr {
+namespace {
+
+Box3f boxOf(const InrModel& model) {
+  const auto& b = model.domain.bounds;
+  return {{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+}
+
+template <typename Grid>
+MacrocellInfo infoOf(const Grid& grid, unsigned long long refinements) {
+  MacrocellInfo i;
+  i.dims = grid.options().dims;
+  i.temporalSlices = grid.temporalSlices();
+  i.slicesBuilt = grid.buildStats().slicesBuilt;
+  i.buildSeconds = grid.buildStats().seconds;
+  i.latticeQueries = grid.buildStats().evaluations;
+  i.refinements = refinements;
+  return i;
+}
+
+class CpuRenderSession final : public RenderSession {
+public:
+  CpuRenderSession(const InrModel& model, const RenderSessionOptions& o, std::string note)
+      : evaluator_(model, CpuEvaluatorOptions{256, o.cpuThreads}),
+        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
+        renderer_(evaluator_, grid_, o.tracking),
+        note_(std::move(note)) {
+    if (o.progress) grid_.setProgressCallback(o.progress);
+  }
+  RenderBackend backend() const override { return RenderBackend::Cpu; }
+  std::string description() const override {
+    return "cpu: " + evaluator_.name() + (note_.empty() ? "" : " (" + note_ + ")");
+  }
+  const FieldEvaluator& evaluator() const override { return evaluator_; }
+  void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
+  void setScene(const RenderScene& s) override { renderer_.setScene(s); }
+  FrameStats renderFrame() override { return renderer_.renderFrame(); }
+  FrameStats renderFrameNaive() override { return renderer_.renderFrameNaive(); }
+  FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
+  void resetAccumulation() override { renderer_.resetAccumulation(); }
+  int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
+  ImageRGBA image() const override { return renderer_.image(); }
+  ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
+  std::vector<float> residual() const override { return renderer_.residual(); }
+  MacrocellInfo macrocellInfo() const override { return infoOf(grid_, grid_.refinementCount()); }
+
+private:
+  CpuInrEvaluator evaluator_;
+  MacrocellGrid grid_;
+  DeltaTrackingRenderer renderer_;
+  std::string note_;
+};
+
+#ifdef INR_HAVE_CUDA
+class CudaRenderSession final : public RenderSession {
+public:
+  CudaRenderSession(const InrModel& model, const RenderSessionOptions& o)
+      : evaluator_(model, CudaEvaluatorOptions{o.cudaDevice}),
+        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
+        renderer_(evaluator_, grid_, o.tracking),
+        model_(model) {
+    (void)o.progress;  // GPU slice builds take milliseconds; no progress reporting needed
+  }
+  RenderBackend backend() const override { return RenderBackend::Cuda; }
+  std::string description() const override { return "cuda: " + evaluator_.name(); }
+  const FieldEvaluator& evaluator() const override { return evaluator_; }
+  void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
+  void setScene(const RenderScene& s) override { renderer_.setScene(s); }
+  FrameStats renderFrame() override { return renderer_.renderFrame(); }
+  FrameStats renderFrameNaive() override {
+    if (!perThread_) perThread_ = std::make_unique<CudaPerThreadMlp>(model_);
+    return renderer_.renderFrameNaive(*perThread_);
+  }
+  FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
+  void resetAccumulation() override { renderer_.resetAccumulation(); }
+  int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
+  ImageRGBA image() const override { return renderer_.image(); }
+  ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
+  std::vector<float> residual() const override { return renderer_.residual(); }
+  MacrocellInfo macrocellInfo() const override { return infoOf(grid_, grid_.refinementCount()); }
+
+private:
+  CudaInrEvaluator evaluator_;
+  CudaMacrocellGrid grid_;
+  CudaDeltaTrackingRenderer renderer_;
+  InrModel model_;  // for the naive baseline's per-thread network, built on first use
+  std::unique_ptr<CudaPerThreadMlp> perThread_;
+};
+#endif
+
+}  // namespace
+
+RenderBackend parseRenderBackend(const std::string& name) {
+  std::string n = name;
+  std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (n == "auto") return RenderBackend::Auto;
+  if (n == "cpu") return RenderBackend::Cpu;
+  if (n == "cuda" || n == "gpu") return RenderBackend::Cuda;
+  throw std::invalid_argument("unknown backend '" + name + "' (choose auto, cpu or cuda)");
+}
+
+const char* renderBackendName(RenderBackend backend) {
+  switch (backend) {
+    case RenderBackend::Auto: return "auto";
+    case RenderBackend::Cpu: return "cpu";
+    case RenderBackend::Cuda: return "cuda";
+  }
+  return "?";
+}
+
+bool cudaBackendAvailable(std::string* reason) {
+#ifdef INR_HAVE_CUDA
+  const CudaDeviceInfo d = queryCudaDevice();
+  if (reason) *reason = d.reason;
+  return d.usable;
+#else
+  if (reason) *reason = "this build has no CUDA backend (configure with nvcc available, INR_ENABLE_CUDA)";
+  return false;
+#endif
+}
+
+std::unique_ptr<RenderSession> RenderSession::create(const InrModel& model, const RenderSessionOptions& options) {
+  std::string why;
+  if (options.backend == RenderBackend::Cpu) return std::make_unique<CpuRenderSession>(model, options, "");
+  const bool cuda = cudaBackendAvailable(&why);
+  if (cuda) {
+#ifdef INR_HAVE_CUDA
+    return std::make_unique<CudaRenderSession>(model, options);
+#endif
+  }
+  if (options.backend == RenderBackend::Cuda && !options.allowFallback)
+    throw std::runtime_error("CUDA backend requested but unavailable: " + why);
+  return std::make_unique<CpuRenderSession>(
+      model, options, (options.backend == RenderBackend::Cuda ? "CUDA requested but unavailable: " : "CUDA unavailable: ") + why);
+}
+
+}  // namespace inr

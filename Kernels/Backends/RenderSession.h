@@ -1,0 +1,76 @@
+#pragma once
+// One model being rendered with delta tracking on one backend: the session owns the evaluator,
+// the macrocell grid and the renderer, CPU or CUDA, behind one interface. This is what the CLI
+// and the ParaView mapper hold; they never name a backend's classes.
+//
+// Backend choice: Auto takes CUDA when this build has it and a usable GPU is present, else the
+// CPU; Cuda without a usable GPU either throws or, with allowFallback, runs on the CPU and says so
+// in description().
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "Common/ImageIO.h"
+#include "Evaluator/FieldEvaluator.h"
+#include "Model/InrModel.h"
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/MacrocellGrid.h"
+#include "Render/RenderStats.h"
+#include "Render/SceneInputs.h"
+
+namespace inr {
+
+enum class RenderBackend { Auto, Cpu, Cuda };
+
+// "auto", "cpu", "cuda" (case-insensitive); throws std::invalid_argument naming the choices.
+RenderBackend parseRenderBackend(const std::string& name);
+const char* renderBackendName(RenderBackend backend);
+
+// Whether this build has the CUDA backend and a usable GPU is present; `reason` says why not.
+bool cudaBackendAvailable(std::string* reason = nullptr);
+
+struct RenderSessionOptions {
+  RenderBackend backend = RenderBackend::Auto;
+  bool allowFallback = true;  // Cuda requested but unusable: run on the CPU instead of throwing
+  MacrocellOptions macrocells;
+  TrackingOptions tracking;
+  int cpuThreads = 0;  // CPU evaluator threads (0 = OpenMP default)
+  int cudaDevice = 0;
+  // Macrocell slice builds report (slice index, fraction done).
+  std::function<void(int, double)> progress;
+};
+
+struct MacrocellInfo {
+  Int3 dims{};
+  int temporalSlices = 0;
+  int slicesBuilt = 0;
+  double buildSeconds = 0.0;
+  std::size_t latticeQueries = 0;
+  unsigned long long refinements = 0;
+  double sliceSeconds() const { return slicesBuilt ? buildSeconds / slicesBuilt : 0.0; }
+};
+
+class RenderSession {
+public:
+  static std::unique_ptr<RenderSession> create(const InrModel& model, const RenderSessionOptions& options);
+  virtual ~RenderSession() = default;
+
+  virtual RenderBackend backend() const = 0;  // what actually runs (Cpu or Cuda)
+  virtual std::string description() const = 0;  // backend, evaluator, device; fallback reason
+  virtual const FieldEvaluator& evaluator() const = 0;
+
+  virtual void setSettings(const RenderSettings& settings) = 0;
+  virtual void setScene(const RenderScene& scene) = 0;  // does only the work the changes need
+  virtual FrameStats renderFrame() = 0;
+  virtual FrameStats renderFrameNaive() = 0;  // baseline: network evaluated inside each ray's loop
+  virtual FrameStats runGhostPasses(int count) = 0;
+  virtual void resetAccumulation() = 0;
+  virtual int accumulatedFrames() const = 0;
+  virtual ImageRGBA image() const = 0;               // composited over the background
+  virtual ImageRGBA premultipliedImage() const = 0;  // volume only
+  virtual std::vector<float> residual() const = 0;
+  virtual MacrocellInfo macrocellInfo() const = 0;
+};
+
+}  // namespace inr
