@@ -9,7 +9,7 @@ bash Tools/install-deps.sh
 bash Tools/build.sh "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
 INR="$BUILD_DIR/bin/inr"
-MODEL=${INR_EXAMPLE_MODEL:-Testing/Data/models/siren_blobs.inr}
+MODEL=${INR_EXAMPLE_MODEL:-Testing/Data/real/siren_cylinder_vorticity_small.inr}  # Gerris flow, real data
 [ -f "$MODEL" ] || MODEL=Testing/Data/Plugin/clouds.inr  # plugin test model as a fallback
 OUT=example-output
 mkdir -p "$OUT"
@@ -49,9 +49,9 @@ TIMES=$(/usr/bin/python3 -c "t0,t1=$T0,$T1; print(*[t0+f*(t1-t0) for f in (0.0,0
 i=0
 for T in $TIMES; do
   "$INR" slice "$MODEL" --time "$T" --axis z --size 256 -o "$OUT/slice_t$i.png"
-  if "$INR" render --help >/dev/null 2>&1; then
-    "$INR" render "$MODEL" --time "$T" --size 512x512 --frames 64 -o "$OUT/render_t$i.png"
-  fi
+  TF=()
+  [ -f "${MODEL%.inr}.tf.json" ] && TF=(--tf "${MODEL%.inr}.tf.json")  # the model's suggested colour map
+  "$INR" render "$MODEL" "${TF[@]}" --time "$T" --size 512x512 --frames 64 --quiet -o "$OUT/render_t$i.png"
   i=$((i + 1))
 done
 echo "== wrote $(ls "$OUT" | wc -l) images to $OUT/"
