@@ -22,83 +22,75 @@ Box3f boxOf(const InrModel& model) {
   return {{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
 }
 
-template <typename Grid>
-MacrocellInfo infoOf(const Grid& grid, unsigned long long refinements) {
-  MacrocellInfo i;
-  i.dims = grid.options().dims;
-  i.temporalSlices = grid.temporalSlices();
-  i.slicesBuilt = grid.buildStats().slicesBuilt;
-  i.buildSeconds = grid.buildStats().seconds;
-  i.latticeQueries = grid.buildStats().evaluations;
-  i.refinements = refinements;
-  return i;
-}
 
-class CpuRenderSession final : public RenderSession {
+// The parts every backend shares: it owns evaluator -> macrocell grid -> renderer (in that
+// construction order) and forwards the session interface to the renderer.
+template <typename Evaluator, typename Grid, typename Renderer>
+class BackendSession : public RenderSession {
+public:
+  template <typename EvaluatorOptions>
+  BackendSession(const InrModel& model, const EvaluatorOptions& eo, const RenderSessionOptions& o)
+      : evaluator_(model, eo),
+        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
+        renderer_(evaluator_, grid_, o.tracking) {}
+  const FieldEvaluator& evaluator() const override { return evaluator_; }
+  void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
+  void setScene(const RenderScene& s) override { renderer_.setScene(s); }
+  FrameStats renderFrame() override { return renderer_.renderFrame(); }
+  FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
+  void resetAccumulation() override { renderer_.resetAccumulation(); }
+  int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
+  ImageRGBA image() const override { return renderer_.image(); }
+  ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
+  std::vector<float> residual() const override { return renderer_.residual(); }
+  MacrocellInfo macrocellInfo() const override {
+    MacrocellInfo i;
+    i.dims = grid_.options().dims;
+    i.temporalSlices = grid_.temporalSlices();
+    i.slicesBuilt = grid_.buildStats().slicesBuilt;
+    i.buildSeconds = grid_.buildStats().seconds;
+    i.latticeQueries = grid_.buildStats().evaluations;
+    i.refinements = grid_.refinementCount();
+    return i;
+  }
+
+protected:
+  Evaluator evaluator_;
+  Grid grid_;
+  Renderer renderer_;
+};
+
+class CpuRenderSession final : public BackendSession<CpuInrEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
 public:
   CpuRenderSession(const InrModel& model, const RenderSessionOptions& o, std::string note)
-      : evaluator_(model, CpuEvaluatorOptions{256, o.cpuThreads}),
-        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
-        renderer_(evaluator_, grid_, o.tracking),
-        note_(std::move(note)) {
+      : BackendSession(model, CpuEvaluatorOptions{256, o.cpuThreads}, o), note_(std::move(note)) {
     if (o.progress) grid_.setProgressCallback(o.progress);
   }
   RenderBackend backend() const override { return RenderBackend::Cpu; }
   std::string description() const override {
     return "cpu: " + evaluator_.name() + (note_.empty() ? "" : " (" + note_ + ")");
   }
-  const FieldEvaluator& evaluator() const override { return evaluator_; }
-  void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
-  void setScene(const RenderScene& s) override { renderer_.setScene(s); }
-  FrameStats renderFrame() override { return renderer_.renderFrame(); }
   FrameStats renderFrameNaive() override { return renderer_.renderFrameNaive(); }
-  FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
-  void resetAccumulation() override { renderer_.resetAccumulation(); }
-  int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
-  ImageRGBA image() const override { return renderer_.image(); }
-  ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
-  std::vector<float> residual() const override { return renderer_.residual(); }
-  MacrocellInfo macrocellInfo() const override { return infoOf(grid_, grid_.refinementCount()); }
 
 private:
-  CpuInrEvaluator evaluator_;
-  MacrocellGrid grid_;
-  DeltaTrackingRenderer renderer_;
   std::string note_;
 };
 
 #ifdef INR_HAVE_CUDA
-class CudaRenderSession final : public RenderSession {
+// GPU slice builds take milliseconds, so the progress callback is not used here.
+class CudaRenderSession final
+    : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaDeltaTrackingRenderer> {
 public:
   CudaRenderSession(const InrModel& model, const RenderSessionOptions& o)
-      : evaluator_(model, CudaEvaluatorOptions{o.cudaDevice}),
-        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
-        renderer_(evaluator_, grid_, o.tracking),
-        model_(model) {
-    (void)o.progress;  // GPU slice builds take milliseconds; no progress reporting needed
-  }
+      : BackendSession(model, CudaEvaluatorOptions{o.cudaDevice}, o), model_(model) {}
   RenderBackend backend() const override { return RenderBackend::Cuda; }
   std::string description() const override { return "cuda: " + evaluator_.name(); }
-  const FieldEvaluator& evaluator() const override { return evaluator_; }
-  void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
-  void setScene(const RenderScene& s) override { renderer_.setScene(s); }
-  FrameStats renderFrame() override { return renderer_.renderFrame(); }
   FrameStats renderFrameNaive() override {
     if (!perThread_) perThread_ = std::make_unique<CudaPerThreadMlp>(model_);
     return renderer_.renderFrameNaive(*perThread_);
   }
-  FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
-  void resetAccumulation() override { renderer_.resetAccumulation(); }
-  int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
-  ImageRGBA image() const override { return renderer_.image(); }
-  ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
-  std::vector<float> residual() const override { return renderer_.residual(); }
-  MacrocellInfo macrocellInfo() const override { return infoOf(grid_, grid_.refinementCount()); }
 
 private:
-  CudaInrEvaluator evaluator_;
-  CudaMacrocellGrid grid_;
-  CudaDeltaTrackingRenderer renderer_;
   InrModel model_;  // for the naive baseline's per-thread network, built on first use
   std::unique_ptr<CudaPerThreadMlp> perThread_;
 };

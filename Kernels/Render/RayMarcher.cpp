@@ -8,6 +8,7 @@
 #include "Render/CpuParallel.h"
 #include "Render/CounterRng.h"
 #include "Render/Finalize.h"
+#include "Render/AccumulationImage.h"
 
 namespace inr {
 
@@ -213,27 +214,11 @@ FrameStats RayMarchRenderer::renderFrame() {
 }
 
 ImageRGBA RayMarchRenderer::premultipliedImage() const {
-  ImageRGBA img(settings_.width, settings_.height);
-  for (std::size_t i = 0; i < accum_.size(); ++i) {
-    img.data[4 * i + 0] = accum_[i].x;
-    img.data[4 * i + 1] = accum_[i].y;
-    img.data[4 * i + 2] = accum_[i].z;
-    img.data[4 * i + 3] = accum_[i].w;
-  }
-  return img;
+  return accumulationImage(accum_, settings_.width, settings_.height, nullptr);
 }
 
 ImageRGBA RayMarchRenderer::image() const {
-  ImageRGBA img(settings_.width, settings_.height);
-  const Vec3f bg{scene_.background[0], scene_.background[1], scene_.background[2]};
-  for (std::size_t i = 0; i < accum_.size(); ++i) {
-    const Vec3f c = overBackground(accum_[i], bg);
-    img.data[4 * i + 0] = c.x;
-    img.data[4 * i + 1] = c.y;
-    img.data[4 * i + 2] = c.z;
-    img.data[4 * i + 3] = accum_[i].w;
-  }
-  return img;
+  return accumulationImage(accum_, settings_.width, settings_.height, &scene_.background);
 }
 
 }  // namespace inr

@@ -12,6 +12,7 @@
 #include "Cuda/Pipeline/DeviceBuffer.h"
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 #include "Cuda/Pipeline/PerThreadMlp.cuh"
+#include "Render/AccumulationImage.h"
 #include "Render/Evaluate.h"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
@@ -617,31 +618,11 @@ FrameStats CudaDeltaTrackingRenderer::runGhostPasses(int count) {
 }
 
 ImageRGBA CudaDeltaTrackingRenderer::premultipliedImage() const {
-  const Impl& I = *impl_;
-  const std::vector<Vec4f> acc = I.accum.download(I.stream);
-  ImageRGBA img(settings_.width, settings_.height);
-  for (std::size_t i = 0; i < acc.size(); ++i) {
-    img.data[4 * i + 0] = acc[i].x;
-    img.data[4 * i + 1] = acc[i].y;
-    img.data[4 * i + 2] = acc[i].z;
-    img.data[4 * i + 3] = acc[i].w;
-  }
-  return img;
+  return accumulationImage(impl_->accum.download(impl_->stream), settings_.width, settings_.height, nullptr);
 }
 
 ImageRGBA CudaDeltaTrackingRenderer::image() const {
-  const Impl& I = *impl_;
-  const std::vector<Vec4f> acc = I.accum.download(I.stream);
-  ImageRGBA img(settings_.width, settings_.height);
-  const Vec3f bg{scene_.background[0], scene_.background[1], scene_.background[2]};
-  for (std::size_t i = 0; i < acc.size(); ++i) {
-    const Vec3f c = overBackground(acc[i], bg);
-    img.data[4 * i + 0] = c.x;
-    img.data[4 * i + 1] = c.y;
-    img.data[4 * i + 2] = c.z;
-    img.data[4 * i + 3] = acc[i].w;
-  }
-  return img;
+  return accumulationImage(impl_->accum.download(impl_->stream), settings_.width, settings_.height, &scene_.background);
 }
 
 std::vector<float> CudaDeltaTrackingRenderer::residual() const { return impl_->residual.download(impl_->stream); }
