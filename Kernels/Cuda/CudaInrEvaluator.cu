@@ -300,6 +300,13 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, c
       switch (in.op) {
         case MlpOp::DenseFp32:
         case MlpOp::Gemm:
+          if (in.finalOutput) {  // the final width-1 layer: an fp32 dot per query
+            genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(in, I.floatW.ptr + in.floatOffset,
+                                                               I.floatW.ptr + in.biasOffset, src, srcLd, I.params.output,
+                                                               points + begin, m, begin, out, scatter);
+            INR_CUDA_CHECK_LAUNCH("genericOutput");
+            break;
+          }
           cublasCheck(cublasSgemm(I.cublas, CUBLAS_OP_T, CUBLAS_OP_N, in.outWidth, m, in.inWidth, &one,
                                   I.floatW.ptr + in.floatOffset, in.inWidth, src, srcLd, &zero, buf(in.dst), ld),
                       "cublasSgemm");

@@ -346,6 +346,24 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
           }
           // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
           const float* bias = P.floatWeights + in.biasOffset;
+          if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
+            if (colGroup == 0 && t4 == 0) {
+#pragma unroll
+              for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                for (int half = 0; half < 2; ++half) {
+                  const int row = rowBase + mt * 16 + g + half * 8;
+                  if (row < rows) {
+                    const float net = applyActivation(in.act, acc[mt][0][0][2 * half] + bias[0]);
+                    float a, b;
+                    outputAffine(P.output, points[base + row].w, a, b);
+                    const int q = base + row;
+                    out[scatter ? scatter[q] : q] = a * net + b;
+                  }
+                }
+            }
+            break;
+          }
           dispatchActivation(in.act, [&](auto A) {
 #pragma unroll
             for (int j = 0; j < 4; ++j) {

@@ -14,7 +14,8 @@
 //                optionally dst = combineScale * (act(acc) + other)
 //   Activation   dst = act(actScale * dst) in place (standalone activations)
 //   Combine      dst = combineScale * (src + other)
-//   OutputDot    value = act(w . src + b) in fp32 (a final linear to width 1)
+//   OutputDot    value = act(w . src + b) in fp32 (a final linear to width 1 with K <= 16;
+//                wider ones run as a Gemm with finalOutput set)
 //   Output       value = src[0]
 // Sine's w0 and standalone scale layers feeding a linear are folded into that linear's weights.
 #include <cstdint>
@@ -43,6 +44,9 @@ struct MlpInstr {
   // Gemm: index of the next Gemm in execution order (wrapping to the first one, whose weights
   // the next tile needs), so the kernel can prefetch its first weight chunk; -1 if none.
   std::int32_t nextGemm = -1;
+  // Gemm: the network's final layer (width 1): column 0 of the fp32 accumulator, after bias and
+  // activation, is the network output (no fp16 rounding, no destination buffer).
+  std::int32_t finalOutput = 0;
 };
 
 struct MlpProgram {

@@ -51,7 +51,16 @@ TEST(MlpProgram, SirenCompilesToTwoBuffersWithFoldedOutput) {
   EXPECT_EQ(p.instrs.front().op, MlpOp::DenseFp32);  // first layer from coordinates in fp32
   EXPECT_EQ(p.instrs.front().act, MlpAct::Sine);
   for (int i = 1; i <= 4; ++i) EXPECT_EQ(p.instrs[i].op, MlpOp::Gemm);
-  EXPECT_EQ(p.instrs.back().op, MlpOp::OutputDot);
+  EXPECT_EQ(p.instrs.back().op, MlpOp::OutputDot);  // K = 256: the fp32 dot on all warps
+}
+
+TEST(MlpProgram, NarrowFinalLayerRunsOnTensorCoresWithFp32Result) {
+  const InrModel m = InrModel::loadFile(std::string(INR_TEST_DATA_DIR) + "/models/siren_blobs.inr");
+  const MlpProgram p = MlpProgram::compile(m.architecture);
+  ASSERT_FALSE(p.instrs.empty());
+  EXPECT_EQ(p.instrs.back().op, MlpOp::Gemm) << p.describe();
+  EXPECT_EQ(p.instrs.back().finalOutput, 1);
+  EXPECT_EQ(p.instrs.back().dst, -1);
 }
 
 TEST(MlpProgram, CoordNetFoldsResidualSumsIntoGemmEpilogues) {
@@ -89,7 +98,7 @@ TEST(MlpProgram, EmulationMatchesFp32ReferenceWithinFp16Error) {
 
 TEST(MlpProgram, ShippedModelsCompileAndEmulate) {
   const auto dir = std::filesystem::path(INR_TEST_DATA_DIR) / "models";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "no shipped models in " << dir;
+  ASSERT_TRUE(std::filesystem::exists(dir)) << "shipped models missing: " << dir;
   int count = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir)) {
     if (e.path().extension() != ".inr") continue;

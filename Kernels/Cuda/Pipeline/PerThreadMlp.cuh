@@ -38,6 +38,12 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
       case MlpOp::Gemm: {
         const float* W = N.weights + in.floatOffset;
         const float* bias = N.weights + in.biasOffset;
+        if (in.finalOutput) {  // the network's final width-1 layer: no destination buffer
+          float acc = 0.f;
+          for (int k = 0; k < in.inWidth; ++k) acc += W[k] * load(in.src, k);
+          net = perThreadAct(in.act, acc + bias[0]);
+          break;
+        }
         // Blocks of 8 outputs in registers: each input is read once per block.
         constexpr int B = 8;
         for (int o0 = 0; o0 < in.outWidth; o0 += B) {
