@@ -17,21 +17,12 @@ mkdir -p "$OUT"
 # --- ParaView: open the model, show it as "INR Volume", render three times (64 frames each).
 PLUGIN_DIR="$BUILD_DIR/lib/paraview-plugins/InrVolume"
 if command -v pvpython >/dev/null && [ -f "$PLUGIN_DIR/InrVolume.so" ]; then
-  XVFB_PID=""
-  if [ -z "${DISPLAY:-}" ] && command -v Xvfb >/dev/null; then
-    for n in $(seq 90 110); do
-      [ -e /tmp/.X11-unix/X$n ] || [ -e /tmp/.X$n-lock ] && continue
-      Xvfb :$n -screen 0 1280x1024x24 -nolisten tcp >/dev/null 2>&1 &
-      XVFB_PID=$!
-      for _ in $(seq 50); do [ -e /tmp/.X11-unix/X$n ] && break; sleep 0.1; done
-      export DISPLAY=:$n
-      break
-    done
-  fi
+  source Tools/xvfb.sh
+  start_xvfb
   echo "== ParaView (pvpython + INR Volume plugin): $MODEL at three times"
   PV_PLUGIN_PATH="$(cd "$PLUGIN_DIR" && pwd)" pvpython --force-offscreen-rendering \
     Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 48 --out "$OUT"
-  if [ -n "$XVFB_PID" ]; then kill "$XVFB_PID" 2>/dev/null || true; unset DISPLAY; fi
+  stop_xvfb
 else
   echo "== ParaView plugin not built (no ParaView SDK?): skipping the ParaView renders"
 fi

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs a ParaView command, retrying (up to 3 attempts) only when it failed because an X client
-# could not connect to the shared Xvfb ("bad X server connection"): seen when several processes
-# (e.g. the ranks of `mpirun -np 2 pvbatch`) open the display at the same instant on a loaded
-# machine. Any other failure is returned at once, unchanged.
+# could not connect to the shared Xvfb ("bad X server connection"). The main cause, Xvfb resetting
+# when its last client leaves, is removed by -noreset (Tools/xvfb.sh); this guards the two MPI
+# ranks opening the display at the same instant. Any other failure is returned at once, unchanged.
 set -u
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
