@@ -21,7 +21,8 @@ if command -v pvpython >/dev/null && [ -f "$PLUGIN_DIR/InrVolume.so" ]; then
   start_xvfb
   echo "== ParaView (pvpython + INR Volume plugin): $MODEL at three times"
   PV_PLUGIN_PATH="$(cd "$PLUGIN_DIR" && pwd)" pvpython --force-offscreen-rendering \
-    Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 48 --out "$OUT"
+    Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 48 --out "$OUT" \
+    $([ -f "${MODEL%.inr}.tf.json" ] && echo --tf "${MODEL%.inr}.tf.json")
   stop_xvfb
 else
   echo "== ParaView plugin not built (no ParaView SDK?): skipping the ParaView renders"

@@ -1,11 +1,14 @@
 """Render an INR Volume model through ParaView at a few times (pvpython or pvbatch).
 
     pvpython Tools/paraview/render_inr.py MODEL.inr [--times 0 5 10 | --count 3]
-        [--out DIR] [--size 512 512] [--frames 64] [--shadows] [--plugin PATH/InrVolume.so]
+        [--out DIR] [--size 512 512] [--frames 64] [--shadows] [--tf COLORMAP.json]
+        [--plugin PATH/InrVolume.so]
 
 Loads the plugin (PV_PLUGIN_PATH autoloads it too), opens the model (OpenDataFile finds the
-reader by the .inr extension), shows it as "INR Volume", colours it by "value" with ParaView's
-Cool to Warm map over the model's value range and an opacity ramp over its upper half, then for
+reader by the .inr extension), shows it as "INR Volume", colours it by "value" with the colour
+map of --tf (a ParaView colour-map export, e.g. a model's suggested MODEL.tf.json) or else
+ParaView's Cool to Warm over the model's value range with an opacity ramp over its upper half,
+then for
 each time: sets the animation time, accumulates --frames frames in one render and saves
 DIR/inr_t<i>.png. Prints the accumulated frames and the backend used.
 """
@@ -21,6 +24,7 @@ ap.add_argument("--out", default="example-output")
 ap.add_argument("--size", type=int, nargs=2, default=[512, 512])
 ap.add_argument("--frames", type=int, default=64)
 ap.add_argument("--shadows", action="store_true")
+ap.add_argument("--tf", default="", help="ParaView colour-map JSON (RGBPoints, Points) to use")
 ap.add_argument("--plugin", default="", help="InrVolume.so, if not autoloaded via PV_PLUGIN_PATH")
 args = ap.parse_args()
 
@@ -50,12 +54,23 @@ vr = reader.GetDataInformation().DataInformation.GetArrayInformation("InrValueRa
 lo, hi = vr.GetComponentRange(0) if vr else (0.0, 1.0)
 simple.ColorBy(display, ("POINTS", "value"))
 lut = simple.GetColorTransferFunction("value")
-lut.ApplyPreset("Cool to Warm", True)
-lut.AutomaticRescaleRangeMode = "Never"
-lut.RescaleTransferFunction(lo, hi)
 pwf = simple.GetOpacityTransferFunction("value")
-mid = lo + 0.5 * (hi - lo)
-pwf.Points = [lo, 0.0, 0.5, 0.0, mid, 0.0, 0.5, 0.0, hi, 0.8, 0.5, 0.0]
+lut.AutomaticRescaleRangeMode = "Never"
+if args.tf:
+    import json
+    with open(args.tf) as f:
+        preset = json.load(f)
+    preset = preset[0] if isinstance(preset, list) else preset
+    lut.RGBPoints = preset["RGBPoints"]  # as exported: values in the model's units
+    if "ColorSpace" in preset:
+        lut.ColorSpace = preset["ColorSpace"]
+    if "Points" in preset:
+        pwf.Points = preset["Points"]
+else:
+    lut.ApplyPreset("Cool to Warm", True)
+    lut.RescaleTransferFunction(lo, hi)
+    mid = lo + 0.5 * (hi - lo)
+    pwf.Points = [lo, 0.0, 0.5, 0.0, mid, 0.0, 0.5, 0.0, hi, 0.8, 0.5, 0.0]
 display.SetScalarBarVisibility(view, False)
 display.ScalarOpacityUnitDistance = 0.05 * max(
     b1 - b0 for b0, b1 in zip(reader.GetDataInformation().GetBounds()[0::2],
@@ -67,8 +82,10 @@ display.InrFramesPerRender = args.frames
 display.InrConvergenceTarget = 0.0
 display.InrShadows = 1 if args.shadows else 0
 
+# A three-quarter view from the front (+z), up +y, framing the box.
 simple.ResetCamera(view)
-view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [1.2, -2.0, 1.3])]
+view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
+view.CameraViewUp = [0.0, 1.0, 0.0]
 simple.ResetCamera(view)
 scene = simple.GetAnimationScene()
 scene.UpdateAnimationUsingDataTimeSteps()
