@@ -45,8 +45,6 @@ bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) 
   return true;
 }
 
-Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
-
 }  // namespace
 
 FrameStats& FrameStats::operator+=(const FrameStats& o) {
@@ -171,20 +169,7 @@ AccumulationView DeltaTrackingRenderer::accumulationView() {
 }
 
 FrameConstants DeltaTrackingRenderer::frameConstants(std::uint32_t frame) const {
-  FrameConstants fc;
-  fc.camera = cameraView_;
-  fc.box = macrocells_.box();
-  fc.depthLimit = scene_.depthLimit.empty() ? nullptr : scene_.depthLimit.data();
-  fc.time = float(scene_.time);
-  fc.frame = frame;
-  fc.seed = settings_.seed;
-  fc.pixelJitter = settings_.pixelJitter ? 1 : 0;
-  fc.shadows = scene_.shadows ? 1 : 0;
-  fc.ambient = scene_.ambient;
-  fc.toLight = normalize(toVec3(scene_.toLight));
-  fc.background = Vec3f{scene_.background[0], scene_.background[1], scene_.background[2]};
-  fc.shadowEstimator = scene_.shadowEstimator;
-  return fc;
+  return makeFrameConstants(cameraView_, macrocells_.box(), scene_, settings_, scene_.depthLimit.data(), frame);
 }
 
 double DeltaTrackingRenderer::applyDirtyMajorants() {

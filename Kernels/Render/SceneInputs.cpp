@@ -285,4 +285,22 @@ TransferFunctionView TransferFunctionTable::view() const {
   return v;
 }
 
+FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, const RenderScene& scene,
+                                  const RenderSettings& settings, const float* depthLimit, std::uint32_t frame) {
+  FrameConstants fc;
+  fc.camera = camera;
+  fc.box = box;
+  fc.depthLimit = scene.depthLimit.empty() ? nullptr : depthLimit;
+  fc.time = float(scene.time);
+  fc.frame = frame;
+  fc.seed = settings.seed;
+  fc.pixelJitter = settings.pixelJitter ? 1 : 0;
+  fc.shadows = scene.shadows ? 1 : 0;
+  fc.ambient = scene.ambient;
+  fc.toLight = normalize(toVec3(scene.toLight));
+  fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
+  fc.shadowEstimator = scene.shadowEstimator;
+  return fc;
+}
+
 }  // namespace inr

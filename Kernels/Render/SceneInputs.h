@@ -109,6 +109,13 @@ struct RenderSettings {
   bool pixelJitter = true;  // sub-pixel jitter per frame (antialiasing through accumulation)
 };
 
+// The per-frame constants every backend's stages read, from the host scene. `depthLimit` is the
+// backend's copy of scene.depthLimit (host or device memory), ignored when the scene has none.
+FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, const RenderScene& scene,
+                                  const RenderSettings& settings, const float* depthLimit, std::uint32_t frame);
+
+inline Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
+
 // A light direction that looks good for most views: from above-left-behind the camera.
 std::array<double, 3> defaultLightDirection(const Camera& camera);
 

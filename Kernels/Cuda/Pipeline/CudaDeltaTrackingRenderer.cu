@@ -164,7 +164,6 @@ bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) 
   return true;
 }
 
-Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
 
 enum Stage { kUpdate, kInit, kTraverse, kEvaluate, kShadowTraverse, kShadowEvaluate, kFinalize, kStages };
 
@@ -422,23 +421,6 @@ void CudaDeltaTrackingRenderer::setScene(const RenderScene& scene) {
 }
 
 namespace {
-FrameConstants makeFrameConstants(const CameraView& cam, const Box3f& box, const RenderScene& scene,
-                                  const RenderSettings& settings, const float* depth, std::uint32_t frame) {
-  FrameConstants fc;
-  fc.camera = cam;
-  fc.box = box;
-  fc.depthLimit = scene.depthLimit.empty() ? nullptr : depth;
-  fc.time = float(scene.time);
-  fc.frame = frame;
-  fc.seed = settings.seed;
-  fc.pixelJitter = settings.pixelJitter ? 1 : 0;
-  fc.shadows = scene.shadows ? 1 : 0;
-  fc.ambient = scene.ambient;
-  fc.toLight = normalize(toVec3(scene.toLight));
-  fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
-  fc.shadowEstimator = scene.shadowEstimator;
-  return fc;
-}
 }  // namespace
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
