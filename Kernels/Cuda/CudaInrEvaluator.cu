@@ -294,8 +294,10 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, c
     genericCoords<<<(m + 255) / 256, 256, 0, stream>>>(I.params, points + begin, m, I.genericCoords.ptr);
     INR_CUDA_CHECK_LAUNCH("genericCoords");
     for (const MlpInstr& in : prog.instrs) {
-      const float* src = in.src < 0 ? I.genericCoords.ptr : buf(in.src);
-      const int srcLd = in.src < 0 ? 4 : ld;
+      // coordInput: a first layer whose fused form reads split coordinates; fp32 reads them raw.
+      const bool fromCoords = in.src < 0 || in.coordInput;
+      const float* src = fromCoords ? I.genericCoords.ptr : buf(in.src);
+      const int srcLd = fromCoords ? 4 : ld;
       const dim3 block(32, 8), grid2((std::max(in.nPad, 1) + 31) / 32, (m + 7) / 8);
       switch (in.op) {
         case MlpOp::DenseFp32:

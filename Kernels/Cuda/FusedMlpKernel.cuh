@@ -213,7 +213,17 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
       switch (in.op) {
         case MlpOp::LoadInput:
           for (int r = warp; r < M; r += WARPS)
-            for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+            for (int c = lane; c < in.nPad; c += 32) {
+              float v = 0.f;
+              if (!in.splitPrecision) {
+                v = c < P.inputDim ? coords[r * 4 + c] : 0.f;
+              } else if (c < 12 && (c & 3) < P.inputDim) {  // hi | lo | hi
+                const float x = coords[r * 4 + (c & 3)];
+                const float hi = __half2float(__float2half(x));
+                v = (c >> 2) == 1 ? x - hi : x;
+              }
+              dst[r * ldDst + c] = __float2half(v);
+            }
           break;
         case MlpOp::DenseFp32:
         case MlpOp::Fourier: {

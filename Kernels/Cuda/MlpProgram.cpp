@@ -120,7 +120,34 @@ public:
     }
     noteWidth(L.outWidth);
     in.floatOffset = pushFloats(W);  // Gemm: the fp32 copy is the generic (cuBLAS) path's
-    if (!tensorCores) {
+    if (x.buf < 0 && L.inWidth <= 4 && L.outWidth > 16) {
+      // First layer from the coordinates on tensor cores, in split precision (see splitPrecision).
+      MlpInstr ld;
+      ld.op = MlpOp::LoadInput;
+      ld.splitPrecision = 1;
+      ld.dst = alloc();
+      ld.outWidth = 12;
+      ld.nPad = 16;
+      noteWidth(16);
+      p_.instrs.push_back(ld);
+      in.op = MlpOp::Gemm;
+      in.coordInput = 1;
+      in.src = ld.dst;
+      in.kPad = 16;
+      in.halfOffset = std::int64_t(p_.halfWeights.size());
+      p_.halfWeights.resize(p_.halfWeights.size() + std::size_t(in.nPad) * 16, 0);
+      for (int o = 0; o < L.outWidth; ++o)
+        for (int k = 0; k < L.inWidth; ++k) {
+          const float w = W[std::size_t(o) * L.inWidth + k];
+          const std::uint16_t hi = floatToHalfBits(w);
+          const std::uint16_t lo = floatToHalfBits(w - halfBitsToFloat(hi));
+          std::uint16_t* row = &p_.halfWeights[in.halfOffset + std::int64_t(o) * 16];
+          row[k] = hi;      // x_hi * W_hi
+          row[4 + k] = hi;  // x_lo * W_hi
+          row[8 + k] = lo;  // x_hi * W_lo
+        }
+      x = Value{ld.dst, 12, true};
+    } else if (!tensorCores) {
       in.op = MlpOp::DenseFp32;
     } else {
       in.op = MlpOp::Gemm;
@@ -369,6 +396,7 @@ std::string MlpProgram::describe() const {
     if (in.act != MlpAct::None) s << " " << actName(in.act);
     if (in.other >= 0) s << " +b" << in.other << " x" << in.combineScale;
     if (in.finalOutput) s << " (final, fp32 result)";
+    if (in.splitPrecision) s << " (fp16 hi/lo split)";
     s << "\n";
   }
   s << numBuffers << " buffers, width " << maxWidthPad << (fusable ? ", fused" : ", generic: " + whyNotFused);
@@ -387,6 +415,11 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
       switch (in.op) {
         case MlpOp::LoadInput:
           for (int c = 0; c < W; ++c) buf[in.dst][c] = c < p.inputDim ? h(x[c]) : 0.f;
+          if (in.splitPrecision)
+            for (int c = 0; c < p.inputDim; ++c) {
+              buf[in.dst][c] = buf[in.dst][8 + c] = h(x[c]);
+              buf[in.dst][4 + c] = h(x[c] - h(x[c]));
+            }
           break;
         case MlpOp::DenseFp32:
         case MlpOp::Gemm:
@@ -401,7 +434,8 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
             float v = 0.f;
             if (o < in.outWidth) {
               float acc = 0.f;
-              for (int k = 0; k < in.inWidth; ++k) {
+              // A Gemm reads its padded K (zeros past inWidth, or the split coordinate columns).
+              for (int k = 0; k < (in.op == MlpOp::Gemm ? in.kPad : in.inWidth); ++k) {
                 const float w = in.op == MlpOp::Gemm
                                     ? halfBitsToFloat(p.halfWeights[in.halfOffset + std::int64_t(o) * in.kPad + k])
                                     : p.floatWeights[in.floatOffset + std::int64_t(o) * in.inWidth + k];

@@ -6,7 +6,8 @@
 //
 // Buffers hold one row of activations per query (fp16 in the fused kernel), padded to a
 // multiple of 16 columns with zeros. Instructions:
-//   LoadInput    coordinates -> dst (when a buffer must hold the raw inputs)
+//   LoadInput    coordinates -> dst (when a buffer must hold the raw inputs, or split into fp16
+//                hi/lo parts for a first layer on tensor cores)
 //   DenseFp32    src (coordinates or buffer) -> dst, fp32 FMA: first layers, where coordinate
 //                precision matters, and any linear with K <= 16
 //   Fourier      src (coordinates or buffer) -> dst, fp32 [sin(Bx), cos(Bx)] (+x), B pre-scaled
@@ -47,6 +48,13 @@ struct MlpInstr {
   // Gemm: the network's final layer (width 1): column 0 of the fp32 accumulator, after bias and
   // activation, is the network output (no fp16 rounding, no destination buffer).
   std::int32_t finalOutput = 0;
+  // LoadInput: write each coordinate as fp16 hi, lo (= x - hi), hi in columns 0-3, 4-7, 8-11, so
+  // a Gemm with weights packed [W_hi, W_hi, W_lo] computes x_hi W_hi + x_lo W_hi + x_hi W_lo:
+  // the first layer on tensor cores with ~fp32 accuracy (error ~ x_lo W_lo).
+  std::int32_t splitPrecision = 0;
+  // Gemm fed by such a split buffer: the fp32 paths (generic, per-thread, emulation of inputs)
+  // read the raw coordinates with inWidth = input dimension instead.
+  std::int32_t coordInput = 0;
 };
 
 struct MlpProgram {

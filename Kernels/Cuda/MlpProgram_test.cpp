@@ -47,10 +47,14 @@ TEST(MlpProgram, SirenCompilesToTwoBuffersWithFoldedOutput) {
   EXPECT_TRUE(p.fusable) << p.whyNotFused;
   EXPECT_EQ(p.numBuffers, 2);
   EXPECT_EQ(p.maxWidthPad, 256);
-  ASSERT_EQ(p.instrs.size(), 6u) << p.describe();
-  EXPECT_EQ(p.instrs.front().op, MlpOp::DenseFp32);  // first layer from coordinates in fp32
-  EXPECT_EQ(p.instrs.front().act, MlpAct::Sine);
-  for (int i = 1; i <= 4; ++i) EXPECT_EQ(p.instrs[i].op, MlpOp::Gemm);
+  ASSERT_EQ(p.instrs.size(), 7u) << p.describe();
+  // First layer: coordinates split into fp16 hi/lo, then a tensor-core GEMM with packed weights.
+  EXPECT_EQ(p.instrs[0].op, MlpOp::LoadInput);
+  EXPECT_EQ(p.instrs[0].splitPrecision, 1);
+  EXPECT_EQ(p.instrs[1].op, MlpOp::Gemm);
+  EXPECT_EQ(p.instrs[1].coordInput, 1);
+  EXPECT_EQ(p.instrs[1].act, MlpAct::Sine);
+  for (int i = 1; i <= 5; ++i) EXPECT_EQ(p.instrs[i].op, MlpOp::Gemm);
   EXPECT_EQ(p.instrs.back().op, MlpOp::OutputDot);  // K = 256: the fp32 dot on all warps
 }
 

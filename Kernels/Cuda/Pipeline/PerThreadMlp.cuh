@@ -51,7 +51,7 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
 #pragma unroll
           for (int j = 0; j < B; ++j) acc[j] = 0.f;
           for (int k = 0; k < in.inWidth; ++k) {
-            const float xk = load(in.src, k);
+            const float xk = load(in.coordInput ? -1 : in.src, k);  // coordInput: raw coordinates
 #pragma unroll
             for (int j = 0; j < B; ++j)
               if (o0 + j < in.outWidth) acc[j] += W[std::size_t(o0 + j) * in.inWidth + k] * xk;
