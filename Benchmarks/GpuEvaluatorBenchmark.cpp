@@ -24,7 +24,7 @@ using namespace inr;
 namespace {
 
 struct Row {
-  std::string model, path;
+  std::string model, path, launch;
   std::size_t params;
   double median, lo, hi;
 };
@@ -65,8 +65,8 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
   cudaFree(dPts);
   cudaFree(dOut);
   std::sort(rates.begin(), rates.end());
-  return {name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : "fused-fp16", model.architecture.parameterCount(),
-          rates[rates.size() / 2], rates.front(), rates.back()};
+  return {name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : "fused-fp16", eval.launchReport(),
+          model.architecture.parameterCount(), rates[rates.size() / 2], rates.front(), rates.back()};
 }
 
 }  // namespace
@@ -124,6 +124,7 @@ int main(int argc, char** argv) {
       }
       std::printf("%-28s %-13s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params, r.median / 1e9,
                   r.lo / 1e9, r.hi / 1e9);
+      if (!r.launch.empty()) std::printf("    fused launch autotuning: %s\n", r.launch.c_str());
       std::fflush(stdout);
       rows.push_back(r);
     }

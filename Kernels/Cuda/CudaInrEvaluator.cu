@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdint>
 #include <vector>
 
 #include "Cuda/CudaCheck.h"
@@ -133,14 +135,28 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
 
 using FusedKernel = void (*)(cuda::FusedParams, const float4*, int, float*, const int*);
 
-// Tile of 32*WR queries, 4*WR warps.
-FusedKernel fusedKernelFor(int tile) {
+// Tile of 32*WR queries, 4*WR warps; weight chunks of KC columns.
+FusedKernel fusedKernelFor(int tile, int kc) {
+  if (kc == 32) {
+    switch (tile) {
+      case 128: return cuda::fusedMlpKernel<4, 32>;
+      case 64: return cuda::fusedMlpKernel<2, 32>;
+      default: return cuda::fusedMlpKernel<1, 32>;
+    }
+  }
   switch (tile) {
-    case 128: return cuda::fusedMlpKernel<4>;
-    case 64: return cuda::fusedMlpKernel<2>;
-    default: return cuda::fusedMlpKernel<1>;
+    case 128: return cuda::fusedMlpKernel<4, 64>;
+    case 64: return cuda::fusedMlpKernel<2, 64>;
+    default: return cuda::fusedMlpKernel<1, 64>;
   }
 }
+
+struct FusedConfig {
+  int tile = 0, kc = 0;
+  std::size_t sharedBytes = 0;
+  int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
+  double measuredQps = 0.0;
+};
 
 }  // namespace
 
@@ -148,9 +164,12 @@ struct CudaInrEvaluator::Impl {
   CudaDeviceInfo device;
   MlpProgram program;
   CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
-  int tile = 64;
-  std::size_t sharedBytes = 0;
-  int gridBlocks = 0;
+  FusedConfig config;       // launches of kSmallBatchThreshold queries or more
+  FusedConfig smallConfig;  // smaller launches
+  FusedConfig bestLarge, bestSmall;
+  std::string launchReport;
+  static constexpr int kSmallBatch = 1 << 13;
+  static constexpr int kSmallBatchThreshold = 1 << 15;
   cuda::FusedParams params;
   DeviceArray<MlpInstr> instrs;
   DeviceArray<__half> halfW;
@@ -219,21 +238,24 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     why = "the program has " + std::to_string(prog.instrs.size()) + " instructions (fused kernel: up to " +
           std::to_string(cuda::kMaxFusedInstrs) + ")";
   }
+  std::vector<FusedConfig> candidates;
   if (fused) {
-    // The largest tile whose shared memory fits: 128 queries (16 warps), 64 (8) or 32 (4).
-    I.tile = 0;
-    for (int t : {128, 64, 32}) {
-      if (options.tileQueries && options.tileQueries != t) continue;
-      cudaFuncAttributes attr{};
-      INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, fusedKernelFor(t)));
-      const std::size_t bytes = cuda::fusedSharedBytes(t, P);
-      if (bytes + attr.sharedSizeBytes <= I.device.sharedMemPerBlockOptin) {
-        I.tile = t;
-        I.sharedBytes = bytes;
-        break;
+    for (int t : {128, 64, 32})
+      for (int kc : {64, 32}) {
+        if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
+          continue;
+        const FusedKernel kernel = fusedKernelFor(t, kc);
+        cudaFuncAttributes attr{};
+        INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
+        const std::size_t bytes = cuda::fusedSharedBytes(t, kc, P);
+        if (bytes + attr.sharedSizeBytes > I.device.sharedMemPerBlockOptin) continue;
+        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+        int perSm = 0;
+        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, bytes));
+        if (perSm < 1) continue;
+        candidates.push_back({t, kc, bytes, perSm * I.device.multiprocessors, 0.0});
       }
-    }
-    if (!I.tile) {
+    if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
     }
@@ -241,14 +263,69 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   if (options.path == CudaEvaluatorPath::Fused && !fused)
     throw std::runtime_error("fused CUDA evaluator requested but impossible for this model: " + why);
   I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
-  if (fused) {
-    auto kernel = fusedKernelFor(I.tile);
-    INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(I.sharedBytes)));
-    int perSm = 0;
-    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, I.tile * 4, I.sharedBytes));
-    I.gridBlocks = std::max(1, perSm) * I.device.multiprocessors;
-  } else {
+  if (!fused) {
     cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
+    return;
+  }
+  I.config = I.smallConfig = candidates.front();
+  if (candidates.size() > 1 && options.autotuneBatch > 0) {
+    // Time every candidate on the same random points in the model's domain, once on a large
+    // batch (throughput) and once on a small one (latency: the pipeline's late traverse-evaluate
+    // iterations hold a few thousand queries, where a 128-query tile leaves most SMs idle).
+    const int batch = options.autotuneBatch;
+    const int smallBatch = std::min(batch, Impl::kSmallBatch);
+    std::vector<float4> pts(static_cast<std::size_t>(batch));
+    std::uint32_t state = 12345u;
+    auto uniform = [&](double lo, double hi) {
+      state = state * 1664525u + 1013904223u;
+      return float(lo + (hi - lo) * ((state >> 8) * (1.0 / 16777216.0)));
+    };
+    const auto& b = model.domain.bounds;
+    for (auto& p : pts)
+      p = make_float4(uniform(b[0], b[1]), uniform(b[2], b[3]), uniform(b[4], b[5]),
+                      uniform(model.domain.timeBegin, model.domain.timeEnd));
+    I.stagePoints.resize(pts.size());
+    I.stageOut.resize(pts.size());
+    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.ptr, pts.data(), pts.size() * sizeof(float4), cudaMemcpyHostToDevice));
+    cudaEvent_t e0, e1;
+    INR_CUDA_CHECK(cudaEventCreate(&e0));
+    INR_CUDA_CHECK(cudaEventCreate(&e1));
+    auto rate = [&](int n) {  // best of 3 after a warm-up, queries per second
+      float best = 0.f;
+      for (int r = -1; r < 3; ++r) {
+        INR_CUDA_CHECK(cudaEventRecord(e0));
+        evaluateDevice(I.stagePoints.ptr, n, I.stageOut.ptr, nullptr, nullptr);
+        INR_CUDA_CHECK(cudaEventRecord(e1));
+        INR_CUDA_CHECK(cudaEventSynchronize(e1));
+        float ms = 0.f;
+        INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
+        if (r == 0 || (r > 0 && ms < best)) best = ms;
+      }
+      return n / (double(best) * 1e-3);
+    };
+    std::string report;
+    double bestLarge = 0.0, bestSmall = 0.0;
+    for (const FusedConfig& c : candidates) {
+      I.config = I.smallConfig = c;
+      const double large = rate(batch), small = rate(smallBatch);
+      if (large > bestLarge) bestLarge = large, I.bestLarge = c;
+      if (small > bestSmall) bestSmall = small, I.bestSmall = c;
+      char line[128];
+      std::snprintf(line, sizeof line, "%stile %d x K %d: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", c.tile, c.kc,
+                    large * 1e-9, small * 1e-9);
+      report += line;
+    }
+    cudaEventDestroy(e0);
+    cudaEventDestroy(e1);
+    I.config = I.bestLarge;
+    I.smallConfig = I.bestSmall;
+    auto name = [](const FusedConfig& c) { return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc); };
+    I.launchReport = "batch " + std::to_string(batch) + " / " + std::to_string(smallBatch) + ": " + report + " -> " +
+                     name(I.config) + ", below " + std::to_string(Impl::kSmallBatchThreshold) + " queries " +
+                     name(I.smallConfig);
+  } else {
+    I.launchReport = "tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) +
+                     (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
   }
 }
 
@@ -261,11 +338,17 @@ CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
 std::string CudaInrEvaluator::name() const {
   const Impl& I = *impl_;
   return I.path == CudaEvaluatorPath::Fused
-             ? "cuda-fused-fp16 (tile " + std::to_string(I.tile) + ", " + std::to_string(I.sharedBytes / 1024) +
-                   " KB smem) on " + I.device.name
+             ? "cuda-fused-fp16 (tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) + ", " +
+                   std::to_string(I.config.sharedBytes / 1024) + " KB smem, " +
+                   std::to_string(I.config.gridBlocks / std::max(1, I.device.multiprocessors)) + " blocks/SM; under " +
+                   std::to_string(Impl::kSmallBatchThreshold) + " queries tile " + std::to_string(I.smallConfig.tile) +
+                   " x K " + std::to_string(I.smallConfig.kc) + ") on " +
+                   I.device.name
              : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
                    I.device.name;
 }
+
+std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport; }
 
 std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
 
@@ -274,9 +357,10 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, c
   const Impl& I = *impl_;
   if (n <= 0) return;
   if (I.path == CudaEvaluatorPath::Fused) {
-    const int tiles = (n + I.tile - 1) / I.tile;
-    const int grid = std::min(tiles, I.gridBlocks);
-    fusedKernelFor(I.tile)<<<grid, I.tile * 4, I.sharedBytes, stream>>>(I.params, points, n, out, scatter);
+    const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
+    const int tiles = (n + c.tile - 1) / c.tile;
+    const int grid = std::min(tiles, c.gridBlocks);
+    fusedKernelFor(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, out, scatter);
     INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
     return;
   }

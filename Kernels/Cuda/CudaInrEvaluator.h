@@ -22,7 +22,15 @@ enum class CudaEvaluatorPath { Auto, Fused, Generic };
 struct CudaEvaluatorOptions {
   int device = 0;
   CudaEvaluatorPath path = CudaEvaluatorPath::Auto;
-  int tileQueries = 0;  // fused kernel queries per block tile: 0 = the largest of 128/64/32 whose shared memory fits
+  // Fused kernel launch configuration: queries per block tile (128, 64 or 32) and weight K-chunk
+  // (64 or 32 columns staged per step); 0 = any. Of the configurations whose shared memory fits,
+  // the fastest on `autotuneBatch` random queries in the model's domain runs large launches and
+  // the fastest on 8192 queries runs launches under 32768 queries (the timing takes a few
+  // milliseconds at construction); autotuneBatch = 0 takes the first that fits (largest tile,
+  // then largest chunk) for all launches.
+  int tileQueries = 0;
+  int weightChunk = 0;
+  int autotuneBatch = 1 << 18;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator {
@@ -39,6 +47,10 @@ public:
   void evaluateDevice(const float4* points, int n, float* out, const int* scatter, cudaStream_t stream) const;
 
   CudaEvaluatorPath path() const;
+  // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,
+  // e.g. "... tile 128 x K 64: 0.37 / 0.05 Gq/s; ... -> tile 128 x K 64, below 32768 queries
+  // tile 32 x K 64" (large / small batch rates; empty for the generic path).
+  std::string launchReport() const;
   std::string describeProgram() const;
 
 private:

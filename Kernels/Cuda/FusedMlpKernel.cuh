@@ -3,10 +3,15 @@
 // tiles of M = 32*WR queries and runs the whole MlpProgram on them without leaving the SM.
 // Activations live in shared memory as fp16 rows (one per query, per-buffer stride). GEMM layers
 // run on tensor cores with mma.sync m16n8k16 (fp16 in, fp32 accumulate), operands fetched with
-// ldmatrix, weights streamed through a double-buffered shared-memory stage in K chunks of 64
-// (cp.async). The accumulator layout of mma.sync is documented, so epilogues (bias, activation,
-// residual sum) run in registers and store half2 straight into the destination buffer.
-// Coordinates, Fourier encodings, the first linear layer and the final dot product stay fp32.
+// ldmatrix, weights streamed through a double-buffered shared-memory stage in K chunks of KC
+// (cp.async). The accumulator layout of mma.sync is documented, so epilogues (activation,
+// residual sum, and the network's final dot product) run in registers and store half2 straight
+// into the destination buffer; accumulators start at the bias.
+// Each warp owns 32 rows and the 16-column blocks colGroup + 4j (j < NB). NB is a template
+// parameter, the same for every warp of a layer: warps whose last block lies past the layer's
+// width compute it on whatever the (64-row aligned) weight stage holds and discard it, so the
+// tensor-core loop has no per-warp branches (which would make every ldmatrix/mma reconverge).
+// Coordinates, Fourier encodings and DenseFp32 layers stay fp32.
 #include <cuda_fp16.h>
 #include <cuda_pipeline.h>
 
@@ -14,10 +19,9 @@
 
 namespace inr::cuda {
 
-constexpr int kWeightChunk = 64;                 // K columns of weights staged per step
-constexpr int kWeightStride = kWeightChunk + 8;  // halves per staged row; +8 keeps ldmatrix conflict-free
 constexpr int kMaxBuffers = MlpProgram::kMaxFusedBuffers;
 constexpr int kMaxFusedInstrs = 64;
+constexpr int kStageRowAlign = 64;  // weight stage rows: GEMM outputs rounded up to 4 warps x 16
 
 struct OutputMap {
   // value = a(t) * net + b(t); a, b piecewise linear over `count` (t, a, b) entries (clamped),
@@ -41,22 +45,40 @@ struct FusedParams {
   OutputMap output;
 };
 
-// Shared memory for a tile of M queries: activation buffers, weight double buffer, coordinates.
-inline std::size_t fusedSharedBytes(int M, const FusedParams& P) {
-  std::size_t halves = 0;
-  for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
-  halves += std::size_t(2) * P.maxGemmOutPad * kWeightStride;
-  return halves * 2 + std::size_t(M) * 4 * 4;
+__host__ __device__ inline int stageRows(const FusedParams& P) {
+  return (P.maxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
 }
 
+// Shared memory for a tile of M queries and weight chunks of KC: activation buffers, the
+// weight double buffer, coordinates (M x 4 floats) and the final dot's partial sums (4 x M).
+inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
+  std::size_t halves = 0;
+  for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
+  halves += std::size_t(2) * stageRows(P) * (KC + 8);
+  return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
+}
+
+// One MUFU.TANH (sm_75+); max. relative error ~2^-11, below the fp16 rounding the activations
+// get anyway.
+__device__ inline float tanhApprox(float v) {
+  float r;
+  asm("tanh.approx.f32 %0, %1;" : "=f"(r) : "f"(v));
+  return r;
+}
+
+// SiLU and sigmoid through tanh: x sigma(x) = h + h tanh(h) with h = x / 2, one special-function
+// instruction instead of two (exp and reciprocal).
 __device__ inline float applyActivation(MlpAct a, float v) {
   switch (a) {
     case MlpAct::None: return v;
     case MlpAct::Sine: return __sinf(v);
-    case MlpAct::SiLU: return v / (1.f + __expf(-v));
+    case MlpAct::SiLU: {
+      const float h = 0.5f * v;
+      return fmaf(h, tanhApprox(h), h);
+    }
     case MlpAct::ReLU: return fmaxf(v, 0.f);
-    case MlpAct::Sigmoid: return 1.f / (1.f + __expf(-v));
-    case MlpAct::Tanh: return tanhf(v);
+    case MlpAct::Sigmoid: return fmaf(0.5f, tanhApprox(0.5f * v), 0.5f);
+    case MlpAct::Tanh: return tanhApprox(v);
   }
   return v;
 }
@@ -105,6 +127,24 @@ __device__ inline void outputAffine(const OutputMap& m, float t, float& a, float
 
 __device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
 
+// Reads a half2 from shared memory where it stands (see ldsFloat2InPlace): the residual operand
+// of an epilogue, which the compiler would otherwise hoist as 32 loads ahead of the arithmetic.
+__device__ inline float2 ldsHalf2AsFloat2InPlace(const __half* p) {
+  unsigned bits;
+  asm volatile("ld.shared.b32 %0, [%1];\n" : "=r"(bits) : "r"(smemAddress(p)));
+  __half2 h;
+  memcpy(&h, &bits, sizeof h);
+  return __half22float2(h);
+}
+
+// Reads two floats from shared memory where it stands: the final dot's weights are loaded in
+// the epilogue one pair at a time, not hoisted (64 live accumulators leave no room for them).
+__device__ inline float2 ldsFloat2InPlace(const float* p) {
+  float2 v;
+  asm volatile("ld.shared.v2.f32 {%0, %1}, [%2];\n" : "=f"(v.x), "=f"(v.y) : "r"(smemAddress(p)));
+  return v;
+}
+
 // Loads four 8x8 b16 matrices; `addr` is this lane's shared-memory byte address (its row).
 __device__ inline void ldmatrixX4(unsigned (&r)[4], unsigned addr) {
   asm volatile("ldmatrix.sync.aligned.m8n8.x4.shared.b16 {%0,%1,%2,%3}, [%4];\n"
@@ -132,33 +172,50 @@ __device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned 
 }
 
 // Starts the asynchronous copy of K-chunk `chunk` of a GEMM's fp16 weights ([nPad][kPad] rows)
-// into stage buffer (chunk & 1): 16-byte cp.async per thread, one commit group.
-template <int THREADS>
-__device__ inline void stageWeightChunk(const FusedParams& P, const MlpInstr& in, __half* wstage, int chunk, int tid) {
-  const int k0 = chunk * kWeightChunk;
-  __half* dstW = wstage + (chunk & 1) * P.maxGemmOutPad * kWeightStride;
+// into stage buffer (chunk & 1) (rows of KC + 8 halves; the +8 keeps ldmatrix conflict-free):
+// 16-byte cp.async per thread, one commit group. Full chunks walk fixed per-thread strides.
+template <int THREADS, int KC>
+__device__ inline void stageWeightChunk(const FusedParams& P, const MlpInstr& in, __half* wstage, int stageHalves,
+                                        int chunk, int tid) {
+  constexpr int kStride = KC + 8;
+  constexpr int kSegs = KC / 8;  // 16-byte segments per row
+  const int k0 = chunk * KC;
+  __half* dstW = wstage + (chunk & 1) * stageHalves;
   const __half* srcW = P.halfWeights + in.halfOffset + k0;
-  if (in.kPad - k0 >= kWeightChunk) {  // full chunk: 8 segments per row, no division
-    for (int idx = tid; idx < in.nPad * 8; idx += THREADS) {
-      const int row = idx >> 3, seg = idx & 7;
-      __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+  if (in.kPad - k0 >= KC) {
+    for (int idx = tid; idx < in.nPad * kSegs; idx += THREADS) {
+      const int row = idx / kSegs, seg = idx % kSegs;
+      __pipeline_memcpy_async(dstW + row * kStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
     }
   } else {
     const int segs = (in.kPad - k0) / 8;
     for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
       const int row = idx / segs, seg = idx - row * segs;
-      __pipeline_memcpy_async(dstW + row * kWeightStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
+      __pipeline_memcpy_async(dstW + row * kStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
     }
   }
   __pipeline_commit();
 }
 
-template <int WR>
-__global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+template <int N>
+struct IntTag {
+  static constexpr int value = N;
+};
+
+template <bool B>
+struct BoolTag {
+  static constexpr bool value = B;
+};
+
+// At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
+// exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
+template <int WR, int KC>
+__global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                           float* __restrict__ out, const int* __restrict__ scatter) {
   constexpr int M = 32 * WR;  // queries per tile
   constexpr int THREADS = WR * 128;
   constexpr int WARPS = THREADS / 32;
+  constexpr int kStride = KC + 8;  // halves per staged weight row
   extern __shared__ __align__(128) unsigned char smem[];
   // The program and the buffer layout are read from shared memory (uniform, indexable without
   // local-memory spills), loaded once per block.
@@ -176,8 +233,15 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
   }
   int actHalves = 0;
   for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
+  const int stageHalves = stageRows(P) * kStride;
   __half* const wstage = actBase + actHalves;
-  float* const coords = reinterpret_cast<float*>(wstage + 2 * P.maxGemmOutPad * kWeightStride);
+  float* const coords = reinterpret_cast<float*>(wstage + 2 * stageHalves);
+  float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
+  float* const dotWeights = dotPart + M * 4;  // the final dot's weights (zero-padded), if any
+  for (int ip = 0; ip < P.numInstrs; ++ip)
+    if (P.instrs[ip].dotNext)
+      for (int c = threadIdx.x; c < P.instrs[ip].nPad; c += THREADS)
+        dotWeights[c] = P.floatWeights[P.instrs[ip].dotOffset + c];
   __syncthreads();
 
   const int tid = threadIdx.x;
@@ -201,6 +265,7 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
       const MlpInstr in = program[ip];  // a copy: fields stay in registers inside the loops
+      if (in.fusedIntoPrevious) continue;  // done by the previous GEMM's epilogue (uniform)
       const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
       const int ldSrc = in.src >= 0 ? bufferLd[in.src] : 0;
       __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
@@ -212,18 +277,21 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
       };
       switch (in.op) {
         case MlpOp::LoadInput:
-          for (int r = warp; r < M; r += WARPS)
-            for (int c = lane; c < in.nPad; c += 32) {
-              float v = 0.f;
-              if (!in.splitPrecision) {
-                v = c < P.inputDim ? coords[r * 4 + c] : 0.f;
-              } else if (c < 12 && (c & 3) < P.inputDim) {  // hi | lo | hi
-                const float x = coords[r * 4 + (c & 3)];
-                const float hi = __half2float(__float2half(x));
-                v = (c >> 2) == 1 ? x - hi : x;
-              }
-              dst[r * ldDst + c] = __float2half(v);
+          if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
+            for (int idx = tid; idx < M * 4; idx += THREADS) {
+              const int r = idx >> 2, c = idx & 3;
+              const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
+              const __half hi = __float2half(x);
+              __half* d = dst + r * ldDst + c;
+              d[0] = hi;
+              d[4] = __float2half(x - __half2float(hi));
+              d[8] = hi;
+              d[12] = __float2half(0.f);
             }
+          } else {
+            for (int r = warp; r < M; r += WARPS)
+              for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+          }
           break;
         case MlpOp::DenseFp32:
         case MlpOp::Fourier: {
@@ -283,125 +351,184 @@ __global__ void __launch_bounds__(WR * 128) fusedMlpKernel(FusedParams P, const 
         }
         case MlpOp::Gemm: {
           const int c16Count = in.nPad / 16;
-          const int numChunks = (in.kPad + kWeightChunk - 1) / kWeightChunk;
-          float acc[2][4][2][4];  // [m16 tile][16-column block][n8 half][fragment]
-#pragma unroll
-          for (int a = 0; a < 2; ++a)
-#pragma unroll
-            for (int j = 0; j < 4; ++j)
-#pragma unroll
-              for (int h = 0; h < 2; ++h)
-#pragma unroll
-                for (int f = 0; f < 4; ++f) acc[a][j][h][f] = 0.f;
-
-          auto stage = [&](int chunk) { stageWeightChunk<THREADS>(P, in, wstage, chunk, tid); };
+          const int numChunks = (in.kPad + KC - 1) / KC;
+          const float* bias = P.floatWeights + in.biasOffset;
           const int rowBase = rowGroup * 32;
-          // Per-lane shared-memory byte addresses for ldmatrix, computed once per layer; the k
-          // steps inside a chunk only add immediates.
-          unsigned aAddr[2];
+          const bool prefetchNext = in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles);
+          auto gemm = [&](auto nbTag) __attribute__((always_inline)) {
+            constexpr int NB = decltype(nbTag)::value;
+            float acc[2][NB][2][4];  // [m16 tile][16-column block][n8 half][fragment], from the bias
 #pragma unroll
-          for (int mt = 0; mt < 2; ++mt) {
-            const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
-            aAddr[mt] = smemAddress(src + r * ldSrc + (lane >> 4) * 8);
-          }
-          unsigned bAddr[4];
+            for (int j = 0; j < NB; ++j)
 #pragma unroll
-          for (int j = 0; j < 4; ++j) {
-            const int nrow = (colGroup + 4 * j) * 16 + (lane >> 4) * 8 + (lane & 7);
-            bAddr[j] = smemAddress(wstage + nrow * kWeightStride + ((lane >> 3) & 1) * 8);
-          }
-          const unsigned stageBytes = unsigned(P.maxGemmOutPad * kWeightStride * 2);
-          auto kStep = [&](unsigned aOff, unsigned bOff) {
-            unsigned a[2][4];
+              for (int h = 0; h < 2; ++h) {
+                const int col = (colGroup + 4 * j) * 16 + h * 8 + 2 * t4;
+                const float2 bb = colGroup + 4 * j < c16Count ? *reinterpret_cast<const float2*>(bias + col)
+                                                              : make_float2(0.f, 0.f);
 #pragma unroll
-            for (int mt = 0; mt < 2; ++mt) ldmatrixX4(a[mt], aAddr[mt] + aOff);
+                for (int mt = 0; mt < 2; ++mt) {
+                  acc[mt][j][h][0] = acc[mt][j][h][2] = bb.x;
+                  acc[mt][j][h][1] = acc[mt][j][h][3] = bb.y;
+                }
+              }
+            // Per-lane shared-memory byte addresses for ldmatrix, computed once per layer; the k
+            // steps inside a chunk only add immediates.
+            unsigned aAddr[2];
 #pragma unroll
-            for (int j = 0; j < 4; ++j) {
-              if (colGroup + 4 * j < c16Count) {
+            for (int mt = 0; mt < 2; ++mt) {
+              const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
+              aAddr[mt] = smemAddress(src + r * ldSrc + (lane >> 4) * 8);
+            }
+            const unsigned bBase =
+                smemAddress(wstage + (colGroup * 16 + (lane >> 4) * 8 + (lane & 7)) * kStride + ((lane >> 3) & 1) * 8);
+            auto kStep = [&](unsigned aOff, unsigned bOff) {
+              unsigned a[2][4];
+#pragma unroll
+              for (int mt = 0; mt < 2; ++mt) ldmatrixX4(a[mt], aAddr[mt] + aOff);
+#pragma unroll
+              for (int j = 0; j < NB; ++j) {
                 unsigned b[4];  // b[0], b[1]: n8 tile 0 (k lo, k hi); b[2], b[3]: n8 tile 1
-                ldmatrixX4(b, bAddr[j] + bOff);
+                ldmatrixX4(b, bBase + bOff + unsigned(j * 64 * kStride * 2));
 #pragma unroll
                 for (int mt = 0; mt < 2; ++mt) {
                   mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
                   mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
                 }
               }
+            };
+            auto stage = [&](const MlpInstr& g, int chunk) {
+              stageWeightChunk<THREADS, KC>(P, g, wstage, stageHalves, chunk, tid);
+            };
+            if (!firstChunkStaged) stage(in, 0);  // else prefetched by the previous GEMM
+            firstChunkStaged = false;
+            for (int chunk = 0; chunk < numChunks; ++chunk) {
+              if (chunk + 1 < numChunks) {
+                stage(in, chunk + 1);
+                __pipeline_wait_prior(1);
+              } else {
+                __pipeline_wait_prior(0);
+              }
+              __syncthreads();
+              const unsigned aChunk = unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
+              const int kLen = min(KC, in.kPad - chunk * KC);
+              if (kLen == KC) {
+#pragma unroll
+                for (int kk = 0; kk < KC; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
+              } else {
+                for (int kk = 0; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
+              }
+              __syncthreads();  // the next stage() overwrites this buffer
             }
-          };
-          if (!firstChunkStaged) stage(0);  // else prefetched by the previous GEMM
-          firstChunkStaged = false;
-          for (int chunk = 0; chunk < numChunks; ++chunk) {
-            if (chunk + 1 < numChunks) {
-              stage(chunk + 1);
-              __pipeline_wait_prior(1);
-            } else {
-              __pipeline_wait_prior(0);
+            // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
+            // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
+            if (prefetchNext) {
+              stage(program[in.nextGemm], 0);
+              firstChunkStaged = true;
             }
-            __syncthreads();
-            const unsigned aChunk = unsigned(chunk * kWeightChunk * 2), bChunk = (chunk & 1) * stageBytes;
-            const int kLen = min(kWeightChunk, in.kPad - chunk * kWeightChunk);
-            if (kLen == kWeightChunk) {
-#pragma unroll
-              for (int kk = 0; kk < kWeightChunk; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
-            } else {
-              for (int kk = 0; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
-            }
-            __syncthreads();  // the next stage() overwrites this buffer
-          }
-          // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
-          // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
-          if (in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles)) {
-            stageWeightChunk<THREADS>(P, program[in.nextGemm], wstage, 0, tid);
-            firstChunkStaged = true;
-          }
-          // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
-          const float* bias = P.floatWeights + in.biasOffset;
-          if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
-            if (colGroup == 0 && t4 == 0) {
-#pragma unroll
-              for (int mt = 0; mt < 2; ++mt)
-#pragma unroll
-                for (int half = 0; half < 2; ++half) {
-                  const int row = rowBase + mt * 16 + g + half * 8;
-                  if (row < rows) {
-                    const float net = applyActivation(in.act, acc[mt][0][0][2 * half] + bias[0]);
-                    float a, b;
-                    outputAffine(P.output, points[base + row].w, a, b);
-                    const int q = base + row;
-                    out[scatter ? scatter[q] : q] = a * net + b;
-                  }
-                }
-            }
-            break;
-          }
-          dispatchActivation(in.act, [&](auto A) {
-#pragma unroll
-            for (int j = 0; j < 4; ++j) {
-              const int c16 = colGroup + 4 * j;
-              if (c16 >= c16Count) continue;
-#pragma unroll
-              for (int h = 0; h < 2; ++h) {
-                const int col = c16 * 16 + h * 8 + 2 * t4;
-                const float2 bb = *reinterpret_cast<const float2*>(bias + col);
-                const bool keep0 = col < in.outWidth, keep1 = col + 1 < in.outWidth;
+            // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
+            if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
+              if (colGroup == 0 && t4 == 0) {
 #pragma unroll
                 for (int mt = 0; mt < 2; ++mt)
 #pragma unroll
                   for (int half = 0; half < 2; ++half) {
                     const int row = rowBase + mt * 16 + g + half * 8;
-                    float v0 = applyActivation(decltype(A)::value, acc[mt][j][h][2 * half] + bb.x);
-                    float v1 = applyActivation(decltype(A)::value, acc[mt][j][h][2 * half + 1] + bb.y);
-                    if (other) {
-                      const float2 o = __half22float2(*reinterpret_cast<const __half2*>(other + row * ldOther + col));
-                      v0 = in.combineScale * (v0 + o.x);
-                      v1 = in.combineScale * (v1 + o.y);
+                    if (row < rows) {
+                      const float net = applyActivation(in.act, acc[mt][0][0][2 * half]);
+                      float a, b;
+                      outputAffine(P.output, points[base + row].w, a, b);
+                      const int q = base + row;
+                      out[scatter ? scatter[q] : q] = a * net + b;
                     }
-                    *reinterpret_cast<__half2*>(dst + row * ldDst + col) =
-                        __floats2half2_rn(keep0 ? v0 : 0.f, keep1 ? v1 : 0.f);
                   }
               }
+              return;
             }
-          });
+            const int laneCol = colGroup * 16 + 2 * t4;
+            dispatchActivation(in.act, [&](auto A) {
+              constexpr MlpAct kAct = decltype(A)::value;
+              // act(acc) [+ residual], fp32; sigmoid(0) != 0, so its padding columns are masked.
+              auto value = [&](int mt, int j, int h, int f, int col) {
+                float v = applyActivation(kAct, acc[mt][j][h][f]);
+                if (kAct == MlpAct::Sigmoid && col >= in.outWidth) v = 0.f;
+                return v;
+              };
+              // Calls f(mt, half, j, h, col, v0, v1) per owned fragment pair: the finished fp32
+              // values of row (mt, half) at columns col, col + 1. The residual
+              // sum is a template branch: a runtime one inside the unrolled loops is if-converted
+              // into predicated loads and arithmetic that every layer pays for.
+              const __half* const oRow = other ? other + (rowBase + g) * ldOther + laneCol : nullptr;
+              auto forEachPair = [&](auto f) {
+                auto loop = [&](auto residual) {
+                  constexpr bool kResidual = decltype(residual)::value;
+#pragma unroll
+                  for (int j = 0; j < NB; ++j) {
+                    if (colGroup + 4 * j >= c16Count) continue;
+#pragma unroll
+                    for (int h = 0; h < 2; ++h) {
+                      const int col = laneCol + j * 64 + h * 8;
+#pragma unroll
+                      for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                        for (int half = 0; half < 2; ++half) {
+                          float v0 = value(mt, j, h, 2 * half, col), v1 = value(mt, j, h, 2 * half + 1, col + 1);
+                          if (kResidual && oRow) {
+                            const float2 o = ldsHalf2AsFloat2InPlace(oRow + (mt * 16 + half * 8) * ldOther + j * 64 + h * 8);
+                            v0 = in.combineScale * (v0 + o.x);
+                            v1 = in.combineScale * (v1 + o.y);
+                          }
+                          f(mt, half, j, h, col, v0, v1);
+                        }
+                    }
+                  }
+                };
+                if (oRow)
+                  loop(BoolTag<true>{});
+                else
+                  loop(BoolTag<false>{});
+              };
+              if (in.dotNext) {
+                // The network's final linear (next instruction): dot of the fp32 activations with
+                // its weights, reduced over the quad's lanes, then over the 4 column warps.
+                const MlpInstr& fin = program[ip + 1];
+                float part[2][2] = {{0.f, 0.f}, {0.f, 0.f}};
+                forEachPair([&](int mt, int half, int, int, int col, float v0, float v1) {
+                  const float2 w = ldsFloat2InPlace(dotWeights + col);
+                  part[mt][half] = fmaf(v0, w.x, fmaf(v1, w.y, part[mt][half]));
+                });
+#pragma unroll
+                for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                  for (int half = 0; half < 2; ++half) {
+                    float v = part[mt][half];
+                    v += __shfl_xor_sync(0xffffffffu, v, 1);
+                    v += __shfl_xor_sync(0xffffffffu, v, 2);
+                    if (t4 == 0) dotPart[colGroup * M + rowBase + mt * 16 + g + half * 8] = v;
+                  }
+                __syncthreads();
+                const float dotBias = P.floatWeights[fin.biasOffset];
+                for (int r = tid; r < rows; r += THREADS) {
+                  const float net =
+                      applyActivation(fin.act, dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + dotBias);
+                  float a, b;
+                  outputAffine(P.output, points[base + r].w, a, b);
+                  const int q = base + r;
+                  out[scatter ? scatter[q] : q] = a * net + b;
+                }
+                return;
+              }
+              __half* const dRow = dst + (rowBase + g) * ldDst + laneCol;
+              forEachPair([&](int mt, int half, int j, int h, int, float v0, float v1) {
+                *reinterpret_cast<__half2*>(dRow + (mt * 16 + half * 8) * ldDst + j * 64 + h * 8) = __floats2half2_rn(v0, v1);
+              });
+            });
+          };
+          switch ((c16Count + 3) / 4) {  // the same for every warp of the block
+            case 1: gemm(IntTag<1>{}); break;
+            case 2: gemm(IntTag<2>{}); break;
+            case 3: gemm(IntTag<3>{}); break;
+            default: gemm(IntTag<4>{}); break;
+          }
           break;
         }
         case MlpOp::Activation:

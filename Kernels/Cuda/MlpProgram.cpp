@@ -110,7 +110,6 @@ public:
         in.op = MlpOp::Gemm;
         in.finalOutput = 1;
         packHalf();
-        p_.maxGemmOutPad = std::max(p_.maxGemmOutPad, in.nPad);
       } else {
         in.op = MlpOp::OutputDot;
       }
@@ -363,14 +362,32 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   p.maxWidthPad = 16;
   Compiler c(p);
   c.list(arch.layers, Value{-1, arch.inputDim, false}, true);
+  // The final dot product into the epilogue of the Gemm that produces its input (the final
+  // instruction reads nothing else, so that Gemm's buffer need not be written).
+  for (std::size_t i = 1; i < p.instrs.size(); ++i) {
+    MlpInstr& fin = p.instrs[i];
+    MlpInstr& prev = p.instrs[i - 1];
+    const bool finalLinear = fin.op == MlpOp::OutputDot || (fin.op == MlpOp::Gemm && fin.finalOutput);
+    if (finalLinear && i + 1 == p.instrs.size() && prev.op == MlpOp::Gemm && !prev.finalOutput &&
+        prev.dst == fin.src && fin.inWidth == prev.outWidth && fin.floatOffset >= 0) {
+      prev.dotNext = 1;
+      fin.fusedIntoPrevious = 1;
+      // A zero-padded copy of the dot weights (16-byte aligned), so the epilogue reads float2
+      // pairs over the whole padded width.
+      while (p.floatWeights.size() % 4) p.floatWeights.push_back(0.f);
+      prev.dotOffset = std::int64_t(p.floatWeights.size());
+      const std::int64_t w = fin.floatOffset;
+      for (int k = 0; k < prev.nPad; ++k) p.floatWeights.push_back(k < fin.inWidth ? p.floatWeights[w + k] : 0.f);
+    }
+  }
   std::vector<int> gemms;
   for (std::size_t i = 0; i < p.instrs.size(); ++i)
-    if (p.instrs[i].op == MlpOp::Gemm) gemms.push_back(int(i));
+    if (p.instrs[i].op == MlpOp::Gemm && !p.instrs[i].fusedIntoPrevious) gemms.push_back(int(i));
   for (std::size_t g = 0; g < gemms.size(); ++g) p.instrs[gemms[g]].nextGemm = gemms[(g + 1) % gemms.size()];
   p.bufferWidthPad.assign(std::max(p.numBuffers, 1), 16);
   for (const MlpInstr& in : p.instrs) {
     if (in.dst >= 0) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);
-    if (in.op == MlpOp::Gemm) p.maxGemmOutPad = std::max(p.maxGemmOutPad, in.nPad);
+    if (in.op == MlpOp::Gemm && !in.fusedIntoPrevious) p.maxGemmOutPad = std::max(p.maxGemmOutPad, in.nPad);
   }
   if (p.maxGemmOutPad > kMaxFusedGemmOut) {
     p.fusable = false;
@@ -396,6 +413,8 @@ std::string MlpProgram::describe() const {
     if (in.act != MlpAct::None) s << " " << actName(in.act);
     if (in.other >= 0) s << " +b" << in.other << " x" << in.combineScale;
     if (in.finalOutput) s << " (final, fp32 result)";
+    if (in.dotNext) s << " (+ final dot in the epilogue)";
+    if (in.fusedIntoPrevious) s << " (fused into the previous gemm)";
     if (in.splitPrecision) s << " (fp16 hi/lo split)";
     s << "\n";
   }
@@ -411,7 +430,9 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
   for (std::size_t q = 0; q < n; ++q) {
     const float* x = inputs + q * p.inputDim;
     auto srcAt = [&](int src, int k) -> float { return src < 0 ? (k < p.inputDim ? x[k] : 0.f) : buf[src][k]; };
-    for (const MlpInstr& in : p.instrs) {
+    for (std::size_t ii = 0; ii < p.instrs.size(); ++ii) {
+      const MlpInstr& in = p.instrs[ii];
+      if (in.fusedIntoPrevious) continue;
       switch (in.op) {
         case MlpOp::LoadInput:
           for (int c = 0; c < W; ++c) buf[in.dst][c] = c < p.inputDim ? h(x[c]) : 0.f;
@@ -428,6 +449,20 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
             for (int k = 0; k < in.inWidth; ++k)
               acc += halfBitsToFloat(p.halfWeights[in.halfOffset + k]) * srcAt(in.src, k);
             out[q] = applyAct(in.act, acc + p.floatWeights[in.biasOffset]);
+            break;
+          }
+          if (in.dotNext) {  // fp32 activations straight into the final dot product
+            const MlpInstr& fin = p.instrs[ii + 1];
+            float dot = 0.f;
+            for (int o = 0; o < in.outWidth; ++o) {
+              float acc = 0.f;
+              for (int k = 0; k < in.kPad; ++k)
+                acc += halfBitsToFloat(p.halfWeights[in.halfOffset + std::int64_t(o) * in.kPad + k]) * srcAt(in.src, k);
+              float v = applyAct(in.act, acc + p.floatWeights[in.biasOffset + o]);
+              if (in.other >= 0) v = in.combineScale * (v + buf[in.other][o]);
+              dot += v * p.floatWeights[fin.floatOffset + o];
+            }
+            out[q] = applyAct(fin.act, dot + p.floatWeights[fin.biasOffset]);
             break;
           }
           for (int o = 0; o < in.nPad; ++o) {

@@ -18,6 +18,7 @@
 //   OutputDot    value = act(w . src + b) in fp32 (a final linear to width 1 with K <= 16;
 //                wider ones run as a Gemm with finalOutput set)
 //   Output       value = src[0]
+// A final linear fed straight by a Gemm is folded into that Gemm's epilogue (dotNext).
 // Sine's w0 and standalone scale layers feeding a linear are folded into that linear's weights.
 #include <cstdint>
 #include <string>
@@ -55,6 +56,14 @@ struct MlpInstr {
   // Gemm fed by such a split buffer: the fp32 paths (generic, per-thread, emulation of inputs)
   // read the raw coordinates with inWidth = input dimension instead.
   std::int32_t coordInput = 0;
+  // Gemm followed by the network's final linear (width 1) reading its output: the fused kernel
+  // computes that dot product in this Gemm's epilogue, from the fp32 activations (never rounded
+  // to fp16 or stored), and skips the next instruction, which has fusedIntoPrevious set. The
+  // generic path runs both instructions as written.
+  std::int32_t dotNext = 0;
+  std::int32_t fusedIntoPrevious = 0;
+  std::int64_t dotOffset = -1;  // dotNext: the final layer's fp32 weights, zero-padded to nPad
+
 };
 
 struct MlpProgram {
