@@ -333,7 +333,7 @@ FrameStats DeltaTrackingRenderer::runGhostPasses(int count) {
   const RayStateView rs = rayView();
   const int n = rs.count;
   const int stride = std::max(1, options_.ghostPixelStride);
-  std::vector<float> ghostMajorants;
+  MajorantArrays ghostMajorants;
   for (int g = 0; g < count; ++g) {
     // Bumps of half-width span/count centred on a sweep over the range: neighbours overlap, so
     // every scalar value gets a non-zero ghost extinction in some pass. Peak opacity 0.5 per

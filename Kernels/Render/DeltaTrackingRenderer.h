@@ -49,7 +49,8 @@ public:
   ImageRGBA image() const;               // composited over the background, alpha = coverage
   ImageRGBA premultipliedImage() const;  // volume only (rgb premultiplied, alpha = coverage)
   const std::vector<float>& residual() const { return residual_; }
-  const std::vector<float>& majorants() const { return majorants_; }
+  const std::vector<float>& majorants() const { return majorants_.cell; }
+  const std::vector<float>& blockMajorants() const { return majorants_.block; }  // skip level
   const MacrocellGrid& macrocells() const { return macrocells_; }
   double lastUpdateMs() const { return pendingUpdateMs_; }
 
@@ -71,7 +72,7 @@ private:
   bool haveScene_ = false;
   CameraView cameraView_{};
   std::unique_ptr<TransferFunctionTable> tfTable_;
-  std::vector<float> majorants_;
+  MajorantArrays majorants_;
 
   // Persistent ray state (struct of arrays).
   std::vector<Vec3f> origin_, direction_, tNext_;

@@ -4,10 +4,32 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "Render/CpuParallel.h"
 
 namespace inr {
+
+int skipBlockShift(int skipBlockCells) {
+  if (skipBlockCells == 0) return -1;
+  if (skipBlockCells < 0 || skipBlockCells > 1024 || (skipBlockCells & (skipBlockCells - 1)) != 0) {
+    throw std::invalid_argument("skip block size must be 0 (off) or a power of two up to 1024, got " +
+                                std::to_string(skipBlockCells));
+  }
+  int shift = 0;
+  while ((1 << shift) < skipBlockCells) ++shift;
+  return shift;
+}
+
+void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, float* blocks) {
+  const Int3 bd = blockGridDims(dims, shift);
+  const int n = bd.x * bd.y * bd.z;
+#pragma omp parallel for schedule(static) if (n >= kParallelMinTiles)
+  for (int b = 0; b < n; ++b) {
+    const Int3 bc{b % bd.x, (b / bd.x) % bd.y, b / (bd.x * bd.y)};
+    blocks[b] = blockMaxMajorant(majorants, dims, shift, bc);
+  }
+}
 
 MacrocellGrid::MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                              double timeEnd, MacrocellOptions options)
@@ -21,6 +43,8 @@ MacrocellGrid::MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, 
   }
   if (!(options_.boundsPadding >= 0.0)) throw std::invalid_argument("bounds padding must be >= 0");
   cellCount_ = d.x * d.y * d.z;
+  blockShift_ = skipBlockShift(options_.skipBlockCells);
+  if (blockShift_ >= 0) blockDims_ = blockGridDims(d, blockShift_);
   cellSize_ = Vec3f{(box.hi.x - box.lo.x) / d.x, (box.hi.y - box.lo.y) / d.y,
                     (box.hi.z - box.lo.z) / d.z};
   slices_.resize(options_.temporalSlices);
@@ -228,7 +252,44 @@ MajorantGridView MacrocellGrid::view(const std::vector<float>& majorants) const 
   v.box = box_;
   v.dims = options_.dims;
   v.cellSize = cellSize_;
+  v.invCellSize = Vec3f{1.f / cellSize_.x, 1.f / cellSize_.y, 1.f / cellSize_.z};
   v.majorant = majorants.data();
+  return v;
+}
+
+void MacrocellGrid::computeMajorants(const TransferFunctionView& tf, MajorantArrays& majorants) const {
+  computeMajorants(tf, majorants.cell);
+  majorants.block.resize(std::size_t(blockShift_ >= 0 ? blockCount() : 0));
+  if (blockShift_ >= 0) computeBlockMajorants(options_.dims, blockShift_, majorants.cell.data(), majorants.block.data());
+}
+
+void MacrocellGrid::updateMajorants(const TransferFunctionView& tf, const std::vector<int>& cells,
+                                    MajorantArrays& majorants) const {
+  updateMajorants(tf, cells, majorants.cell);
+  if (blockShift_ < 0 || cells.empty()) return;
+  // Recompute each touched block from its cells (exact, whichever way the majorants moved).
+  const Int3 d = options_.dims;
+  std::vector<int> blocks;
+  blocks.reserve(cells.size());
+  for (int c : cells) {
+    const Int3 cc{c % d.x, (c / d.x) % d.y, c / (d.x * d.y)};
+    blocks.push_back(blockIndexOfCell(blockDims_, blockShift_, cc));
+  }
+  std::sort(blocks.begin(), blocks.end());
+  blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+  for (int b : blocks) {
+    const Int3 bc{b % blockDims_.x, (b / blockDims_.x) % blockDims_.y, b / (blockDims_.x * blockDims_.y)};
+    majorants.block[b] = blockMaxMajorant(majorants.cell.data(), d, blockShift_, bc);
+  }
+}
+
+MajorantGridView MacrocellGrid::view(const MajorantArrays& majorants) const {
+  MajorantGridView v = view(majorants.cell);
+  if (blockShift_ >= 0 && int(majorants.block.size()) == blockCount()) {
+    v.blockMajorant = majorants.block.data();
+    v.blockDims = blockDims_;
+    v.blockShift = blockShift_;
+  }
   return v;
 }
 

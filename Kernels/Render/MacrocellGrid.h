@@ -29,7 +29,28 @@ struct MacrocellOptions {
   // under-estimated cells before refinement catches them. 0 = off (the paper's default).
   double boundsPadding = 0.0;
   std::size_t maxBatch = std::size_t(1) << 18;  // lattice points per evaluator call
+  // Empty-space skipping: cells per edge of the blocks of the coarse level computed with every
+  // majorant grid (the maximum majorant of each block of B^3 cells). A ray reaching an empty
+  // block steps a DDA over the blocks to the next non-empty one instead of walking every cell;
+  // images and query counts are bit-identical either way. A power of two (4 and 8 are the
+  // useful sizes: larger blocks are rarely empty, smaller ones save few steps); 0 = no coarse
+  // level (cell-by-cell DDA).
+  int skipBlockCells = 4;
 };
+
+// Host storage of one majorant grid (what MacrocellGrid::view shows the traversal): per-cell
+// majorants and their coarse level, kept consistent by computeMajorants / updateMajorants.
+struct MajorantArrays {
+  std::vector<float> cell;   // one per macrocell
+  std::vector<float> block;  // one per skip block; empty when skipping is off
+};
+
+// Validates MacrocellOptions::skipBlockCells (throws std::invalid_argument) and returns log2 B,
+// or -1 for 0 (off).
+int skipBlockShift(int skipBlockCells);
+// The coarse level of `majorants` (dims cells) for blocks of 2^shift cells, written to `blocks`
+// (blockGridDims(dims, shift) entries). Reference for the GPU's kernel and the tests.
+void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, float* blocks);
 
 // Called during slice builds: slice index and the fraction of that slice done, in [0, 1].
 using MacrocellProgress = std::function<void(int slice, double fraction)>;
@@ -84,7 +105,17 @@ public:
   void computeMajorants(const TransferFunctionView& tf, std::vector<float>& majorants) const;
   void updateMajorants(const TransferFunctionView& tf, const std::vector<int>& cells,
                        std::vector<float>& majorants) const;
-  MajorantGridView view(const std::vector<float>& majorants) const;
+  MajorantGridView view(const std::vector<float>& majorants) const;  // no coarse level
+  // The same with the coarse level for empty-space skipping (options().skipBlockCells): every
+  // block that holds a recomputed cell is recomputed too, so the level stays conservative.
+  void computeMajorants(const TransferFunctionView& tf, MajorantArrays& majorants) const;
+  void updateMajorants(const TransferFunctionView& tf, const std::vector<int>& cells,
+                       MajorantArrays& majorants) const;
+  MajorantGridView view(const MajorantArrays& majorants) const;
+  // Coarse level: log2 of the block edge in cells (-1: off), blocks per axis, block count.
+  int blockShift() const { return blockShift_; }
+  Int3 blockDims() const { return blockDims_; }
+  int blockCount() const { return blockDims_.x * blockDims_.y * blockDims_.z; }
 
   // Progressive refinement: an evaluated sample `value` fell in `cell`. If it lies outside the
   // cell's working bounds, widen them (and the contributing slices, so the fix survives time
@@ -104,6 +135,8 @@ private:
   double timeBegin_, timeEnd_;
   MacrocellOptions options_;
   int cellCount_ = 0;
+  int blockShift_ = -1;
+  Int3 blockDims_{0, 0, 0};
   std::vector<Slice> slices_;
   std::vector<float> workMin_, workMax_, workMean_;
   double time_ = 0.0;

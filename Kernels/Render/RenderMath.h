@@ -35,6 +35,17 @@ INR_HD Vec3f normalize(Vec3f a) {
 }
 INR_HD float component(Vec3f v, int axis) { return axis == 0 ? v.x : (axis == 1 ? v.y : v.z); }
 INR_HD int component(Int3 v, int axis) { return axis == 0 ? v.x : (axis == 1 ? v.y : v.z); }
+// Selects rather than indexes, so device code keeps the vector in registers.
+INR_HD void setComponent(Vec3f& v, int axis, float value) {
+  v.x = axis == 0 ? value : v.x;
+  v.y = axis == 1 ? value : v.y;
+  v.z = axis == 2 ? value : v.z;
+}
+INR_HD void setComponent(Int3& v, int axis, int value) {
+  v.x = axis == 0 ? value : v.x;
+  v.y = axis == 1 ? value : v.y;
+  v.z = axis == 2 ? value : v.z;
+}
 INR_HD float minf(float a, float b) { return a < b ? a : b; }
 INR_HD float maxf(float a, float b) { return a > b ? a : b; }
 INR_HD float clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }

@@ -53,7 +53,7 @@ INR_HD bool resolveCandidate(const FrameConstants& fc, const TrackingMedium& med
   return false;  // null collision: keep tracking from the candidate position
 }
 
-// One traversal pass for ray i (paper §4.1.3 with DDA instead of OptiX).
+// One traversal pass for ray i (paper §4.1.3 with DDA instead of OptiX, skipping empty blocks).
 INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium,
                         const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];
@@ -70,8 +70,18 @@ INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium,
     Int3 cell = rs.cell[i];
     Vec3f tNext = rs.tNext[i];
     for (;;) {
-      const float cellExit = minf(ddaCellExit(tNext), tEnd);
       const float m = majorantAt(medium.grid, cell);
+      if (!(m > 0.f) && inEmptyBlock(medium.grid, cell)) {
+        // Empty-space skipping: the whole block is empty, so walking it cell by cell would draw
+        // nothing; jump to the next non-empty block, where that walk would enter it (same
+        // cell, crossings and t).
+        if (!ddaSkipEmptyBlocks(medium.grid, o, d, tEnd, cell, tNext, t)) {
+          finished = true;
+          break;
+        }
+        continue;
+      }
+      const float cellExit = minf(ddaCellExit(tNext), tEnd);
       if (m > 0.f) {
         const float tCandidate = t + freeFlightDistance(m, rng.next());
         if (tCandidate < cellExit) {
