@@ -1,5 +1,6 @@
 #pragma once
 // Analytic FieldEvaluators for the render tests (no network needed), and a counting wrapper.
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <functional>
@@ -35,6 +36,24 @@ inline float smoothField(const QueryPoint& p) {
   return 0.5f + 0.35f * std::sin(2.2f * p.x + 0.7f * p.t) * std::cos(1.7f * p.y - 0.4f * p.t) *
                     std::sin(1.9f * p.z + 1.1f) +
          0.15f * std::exp(-4.f * ((p.x - 0.3f) * (p.x - 0.3f) + p.y * p.y + (p.z + 0.2f) * (p.z + 0.2f)));
+}
+
+// Sparse time-varying field on [-1,1]^3 with values in [0, 1]: a few compact blobs, exactly 0
+// outside their radii. Under a TF with zero opacity at 0 most macrocells (and most blocks of
+// them) are empty: the scene empty-space skipping is for.
+inline float sparseField(const QueryPoint& p) {
+  struct Blob {
+    float x, y, z, r;
+  };
+  const Blob blobs[] = {{-0.45f, 0.3f, 0.2f, 0.3f}, {0.5f, -0.35f, -0.4f, 0.22f}, {0.1f, 0.55f, -0.6f, 0.16f},
+                        {0.62f, 0.6f, 0.58f, 0.12f}};
+  float v = 0.f;
+  for (const Blob& b : blobs) {
+    const float dx = p.x - b.x - 0.1f * p.t, dy = p.y - b.y, dz = p.z - b.z + 0.05f * p.t;
+    const float q = 1.f - (dx * dx + dy * dy + dz * dz) / (b.r * b.r);
+    if (q > 0.f) v = std::max(v, q * q);
+  }
+  return v;
 }
 
 }  // namespace inr::test
