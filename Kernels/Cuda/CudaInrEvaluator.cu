@@ -133,7 +133,7 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   out[scatter ? scatter[g] : g] = a * net + b;
 }
 
-using FusedKernel = void (*)(cuda::FusedParams, const float4*, int, float*, const int*);
+using FusedKernel = void (*)(cuda::FusedParams, const float4*, int, const unsigned*, float*, const int*);
 
 // Tile of 32*WR queries, 4*WR warps; weight chunks of KC columns.
 FusedKernel fusedKernelFor(int tile, int kc) {
@@ -172,7 +172,7 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kSmallBatchThreshold = 1 << 15;
   cuda::FusedParams params;
   DeviceArray<MlpInstr> instrs;
-  DeviceArray<__half> halfW;
+  DeviceArray<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
   DeviceArray<float> floatW;
   DeviceArray<float> outputTable;
   // host-interface staging
@@ -218,13 +218,16 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   }
 
   I.instrs.upload(prog.instrs);
-  std::vector<__half> hw(prog.halfWeights.size());
-  for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(prog.halfWeights[i]);
-  I.halfW.upload(hw);
+  for (int kc : {64, 32}) {
+    const std::vector<std::uint16_t> packed = cuda::packStagedWeights(prog, kc, P.stagedOffset[cuda::kcIndex(kc)]);
+    std::vector<__half> hw(packed.size());
+    for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
+    I.stagedW[cuda::kcIndex(kc)].upload(hw);
+    P.stagedWeights[cuda::kcIndex(kc)] = I.stagedW[cuda::kcIndex(kc)].ptr;
+  }
   I.floatW.upload(prog.floatWeights);
   P.instrs = I.instrs.ptr;
   P.numInstrs = int(prog.instrs.size());
-  P.halfWeights = I.halfW.ptr;
   P.floatWeights = I.floatW.ptr;
   P.numBuffers = std::max(1, prog.numBuffers);
   for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
@@ -354,15 +357,31 @@ std::string CudaInrEvaluator::describeProgram() const { return impl_->program.de
 
 void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, const int* scatter,
                                       cudaStream_t stream) const {
+  evaluateDevice(points, nullptr, n, out, scatter, stream);
+}
+
+void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
+                                      const int* scatter, cudaStream_t stream) const {
   const Impl& I = *impl_;
+  int n = maxN;
   if (n <= 0) return;
   if (I.path == CudaEvaluatorPath::Fused) {
+    // With a device-side count, the configuration and grid follow the bound (the kernel's tile
+    // loop is grid-strided, so extra blocks just exit).
     const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
-    fusedKernelFor(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, out, scatter);
+    fusedKernelFor(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, deviceCount, out,
+                                                                               scatter);
     INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
     return;
+  }
+  if (deviceCount) {  // the generic path sizes its cuBLAS calls on the host: read the count
+    unsigned k = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&k, deviceCount, sizeof k, cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    n = std::min(n, int(k));
+    if (n <= 0) return;
   }
   // Generic fp32 path, chunk by chunk.
   const MlpProgram& prog = I.program;

@@ -45,6 +45,10 @@ public:
   // points: n world-space (x, y, z, t) as float4 in device memory. out[scatter ? scatter[i] : i]
   // receives the value of points[i]. Asynchronous on `stream`.
   void evaluateDevice(const float4* points, int n, float* out, const int* scatter, cudaStream_t stream) const;
+  // The same for *deviceCount points (device memory, written by an earlier kernel on `stream`),
+  // at most maxN: no host round trip on the fused path (the generic path reads the count).
+  void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
+                      cudaStream_t stream) const;
 
   CudaEvaluatorPath path() const;
   // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,

@@ -153,5 +153,40 @@ TEST(CudaInrEvaluator, ScatterWritesThroughTheIndexArray) {
   cudaFree(dIdx);
 }
 
+// The count comes from device memory (as the pipeline's traversal writes it): exactly the first
+// *count points are evaluated, on both paths, with the configuration for the bound.
+TEST(CudaInrEvaluator, DeviceCountBoundsTheBatch) {
+  REQUIRE_GPU();
+  const InrModel model = bench::sirenPaper();
+  for (CudaEvaluatorPath path : {CudaEvaluatorPath::Fused, CudaEvaluatorPath::Generic}) {
+    CudaEvaluatorOptions o;
+    o.path = path;
+    const CudaInrEvaluator gpu(model, o);
+    for (const int bound : {3000, 70000}) {  // below and above the small-batch threshold
+      const int count = bound - 777;
+      const auto pts = randomPoints(model, bound, 5);
+      float4* dPts;
+      float* dOut;
+      unsigned* dCount;
+      INR_CUDA_CHECK(cudaMalloc(&dPts, bound * sizeof(float4)));
+      INR_CUDA_CHECK(cudaMalloc(&dOut, bound * sizeof(float)));
+      INR_CUDA_CHECK(cudaMalloc(&dCount, sizeof(unsigned)));
+      INR_CUDA_CHECK(cudaMemcpy(dPts, pts.data(), bound * sizeof(float4), cudaMemcpyHostToDevice));
+      const unsigned c = unsigned(count);
+      INR_CUDA_CHECK(cudaMemcpy(dCount, &c, sizeof c, cudaMemcpyHostToDevice));
+      INR_CUDA_CHECK(cudaMemset(dOut, 0xff, bound * sizeof(float)));  // NaN poison
+      gpu.evaluateDevice(dPts, dCount, bound, dOut, nullptr, nullptr);
+      std::vector<float> got(bound), direct(count);
+      INR_CUDA_CHECK(cudaMemcpy(got.data(), dOut, bound * sizeof(float), cudaMemcpyDeviceToHost));
+      gpu.evaluate(pts.data(), count, direct.data());
+      for (int i = 0; i < count; ++i) ASSERT_EQ(got[i], direct[i]) << i << " bound " << bound;
+      for (int i = count; i < bound; ++i) ASSERT_TRUE(std::isnan(got[i])) << "wrote past the count at " << i;
+      cudaFree(dPts);
+      cudaFree(dOut);
+      cudaFree(dCount);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace inr

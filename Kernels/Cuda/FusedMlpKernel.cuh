@@ -13,6 +13,8 @@
 // tensor-core loop has no per-warp branches (which would make every ldmatrix/mma reconverge).
 // Coordinates, Fourier encodings and DenseFp32 layers stay fp32.
 #include <cuda_fp16.h>
+#include <cstdint>
+#include <vector>
 #include <cuda_pipeline.h>
 
 #include "Cuda/MlpProgram.h"
@@ -34,7 +36,10 @@ struct OutputMap {
 struct FusedParams {
   const MlpInstr* instrs = nullptr;
   int numInstrs = 0;
-  const __half* halfWeights = nullptr;
+  // fp16 GEMM weights in the stage's layout (packStagedWeights), per weight chunk width
+  // (index kcIndex(KC)), and each instruction's offset into them (halves).
+  const __half* stagedWeights[2] = {nullptr, nullptr};
+  int stagedOffset[2][kMaxFusedInstrs] = {};
   const float* floatWeights = nullptr;
   int inputDim = 4;
   int inputCoord[4] = {0, 1, 2, 3};  // world coordinate feeding each network input
@@ -44,6 +49,29 @@ struct FusedParams {
   int maxGemmOutPad = 16;          // rows of the weight stage
   OutputMap output;
 };
+
+__host__ __device__ constexpr int kcIndex(int kc) { return kc == 64 ? 0 : 1; }
+
+// The GEMM weights ([nPad][kPad] fp16 in MlpProgram::halfWeights) repacked chunk by chunk exactly
+// as the kernel's stage holds them: per K-chunk of KC, nPad rows of KC + 8 halves (zeros past
+// kPad and in the 8 padding columns). Staging a chunk is then one contiguous copy.
+inline std::vector<std::uint16_t> packStagedWeights(const MlpProgram& prog, int KC, int* offsets) {
+  std::vector<std::uint16_t> packed;
+  for (std::size_t i = 0; i < prog.instrs.size() && i < std::size_t(kMaxFusedInstrs); ++i) {
+    const MlpInstr& in = prog.instrs[i];
+    offsets[i] = 0;
+    if (in.op != MlpOp::Gemm || in.fusedIntoPrevious) continue;
+    offsets[i] = int(packed.size());
+    const int chunks = (in.kPad + KC - 1) / KC;
+    for (int c = 0; c < chunks; ++c)
+      for (int r = 0; r < in.nPad; ++r)
+        for (int k = 0; k < KC + 8; ++k) {
+          const int col = c * KC + k;
+          packed.push_back(k < KC && col < in.kPad ? prog.halfWeights[in.halfOffset + std::int64_t(r) * in.kPad + col] : 0);
+        }
+  }
+  return packed;
+}
 
 __host__ __device__ inline int stageRows(const FusedParams& P) {
   return (P.maxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
@@ -171,29 +199,18 @@ __device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned 
 #endif
 }
 
-// Starts the asynchronous copy of K-chunk `chunk` of a GEMM's fp16 weights ([nPad][kPad] rows)
-// into stage buffer (chunk & 1) (rows of KC + 8 halves; the +8 keeps ldmatrix conflict-free):
-// 16-byte cp.async per thread, one commit group. Full chunks walk fixed per-thread strides.
+// Starts the asynchronous copy of K-chunk `chunk` of GEMM instruction `ip`'s weights into stage
+// buffer (chunk & 1): one contiguous block (packStagedWeights), 16-byte cp.async per thread, one
+// commit group.
 template <int THREADS, int KC>
-__device__ inline void stageWeightChunk(const FusedParams& P, const MlpInstr& in, __half* wstage, int stageHalves,
+__device__ inline void stageWeightChunk(const FusedParams& P, int ip, int nPad, __half* wstage, int stageHalves,
                                         int chunk, int tid) {
-  constexpr int kStride = KC + 8;
-  constexpr int kSegs = KC / 8;  // 16-byte segments per row
-  const int k0 = chunk * KC;
-  __half* dstW = wstage + (chunk & 1) * stageHalves;
-  const __half* srcW = P.halfWeights + in.halfOffset + k0;
-  if (in.kPad - k0 >= KC) {
-    for (int idx = tid; idx < in.nPad * kSegs; idx += THREADS) {
-      const int row = idx / kSegs, seg = idx % kSegs;
-      __pipeline_memcpy_async(dstW + row * kStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
-    }
-  } else {
-    const int segs = (in.kPad - k0) / 8;
-    for (int idx = tid; idx < in.nPad * segs; idx += THREADS) {
-      const int row = idx / segs, seg = idx - row * segs;
-      __pipeline_memcpy_async(dstW + row * kStride + seg * 8, srcW + row * in.kPad + seg * 8, 16);
-    }
-  }
+  const int blockHalves = nPad * (KC + 8);
+  const int4* src = reinterpret_cast<const int4*>(P.stagedWeights[kcIndex(KC)] + P.stagedOffset[kcIndex(KC)][ip] +
+                                                  std::size_t(chunk) * blockHalves);
+  int4* dst = reinterpret_cast<int4*>(wstage + (chunk & 1) * stageHalves);
+  const int segs = blockHalves / 8;
+  for (int i = tid; i < segs; i += THREADS) __pipeline_memcpy_async(dst + i, src + i, 16);
   __pipeline_commit();
 }
 
@@ -211,7 +228,11 @@ struct BoolTag {
 // exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
 template <int WR, int KC>
 __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
-                                                          float* __restrict__ out, const int* __restrict__ scatter) {
+                                                                  const unsigned* __restrict__ deviceCount,
+                                                                  float* __restrict__ out, const int* __restrict__ scatter) {
+  // deviceCount: the batch size as written by an earlier kernel (n is then its upper bound), so
+  // a producer-consumer loop needs no host round trip per batch.
+  if (deviceCount) n = min(n, int(*deviceCount));
   constexpr int M = 32 * WR;  // queries per tile
   constexpr int THREADS = WR * 128;
   constexpr int WARPS = THREADS / 32;
@@ -396,14 +417,14 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 }
               }
             };
-            auto stage = [&](const MlpInstr& g, int chunk) {
-              stageWeightChunk<THREADS, KC>(P, g, wstage, stageHalves, chunk, tid);
+            auto stage = [&](int gemm, int chunk) {
+              stageWeightChunk<THREADS, KC>(P, gemm, program[gemm].nPad, wstage, stageHalves, chunk, tid);
             };
-            if (!firstChunkStaged) stage(in, 0);  // else prefetched by the previous GEMM
+            if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
             firstChunkStaged = false;
             for (int chunk = 0; chunk < numChunks; ++chunk) {
               if (chunk + 1 < numChunks) {
-                stage(in, chunk + 1);
+                stage(ip, chunk + 1);
                 __pipeline_wait_prior(1);
               } else {
                 __pipeline_wait_prior(0);
@@ -422,7 +443,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
             // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
             if (prefetchNext) {
-              stage(program[in.nextGemm], 0);
+              stage(in.nextGemm, 0);
               firstChunkStaged = true;
             }
             // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
