@@ -199,6 +199,21 @@ __device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned 
 #endif
 }
 
+// D = A(16x16) * B(16x8) + C with C = the bias pair of this lane's columns in both rows: the
+// first k step of a GEMM, so accumulators start at the bias without separate moves.
+__device__ inline void mma16816Bias(float (&d)[4], const unsigned (&a)[4], unsigned b0, unsigned b1, float2 c) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  asm("mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+      "{%10,%11,%10,%11};\n"
+      : "=f"(d[0]), "=f"(d[1]), "=f"(d[2]), "=f"(d[3])
+      : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b0), "r"(b1), "f"(c.x), "f"(c.y));
+#else
+  d[0] = d[2] = c.x;
+  d[1] = d[3] = c.y;
+  mma16816(d, a, b0, b1);
+#endif
+}
+
 // Starts the asynchronous copy of K-chunk `chunk` of GEMM instruction `ip`'s weights into stage
 // buffer (chunk & 1): one contiguous block (packStagedWeights), 16-byte cp.async per thread, one
 // commit group.
@@ -378,19 +393,17 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
           const bool prefetchNext = in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles);
           auto gemm = [&](auto nbTag) __attribute__((always_inline)) {
             constexpr int NB = decltype(nbTag)::value;
-            float acc[2][NB][2][4];  // [m16 tile][16-column block][n8 half][fragment], from the bias
+            // Accumulators [m16 tile][16-column block][n8 half][fragment]: the first k step
+            // writes them as A*B + bias (mma's C operand), so they need no initialisation.
+            float acc[2][NB][2][4];
+            float2 biasPair[NB][2];
 #pragma unroll
             for (int j = 0; j < NB; ++j)
 #pragma unroll
               for (int h = 0; h < 2; ++h) {
                 const int col = (colGroup + 4 * j) * 16 + h * 8 + 2 * t4;
-                const float2 bb = colGroup + 4 * j < c16Count ? *reinterpret_cast<const float2*>(bias + col)
-                                                              : make_float2(0.f, 0.f);
-#pragma unroll
-                for (int mt = 0; mt < 2; ++mt) {
-                  acc[mt][j][h][0] = acc[mt][j][h][2] = bb.x;
-                  acc[mt][j][h][1] = acc[mt][j][h][3] = bb.y;
-                }
+                biasPair[j][h] = colGroup + 4 * j < c16Count ? *reinterpret_cast<const float2*>(bias + col)
+                                                             : make_float2(0.f, 0.f);
               }
             // Per-lane shared-memory byte addresses for ldmatrix, computed once per layer; the k
             // steps inside a chunk only add immediates.
@@ -402,7 +415,8 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             }
             const unsigned bBase =
                 smemAddress(wstage + (colGroup * 16 + (lane >> 4) * 8 + (lane & 7)) * kStride + ((lane >> 3) & 1) * 8);
-            auto kStep = [&](unsigned aOff, unsigned bOff) {
+            auto kStep = [&](unsigned aOff, unsigned bOff, auto firstTag) {
+              constexpr bool kFirst = decltype(firstTag)::value;
               unsigned a[2][4];
 #pragma unroll
               for (int mt = 0; mt < 2; ++mt) ldmatrixX4(a[mt], aAddr[mt] + aOff);
@@ -412,8 +426,13 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 ldmatrixX4(b, bBase + bOff + unsigned(j * 64 * kStride * 2));
 #pragma unroll
                 for (int mt = 0; mt < 2; ++mt) {
-                  mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
-                  mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
+                  if constexpr (kFirst) {
+                    mma16816Bias(acc[mt][j][0], a[mt], b[0], b[1], biasPair[j][0]);
+                    mma16816Bias(acc[mt][j][1], a[mt], b[2], b[3], biasPair[j][1]);
+                  } else {
+                    mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
+                    mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
+                  }
                 }
               }
             };
@@ -422,7 +441,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             };
             if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
             firstChunkStaged = false;
-            for (int chunk = 0; chunk < numChunks; ++chunk) {
+            auto runChunk = [&](int chunk, auto firstTag) {
               if (chunk + 1 < numChunks) {
                 stage(ip, chunk + 1);
                 __pipeline_wait_prior(1);
@@ -432,14 +451,17 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
               __syncthreads();
               const unsigned aChunk = unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
               const int kLen = min(KC, in.kPad - chunk * KC);
+              kStep(aChunk, bChunk, firstTag);  // every chunk holds at least one k step of 16
               if (kLen == KC) {
 #pragma unroll
-                for (int kk = 0; kk < KC; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
+                for (int kk = 16; kk < KC; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2, BoolTag<false>{});
               } else {
-                for (int kk = 0; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2);
+                for (int kk = 16; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2, BoolTag<false>{});
               }
               __syncthreads();  // the next stage() overwrites this buffer
-            }
+            };
+            runChunk(0, BoolTag<true>{});
+            for (int chunk = 1; chunk < numChunks; ++chunk) runChunk(chunk, BoolTag<false>{});
             // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
             // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
             if (prefetchNext) {
