@@ -64,11 +64,12 @@ __global__ void spawnShadowKernel(FrameConstants fc, MajorantGridView grid, RayS
 // pass. For the latter, first the evaluation's result is completed (NaN/Inf flag, exactly
 // storeQueryResult) and fed to macrocell refinement, then the ray resumes tracking. A ray that
 // emits a new candidate appends its query point and index to the output buffers.
-__global__ void traverseKernel(FrameConstants fc, TrackingMedium medium, RayStateView rs, const int* list, int n,
-                               int resolvePrevious, int refine, DeviceRefineView refineView, float4* outPoints,
-                               int* outRays, unsigned* outCount) {
+// `listCount` (device), when given, is the number of listed rays; n is then its upper bound.
+__global__ void traverseKernel(FrameConstants fc, TrackingMedium medium, RayStateView rs, const int* list,
+                               const unsigned* listCount, int n, int resolvePrevious, int refine,
+                               DeviceRefineView refineView, float4* outPoints, int* outRays, unsigned* outCount) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k >= n) return;
+  if (k >= n || (listCount && k >= int(*listCount))) return;
   const int i = list ? list[k] : k;
   if (resolvePrevious) {
     const float v = rs.sample[i];
@@ -222,6 +223,10 @@ private:
 }  // namespace
 
 struct CudaDeltaTrackingRenderer::Impl {
+  ~Impl() {
+    for (cudaEvent_t e : countReady)
+      if (e) cudaEventDestroy(e);
+  }
   cudaStream_t stream = nullptr;
   CameraView cameraView{};
   std::unique_ptr<TransferFunctionTable> tfTable;
@@ -237,8 +242,9 @@ struct CudaDeltaTrackingRenderer::Impl {
   // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the other).
   cuda::DeviceBuffer<float4> points[2];
   cuda::DeviceBuffer<int> rays[2];
-  cuda::DeviceBuffer<unsigned> counter;
-  cuda::PinnedHost<unsigned> hostCounter{1};
+  cuda::DeviceBuffer<unsigned> counter;         // per iteration parity: queries appended
+  cuda::PinnedHost<unsigned> hostCounter{2};
+  cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
   // Accumulation.
   cuda::DeviceBuffer<Vec4f> accum;
   cuda::DeviceBuffer<std::uint32_t> sampleCount;
@@ -269,25 +275,39 @@ struct CudaDeltaTrackingRenderer::Impl {
   AccumulationView accumulationView() const { return AccumulationView{accum.get(), sampleCount.get(), residual.get()}; }
 
   // The traverse-evaluate loop: returns when no query is pending (or at the iteration cap).
+  // The host never waits on the GPU mid-loop: iteration i + 1's traversal and evaluation read
+  // iteration i's query count on the device, with grids sized by the last count the host knows
+  // (an upper bound: counts never grow), while the host reads count i from pinned memory. When
+  // count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
   void track(const CudaInrEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
              const DeviceRefineView& refineView, int maxIterations, Stage traverseStage, Stage evaluateStage,
              int& iterations, std::size_t& queries) {
     const RayStateView rs = rayView();
-    const int* list = nullptr;
-    int n = rs.count;
-    int resolve = 0;
-    int cur = 0;
-    for (int it = 0;; ++it) {
-      INR_CUDA_CHECK(cudaMemsetAsync(counter.get(), 0, sizeof(unsigned), stream));
+    int bound = rs.count;  // upper bound of the rays the next traversal lists
+    auto enqueueTraverse = [&](int it) {
+      const int cur = it & 1, prev = cur ^ 1;
+      INR_CUDA_CHECK(cudaMemsetAsync(counter.get() + cur, 0, sizeof(unsigned), stream));
       timer.begin(traverseStage, stream);
-      traverseKernel<<<blocksFor(n), kThreads, 0, stream>>>(fc, medium, rs, list, n, resolve, refine ? 1 : 0,
-                                                            refineView, points[cur].get(), rays[cur].get(),
-                                                            counter.get());
+      traverseKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
+          fc, medium, rs, it ? rays[prev].get() : nullptr, it ? counter.get() + prev : nullptr, bound, it ? 1 : 0,
+          refine ? 1 : 0, refineView, points[cur].get(), rays[cur].get(), counter.get() + cur);
       INR_CUDA_CHECK_LAUNCH("traverseKernel");
       timer.end(stream);
-      INR_CUDA_CHECK(cudaMemcpyAsync(hostCounter.get(), counter.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
-      INR_CUDA_CHECK(cudaStreamSynchronize(stream));
-      const int k = int(hostCounter[0]);
+      INR_CUDA_CHECK(
+          cudaMemcpyAsync(hostCounter.get() + cur, counter.get() + cur, sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+      INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
+    };
+    enqueueTraverse(0);
+    for (int it = 0;; ++it) {
+      const int cur = it & 1;
+      if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
+        timer.begin(evaluateStage, stream);
+        evaluator.evaluateDevice(points[cur].get(), counter.get() + cur, bound, rs.sample, rays[cur].get(), stream);
+        timer.end(stream);
+        enqueueTraverse(it + 1);
+      }
+      INR_CUDA_CHECK(cudaEventSynchronize(countReady[cur]));
+      const int k = int(hostCounter[cur]);
       if (k == 0) break;
       if (it >= maxIterations) {
         cutoffKernel<<<blocksFor(k), kThreads, 0, stream>>>(rs, rays[cur].get(), k);
@@ -297,13 +317,7 @@ struct CudaDeltaTrackingRenderer::Impl {
       }
       ++iterations;
       queries += std::size_t(k);
-      timer.begin(evaluateStage, stream);
-      evaluator.evaluateDevice(points[cur].get(), k, rs.sample, rays[cur].get(), stream);
-      timer.end(stream);
-      list = rays[cur].get();
-      n = k;
-      resolve = 1;
-      cur ^= 1;
+      bound = k;
     }
   }
 };
@@ -314,7 +328,8 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const CudaInrEvaluator& eva
       impl_(std::make_unique<Impl>()) {
   if (pipeline_.maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
   impl_->stream = macrocells.stream();
-  impl_->counter.resize(1);
+  impl_->counter.resize(2);
+  for (cudaEvent_t& e : impl_->countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
   impl_->stats.resize(kStatCount);
   impl_->majorants.resize(std::size_t(macrocells.cellCount()));
   impl_->majorants.zero(impl_->stream);
