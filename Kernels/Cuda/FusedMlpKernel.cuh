@@ -14,6 +14,7 @@
 // Coordinates, Fourier encodings and DenseFp32 layers stay fp32.
 #include <cuda_fp16.h>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 #include <cuda_pipeline.h>
 
@@ -229,15 +230,11 @@ __device__ inline void stageWeightChunk(const FusedParams& P, int ip, int nPad, 
   __pipeline_commit();
 }
 
+// Compile-time tags for the generic lambdas below (warp column blocks, first k step, residual).
 template <int N>
-struct IntTag {
-  static constexpr int value = N;
-};
-
+using IntTag = std::integral_constant<int, N>;
 template <bool B>
-struct BoolTag {
-  static constexpr bool value = B;
-};
+using BoolTag = std::bool_constant<B>;
 
 // At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
 // exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
