@@ -232,6 +232,10 @@ struct CudaDeltaTrackingRenderer::Impl {
   std::unique_ptr<TransferFunctionTable> tfTable;
   cuda::DeviceTransferFunction tf, ghostTf;
   cuda::DeviceBuffer<float> majorants, ghostMajorants, depth;
+  // Coarse levels of the two majorant grids (empty-space skipping); null when skipping is off.
+  cuda::DeviceBuffer<float> blockMajorants, ghostBlockMajorants;
+  float* blocks() const { return blockMajorants.empty() ? nullptr : blockMajorants.get(); }
+  float* ghostBlocks() const { return ghostBlockMajorants.empty() ? nullptr : ghostBlockMajorants.get(); }
   // Persistent ray state (struct of arrays).
   cuda::DeviceBuffer<Vec3f> origin, direction, tNext;
   cuda::DeviceBuffer<float> t, tEnd, sample, collisionProduct, visibility;
@@ -333,6 +337,10 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const CudaInrEvaluator& eva
   impl_->stats.resize(kStatCount);
   impl_->majorants.resize(std::size_t(macrocells.cellCount()));
   impl_->majorants.zero(impl_->stream);
+  if (macrocells.blockCount() > 0) {
+    impl_->blockMajorants.resize(std::size_t(macrocells.blockCount()));
+    impl_->blockMajorants.zero(impl_->stream);
+  }
   resize();
 }
 
@@ -412,7 +420,7 @@ void CudaDeltaTrackingRenderer::setScene(const RenderScene& scene) {
     ++counters_.workingGridUpdates;
   }
   if (timeChanged || tfChanged) {
-    macrocells_.computeMajorants(I.tf.view(), I.majorants.get());
+    macrocells_.computeMajorants(I.tf.view(), I.majorants.get(), I.blocks());
     ++counters_.majorantUpdates;
   }
   const bool depthChanged = scene.depthLimit != scene_.depthLimit || !haveScene_;
@@ -451,12 +459,12 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   INR_CUDA_CHECK(cudaMemsetAsync(I.stats.get(), 0, kStatCount * sizeof(unsigned long long), s));
 
   I.timer.begin(kUpdate, s);
-  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get());
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   I.timer.end(s);
 
   const FrameConstants fc = makeFrameConstants(I.cameraView, macrocells_.box(), scene_, settings_, I.depth.get(),
                                                std::uint32_t(frameIndex_));
-  const TrackingMedium medium{macrocells_.view(I.majorants.get()), I.tf.view()};
+  const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
   DeviceRefineView refine = macrocells_.refineView();
   refine.refinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rayView();
@@ -520,10 +528,10 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   st.method = "naive";
   st.frame = frameIndex_;
   INR_CUDA_CHECK(cudaMemsetAsync(I.stats.get(), 0, kStatCount * sizeof(unsigned long long), s));
-  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get());
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   const FrameConstants fc = makeFrameConstants(I.cameraView, macrocells_.box(), scene_, settings_, I.depth.get(),
                                                std::uint32_t(frameIndex_));
-  const TrackingMedium medium{macrocells_.view(I.majorants.get()), I.tf.view()};
+  const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
   DeviceRefineView refine = macrocells_.refineView();
   refine.refinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rayView();
@@ -573,7 +581,7 @@ FrameStats CudaDeltaTrackingRenderer::runGhostPasses(int count) {
   if (count <= 0) return total;
   const auto tStart = Clock::now();
   I.timer.reset(false);
-  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get());
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   const auto range = macrocells_.workingValueRange();
   const double lo = range[0], span = std::max(double(range[1]) - range[0], 1e-6);
   const Vec3f cs = macrocells_.cellSize();
@@ -582,6 +590,7 @@ FrameStats CudaDeltaTrackingRenderer::runGhostPasses(int count) {
   const int n = rs.count;
   const int stride = std::max(1, options_.ghostPixelStride);
   I.ghostMajorants.resize(std::size_t(macrocells_.cellCount()));
+  if (macrocells_.blockCount() > 0) I.ghostBlockMajorants.resize(std::size_t(macrocells_.blockCount()));
   DeviceRefineView refine = macrocells_.refineView();
   refine.refinements = I.stats.get() + kStatRefinements;
   INR_CUDA_CHECK(cudaMemsetAsync(I.stats.get(), 0, kStatCount * sizeof(unsigned long long), s));
@@ -592,8 +601,8 @@ FrameStats CudaDeltaTrackingRenderer::runGhostPasses(int count) {
     ghost.unitDistance = meanCell;
     const TransferFunctionTable table(ghost);
     I.ghostTf.upload(table, s);
-    macrocells_.computeMajorants(I.ghostTf.view(), I.ghostMajorants.get());
-    const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get()), I.ghostTf.view()};
+    macrocells_.computeMajorants(I.ghostTf.view(), I.ghostMajorants.get(), I.ghostBlocks());
+    const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get(), I.ghostBlocks()), I.ghostTf.view()};
     FrameConstants fc = makeFrameConstants(I.cameraView, macrocells_.box(), scene_, settings_, nullptr,
                                            0x80000000u + ghostFrame_++);
     fc.shadows = 0;
@@ -604,7 +613,7 @@ FrameStats CudaDeltaTrackingRenderer::runGhostPasses(int count) {
             total.queries);
   }
   const auto tUpdate = Clock::now();
-  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get());
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   INR_CUDA_CHECK(cudaMemcpyAsync(I.hostStats.get(), I.stats.get(), kStatCount * sizeof(unsigned long long),
                                  cudaMemcpyDeviceToHost, s));
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
@@ -625,5 +634,9 @@ ImageRGBA CudaDeltaTrackingRenderer::image() const {
 std::vector<float> CudaDeltaTrackingRenderer::residual() const { return impl_->residual.download(impl_->stream); }
 
 std::vector<float> CudaDeltaTrackingRenderer::majorants() const { return impl_->majorants.download(impl_->stream); }
+
+std::vector<float> CudaDeltaTrackingRenderer::blockMajorants() const {
+  return impl_->blockMajorants.download(impl_->stream);
+}
 
 }  // namespace inr

@@ -5,8 +5,8 @@
 // kernels here. Everything per ray or per pixel stays in device memory between stages and
 // frames: struct-of-arrays ray state, two query buffers (float4 points + ray indices) filled by
 // warp-aggregated atomic append, the accumulation buffer and residual, the transfer-function
-// table and the majorant grid (CudaMacrocellGrid: lattice sampling, working grid, majorants and
-// refinement on the GPU).
+// table and the majorant grid (CudaMacrocellGrid: lattice sampling, working grid, majorants with
+// their coarse empty-space-skipping level, and refinement on the GPU).
 //
 // Loop control: after ray initialisation a dense traverse pass runs over all rays; every later
 // traverse pass runs only over the rays that queued a query in the previous pass (read from the
@@ -76,6 +76,7 @@ public:
   ImageRGBA premultipliedImage() const;  // volume only
   std::vector<float> residual() const;
   std::vector<float> majorants() const;
+  std::vector<float> blockMajorants() const;  // the coarse skip level; empty when skipping is off
   const CudaMacrocellGrid& macrocells() const { return macrocells_; }
   double lastUpdateMs() const { return pendingUpdateMs_; }
   const CudaPipelineCounters& counters() const { return counters_; }

@@ -132,14 +132,30 @@ __global__ void majorantKernel(int cells, TransferFunctionView tf, const float* 
   if (c < cells) majorant[c] = maxExtinctionOver(tf, mn[c], mx[c]);
 }
 
-// Fixed grid, count read on the device: no read-back of the dirty list's length.
+// One thread per block of the coarse level: the block's maximum cell majorant (the same
+// INR_HD reduction as the CPU's computeBlockMajorants).
+__global__ void blockMajorantKernel(Int3 dims, int shift, Int3 blockDims, const float* majorant, float* blocks) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= blockDims.x * blockDims.y * blockDims.z) return;
+  const Int3 bc{b % blockDims.x, (b / blockDims.x) % blockDims.y, b / (blockDims.x * blockDims.y)};
+  blocks[b] = blockMaxMajorant(majorant, dims, shift, bc);
+}
+
+// Fixed grid, count read on the device: no read-back of the dirty list's length. A refined
+// cell's majorant only grows, so raising its block to it keeps the coarse level conservative.
 __global__ void dirtyMajorantKernel(TransferFunctionView tf, const float* mn, const float* mx, float* majorant,
-                                    const int* list, const unsigned* count, unsigned* mask) {
+                                    const int* list, const unsigned* count, unsigned* mask, Int3 dims, int shift,
+                                    Int3 blockDims, float* blocks) {
   const unsigned n = *count;
   for (unsigned k = blockIdx.x * blockDim.x + threadIdx.x; k < n; k += gridDim.x * blockDim.x) {
     const int c = list[k];
-    majorant[c] = maxExtinctionOver(tf, mn[c], mx[c]);
+    const float m = maxExtinctionOver(tf, mn[c], mx[c]);
+    majorant[c] = m;
     mask[c] = 0u;
+    if (blocks && m > 0.f) {
+      const Int3 cc{c % dims.x, (c / dims.x) % dims.y, c / (dims.x * dims.y)};
+      cuda::atomicMaxFloat(&blocks[blockIndexOfCell(blockDims, shift, cc)], m);
+    }
   }
 }
 
@@ -174,6 +190,8 @@ CudaMacrocellGrid::CudaMacrocellGrid(const CudaInrEvaluator& evaluator, const Bo
     throw std::invalid_argument("macrocell box must have positive extent");
   if (!(options_.boundsPadding >= 0.0)) throw std::invalid_argument("bounds padding must be >= 0");
   cellCount_ = d.x * d.y * d.z;
+  blockShift_ = skipBlockShift(options_.skipBlockCells);
+  if (blockShift_ >= 0) blockDims_ = blockGridDims(d, blockShift_);
   cellSize_ = Vec3f{(box.hi.x - box.lo.x) / d.x, (box.hi.y - box.lo.y) / d.y, (box.hi.z - box.lo.z) / d.z};
   Impl& I = *impl_;
   I.slices.resize(options_.temporalSlices);
@@ -310,28 +328,43 @@ std::array<float, 2> CudaMacrocellGrid::workingValueRange() const {
   return {r[0], r[1]};
 }
 
-void CudaMacrocellGrid::computeMajorants(const TransferFunctionView& tf, float* majorants) const {
+void CudaMacrocellGrid::computeMajorants(const TransferFunctionView& tf, float* majorants,
+                                         float* blockMajorants) const {
   const Impl& I = *impl_;
   majorantKernel<<<blocksFor(cellCount_, 256), 256, 0, stream_>>>(cellCount_, tf, I.workMin.get(), I.workMax.get(),
                                                                    majorants);
   INR_CUDA_CHECK_LAUNCH("majorantKernel");
+  if (blockMajorants && blockShift_ >= 0) {
+    blockMajorantKernel<<<blocksFor(blockCount(), 128), 128, 0, stream_>>>(options_.dims, blockShift_, blockDims_,
+                                                                           majorants, blockMajorants);
+    INR_CUDA_CHECK_LAUNCH("blockMajorantKernel");
+  }
 }
 
-void CudaMacrocellGrid::updateDirtyMajorants(const TransferFunctionView& tf, float* majorants) const {
+void CudaMacrocellGrid::updateDirtyMajorants(const TransferFunctionView& tf, float* majorants,
+                                             float* blockMajorants) const {
   const Impl& I = *impl_;
   const int blocks = std::max(1, std::min(blocksFor(cellCount_, 256), 264));
   dirtyMajorantKernel<<<blocks, 256, 0, stream_>>>(tf, I.workMin.get(), I.workMax.get(), majorants,
-                                                   I.dirtyList.get(), I.dirtyCount.get(), I.dirtyMask.get());
+                                                   I.dirtyList.get(), I.dirtyCount.get(), I.dirtyMask.get(),
+                                                   options_.dims, std::max(blockShift_, 0), blockDims_,
+                                                   blockShift_ >= 0 ? blockMajorants : nullptr);
   INR_CUDA_CHECK_LAUNCH("dirtyMajorantKernel");
   INR_CUDA_CHECK(cudaMemsetAsync(I.dirtyCount.get(), 0, sizeof(unsigned), stream_));
 }
 
-MajorantGridView CudaMacrocellGrid::view(const float* majorants) const {
+MajorantGridView CudaMacrocellGrid::view(const float* majorants, const float* blockMajorants) const {
   MajorantGridView v;
   v.box = box_;
   v.dims = options_.dims;
   v.cellSize = cellSize_;
+  v.invCellSize = Vec3f{1.f / cellSize_.x, 1.f / cellSize_.y, 1.f / cellSize_.z};
   v.majorant = majorants;
+  if (blockMajorants && blockShift_ >= 0) {
+    v.blockMajorant = blockMajorants;
+    v.blockDims = blockDims_;
+    v.blockShift = blockShift_;
+  }
   return v;
 }
 

@@ -152,6 +152,126 @@ TEST(CudaPipeline, MacrocellGridsMatchCpu) {
   }
 }
 
+// Brute-force coarse level: block value = max(0, max of the cell majorants it covers).
+std::vector<float> bruteBlocks(const Int3& d, int B, const std::vector<float>& cells) {
+  const Int3 bd{(d.x + B - 1) / B, (d.y + B - 1) / B, (d.z + B - 1) / B};
+  std::vector<float> out(std::size_t(bd.x) * bd.y * bd.z, 0.f);
+  for (int z = 0; z < d.z; ++z)
+    for (int y = 0; y < d.y; ++y)
+      for (int x = 0; x < d.x; ++x) {
+        float& b = out[std::size_t((z / B * bd.y + y / B) * bd.x + x / B)];
+        b = std::max(b, cells[std::size_t(linearCellIndex(d, Int3{x, y, z}))]);
+      }
+  return out;
+}
+
+// GPU twin of EmptySpaceSkipping.BlockLevelIsTheMaxOfItsCells / RefinementKeepsBlocksConservative:
+// the coarse skip level computed on the device is the max of its cells, and stays so through
+// ghost passes and frames (refinement raising cell majorants through updateDirtyMajorants).
+TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
+  REQUIRE_GPU();
+  const auto models = shippedModels();
+  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
+  const InrModel model = InrModel::loadFile(models.front());
+  const CudaInrEvaluator eval(model);
+  const auto range = valueRangeFor(model, eval);
+  for (int B : {2, 4, 8}) {
+    MacrocellOptions o;
+    o.dims = Int3{18, 16, 13};  // partial blocks
+    o.temporalSlices = 3;
+    o.skipBlockCells = B;
+    CudaMacrocellGrid grid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o);
+    ASSERT_EQ(grid.blockCount(), ((18 + B - 1) / B) * ((16 + B - 1) / B) * ((13 + B - 1) / B));
+    grid.setTime(model.domain.timeBegin);
+    // A TF that is transparent over the lower 70% of the range: many empty blocks.
+    TransferFunction tf = TransferFunction::preset(range[0], range[1], 0.8);
+    tf.opacity = {{range[0], 0.0}, {range[0] + 0.7 * (range[1] - range[0]), 0.0}, {range[1], 0.8}};
+    const TransferFunctionTable table(tf);
+    cuda::DeviceTransferFunction dtf;
+    dtf.upload(table, nullptr);
+    cuda::DeviceBuffer<float> maj(grid.cellCount()), blocks(grid.blockCount());
+    grid.computeMajorants(dtf.view(), maj.get(), blocks.get());
+    const std::vector<float> cells = maj.download(nullptr);
+    EXPECT_TRUE(blocks.download(nullptr) == bruteBlocks(o.dims, B, cells)) << "B = " << B;
+    const MajorantGridView v = grid.view(maj.get(), blocks.get());
+    EXPECT_EQ(v.blockMajorant, blocks.get());
+    EXPECT_EQ(1 << v.blockShift, B);
+    EXPECT_EQ(grid.view(maj.get()).blockMajorant, nullptr);
+
+    TrackingOptions topts;
+    topts.ghostPassesOnUpdate = 2;
+    CudaDeltaTrackingRenderer r(eval, grid, topts);
+    RenderSettings settings;
+    settings.width = settings.height = 48;
+    r.setSettings(settings);
+    RenderScene scene = testScene(model, range, true);
+    scene.transferFunction = tf;
+    r.setScene(scene);
+    for (int k = 0; k < 3; ++k) r.renderFrame();
+    EXPECT_GT(grid.refinementCount(), 0u);
+    const std::vector<float> rb = r.blockMajorants(), rc = r.majorants();
+    EXPECT_TRUE(rb == bruteBlocks(o.dims, B, rc)) << "B = " << B << " after refinement";
+  }
+  MacrocellOptions off;
+  off.skipBlockCells = 0;
+  off.temporalSlices = 1;
+  const CudaMacrocellGrid noSkip(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, off);
+  EXPECT_EQ(noSkip.blockCount(), 0);
+  off.skipBlockCells = 3;
+  EXPECT_THROW(CudaMacrocellGrid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, off),
+               std::invalid_argument);
+}
+
+// GPU twin of EmptySpaceSkipping.ImagesAndQueryCountsIdenticalWithSkippingOnAndOff: the same
+// frames with and without the coarse level are bit-identical (empty cells draw nothing).
+TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
+  REQUIRE_GPU();
+  const auto models = shippedModels();
+  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
+  const InrModel model = InrModel::loadFile(models.front());
+  const CudaInrEvaluator eval(model);
+  const auto range = valueRangeFor(model, eval);
+  struct Out {
+    std::vector<float> image;
+    FrameStats stats;
+  };
+  auto render = [&](int block, const RenderScene& scene) {
+    MacrocellOptions o = testMacrocells();
+    o.skipBlockCells = block;
+    CudaMacrocellGrid grid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o);
+    TrackingOptions topts;
+    topts.ghostPassesOnUpdate = 1;
+    CudaDeltaTrackingRenderer r(eval, grid, topts);
+    RenderSettings settings;
+    settings.width = 65;
+    settings.height = 63;
+    settings.seed = 3;
+    r.setSettings(settings);
+    r.setScene(scene);
+    Out out;
+    for (int k = 0; k < 4; ++k) out.stats += r.renderFrame();
+    out.image = r.image().data;
+    return out;
+  };
+  for (const ShadowEstimator est : {ShadowEstimator::Delta, ShadowEstimator::Ratio}) {
+    RenderScene scene = testScene(model, range, true);
+    scene.shadowEstimator = est;
+    scene.transferFunction.opacity = {{range[0], 0.0}, {range[0] + 0.6 * (range[1] - range[0]), 0.0}, {range[1], 0.8}};
+    const Out off = render(0, scene), again = render(0, scene);
+    if (off.image != again.image || off.stats.totalQueries() != again.stats.totalQueries())
+      GTEST_SKIP() << "the GPU pipeline is not bit-reproducible run to run on this device: nothing to compare";
+    for (int block : {4, 8}) {
+      const Out on = render(block, scene);
+      EXPECT_TRUE(on.image == off.image) << "blocks of " << block;
+      EXPECT_EQ(on.stats.queries, off.stats.queries) << "blocks of " << block;
+      EXPECT_EQ(on.stats.shadowQueries, off.stats.shadowQueries) << "blocks of " << block;
+      EXPECT_EQ(on.stats.iterations, off.stats.iterations) << "blocks of " << block;
+      EXPECT_EQ(on.stats.shadowIterations, off.stats.shadowIterations) << "blocks of " << block;
+      EXPECT_EQ(on.stats.refinements, off.stats.refinements) << "blocks of " << block;
+    }
+  }
+}
+
 TEST(CudaPipeline, ConvergedGpuImageMatchesCpuImage) {
   REQUIRE_GPU();
   const auto models = shippedModels();
