@@ -55,6 +55,8 @@ const char* kRenderUsage =
     "  --time-slices T          temporal macrocell slices over the time range (default 16)\n"
     "  --eager-slices           build every temporal slice at start-up (default: only those needed)\n"
     "  --bounds-padding F       widen macrocell bounds by F x value range (default 0)\n"
+    "  --skip-block B           empty-space skipping: rays jump over empty blocks of B^3 macrocells\n"
+    "                           (power of two, default 4; 0 = off); the image does not change\n"
     "  --ghost-passes G         ghost passes after building the working grid (default 0)\n"
     "  --no-refine              do not refine under-estimated macrocells from samples\n"
     "  --step S                 ray-march step in world units (default: box diagonal / 512)\n"
@@ -103,8 +105,8 @@ int runRender(int argc, char** argv) {
   Args args(argc, argv,
             {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
-             "stats-json", "macrocells", "time-slices", "bounds-padding", "ghost-passes", "step",
-             "shadow-step", "threads", "backend", "output"},
+             "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
+             "step", "shadow-step", "threads", "backend", "output"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet"});
   if (args.has("help")) {
     std::fputs(kRenderUsage, stdout);
@@ -166,6 +168,11 @@ int runRender(int argc, char** argv) {
   mopts.lazySlices = !args.has("eager-slices");
   mopts.boundsPadding = args.getDouble("bounds-padding", 0.0);
   if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
+  const long skipBlock = args.getInt("skip-block", mopts.skipBlockCells);
+  if (skipBlock < 0 || skipBlock > 1024 || (skipBlock & (skipBlock - 1)) != 0) {
+    throw UsageError("--skip-block must be 0 (off) or a power of two up to 1024");
+  }
+  mopts.skipBlockCells = int(skipBlock);
   const long ghost = args.getInt("ghost-passes", 0);
   if (ghost < 0 || ghost > 1000) throw UsageError("--ghost-passes must be in [0, 1000]");
 
@@ -312,7 +319,8 @@ int runRender(int argc, char** argv) {
                             {"build_seconds", mi.buildSeconds},
                             {"lattice_queries", mi.latticeQueries},
                             {"setup_ms", setupMs},
-                            {"lazy", mopts.lazySlices}};
+                            {"lazy", mopts.lazySlices},
+                            {"skip_block", mopts.skipBlockCells}};
     if (ghost > 0) {
       const FrameStats g = renderer.runGhostPasses(int(ghost));
       if (!quiet) {
