@@ -179,50 +179,43 @@ INR_HD bool ddaSkipEmptyBlocks(const MajorantGridView& g, Vec3f origin, Vec3f di
     if (b < 0 || b >= component(g.blockDims, axis)) return false;
     setComponent(blk, axis, b);
     if (g.blockMajorant[linearCellIndex(g.blockDims, blk)] > 0.f) break;
-    setComponent(bNext, axis, faceCrossing(g, origin, dir, blockLastCell(b, shift, component(g.dims, axis), d), axis));
+    const int l = blockLastCell(b, shift, component(g.dims, axis), d);
+    setComponent(bNext, axis, faceCrossing(g, origin, dir, l, axis));
   }
 
-  Int3 next;
-  Vec3f tn;
+  // Settle each other axis in place (each reads only its own components of the old state).
   for (int b = 0; b < 3; ++b) {
-    const int c = component(cell, b);
     const float d = component(dir, b);
-    if (b == axis || d == 0.f) {  // (the entry axis is set below; d == 0: no crossings)
-      setComponent(next, b, c);
-      setComponent(tn, b, component(tNext, b));
-      continue;
-    }
+    if (b == axis || d == 0.f) continue;  // (the entry axis is set below; d == 0: no crossings)
     // The cell along b is the first one, from f (the first cell of b's current block, or the
-    // start cell) to l (the block's last; its crossing is bNext, not before the entry), whose
-    // crossing is not before the entry (tEntry, axis).
+    // start cell) to l (the block's last; its crossing is not before the entry), whose crossing
+    // is not before the entry (tEntry, axis).
+    const int c = component(cell, b);
     const int s = d > 0.f ? 1 : -1, n = component(g.dims, b), bb = component(blk, b);
     const int f = bb == (c >> shift) ? c : blockFirstCell(bb, shift, n, d);
+    if (f == c && !crossesBefore(component(tNext, b), b, tEntry, axis)) continue;  // no crossing
     const int l = blockLastCell(bb, shift, n, d);
-    int k = f;
-    float tk = component(tNext, b);  // valid while k == c
-    if (f != c || crossesBefore(tk, b, tEntry, axis)) {
-      const float x = (component(origin, b) + d * tEntry - component(g.box.lo, b)) * component(g.invCellSize, b);
-      const float lo = float(s > 0 ? f : l), hi = float(s > 0 ? l : f);
-      k = int(floorf(x > lo ? (x < hi ? x : hi) : lo));  // estimate (NaN: lo)
-      while (k != f && !crossesBefore(faceCrossing(g, origin, dir, k - s, b), b, tEntry, axis)) k -= s;
-      tk = k == c ? component(tNext, b) : faceCrossing(g, origin, dir, k, b);
-      while (k != l && crossesBefore(tk, b, tEntry, axis)) {
-        k += s;
-        tk = faceCrossing(g, origin, dir, k, b);
-      }
+    const float x =
+        (component(origin, b) + d * tEntry - component(g.box.lo, b)) * component(g.invCellSize, b);
+    const float lo = float(s > 0 ? f : l), hi = float(s > 0 ? l : f);
+    int k = int(floorf(x > lo ? (x < hi ? x : hi) : lo));  // estimate (NaN: lo)
+    while (k != f && !crossesBefore(faceCrossing(g, origin, dir, k - s, b), b, tEntry, axis)) k -= s;
+    float tk = k == c ? component(tNext, b) : faceCrossing(g, origin, dir, k, b);
+    while (k != l && crossesBefore(tk, b, tEntry, axis)) {
+      k += s;
+      tk = faceCrossing(g, origin, dir, k, b);
     }
-    setComponent(next, b, k);
-    setComponent(tn, b, tk);
+    setComponent(cell, b, k);
+    setComponent(tNext, b, tk);
   }
-  const int entryCell = blockFirstCell(component(blk, axis), shift, component(g.dims, axis), component(dir, axis));
-  setComponent(next, axis, entryCell);
+  const int entryCell =
+      blockFirstCell(component(blk, axis), shift, component(g.dims, axis), component(dir, axis));
+  setComponent(cell, axis, entryCell);
   // t as traverseRay computes it at the exit of the cell before (ddaCellExit's choice among
   // equal values matters for the sign of a zero).
-  setComponent(tn, axis, tEntry);
-  t = minf(ddaCellExit(tn), tEnd);
-  setComponent(tn, axis, faceCrossing(g, origin, dir, entryCell, axis));
-  cell = next;
-  tNext = tn;
+  setComponent(tNext, axis, tEntry);
+  t = minf(ddaCellExit(tNext), tEnd);
+  setComponent(tNext, axis, faceCrossing(g, origin, dir, entryCell, axis));
   return true;
 }
 
