@@ -65,7 +65,15 @@ __global__ void spawnShadowKernel(FrameConstants fc, MajorantGridView grid, RayS
 // storeQueryResult) and fed to macrocell refinement, then the ray resumes tracking. A ray that
 // emits a new candidate appends its query point and index to the output buffers.
 // `listCount` (device), when given, is the number of listed rays; n is then its upper bound.
-__global__ void traverseKernel(FrameConstants fc, TrackingMedium medium, RayStateView rs, const int* list,
+// Occupancy: with the empty-space skip inlined (Render/MajorantGrid.h) ptxas would take 67
+// registers on sm_90 (3 blocks of 256 per SM; 44 and 5 blocks without the skip). Bounded to 5
+// blocks it fits 48 registers without spills (ptxas -v, sm_86 and sm_90); sm_75 holds 4 blocks.
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
+#define INR_TRAVERSE_MIN_BLOCKS 4
+#else
+#define INR_TRAVERSE_MIN_BLOCKS 5
+#endif
+__global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) traverseKernel(FrameConstants fc, TrackingMedium medium, RayStateView rs, const int* list,
                                const unsigned* listCount, int n, int resolvePrevious, int refine,
                                DeviceRefineView refineView, float4* outPoints, int* outRays, unsigned* outCount) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
