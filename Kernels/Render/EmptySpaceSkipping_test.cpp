@@ -31,19 +31,6 @@ TransferFunction denseTf() { return TransferFunction::preset(0.25, 0.875, 0.5); 
 
 // ---------------------------------------------------------------- the coarse level
 
-// Brute-force block maxima: block value = max(0, max of the cells it covers).
-std::vector<float> bruteBlocks(const Int3& d, int B, const std::vector<float>& cells) {
-  const Int3 bd{(d.x + B - 1) / B, (d.y + B - 1) / B, (d.z + B - 1) / B};
-  std::vector<float> out(std::size_t(bd.x) * bd.y * bd.z, 0.f);
-  for (int z = 0; z < d.z; ++z)
-    for (int y = 0; y < d.y; ++y)
-      for (int x = 0; x < d.x; ++x) {
-        float& b = out[std::size_t((z / B * bd.y + y / B) * bd.x + x / B)];
-        b = std::max(b, cells[std::size_t(linearCellIndex(d, Int3{x, y, z}))]);
-      }
-  return out;
-}
-
 TEST(EmptySpaceSkipping, OptionValidation) {
   EXPECT_EQ(skipBlockShift(0), -1);
   EXPECT_EQ(skipBlockShift(1), 0);
@@ -84,7 +71,7 @@ TEST(EmptySpaceSkipping, BlockLevelIsTheMaxOfItsCells) {
     EXPECT_EQ(grid.blockDims().x, (18 + B - 1) / B);
     EXPECT_EQ(v.blockMajorant, maj.block.data());
     EXPECT_EQ(1 << v.blockShift, B);
-    EXPECT_TRUE(maj.block == bruteBlocks(o.dims, B, maj.cell)) << "B = " << B;
+    EXPECT_TRUE(maj.block == test::bruteBlocks(o.dims, B, maj.cell)) << "B = " << B;
     // The sparse field leaves most blocks of 4 empty (the point of the level), not all.
     const auto empty = std::count(maj.block.begin(), maj.block.end(), 0.f);
     if (B == 4) {
@@ -130,7 +117,7 @@ TEST(EmptySpaceSkipping, RefinementKeepsBlocksConservative) {
     EXPECT_GT(maj.cell[cell], 0.f);
     EXPECT_GE(maj.block[b], maj.cell[cell]);
     EXPECT_GE(maj.block[b], before);
-    EXPECT_TRUE(maj.block == bruteBlocks(o.dims, 2, maj.cell));
+    EXPECT_TRUE(maj.block == test::bruteBlocks(o.dims, 2, maj.cell));
   }
   // A TF change recomputes everything, blocks included (and may empty them again).
   const TransferFunctionTable none(TransferFunction::transparent(0.0, 1.0));
@@ -393,7 +380,7 @@ Result render(const Scene& s, Int3 dims, int block, bool naive) {
   if (block > 0) {
     EXPECT_EQ(int(r.blockMajorants().size()), grid.blockCount());
     // The level the last frame used is the max of the (refined) cells it covers.
-    EXPECT_TRUE(r.blockMajorants() == bruteBlocks(dims, block, r.majorants())) << s.name;
+    EXPECT_TRUE(r.blockMajorants() == test::bruteBlocks(dims, block, r.majorants())) << s.name;
     out.emptyBlocks = long(std::count(r.blockMajorants().begin(), r.blockMajorants().end(), 0.f));
   }
   return out;

@@ -6,8 +6,10 @@
 #include <functional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
+#include "Render/MajorantGrid.h"
 
 namespace inr::test {
 
@@ -54,6 +56,20 @@ inline float sparseField(const QueryPoint& p) {
     if (q > 0.f) v = std::max(v, q * q);
   }
   return v;
+}
+
+// Brute-force coarse skip level (the CPU and GPU skipping tests' reference): block value =
+// max(0, max of the cell majorants it covers), blocks of B^3 cells over a grid of dims d.
+inline std::vector<float> bruteBlocks(const Int3& d, int B, const std::vector<float>& cells) {
+  const Int3 bd{(d.x + B - 1) / B, (d.y + B - 1) / B, (d.z + B - 1) / B};
+  std::vector<float> out(std::size_t(bd.x) * bd.y * bd.z, 0.f);
+  for (int z = 0; z < d.z; ++z)
+    for (int y = 0; y < d.y; ++y)
+      for (int x = 0; x < d.x; ++x) {
+        float& b = out[std::size_t((z / B * bd.y + y / B) * bd.x + x / B)];
+        b = std::max(b, cells[std::size_t(linearCellIndex(d, Int3{x, y, z}))]);
+      }
+  return out;
 }
 
 }  // namespace inr::test

@@ -11,6 +11,7 @@
 
 #include "Cuda/CudaDevice.h"
 #include "Cuda/CudaInrEvaluator.h"
+#include "Render/TestFields.h"
 #include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
@@ -152,19 +153,6 @@ TEST(CudaPipeline, MacrocellGridsMatchCpu) {
   }
 }
 
-// Brute-force coarse level: block value = max(0, max of the cell majorants it covers).
-std::vector<float> bruteBlocks(const Int3& d, int B, const std::vector<float>& cells) {
-  const Int3 bd{(d.x + B - 1) / B, (d.y + B - 1) / B, (d.z + B - 1) / B};
-  std::vector<float> out(std::size_t(bd.x) * bd.y * bd.z, 0.f);
-  for (int z = 0; z < d.z; ++z)
-    for (int y = 0; y < d.y; ++y)
-      for (int x = 0; x < d.x; ++x) {
-        float& b = out[std::size_t((z / B * bd.y + y / B) * bd.x + x / B)];
-        b = std::max(b, cells[std::size_t(linearCellIndex(d, Int3{x, y, z}))]);
-      }
-  return out;
-}
-
 // GPU twin of EmptySpaceSkipping.BlockLevelIsTheMaxOfItsCells / RefinementKeepsBlocksConservative:
 // the coarse skip level computed on the device is the max of its cells, and stays so through
 // ghost passes and frames (refinement raising cell majorants through updateDirtyMajorants).
@@ -192,7 +180,7 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     cuda::DeviceBuffer<float> maj(grid.cellCount()), blocks(grid.blockCount());
     grid.computeMajorants(dtf.view(), maj.get(), blocks.get());
     const std::vector<float> cells = maj.download(nullptr);
-    EXPECT_TRUE(blocks.download(nullptr) == bruteBlocks(o.dims, B, cells)) << "B = " << B;
+    EXPECT_TRUE(blocks.download(nullptr) == test::bruteBlocks(o.dims, B, cells)) << "B = " << B;
     const MajorantGridView v = grid.view(maj.get(), blocks.get());
     EXPECT_EQ(v.blockMajorant, blocks.get());
     EXPECT_EQ(1 << v.blockShift, B);
@@ -213,7 +201,7 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     // its cells either way.
     std::printf("B = %d: %zu refinements\n", B, grid.refinementCount());
     const std::vector<float> rb = r.blockMajorants(), rc = r.majorants();
-    EXPECT_TRUE(rb == bruteBlocks(o.dims, B, rc)) << "B = " << B << " after refinement";
+    EXPECT_TRUE(rb == test::bruteBlocks(o.dims, B, rc)) << "B = " << B << " after refinement";
   }
   MacrocellOptions off;
   off.skipBlockCells = 0;
