@@ -7,10 +7,10 @@
 
 #include "Render/CpuParallel.h"
 #include "Render/Evaluate.h"
+#include "Render/Finalize.h"
 #include "Render/RayInit.h"
 #include "Render/Shadows.h"
 #include "Render/Traverse.h"
-#include "Render/AccumulationImage.h"
 
 namespace inr {
 
@@ -21,34 +21,11 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-bool sameCamera(const Camera& a, const Camera& b) {
-  return a.position == b.position && a.focalPoint == b.focalPoint && a.viewUp == b.viewUp &&
-         a.viewAngle == b.viewAngle && a.parallelProjection == b.parallelProjection &&
-         a.parallelScale == b.parallelScale;
-}
-
-bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) {
-  if (a.unitDistance != b.unitDistance || a.colorSpace != b.colorSpace ||
-      a.color.size() != b.color.size() || a.opacity.size() != b.opacity.size()) {
-    return false;
-  }
-  for (std::size_t i = 0; i < a.color.size(); ++i) {
-    const auto &p = a.color[i], &q = b.color[i];
-    if (p.x != q.x || p.r != q.r || p.g != q.g || p.b != q.b) return false;
-  }
-  for (std::size_t i = 0; i < a.opacity.size(); ++i) {
-    const auto &p = a.opacity[i], &q = b.opacity[i];
-    if (p.x != q.x || p.alpha != q.alpha || p.midpoint != q.midpoint || p.sharpness != q.sharpness) {
-      return false;
-    }
-  }
-  return true;
-}
-
 }  // namespace
 
 FrameStats& FrameStats::operator+=(const FrameStats& o) {
   frame = o.frame;
+  residualSum = o.residualSum;
   pixels += o.pixels;
   rays += o.rays;
   queries += o.queries;
@@ -70,106 +47,20 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
 
 DeltaTrackingRenderer::DeltaTrackingRenderer(const FieldEvaluator& evaluator,
                                              MacrocellGrid& macrocells, TrackingOptions options)
-    : evaluator_(evaluator), macrocells_(macrocells), options_(options) {
-  resize();
+    : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells) {
+  allocatePixels();
 }
 
-void DeltaTrackingRenderer::setSettings(const RenderSettings& settings) {
-  if (settings.width <= 0 || settings.height <= 0) {
-    throw std::invalid_argument("image size must be positive");
-  }
-  const bool sizeChanged = settings.width != settings_.width || settings.height != settings_.height;
-  settings_ = settings;
-  if (sizeChanged) resize();
-  if (haveScene_) cameraView_ = scene_.camera.view(settings_.width, settings_.height);
-  resetAccumulation();
+void DeltaTrackingRenderer::resizePixels(std::size_t n) {
+  rays_.resize(n);
+  pixels_.resize(n);
 }
 
-void DeltaTrackingRenderer::resize() {
-  const std::size_t n = std::size_t(settings_.width) * settings_.height;
-  origin_.assign(n, Vec3f{0, 0, 0});
-  direction_.assign(n, Vec3f{0, 0, 1});
-  tNext_.assign(n, Vec3f{0, 0, 0});
-  t_.assign(n, 0.f);
-  tEnd_.assign(n, 0.f);
-  sample_.assign(n, NAN);
-  collisionProduct_.assign(n, 0.f);
-  visibility_.assign(n, 1.f);
-  rngCounter_.assign(n, 0u);
-  flags_.assign(n, 0);
-  cell_.assign(n, Int3{0, 0, 0});
-  radiance_.assign(n, Vec4f{0, 0, 0, 0});
-  accum_.assign(n, Vec4f{0, 0, 0, 0});
-  sampleCount_.assign(n, 0u);
-  residual_.assign(n, 1.f);
-}
-
-void DeltaTrackingRenderer::resetAccumulation() {
-  std::fill(accum_.begin(), accum_.end(), Vec4f{0, 0, 0, 0});
-  std::fill(sampleCount_.begin(), sampleCount_.end(), 0u);
-  std::fill(residual_.begin(), residual_.end(), 1.f);
-  frameIndex_ = 0;
-}
-
-void DeltaTrackingRenderer::setScene(const RenderScene& scene) {
-  const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
-  if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels) {
-    throw std::invalid_argument("depth limit must have one value per pixel (" +
-                                std::to_string(pixels) + "), got " +
-                                std::to_string(scene.depthLimit.size()));
-  }
-  const Vec3f light = toVec3(scene.toLight);
-  if (scene.shadows && !(length(light) > 0.f)) {
-    throw std::invalid_argument("light direction must be non-zero");
-  }
-  const CameraView view = scene.camera.view(settings_.width, settings_.height);  // validates
-  const bool timeChanged = !haveScene_ || scene.time != scene_.time ||
-                           macrocells_.time() != scene.time;
-  const bool tfChanged = !haveScene_ || !sameTransferFunction(scene.transferFunction, scene_.transferFunction);
-  const auto t0 = Clock::now();
-  if (tfChanged) tfTable_ = std::make_unique<TransferFunctionTable>(scene.transferFunction);
-  if (timeChanged) macrocells_.setTime(scene.time);
-  if (timeChanged || tfChanged) macrocells_.computeMajorants(tfTable_->view(), majorants_);
-  pendingUpdateMs_ += msSince(t0);
-  const bool viewChanged = !haveScene_ || !sameCamera(scene.camera, scene_.camera) ||
-                           scene.background != scene_.background ||
-                           scene.depthLimit != scene_.depthLimit || scene.shadows != scene_.shadows ||
-                           scene.toLight != scene_.toLight || scene.ambient != scene_.ambient ||
-                           scene.shadowEstimator != scene_.shadowEstimator;
-  scene_ = scene;
-  cameraView_ = view;
-  haveScene_ = true;
-  // An identical scene (a host re-sending its state every render) keeps accumulating.
-  if (timeChanged || tfChanged || viewChanged) resetAccumulation();
-  if ((timeChanged || tfChanged) && options_.ghostPassesOnUpdate > 0) {
-    runGhostPasses(options_.ghostPassesOnUpdate);
-  }
-}
-
-RayStateView DeltaTrackingRenderer::rayView() {
-  RayStateView v;
-  v.count = int(flags_.size());
-  v.origin = origin_.data();
-  v.direction = direction_.data();
-  v.t = t_.data();
-  v.tEnd = tEnd_.data();
-  v.rngCounter = rngCounter_.data();
-  v.flags = flags_.data();
-  v.sample = sample_.data();
-  v.collisionProduct = collisionProduct_.data();
-  v.cell = cell_.data();
-  v.tNext = tNext_.data();
-  v.radiance = radiance_.data();
-  v.visibility = visibility_.data();
-  return v;
-}
-
-AccumulationView DeltaTrackingRenderer::accumulationView() {
-  return AccumulationView{accum_.data(), sampleCount_.data(), residual_.data()};
-}
-
-FrameConstants DeltaTrackingRenderer::frameConstants(std::uint32_t frame) const {
-  return makeFrameConstants(cameraView_, macrocells_.box(), scene_, settings_, scene_.depthLimit.data(), frame);
+void DeltaTrackingRenderer::clearAccumulation() {
+  const AccumulationView acc = pixels_.view();
+  const int n = acc.count;
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (int i = 0; i < n; ++i) resetPixel(acc, i);
 }
 
 double DeltaTrackingRenderer::applyDirtyMajorants() {
@@ -183,7 +74,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
                                             int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
                                             std::size_t& refinements) {
-  const RayStateView rs = rayView();
+  const RayStateView rs = rays_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
   for (;;) {
@@ -216,19 +107,14 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
 }
 
 FrameStats DeltaTrackingRenderer::renderFrame() {
-  if (!haveScene_) throw std::logic_error("renderFrame: setScene first");
+  FrameStats st = beginFrame("delta", "renderFrame");
   const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "delta";
-  st.frame = frameIndex_;
-  st.updateMs = pendingUpdateMs_ + applyDirtyMajorants();
-  pendingUpdateMs_ = 0.0;
+  st.updateMs += applyDirtyMajorants();
 
-  const FrameConstants fc = frameConstants(std::uint32_t(frameIndex_));
+  const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view()};
-  const RayStateView rs = rayView();
+  const RayStateView rs = rays_.view();
   const int n = rs.count;
-  st.pixels = std::size_t(n);
 
   auto t0 = Clock::now();
   std::size_t active = 0;
@@ -257,31 +143,28 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   }
 
   t0 = Clock::now();
-  const AccumulationView acc = accumulationView();
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (int i = 0; i < n; ++i) finalizePixel(fc, rs, acc, i);
+  const AccumulationView acc = pixels_.view();
+  double residualSum = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : residualSum) if (n >= kParallelMinItems)
+  for (int i = 0; i < n; ++i) residualSum += finalizePixel(fc, rs, acc, i);
+  st.residualSum = residualSum;
   st.finalizeMs = msSince(t0);
-  ++frameIndex_;
+  endFrame();
   st.totalMs = msSince(tFrame);
   return st;
 }
 
 FrameStats DeltaTrackingRenderer::renderFrameNaive() {
-  if (!haveScene_) throw std::logic_error("renderFrameNaive: setScene first");
+  FrameStats st = beginFrame("naive", "renderFrameNaive");
   const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "naive";
-  st.frame = frameIndex_;
-  st.updateMs = pendingUpdateMs_ + applyDirtyMajorants();
-  pendingUpdateMs_ = 0.0;
+  st.updateMs += applyDirtyMajorants();
 
-  const FrameConstants fc = frameConstants(std::uint32_t(frameIndex_));
+  const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view()};
-  const RayStateView rs = rayView();
-  const AccumulationView acc = accumulationView();
+  const RayStateView rs = rays_.view();
+  const AccumulationView acc = pixels_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
-  st.pixels = std::size_t(n);
   // One ray at a time, the network evaluated inside the tracking loop: what a delta tracker
   // written for voxel data does when its texture fetch becomes a network inference.
   auto track = [&](int i, std::size_t& queries) {
@@ -298,78 +181,36 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   };
   for (int i = 0; i < n; ++i) {
     initPrimaryRay(fc, medium.grid, rs, i);
-    if (!(rs.flags[i] & kRayActive)) {
-      finalizePixel(fc, rs, acc, i);
-      continue;
-    }
-    ++st.rays;
-    track(i, st.queries);
-    if (fc.shadows) {
-      spawnShadowRay(fc, medium.grid, rs, i);
-      if (rs.flags[i] & kRayActive) {
-        ++st.shadowRays;
-        track(i, st.shadowQueries);
+    if (rs.flags[i] & kRayActive) {
+      ++st.rays;
+      track(i, st.queries);
+      if (fc.shadows) {
+        spawnShadowRay(fc, medium.grid, rs, i);
+        if (rs.flags[i] & kRayActive) {
+          ++st.shadowRays;
+          track(i, st.shadowQueries);
+        }
       }
     }
-    finalizePixel(fc, rs, acc, i);
+    st.residualSum += finalizePixel(fc, rs, acc, i);
   }
-  ++frameIndex_;
+  endFrame();
   st.totalMs = msSince(tFrame);
   st.traverseMs = st.totalMs;  // traversal and evaluation are interleaved; not separable
   return st;
 }
 
-FrameStats DeltaTrackingRenderer::runGhostPasses(int count) {
-  if (!haveScene_) throw std::logic_error("runGhostPasses: setScene first");
-  FrameStats total;
-  total.method = "ghost";
-  if (count <= 0) return total;
-  const auto tStart = Clock::now();
-  applyDirtyMajorants();
-  const auto range = macrocells_.workingValueRange();
-  const double lo = range[0], span = std::max(double(range[1]) - range[0], 1e-6);
-  const Vec3f cs = macrocells_.cellSize();
-  const double meanCell = (double(cs.x) + cs.y + cs.z) / 3.0;
-  const RayStateView rs = rayView();
-  const int n = rs.count;
-  const int stride = std::max(1, options_.ghostPixelStride);
+void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,
+                                           int stride, FrameStats& total) {
   MajorantArrays ghostMajorants;
-  for (int g = 0; g < count; ++g) {
-    // Bumps of half-width span/count centred on a sweep over the range: neighbours overlap, so
-    // every scalar value gets a non-zero ghost extinction in some pass. Peak opacity 0.5 per
-    // cell size: about one tentative collision per cell, so rays sample the cells they cross.
-    const double centre = lo + (g + 0.5) / count * span;
-    TransferFunction ghost = TransferFunction::cosineBump(lo, lo + span, centre, span / count, 0.5);
-    ghost.unitDistance = meanCell;
-    const TransferFunctionTable table(ghost);
-    macrocells_.computeMajorants(table.view(), ghostMajorants);
-    const TrackingMedium medium{macrocells_.view(ghostMajorants), table.view()};
-    FrameConstants fc = frameConstants(0x80000000u + ghostFrame_++);
-    fc.shadows = 0;
-    fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
+  macrocells_.computeMajorants(table.view(), ghostMajorants);
+  const TrackingMedium medium{macrocells_.view(ghostMajorants), table.view()};
+  const RayStateView rs = rays_.view();
+  const int n = rs.count;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (int i = 0; i < n; ++i) {
-      const int px = i % settings_.width, py = i / settings_.width;
-      if (px % stride == 0 && py % stride == 0) {
-        initPrimaryRay(fc, medium.grid, rs, i);
-      } else {
-        rs.flags[i] = 0;
-      }
-    }
-    runTrackingLoop(fc, medium, total.iterations, total.queries, total.traverseMs,
-                    total.evaluateMs, total.refinements);
-  }
-  total.updateMs = applyDirtyMajorants();
-  total.totalMs = msSince(tStart);
-  return total;
-}
-
-ImageRGBA DeltaTrackingRenderer::premultipliedImage() const {
-  return accumulationImage(accum_, settings_.width, settings_.height, nullptr);
-}
-
-ImageRGBA DeltaTrackingRenderer::image() const {
-  return accumulationImage(accum_, settings_.width, settings_.height, &scene_.background);
+  for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
+  runTrackingLoop(fc, medium, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
+                  total.refinements);
 }
 
 }  // namespace inr

@@ -378,10 +378,11 @@ Result render(const Scene& s, Int3 dims, int block, bool naive) {
   out.majorants = r.majorants();
   out.refinements = grid.refinementCount();
   if (block > 0) {
-    EXPECT_EQ(int(r.blockMajorants().size()), grid.blockCount());
+    const std::vector<float> blocks = r.blockMajorants();
+    EXPECT_EQ(int(blocks.size()), grid.blockCount());
     // The level the last frame used is the max of the (refined) cells it covers.
-    EXPECT_TRUE(r.blockMajorants() == test::bruteBlocks(dims, block, r.majorants())) << s.name;
-    out.emptyBlocks = long(std::count(r.blockMajorants().begin(), r.blockMajorants().end(), 0.f));
+    EXPECT_TRUE(blocks == test::bruteBlocks(dims, block, r.majorants())) << s.name;
+    out.emptyBlocks = long(std::count(blocks.begin(), blocks.end(), 0.f));
   }
   return out;
 }

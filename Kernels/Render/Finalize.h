@@ -9,11 +9,12 @@
 
 namespace inr {
 
-struct AccumulationView {
-  Vec4f* accum = nullptr;               // running mean of premultiplied RGBA (alpha = coverage)
-  std::uint32_t* sampleCount = nullptr;  // frames accumulated per pixel
-  float* residual = nullptr;            // r_i of the last frame that rendered the pixel
-};
+// A pixel's accumulation after a reset: nothing accumulated, residual 1 ("maximally unstable").
+INR_HD void resetPixel(const AccumulationView& acc, int i) {
+  acc.accum[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
+  acc.sampleCount[i] = 0u;
+  acc.residual[i] = 1.f;
+}
 
 // This frame's estimate for pixel i: premultiplied emission of the real collision, shaded by the
 // light's visibility when shadows are on; (0,0,0,0) when the ray escaped.
@@ -32,8 +33,9 @@ INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
   return Vec3f{c.x + (1.f - c.w) * bg.x, c.y + (1.f - c.w) * bg.y, c.z + (1.f - c.w) * bg.z};
 }
 
-INR_HD void finalizePixel(const FrameConstants& fc, const RayStateView& rs,
-                          const AccumulationView& acc, int i) {
+// Returns the pixel's new residual (the backends sum it for the convergence estimate).
+INR_HD float finalizePixel(const FrameConstants& fc, const RayStateView& rs,
+                           const AccumulationView& acc, int i) {
   const Vec4f c = frameEstimate(fc, rs, i);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
@@ -49,6 +51,7 @@ INR_HD void finalizePixel(const FrameConstants& fc, const RayStateView& rs,
                          prev.z + (c.z - prev.z) * w, prev.w + (c.w - prev.w) * w};
   }
   acc.sampleCount[i] = n + 1;
+  return acc.residual[i];
 }
 
 }  // namespace inr

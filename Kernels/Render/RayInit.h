@@ -45,4 +45,16 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.flags[i] = kRayActive;
 }
 
+// Ghost passes (SceneChange.h) trace every stride-th pixel in x and y; the other rays stay
+// inactive.
+INR_HD void initGhostRay(const FrameConstants& fc, const MajorantGridView& grid, const RayStateView& rs,
+                         int i, int stride) {
+  const int px = i % fc.camera.width, py = i / fc.camera.width;
+  if (px % stride == 0 && py % stride == 0) {
+    initPrimaryRay(fc, grid, rs, i);
+  } else {
+    rs.flags[i] = 0;
+  }
+}
+
 }  // namespace inr

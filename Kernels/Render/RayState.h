@@ -29,27 +29,58 @@ enum class ShadowEstimator : int {
   Ratio = 1,  // transmittance product over all tentative collisions (less noise, more queries)
 };
 
+// The persistent per-ray fields, declared once: X(type, name) per field. Everything else is
+// generated from this list — the view the stages read (RayStateView), the host and device
+// storage (RayStateArrays in Render/RayStateArrays.h) and its resize — so adding a field is one
+// line here (plus the stage code that uses it).
+//   origin, direction  ray origin and unit direction: ray parameters are world distances
+//   t                  current position (candidate collision while pending)
+//   tEnd               end of the segment: box exit, depth limit or light exit
+//   rngCounter         draw index of the ray's counter-based stream
+//   sample             scalar returned by the evaluator for the pending query; NaN while pending
+//   collisionProduct   delta tracking: xi * majorant, drawn when the candidate is emitted, so the
+//                      acceptance test after evaluation is `collisionProduct < sigma(sample)` and
+//                      neither xi nor the majorant has to be stored; ratio-tracked shadow rays
+//                      store the majorant itself
+//   cell, tNext        DDA: current majorant cell, ray parameter of the next crossing per axis
+//   radiance           frame result: premultiplied colour of the primary collision (rgb) and
+//                      coverage (w = 1 on a real collision, 0 when the ray escaped)
+//   visibility         visibility towards the light
+#define INR_RAY_STATE_FIELDS(X) \
+  X(Vec3f, origin)              \
+  X(Vec3f, direction)           \
+  X(float, t)                   \
+  X(float, tEnd)                \
+  X(std::uint32_t, rngCounter)  \
+  X(std::uint8_t, flags)        \
+  X(float, sample)              \
+  X(float, collisionProduct)    \
+  X(Int3, cell)                 \
+  X(Vec3f, tNext)               \
+  X(Vec4f, radiance)            \
+  X(float, visibility)
+
+// The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
+// declared the same way; resetPixel (Finalize.h) gives their values after a reset.
+//   accum        running mean of premultiplied RGBA (alpha = coverage)
+//   sampleCount  frames accumulated into the pixel
+//   residual     r_i of the last frame that rendered the pixel
+#define INR_PIXEL_STATE_FIELDS(X) \
+  X(Vec4f, accum)                 \
+  X(std::uint32_t, sampleCount)   \
+  X(float, residual)
+
+#define INR_DECLARE_VIEW_FIELD(type, name) type* name = nullptr;
 struct RayStateView {
   int count = 0;
-  Vec3f* origin = nullptr;
-  Vec3f* direction = nullptr;  // unit length: ray parameters are world distances
-  float* t = nullptr;          // current position (candidate collision while pending)
-  float* tEnd = nullptr;       // end of the segment: box exit, depth limit or light exit
-  std::uint32_t* rngCounter = nullptr;  // draw index of the ray's counter-based stream
-  std::uint8_t* flags = nullptr;
-  // Scalar returned by the evaluator for the pending query; NaN while the query is pending.
-  float* sample = nullptr;
-  // Delta tracking: xi * majorant, drawn when the candidate is emitted, so the acceptance test
-  // after evaluation is `collisionProduct < sigma(sample)` and neither xi nor the majorant has
-  // to be stored. Ratio-tracked shadow rays store the majorant itself.
-  float* collisionProduct = nullptr;
-  Int3* cell = nullptr;    // DDA: current majorant cell
-  Vec3f* tNext = nullptr;  // DDA: ray parameter of the next crossing per axis
-  // Frame result: premultiplied colour of the primary collision (rgb) and coverage (w = 1 on a
-  // real collision, 0 when the ray escaped), and visibility towards the light.
-  Vec4f* radiance = nullptr;
-  float* visibility = nullptr;
+  INR_RAY_STATE_FIELDS(INR_DECLARE_VIEW_FIELD)
 };
+
+struct AccumulationView {
+  int count = 0;
+  INR_PIXEL_STATE_FIELDS(INR_DECLARE_VIEW_FIELD)
+};
+#undef INR_DECLARE_VIEW_FIELD
 
 // Everything the stages read that is constant for one frame.
 struct FrameConstants {

@@ -16,6 +16,9 @@ struct FrameStats {
   std::size_t shadowQueries = 0;
   int shadowIterations = 0;
   std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
+  // Sum over all pixels of the convergence residual r_i after this frame (reduced where the
+  // pixels live: a few bytes per frame leave the GPU). State, not a count: += keeps the later.
+  double residualSum = 0;
   // Milliseconds per stage. `updateMs`: majorant/working-grid updates done before the frame.
   double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
          shadowEvaluateMs = 0, finalizeMs = 0, totalMs = 0;

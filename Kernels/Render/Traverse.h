@@ -53,7 +53,78 @@ INR_HD bool resolveCandidate(const FrameConstants& fc, const TrackingMedium& med
   return false;  // null collision: keep tracking from the candidate position
 }
 
-// One traversal pass for ray i (paper §4.1.3 with DDA instead of OptiX, skipping empty blocks).
+// Delta tracking inside one segment [t, segmentEnd) of constant majorant m > 0 (a macrocell,
+// or whatever a traversal hands out): draws the free flight and, when the candidate collision
+// lands inside the segment, records it as the ray's pending query and returns true. Any
+// traversal (the DDA below, a ray-tracing-core traversal) calls this per segment.
+INR_HD bool sampleCandidate(const FrameConstants& fc, const RayStateView& rs, int i, std::uint8_t& flags,
+                            RngStream& rng, float m, float t, float segmentEnd) {
+  const float tCandidate = t + freeFlightDistance(m, rng.next());
+  if (!(tCandidate < segmentEnd)) return false;
+  rs.t[i] = tCandidate;
+  const bool ratio = (flags & kRayShadow) && fc.shadowEstimator == ShadowEstimator::Ratio;
+  rs.collisionProduct[i] = ratio ? m : rng.next() * m;
+  rs.sample[i] = NAN;
+  flags |= kRayPending;
+  return true;
+}
+
+// The DDA as a walker over the majorant grid: hands out one segment (cell) after another, front
+// to back, jumping over empty blocks (empty-space skipping). Its resumable state is the ray's
+// cell and crossings (RayStateView::cell, tNext).
+struct DdaWalker {
+  const MajorantGridView& grid;
+  Vec3f origin, direction;
+  Int3 cell;
+  Vec3f tNext;
+
+  INR_HD DdaWalker(const MajorantGridView& g, const RayStateView& rs, int i)
+      : grid(g), origin(rs.origin[i]), direction(rs.direction[i]), cell(rs.cell[i]), tNext(rs.tNext[i]) {}
+  INR_HD void store(const RayStateView& rs, int i) const {
+    rs.cell[i] = cell;
+    rs.tNext[i] = tNext;
+  }
+  // The current segment from t: its majorant and end (clipped to tEnd). Over empty blocks it
+  // first moves to the next non-empty one (updating t where the cell walk would enter it).
+  // Returns false when the ray leaves its segment first.
+  INR_HD bool segment(float tEnd, float& t, float& majorant, float& segmentEnd) {
+    for (;;) {
+      majorant = majorantAt(grid, cell);
+      if (majorant > 0.f || !inEmptyBlock(grid, cell)) break;
+      // The whole block is empty, so walking it cell by cell would draw nothing; jump to the
+      // next non-empty block, where that walk would enter it (same cell, crossings and t).
+      if (!ddaSkipEmptyBlocks(grid, origin, direction, tEnd, cell, tNext, t)) return false;
+    }
+    segmentEnd = minf(ddaCellExit(tNext), tEnd);
+    return true;
+  }
+  // Steps past the segment ending at segmentEnd; false when that was the last one.
+  INR_HD bool advance(float segmentEnd, float tEnd) {
+    return !(segmentEnd >= tEnd) && ddaStep(grid, origin, direction, cell, tNext);
+  }
+};
+
+// Delta tracking from t to tEnd over the segments of `walker`: returns true when a candidate
+// was emitted (the walker's state is stored for resuming), false when the ray left its segment.
+// No collision in a segment: exponential flights are memoryless, so restarting the sampling at
+// the segment boundary with the next segment's majorant is exact.
+template <typename Walker>
+INR_HD bool trackSegments(const FrameConstants& fc, const RayStateView& rs, int i, std::uint8_t& flags,
+                          RngStream& rng, Walker& walker, float t, float tEnd) {
+  for (;;) {
+    float m, segmentEnd;
+    if (!walker.segment(tEnd, t, m, segmentEnd)) return false;
+    if (m > 0.f && sampleCandidate(fc, rs, i, flags, rng, m, t, segmentEnd)) {
+      walker.store(rs, i);
+      return true;
+    }
+    if (!walker.advance(segmentEnd, tEnd)) return false;
+    t = segmentEnd;
+  }
+}
+
+// One traversal pass for ray i (paper §4.1.3 with a DDA walker instead of OptiX): resolve the
+// pending candidate, then track to the next candidate or the end of the ray's segment.
 INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium,
                         const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];
@@ -62,60 +133,13 @@ INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium,
 
   bool finished = false;
   if (flags & kRayPending) finished = resolveCandidate(fc, medium, rs, i, flags, rng);
-
   if (!finished) {
-    const Vec3f o = rs.origin[i], d = rs.direction[i];
-    const float tEnd = rs.tEnd[i];
-    float t = rs.t[i];
-    Int3 cell = rs.cell[i];
-    Vec3f tNext = rs.tNext[i];
-    for (;;) {
-      const float m = majorantAt(medium.grid, cell);
-      if (!(m > 0.f) && inEmptyBlock(medium.grid, cell)) {
-        // Empty-space skipping: the whole block is empty, so walking it cell by cell would draw
-        // nothing; jump to the next non-empty block, where that walk would enter it (same
-        // cell, crossings and t).
-        if (!ddaSkipEmptyBlocks(medium.grid, o, d, tEnd, cell, tNext, t)) {
-          finished = true;
-          break;
-        }
-        continue;
-      }
-      const float cellExit = minf(ddaCellExit(tNext), tEnd);
-      if (m > 0.f) {
-        const float tCandidate = t + freeFlightDistance(m, rng.next());
-        if (tCandidate < cellExit) {
-          // Candidate collision: persist the DDA state and hand the point to the evaluator.
-          rs.t[i] = tCandidate;
-          rs.cell[i] = cell;
-          rs.tNext[i] = tNext;
-          const bool ratio = (flags & kRayShadow) && fc.shadowEstimator == ShadowEstimator::Ratio;
-          rs.collisionProduct[i] = ratio ? m : rng.next() * m;
-          rs.sample[i] = NAN;
-          flags |= kRayPending;
-          break;
-        }
-      }
-      // No collision in this cell: exponential flights are memoryless, so restarting the
-      // sampling at the cell boundary with the next cell's majorant is exact.
-      if (cellExit >= tEnd || !ddaStep(medium.grid, o, d, cell, tNext)) {
-        finished = true;  // left the segment: primary ray escaped / shadow ray reached light
-        break;
-      }
-      t = cellExit;
-    }
+    DdaWalker walker(medium.grid, rs, i);
+    finished = !trackSegments(fc, rs, i, flags, rng, walker, rs.t[i], rs.tEnd[i]);
   }
-  if (finished) flags &= std::uint8_t(~kRayActive);
+  if (finished) flags &= std::uint8_t(~kRayActive);  // primary ray escaped / shadow ray reached light
   rs.flags[i] = flags;
   rs.rngCounter[i] = rng.counter;
-}
-
-// World-space query of ray i's pending candidate.
-INR_HD void pendingQueryPoint(const RayStateView& rs, int i, float& x, float& y, float& z) {
-  const Vec3f p = rs.origin[i] + rs.direction[i] * rs.t[i];
-  x = p.x;
-  y = p.y;
-  z = p.z;
 }
 
 }  // namespace inr

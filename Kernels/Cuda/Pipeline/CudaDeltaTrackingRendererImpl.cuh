@@ -1,0 +1,89 @@
+#pragma once
+// Private to the CUDA backend's translation units (CudaDeltaTrackingRenderer.cu, the naive
+// baseline in CudaNaiveTracker.cu): the renderer's device state and the small launch helpers.
+#include <algorithm>
+#include <memory>
+
+#include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
+#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTraversal.h"
+#include "Cuda/Pipeline/StageTimer.h"
+#include "Render/RayStateArrays.h"
+
+namespace inr {
+
+namespace cuda {
+// RayStateArrays / PixelStateArrays storage hooks for device arrays (found by argument-dependent
+// lookup).
+template <typename T>
+void resizeArray(DeviceBuffer<T>& a, std::size_t n) {
+  a.resize(n);
+}
+template <typename T>
+T* arrayData(DeviceBuffer<T>& a) {
+  return a.get();
+}
+template <typename T>
+T* arrayData(const DeviceBuffer<T>& a) {
+  return a.get();
+}
+}  // namespace cuda
+
+namespace pipeline {
+constexpr int kThreads = 256;
+inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThreads - 1) / kThreads)); }
+
+// Per-frame device counters (one read-back at the end of the frame).
+enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
+                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCount = 8 };
+}  // namespace pipeline
+
+struct CudaDeltaTrackingRenderer::Impl {
+  ~Impl() {
+    for (cudaEvent_t e : countReady)
+      if (e) cudaEventDestroy(e);
+  }
+  cudaStream_t stream = nullptr;
+  std::unique_ptr<DeviceTraversal> traversal;
+  cuda::DeviceTransferFunction tf, ghostTf;
+  cuda::DeviceBuffer<float> majorants, ghostMajorants, depth;
+  // Coarse levels of the two majorant grids (empty-space skipping); null when skipping is off.
+  cuda::DeviceBuffer<float> blockMajorants, ghostBlockMajorants;
+  float* blocks() const { return blockMajorants.empty() ? nullptr : blockMajorants.get(); }
+  float* ghostBlocks() const { return ghostBlockMajorants.empty() ? nullptr : ghostBlockMajorants.get(); }
+  RayStateArrays<cuda::DeviceBuffer> rays;
+  PixelStateArrays<cuda::DeviceBuffer> pixels;
+  // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the other).
+  cuda::DeviceBuffer<float4> points[2];
+  cuda::DeviceBuffer<int> queryRays[2];
+  cuda::DeviceBuffer<unsigned> counter;  // [2]: queries appended per parity
+  cuda::PinnedHost<unsigned> hostCounter{2};
+  cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
+  // Frame statistics: counters and the residual sum.
+  cuda::DeviceBuffer<unsigned long long> stats;
+  cuda::PinnedHost<unsigned long long> hostStats{pipeline::kStatCount};
+  cuda::DeviceBuffer<double> residualSum;
+  cuda::PinnedHost<double> hostResidualSum{1};
+  cuda::StageTimer timer;
+  bool truncated = false;
+
+  // Zeroes the frame statistics (asynchronous).
+  void clearStats() {
+    INR_CUDA_CHECK(cudaMemsetAsync(stats.get(), 0, pipeline::kStatCount * sizeof(unsigned long long), stream));
+    INR_CUDA_CHECK(cudaMemsetAsync(residualSum.get(), 0, sizeof(double), stream));
+  }
+  // Copies the frame statistics to the host and waits for the stream.
+  void downloadStats() {
+    INR_CUDA_CHECK(cudaMemcpyAsync(hostStats.get(), stats.get(), pipeline::kStatCount * sizeof(unsigned long long),
+                                   cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaMemcpyAsync(hostResidualSum.get(), residualSum.get(), sizeof(double), cudaMemcpyDeviceToHost,
+                                   stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+  }
+
+  void track(const CudaInrEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
+             const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
+             cuda::Stage evaluateStage, int& iterations, std::size_t& queries);
+};
+
+}  // namespace inr

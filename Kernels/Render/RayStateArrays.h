@@ -1,0 +1,58 @@
+#pragma once
+// Host or device storage of the ray and pixel state (fields from INR_RAY_STATE_FIELDS /
+// INR_PIXEL_STATE_FIELDS in Render/RayState.h), one array per field. `Array` is the backend's
+// array template: HostArray (std::vector) here, cuda::DeviceBuffer on the GPU. Each backend
+// provides, next to its array type, `resizeArray(array, n)` (exactly n elements; contents need
+// not survive) and `arrayData(array)` (the element pointer); they are found by argument-dependent
+// lookup, so this header knows no backend.
+#include <cstddef>
+#include <vector>
+
+#include "Render/RayState.h"
+
+namespace inr {
+
+template <typename T>
+using HostArray = std::vector<T>;
+
+template <typename T>
+void resizeArray(HostArray<T>& a, std::size_t n) {
+  a.assign(n, T{});
+}
+template <typename T>
+T* arrayData(HostArray<T>& a) {
+  return a.data();
+}
+
+// Storage struct `Name` for the fields of FIELDS, producing the views of type View.
+#define INR_DEFINE_STATE_ARRAYS(Name, View, FIELDS)                  \
+  template <template <typename> class Array>                         \
+  struct Name {                                                      \
+    FIELDS(INR_STATE_DECLARE_ARRAY)                                  \
+    std::size_t count = 0;                                           \
+    /* Contents are undefined afterwards: the stages initialise. */  \
+    void resize(std::size_t n) {                                     \
+      FIELDS(INR_STATE_RESIZE_ARRAY)                                 \
+      count = n;                                                     \
+    }                                                                \
+    View view() {                                                    \
+      View v;                                                        \
+      v.count = int(count);                                          \
+      FIELDS(INR_STATE_VIEW_ARRAY)                                   \
+      return v;                                                      \
+    }                                                                \
+  };
+#define INR_STATE_DECLARE_ARRAY(type, name) Array<type> name;
+#define INR_STATE_RESIZE_ARRAY(type, name) resizeArray(name, n);
+#define INR_STATE_VIEW_ARRAY(type, name) v.name = arrayData(name);
+
+INR_DEFINE_STATE_ARRAYS(RayStateArrays, RayStateView, INR_RAY_STATE_FIELDS)
+// Reset the accumulation (resetPixel) after a resize.
+INR_DEFINE_STATE_ARRAYS(PixelStateArrays, AccumulationView, INR_PIXEL_STATE_FIELDS)
+
+#undef INR_DEFINE_STATE_ARRAYS
+#undef INR_STATE_DECLARE_ARRAY
+#undef INR_STATE_RESIZE_ARRAY
+#undef INR_STATE_VIEW_ARRAY
+
+}  // namespace inr

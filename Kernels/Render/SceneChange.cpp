@@ -1,0 +1,84 @@
+#include "Render/SceneChange.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace inr {
+
+std::string SceneChange::describe() const {
+  std::string s;
+  if (first) s += " first";
+  if (camera) s += " camera";
+  if (time) s += " time";
+  if (depthLimit) s += " depth";
+  if (light) s += " light";
+  if (transferFunction) s += " tf";
+  if (background) s += " background";
+  return s.empty() ? " nothing" : s;
+}
+
+bool sameCamera(const Camera& a, const Camera& b) {
+  return a.position == b.position && a.focalPoint == b.focalPoint && a.viewUp == b.viewUp &&
+         a.viewAngle == b.viewAngle && a.parallelProjection == b.parallelProjection &&
+         a.parallelScale == b.parallelScale;
+}
+
+bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) {
+  if (a.unitDistance != b.unitDistance || a.colorSpace != b.colorSpace ||
+      a.color.size() != b.color.size() || a.opacity.size() != b.opacity.size()) {
+    return false;
+  }
+  for (std::size_t i = 0; i < a.color.size(); ++i) {
+    const auto &p = a.color[i], &q = b.color[i];
+    if (p.x != q.x || p.r != q.r || p.g != q.g || p.b != q.b) return false;
+  }
+  for (std::size_t i = 0; i < a.opacity.size(); ++i) {
+    const auto &p = a.opacity[i], &q = b.opacity[i];
+    if (p.x != q.x || p.alpha != q.alpha || p.midpoint != q.midpoint || p.sharpness != q.sharpness) {
+      return false;
+    }
+  }
+  return true;
+}
+
+SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {
+  SceneChange c;
+  if (!before) {
+    c.first = c.time = c.transferFunction = c.camera = c.depthLimit = c.light = c.background = true;
+    return c;
+  }
+  const RenderScene& b = *before;
+  c.time = b.time != after.time;
+  c.transferFunction = !sameTransferFunction(b.transferFunction, after.transferFunction);
+  c.camera = !sameCamera(b.camera, after.camera);
+  c.depthLimit = b.depthLimit != after.depthLimit;
+  c.light = b.shadows != after.shadows || b.toLight != after.toLight || b.ambient != after.ambient ||
+            b.shadowEstimator != after.shadowEstimator;
+  c.background = b.background != after.background;
+  return c;
+}
+
+CameraView validateScene(const RenderScene& scene, const RenderSettings& settings) {
+  const std::size_t pixels = std::size_t(settings.width) * settings.height;
+  if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels) {
+    throw std::invalid_argument("depth limit must have one value per pixel (" + std::to_string(pixels) +
+                                "), got " + std::to_string(scene.depthLimit.size()));
+  }
+  if (scene.shadows && !(length(toVec3(scene.toLight)) > 0.f)) {
+    throw std::invalid_argument("light direction must be non-zero");
+  }
+  return scene.camera.view(settings.width, settings.height);  // validates the camera
+}
+
+GhostSweep::GhostSweep(const std::array<float, 2>& range, const Vec3f& cellSize, int count)
+    : lo_(range[0]), span_(std::max(double(range[1]) - range[0], 1e-6)),
+      meanCell_((double(cellSize.x) + cellSize.y + cellSize.z) / 3.0), count_(count) {}
+
+TransferFunction GhostSweep::transferFunction(int pass) const {
+  const double centre = lo_ + (pass + 0.5) / count_ * span_;
+  TransferFunction ghost = TransferFunction::cosineBump(lo_, lo_ + span_, centre, span_ / count_, 0.5);
+  ghost.unitDistance = meanCell_;
+  return ghost;
+}
+
+}  // namespace inr

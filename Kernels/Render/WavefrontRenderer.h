@@ -1,0 +1,111 @@
+#pragma once
+// The backend-neutral half of the wavefront delta-tracking renderer (paper §4.1), written once:
+// image settings, the scene-change policy (SceneChange.h: what a new scene costs), frame
+// numbering, the accumulation's reset rules, the ghost-pass sweep and the counters of the work
+// scene changes did. The CPU (DeltaTrackingRenderer) and CUDA (CudaDeltaTrackingRenderer)
+// backends derive from it: they own the storage (ray and pixel state from Render/RayState.h,
+// majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "Common/ImageIO.h"
+#include "Render/RayState.h"
+#include "Render/RenderStats.h"
+#include "Render/SceneChange.h"
+#include "Render/SceneInputs.h"
+
+namespace inr {
+
+struct TrackingOptions {
+  bool refineMacrocells = true;  // widen under-estimated cells from evaluated samples
+  int ghostPassesOnUpdate = 0;   // ghost passes run after each time / TF change
+  int ghostPixelStride = 4;      // ghost passes trace every n-th pixel in x and y
+};
+
+// Work the scene-change policy did (what tests and benchmarks check).
+struct RendererCounters {
+  int workingGridUpdates = 0;   // time changes
+  int majorantUpdates = 0;      // full majorant recomputations (time or TF changes)
+  int transferFunctionUploads = 0;
+  int accumulationResets = 0;
+  int truncatedFrames = 0;      // frames where an iteration cap cut rays off
+};
+
+class WavefrontRenderer {
+public:
+  virtual ~WavefrontRenderer() = default;
+  WavefrontRenderer(const WavefrontRenderer&) = delete;
+  WavefrontRenderer& operator=(const WavefrontRenderer&) = delete;
+
+  // Image size and seed; restarts accumulation.
+  void setSettings(const RenderSettings& settings);
+  // Applies a scene doing only the work its changes need (SceneChange.h).
+  void setScene(const RenderScene& scene);
+  virtual FrameStats renderFrame() = 0;  // one wavefront frame, accumulated
+  // Ghost passes: primary passes with cosine-bump TFs sweeping the value range, not displayed,
+  // so under-estimated macrocells get visited and refined. Returns their summed stats.
+  FrameStats runGhostPasses(int count);
+
+  void resetAccumulation();
+  int accumulatedFrames() const { return frameIndex_; }
+  ImageRGBA image() const;               // composited over the background, alpha = coverage
+  ImageRGBA premultipliedImage() const;  // volume only (rgb premultiplied, alpha = coverage)
+  virtual std::vector<float> residual() const = 0;
+  virtual std::vector<float> majorants() const = 0;
+  virtual std::vector<float> blockMajorants() const = 0;  // the coarse skip level; empty when off
+  double lastUpdateMs() const { return pendingUpdateMs_; }
+  const RendererCounters& counters() const { return counters_; }
+  const RenderSettings& settings() const { return settings_; }
+
+protected:
+  explicit WavefrontRenderer(TrackingOptions options) : options_(options) {}
+
+  // --- backend hooks
+  // Ray and pixel state for `pixels` pixels (contents undefined: accumulation is reset after).
+  virtual void resizePixels(std::size_t pixels) = 0;
+  virtual void clearAccumulation() = 0;  // resetPixel over every pixel
+  virtual std::vector<Vec4f> accumulation() const = 0;
+  virtual double macrocellTime() const = 0;
+  virtual void setMacrocellTime(double t) = 0;
+  virtual void transferFunctionChanged() {}  // tfTable_ is new (e.g. upload it)
+  virtual void recomputeMajorants() = 0;     // all majorants from tfTable_ and the working grid
+  virtual void depthLimitChanged(const std::vector<float>& /*depthLimit*/) {}
+  virtual void sceneUpdateDone() {}          // wait for the update work (so it is timed)
+  virtual const Box3f& volumeBox() const = 0;
+  virtual std::array<float, 2> workingValueRange() const = 0;
+  virtual Vec3f cellSize() const = 0;
+  virtual void beginGhostPasses() = 0;       // bring the displayed majorants up to date
+  // One ghost pass with `table`: its majorants, ghost rays (initGhostRay), the tracking loop
+  // with refinement; counts into `total`.
+  virtual void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
+                              FrameStats& total) = 0;
+  virtual void endGhostPasses(FrameStats& total) = 0;  // apply refinements to the majorants
+
+  // Backends call this at the end of their constructor (the hooks are theirs): storage for the
+  // default settings' image, accumulation cleared.
+  void allocatePixels();
+  // The frame constants of frame `frame` for the current scene; `depthLimit` is the backend's
+  // copy of the scene's depth limit (ignored when the scene has none).
+  FrameConstants frameConstants(std::uint32_t frame, const float* depthLimit) const;
+  // Starts a frame's statistics (method, frame index, the pending update time); throws when no
+  // scene has been set.
+  FrameStats beginFrame(const char* method, const char* caller);
+  void endFrame() { ++frameIndex_; }
+
+  TrackingOptions options_;
+  RenderSettings settings_;
+  RenderScene scene_;
+  bool haveScene_ = false;
+  CameraView cameraView_{};
+  std::unique_ptr<TransferFunctionTable> tfTable_;
+  RendererCounters counters_;
+
+private:
+  int frameIndex_ = 0;
+  std::uint32_t ghostPasses_ = 0;
+  double pendingUpdateMs_ = 0.0;  // time/TF update work, reported with the next frame
+};
+
+}  // namespace inr
