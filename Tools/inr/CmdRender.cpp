@@ -19,6 +19,7 @@
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
+#include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/RayMarcher.h"
@@ -48,7 +49,12 @@ const char* kRenderUsage =
     "rendering:\n"
     "  --method delta|raymarch|naive  wavefront delta tracking (default), fixed-step ray marching,\n"
     "                           or the naive per-ray delta tracker (one query per network call)\n"
-    "  --frames N               frames accumulated (default 64; ray marching: 1 unless jittered)\n"
+    "  --frames N               frames accumulated (default 64; ray marching: 1 unless jittered);\n"
+    "                           with --converge: the most frames\n"
+    "  --converge T             stop once the estimated standard error of the image (RGB, 0..1;\n"
+    "                           the mean convergence residual / sqrt(frames), as the ParaView\n"
+    "                           plugin's Convergence Target) falls below T, after at least 4 frames;\n"
+    "                           prints the frames and time it took\n"
     "  --seed S                 random seed (default 1)\n"
     "  --no-jitter              sample pixel centres (no antialiasing)\n"
     "  --macrocells N|NX,NY,NZ  macrocell grid resolution (default 32)\n"
@@ -84,6 +90,7 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"shadow_queries", s.shadowQueries},
           {"shadow_iterations", s.shadowIterations},
           {"refinements", s.refinements},
+          {"residual_sum", s.residualSum},
           {"ms",
            {{"update", s.updateMs},
             {"init", s.initMs},
@@ -106,7 +113,7 @@ int runRender(int argc, char** argv) {
             {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
-             "step", "shadow-step", "threads", "backend", "output"},
+             "step", "shadow-step", "threads", "backend", "output", "converge"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet"});
   if (args.has("help")) {
     std::fputs(kRenderUsage, stdout);
@@ -141,6 +148,11 @@ int runRender(int argc, char** argv) {
   settings.pixelJitter = !args.has("no-jitter");
   const long frames = args.getInt("frames", method == "raymarch" && !settings.pixelJitter ? 1 : 64);
   if (frames < 1 || frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
+  const double convergeTarget = args.getDouble("converge", 0.0);
+  if (args.has("converge") && !(convergeTarget > 0.0 && convergeTarget < 1.0)) {
+    throw UsageError("--converge must be in (0, 1) (an RGB standard error, e.g. 0.002)");
+  }
+  if (args.has("converge") && method == "raymarch") throw UsageError("--converge applies to delta tracking only");
   if (args.has("threads")) {
     const long t = args.getInt("threads", 0);
     if (t < 1 || t > 4096) throw UsageError("--threads must be >= 1");
@@ -274,6 +286,7 @@ int runRender(int argc, char** argv) {
   report["backend"] = session->description();
 
   FrameStats total;
+  long renderedFrames = frames;
   std::vector<nlohmann::json> perFrame;
   ImageRGBA image;
   auto progressLine = [&](const FrameStats& st, long k) {
@@ -329,21 +342,45 @@ int runRender(int argc, char** argv) {
       }
       report["ghost_passes"] = statsJson(g);
     }
-    for (long k = 0; k < frames; ++k) {
-      const FrameStats st = method == "naive" ? renderer.renderFrameNaive() : renderer.renderFrame();
-      progressLine(st, k);
-      total += st;
-      perFrame.push_back(statsJson(st));
+    // One frame per request, so each frame is reported; the driver's stop rule is the plugin's.
+    RefinementOptions ro;
+    ro.maximumFrames = int(frames);
+    ro.convergenceTarget = convergeTarget;
+    RefinementDriver driver(ro);
+    const auto tRender = std::chrono::steady_clock::now();
+    while (!driver.converged()) {
+      const RefinementDriver::Step step = driver.advance(renderer, method == "naive");
+      if (step.framesRendered == 0) break;
+      const long k = renderer.accumulatedFrames() - 1;
+      progressLine(step.total, k);
+      total += step.total;
+      nlohmann::json js = statsJson(step.total);
+      js["convergence_estimate"] = driver.estimate();
+      perFrame.push_back(js);
+    }
+    const double renderSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - tRender).count();
+    renderedFrames = renderer.accumulatedFrames();
+    report["convergence"] = {{"target", convergeTarget},
+                             {"estimate", driver.estimate()},
+                             {"frames", renderedFrames},
+                             {"converged", convergeTarget > 0.0 && driver.estimate() < convergeTarget},
+                             {"seconds", renderSeconds}};
+    if (args.has("converge")) {
+      const bool reached = driver.estimate() < convergeTarget;
+      std::printf("convergence: %s after %ld frame(s) in %.3f s (estimated standard error %.5f, target %g)\n",
+                  reached ? "reached" : "NOT reached (frame limit)", renderedFrames, renderSeconds,
+                  driver.estimate(), convergeTarget);
     }
     report["macrocells"]["refinements"] = renderer.macrocellInfo().refinements;
     image = renderer.image();
   }
 
   writeImage(out, image);
-  const double n = double(frames);
+  const double n = double(renderedFrames);
   std::printf("%s: %s %dx%d, %ld frame(s), t=%g: %.0f rays, %.0f queries (+%.0f shadow), %.1f iterations per "
               "frame; %.1f ms per frame (traverse %.1f, evaluate %.1f, shadows %.1f, finalize %.1f) -> %s\n",
-              args.positional()[0].c_str(), method.c_str(), settings.width, settings.height, frames, scene.time,
+              args.positional()[0].c_str(), method.c_str(), settings.width, settings.height, renderedFrames, scene.time,
               total.rays / n, total.queries / n, total.shadowQueries / n, total.iterations / n, total.totalMs / n,
               total.traverseMs / n, total.evaluateMs / n, (total.shadowTraverseMs + total.shadowEvaluateMs) / n,
               total.finalizeMs / n, out.c_str());

@@ -1,0 +1,54 @@
+#include "Backends/Refinement.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace inr {
+
+double convergenceEstimate(const FrameStats& last, int frames) {
+  if (last.pixels == 0 || frames <= 0) return 0.0;
+  return last.residualSum / double(last.pixels) / std::sqrt(double(frames));
+}
+
+RefinementDriver::RefinementDriver(const RefinementOptions& options) { setOptions(options); }
+
+void RefinementDriver::setOptions(const RefinementOptions& o) {
+  if (o.maximumFrames < 1) throw std::invalid_argument("refinement: maximum frames must be >= 1");
+  if (o.framesPerRender < 1) throw std::invalid_argument("refinement: frames per render must be >= 1");
+  if (!(o.convergenceTarget >= 0.0)) throw std::invalid_argument("refinement: convergence target must be >= 0");
+  if (o.minimumFrames < 1) throw std::invalid_argument("refinement: minimum frames must be >= 1");
+  options_ = o;
+}
+
+bool RefinementDriver::converged(int frames) const {
+  return frames >= options_.maximumFrames ||
+         (options_.convergenceTarget > 0.0 && frames >= options_.minimumFrames &&
+          estimate_ < options_.convergenceTarget);
+}
+
+void RefinementDriver::restart() {
+  estimate_ = std::numeric_limits<double>::infinity();
+  converged_ = false;
+  lastFrames_ = 0;
+}
+
+RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool naive) {
+  Step step;
+  int frames = session.accumulatedFrames();
+  if (frames == 0 || frames < lastFrames_) estimate_ = std::numeric_limits<double>::infinity();
+  converged_ = converged(frames);
+  const int goal = std::min(options_.maximumFrames, std::max(frames + 1, options_.framesPerRender));
+  while (!converged_ && frames < goal) {
+    const FrameStats st = naive ? session.renderFrameNaive() : session.renderFrame();
+    step.total += st;
+    ++step.framesRendered;
+    frames = session.accumulatedFrames();
+    estimate_ = convergenceEstimate(st, frames);
+    converged_ = converged(frames);
+  }
+  lastFrames_ = frames;
+  return step;
+}
+
+}  // namespace inr
