@@ -6,6 +6,7 @@
 // a reference commit (INR_RECORD_FINGERPRINTS=1 prints them). A change meant to alter images (a
 // new estimator, different random draws) re-records them and says why.
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <vector>
 
@@ -93,9 +94,15 @@ inline RenderScene scene(const Case& c, const Box3f& box, float lo, float hi, do
 }
 
 // Six frames with a time change after the third (working grid, majorants, ghost passes, reset).
-// `renderOne(renderer)` renders one frame (delta tracking or the naive baseline).
+// `renderOne(renderer)` renders one frame (delta tracking or the naive baseline). The image is
+// the renderer's accumulation (premultiplied, as it leaves the pipeline): compositing over the
+// background happens on the host and rounds as that translation unit's compiler contracts.
+// `withRefinementCounts` = false leaves the per-frame refinement counts out: on the GPU, racing
+// queries in one cell can both count a widening (the bounds themselves, hashed through the
+// majorants, are order-independent).
 template <typename Renderer, typename RenderOne>
-std::uint64_t fingerprint(Renderer& r, RenderScene scene, double laterTime, RenderOne&& renderOne) {
+std::uint64_t fingerprint(Renderer& r, RenderScene scene, double laterTime, RenderOne&& renderOne,
+                          bool withRefinementCounts = true) {
   r.setSettings(settings());
   r.setScene(scene);
   std::uint64_t h = 1469598103934665603ull;
@@ -106,12 +113,19 @@ std::uint64_t fingerprint(Renderer& r, RenderScene scene, double laterTime, Rend
     }
     const FrameStats st = renderOne(r);
     const std::uint64_t counts[] = {st.rays, st.queries, std::uint64_t(st.iterations), st.shadowRays,
-                                    st.shadowQueries, std::uint64_t(st.shadowIterations), st.refinements};
+                                    st.shadowQueries, std::uint64_t(st.shadowIterations),
+                                    withRefinementCounts ? st.refinements : 0};
     h = fnv1a(counts, sizeof(counts), h);
   }
-  const ImageRGBA img = r.image();
-  h = fnv1a(img.data.data(), img.data.size() * sizeof(float), h);
+  const ImageRGBA img = r.premultipliedImage();
   const std::vector<float> residual = r.residual(), majorants = r.majorants();
+  if (recording()) {  // which part differs, when one does
+    std::printf("      counts %016llx image %016llx residual %016llx majorants %016llx\n", (unsigned long long)h,
+                (unsigned long long)fnv1a(img.data.data(), img.data.size() * sizeof(float)),
+                (unsigned long long)fnv1a(residual.data(), residual.size() * sizeof(float)),
+                (unsigned long long)fnv1a(majorants.data(), majorants.size() * sizeof(float)));
+  }
+  h = fnv1a(img.data.data(), img.data.size() * sizeof(float), h);
   h = fnv1a(residual.data(), residual.size() * sizeof(float), h);
   h = fnv1a(majorants.data(), majorants.size() * sizeof(float), h);
   return h;
