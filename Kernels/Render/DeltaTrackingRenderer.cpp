@@ -34,6 +34,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowQueries += o.shadowQueries;
   shadowIterations += o.shadowIterations;
   refinements += o.refinements;
+  cappedRays += o.cappedRays;
   updateMs += o.updateMs;
   initMs += o.initMs;
   traverseMs += o.traverseMs;
@@ -73,11 +74,11 @@ double DeltaTrackingRenderer::applyDirtyMajorants() {
 void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
                                             int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
-                                            std::size_t& refinements) {
+                                            std::size_t& refinements, bool& truncated) {
   const RayStateView rs = rays_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
-  for (;;) {
+  for (int loopIterations = 0;; ++loopIterations) {
     auto t0 = Clock::now();
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
     for (int i = 0; i < n; ++i) traverseRay(fc, medium, rs, i);
@@ -86,6 +87,16 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
     t0 = Clock::now();
     const std::size_t k = batch_.gather(rs, fc.time);
     if (k == 0) {
+      evaluateMs += msSince(t0);
+      break;
+    }
+    if (loopIterations >= options_.maxIterations) {  // bounded work: the pending rays stop here
+      const int* rays = batch_.rayIndices();
+      for (std::size_t q = 0; q < k; ++q) {
+        rs.flags[rays[q]] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
+        rs.sample[rays[q]] = NAN;
+      }
+      truncated = true;
       evaluateMs += msSince(t0);
       break;
     }
@@ -126,7 +137,8 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.rays = active;
   st.initMs = msSince(t0);
 
-  runTrackingLoop(fc, medium, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements);
+  bool truncated = false;
+  runTrackingLoop(fc, medium, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements, truncated);
 
   if (fc.shadows) {
     t0 = Clock::now();
@@ -139,17 +151,22 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     st.shadowRays = shadowRays;
     st.shadowTraverseMs += msSince(t0);
     runTrackingLoop(fc, medium, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
-                    st.shadowEvaluateMs, st.refinements);
+                    st.shadowEvaluateMs, st.refinements, truncated);
   }
 
   t0 = Clock::now();
   const AccumulationView acc = pixels_.view();
   double residualSum = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : residualSum) if (n >= kParallelMinItems)
-  for (int i = 0; i < n; ++i) residualSum += finalizePixel(fc, rs, acc, i);
+  std::size_t capped = 0;
+#pragma omp parallel for schedule(static) reduction(+ : residualSum, capped) if (n >= kParallelMinItems)
+  for (int i = 0; i < n; ++i) {
+    capped += (rs.flags[i] & kRayCapped) ? 1 : 0;
+    residualSum += finalizePixel(fc, rs, acc, i);
+  }
   st.residualSum = residualSum;
+  st.cappedRays = capped;
   st.finalizeMs = msSince(t0);
-  endFrame();
+  endFrame(st, truncated);
   st.totalMs = msSince(tFrame);
   return st;
 }
@@ -192,9 +209,10 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
         }
       }
     }
+    st.cappedRays += (rs.flags[i] & kRayCapped) ? 1 : 0;
     st.residualSum += finalizePixel(fc, rs, acc, i);
   }
-  endFrame();
+  endFrame(st, false);
   st.totalMs = msSince(tFrame);
   st.traverseMs = st.totalMs;  // traversal and evaluation are interleaved; not separable
   return st;
@@ -209,8 +227,9 @@ void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, c
   const int n = rs.count;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
+  bool truncated = false;
   runTrackingLoop(fc, medium, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
-                  total.refinements);
+                  total.refinements, truncated);
 }
 
 }  // namespace inr

@@ -54,7 +54,7 @@ private:
   double applyDirtyMajorants();
   void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, int& iterations,
                        std::size_t& queries, double& traverseMs, double& evaluateMs,
-                       std::size_t& refinements);
+                       std::size_t& refinements, bool& truncated);
 
   const FieldEvaluator& evaluator_;
   MacrocellGrid& macrocells_;

@@ -22,6 +22,7 @@ enum RayFlag : std::uint8_t {
   kRayHit = 1u << 2,        // the primary ray had a real collision (radiance holds its colour)
   kRayShadow = 1u << 3,     // the ray is currently a shadow ray towards the light
   kRayBadSample = 1u << 4,  // the evaluator returned NaN/Inf for the pending query
+  kRayCapped = 1u << 5,     // cut off by the per-frame work cap (FrameConstants::maxRngDraws)
 };
 
 enum class ShadowEstimator : int {
@@ -95,6 +96,10 @@ struct FrameConstants {
   Vec3f toLight{0.f, 0.f, 1.f};       // unit vector towards the (directional) light
   Vec3f background{0.f, 0.f, 0.f};
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+  // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking
+  // (kRayCapped; it counts as escaped). Every candidate collision takes two draws, so this caps
+  // the null collisions a pathological majorant (a tiny opacity unit distance) can cost.
+  std::uint32_t maxRngDraws = 0xffffffffu;
 };
 
 // What traversal tracks against: the majorant grid and the transfer function. Ghost passes swap

@@ -16,6 +16,7 @@ struct FrameStats {
   std::size_t shadowQueries = 0;
   int shadowIterations = 0;
   std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
+  std::size_t cappedRays = 0;   // rays cut off by the per-ray collision cap (bounded work)
   // Sum over all pixels of the convergence residual r_i after this frame (reduced where the
   // pixels live: a few bytes per frame leave the GPU). State, not a count: += keeps the later.
   double residualSum = 0;

@@ -114,9 +114,15 @@ INR_HD bool trackSegments(const FrameConstants& fc, const RayStateView& rs, int 
   for (;;) {
     float m, segmentEnd;
     if (!walker.segment(tEnd, t, m, segmentEnd)) return false;
-    if (m > 0.f && sampleCandidate(fc, rs, i, flags, rng, m, t, segmentEnd)) {
-      walker.store(rs, i);
-      return true;
+    if (m > 0.f) {
+      if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame (no draw: images unchanged below)
+        flags |= kRayCapped;
+        return false;
+      }
+      if (sampleCandidate(fc, rs, i, flags, rng, m, t, segmentEnd)) {
+        walker.store(rs, i);
+        return true;
+      }
     }
     if (!walker.advance(segmentEnd, tEnd)) return false;
     t = segmentEnd;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <sstream>
 #include <stdexcept>
 
 #include "Render/AccumulationImage.h"
@@ -12,6 +14,17 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 }  // namespace
+
+std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
+  const std::uint64_t k = std::uint64_t(std::max(1, maxCollisionsPerRay));
+  return std::uint32_t(std::min<std::uint64_t>(0xffffffffu, 2 + 4 * k + 64));
+}
+
+WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {
+  if (options_.maxCollisionsPerRay < 1) throw std::invalid_argument("maxCollisionsPerRay must be >= 1");
+  if (options_.maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
+  warn_ = [](const std::string& message) { std::fprintf(stderr, "INR Volume: warning: %s\n", message.c_str()); };
+}
 
 void WavefrontRenderer::setSettings(const RenderSettings& settings) {
   if (settings.width <= 0 || settings.height <= 0) throw std::invalid_argument("image size must be positive");
@@ -69,7 +82,35 @@ void WavefrontRenderer::resetAccumulation() {
 }
 
 FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const float* depthLimit) const {
-  return makeFrameConstants(cameraView_, volumeBox(), scene_, settings_, depthLimit, frame);
+  FrameConstants fc = makeFrameConstants(cameraView_, volumeBox(), scene_, settings_, depthLimit, frame);
+  fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
+  return fc;
+}
+
+void WavefrontRenderer::endFrame(const FrameStats& st, bool truncated) {
+  counters_.cappedRays += st.cappedRays;
+  if (truncated) ++counters_.truncatedFrames;
+  const Box3f& box = volumeBox();
+  if (st.cappedRays > 0 && !warnedCapped_ && warn_) {
+    warnedCapped_ = true;
+    std::ostringstream m;
+    m << st.cappedRays << " ray(s) took more than " << options_.maxCollisionsPerRay
+      << " candidate collisions in one frame and were cut off (shown as empty there). The transfer "
+         "function's extinction is extreme for this model: the opacity unit distance ("
+      << scene_.transferFunction.unitDistance << ") is tiny against the box (diagonal "
+      << length(box.hi - box.lo)
+      << "), or opacity is near 1 over coarse macrocells. Raise the Scalar Opacity Unit Distance "
+         "(inr render --opacity-unit-distance), lower the opacity, or raise the macrocell resolution.";
+    warn_(m.str());
+  }
+  if (truncated && !warnedTruncated_ && warn_) {
+    warnedTruncated_ = true;
+    std::ostringstream m;
+    m << "a frame hit the cap of " << options_.maxIterations
+      << " traverse-evaluate iterations; the rays still pending were cut off (TrackingOptions::maxIterations).";
+    warn_(m.str());
+  }
+  ++frameIndex_;
 }
 
 FrameStats WavefrontRenderer::beginFrame(const char* method, const char* caller) {

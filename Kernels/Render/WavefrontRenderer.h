@@ -7,7 +7,9 @@
 // majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "Common/ImageIO.h"
@@ -22,7 +24,19 @@ struct TrackingOptions {
   bool refineMacrocells = true;  // widen under-estimated cells from evaluated samples
   int ghostPassesOnUpdate = 0;   // ghost passes run after each time / TF change
   int ghostPixelStride = 4;      // ghost passes trace every n-th pixel in x and y
+  // Bounded work per frame, whatever the scene: candidate collisions (real or null) per ray and
+  // leg (primary, shadow) before the ray is cut off, and traverse-evaluate iterations per loop
+  // before the rays still pending are. Neither is reached by sensible settings (a few tens of
+  // collisions per ray); a tiny opacity unit distance or opacity 1 over a coarse grid reaches
+  // them, and the renderer then says so once (setWarningHandler) and counts the rays
+  // (FrameStats::cappedRays, RendererCounters::truncatedFrames).
+  int maxCollisionsPerRay = 4096;
+  int maxIterations = 1 << 14;
 };
+
+// The stream-draw budget per ray and frame for `maxCollisionsPerRay` (two draws per collision,
+// two legs, the jitter draws and slack for ratio tracking's roulette).
+std::uint32_t rngDrawBudget(int maxCollisionsPerRay);
 
 // Work the scene-change policy did (what tests and benchmarks check).
 struct RendererCounters {
@@ -30,7 +44,8 @@ struct RendererCounters {
   int majorantUpdates = 0;      // full majorant recomputations (time or TF changes)
   int transferFunctionUploads = 0;
   int accumulationResets = 0;
-  int truncatedFrames = 0;      // frames where an iteration cap cut rays off
+  int truncatedFrames = 0;      // frames where the iteration cap cut rays off
+  std::size_t cappedRays = 0;   // rays cut off by the collision cap, all frames
 };
 
 class WavefrontRenderer {
@@ -58,9 +73,11 @@ public:
   double lastUpdateMs() const { return pendingUpdateMs_; }
   const RendererCounters& counters() const { return counters_; }
   const RenderSettings& settings() const { return settings_; }
+  // Where the once-per-cause warnings go (work caps hit); default: stderr.
+  void setWarningHandler(std::function<void(const std::string&)> handler) { warn_ = std::move(handler); }
 
 protected:
-  explicit WavefrontRenderer(TrackingOptions options) : options_(options) {}
+  explicit WavefrontRenderer(TrackingOptions options);
 
   // --- backend hooks
   // Ray and pixel state for `pixels` pixels (contents undefined: accumulation is reset after).
@@ -92,7 +109,8 @@ protected:
   // Starts a frame's statistics (method, frame index, the pending update time); throws when no
   // scene has been set.
   FrameStats beginFrame(const char* method, const char* caller);
-  void endFrame() { ++frameIndex_; }
+  // Closes a frame: counts capped rays and truncation, warns once per cause, advances the index.
+  void endFrame(const FrameStats& st, bool truncated);
 
   TrackingOptions options_;
   RenderSettings settings_;
@@ -105,6 +123,8 @@ protected:
 private:
   int frameIndex_ = 0;
   std::uint32_t ghostPasses_ = 0;
+  std::function<void(const std::string&)> warn_;
+  bool warnedCapped_ = false, warnedTruncated_ = false;
   double pendingUpdateMs_ = 0.0;  // time/TF update work, reported with the next frame
 };
 

@@ -53,12 +53,18 @@ __global__ void cutoffKernel(RayStateView rs, const int* list, int n) {
   rs.sample[i] = NAN;
 }
 
-// Stage IV, and the residual sum of the convergence estimate (one atomic per block).
-__global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* residualSum) {
+// Stage IV, the residual sum of the convergence estimate (one atomic per block) and the count of
+// rays the collision cap cut off.
+__global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* residualSum,
+                               unsigned long long* stats) {
   using Reduce = cub::BlockReduce<float, kThreads>;
   __shared__ typename Reduce::TempStorage scratch;
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  const float r = i < rs.count ? finalizePixel(fc, rs, acc, i) : 0.f;
+  float r = 0.f;
+  if (i < rs.count) {
+    if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
+    r = finalizePixel(fc, rs, acc, i);
+  }
   const float blockSum = Reduce(scratch).Sum(r);
   if (threadIdx.x == 0) atomicAdd(residualSum, double(blockSum));
 }
@@ -133,7 +139,6 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const CudaInrEvaluator& eva
                                                      TrackingOptions options, CudaPipelineOptions pipeline)
     : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells), pipeline_(pipeline),
       impl_(std::make_unique<Impl>()) {
-  if (pipeline_.maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
   Impl& I = *impl_;
   I.stream = macrocells.stream();
   I.traversal = makeDdaTraversal();
@@ -199,6 +204,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.shadowRays = std::size_t(I.hostStats[kStatShadowRays]);
   st.refinements = std::size_t(I.hostStats[kStatRefinements]);
   st.residualSum = I.hostResidualSum[0];
+  st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
 }
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
@@ -226,7 +232,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   INR_CUDA_CHECK_LAUNCH("initKernel");
   I.timer.end(s);
 
-  I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, pipeline_.maxIterations, cuda::kTraverse,
+  I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
           cuda::kEvaluate, st.iterations, st.queries);
 
   if (fc.shadows) {
@@ -234,12 +240,12 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
     spawnShadowKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.stats.get());
     INR_CUDA_CHECK_LAUNCH("spawnShadowKernel");
     I.timer.end(s);
-    I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, pipeline_.maxIterations,
+    I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations,
             cuda::kShadowTraverse, cuda::kShadowEvaluate, st.shadowIterations, st.shadowQueries);
   }
 
   I.timer.begin(cuda::kFinalize, s);
-  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.residualSum.get());
+  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.residualSum.get(), I.stats.get());
   INR_CUDA_CHECK_LAUNCH("finalizeKernel");
   I.timer.end(s);
   readFrameStats(st);
@@ -252,13 +258,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   st.shadowTraverseMs = ms[cuda::kShadowTraverse];
   st.shadowEvaluateMs = ms[cuda::kShadowEvaluate];
   st.finalizeMs = ms[cuda::kFinalize];
-  if (I.truncated) {
-    if (counters_.truncatedFrames == 0)
-      std::fprintf(stderr, "CudaDeltaTrackingRenderer: a frame hit the iteration cap (%d); remaining rays cut off\n",
-                   pipeline_.maxIterations);
-    ++counters_.truncatedFrames;
-  }
-  endFrame();
+  endFrame(st, I.truncated);
   st.totalMs = msSince(tFrame);
   return st;
 }
@@ -284,7 +284,7 @@ void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& tabl
   const RayStateView rs = I.rays.view();
   ghostInitKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, medium.grid, rs, stride);
   INR_CUDA_CHECK_LAUNCH("ghostInitKernel");
-  I.track(evaluator_, fc, medium, true, refine, pipeline_.maxIterations, cuda::kTraverse, cuda::kEvaluate,
+  I.track(evaluator_, fc, medium, true, refine, options_.maxIterations, cuda::kTraverse, cuda::kEvaluate,
           total.iterations, total.queries);
 }
 

@@ -13,9 +13,9 @@
 // previous query buffer: after traversal a ray is active iff it is pending), so late iterations
 // cost what their few rays cost. Traversal is a DeviceTraversal (DeviceTraversal.h; the DDA by
 // default). Per iteration the host reads back one counter (pinned memory) to size the evaluation
-// launch and to stop when it is zero. The iteration count is capped
-// (CudaPipelineOptions::maxIterations): rays still pending then are terminated as escaped and
-// the frame is counted in counters().truncatedFrames. Each frame leaves the GPU as a few bytes
+// launch and to stop when it is zero. Work is bounded as on the CPU (TrackingOptions:
+// maxCollisionsPerRay in the stage code, maxIterations here: rays still pending then are
+// terminated as escaped and the frame is counted in counters().truncatedFrames). Each frame leaves the GPU as a few bytes
 // of statistics (counts, the residual sum of the convergence estimate).
 //
 // Also hosts the naive GPU baseline (renderFrameNaive, CudaNaiveTracker.cu): one thread per ray
@@ -36,7 +36,6 @@ class CudaPerThreadMlp;
 class DeviceTraversal;
 
 struct CudaPipelineOptions {
-  int maxIterations = 1 << 14;  // traverse-evaluate iterations per loop before rays are cut off
   bool stageTiming = true;      // CUDA events around every stage (per-stage milliseconds)
   int naiveRaysPerLaunch = 1 << 16;  // naive baseline: rays per kernel launch (bounded launches)
 };

@@ -35,7 +35,7 @@ inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThre
 
 // Per-frame device counters (one read-back at the end of the frame).
 enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
-                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCount = 8 };
+                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCount = 8 };
 }  // namespace pipeline
 
 struct CudaDeltaTrackingRenderer::Impl {

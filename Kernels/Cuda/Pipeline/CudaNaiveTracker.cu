@@ -61,6 +61,7 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
       }
     }
   }
+  if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
   atomicAdd(residualSum, double(finalizePixel(fc, rs, acc, i)));
   if (q) atomicAdd(&stats[kStatNaiveQueries], q);
   if (sq) atomicAdd(&stats[kStatNaiveShadowQueries], sq);
@@ -102,9 +103,8 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   if (I.hostStats[kStatNaiveCut]) {
     std::fprintf(stderr, "CudaDeltaTrackingRenderer (naive): %llu rays hit the step cap and were cut off\n",
                  I.hostStats[kStatNaiveCut]);
-    ++counters_.truncatedFrames;
   }
-  endFrame();
+  endFrame(st, I.hostStats[kStatNaiveCut] != 0);
   st.totalMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tFrame).count();
   st.traverseMs = st.totalMs;  // traversal and evaluation are interleaved; not separable
   return st;
