@@ -1,39 +1,27 @@
 #include "vtkInrVolumeMapper.h"
 
-#include "vtkCamera.h"
-#include "vtkColorTransferFunction.h"
-#include "vtkDataArray.h"
 #include "vtkDataSet.h"
 #include "vtkFieldData.h"
-#include "vtkImageData.h"
 #include "vtkInformation.h"
-#include "vtkMatrix4x4.h"
 #include "vtkObjectFactory.h"
-#include "vtkOpenGLQuadHelper.h"
-#include "vtkOpenGLRenderUtilities.h"
 #include "vtkOpenGLRenderWindow.h"
-#include "vtkOpenGLShaderCache.h"
-#include "vtkOpenGLState.h"
-#include "vtkPiecewiseFunction.h"
 #include "vtkRenderer.h"
-#include "vtkShaderProgram.h"
-#include "vtkSmartPointer.h"
-#include "vtkTextureObject.h"
 #include "vtkUnsignedCharArray.h"
 #include "vtkVolume.h"
-#include "vtkVolumeProperty.h"
-#include "vtk_glew.h"
 
-#include "Model/InrModel.h"
+#include "InrFramebufferCompositor.h"
+#include "InrSceneTranslator.h"
+
+#include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
+#include "Model/InrModel.h"
+#include "Render/SceneChange.h"
 #include "Render/SceneInputs.h"
 
-#include <algorithm>
-#include <cmath>
+#include <array>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <cstdint>
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,8 +38,16 @@ std::uint64_t hashBytes(const unsigned char* p, std::size_t n)
   return h ^ n;
 }
 
-const char* const kFragmentImpl =
-  "  gl_FragData[0] = texture2D(inrImage, vec2(texCoord.x, 1.0 - texCoord.y));\n";
+// The renderer's tile in the window (the image the engine renders).
+struct Viewport
+{
+  int width = 0, height = 0, x0 = 0, y0 = 0;
+};
+
+bool debugReport()
+{
+  return std::getenv("INR_VOLUME_DEBUG") != nullptr;
+}
 }
 
 struct vtkInrVolumeMapper::Internals
@@ -62,38 +58,34 @@ struct vtkInrVolumeMapper::Internals
   std::uint64_t hash = 0;
   bool modelOk = false;
   std::uint64_t reportedBadHash = 0;
-
   inr::InrModel model;
+
   // The engine session: evaluator + macrocells + renderer on the chosen backend.
-  std::unique_ptr<inr::RenderSession> renderer;
+  std::unique_ptr<inr::RenderSession> session;
   int builtResolution = 0, builtSlices = 0, builtBackend = -1;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
   bool warnedCuda = false;
-
   bool haveSettings = false;
   inr::RenderSettings settings;
 
-  // Transfer-function cache (conversion from VTK only when its inputs changed).
-  vtkMTimeType ctfTime = 0, otfTime = 0, propTime = 0;
-  int tfDefault = -1;
-  double tfRange[2] = { 0, 0 };
-  inr::TransferFunction tf;
-
-  // Convergence.
-  double estimate = std::numeric_limits<double>::infinity();
-  bool converged = false;
-  double lastUpdateMs = 0.0;
-  double lastQueries = 0.0;
-
-  // Drawing.
-  std::unique_ptr<vtkOpenGLQuadHelper> quad;
-  vtkSmartPointer<vtkTextureObject> texture;
-  int texW = 0, texH = 0;
-  int uploadedFrames = -1;
-  bool textureValid = false;
+  // VTK -> engine (transfer-function cache), progressive refinement, drawing.
+  InrSceneTranslator translator;
   std::vector<float> depth;
-  inr::RenderScene lastScene;  // for the INR_VOLUME_DEBUG report of what changed
+  inr::RefinementDriver refinement;
+  inr::RefinementDriver::Step lastStep;
+  InrFramebufferCompositor compositor;
+
+  // For the INR_VOLUME_DEBUG report of what changed.
+  bool haveLastScene = false;
+  inr::RenderScene lastScene;
+
+  bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
+  bool UpdateEngine(vtkInrVolumeMapper* self);
+  inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
+    vtkDataSet* input, const Viewport& tile);
+  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height);
+  void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
 vtkStandardNewMacro(vtkInrVolumeMapper);
@@ -116,27 +108,26 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  if (this->Internal->renderer)
+  if (this->Internal->session)
   {
-    this->Internal->renderer->resetAccumulation();
+    this->Internal->session->resetAccumulation();
   }
-  this->Internal->converged = false;
-  this->Internal->estimate = std::numeric_limits<double>::infinity();
+  this->Internal->refinement.restart();
 }
 
 int vtkInrVolumeMapper::GetAccumulatedFrames()
 {
-  return this->Internal->renderer ? this->Internal->renderer->accumulatedFrames() : 0;
+  return this->Internal->session ? this->Internal->session->accumulatedFrames() : 0;
 }
 
 int vtkInrVolumeMapper::GetConverged()
 {
-  return this->Internal->converged ? 1 : 0;
+  return this->Internal->refinement.converged() ? 1 : 0;
 }
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
 {
-  return this->Internal->estimate;
+  return this->Internal->refinement.estimate();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()
@@ -146,12 +137,12 @@ const char* vtkInrVolumeMapper::GetBackendInUse()
 
 double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 {
-  return this->Internal->lastUpdateMs;
+  return this->Internal->lastStep.total.updateMs;
 }
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  return this->Internal->renderer ? this->Internal->renderer->macrocellInfo().slicesBuilt : 0;
+  return this->Internal->session ? this->Internal->session->macrocellInfo().slicesBuilt : 0;
 }
 
 int vtkInrVolumeMapper::GetEngineBuilds()
@@ -161,23 +152,12 @@ int vtkInrVolumeMapper::GetEngineBuilds()
 
 double vtkInrVolumeMapper::GetLastQueries()
 {
-  return this->Internal->lastQueries;
+  return double(this->Internal->lastStep.total.totalQueries());
 }
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
 {
-  Internals& I = *this->Internal;
-  if (I.quad)
-  {
-    I.quad->ReleaseGraphicsResources(win);
-    I.quad.reset();
-  }
-  if (I.texture)
-  {
-    I.texture->ReleaseGraphicsResources(win);
-    I.texture = nullptr;
-  }
-  I.textureValid = false;
+  this->Internal->compositor.ReleaseGraphicsResources(win);
   this->Superclass::ReleaseGraphicsResources(win);
 }
 
@@ -193,424 +173,211 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     producer->Update();
   }
   vtkDataSet* input = this->GetInput();
-  if (!input)
-  {
-    return;
-  }
-  vtkFieldData* fd = input->GetFieldData();
+  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
   auto* bytes = vtkUnsignedCharArray::SafeDownCast(fd ? fd->GetAbstractArray("InrModel") : nullptr);
   if (!bytes || bytes->GetNumberOfValues() == 0)
   {
     return;  // e.g. an empty piece in a parallel run: nothing to draw here
   }
-
-  // --- the model (reload only when its bytes changed)
-  if (bytes != I.bytesPtr || bytes->GetMTime() != I.bytesMTime)
+  if (!I.UpdateModel(this, bytes) || !I.UpdateEngine(this))
   {
-    I.bytesPtr = bytes;
-    I.bytesMTime = bytes->GetMTime();
-    const std::uint64_t h =
-      hashBytes(bytes->GetPointer(0), static_cast<std::size_t>(bytes->GetNumberOfValues()));
-    if (h != I.hash || !I.modelOk)
+    return;
+  }
+  Viewport tile;
+  ren->GetTiledSizeAndOrigin(&tile.width, &tile.height, &tile.x0, &tile.y0);
+  if (tile.width <= 0 || tile.height <= 0)
+  {
+    return;
+  }
+  const inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
+  if (!I.Refine(this, scene, tile.width, tile.height))
+  {
+    return;
+  }
+  I.Composite(this, ren, tile.width, tile.height);
+}
+
+// The model: loaded again only when its bytes changed (array, modification time, then hash).
+bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes)
+{
+  if (bytes != this->bytesPtr || bytes->GetMTime() != this->bytesMTime)
+  {
+    this->bytesPtr = bytes;
+    this->bytesMTime = bytes->GetMTime();
+    const std::size_t n = static_cast<std::size_t>(bytes->GetNumberOfValues());
+    const std::uint64_t h = hashBytes(bytes->GetPointer(0), n);
+    if (h != this->hash || !this->modelOk)
     {
-      I.hash = h;
-      I.modelOk = false;
-      I.renderer.reset();
+      this->hash = h;
+      this->modelOk = false;
+      this->session.reset();
       try
       {
-        I.model = inr::InrModel::loadBytes(bytes->GetPointer(0),
-          static_cast<std::size_t>(bytes->GetNumberOfValues()), "INR model (field data)");
-        I.modelOk = true;
+        this->model = inr::InrModel::loadBytes(bytes->GetPointer(0), n, "INR model (field data)");
+        this->modelOk = true;
       }
       catch (const std::exception& e)
       {
-        if (I.reportedBadHash != h)
+        if (this->reportedBadHash != h)
         {
-          vtkErrorMacro(<< e.what());
-          I.reportedBadHash = h;
+          vtkErrorWithObjectMacro(self, << e.what());
+          this->reportedBadHash = h;
         }
       }
     }
   }
-  if (!I.modelOk)
-  {
-    return;
-  }
+  return this->modelOk;
+}
 
-  // --- backend and engine objects (rebuilt when the model, macrocells or backend change)
-  const int backend = this->Backend;
-  if (!I.renderer || I.builtResolution != this->MacrocellResolution ||
-    I.builtSlices != this->TemporalSlices || I.builtBackend != backend)
+// The engine (evaluator, macrocells, renderer): rebuilt when the model, the macrocell grid or the
+// backend change.
+bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
+{
+  const int backend = self->Backend;
+  if (!this->session || this->builtResolution != self->MacrocellResolution ||
+    this->builtSlices != self->TemporalSlices || this->builtBackend != backend)
   {
     try
     {
-      I.renderer.reset();
+      this->session.reset();
       inr::RenderSessionOptions so;
       so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
         : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
                                           : inr::RenderBackend::Auto;
       so.allowFallback = true;
-      const int n = this->MacrocellResolution;
+      const int n = self->MacrocellResolution;
       so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = I.model.domain.usesTime() ? this->TemporalSlices : 1;
-      I.renderer = inr::RenderSession::create(I.model, so);
-      if (backend == BACKEND_CUDA && I.renderer->backend() != inr::RenderBackend::Cuda && !I.warnedCuda)
+      so.macrocells.temporalSlices = this->model.domain.usesTime() ? self->TemporalSlices : 1;
+      this->session = inr::RenderSession::create(this->model, so);
+      if (backend == BACKEND_CUDA && this->session->backend() != inr::RenderBackend::Cuda &&
+        !this->warnedCuda)
       {
-        vtkWarningMacro("INR Volume: the CUDA backend was requested but is not usable here; "
-                        "rendering on the CPU (" << I.renderer->description() << ").");
-        I.warnedCuda = true;
+        vtkWarningWithObjectMacro(self,
+          "INR Volume: the CUDA backend was requested but is not usable here; "
+          "rendering on the CPU (" << this->session->description() << ").");
+        this->warnedCuda = true;
       }
-      I.builtResolution = this->MacrocellResolution;
-      I.builtSlices = this->TemporalSlices;
-      I.builtBackend = backend;
-      I.haveSettings = false;
-      ++I.engineBuilds;
+      this->builtResolution = self->MacrocellResolution;
+      this->builtSlices = self->TemporalSlices;
+      this->builtBackend = backend;
+      this->haveSettings = false;
+      this->refinement.restart();
+      ++this->engineBuilds;
     }
     catch (const std::exception& e)
     {
-      vtkErrorMacro(<< "INR Volume: cannot set up the renderer: " << e.what());
-      I.renderer.reset();
-      return;
+      vtkErrorWithObjectMacro(self, << "INR Volume: cannot set up the renderer: " << e.what());
+      this->session.reset();
+      return false;
     }
   }
-  const std::string backendText = I.renderer->description();
-  I.backendInUse = backendText;
+  this->backendInUse = this->session->description();
+  return true;
+}
 
-  // --- image size, camera
-  int width = 0, height = 0, x0 = 0, y0 = 0;
-  ren->GetTiledSizeAndOrigin(&width, &height, &x0, &y0);
-  if (width <= 0 || height <= 0)
-  {
-    return;
-  }
+// Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
+inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMapper* self,
+  vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input, const Viewport& tile)
+{
+  const int width = tile.width, height = tile.height;
   vtkCamera* cam = ren->GetActiveCamera();
-  inr::Camera camera;
-  cam->GetPosition(camera.position.data());
-  cam->GetFocalPoint(camera.focalPoint.data());
-  cam->GetViewUp(camera.viewUp.data());
-  camera.viewAngle = cam->GetViewAngle();
-  if (cam->GetUseHorizontalViewAngle())
-  {
-    const double aspect = double(width) / double(height);
-    camera.viewAngle = 2.0 *
-      std::atan(std::tan(0.5 * camera.viewAngle * M_PI / 180.0) / aspect) * 180.0 / M_PI;
-  }
-  camera.parallelProjection = cam->GetParallelProjection() != 0;
-  camera.parallelScale = cam->GetParallelScale();
+  inr::RenderScene scene;
+  scene.camera = InrSceneTranslator::TranslateCamera(cam, width, height);
+  // Depth limit: world distance to the opaque geometry rendered before the volume.
+  InrFramebufferCompositor::ReadDepth(
+    ren->GetRenderWindow(), tile.x0, tile.y0, width, height, this->depth);
+  scene.depthLimit = InrSceneTranslator::DepthToRayDistances(this->depth, width, height, cam);
+  double valueRange[2];
+  InrSceneTranslator::ValueRange(input->GetFieldData(), valueRange);
+  scene.transferFunction = this->translator.UpdateTransferFunction(
+    vol->GetProperty(), self->UseDefaultTransferFunction != 0, valueRange);
+  scene.time = InrSceneTranslator::Time(
+    input, 0.5 * (this->model.domain.timeBegin + this->model.domain.timeEnd));
+  scene.background = { 0.f, 0.f, 0.f };
+  scene.shadows = self->Shadows != 0;
+  const double* l = self->LightDirection;
+  scene.toLight = (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0)
+    ? inr::defaultLightDirection(scene.camera)
+    : std::array<double, 3>{ l[0], l[1], l[2] };
+  scene.ambient = static_cast<float>(self->Ambient);
+  scene.shadowEstimator =
+    self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
+  return scene;
+}
 
-  // --- depth limit from the depth buffer (opaque geometry rendered before the volume)
-  std::vector<float> depthLimit;
-  {
-    I.depth.resize(std::size_t(width) * height);
-    if (auto* glWin = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow()))
-    {
-      glWin->GetState()->vtkglPixelStorei(GL_PACK_ALIGNMENT, 1);
-    }
-    glReadPixels(x0, y0, width, height, GL_DEPTH_COMPONENT, GL_FLOAT, I.depth.data());
-    bool any = false;
-    for (float d : I.depth)
-    {
-      if (d < 1.0f)
-      {
-        any = true;
-        break;
-      }
-    }
-    if (any)
-    {
-      const double aspect = double(width) / double(height);
-      vtkNew<vtkMatrix4x4> inv;
-      inv->DeepCopy(cam->GetCompositeProjectionTransformMatrix(aspect, -1, 1));
-      inv->Invert();
-      const double* m = inv->GetData();  // row-major, column vectors
-      double eye[3], fwd[3];
-      cam->GetPosition(eye);
-      cam->GetDirectionOfProjection(fwd);
-      const bool parallel = camera.parallelProjection;
-      depthLimit.assign(std::size_t(width) * height, std::numeric_limits<float>::max());
-      for (int j = 0; j < height; ++j)  // j: GL row (0 = bottom)
-      {
-        const double ny = 2.0 * (j + 0.5) / height - 1.0;
-        const int row = height - 1 - j;  // engine row (0 = top)
-        for (int i = 0; i < width; ++i)
-        {
-          const float d = I.depth[std::size_t(j) * width + i];
-          if (!(d < 1.0f))
-          {
-            continue;
-          }
-          const double nx = 2.0 * (i + 0.5) / width - 1.0;
-          const double nz = 2.0 * d - 1.0;
-          double p[4];
-          for (int r = 0; r < 4; ++r)
-          {
-            p[r] = m[4 * r] * nx + m[4 * r + 1] * ny + m[4 * r + 2] * nz + m[4 * r + 3];
-          }
-          const double w = p[3] != 0.0 ? 1.0 / p[3] : 0.0;
-          const double dx = p[0] * w - eye[0], dy = p[1] * w - eye[1], dz = p[2] * w - eye[2];
-          const double dist = parallel ? (dx * fwd[0] + dy * fwd[1] + dz * fwd[2])
-                                       : std::sqrt(dx * dx + dy * dy + dz * dz);
-          depthLimit[std::size_t(row) * width + i] = float(std::max(0.0, dist));
-        }
-      }
-    }
-  }
-
-  // --- transfer function
-  double valueRange[2] = { 0.0, 1.0 };
-  if (auto* vr = vtkDataArray::SafeDownCast(fd->GetAbstractArray("InrValueRange")))
-  {
-    if (vr->GetNumberOfTuples() >= 2)
-    {
-      valueRange[0] = vr->GetComponent(0, 0);
-      valueRange[1] = vr->GetComponent(1, 0);
-    }
-  }
-  vtkVolumeProperty* prop = vol->GetProperty();
-  if (this->UseDefaultTransferFunction || !prop)
-  {
-    const double unit = prop ? prop->GetScalarOpacityUnitDistance(0) : 1.0;
-    if (I.tfDefault != 1 || I.tfRange[0] != valueRange[0] || I.tfRange[1] != valueRange[1] ||
-      I.tf.unitDistance != unit)
-    {
-      I.tf = inr::TransferFunction::preset(valueRange[0], valueRange[1]);
-      I.tf.unitDistance = unit;
-      I.tfDefault = 1;
-      I.tfRange[0] = valueRange[0];
-      I.tfRange[1] = valueRange[1];
-    }
-  }
-  else
-  {
-    vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
-    vtkPiecewiseFunction* otf = prop->GetScalarOpacity(0);
-    if (I.tfDefault != 0 || ctf->GetMTime() != I.ctfTime || otf->GetMTime() != I.otfTime ||
-      prop->GetMTime() != I.propTime)
-    {
-      inr::TransferFunction tf;
-      double cr[2];
-      ctf->GetRange(cr);
-      if (ctf->GetSize() == 0)
-      {
-        cr[0] = valueRange[0];
-        cr[1] = valueRange[1];
-      }
-      // Sample the colour function so its colour space (Diverging, Lab, HSV...) and log scale
-      // are reproduced exactly by the engine's RGB interpolation.
-      const int samples = cr[1] > cr[0] ? 256 : 1;
-      for (int k = 0; k < samples; ++k)
-      {
-        const double x = samples > 1 ? cr[0] + (cr[1] - cr[0]) * k / (samples - 1) : cr[0];
-        double rgb[3];
-        ctf->GetColor(x, rgb);
-        tf.color.push_back({ x, rgb[0], rgb[1], rgb[2] });
-      }
-      for (int k = 0; k < otf->GetSize(); ++k)
-      {
-        double node[4];
-        otf->GetNodeValue(k, node);
-        tf.opacity.push_back({ node[0], node[1], node[2], node[3] });
-      }
-      if (tf.opacity.empty())
-      {
-        tf.opacity.push_back({ cr[0], 0.0 });
-        tf.opacity.push_back({ cr[1] > cr[0] ? cr[1] : cr[0] + 1.0, 0.0 });
-      }
-      tf.unitDistance = prop->GetScalarOpacityUnitDistance(0);
-      I.tf = tf;
-      I.tfDefault = 0;
-      I.ctfTime = ctf->GetMTime();
-      I.otfTime = otf->GetMTime();
-      I.propTime = prop->GetMTime();
-    }
-  }
-
-  // --- time
-  double time = 0.5 * (I.model.domain.timeBegin + I.model.domain.timeEnd);
-  if (auto* ta = vtkDataArray::SafeDownCast(fd->GetAbstractArray("InrTime")))
-  {
-    if (ta->GetNumberOfTuples() >= 1)
-    {
-      time = ta->GetComponent(0, 0);
-    }
-  }
-  else if (input->GetInformation()->Has(vtkDataObject::DATA_TIME_STEP()))
-  {
-    time = input->GetInformation()->Get(vtkDataObject::DATA_TIME_STEP());
-  }
-
-  // --- hand everything to the engine; it decides what to rebuild
-  const int framesBefore = I.renderer->accumulatedFrames();
-  bool renderedAny = false;
+// Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
+// as the refinement options allow (RefinementDriver). False when the engine failed.
+bool vtkInrVolumeMapper::Internals::Refine(
+  vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height)
+{
   try
   {
     inr::RenderSettings settings;
     settings.width = width;
     settings.height = height;
-    settings.seed = static_cast<std::uint32_t>(this->Seed);
-    if (!I.haveSettings || settings.width != I.settings.width ||
-      settings.height != I.settings.height || settings.seed != I.settings.seed)
+    settings.seed = static_cast<std::uint32_t>(self->Seed);
+    if (!this->haveSettings || settings.width != this->settings.width ||
+      settings.height != this->settings.height || settings.seed != this->settings.seed)
     {
-      I.renderer->setSettings(settings);
-      I.settings = settings;
-      I.haveSettings = true;
+      this->session->setSettings(settings);
+      this->settings = settings;
+      this->haveSettings = true;
     }
-    inr::RenderScene scene;
-    scene.camera = camera;
-    scene.transferFunction = I.tf;
-    scene.background = { 0.f, 0.f, 0.f };
-    scene.time = time;
-    scene.depthLimit = std::move(depthLimit);
-    scene.shadows = this->Shadows != 0;
-    if (this->LightDirection[0] == 0.0 && this->LightDirection[1] == 0.0 &&
-      this->LightDirection[2] == 0.0)
+    const bool debug = debugReport();
+    if (debug)
     {
-      scene.toLight = inr::defaultLightDirection(camera);
-    }
-    else
-    {
-      scene.toLight = { this->LightDirection[0], this->LightDirection[1], this->LightDirection[2] };
-    }
-    scene.ambient = static_cast<float>(this->Ambient);
-    scene.shadowEstimator =
-      this->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
-    if (std::getenv("INR_VOLUME_DEBUG"))
-    {
-      const inr::RenderScene& o = I.lastScene;
-      std::string what;
-      if (o.camera.position != scene.camera.position || o.camera.focalPoint != scene.camera.focalPoint ||
-        o.camera.viewUp != scene.camera.viewUp || o.camera.viewAngle != scene.camera.viewAngle ||
-        o.camera.parallelScale != scene.camera.parallelScale)
-        what += " camera";
-      if (o.time != scene.time)
-        what += " time";
-      if (o.depthLimit != scene.depthLimit)
-        what += " depth";
-      if (o.toLight != scene.toLight || o.shadows != scene.shadows)
-        what += " light";
-      if (o.transferFunction.color.size() != scene.transferFunction.color.size() ||
-        o.transferFunction.opacity.size() != scene.transferFunction.opacity.size() ||
-        o.transferFunction.unitDistance != scene.transferFunction.unitDistance ||
-        (!o.transferFunction.opacity.empty() &&
-          (o.transferFunction.opacity.back().x != scene.transferFunction.opacity.back().x ||
-            o.transferFunction.opacity.front().x != scene.transferFunction.opacity.front().x)))
-        what += " tf";
+      const inr::SceneChange change =
+        inr::diffScenes(this->haveLastScene ? &this->lastScene : nullptr, scene);
       std::fprintf(stderr, "INR Volume: render %dx%d, frames %d, changed:%s\n", width, height,
-        I.renderer->accumulatedFrames(), what.empty() ? " nothing" : what.c_str());
-      I.lastScene = scene;
+        this->session->accumulatedFrames(), change.describe().c_str());
+      this->lastScene = scene;
+      this->haveLastScene = true;
     }
-    I.renderer->setScene(scene);
+    this->session->setScene(scene);
 
-    int frames = I.renderer->accumulatedFrames();
-    if (frames == 0 || frames < framesBefore)
-    {
-      I.estimate = std::numeric_limits<double>::infinity();
-    }
-    // Re-evaluated every render: the limits may have changed since the last one.
-    I.converged = frames >= this->MaximumFrames ||
-      (this->ConvergenceTarget > 0.0 && frames >= 4 && I.estimate < this->ConvergenceTarget);
-    const int goal = std::min(this->MaximumFrames, std::max(frames + 1, this->FramesPerRender));
-    I.lastUpdateMs = 0.0;
-    I.lastQueries = 0.0;
-    while (!I.converged && frames < goal)
-    {
-      const inr::FrameStats st = I.renderer->renderFrame();
-      renderedAny = true;
-      I.lastUpdateMs += st.updateMs;
-      I.lastQueries += double(st.totalQueries());
-      frames = I.renderer->accumulatedFrames();
-      const auto& res = I.renderer->residual();
-      double sum = 0.0;
-      for (float r : res)
-      {
-        sum += r;
-      }
-      I.estimate = res.empty() ? 0.0 : sum / double(res.size()) / std::sqrt(double(frames));
-      I.converged = frames >= this->MaximumFrames ||
-        (this->ConvergenceTarget > 0.0 && frames >= 4 && I.estimate < this->ConvergenceTarget);
-    }
-    if (frames >= this->MaximumFrames)
-    {
-      I.converged = true;
-    }
-    if (std::getenv("INR_VOLUME_DEBUG") && renderedAny)
+    inr::RefinementOptions options;
+    options.maximumFrames = self->MaximumFrames;
+    options.convergenceTarget = self->ConvergenceTarget;
+    options.framesPerRender = self->FramesPerRender;
+    this->refinement.setOptions(options);
+    this->lastStep = inr::RefinementDriver::Step{};
+    this->lastStep = this->refinement.advance(*this->session);
+    if (debug && this->lastStep.framesRendered > 0)
     {
       std::fprintf(stderr, "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d\n",
-        frames, I.lastQueries, I.lastUpdateMs, int(I.converged));
+        this->session->accumulatedFrames(), double(this->lastStep.total.totalQueries()),
+        this->lastStep.total.updateMs, int(this->refinement.converged()));
     }
+    return true;
   }
   catch (const std::exception& e)
   {
-    vtkErrorMacro(<< "INR Volume: rendering failed: " << e.what());
+    vtkErrorWithObjectMacro(self, << "INR Volume: rendering failed: " << e.what());
+    return false;
+  }
+}
+
+// Draws the accumulated image over what is in the framebuffer; the texture is loaded again only
+// when the image changed.
+void vtkInrVolumeMapper::Internals::Composite(
+  vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height)
+{
+  auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
+  const int frames = this->session->accumulatedFrames();
+  if (!window || frames == 0)
+  {
     return;
   }
-
-  // --- draw the accumulated image over what is in the framebuffer
-  vtkOpenGLRenderWindow* renWin = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
-  if (!renWin || I.renderer->accumulatedFrames() == 0)
+  if (this->compositor.NeedsUpload(window, width, height, frames, this->lastStep.framesRendered > 0))
   {
-    return;
+    const inr::ImageRGBA image = this->session->premultipliedImage();
+    this->compositor.Upload(window, width, height, frames, image.data.data());
   }
-  if (!I.texture)
+  std::string error;
+  if (!this->compositor.Blend(window, &error))
   {
-    I.texture = vtkSmartPointer<vtkTextureObject>::New();
-    I.textureValid = false;
+    vtkErrorWithObjectMacro(self, << error);
   }
-  I.texture->SetContext(renWin);
-  const int frames = I.renderer->accumulatedFrames();
-  if (!I.textureValid || I.texW != width || I.texH != height || I.uploadedFrames != frames ||
-    renderedAny)
-  {
-    const inr::ImageRGBA img = I.renderer->premultipliedImage();
-    if (I.textureValid && I.texW == width && I.texH == height)
-    {
-      I.texture->Bind();
-      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RGBA, GL_FLOAT, img.data.data());
-    }
-    else
-    {
-      I.texture->Create2DFromRaw(width, height, 4, VTK_FLOAT,
-        const_cast<void*>(static_cast<const void*>(img.data.data())));
-      I.texture->SetMinificationFilter(vtkTextureObject::Nearest);
-      I.texture->SetMagnificationFilter(vtkTextureObject::Nearest);
-      I.texW = width;
-      I.texH = height;
-      I.textureValid = true;
-    }
-    I.uploadedFrames = frames;
-  }
-
-  vtkOpenGLState* ostate = renWin->GetState();
-  vtkOpenGLState::ScopedglEnableDisable blendSaver(ostate, GL_BLEND);
-  vtkOpenGLState::ScopedglEnableDisable depthSaver(ostate, GL_DEPTH_TEST);
-  vtkOpenGLState::ScopedglBlendFuncSeparate blendFuncSaver(ostate);
-  vtkOpenGLState::ScopedglDepthMask depthMaskSaver(ostate);
-  ostate->vtkglEnable(GL_BLEND);
-  ostate->vtkglDisable(GL_DEPTH_TEST);
-  ostate->vtkglDepthMask(GL_FALSE);
-  ostate->vtkglBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-
-  if (!I.quad)
-  {
-    std::string fs = vtkOpenGLRenderUtilities::GetFullScreenQuadFragmentShaderTemplate();
-    vtkShaderProgram::Substitute(fs, "//VTK::FSQ::Decl", "uniform sampler2D inrImage;\n");
-    vtkShaderProgram::Substitute(fs, "//VTK::FSQ::Impl", kFragmentImpl);
-    I.quad = std::make_unique<vtkOpenGLQuadHelper>(renWin,
-      vtkOpenGLRenderUtilities::GetFullScreenQuadVertexShader().c_str(), fs.c_str(), "");
-  }
-  else
-  {
-    renWin->GetShaderCache()->ReadyShaderProgram(I.quad->Program);
-  }
-  if (!I.quad->Program || !I.quad->Program->GetCompiled())
-  {
-    vtkErrorMacro("INR Volume: could not build the compositing shader.");
-    return;
-  }
-  I.texture->Activate();
-  I.quad->Program->SetUniformi("inrImage", I.texture->GetTextureUnit());
-  I.quad->Render();
-  I.texture->Deactivate();
 }
 
 void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)

@@ -8,15 +8,18 @@
  * are ignored. Each Render():
  *  - rebuilds the engine only when the model bytes (hash), the macrocell resolution, the temporal
  *    slices or the backend change;
- *  - hands the engine the VTK camera, the volume property's colour function (sampled, so every
- *    VTK colour space is honoured), its scalar-opacity function (nodes with midpoint/sharpness) and
- *    ScalarOpacityUnitDistance, the time, the light and a per-pixel depth limit read from the depth
- *    buffer (world distance to the opaque geometry drawn before); the engine's setScene decides
- *    what to redo (time: working grid + majorants; TF: majorants; camera/light/depth: restart
- *    accumulation; nothing: keep accumulating);
- *  - accumulates frames (at least one new frame while not converged, and up to FramesPerRender
- *    in total, never beyond MaximumFrames or past the convergence target);
- *  - draws the accumulated premultiplied image over the framebuffer (blend ONE, ONE_MINUS_SRC_ALPHA).
+ *  - translates the VTK scene (InrSceneTranslator): the camera, the volume property's colour
+ *    function (sampled, so every VTK colour space is honoured), its scalar-opacity function (nodes
+ *    with midpoint/sharpness) and ScalarOpacityUnitDistance, the time, and a per-pixel depth limit
+ *    from the depth buffer (world distance to the opaque geometry drawn before); adds the light;
+ *  - hands the scene to the engine, whose setScene decides what to redo (inr::SceneChange: time:
+ *    working grid + majorants; TF: majorants; camera/light/depth: restart accumulation; nothing:
+ *    keep accumulating);
+ *  - accumulates frames with the engine's inr::RefinementDriver (at least one new frame while not
+ *    converged, and up to FramesPerRender in total, never beyond MaximumFrames or past the
+ *    convergence target);
+ *  - draws the accumulated premultiplied image over the framebuffer (InrFramebufferCompositor:
+ *    blend ONE, ONE_MINUS_SRC_ALPHA; the texture is loaded only when the image changed).
  * Progressive refinement is driven from outside: call Render() again while !GetConverged()
  * (ParaView's GUI does this through the plugin's pqInrRefinementBehavior).
  */

@@ -1,0 +1,209 @@
+#include "InrSceneTranslator.h"
+
+#include "vtkCamera.h"
+#include "vtkColorTransferFunction.h"
+#include "vtkDataArray.h"
+#include "vtkDataObject.h"
+#include "vtkDataSet.h"
+#include "vtkFieldData.h"
+#include "vtkInformation.h"
+#include "vtkMatrix4x4.h"
+#include "vtkNew.h"
+#include "vtkPiecewiseFunction.h"
+#include "vtkVolumeProperty.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+double InrSceneTranslator::VerticalViewAngle(double horizontalDegrees, double aspect)
+{
+  return 2.0 * std::atan(std::tan(0.5 * horizontalDegrees * M_PI / 180.0) / aspect) * 180.0 / M_PI;
+}
+
+inr::Camera InrSceneTranslator::TranslateCamera(vtkCamera* cam, int width, int height)
+{
+  inr::Camera camera;
+  cam->GetPosition(camera.position.data());
+  cam->GetFocalPoint(camera.focalPoint.data());
+  cam->GetViewUp(camera.viewUp.data());
+  camera.viewAngle = cam->GetViewAngle();
+  if (cam->GetUseHorizontalViewAngle())
+  {
+    camera.viewAngle = VerticalViewAngle(camera.viewAngle, double(width) / double(height));
+  }
+  camera.parallelProjection = cam->GetParallelProjection() != 0;
+  camera.parallelScale = cam->GetParallelScale();
+  return camera;
+}
+
+std::vector<float> InrSceneTranslator::DepthToRayDistances(const float* depth, int width,
+  int height, const double m[16], const double eye[3], const double fwd[3], bool parallel)
+{
+  const std::size_t n = std::size_t(width) * std::size_t(height);
+  if (!depth || width <= 0 || height <= 0 || std::none_of(depth, depth + n, [](float d) { return d < 1.0f; }))
+  {
+    return {};
+  }
+  std::vector<float> distance(n, std::numeric_limits<float>::max());
+  for (int j = 0; j < height; ++j)  // j: GL row (0 = bottom)
+  {
+    const double ny = 2.0 * (j + 0.5) / height - 1.0;
+    const int row = height - 1 - j;  // engine row (0 = top)
+    for (int i = 0; i < width; ++i)
+    {
+      const float d = depth[std::size_t(j) * width + i];
+      if (!(d < 1.0f))
+      {
+        continue;
+      }
+      const double nx = 2.0 * (i + 0.5) / width - 1.0;
+      const double nz = 2.0 * d - 1.0;
+      double p[4];
+      for (int r = 0; r < 4; ++r)
+      {
+        p[r] = m[4 * r] * nx + m[4 * r + 1] * ny + m[4 * r + 2] * nz + m[4 * r + 3];
+      }
+      const double w = p[3] != 0.0 ? 1.0 / p[3] : 0.0;
+      const double dx = p[0] * w - eye[0], dy = p[1] * w - eye[1], dz = p[2] * w - eye[2];
+      const double dist = parallel ? (dx * fwd[0] + dy * fwd[1] + dz * fwd[2])
+                                   : std::sqrt(dx * dx + dy * dy + dz * dz);
+      distance[std::size_t(row) * width + i] = float(std::max(0.0, dist));
+    }
+  }
+  return distance;
+}
+
+std::vector<float> InrSceneTranslator::DepthToRayDistances(
+  const std::vector<float>& depth, int width, int height, vtkCamera* cam)
+{
+  if (depth.size() < std::size_t(width) * std::size_t(height))
+  {
+    return {};
+  }
+  vtkNew<vtkMatrix4x4> inverse;
+  inverse->DeepCopy(cam->GetCompositeProjectionTransformMatrix(double(width) / double(height), -1, 1));
+  inverse->Invert();
+  double eye[3], fwd[3];
+  cam->GetPosition(eye);
+  cam->GetDirectionOfProjection(fwd);
+  return DepthToRayDistances(
+    depth.data(), width, height, inverse->GetData(), eye, fwd, cam->GetParallelProjection() != 0);
+}
+
+void InrSceneTranslator::ValueRange(vtkFieldData* fd, double range[2])
+{
+  range[0] = 0.0;
+  range[1] = 1.0;
+  if (auto* vr = vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("InrValueRange") : nullptr))
+  {
+    if (vr->GetNumberOfTuples() >= 2)
+    {
+      range[0] = vr->GetComponent(0, 0);
+      range[1] = vr->GetComponent(1, 0);
+    }
+  }
+}
+
+double InrSceneTranslator::Time(vtkDataSet* input, double fallback)
+{
+  if (!input)
+  {
+    return fallback;
+  }
+  vtkFieldData* fd = input->GetFieldData();
+  if (auto* ta = vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("InrTime") : nullptr))
+  {
+    return ta->GetNumberOfTuples() >= 1 ? ta->GetComponent(0, 0) : fallback;
+  }
+  vtkInformation* info = input->GetInformation();
+  if (info && info->Has(vtkDataObject::DATA_TIME_STEP()))
+  {
+    return info->Get(vtkDataObject::DATA_TIME_STEP());
+  }
+  return fallback;
+}
+
+inr::TransferFunction InrSceneTranslator::SampleTransferFunction(
+  vtkVolumeProperty* prop, const double valueRange[2])
+{
+  vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
+  vtkPiecewiseFunction* otf = prop->GetScalarOpacity(0);
+  inr::TransferFunction tf;
+  double cr[2];
+  ctf->GetRange(cr);
+  if (ctf->GetSize() == 0)
+  {
+    cr[0] = valueRange[0];
+    cr[1] = valueRange[1];
+  }
+  // Sample the colour function so its colour space (Diverging, Lab, HSV...) and log scale are
+  // reproduced exactly by the engine's RGB interpolation.
+  const int samples = cr[1] > cr[0] ? ColorSamples : 1;
+  for (int k = 0; k < samples; ++k)
+  {
+    const double x = samples > 1 ? cr[0] + (cr[1] - cr[0]) * k / (samples - 1) : cr[0];
+    double rgb[3];
+    ctf->GetColor(x, rgb);
+    tf.color.push_back({ x, rgb[0], rgb[1], rgb[2] });
+  }
+  for (int k = 0; k < otf->GetSize(); ++k)
+  {
+    double node[4];
+    otf->GetNodeValue(k, node);
+    tf.opacity.push_back({ node[0], node[1], node[2], node[3] });
+  }
+  if (tf.opacity.empty())
+  {
+    tf.opacity.push_back({ cr[0], 0.0 });
+    tf.opacity.push_back({ cr[1] > cr[0] ? cr[1] : cr[0] + 1.0, 0.0 });
+  }
+  tf.unitDistance = prop->GetScalarOpacityUnitDistance(0);
+  return tf;
+}
+
+inr::TransferFunction InrSceneTranslator::DefaultTransferFunction(
+  const double valueRange[2], double unitDistance)
+{
+  inr::TransferFunction tf = inr::TransferFunction::preset(valueRange[0], valueRange[1]);
+  tf.unitDistance = unitDistance;
+  return tf;
+}
+
+const inr::TransferFunction& InrSceneTranslator::UpdateTransferFunction(
+  vtkVolumeProperty* prop, bool useDefault, const double valueRange[2])
+{
+  const bool sameRange =
+    this->CachedRange[0] == valueRange[0] && this->CachedRange[1] == valueRange[1];
+  if (useDefault || !prop)
+  {
+    const double unit = prop ? prop->GetScalarOpacityUnitDistance(0) : 1.0;
+    if (this->CachedDefault != 1 || !sameRange || this->CachedUnitDistance != unit)
+    {
+      this->TF = DefaultTransferFunction(valueRange, unit);
+      this->CachedDefault = 1;
+      this->CachedUnitDistance = unit;
+      ++this->Conversions;
+    }
+  }
+  else
+  {
+    // The value range only matters for a colour function without nodes; it is part of the key
+    // so such a function follows the model's range.
+    vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
+    vtkPiecewiseFunction* otf = prop->GetScalarOpacity(0);
+    if (this->CachedDefault != 0 || !sameRange || ctf->GetMTime() != this->ColorTime ||
+      otf->GetMTime() != this->OpacityTime || prop->GetMTime() != this->PropertyTime)
+    {
+      this->TF = SampleTransferFunction(prop, valueRange);
+      this->CachedDefault = 0;
+      this->ColorTime = ctf->GetMTime();
+      this->OpacityTime = otf->GetMTime();
+      this->PropertyTime = prop->GetMTime();
+      ++this->Conversions;
+    }
+  }
+  this->CachedRange[0] = valueRange[0];
+  this->CachedRange[1] = valueRange[1];
+  return this->TF;
+}

@@ -1,0 +1,97 @@
+/**
+ * @class InrSceneTranslator
+ * @brief VTK -> engine scene translation for vtkInrVolumeMapper (plain C++, not wrapped).
+ *
+ * Each piece works alone, without a render window:
+ *  - camera: vtkCamera -> inr::Camera (a horizontal view angle becomes the vertical one);
+ *  - depth: depth-buffer values -> per-pixel world distances along each pixel's ray (the engine's
+ *    RenderScene::depthLimit), a pure function of the depth values, the inverse composite
+ *    projection matrix, the eye, the direction of projection and the image size;
+ *  - field data: the model's value range ("InrValueRange") and the time ("InrTime", else the
+ *    data's DATA_TIME_STEP);
+ *  - transfer function: vtkVolumeProperty -> inr::TransferFunction (the colour function sampled
+ *    at 256 points so every VTK colour space and log scale is reproduced by the engine's RGB
+ *    interpolation; the scalar-opacity nodes with midpoint/sharpness; the scalar opacity unit
+ *    distance), or the engine's default TF over the value range; UpdateTransferFunction converts
+ *    only when its inputs changed (modification times, value range, default or not).
+ */
+#ifndef InrSceneTranslator_h
+#define InrSceneTranslator_h
+
+#include "vtkType.h"
+
+#include "Render/SceneInputs.h"
+
+#include <vector>
+
+class vtkCamera;
+class vtkDataSet;
+class vtkFieldData;
+class vtkVolumeProperty;
+
+class InrSceneTranslator
+{
+public:
+  /// Samples of the colour function (over its range; 1 when the range is empty).
+  static constexpr int ColorSamples = 256;
+
+  ///@{
+  /// Camera. VerticalViewAngle: the vertical angle (degrees) of a view whose horizontal angle is
+  /// `horizontalDegrees`, for an image of aspect width / height.
+  static double VerticalViewAngle(double horizontalDegrees, double aspect);
+  static inr::Camera TranslateCamera(vtkCamera* camera, int width, int height);
+  ///@}
+
+  ///@{
+  /// Depth buffer -> ray distances. `depth`: width * height window depth values in [0, 1], GL
+  /// row order (row 0 at the bottom). `inverseProjection`: the inverse of the camera's composite
+  /// projection matrix (aspect width / height, z range [-1, 1]), row-major, acting on column
+  /// vectors (vtkMatrix4x4::GetData of the inverted matrix). Returns the distances in the
+  /// engine's row order (row 0 at the top): Euclidean distance from the eye (perspective) or
+  /// distance along `direction` (parallel, unit length) to the unprojected pixel centre;
+  /// FLT_MAX where the depth is 1 (nothing drawn). Empty when no pixel has a depth below 1.
+  static std::vector<float> DepthToRayDistances(const float* depth, int width, int height,
+    const double inverseProjection[16], const double eye[3], const double direction[3],
+    bool parallel);
+  /// The same with the matrix, eye and direction taken from `camera`.
+  static std::vector<float> DepthToRayDistances(
+    const std::vector<float>& depth, int width, int height, vtkCamera* camera);
+  ///@}
+
+  ///@{
+  /// Field data. ValueRange: "InrValueRange" (2 tuples), else [0, 1]. Time: "InrTime" when the
+  /// field data has it (its first value; `fallback` when empty), else the data's
+  /// DATA_TIME_STEP, else `fallback`.
+  static void ValueRange(vtkFieldData* fieldData, double range[2]);
+  static double Time(vtkDataSet* input, double fallback);
+  ///@}
+
+  ///@{
+  /// Transfer function. SampleTransferFunction: the property's colour function (component 0)
+  /// sampled at ColorSamples points over its range (the value range when it has no nodes), its
+  /// opacity nodes (a zero opacity over the colour range when it has none), its unit distance.
+  /// DefaultTransferFunction: the engine's preset over the value range with the given unit
+  /// distance.
+  static inr::TransferFunction SampleTransferFunction(
+    vtkVolumeProperty* property, const double valueRange[2]);
+  static inr::TransferFunction DefaultTransferFunction(
+    const double valueRange[2], double unitDistance);
+  /// Cached: the default TF when `useDefault` or there is no property (unit distance 1 then),
+  /// else the sampled one; converts again only when the inputs changed.
+  const inr::TransferFunction& UpdateTransferFunction(
+    vtkVolumeProperty* property, bool useDefault, const double valueRange[2]);
+  const inr::TransferFunction& GetTransferFunction() const { return this->TF; }
+  /// How many times UpdateTransferFunction converted (cache misses).
+  int GetTransferFunctionConversions() const { return this->Conversions; }
+  ///@}
+
+private:
+  inr::TransferFunction TF;
+  int Conversions = 0;
+  int CachedDefault = -1;  // -1 nothing yet, 1 default, 0 sampled
+  double CachedRange[2] = { 0, 0 };
+  double CachedUnitDistance = 0;
+  vtkMTimeType ColorTime = 0, OpacityTime = 0, PropertyTime = 0;
+};
+
+#endif

@@ -1,0 +1,382 @@
+// Unit tests of InrSceneTranslator (VTK -> engine scene translation), no render window needed:
+//  - depth unprojection, perspective and parallel: a point placed on a pixel's ray at a known
+//    distance is projected with VTK's composite projection matrix (which must put it at that
+//    pixel's centre), its window depth is unprojected, and the distance must come back; the
+//    engine's own ray for the pixel must reach the point at that distance;
+//  - the horizontal view angle conversion, checked against VTK's projection;
+//  - transfer-function sampling (colour ends, opacity nodes with midpoint/sharpness, unit
+//    distance, empty functions, the default TF) and its cache;
+//  - value range and time from field data / DATA_TIME_STEP.
+#include "InrSceneTranslator.h"
+
+#include "vtkCamera.h"
+#include "vtkColorTransferFunction.h"
+#include "vtkDataObject.h"
+#include "vtkDoubleArray.h"
+#include "vtkFieldData.h"
+#include "vtkImageData.h"
+#include "vtkInformation.h"
+#include "vtkMatrix4x4.h"
+#include "vtkNew.h"
+#include "vtkPiecewiseFunction.h"
+#include "vtkVolumeProperty.h"
+
+#include "Render/CameraView.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace
+{
+using V3 = std::array<double, 3>;
+
+V3 sub(const V3& a, const V3& b)
+{
+  return { a[0] - b[0], a[1] - b[1], a[2] - b[2] };
+}
+V3 axpy(const V3& a, double s, const V3& b)
+{
+  return { a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2] };
+}
+V3 cross(const V3& a, const V3& b)
+{
+  return { a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0] };
+}
+double dot(const V3& a, const V3& b)
+{
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+V3 normalized(const V3& a)
+{
+  const double l = std::sqrt(dot(a, a));
+  return { a[0] / l, a[1] / l, a[2] / l };
+}
+
+// The camera's frame, computed here from position, focal point and view up (not from VTK's
+// matrices): forward, right, up.
+struct Frame
+{
+  V3 eye, forward, right, up;
+};
+Frame frameOf(vtkCamera* cam)
+{
+  Frame f;
+  V3 focal, viewUp;
+  cam->GetPosition(f.eye.data());
+  cam->GetFocalPoint(focal.data());
+  cam->GetViewUp(viewUp.data());
+  f.forward = normalized(sub(focal, f.eye));
+  f.right = normalized(cross(f.forward, viewUp));
+  f.up = cross(f.right, f.forward);
+  return f;
+}
+
+// VTK's projection of a world point: normalized device coordinates (x, y, z in [-1, 1]).
+V3 projectWithVtk(vtkCamera* cam, double aspect, const V3& p)
+{
+  vtkMatrix4x4* m = cam->GetCompositeProjectionTransformMatrix(aspect, -1, 1);
+  const double in[4] = { p[0], p[1], p[2], 1.0 };
+  double out[4];
+  m->MultiplyPoint(in, out);
+  return { out[0] / out[3], out[1] / out[3], out[2] / out[3] };
+}
+
+struct Probe
+{
+  int i, j;         // pixel, GL rows (j = 0 at the bottom)
+  double distance;  // along the pixel's ray
+};
+
+// Places a point on each probe pixel's centre ray at the probe's distance, projects it with VTK,
+// writes its window depth into an otherwise empty depth buffer, unprojects the buffer and checks
+// the distances (and that the engine's ray for the pixel reaches the point).
+void checkUnprojection(vtkCamera* cam, int width, int height, const std::vector<Probe>& probes)
+{
+  const double aspect = double(width) / double(height);
+  const Frame f = frameOf(cam);
+  const bool parallel = cam->GetParallelProjection() != 0;
+  const double halfHeight =
+    parallel ? cam->GetParallelScale() : std::tan(0.5 * cam->GetViewAngle() * M_PI / 180.0);
+  std::vector<float> depth(std::size_t(width) * height, 1.0f);
+  std::vector<V3> points;
+  for (const Probe& p : probes)
+  {
+    const double nx = 2.0 * (p.i + 0.5) / width - 1.0, ny = 2.0 * (p.j + 0.5) / height - 1.0;
+    const double sx = nx * halfHeight * aspect, sy = ny * halfHeight;
+    V3 point;
+    if (parallel)
+    {
+      point = axpy(axpy(axpy(f.eye, sx, f.right), sy, f.up), p.distance, f.forward);
+    }
+    else
+    {
+      const V3 dir = normalized(axpy(axpy(f.forward, sx, f.right), sy, f.up));
+      point = axpy(f.eye, p.distance, dir);
+    }
+    points.push_back(point);
+    const V3 ndc = projectWithVtk(cam, aspect, point);
+    ASSERT_NEAR(ndc[0], nx, 1e-9) << "VTK puts the point at pixel " << p.i << "," << p.j;
+    ASSERT_NEAR(ndc[1], ny, 1e-9) << "VTK puts the point at pixel " << p.i << "," << p.j;
+    ASSERT_GT(ndc[2], -1.0);
+    ASSERT_LT(ndc[2], 1.0);
+    depth[std::size_t(p.j) * width + p.i] = float(0.5 * (ndc[2] + 1.0));
+  }
+
+  const std::vector<float> distance =
+    InrSceneTranslator::DepthToRayDistances(depth, width, height, cam);
+  ASSERT_EQ(distance.size(), depth.size());
+  const inr::CameraView view =
+    InrSceneTranslator::TranslateCamera(cam, width, height).view(width, height);
+  for (std::size_t k = 0; k < probes.size(); ++k)
+  {
+    const Probe& p = probes[k];
+    const int row = height - 1 - p.j;  // engine rows: 0 at the top
+    const float d = distance[std::size_t(row) * width + p.i];
+    // The depth buffer holds floats: allow their resolution (perspective depth is coarse far
+    // from the near plane).
+    EXPECT_NEAR(d, p.distance, 2e-4 * p.distance) << "pixel " << p.i << "," << p.j;
+    inr::Vec3f origin, dir;
+    inr::cameraRay(view, p.i, row, 0.5f, 0.5f, origin, dir);
+    const V3 reached = { origin.x + d * dir.x, origin.y + d * dir.y, origin.z + d * dir.z };
+    const V3 miss = sub(reached, points[k]);
+    EXPECT_LT(std::sqrt(dot(miss, miss)), 1e-3 * p.distance)
+      << "the engine's ray reaches the point at pixel " << p.i << "," << p.j;
+  }
+  std::size_t limited = 0;
+  for (float d : distance)
+  {
+    limited += d < std::numeric_limits<float>::max() ? 1 : 0;
+  }
+  EXPECT_EQ(limited, probes.size()) << "pixels with depth 1 have no limit";
+}
+
+vtkNew<vtkCamera> makeCamera(bool parallel)
+{
+  vtkNew<vtkCamera> cam;
+  cam->SetPosition(3.0, -2.0, 4.5);
+  cam->SetFocalPoint(0.5, 0.25, -0.5);
+  cam->SetViewUp(0.1, 1.0, 0.2);
+  cam->OrthogonalizeViewUp();
+  cam->SetViewAngle(35.0);
+  cam->SetParallelProjection(parallel ? 1 : 0);
+  cam->SetParallelScale(1.7);
+  cam->SetClippingRange(0.5, 20.0);
+  return cam;
+}
+}
+
+TEST(InrSceneTranslator, DepthUnprojectionPerspective)
+{
+  vtkNew<vtkCamera> cam = makeCamera(false);
+  checkUnprojection(cam, 40, 30, { { 20, 15, 5.8 }, { 3, 5, 2.0 }, { 39, 0, 9.5 }, { 0, 29, 1.0 } });
+}
+
+TEST(InrSceneTranslator, DepthUnprojectionParallel)
+{
+  vtkNew<vtkCamera> cam = makeCamera(true);
+  checkUnprojection(cam, 40, 30, { { 20, 15, 5.8 }, { 3, 5, 2.0 }, { 39, 0, 9.5 }, { 0, 29, 1.0 } });
+}
+
+TEST(InrSceneTranslator, DepthUnprojectionPure)
+{
+  // Identity "inverse projection", eye at the origin, looking down -z: the unprojected point of
+  // pixel centre (nx, ny, 2d - 1) itself.
+  const double identity[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+  const double eye[3] = { 0, 0, 0 }, forward[3] = { 0, 0, -1 };
+  const std::vector<float> nothing(6, 1.0f);
+  EXPECT_TRUE(InrSceneTranslator::DepthToRayDistances(nothing.data(), 3, 2, identity, eye, forward, false)
+                .empty())
+    << "no depth below 1: no limit at all";
+  std::vector<float> depth(6, 1.0f);
+  depth[0] = 0.25f;  // GL pixel (0, 0), bottom left: ndc (-2/3, -1/2, -1/2)
+  const std::vector<float> perspective =
+    InrSceneTranslator::DepthToRayDistances(depth.data(), 3, 2, identity, eye, forward, false);
+  ASSERT_EQ(perspective.size(), 6u);
+  EXPECT_NEAR(perspective[3], std::sqrt(4.0 / 9.0 + 0.25 + 0.25), 1e-6) << "bottom row is engine row 1";
+  EXPECT_EQ(perspective[0], std::numeric_limits<float>::max());
+  const std::vector<float> parallel =
+    InrSceneTranslator::DepthToRayDistances(depth.data(), 3, 2, identity, eye, forward, true);
+  EXPECT_NEAR(parallel[3], 0.5, 1e-6) << "parallel: distance along the direction";
+}
+
+TEST(InrSceneTranslator, HorizontalViewAngle)
+{
+  EXPECT_NEAR(InrSceneTranslator::VerticalViewAngle(90.0, 2.0), 2.0 * std::atan(0.5) * 180.0 / M_PI, 1e-12);
+  EXPECT_NEAR(InrSceneTranslator::VerticalViewAngle(40.0, 1.0), 40.0, 1e-12);
+
+  const int width = 64, height = 40;
+  const double aspect = double(width) / height;
+  vtkNew<vtkCamera> cam = makeCamera(false);
+  cam->SetViewAngle(50.0);
+  cam->UseHorizontalViewAngleOff();
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::TranslateCamera(cam, width, height).viewAngle, 50.0);
+  cam->UseHorizontalViewAngleOn();
+  const inr::Camera camera = InrSceneTranslator::TranslateCamera(cam, width, height);
+  const double halfWidth = std::tan(0.5 * camera.viewAngle * M_PI / 180.0) * aspect;
+  EXPECT_NEAR(halfWidth, std::tan(25.0 * M_PI / 180.0), 1e-12);
+  // VTK's own projection in horizontal mode puts the edge of a 50-degree horizontal view at the
+  // image's left/right border, and the converted vertical angle at its top.
+  const Frame f = frameOf(cam);
+  const V3 rightEdge = axpy(axpy(f.eye, 3.0, f.forward), 3.0 * halfWidth, f.right);
+  EXPECT_NEAR(projectWithVtk(cam, aspect, rightEdge)[0], 1.0, 1e-9);
+  const V3 topEdge = axpy(axpy(f.eye, 3.0, f.forward), 3.0 * halfWidth / aspect, f.up);
+  EXPECT_NEAR(projectWithVtk(cam, aspect, topEdge)[1], 1.0, 1e-9);
+
+  double position[3];
+  cam->GetPosition(position);
+  EXPECT_EQ(camera.position[0], position[0]);
+  EXPECT_FALSE(camera.parallelProjection);
+  cam->ParallelProjectionOn();
+  const inr::Camera parallel = InrSceneTranslator::TranslateCamera(cam, width, height);
+  EXPECT_TRUE(parallel.parallelProjection);
+  EXPECT_DOUBLE_EQ(parallel.parallelScale, 1.7);
+}
+
+TEST(InrSceneTranslator, TransferFunctionSampling)
+{
+  vtkNew<vtkColorTransferFunction> ctf;
+  ctf->SetColorSpaceToRGB();
+  ctf->AddRGBPoint(-1.0, 1.0, 0.0, 0.0);
+  ctf->AddRGBPoint(3.0, 0.0, 0.2, 1.0);
+  vtkNew<vtkPiecewiseFunction> otf;
+  otf->AddPoint(0.0, 0.1, 0.3, 0.7);
+  otf->AddPoint(2.0, 0.9, 0.5, 0.0);
+  vtkNew<vtkVolumeProperty> prop;
+  prop->SetColor(ctf);
+  prop->SetScalarOpacity(otf);
+  prop->SetScalarOpacityUnitDistance(0.25);
+  const double range[2] = { 0.0, 1.0 };
+
+  const inr::TransferFunction tf = InrSceneTranslator::SampleTransferFunction(prop, range);
+  ASSERT_EQ(tf.color.size(), std::size_t(InrSceneTranslator::ColorSamples));
+  const auto& first = tf.color.front();
+  const auto& last = tf.color.back();
+  EXPECT_DOUBLE_EQ(first.x, -1.0);
+  EXPECT_NEAR(first.r, 1.0, 1e-12);
+  EXPECT_NEAR(first.g, 0.0, 1e-12);
+  EXPECT_NEAR(first.b, 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(last.x, 3.0);
+  EXPECT_NEAR(last.r, 0.0, 1e-12);
+  EXPECT_NEAR(last.g, 0.2, 1e-12);
+  EXPECT_NEAR(last.b, 1.0, 1e-12);
+  const auto& mid = tf.color[85];  // RGB space: linear in between
+  const double t = (mid.x + 1.0) / 4.0;
+  EXPECT_NEAR(mid.x, -1.0 + 4.0 * 85 / 255.0, 1e-12);
+  EXPECT_NEAR(mid.r, 1.0 - t, 1e-6);
+  EXPECT_NEAR(mid.b, t, 1e-6);
+
+  ASSERT_EQ(tf.opacity.size(), 2u);
+  EXPECT_DOUBLE_EQ(tf.opacity[0].x, 0.0);
+  EXPECT_DOUBLE_EQ(tf.opacity[0].alpha, 0.1);
+  EXPECT_DOUBLE_EQ(tf.opacity[0].midpoint, 0.3);
+  EXPECT_DOUBLE_EQ(tf.opacity[0].sharpness, 0.7);
+  EXPECT_DOUBLE_EQ(tf.opacity[1].x, 2.0);
+  EXPECT_DOUBLE_EQ(tf.opacity[1].alpha, 0.9);
+  EXPECT_DOUBLE_EQ(tf.opacity[1].midpoint, 0.5);
+  EXPECT_DOUBLE_EQ(tf.opacity[1].sharpness, 0.0);
+  EXPECT_DOUBLE_EQ(tf.unitDistance, 0.25);
+}
+
+TEST(InrSceneTranslator, TransferFunctionEmptyAndDefault)
+{
+  vtkNew<vtkVolumeProperty> prop;
+  vtkNew<vtkColorTransferFunction> ctf;
+  vtkNew<vtkPiecewiseFunction> otf;
+  prop->SetColor(ctf);
+  prop->SetScalarOpacity(otf);
+  prop->SetScalarOpacityUnitDistance(0.5);
+  const double range[2] = { -2.0, 6.0 };
+  // No nodes: colours over the value range, zero opacity over it.
+  const inr::TransferFunction empty = InrSceneTranslator::SampleTransferFunction(prop, range);
+  ASSERT_EQ(empty.color.size(), std::size_t(InrSceneTranslator::ColorSamples));
+  EXPECT_DOUBLE_EQ(empty.color.front().x, -2.0);
+  EXPECT_DOUBLE_EQ(empty.color.back().x, 6.0);
+  ASSERT_EQ(empty.opacity.size(), 2u);
+  EXPECT_DOUBLE_EQ(empty.opacity[0].x, -2.0);
+  EXPECT_DOUBLE_EQ(empty.opacity[1].x, 6.0);
+  EXPECT_DOUBLE_EQ(empty.opacity[0].alpha + empty.opacity[1].alpha, 0.0);
+
+  // The default TF: the engine's preset over the value range, the property's unit distance.
+  InrSceneTranslator translator;
+  const inr::TransferFunction& def = translator.UpdateTransferFunction(prop, true, range);
+  inr::TransferFunction preset = inr::TransferFunction::preset(-2.0, 6.0);
+  ASSERT_EQ(def.color.size(), preset.color.size());
+  ASSERT_EQ(def.opacity.size(), preset.opacity.size());
+  EXPECT_DOUBLE_EQ(def.color.front().x, preset.color.front().x);
+  EXPECT_DOUBLE_EQ(def.color.back().x, preset.color.back().x);
+  EXPECT_DOUBLE_EQ(def.opacity.back().alpha, preset.opacity.back().alpha);
+  EXPECT_DOUBLE_EQ(def.unitDistance, 0.5);
+  EXPECT_DOUBLE_EQ(translator.UpdateTransferFunction(nullptr, false, range).unitDistance, 1.0)
+    << "no property: the default TF with unit distance 1";
+}
+
+TEST(InrSceneTranslator, TransferFunctionCache)
+{
+  vtkNew<vtkColorTransferFunction> ctf;
+  ctf->AddRGBPoint(0.0, 0.0, 0.0, 0.0);
+  ctf->AddRGBPoint(1.0, 1.0, 1.0, 1.0);
+  vtkNew<vtkPiecewiseFunction> otf;
+  otf->AddPoint(0.0, 0.0);
+  otf->AddPoint(1.0, 1.0);
+  vtkNew<vtkVolumeProperty> prop;
+  prop->SetColor(ctf);
+  prop->SetScalarOpacity(otf);
+  const double range[2] = { 0.0, 1.0 };
+  InrSceneTranslator translator;
+  translator.UpdateTransferFunction(prop, false, range);
+  translator.UpdateTransferFunction(prop, false, range);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 1) << "unchanged inputs: no conversion";
+  otf->AddPoint(0.5, 0.2);
+  EXPECT_EQ(translator.UpdateTransferFunction(prop, false, range).opacity.size(), 3u);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 2) << "opacity edit";
+  ctf->AddRGBPoint(0.5, 1.0, 0.0, 0.0);
+  translator.UpdateTransferFunction(prop, false, range);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 3) << "colour edit";
+  prop->SetScalarOpacityUnitDistance(2.0);
+  EXPECT_DOUBLE_EQ(translator.UpdateTransferFunction(prop, false, range).unitDistance, 2.0);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 4) << "unit distance edit";
+  translator.UpdateTransferFunction(prop, true, range);
+  translator.UpdateTransferFunction(prop, true, range);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 5) << "switch to the default TF";
+  const double other[2] = { 0.0, 2.0 };
+  EXPECT_DOUBLE_EQ(translator.UpdateTransferFunction(prop, true, other).color.back().x, 2.0);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 6) << "default TF follows the value range";
+  translator.UpdateTransferFunction(prop, false, other);
+  EXPECT_EQ(translator.GetTransferFunctionConversions(), 7) << "back to the property's TF";
+}
+
+TEST(InrSceneTranslator, FieldDataTimeAndRange)
+{
+  vtkNew<vtkImageData> image;
+  const double fallback = 1.5;
+  double range[2];
+  InrSceneTranslator::ValueRange(image->GetFieldData(), range);
+  EXPECT_DOUBLE_EQ(range[0], 0.0);
+  EXPECT_DOUBLE_EQ(range[1], 1.0);
+  InrSceneTranslator::ValueRange(nullptr, range);
+  EXPECT_DOUBLE_EQ(range[1], 1.0);
+  vtkNew<vtkDoubleArray> vr;
+  vr->SetName("InrValueRange");
+  vr->InsertNextValue(-0.14);
+  vr->InsertNextValue(1.17);
+  image->GetFieldData()->AddArray(vr);
+  InrSceneTranslator::ValueRange(image->GetFieldData(), range);
+  EXPECT_DOUBLE_EQ(range[0], -0.14);
+  EXPECT_DOUBLE_EQ(range[1], 1.17);
+
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(image, fallback), fallback) << "no time at all";
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(nullptr, fallback), fallback);
+  image->GetInformation()->Set(vtkDataObject::DATA_TIME_STEP(), 7.5);
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(image, fallback), 7.5) << "DATA_TIME_STEP";
+  vtkNew<vtkDoubleArray> time;
+  time->SetName("InrTime");
+  image->GetFieldData()->AddArray(time);
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(image, fallback), fallback)
+    << "an empty InrTime: the fallback, not DATA_TIME_STEP";
+  time->InsertNextValue(2.5);
+  EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(image, fallback), 2.5) << "InrTime wins";
+}
