@@ -43,6 +43,10 @@ public:
   ImageRGBA image() const override { return renderer_.image(); }
   ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }
   std::vector<float> residual() const override { return renderer_.residual(); }
+  const RendererCounters& counters() const override { return renderer_.counters(); }
+  void setWarningHandler(std::function<void(const std::string&)> handler) override {
+    renderer_.setWarningHandler(std::move(handler));
+  }
   MacrocellInfo macrocellInfo() const override {
     MacrocellInfo i;
     i.dims = grid_.options().dims;

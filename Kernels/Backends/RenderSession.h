@@ -71,6 +71,9 @@ public:
   virtual ImageRGBA premultipliedImage() const = 0;  // volume only
   virtual std::vector<float> residual() const = 0;
   virtual MacrocellInfo macrocellInfo() const = 0;
+  virtual const RendererCounters& counters() const = 0;  // scene-change work, capped rays, truncated frames
+  // Where the renderer's once-per-cause warnings go (work caps hit); default: stderr.
+  virtual void setWarningHandler(std::function<void(const std::string&)> handler) = 0;
 };
 
 }  // namespace inr

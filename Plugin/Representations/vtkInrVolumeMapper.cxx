@@ -249,6 +249,9 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.dims = inr::Int3{ n, n, n };
       so.macrocells.temporalSlices = this->model.domain.usesTime() ? self->TemporalSlices : 1;
       this->session = inr::RenderSession::create(this->model, so);
+      // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
+      this->session->setWarningHandler([self](const std::string& message)
+        { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
       if (backend == BACKEND_CUDA && this->session->backend() != inr::RenderBackend::Cuda &&
         !this->warnedCuda)
       {
