@@ -6,9 +6,12 @@
 
 namespace inr {
 
-double convergenceEstimate(const FrameStats& last, int frames) {
-  if (last.pixels == 0 || frames <= 0) return 0.0;
-  return last.residualSum / double(last.pixels) / std::sqrt(double(frames));
+double convergenceEstimate(const FrameStats& last) {
+  if (last.coveredPixels == 0) return std::numeric_limits<double>::infinity();
+  const double mse = last.varianceSum / double(last.coveredPixels);
+  if (!(mse < std::numeric_limits<double>::infinity())) return -std::numeric_limits<double>::infinity();
+  if (!(mse > 0.0)) return std::numeric_limits<double>::infinity();
+  return -10.0 * std::log10(mse);
 }
 
 RefinementDriver::RefinementDriver(const RefinementOptions& options) { setOptions(options); }
@@ -16,7 +19,8 @@ RefinementDriver::RefinementDriver(const RefinementOptions& options) { setOption
 void RefinementDriver::setOptions(const RefinementOptions& o) {
   if (o.maximumFrames < 1) throw std::invalid_argument("refinement: maximum frames must be >= 1");
   if (o.framesPerRender < 1) throw std::invalid_argument("refinement: frames per render must be >= 1");
-  if (!(o.convergenceTarget >= 0.0)) throw std::invalid_argument("refinement: convergence target must be >= 0");
+  if (!(o.convergenceTarget >= 0.0 && o.convergenceTarget <= 200.0))
+    throw std::invalid_argument("refinement: convergence target must be a PSNR in [0, 200] dB (0 = off)");
   if (o.minimumFrames < 1) throw std::invalid_argument("refinement: minimum frames must be >= 1");
   options_ = o;
 }
@@ -24,11 +28,11 @@ void RefinementDriver::setOptions(const RefinementOptions& o) {
 bool RefinementDriver::converged(int frames) const {
   return frames >= options_.maximumFrames ||
          (options_.convergenceTarget > 0.0 && frames >= options_.minimumFrames &&
-          estimate_ < options_.convergenceTarget);
+          estimate_ >= options_.convergenceTarget);
 }
 
 void RefinementDriver::restart() {
-  estimate_ = std::numeric_limits<double>::infinity();
+  estimate_ = -std::numeric_limits<double>::infinity();
   converged_ = false;
   lastFrames_ = 0;
 }
@@ -36,7 +40,7 @@ void RefinementDriver::restart() {
 RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool naive) {
   Step step;
   int frames = session.accumulatedFrames();
-  if (frames == 0 || frames < lastFrames_) estimate_ = std::numeric_limits<double>::infinity();
+  if (frames == 0 || frames < lastFrames_) estimate_ = -std::numeric_limits<double>::infinity();
   converged_ = converged(frames);
   const int goal = std::min(options_.maximumFrames, std::max(frames + 1, options_.framesPerRender));
   while (!converged_ && frames < goal) {
@@ -44,7 +48,7 @@ RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool na
     step.total += st;
     ++step.framesRendered;
     frames = session.accumulatedFrames();
-    estimate_ = convergenceEstimate(st, frames);
+    estimate_ = convergenceEstimate(st);
     converged_ = converged(frames);
   }
   lastFrames_ = frames;

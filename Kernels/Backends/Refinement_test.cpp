@@ -1,9 +1,10 @@
 // The engine's refinement driver (what the ParaView mapper and `inr render --converge` use):
-// the frame budget per request, the stop rule, reset detection, and the residual sum the
-// renderers reduce where the pixels live against the full residual image.
+// the frame budget per request, the stop rule, reset detection, and the honesty of the
+// convergence estimate (estimated PSNR over the volume's pixels vs a converged reference).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "Backends/Refinement.h"
@@ -38,11 +39,19 @@ struct Fixture {
   }
 };
 
-double meanResidual(const RenderSession& s) {
-  const std::vector<float> r = s.residual();
-  double sum = 0;
-  for (float v : r) sum += v;
-  return sum / double(r.size());
+// PSNR of `img` against `ref` (composited RGB) over the pixels the reference volume covers.
+double psnrOverVolume(const ImageRGBA& img, const ImageRGBA& ref, const ImageRGBA& refPremultiplied) {
+  double se = 0;
+  std::size_t n = 0;
+  for (int p = 0; p < ref.width * ref.height; ++p) {
+    if (!(refPremultiplied.data[4 * p + 3] > 0.f)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(img.data[4 * p + c]) - ref.data[4 * p + c];
+      se += d * d;
+    }
+    n += 3;
+  }
+  return n ? -10.0 * std::log10(se / double(n)) : INFINITY;
 }
 
 TEST(Refinement, FramesPerRequestAndFrameLimit) {
@@ -64,18 +73,35 @@ TEST(Refinement, FramesPerRequestAndFrameLimit) {
   EXPECT_EQ(f.session->accumulatedFrames(), 7);
 }
 
-TEST(Refinement, EstimateIsTheMeanResidualOverSqrtFrames) {
-  Fixture f;
-  RefinementOptions o;
-  o.convergenceTarget = 0.0;
-  o.maximumFrames = 64;
-  RefinementDriver d(o);
-  for (int k = 1; k <= 6; ++k) {
-    const RefinementDriver::Step step = d.advance(*f.session);
-    ASSERT_EQ(step.framesRendered, 1);
-    const double expected = meanResidual(*f.session) / std::sqrt(double(k));
-    EXPECT_NEAR(d.estimate(), expected, 1e-6 * std::max(1.0, expected)) << "frame " << k;
-    EXPECT_GT(d.estimate(), 0.0);
+// The estimate is honest: the PSNR it predicts is what the image has against a converged
+// reference (a 2048-frame render with another seed), over the volume's pixels.
+TEST(Refinement, EstimatedPsnrMatchesTheErrorOverTheVolume) {
+  Fixture ref;
+  RenderSettings s;
+  s.width = 40;
+  s.height = 30;
+  s.seed = 1234;
+  ref.session->setSettings(s);
+  ref.session->setScene(ref.scene);
+  for (int k = 0; k < 2048; ++k) ref.session->renderFrame();
+  const ImageRGBA refImage = ref.session->image(), refPremultiplied = ref.session->premultipliedImage();
+  for (int frames : {16, 64, 256}) {
+    Fixture f;
+    RefinementOptions o;
+    o.convergenceTarget = 0.0;
+    o.maximumFrames = frames;
+    o.framesPerRender = frames;
+    RefinementDriver d(o);
+    d.advance(*f.session);
+    const double actual = psnrOverVolume(f.session->image(), refImage, refPremultiplied);
+    std::printf("%4d frames: estimated %.2f dB, measured %.2f dB against the reference\n", frames, d.estimate(), actual);
+    // Never optimistic by more than the estimate's sampling noise (over ~10^3 pixels a few tenths
+    // of a dB; the reference's own noise lowers the measured value by up to 0.5 dB), and close:
+    // on few frames it is conservative (rarely hit pixels are not yet covered and count in the
+    // measurement, with their small errors). Measured: 16 frames 24.0 vs 25.6 dB, 64 frames 30.7
+    // vs 30.8, 256 frames 37.2 vs 36.8.
+    EXPECT_LE(d.estimate(), actual + 1.0) << frames << " frames";
+    EXPECT_GE(d.estimate(), actual - 2.5) << frames << " frames";
   }
 }
 
@@ -84,23 +110,23 @@ TEST(Refinement, ConvergesBeforeTheLimitAndRestartsAfterAReset) {
   RefinementOptions o;
   o.maximumFrames = 4096;
   o.framesPerRender = 4096;
-  o.convergenceTarget = 0.01;
+  o.convergenceTarget = 35.0;
   RefinementDriver d(o);
   d.advance(*f.session);
   ASSERT_TRUE(d.converged());
   const int frames = f.session->accumulatedFrames();
   EXPECT_GE(frames, o.minimumFrames);
   EXPECT_LT(frames, o.maximumFrames);
-  EXPECT_LT(d.estimate(), o.convergenceTarget);
-  // The frame before the last was not yet below the target: the rule stopped at the first frame
-  // that reached it. (Re-render one frame fewer from scratch and check the estimate is above.)
+  EXPECT_GE(d.estimate(), o.convergenceTarget);
+  // One frame fewer (from scratch, same seed) was not yet at the target: the rule stopped at the
+  // first frame that reached it.
   Fixture g;
   RefinementOptions og = o;
   og.convergenceTarget = 0.0;
   og.maximumFrames = frames - 1;
   RefinementDriver dg(og);
   dg.advance(*g.session);
-  if (frames - 1 >= o.minimumFrames) EXPECT_GE(dg.estimate(), o.convergenceTarget);
+  if (frames - 1 >= o.minimumFrames) EXPECT_LT(dg.estimate(), o.convergenceTarget);
 
   // A camera change resets the session's accumulation: the driver notices and starts over.
   f.scene.camera.position[0] += 0.05;
@@ -119,6 +145,8 @@ TEST(Refinement, RejectsBadOptions) {
   EXPECT_THROW(RefinementDriver{o}, std::invalid_argument);
   o = {};
   o.convergenceTarget = -1;
+  EXPECT_THROW(RefinementDriver{o}, std::invalid_argument);
+  o.convergenceTarget = 1000;  // a PSNR in dB, not a fraction
   EXPECT_THROW(RefinementDriver{o}, std::invalid_argument);
   o = {};
   o.framesPerRender = 0;

@@ -26,6 +26,8 @@ double msSince(Clock::time_point t0) {
 FrameStats& FrameStats::operator+=(const FrameStats& o) {
   frame = o.frame;
   residualSum = o.residualSum;
+  varianceSum = o.varianceSum;
+  coveredPixels = o.coveredPixels;
   pixels += o.pixels;
   rays += o.rays;
   queries += o.queries;
@@ -156,14 +158,20 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
 
   t0 = Clock::now();
   const AccumulationView acc = pixels_.view();
-  double residualSum = 0.0;
-  std::size_t capped = 0;
-#pragma omp parallel for schedule(static) reduction(+ : residualSum, capped) if (n >= kParallelMinItems)
+  double residualSum = 0.0, varianceSum = 0.0;
+  std::size_t capped = 0, covered = 0;
+#pragma omp parallel for schedule(static) reduction(+ : residualSum, varianceSum, capped, covered) \
+    if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) {
     capped += (rs.flags[i] & kRayCapped) ? 1 : 0;
-    residualSum += finalizePixel(fc, rs, acc, i);
+    const PixelConvergence pc = finalizePixel(fc, rs, acc, i);
+    residualSum += pc.residual;
+    varianceSum += pc.meanVariance;
+    covered += std::size_t(pc.covered);
   }
   st.residualSum = residualSum;
+  st.varianceSum = varianceSum;
+  st.coveredPixels = covered;
   st.cappedRays = capped;
   st.finalizeMs = msSince(t0);
   endFrame(st, truncated);
@@ -210,7 +218,10 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       }
     }
     st.cappedRays += (rs.flags[i] & kRayCapped) ? 1 : 0;
-    st.residualSum += finalizePixel(fc, rs, acc, i);
+    const PixelConvergence pc = finalizePixel(fc, rs, acc, i);
+    st.residualSum += pc.residual;
+    st.varianceSum += pc.meanVariance;
+    st.coveredPixels += std::size_t(pc.covered);
   }
   endFrame(st, false);
   st.totalMs = msSince(tFrame);

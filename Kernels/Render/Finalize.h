@@ -2,7 +2,10 @@
 // Stage IV — finalisation: turn the ray's result into this frame's premultiplied colour, fold it
 // into the accumulation buffer (running mean) and compute the convergence residual r_i (paper
 // Eq. divergence): the mean absolute RGB difference between the new displayed colour and the
-// previous running average, both composited over the background as the user sees them.
+// previous running average, both composited over the background as the user sees them. It also
+// keeps each pixel's sample variance (Welford), from which the variance of the displayed mean —
+// the pixel's expected squared error — follows; the convergence estimate aggregates it over the
+// pixels the volume covers (Backends/Refinement.h).
 #include <cstdint>
 
 #include "Render/RayState.h"
@@ -14,7 +17,15 @@ INR_HD void resetPixel(const AccumulationView& acc, int i) {
   acc.accum[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
   acc.sampleCount[i] = 0u;
   acc.residual[i] = 1.f;
+  acc.m2[i] = 0.f;
 }
+
+// What a pixel adds to the frame's convergence sums.
+struct PixelConvergence {
+  float residual;      // r_i
+  float meanVariance;  // estimated variance of the displayed mean (RGB average); 0 when not covered
+  int covered;         // the volume has covered the pixel in some frame (accumulated alpha > 0)
+};
 
 // This frame's estimate for pixel i: premultiplied emission of the real collision, shaded by the
 // light's visibility when shadows are on; (0,0,0,0) when the ray escaped.
@@ -33,9 +44,9 @@ INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
   return Vec3f{c.x + (1.f - c.w) * bg.x, c.y + (1.f - c.w) * bg.y, c.z + (1.f - c.w) * bg.z};
 }
 
-// Returns the pixel's new residual (the backends sum it for the convergence estimate).
-INR_HD float finalizePixel(const FrameConstants& fc, const RayStateView& rs,
-                           const AccumulationView& acc, int i) {
+// Returns what the pixel adds to the convergence sums (the backends reduce them).
+INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateView& rs,
+                                      const AccumulationView& acc, int i) {
   const Vec4f c = frameEstimate(fc, rs, i);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
@@ -49,9 +60,19 @@ INR_HD float finalizePixel(const FrameConstants& fc, const RayStateView& rs,
     const float w = 1.f / float(n + 1);
     acc.accum[i] = Vec4f{prev.x + (c.x - prev.x) * w, prev.y + (c.y - prev.y) * w,
                          prev.z + (c.z - prev.z) * w, prev.w + (c.w - prev.w) * w};
+    // Welford: the displayed colour is affine in the premultiplied one, so its new mean is
+    // b + (a - b) w and the update (a - b)(a - mean') = (a - b)^2 (1 - w).
+    const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+    acc.m2[i] += (dx * dx + dy * dy + dz * dz) * (1.f - w);
   }
-  acc.sampleCount[i] = n + 1;
-  return acc.residual[i];
+  const std::uint32_t count = n + 1;
+  acc.sampleCount[i] = count;
+  PixelConvergence pc{acc.residual[i], 0.f, acc.accum[i].w > 0.f ? 1 : 0};
+  if (pc.covered) {
+    // Unknown after one sample: infinite until a second arrives.
+    pc.meanVariance = count > 1 ? acc.m2[i] / (3.f * float(count) * float(count - 1)) : INFINITY;
+  }
+  return pc;
 }
 
 }  // namespace inr

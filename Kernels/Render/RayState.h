@@ -66,10 +66,13 @@ enum class ShadowEstimator : int {
 //   accum        running mean of premultiplied RGBA (alpha = coverage)
 //   sampleCount  frames accumulated into the pixel
 //   residual     r_i of the last frame that rendered the pixel
+//   m2           Welford's sum of squared deviations of the displayed colour's frame estimates
+//                (summed over R, G, B): the pixel's sample variance is m2 / (3 (n - 1))
 #define INR_PIXEL_STATE_FIELDS(X) \
   X(Vec4f, accum)                 \
   X(std::uint32_t, sampleCount)   \
-  X(float, residual)
+  X(float, residual)              \
+  X(float, m2)
 
 #define INR_DECLARE_VIEW_FIELD(type, name) type* name = nullptr;
 struct RayStateView {

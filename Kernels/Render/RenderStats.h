@@ -20,6 +20,10 @@ struct FrameStats {
   // Sum over all pixels of the convergence residual r_i after this frame (reduced where the
   // pixels live: a few bytes per frame leave the GPU). State, not a count: += keeps the later.
   double residualSum = 0;
+  // The convergence estimate's sums after this frame (state too): the estimated variance of the
+  // displayed mean over the pixels the volume covers, and how many pixels it covers.
+  double varianceSum = 0;
+  std::size_t coveredPixels = 0;
   // Milliseconds per stage. `updateMs`: majorant/working-grid updates done before the frame.
   double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
          shadowEvaluateMs = 0, finalizeMs = 0, totalMs = 0;

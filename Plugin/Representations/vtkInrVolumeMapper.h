@@ -78,13 +78,13 @@ public:
 
   ///@{
   /// Refinement control. MaximumFrames (default 256): accumulation stops there.
-  /// ConvergenceTarget (default 0.002, 0 = off): accumulation stops when the estimated standard
-  /// error of the displayed image, mean_pixels(residual) / sqrt(frames), falls below it (RGB in
-  /// [0,1]). FramesPerRender (default 1): one Render() call accumulates until the image holds at
+  /// ConvergenceTarget (dB, default 41, 0 = off): accumulation stops when the estimated PSNR of
+  /// the displayed image over the pixels the volume covers reaches it (from each pixel's sample
+  /// variance; inr::RefinementDriver). FramesPerRender (default 1): one Render() call accumulates until the image holds at
   /// least this many frames (scripts set it to N to get an N-frame image from one render).
   vtkSetClampMacro(MaximumFrames, int, 1, 1 << 20);
   vtkGetMacro(MaximumFrames, int);
-  vtkSetClampMacro(ConvergenceTarget, double, 0.0, 1.0);
+  vtkSetClampMacro(ConvergenceTarget, double, 0.0, 200.0);
   vtkGetMacro(ConvergenceTarget, double);
   vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
   vtkGetMacro(FramesPerRender, int);
@@ -144,7 +144,7 @@ private:
   double Ambient = 0.2;
   int ShadowEstimator = 0;
   int MaximumFrames = 256;
-  double ConvergenceTarget = 0.002;
+  double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;

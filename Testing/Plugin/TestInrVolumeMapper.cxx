@@ -305,7 +305,7 @@ int main(int argc, char* argv[])
     check(mapper->GetAccumulatedFrames() == 5, "accumulation stops at MaximumFrames");
     check(mapper->GetConverged() == 1, "converged flag set");
     mapper->SetMaximumFrames(64);
-    mapper->SetConvergenceTarget(0.05);
+    mapper->SetConvergenceTarget(25.0);
     ren->GetActiveCamera()->Azimuth(-5);
     // The converged flag still describes the previous image until the next render: render at
     // least once (the camera move restarts the estimate).
@@ -316,10 +316,10 @@ int main(int argc, char* argv[])
       ++renders;
     } while (renders < 64 && !mapper->GetConverged());
     check(renders > 1, "the camera move restarts refinement under the new limits");
-    std::printf("convergence target 0.05 reached after %d frames (estimate %.4f)\n",
+    std::printf("convergence target 25 dB reached after %d frames (estimate %.2f dB)\n",
       mapper->GetAccumulatedFrames(), mapper->GetConvergenceEstimate());
     check(mapper->GetConverged() == 1 && mapper->GetAccumulatedFrames() < 64 &&
-        mapper->GetConvergenceEstimate() < 0.05,
+        mapper->GetConvergenceEstimate() >= 25.0,
       "convergence target stops refinement before the frame limit");
     check(mapper->GetEngineBuilds() == 1, "engine built once");
     mapper->SetMacrocellResolution(8);

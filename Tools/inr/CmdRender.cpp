@@ -51,10 +51,10 @@ const char* kRenderUsage =
     "                           or the naive per-ray delta tracker (one query per network call)\n"
     "  --frames N               frames accumulated (default 64; ray marching: 1 unless jittered);\n"
     "                           with --converge: the most frames\n"
-    "  --converge T             stop once the estimated standard error of the image (RGB, 0..1;\n"
-    "                           the mean convergence residual / sqrt(frames), as the ParaView\n"
-    "                           plugin's Convergence Target) falls below T, after at least 4 frames;\n"
-    "                           prints the frames and time it took\n"
+    "  --converge DB            stop once the estimated PSNR of the image over the pixels the\n"
+    "                           volume covers reaches DB (e.g. 40; from each pixel's sample\n"
+    "                           variance, as the ParaView plugin's Convergence Target), after at\n"
+    "                           least 8 frames; prints the frames and time it took\n"
     "  --seed S                 random seed (default 1)\n"
     "  --no-jitter              sample pixel centres (no antialiasing)\n"
     "  --macrocells N|NX,NY,NZ  macrocell grid resolution (default 32)\n"
@@ -91,6 +91,7 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"shadow_iterations", s.shadowIterations},
           {"refinements", s.refinements},
           {"residual_sum", s.residualSum},
+          {"capped_rays", s.cappedRays},
           {"ms",
            {{"update", s.updateMs},
             {"init", s.initMs},
@@ -149,8 +150,8 @@ int runRender(int argc, char** argv) {
   const long frames = args.getInt("frames", method == "raymarch" && !settings.pixelJitter ? 1 : 64);
   if (frames < 1 || frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
   const double convergeTarget = args.getDouble("converge", 0.0);
-  if (args.has("converge") && !(convergeTarget > 0.0 && convergeTarget < 1.0)) {
-    throw UsageError("--converge must be in (0, 1) (an RGB standard error, e.g. 0.002)");
+  if (args.has("converge") && !(convergeTarget > 0.0 && convergeTarget <= 200.0)) {
+    throw UsageError("--converge must be a PSNR in (0, 200] dB, e.g. 40");
   }
   if (args.has("converge") && method == "raymarch") throw UsageError("--converge applies to delta tracking only");
   if (args.has("threads")) {
@@ -355,7 +356,8 @@ int runRender(int argc, char** argv) {
       progressLine(step.total, k);
       total += step.total;
       nlohmann::json js = statsJson(step.total);
-      js["convergence_estimate"] = driver.estimate();
+      js["estimated_psnr_db"] = driver.estimate();
+      js["covered_pixels"] = step.total.coveredPixels;
       perFrame.push_back(js);
     }
     const double renderSeconds =
@@ -364,11 +366,11 @@ int runRender(int argc, char** argv) {
     report["convergence"] = {{"target", convergeTarget},
                              {"estimate", driver.estimate()},
                              {"frames", renderedFrames},
-                             {"converged", convergeTarget > 0.0 && driver.estimate() < convergeTarget},
+                             {"converged", convergeTarget > 0.0 && driver.estimate() >= convergeTarget},
                              {"seconds", renderSeconds}};
     if (args.has("converge")) {
-      const bool reached = driver.estimate() < convergeTarget;
-      std::printf("convergence: %s after %ld frame(s) in %.3f s (estimated standard error %.5f, target %g)\n",
+      const bool reached = driver.estimate() >= convergeTarget;
+      std::printf("convergence: %s after %ld frame(s) in %.3f s (estimated PSNR over the volume %.2f dB, target %g dB)\n",
                   reached ? "reached" : "NOT reached (frame limit)", renderedFrames, renderSeconds,
                   driver.estimate(), convergeTarget);
     }

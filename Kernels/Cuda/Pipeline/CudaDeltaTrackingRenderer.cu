@@ -53,20 +53,32 @@ __global__ void cutoffKernel(RayStateView rs, const int* list, int n) {
   rs.sample[i] = NAN;
 }
 
-// Stage IV, the residual sum of the convergence estimate (one atomic per block) and the count of
+// Stage IV, the convergence sums (block reductions, one atomic each per block) and the count of
 // rays the collision cap cut off.
-__global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* residualSum,
+__global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* sums,
                                unsigned long long* stats) {
   using Reduce = cub::BlockReduce<float, kThreads>;
-  __shared__ typename Reduce::TempStorage scratch;
+  using Count = cub::BlockReduce<int, kThreads>;
+  __shared__ union {
+    typename Reduce::TempStorage sum;
+    typename Count::TempStorage count;
+  } scratch;
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  float r = 0.f;
+  PixelConvergence pc{0.f, 0.f, 0};
   if (i < rs.count) {
     if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
-    r = finalizePixel(fc, rs, acc, i);
+    pc = finalizePixel(fc, rs, acc, i);
   }
-  const float blockSum = Reduce(scratch).Sum(r);
-  if (threadIdx.x == 0) atomicAdd(residualSum, double(blockSum));
+  const float residual = Reduce(scratch.sum).Sum(pc.residual);
+  __syncthreads();
+  const float variance = Reduce(scratch.sum).Sum(pc.meanVariance);
+  __syncthreads();
+  const int covered = Count(scratch.count).Sum(pc.covered);
+  if (threadIdx.x == 0) {
+    atomicAdd(&sums[kSumResidual], double(residual));
+    atomicAdd(&sums[kSumVariance], double(variance));
+    if (covered) atomicAdd(&stats[kStatCovered], (unsigned long long)covered);
+  }
 }
 
 __global__ void resetPixelsKernel(AccumulationView acc) {
@@ -145,7 +157,7 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const CudaInrEvaluator& eva
   I.counter.resize(2);
   for (cudaEvent_t& e : I.countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
   I.stats.resize(kStatCount);
-  I.residualSum.resize(1);
+  I.sums.resize(kSumCount);
   I.majorants.resize(std::size_t(macrocells.cellCount()));
   I.majorants.zero(I.stream);
   if (macrocells.blockCount() > 0) {
@@ -203,7 +215,9 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.rays = std::size_t(I.hostStats[kStatRays]);
   st.shadowRays = std::size_t(I.hostStats[kStatShadowRays]);
   st.refinements = std::size_t(I.hostStats[kStatRefinements]);
-  st.residualSum = I.hostResidualSum[0];
+  st.residualSum = I.hostSums[kSumResidual];
+  st.varianceSum = I.hostSums[kSumVariance];
+  st.coveredPixels = std::size_t(I.hostStats[kStatCovered]);
   st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
 }
 
@@ -245,7 +259,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   }
 
   I.timer.begin(cuda::kFinalize, s);
-  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.residualSum.get(), I.stats.get());
+  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.sums.get(), I.stats.get());
   INR_CUDA_CHECK_LAUNCH("finalizeKernel");
   I.timer.end(s);
   readFrameStats(st);

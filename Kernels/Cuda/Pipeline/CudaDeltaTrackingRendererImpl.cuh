@@ -35,7 +35,9 @@ inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThre
 
 // Per-frame device counters (one read-back at the end of the frame).
 enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
-                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCount = 8 };
+                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCovered = 7, kStatCount = 8 };
+// Per-frame device sums of the convergence estimate (doubles).
+enum SumSlot { kSumResidual = 0, kSumVariance = 1, kSumCount = 2 };
 }  // namespace pipeline
 
 struct CudaDeltaTrackingRenderer::Impl {
@@ -59,25 +61,25 @@ struct CudaDeltaTrackingRenderer::Impl {
   cuda::DeviceBuffer<unsigned> counter;  // [2]: queries appended per parity
   cuda::PinnedHost<unsigned> hostCounter{2};
   cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
-  // Frame statistics: counters and the residual sum.
+  // Frame statistics: counters and the convergence sums.
   cuda::DeviceBuffer<unsigned long long> stats;
   cuda::PinnedHost<unsigned long long> hostStats{pipeline::kStatCount};
-  cuda::DeviceBuffer<double> residualSum;
-  cuda::PinnedHost<double> hostResidualSum{1};
+  cuda::DeviceBuffer<double> sums;
+  cuda::PinnedHost<double> hostSums{pipeline::kSumCount};
   cuda::StageTimer timer;
   bool truncated = false;
 
   // Zeroes the frame statistics (asynchronous).
   void clearStats() {
     INR_CUDA_CHECK(cudaMemsetAsync(stats.get(), 0, pipeline::kStatCount * sizeof(unsigned long long), stream));
-    INR_CUDA_CHECK(cudaMemsetAsync(residualSum.get(), 0, sizeof(double), stream));
+    INR_CUDA_CHECK(cudaMemsetAsync(sums.get(), 0, pipeline::kSumCount * sizeof(double), stream));
   }
   // Copies the frame statistics to the host and waits for the stream.
   void downloadStats() {
     INR_CUDA_CHECK(cudaMemcpyAsync(hostStats.get(), stats.get(), pipeline::kStatCount * sizeof(unsigned long long),
                                    cudaMemcpyDeviceToHost, stream));
-    INR_CUDA_CHECK(cudaMemcpyAsync(hostResidualSum.get(), residualSum.get(), sizeof(double), cudaMemcpyDeviceToHost,
-                                   stream));
+    INR_CUDA_CHECK(cudaMemcpyAsync(hostSums.get(), sums.get(), pipeline::kSumCount * sizeof(double),
+                                   cudaMemcpyDeviceToHost, stream));
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
 

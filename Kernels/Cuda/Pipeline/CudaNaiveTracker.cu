@@ -43,7 +43,7 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
 
 __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateView rs, AccumulationView acc,
                             PerThreadMlpView net, int first, int count, int refine, DeviceRefineView refineView,
-                            unsigned long long* stats, double* residualSum, int maxSteps) {
+                            unsigned long long* stats, double* sums, int maxSteps) {
   const int tid = blockIdx.x * blockDim.x + threadIdx.x;
   if (tid >= count) return;
   const int i = first + tid;
@@ -62,7 +62,12 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
     }
   }
   if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
-  atomicAdd(residualSum, double(finalizePixel(fc, rs, acc, i)));
+  const PixelConvergence pc = finalizePixel(fc, rs, acc, i);
+  atomicAdd(&sums[kSumResidual], double(pc.residual));
+  if (pc.covered) {
+    atomicAdd(&sums[kSumVariance], double(pc.meanVariance));
+    atomicAdd(&stats[kStatCovered], 1ull);
+  }
   if (q) atomicAdd(&stats[kStatNaiveQueries], q);
   if (sq) atomicAdd(&stats[kStatNaiveShadowQueries], sq);
   if (!complete) atomicAdd(&stats[kStatNaiveCut], 1ull);
@@ -94,7 +99,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
     const int count = std::min(chunk, n - first);
     naiveKernel<<<blocksFor(count), kThreads, 0, s>>>(fc, medium, rs, I.pixels.view(), net, first, count,
                                                       options_.refineMacrocells ? 1 : 0, refine, I.stats.get(),
-                                                      I.residualSum.get(), maxSteps);
+                                                      I.sums.get(), maxSteps);
     INR_CUDA_CHECK_LAUNCH("naiveKernel");
   }
   readFrameStats(st);
