@@ -44,12 +44,10 @@ public:
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
   std::string name() const override;
 
-  // points: n world-space (x, y, z, t) as float4 in device memory. out[scatter ? scatter[i] : i]
-  // receives the value of points[i]. Asynchronous on `stream`.
-  void evaluateDevice(const float4* points, int n, float* out, const int* scatter,
-                      cudaStream_t stream) const override;
-  // The same for *deviceCount points (device memory, written by an earlier kernel on `stream`),
-  // at most maxN: no host round trip on the fused path (the generic path reads the count).
+  // DeviceFieldEvaluator: evaluateDevice(points, n, out, scatter, stream), and the same for
+  // *deviceCount points (device memory, written by an earlier kernel on `stream`), at most maxN:
+  // no host round trip on the fused path (the generic path reads the count).
+  using DeviceFieldEvaluator::evaluateDevice;
   void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
                       cudaStream_t stream) const override;
 

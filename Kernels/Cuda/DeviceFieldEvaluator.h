@@ -16,10 +16,12 @@ public:
 
   // points: n world-space (x, y, z, t) as float4 in device memory. out[scatter ? scatter[i] : i]
   // receives the value of points[i]. Asynchronous on `stream`.
-  virtual void evaluateDevice(const float4* points, int n, float* out, const int* scatter,
-                              cudaStream_t stream) const = 0;
+  void evaluateDevice(const float4* points, int n, float* out, const int* scatter, cudaStream_t stream) const {
+    evaluateDevice(points, nullptr, n, out, scatter, stream);
+  }
   // The same for min(*deviceCount, maxN) points, the count in device memory (written by an
-  // earlier kernel on `stream`): implementations should avoid reading it back to the host.
+  // earlier kernel on `stream`; null: maxN points): implementations should avoid reading it back
+  // to the host. (Implementations add `using DeviceFieldEvaluator::evaluateDevice;`.)
   virtual void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
                               const int* scatter, cudaStream_t stream) const = 0;
   virtual std::string name() const = 0;

@@ -22,11 +22,6 @@ void AnalyticDeviceField::evaluate(const QueryPoint* points, std::size_t n, floa
   for (std::size_t i = 0; i < n; ++i) out[i] = smoothFieldValue(points[i].x, points[i].y, points[i].z, points[i].t);
 }
 
-void AnalyticDeviceField::evaluateDevice(const float4* points, int n, float* out, const int* scatter,
-                                         cudaStream_t stream) const {
-  evaluateDevice(points, nullptr, n, out, scatter, stream);
-}
-
 void AnalyticDeviceField::evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
                                          const int* scatter, cudaStream_t stream) const {
   if (maxN <= 0) return;

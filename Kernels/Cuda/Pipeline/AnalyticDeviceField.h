@@ -21,8 +21,7 @@ INR_HD float smoothFieldValue(float x, float y, float z, float t) {
 class AnalyticDeviceField final : public FieldEvaluator, public DeviceFieldEvaluator {
 public:
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
-  void evaluateDevice(const float4* points, int n, float* out, const int* scatter,
-                      cudaStream_t stream) const override;
+  using DeviceFieldEvaluator::evaluateDevice;
   void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
                       cudaStream_t stream) const override;
   std::string name() const override { return "analytic smooth field"; }
