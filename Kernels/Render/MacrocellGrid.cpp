@@ -1,7 +1,6 @@
 #include "Render/MacrocellGrid.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 #include "Render/CpuParallel.h"
@@ -20,24 +19,14 @@ void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, 
 
 MacrocellGrid::MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                              double timeEnd, MacrocellOptions options)
-    : evaluator_(evaluator), options_(options),
-      layout_(MacrocellLayout::make(box, timeBegin, timeEnd, options)) {
+    : MacrocellGridBase(box, timeBegin, timeEnd, options), evaluator_(evaluator) {
   const int n = layout_.cellCount;
   slices_.resize(layout_.temporalSlices);
   workMin_.assign(n, 0.f);
   workMax_.assign(n, 0.f);
   workMean_.assign(n, 0.f);
   dirtyMask_.assign(n, 0);
-  time_ = timeBegin;
   if (!options_.lazySlices) buildAllSlices();
-}
-
-void MacrocellGrid::buildAllSlices() {
-  for (int k = 0; k < int(slices_.size()); ++k) ensureSlice(k);
-}
-
-void MacrocellGrid::ensureSlice(int k) {
-  if (!slices_[k].built) buildSlice(k);
 }
 
 void MacrocellGrid::setSlice(int k, std::vector<float> mn, std::vector<float> mx,
@@ -54,7 +43,6 @@ void MacrocellGrid::setSlice(int k, std::vector<float> mn, std::vector<float> mx
 // are independent (the GPU build runs them as kernels over device arrays); here they are batched
 // into large evaluator calls.
 void MacrocellGrid::buildSlice(int k) {
-  const auto start = std::chrono::steady_clock::now();
   constexpr int P = MacrocellLayout::kTilePoints;
   const long long tiles = layout_.tileCount;
   const long long tilesPerBatch = std::max<long long>(1, (long long)(options_.maxBatch / P));
@@ -93,16 +81,9 @@ void MacrocellGrid::buildSlice(int k) {
     if (progress_) progress_(k, double(first + count) / double(tiles));
   }
   s.built = true;
-  stats_.slicesBuilt += 1;
-  stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void MacrocellGrid::setTime(double t) {
-  time_ = t;
-  interpolationWeights(t, k0_, k1_, w_);
-  ensureSlice(k0_);
-  if (w_ > 0.f) ensureSlice(k1_);
-  interpolateWorkingGrid();
+void MacrocellGrid::clearDirtyCells() {
   std::fill(dirtyMask_.begin(), dirtyMask_.end(), 0);
   dirty_.clear();
 }

@@ -3,8 +3,9 @@
 // temporal slices, estimated by lattice sampling through the FieldEvaluator; the working grid for
 // the current time (linear interpolation of the two nearest slices); majorants from a transfer
 // function; progressive refinement of under-estimated bounds. Host object; the traversal sees it
-// through MajorantGridView. Geometry, validation and the per-point / per-cell arithmetic are
-// MacrocellLayout's (Render/MacrocellLayout.h), shared with the GPU grid.
+// through MajorantGridView. Geometry, validation, the per-point / per-cell arithmetic
+// (Render/MacrocellLayout.h), the time state, lazy slice builds and the accessors
+// (MacrocellGridBase) are shared with the GPU grid.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
+#include "Render/MacrocellGridBase.h"
 #include "Render/MacrocellLayout.h"
 #include "Render/MajorantGrid.h"
 #include "Render/TransferFunctionTable.h"
@@ -32,7 +34,7 @@ void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, 
 // Called during slice builds: slice index and the fraction of that slice done, in [0, 1].
 using MacrocellProgress = std::function<void(int slice, double fraction)>;
 
-class MacrocellGrid {
+class MacrocellGrid final : public MacrocellGridBase {
 public:
   static constexpr int kTileCells = MacrocellLayout::kTileCells;      // cells per tile edge
   static constexpr int kTileLattice = MacrocellLayout::kTileLattice;  // 9 lattice points per tile edge
@@ -41,39 +43,16 @@ public:
     std::vector<float> min, max, mean;
     bool built = false;
   };
-  struct BuildStats {
-    int slicesBuilt = 0;
-    double seconds = 0.0;          // total time spent building slices
-    std::size_t evaluations = 0;   // lattice queries issued
-  };
-
   MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                 double timeEnd, MacrocellOptions options = {});
 
   void setProgressCallback(MacrocellProgress cb) { progress_ = std::move(cb); }
 
-  // Makes the working grid for world time t, building the slices it needs first. Clears the
-  // dirty-cell list (every majorant must be recomputed after a time change).
-  void setTime(double t);
-  void buildAllSlices();
-  double time() const { return time_; }
-
-  const MacrocellOptions& options() const { return options_; }
-  Int3 dims() const { return options_.dims; }
-  int cellCount() const { return layout_.cellCount; }
-  const Box3f& box() const { return layout_.box; }
-  Vec3f cellSize() const { return layout_.cellSize; }
-  int temporalSlices() const { return int(slices_.size()); }
-  double sliceTime(int k) const { return layout_.sliceTime(k); }
-  const MacrocellLayout& layout() const { return layout_; }
+  // setTime, buildAllSlices, time and the layout accessors: MacrocellGridBase.
   const Slice& slice(int k) const { return slices_.at(k); }
+  bool sliceBuilt(int k) const override { return slices_.at(k).built; }
   // Replaces a slice's bounds with known values (tests, GPU-built slices).
   void setSlice(int k, std::vector<float> min, std::vector<float> max, std::vector<float> mean);
-  const BuildStats& buildStats() const { return stats_; }
-  // The two slices and weight the working grid interpolates: (1 - w) * slice k0 + w * slice k1.
-  void interpolationWeights(double t, int& k0, int& k1, float& w) const {
-    layout_.interpolationWeights(t, k0, k1, w);
-  }
 
   const std::vector<float>& workingMin() const { return workMin_; }
   const std::vector<float>& workingMax() const { return workMax_; }
@@ -92,10 +71,6 @@ public:
   void updateMajorants(const TransferFunctionView& tf, const std::vector<int>& cells,
                        MajorantArrays& majorants) const;
   MajorantGridView view(const MajorantArrays& majorants) const;
-  // Coarse level: log2 of the block edge in cells (-1: off), blocks per axis, block count.
-  int blockShift() const { return layout_.blockShift; }
-  Int3 blockDims() const { return layout_.blockDims; }
-  int blockCount() const { return layout_.blockCount(); }
 
   // Progressive refinement: an evaluated sample `value` fell in `cell`. If it lies outside the
   // cell's working bounds, widen them (and the contributing slices, so the fix survives time
@@ -105,22 +80,16 @@ public:
   std::size_t refinementCount() const { return refinements_; }
 
 private:
-  void ensureSlice(int k);
-  void buildSlice(int k);
-  void interpolateWorkingGrid();
+  void buildSlice(int k) override;
+  void interpolateWorkingGrid() override;
+  void clearDirtyCells() override;
 
   const FieldEvaluator& evaluator_;
-  MacrocellOptions options_;
-  MacrocellLayout layout_;
   std::vector<Slice> slices_;
   std::vector<float> workMin_, workMax_, workMean_;
-  double time_ = 0.0;
-  int k0_ = 0, k1_ = 0;
-  float w_ = 0.f;
   std::vector<std::uint8_t> dirtyMask_;
   std::vector<int> dirty_;
   std::size_t refinements_ = 0;
-  BuildStats stats_;
   MacrocellProgress progress_;
 };
 

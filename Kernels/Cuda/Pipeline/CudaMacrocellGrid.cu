@@ -1,7 +1,6 @@
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -117,8 +116,8 @@ struct CudaMacrocellGrid::Impl {
 
 CudaMacrocellGrid::CudaMacrocellGrid(const DeviceFieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                                      double timeEnd, MacrocellOptions options, cudaStream_t stream)
-    : evaluator_(evaluator), options_(options), layout_(MacrocellLayout::make(box, timeBegin, timeEnd, options)),
-      stream_(stream), impl_(std::make_unique<Impl>()) {
+    : MacrocellGridBase(box, timeBegin, timeEnd, options), evaluator_(evaluator), stream_(stream),
+      impl_(std::make_unique<Impl>()) {
   const int n = layout_.cellCount;
   Impl& I = *impl_;
   I.slices.resize(layout_.temporalSlices);
@@ -136,7 +135,6 @@ CudaMacrocellGrid::CudaMacrocellGrid(const DeviceFieldEvaluator& evaluator, cons
   I.refinements.resize(1);
   I.refinements.zero(stream_);
   I.range.resize(2);
-  time_ = timeBegin;
   if (!options_.lazySlices) buildAllSlices();
 }
 
@@ -155,16 +153,7 @@ void CudaMacrocellGrid::setSlice(int k, const std::vector<float>& mn, const std:
   s.built = true;
 }
 
-void CudaMacrocellGrid::buildAllSlices() {
-  for (int k = 0; k < layout_.temporalSlices; ++k) ensureSlice(k);
-}
-
-void CudaMacrocellGrid::ensureSlice(int k) {
-  if (!impl_->slices[k].built) buildSlice(k);
-}
-
 void CudaMacrocellGrid::buildSlice(int k) {
-  const auto start = std::chrono::steady_clock::now();
   Impl& I = *impl_;
   const long long tiles = layout_.tileCount;
   const long long tilesPerBatch = std::max<long long>(1, kGpuLatticeBatch / P);
@@ -192,16 +181,9 @@ void CudaMacrocellGrid::buildSlice(int k) {
   }
   INR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   s.built = true;
-  stats_.slicesBuilt += 1;
-  stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void CudaMacrocellGrid::setTime(double t) {
-  time_ = t;
-  interpolationWeights(t, k0_, k1_, w_);
-  ensureSlice(k0_);
-  if (w_ > 0.f) ensureSlice(k1_);
-  interpolateWorkingGrid();
+void CudaMacrocellGrid::clearDirtyCells() {
   impl_->dirtyMask.zero(stream_);
   impl_->dirtyCount.zero(stream_);
 }
