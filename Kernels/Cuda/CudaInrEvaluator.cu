@@ -355,11 +355,6 @@ std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport;
 
 std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
 
-void CudaInrEvaluator::evaluateDevice(const float4* points, int n, float* out, const int* scatter,
-                                      cudaStream_t stream) const {
-  evaluateDevice(points, nullptr, n, out, scatter, stream);
-}
-
 void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
                                       const int* scatter, cudaStream_t stream) const {
   const Impl& I = *impl_;

@@ -5,13 +5,15 @@
 // (wider than 256, too many live buffers), by a generic fp32 layer-by-layer path on cuBLAS.
 // The choice is automatic and reported by path().
 //
-// Host interface: FieldEvaluator (host arrays in and out). Device interface: evaluateDevice(),
-// which reads float4 world points from device memory and writes (optionally scattered through an
-// index array) straight into device memory — how the GPU pipeline writes into its rays' state.
+// Host interface: FieldEvaluator (host arrays in and out). Device interface: DeviceFieldEvaluator
+// (evaluateDevice(), which reads float4 world points from device memory and writes, optionally
+// scattered through an index array, straight into device memory — how the GPU pipeline writes
+// into its rays' state).
 #include <cuda_runtime.h>
 
 #include <memory>
 
+#include "Cuda/DeviceFieldEvaluator.h"
 #include "Evaluator/FieldEvaluator.h"
 #include "Model/InrModel.h"
 
@@ -33,7 +35,7 @@ struct CudaEvaluatorOptions {
   int autotuneBatch = 1 << 18;
 };
 
-class CudaInrEvaluator final : public FieldEvaluator {
+class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
 public:
   // Throws std::runtime_error when no usable device (message says why) or the path is impossible.
   explicit CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options = {});
@@ -42,13 +44,12 @@ public:
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
   std::string name() const override;
 
-  // points: n world-space (x, y, z, t) as float4 in device memory. out[scatter ? scatter[i] : i]
-  // receives the value of points[i]. Asynchronous on `stream`.
-  void evaluateDevice(const float4* points, int n, float* out, const int* scatter, cudaStream_t stream) const;
-  // The same for *deviceCount points (device memory, written by an earlier kernel on `stream`),
-  // at most maxN: no host round trip on the fused path (the generic path reads the count).
+  // DeviceFieldEvaluator: evaluateDevice(points, n, out, scatter, stream), and the same for
+  // *deviceCount points (device memory, written by an earlier kernel on `stream`), at most maxN:
+  // no host round trip on the fused path (the generic path reads the count).
+  using DeviceFieldEvaluator::evaluateDevice;
   void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
-                      cudaStream_t stream) const;
+                      cudaStream_t stream) const override;
 
   CudaEvaluatorPath path() const;
   // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,

@@ -3,7 +3,9 @@
 // temporal slices, estimated by lattice sampling through the FieldEvaluator; the working grid for
 // the current time (linear interpolation of the two nearest slices); majorants from a transfer
 // function; progressive refinement of under-estimated bounds. Host object; the traversal sees it
-// through MajorantGridView.
+// through MajorantGridView. Geometry, validation, the per-point / per-cell arithmetic
+// (Render/MacrocellLayout.h), the time state, lazy slice builds and the accessors
+// (MacrocellGridBase) are shared with the GPU grid.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -11,32 +13,12 @@
 #include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
+#include "Render/MacrocellGridBase.h"
+#include "Render/MacrocellLayout.h"
 #include "Render/MajorantGrid.h"
 #include "Render/TransferFunctionTable.h"
 
 namespace inr {
-
-struct MacrocellOptions {
-  Int3 dims{32, 32, 32};
-  // Slices at times timeBegin + k (timeEnd - timeBegin) / (T - 1); T = 1 means one slice at the
-  // middle of the time range, used for every time (right for static models).
-  int temporalSlices = 16;
-  // Build a slice only when a working grid needs it (start-up cost: at most 2 slices instead of T).
-  bool lazySlices = true;
-  // Safety padding: each working cell's [min, max] is widened by this fraction of the field's
-  // value range (over the built slices). Lattice sampling and time interpolation can miss
-  // extrema; padding trades looser majorants (more null collisions, more queries) for fewer
-  // under-estimated cells before refinement catches them. 0 = off (the paper's default).
-  double boundsPadding = 0.0;
-  std::size_t maxBatch = std::size_t(1) << 18;  // lattice points per evaluator call
-  // Empty-space skipping: cells per edge of the blocks of the coarse level computed with every
-  // majorant grid (the maximum majorant of each block of B^3 cells). A ray reaching an empty
-  // block steps a DDA over the blocks to the next non-empty one instead of walking every cell;
-  // images and query counts are bit-identical either way. A power of two (4 and 8 are the
-  // useful sizes: larger blocks are rarely empty, smaller ones save few steps); 0 = no coarse
-  // level (cell-by-cell DDA).
-  int skipBlockCells = 4;
-};
 
 // Host storage of one majorant grid (what MacrocellGrid::view shows the traversal): per-cell
 // majorants and their coarse level, kept consistent by computeMajorants / updateMajorants.
@@ -45,9 +27,6 @@ struct MajorantArrays {
   std::vector<float> block;  // one per skip block; empty when skipping is off
 };
 
-// Validates MacrocellOptions::skipBlockCells (throws std::invalid_argument) and returns log2 B,
-// or -1 for 0 (off).
-int skipBlockShift(int skipBlockCells);
 // The coarse level of `majorants` (dims cells) for blocks of 2^shift cells, written to `blocks`
 // (blockGridDims(dims, shift) entries). Reference for the GPU's kernel and the tests.
 void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, float* blocks);
@@ -55,45 +34,25 @@ void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, 
 // Called during slice builds: slice index and the fraction of that slice done, in [0, 1].
 using MacrocellProgress = std::function<void(int slice, double fraction)>;
 
-class MacrocellGrid {
+class MacrocellGrid final : public MacrocellGridBase {
 public:
-  static constexpr int kTileCells = 4;                        // cells per tile edge
-  static constexpr int kTileLattice = 2 * kTileCells + 1;     // 9 lattice points per tile edge
+  static constexpr int kTileCells = MacrocellLayout::kTileCells;      // cells per tile edge
+  static constexpr int kTileLattice = MacrocellLayout::kTileLattice;  // 9 lattice points per tile edge
 
   struct Slice {
     std::vector<float> min, max, mean;
     bool built = false;
   };
-  struct BuildStats {
-    int slicesBuilt = 0;
-    double seconds = 0.0;          // total time spent building slices
-    std::size_t evaluations = 0;   // lattice queries issued
-  };
-
   MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                 double timeEnd, MacrocellOptions options = {});
 
   void setProgressCallback(MacrocellProgress cb) { progress_ = std::move(cb); }
 
-  // Makes the working grid for world time t, building the slices it needs first. Clears the
-  // dirty-cell list (every majorant must be recomputed after a time change).
-  void setTime(double t);
-  void buildAllSlices();
-  double time() const { return time_; }
-
-  const MacrocellOptions& options() const { return options_; }
-  Int3 dims() const { return options_.dims; }
-  int cellCount() const { return cellCount_; }
-  const Box3f& box() const { return box_; }
-  Vec3f cellSize() const { return cellSize_; }
-  int temporalSlices() const { return int(slices_.size()); }
-  double sliceTime(int k) const;
+  // setTime, buildAllSlices, time and the layout accessors: MacrocellGridBase.
   const Slice& slice(int k) const { return slices_.at(k); }
+  bool sliceBuilt(int k) const override { return slices_.at(k).built; }
   // Replaces a slice's bounds with known values (tests, GPU-built slices).
   void setSlice(int k, std::vector<float> min, std::vector<float> max, std::vector<float> mean);
-  const BuildStats& buildStats() const { return stats_; }
-  // The two slices and weight the working grid interpolates: (1 - w) * slice k0 + w * slice k1.
-  void interpolationWeights(double t, int& k0, int& k1, float& w) const;
 
   const std::vector<float>& workingMin() const { return workMin_; }
   const std::vector<float>& workingMax() const { return workMax_; }
@@ -112,10 +71,6 @@ public:
   void updateMajorants(const TransferFunctionView& tf, const std::vector<int>& cells,
                        MajorantArrays& majorants) const;
   MajorantGridView view(const MajorantArrays& majorants) const;
-  // Coarse level: log2 of the block edge in cells (-1: off), blocks per axis, block count.
-  int blockShift() const { return blockShift_; }
-  Int3 blockDims() const { return blockDims_; }
-  int blockCount() const { return blockDims_.x * blockDims_.y * blockDims_.z; }
 
   // Progressive refinement: an evaluated sample `value` fell in `cell`. If it lies outside the
   // cell's working bounds, widen them (and the contributing slices, so the fix survives time
@@ -125,27 +80,16 @@ public:
   std::size_t refinementCount() const { return refinements_; }
 
 private:
-  void ensureSlice(int k);
-  void buildSlice(int k);
-  void interpolateWorkingGrid();
+  void buildSlice(int k) override;
+  void interpolateWorkingGrid() override;
+  void clearDirtyCells() override;
 
   const FieldEvaluator& evaluator_;
-  Box3f box_;
-  Vec3f cellSize_;
-  double timeBegin_, timeEnd_;
-  MacrocellOptions options_;
-  int cellCount_ = 0;
-  int blockShift_ = -1;
-  Int3 blockDims_{0, 0, 0};
   std::vector<Slice> slices_;
   std::vector<float> workMin_, workMax_, workMean_;
-  double time_ = 0.0;
-  int k0_ = 0, k1_ = 0;
-  float w_ = 0.f;
   std::vector<std::uint8_t> dirtyMask_;
   std::vector<int> dirty_;
   std::size_t refinements_ = 0;
-  BuildStats stats_;
   MacrocellProgress progress_;
 };
 

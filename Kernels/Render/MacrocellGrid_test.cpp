@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <vector>
 
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/MacrocellGrid.h"
@@ -237,6 +239,79 @@ TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
     if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
   }
   EXPECT_LE(outside, int(rec.pts.size() / 1000));
+}
+
+// The layout and the per-point / per-cell helpers both grids run (Render/MacrocellLayout.h).
+TEST(MacrocellLayout, ValidatesAndSharesTheTileArithmetic) {
+  MacrocellOptions o = options(4, 3);
+  o.dims = Int3{5, 9, 4};  // partial tiles along x and y
+  o.skipBlockCells = 4;
+  const MacrocellLayout l = MacrocellLayout::make(kBox, 0.0, 2.0, o);
+  EXPECT_EQ(l.cellCount, 5 * 9 * 4);
+  EXPECT_EQ(l.tileDims.x, 2);
+  EXPECT_EQ(l.tileDims.y, 3);
+  EXPECT_EQ(l.tileDims.z, 1);
+  EXPECT_EQ(l.tileCount, 6);
+  EXPECT_EQ(l.blockCount(), 2 * 3 * 1);
+  EXPECT_EQ(l.sliceTime(1), 1.0);
+  EXPECT_EQ(l.majorantView(nullptr, nullptr).blockMajorant, nullptr);
+  const float blocks[6] = {};
+  EXPECT_EQ(l.majorantView(nullptr, blocks).blockMajorant, blocks);
+  for (auto bad : {Int3{0, 1, 1}, Int3{1, -1, 1}}) {
+    MacrocellOptions b = o;
+    b.dims = bad;
+    EXPECT_THROW(MacrocellLayout::make(kBox, 0.0, 1.0, b), std::invalid_argument);
+  }
+  MacrocellOptions b = o;
+  b.boundsPadding = -0.1;
+  EXPECT_THROW(MacrocellLayout::make(kBox, 0.0, 1.0, b), std::invalid_argument);
+  EXPECT_THROW(MacrocellLayout::make(Box3f{{0, 0, 0}, {1, 0, 1}}, 0.0, 1.0, o), std::invalid_argument);
+  EXPECT_THROW(l.checkSliceArrays(l.cellCount, l.cellCount, 1), std::invalid_argument);
+
+  // Last tile (1, 2, 0): half-cell lattice steps from its corner, clamped to the box beyond it.
+  const long long last = l.tileCount - 1;
+  const Vec3f first = latticePoint(l, last, 0);
+  EXPECT_EQ(first.x, kBox.lo.x + 4 * l.cellSize.x);
+  EXPECT_EQ(first.y, kBox.lo.y + 8 * l.cellSize.y);
+  const Vec3f far = latticePoint(l, last, MacrocellLayout::kTilePoints - 1);
+  EXPECT_EQ(far.x, kBox.hi.x);
+  EXPECT_EQ(far.y, kBox.hi.y);
+  EXPECT_EQ(far.z, kBox.hi.z);  // 4 cells: the tile ends at the box
+  int idx = -1, inside = 0;
+  for (int local = 0; local < MacrocellLayout::kTileCellCount; ++local) inside += tileCellIndex(l, last, local, idx);
+  EXPECT_EQ(inside, 1 * 1 * 4);  // one cell left along x and y
+  ASSERT_TRUE(tileCellIndex(l, last, 0, idx));
+  EXPECT_EQ(idx, linearCellIndex(l.dims, Int3{4, 8, 0}));
+
+  // Stencil of cell 0: lattice points (0..2)^3; non-finite values are skipped.
+  std::vector<float> v(MacrocellLayout::kTilePoints, 100.f);
+  const int L = MacrocellLayout::kTileLattice;
+  for (int c = 0; c < 3; ++c)
+    for (int bb = 0; bb < 3; ++bb)
+      for (int a = 0; a < 3; ++a) v[(c * L + bb) * L + a] = float(a + bb + c);
+  v[0] = NAN;
+  v[1] = INFINITY;
+  CellBounds r = reduceCellStencil(v.data(), 0);
+  EXPECT_EQ(r.min, 1.f);
+  EXPECT_EQ(r.max, 6.f);
+  EXPECT_FLOAT_EQ(r.mean, (81.f - 0.f - 1.f) / 25.f);
+  for (int c = 0; c < 3; ++c)
+    for (int bb = 0; bb < 3; ++bb)
+      for (int a = 0; a < 3; ++a) v[(c * L + bb) * L + a] = NAN;
+  r = reduceCellStencil(v.data(), 0);
+  EXPECT_FALSE(validBounds(r));
+
+  // Working cells: interpolation, padding, one empty side, both empty.
+  const CellBounds a{0.f, 1.f, 0.5f}, bnd{2.f, 4.f, 3.f}, empty{INFINITY, -INFINITY, 0.f};
+  r = interpolateCell(a, bnd, 0.25f, 0.125f);
+  EXPECT_EQ(r.min, 0.5f - 0.125f);
+  EXPECT_EQ(r.max, 1.75f + 0.125f);
+  EXPECT_EQ(r.mean, 1.125f);
+  r = interpolateCell(empty, bnd, 0.25f, 0.5f);
+  EXPECT_EQ(r.min, 1.5f);
+  EXPECT_EQ(r.max, 4.5f);
+  EXPECT_EQ(r.mean, 3.f);
+  EXPECT_FALSE(validBounds(interpolateCell(empty, empty, 0.5f, 1.f)));
 }
 
 }  // namespace

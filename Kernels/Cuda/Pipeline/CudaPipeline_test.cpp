@@ -11,6 +11,7 @@
 
 #include "Cuda/CudaDevice.h"
 #include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/Pipeline/AnalyticDeviceField.h"
 #include "Render/TestFields.h"
 #include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
@@ -155,7 +156,15 @@ TEST(CudaPipeline, MacrocellGridsMatchCpu) {
 
 // GPU twin of EmptySpaceSkipping.BlockLevelIsTheMaxOfItsCells / RefinementKeepsBlocksConservative:
 // the coarse skip level computed on the device is the max of its cells, and stays so through
-// ghost passes and frames (refinement raising cell majorants through updateDirtyMajorants).
+// ghost passes and frames that refine. The lattice bounds alone may never under-estimate in
+// this scene, so the slices are preset too narrow: every cell's range is collapsed to its
+// lattice minimum. Sampled values above it then widen cells, their majorants
+// grow, and updateDirtyMajorants must raise their blocks (cuda::atomicMaxFloat in
+// dirtyMajorantKernel). Were that atomic max dropped (or a no-op), the blocks holding a refined
+// cell would keep their old values, below the cell's new majorant: this test would report
+// "after refinement" (block level != bruteBlocks of its cells) for every B, and no raised
+// block; were it a plain store, the last dirty cell of a block to write would win and the same
+// expectation would fail wherever two refined cells of one block differ.
 TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
   REQUIRE_GPU();
   const auto models = shippedModels();
@@ -186,8 +195,19 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     EXPECT_EQ(1 << v.blockShift, B);
     EXPECT_EQ(grid.view(maj.get()).blockMajorant, nullptr);
 
+    // Too narrow bounds in every slice: [min, min] per cell (cells with no finite value stay
+    // empty). The renderer's setTime interpolates these.
+    grid.buildAllSlices();
+    for (int k = 0; k < grid.temporalSlices(); ++k) {
+      std::vector<float> mn, mx, mean;
+      grid.downloadSlice(k, mn, mx, mean);
+      for (std::size_t c = 0; c < mn.size(); ++c)
+        if (mn[c] <= mx[c]) mx[c] = mean[c] = mn[c];
+      grid.setSlice(k, mn, mx, mean);
+    }
+
     TrackingOptions topts;
-    topts.ghostPassesOnUpdate = 2;
+    topts.ghostPassesOnUpdate = 0;  // run below, where their refinements can be counted
     CudaDeltaTrackingRenderer r(eval, grid, topts);
     RenderSettings settings;
     settings.width = settings.height = 48;
@@ -195,12 +215,17 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     RenderScene scene = testScene(model, range, true);
     scene.transferFunction = tf;
     r.setScene(scene);
-    for (int k = 0; k < 3; ++k) r.renderFrame();
-    // On an H200 this scene triggers no refinement (the lattice bounds hold), so the atomic-max
-    // update of refined blocks is exercised only where refinements occur; the level must match
-    // its cells either way.
-    std::printf("B = %d: %zu refinements\n", B, grid.refinementCount());
+    const std::vector<float> blocksBefore = r.blockMajorants();
+    ASSERT_TRUE(blocksBefore == test::bruteBlocks(o.dims, B, r.majorants())) << "B = " << B << " collapsed";
+    // (The renderer counts refinements in its frame statistics, not in grid.refinementCount().)
+    std::size_t refinements = r.runGhostPasses(2).refinements;
+    for (int k = 0; k < 3; ++k) refinements += r.renderFrame().refinements;
     const std::vector<float> rb = r.blockMajorants(), rc = r.majorants();
+    int raised = 0;
+    for (std::size_t b = 0; b < rb.size(); ++b) raised += rb[b] > blocksBefore[b] ? 1 : 0;
+    std::printf("B = %d: %zu refinements, %d of %zu blocks raised\n", B, refinements, raised, rb.size());
+    ASSERT_GT(refinements, 0u) << "B = " << B << ": the collapsed bounds must refine";
+    EXPECT_GT(raised, 0) << "B = " << B << ": refinement raised no block";
     EXPECT_TRUE(rb == test::bruteBlocks(o.dims, B, rc)) << "B = " << B << " after refinement";
   }
   MacrocellOptions off;
@@ -518,6 +543,63 @@ TEST_F(GpuSceneTest, NoNanPixelsUnderExtremeInputs) {
   for (int k = 0; k < 4; ++k) r.renderFrame();
   EXPECT_EQ(nonFinitePixels(r.image()), 0u);
   EXPECT_EQ(r.counters().truncatedFrames, 0);
+}
+
+// CudaMacrocellGrid on a DeviceFieldEvaluator other than the network: the analytic smooth field
+// (test::smoothField on host and device). The GPU grid computes the CPU grid's lattice points,
+// stencil reductions and interpolation bit for bit (MacrocellLayout), so slices and working
+// bounds differ only by the device's sinf / cosf / expf ulps.
+TEST(CudaPipeline, MacrocellGridOnAnalyticDeviceFieldMatchesCpu) {
+  REQUIRE_GPU();
+  const test::AnalyticDeviceField gpuField;
+  const test::FunctionField cpuField(test::smoothField);
+  {  // the analytic field's host side is the test field
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    std::vector<QueryPoint> pts(1000);
+    for (auto& p : pts) p = QueryPoint{u(rng), u(rng), u(rng), 1.f + u(rng)};
+    std::vector<float> a(pts.size()), b(pts.size());
+    gpuField.evaluate(pts.data(), pts.size(), a.data());
+    cpuField.evaluate(pts.data(), pts.size(), b.data());
+    for (std::size_t i = 0; i < pts.size(); ++i) ASSERT_NEAR(a[i], b[i], 1e-6) << i;
+  }
+  const Box3f box{{-1.f, -1.f, -1.f}, {1.f, 1.f, 1.f}};
+  MacrocellOptions o;
+  o.dims = Int3{18, 16, 13};  // partial tiles on every axis
+  o.temporalSlices = 5;
+  o.boundsPadding = 0.02;
+  CudaMacrocellGrid gpu(gpuField, box, 0.0, 2.0, o);
+  MacrocellGrid cpu(cpuField, box, 0.0, 2.0, o);
+  double maxSlice = 0, maxWork = 0, range = 0;
+  for (double t : {0.0, 0.73, 2.0}) {
+    gpu.setTime(t);
+    cpu.setTime(t);
+    const auto r = cpu.workingValueRange();
+    range = std::max(range, double(r[1]) - r[0]);
+    int k0, k1;
+    float w;
+    gpu.interpolationWeights(t, k0, k1, w);
+    std::vector<float> mn, mx, mean;
+    for (int k : {k0, k1}) {
+      ASSERT_TRUE(gpu.sliceBuilt(k) && cpu.slice(k).built) << "t = " << t;
+      gpu.downloadSlice(k, mn, mx, mean);
+      const auto& s = cpu.slice(k);
+      for (int c = 0; c < gpu.cellCount(); ++c)
+        maxSlice = std::max({maxSlice, std::abs(double(mn[c]) - s.min[c]), std::abs(double(mx[c]) - s.max[c]),
+                             std::abs(double(mean[c]) - s.mean[c])});
+    }
+    gpu.downloadWorking(mn, mx, mean);
+    for (int c = 0; c < gpu.cellCount(); ++c)
+      maxWork = std::max({maxWork, std::abs(double(mn[c]) - cpu.workingMin()[c]),
+                          std::abs(double(mx[c]) - cpu.workingMax()[c]),
+                          std::abs(double(mean[c]) - cpu.workingMean()[c])});
+  }
+  std::printf("analytic field: slices %.3g, working %.3g (range %.3g)\n", maxSlice, maxWork, range);
+  ASSERT_GT(range, 0.1);
+  EXPECT_LE(maxSlice, 1e-5 * range);
+  EXPECT_LE(maxWork, 1e-5 * range);
+  EXPECT_EQ(gpu.buildStats().slicesBuilt, cpu.buildStats().slicesBuilt);
+  EXPECT_EQ(gpu.buildStats().evaluations, cpu.buildStats().evaluations);
 }
 
 }  // namespace

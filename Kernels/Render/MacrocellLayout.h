@@ -1,0 +1,203 @@
+#pragma once
+// What the CPU grid (MacrocellGrid) and the GPU grid (CudaMacrocellGrid) share: the options,
+// the validated geometry of the 4D macrocell grid (MacrocellLayout: cells, slices, tiles,
+// coarse skip level) and the per-point / per-cell arithmetic of a slice build and of the
+// working-grid interpolation, written once as INR_HD functions. Both grids call these, so their
+// lattice points and working bounds are computed the same way, bit for bit.
+//
+// Rounding: each float operation below is rounded on its own (addRn / mulRn / subRn), never
+// fused into an FMA. On the device they are the _rn intrinsics (nvcc would otherwise contract
+// a * b + c). On the host they are plain operations, and the translation units that call them
+// (MacrocellGrid.cpp) are compiled with -ffp-contract=off (Render/CMakeLists.txt): GCC
+// contracts across inlined calls by default, even in ISO C++ mode, wherever the target has FMA.
+#include "Common/HostDevice.h"
+#include "Render/MajorantGrid.h"
+
+#include <cstddef>
+
+namespace inr {
+
+struct MacrocellOptions {
+  Int3 dims{32, 32, 32};
+  // Slices at times timeBegin + k (timeEnd - timeBegin) / (T - 1); T = 1 means one slice at the
+  // middle of the time range, used for every time (right for static models).
+  int temporalSlices = 16;
+  // Build a slice only when a working grid needs it (start-up cost: at most 2 slices instead of T).
+  bool lazySlices = true;
+  // Safety padding: each working cell's [min, max] is widened by this fraction of the field's
+  // value range (over the built slices). Lattice sampling and time interpolation can miss
+  // extrema; padding trades looser majorants (more null collisions, more queries) for fewer
+  // under-estimated cells before refinement catches them. 0 = off (the paper's default).
+  double boundsPadding = 0.0;
+  std::size_t maxBatch = std::size_t(1) << 18;  // lattice points per evaluator call
+  // Empty-space skipping: cells per edge of the blocks of the coarse level computed with every
+  // majorant grid (the maximum majorant of each block of B^3 cells). A ray reaching an empty
+  // block steps a DDA over the blocks to the next non-empty one instead of walking every cell;
+  // images and query counts are bit-identical either way. A power of two (4 and 8 are the
+  // useful sizes: larger blocks are rarely empty, smaller ones save few steps); 0 = no coarse
+  // level (cell-by-cell DDA).
+  int skipBlockCells = 4;
+};
+
+// Validates MacrocellOptions::skipBlockCells (throws std::invalid_argument) and returns log2 B,
+// or -1 for 0 (off).
+int skipBlockShift(int skipBlockCells);
+
+// The grid's geometry, validated once (MacrocellLayout::make) and copied by value into kernels.
+// Slices are built tile by tile: tiles of kTileCells^3 cells, each sampling a kTileLattice^3
+// lattice at its cell boundaries and half-cell offsets; each cell reduces the 3^3 lattice points
+// covering it (its corners, edge and face midpoints and centre).
+struct MacrocellLayout {
+  static constexpr int kTileCells = 4;                                       // cells per tile edge
+  static constexpr int kTileLattice = 2 * kTileCells + 1;                    // lattice points per tile edge
+  static constexpr int kTilePoints = kTileLattice * kTileLattice * kTileLattice;  // per tile
+  static constexpr int kTileCellCount = kTileCells * kTileCells * kTileCells;    // per tile
+
+  Box3f box;
+  Int3 dims{0, 0, 0};
+  Vec3f cellSize{0.f, 0.f, 0.f};  // (box.hi - box.lo) / dims
+  double timeBegin = 0.0, timeEnd = 0.0;
+  int temporalSlices = 0;
+  int cellCount = 0;
+  int blockShift = -1;            // coarse level: log2 of the block edge in cells, -1 = off
+  Int3 blockDims{0, 0, 0};        // blocks per axis (0 when off)
+  Int3 tileDims{0, 0, 0};         // tiles per axis (the last ones may be partial)
+  long long tileCount = 0;
+  double boundsPadding = 0.0;
+
+  // Validates (std::invalid_argument: non-positive dims, slices or box extent, negative padding,
+  // bad skip block size) and fills the layout.
+  static MacrocellLayout make(const Box3f& box, double timeBegin, double timeEnd, const MacrocellOptions& options);
+
+  double sliceTime(int k) const;
+  // The two slices and weight the working grid interpolates: (1 - w) * slice k0 + w * slice k1.
+  void interpolationWeights(double t, int& k0, int& k1, float& w) const;
+  int blockCount() const { return blockDims.x * blockDims.y * blockDims.z; }
+  // Padding of working bounds for slices whose valid bounds span [lo, hi] (0 when lo > hi).
+  float boundsPad(float lo, float hi) const;
+  // Throws std::invalid_argument unless each array of a slice has one entry per cell.
+  void checkSliceArrays(std::size_t min, std::size_t max, std::size_t mean) const;
+  // The traversal's view of majorant arrays (host or device). No coarse level when `blocks` is
+  // null or skipping is off.
+  MajorantGridView majorantView(const float* cells, const float* blocks) const;
+};
+
+// ---- Per-point / per-cell arithmetic shared by the CPU and GPU grids ----------------------
+
+INR_HD float addRn(float a, float b) {
+#if defined(__CUDA_ARCH__)
+  return __fadd_rn(a, b);
+#else
+  return a + b;
+#endif
+}
+INR_HD float subRn(float a, float b) {
+#if defined(__CUDA_ARCH__)
+  return __fsub_rn(a, b);
+#else
+  return a - b;
+#endif
+}
+INR_HD float mulRn(float a, float b) {
+#if defined(__CUDA_ARCH__)
+  return __fmul_rn(a, b);
+#else
+  return a * b;
+#endif
+}
+
+// Bounds of one macrocell. An empty range (min > max: +INF / -INF) means no finite value seen.
+struct CellBounds {
+  float min, max, mean;
+};
+INR_HD bool validBounds(const CellBounds& b) { return b.min <= b.max; }
+
+// Read / write access to one slice's (or the working grid's) per-cell arrays.
+struct CellBoundsView {
+  const float* min;
+  const float* max;
+  const float* mean;
+  INR_HD CellBounds at(int c) const { return CellBounds{min[c], max[c], mean[c]}; }
+};
+struct CellBoundsArrays {
+  float* min;
+  float* max;
+  float* mean;
+  INR_HD void store(int c, const CellBounds& b) const {
+    min[c] = b.min;
+    max[c] = b.max;
+    mean[c] = b.mean;
+  }
+};
+
+// Tile coordinates of linear tile index `tile` (x fastest).
+INR_HD Int3 tileCoords(const MacrocellLayout& l, long long tile) {
+  return Int3{int(tile % l.tileDims.x), int((tile / l.tileDims.x) % l.tileDims.y),
+              int(tile / ((long long)l.tileDims.x * l.tileDims.y))};
+}
+
+// Lattice point q (x fastest over kTileLattice^3) of tile `tile`: half-cell steps from the
+// tile's first corner. Points past a partial tile's last cell are clamped to the box (evaluated,
+// never used).
+INR_HD Vec3f latticePoint(const MacrocellLayout& l, long long tile, int q) {
+  constexpr int C = MacrocellLayout::kTileCells, L = MacrocellLayout::kTileLattice;
+  const Int3 it = tileCoords(l, tile);
+  const int a = q % L, b = (q / L) % L, c = q / (L * L);
+  const float x = addRn(l.box.lo.x, mulRn(addRn(float(it.x * C), 0.5f * a), l.cellSize.x));
+  const float y = addRn(l.box.lo.y, mulRn(addRn(float(it.y * C), 0.5f * b), l.cellSize.y));
+  const float z = addRn(l.box.lo.z, mulRn(addRn(float(it.z * C), 0.5f * c), l.cellSize.z));
+  return Vec3f{minf(l.box.hi.x, x), minf(l.box.hi.y, y), minf(l.box.hi.z, z)};
+}
+
+// Linear index of cell `local` (x fastest over kTileCells^3) of tile `tile`; false when the
+// cell lies past the grid (partial tiles).
+INR_HD bool tileCellIndex(const MacrocellLayout& l, long long tile, int local, int& index) {
+  constexpr int C = MacrocellLayout::kTileCells;
+  const Int3 it = tileCoords(l, tile);
+  const Int3 cell{it.x * C + local % C, it.y * C + (local / C) % C, it.z * C + local / (C * C)};
+  if (cell.x >= l.dims.x || cell.y >= l.dims.y || cell.z >= l.dims.z) return false;
+  index = linearCellIndex(l.dims, cell);
+  return true;
+}
+
+// Bounds of cell `local` of a tile from the tile's kTileLattice^3 lattice values: min, max and
+// mean over its 3^3 stencil, skipping non-finite values (a NaN output says nothing about
+// bounds); no finite value gives an empty range (majorant 0 until refinement sees a value).
+INR_HD CellBounds reduceCellStencil(const float* tileValues, int local) {
+  constexpr int C = MacrocellLayout::kTileCells, L = MacrocellLayout::kTileLattice;
+  const int cx = local % C, cy = (local / C) % C, cz = local / (C * C);
+  float mn = INFINITY, mx = -INFINITY;
+  double sum = 0.0;
+  int n = 0;
+  for (int c = 2 * cz; c <= 2 * cz + 2; ++c)
+    for (int b = 2 * cy; b <= 2 * cy + 2; ++b)
+      for (int a = 2 * cx; a <= 2 * cx + 2; ++a) {
+        const float s = tileValues[(c * L + b) * L + a];
+        if (!isFiniteValue(s)) continue;
+        mn = minf(s, mn);
+        mx = maxf(s, mx);
+        sum += s;
+        ++n;
+      }
+  if (n == 0) return CellBounds{INFINITY, -INFINITY, 0.f};
+  return CellBounds{mn, mx, float(sum / n)};
+}
+
+// One working cell: (1 - w) * a + w * b, [min, max] widened by pad; a slice with an empty
+// range (no finite value seen) gives way to the other; both empty stay empty.
+INR_HD CellBounds interpolateCell(const CellBounds& a, const CellBounds& b, float w, float pad) {
+  const bool aValid = validBounds(a), bValid = validBounds(b);
+  if (aValid && bValid) {
+    const float u = 1.f - w;
+    return CellBounds{subRn(addRn(mulRn(u, a.min), mulRn(w, b.min)), pad),
+                      addRn(addRn(mulRn(u, a.max), mulRn(w, b.max)), pad),
+                      addRn(mulRn(u, a.mean), mulRn(w, b.mean))};
+  }
+  if (aValid || bValid) {
+    const CellBounds& s = aValid ? a : b;
+    return CellBounds{subRn(s.min, pad), addRn(s.max, pad), s.mean};
+  }
+  return CellBounds{INFINITY, -INFINITY, 0.f};
+}
+
+}  // namespace inr
