@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/DeviceFieldEvaluator.h"
 #include "Cuda/Pipeline/CudaDeltaTrackingRendererImpl.cuh"
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 #include "Render/Finalize.h"
@@ -93,7 +93,7 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // iteration i's query count on the device, with grids sized by the last count the host knows
 // (an upper bound: counts never grow), while the host reads count i from pinned memory. When
 // count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
-void CudaDeltaTrackingRenderer::Impl::track(const CudaInrEvaluator& evaluator, const FrameConstants& fc,
+void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
                                             cuda::Stage traverseStage, cuda::Stage evaluateStage, int& iterations,
@@ -147,7 +147,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const CudaInrEvaluator& evaluator, c
   }
 }
 
-CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const CudaInrEvaluator& evaluator, CudaMacrocellGrid& macrocells,
+CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
                                                      TrackingOptions options, CudaPipelineOptions pipeline)
     : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells), pipeline_(pipeline),
       impl_(std::make_unique<Impl>()) {
@@ -237,7 +237,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   const FrameConstants fc = WavefrontRenderer::frameConstants(std::uint32_t(st.frame), I.depth.get());
   const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
   DeviceRefineView refine = macrocells_.refineView();
-  refine.refinements = I.stats.get() + kStatRefinements;
+  refine.frameRefinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rays.view();
   const int n = rs.count;
 
@@ -294,7 +294,7 @@ void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& tabl
   macrocells_.computeMajorants(I.ghostTf.view(), I.ghostMajorants.get(), I.ghostBlocks());
   const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get(), I.ghostBlocks()), I.ghostTf.view()};
   DeviceRefineView refine = macrocells_.refineView();
-  refine.refinements = I.stats.get() + kStatRefinements;
+  refine.frameRefinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rays.view();
   ghostInitKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, medium.grid, rs, stride);
   INR_CUDA_CHECK_LAUNCH("ghostInitKernel");

@@ -31,7 +31,7 @@
 
 namespace inr {
 
-class CudaInrEvaluator;
+class DeviceFieldEvaluator;
 class CudaPerThreadMlp;
 class DeviceTraversal;
 
@@ -45,7 +45,7 @@ using CudaPipelineCounters = RendererCounters;
 class CudaDeltaTrackingRenderer final : public WavefrontRenderer {
 public:
   // `macrocells` (and the evaluator) must outlive the renderer; all work runs on the grid's stream.
-  CudaDeltaTrackingRenderer(const CudaInrEvaluator& evaluator, CudaMacrocellGrid& macrocells,
+  CudaDeltaTrackingRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
                             TrackingOptions options = {}, CudaPipelineOptions pipeline = {});
   ~CudaDeltaTrackingRenderer() override;
 
@@ -80,7 +80,7 @@ private:
   void endGhostPasses(FrameStats& total) override;
   void readFrameStats(FrameStats& st);
 
-  const CudaInrEvaluator& evaluator_;
+  const DeviceFieldEvaluator& evaluator_;
   CudaMacrocellGrid& macrocells_;
   CudaPipelineOptions pipeline_;
   std::unique_ptr<Impl> impl_;

@@ -83,7 +83,7 @@ struct CudaDeltaTrackingRenderer::Impl {
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
 
-  void track(const CudaInrEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
+  void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
              const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
              cuda::Stage evaluateStage, int& iterations, std::size_t& queries);
 };

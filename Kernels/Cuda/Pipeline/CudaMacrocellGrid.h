@@ -37,7 +37,8 @@ struct DeviceRefineView {
   unsigned* dirtyMask = nullptr;
   int* dirtyList = nullptr;
   unsigned* dirtyCount = nullptr;
-  unsigned long long* refinements = nullptr;
+  unsigned long long* refinements = nullptr;       // the grid's total (refinementCount())
+  unsigned long long* frameRefinements = nullptr;  // optional: a renderer's per-frame count
   int cells = 0;
 };
 

@@ -85,7 +85,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const FrameConstants fc = WavefrontRenderer::frameConstants(std::uint32_t(st.frame), I.depth.get());
   const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
   DeviceRefineView refine = macrocells_.refineView();
-  refine.refinements = I.stats.get() + kStatRefinements;
+  refine.frameRefinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rays.view();
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.

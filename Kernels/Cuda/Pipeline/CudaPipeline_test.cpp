@@ -217,7 +217,6 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     r.setScene(scene);
     const std::vector<float> blocksBefore = r.blockMajorants();
     ASSERT_TRUE(blocksBefore == test::bruteBlocks(o.dims, B, r.majorants())) << "B = " << B << " collapsed";
-    // (The renderer counts refinements in its frame statistics, not in grid.refinementCount().)
     std::size_t refinements = r.runGhostPasses(2).refinements;
     for (int k = 0; k < 3; ++k) refinements += r.renderFrame().refinements;
     const std::vector<float> rb = r.blockMajorants(), rc = r.majorants();
@@ -225,6 +224,7 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     for (std::size_t b = 0; b < rb.size(); ++b) raised += rb[b] > blocksBefore[b] ? 1 : 0;
     std::printf("B = %d: %zu refinements, %d of %zu blocks raised\n", B, refinements, raised, rb.size());
     ASSERT_GT(refinements, 0u) << "B = " << B << ": the collapsed bounds must refine";
+    EXPECT_EQ(grid.refinementCount(), refinements) << "the grid's total counts what the frames counted";
     EXPECT_GT(raised, 0) << "B = " << B << ": refinement raised no block";
     EXPECT_TRUE(rb == test::bruteBlocks(o.dims, B, rc)) << "B = " << B << " after refinement";
   }

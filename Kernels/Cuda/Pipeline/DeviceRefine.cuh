@@ -42,6 +42,7 @@ __device__ inline bool refineCell(const DeviceRefineView& r, int cell, float v) 
   widenBounds(r.slice0Min, r.slice0Max, cell, v);
   if (r.slice1Min) widenBounds(r.slice1Min, r.slice1Max, cell, v);
   atomicAdd(r.refinements, 1ull);
+  if (r.frameRefinements) atomicAdd(r.frameRefinements, 1ull);
   if (atomicExch(&r.dirtyMask[cell], 1u) == 0u) r.dirtyList[atomicAdd(r.dirtyCount, 1u)] = cell;
   return true;
 }
