@@ -91,7 +91,7 @@ struct MlpProgram {
 
 // Runs the program on the CPU exactly as the fused kernel does arithmetically (fp16 weights and
 // activations, fp32 accumulation and epilogues), on network-space inputs (inputDim floats per
-// query). Slow; for tests and for explaining fp16 error.
+// query). Slow; for tests and for explaining fp16 error. In MlpProgramEmulation.cpp.
 void emulateFusedProgram(const MlpProgram& program, const float* inputs, std::size_t n, float* out);
 
 }  // namespace inr
