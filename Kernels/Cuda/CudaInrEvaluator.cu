@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "Common/Activation.h"
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
 #include "Cuda/FusedMlpKernel.cuh"
@@ -45,19 +46,8 @@ void cublasCheck(cublasStatus_t s, const char* what) {
 }
 
 // ---- generic fp32 path: one kernel (or cuBLAS call) per instruction over a chunk of queries.
-// Activations: column per query, `ld` floats per column.
-
-__device__ inline float genericAct(MlpAct a, float v) {
-  switch (a) {
-    case MlpAct::None: return v;
-    case MlpAct::Sine: return sinf(v);
-    case MlpAct::SiLU: return v / (1.f + expf(-v));
-    case MlpAct::ReLU: return fmaxf(v, 0.f);
-    case MlpAct::Sigmoid: return 1.f / (1.f + expf(-v));
-    case MlpAct::Tanh: return tanhf(v);
-  }
-  return v;
-}
+// Activations: column per query, `ld` floats per column; activation functions from
+// Common/Activation.h (exact forms; --use_fast_math maps sinf/expf to intrinsics).
 
 __global__ void genericCoords(cuda::FusedParams P, const float4* points, int n, float* coords) {
   const int q = blockIdx.x * blockDim.x + threadIdx.x;
@@ -73,7 +63,7 @@ __global__ void genericEpilogue(MlpInstr in, const float* bias, float* y, const 
   if (q >= n || o >= in.nPad) return;
   float v = 0.f;
   if (o < in.outWidth) {
-    v = genericAct(in.act, y[q * ld + o] + bias[o]);
+    v = activate(in.act, y[q * ld + o] + bias[o]);
     if (other) v = in.combineScale * (v + other[q * ld + o]);
   }
   y[q * ld + o] = v;
@@ -88,7 +78,7 @@ __global__ void genericElementwise(MlpInstr in, const float* coords, float* dst,
   if (in.op == MlpOp::LoadInput) {
     v = c < inputDim ? coords[q * 4 + c] : 0.f;
   } else if (in.op == MlpOp::Activation) {
-    v = c < in.outWidth ? genericAct(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
+    v = c < in.outWidth ? activate(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
   } else {  // Combine
     v = in.combineScale * (a[q * ld + c] + (other ? other[q * ld + c] : 0.f));
   }
@@ -123,7 +113,7 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   if (W) {
     float acc = 0.f;
     for (int k = 0; k < in.inWidth; ++k) acc += W[k] * src[q * srcLd + k];
-    net = genericAct(in.act, acc + bias[0]);
+    net = activate(in.act, acc + bias[0]);
   } else {
     net = src[q * srcLd];
   }

@@ -24,12 +24,12 @@
 #include <string>
 #include <vector>
 
+#include "Common/Activation.h"  // MlpAct
 #include "Model/InrModel.h"
 
 namespace inr {
 
 enum class MlpOp : std::int32_t { LoadInput, DenseFp32, Fourier, Gemm, Activation, Combine, OutputDot, Output };
-enum class MlpAct : std::int32_t { None, Sine, SiLU, ReLU, Sigmoid, Tanh };
 
 struct MlpInstr {
   MlpOp op = MlpOp::Output;

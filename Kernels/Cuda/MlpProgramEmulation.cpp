@@ -3,25 +3,11 @@
 #include <cmath>
 #include <vector>
 
+#include "Common/Activation.h"
 #include "Common/Half.h"
 #include "Cuda/MlpProgram.h"
 
 namespace inr {
-namespace {
-
-inline float applyAct(MlpAct a, float v) {
-  switch (a) {
-    case MlpAct::None: return v;
-    case MlpAct::Sine: return std::sin(v);
-    case MlpAct::SiLU: return v / (1.f + std::exp(-v));
-    case MlpAct::ReLU: return v > 0.f ? v : 0.f;
-    case MlpAct::Sigmoid: return 1.f / (1.f + std::exp(-v));
-    case MlpAct::Tanh: return std::tanh(v);
-  }
-  return v;
-}
-
-}  // namespace
 
 void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n, float* out) {
   const int W = p.maxWidthPad;
@@ -49,7 +35,7 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
             float acc = 0.f;
             for (int k = 0; k < in.inWidth; ++k)
               acc += halfBitsToFloat(p.halfWeights[in.halfOffset + k]) * srcAt(in.src, k);
-            out[q] = applyAct(in.act, acc + p.floatWeights[in.biasOffset]);
+            out[q] = activate(in.act, acc + p.floatWeights[in.biasOffset]);
             break;
           }
           if (in.dotNext) {  // fp32 activations straight into the final dot product
@@ -59,11 +45,11 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
               float acc = 0.f;
               for (int k = 0; k < in.kPad; ++k)
                 acc += halfBitsToFloat(p.halfWeights[in.halfOffset + std::int64_t(o) * in.kPad + k]) * srcAt(in.src, k);
-              float v = applyAct(in.act, acc + p.floatWeights[in.biasOffset + o]);
+              float v = activate(in.act, acc + p.floatWeights[in.biasOffset + o]);
               if (in.other >= 0) v = in.combineScale * (v + buf[in.other][o]);
               dot += v * p.floatWeights[fin.floatOffset + o];
             }
-            out[q] = applyAct(fin.act, dot + p.floatWeights[fin.biasOffset]);
+            out[q] = activate(fin.act, dot + p.floatWeights[fin.biasOffset]);
             break;
           }
           for (int o = 0; o < in.nPad; ++o) {
@@ -77,7 +63,7 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
                                     : p.floatWeights[in.floatOffset + std::int64_t(o) * in.inWidth + k];
                 acc += w * srcAt(in.src, k);
               }
-              v = applyAct(in.act, acc + p.floatWeights[in.biasOffset + o]);
+              v = activate(in.act, acc + p.floatWeights[in.biasOffset + o]);
               if (in.other >= 0) v = in.combineScale * (v + buf[in.other][o]);
             }
             tmp[o] = h(v);
@@ -102,7 +88,7 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
           break;
         }
         case MlpOp::Activation:
-          for (int c = 0; c < in.outWidth; ++c) buf[in.dst][c] = h(applyAct(in.act, in.actScale * buf[in.dst][c]));
+          for (int c = 0; c < in.outWidth; ++c) buf[in.dst][c] = h(activate(in.act, in.actScale * buf[in.dst][c]));
           break;
         case MlpOp::Combine:
           for (int c = 0; c < in.outWidth; ++c)
@@ -112,7 +98,7 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
         case MlpOp::OutputDot: {
           float acc = 0.f;
           for (int k = 0; k < in.inWidth; ++k) acc += p.floatWeights[in.floatOffset + k] * srcAt(in.src, k);
-          out[q] = applyAct(in.act, acc + p.floatWeights[in.biasOffset]);
+          out[q] = activate(in.act, acc + p.floatWeights[in.biasOffset]);
           break;
         }
         case MlpOp::Output: out[q] = buf[in.src][0]; break;
