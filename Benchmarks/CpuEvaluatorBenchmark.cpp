@@ -9,34 +9,30 @@
 #include <filesystem>
 #include <fstream>
 #include <omp.h>
-#include <random>
 #include <string>
 #include <vector>
 
+#include "BenchmarkSupport.h"
 #include "Evaluator/CpuInrEvaluator.h"
-#include "PaperArchitectures.h"
+#include "TestSupport/PaperArchitectures.h"
+#include "TestSupport/ShippedModels.h"
 
 using namespace inr;
+using namespace inr::bench;
 
 namespace {
 
 struct Row {
   std::string name;
   std::size_t params;
-  double median, lo, hi;
+  Spread qps;  // queries per second over the repetitions
 };
 
 Row measure(const InrModel& model, const std::string& name, int batch, int reps, int threads) {
   CpuEvaluatorOptions opts;
   opts.threads = threads;
   const CpuInrEvaluator eval(model, opts);
-  std::mt19937 rng(42);
-  const auto& b = model.domain.bounds;
-  std::vector<QueryPoint> pts(batch);
-  for (auto& p : pts) {
-    auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
-    p = {u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), u(model.domain.timeBegin, model.domain.timeEnd)};
-  }
+  const std::vector<QueryPoint> pts = test::randomQueryPoints(model, batch, 42);
   std::vector<float> out(batch);
   eval.evaluate(pts.data(), std::min<std::size_t>(pts.size(), 4096), out.data());  // warm-up
   std::vector<double> rates;
@@ -46,8 +42,7 @@ Row measure(const InrModel& model, const std::string& name, int batch, int reps,
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     rates.push_back(batch / s);
   }
-  std::sort(rates.begin(), rates.end());
-  return {name, model.architecture.parameterCount(), rates[rates.size() / 2], rates.front(), rates.back()};
+  return {name, model.architecture.parameterCount(), spreadOf(rates)};
 }
 
 }  // namespace
@@ -56,37 +51,24 @@ int main(int argc, char** argv) {
   int batch = 1 << 16, reps = 5, threads = 0;
   std::string csv;
   std::vector<std::string> files;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--batch") batch = std::max(1, std::stoi(next()));
-    else if (a == "--reps") reps = std::max(1, std::stoi(next()));
-    else if (a == "--threads") threads = std::stoi(next());
-    else if (a == "--csv") csv = next();
+  for (CommandLine cl(argc, argv); !cl.done();) {
+    const std::string a = cl.next();
+    if (a == "--batch") batch = std::max(1, std::stoi(cl.value()));
+    else if (a == "--reps") reps = std::max(1, std::stoi(cl.value()));
+    else if (a == "--threads") threads = std::stoi(cl.value());
+    else if (a == "--csv") csv = cl.value();
     else if (a == "--help") {
       std::puts("usage: cpu_evaluator_benchmark [--batch N] [--reps R] [--threads T] [--csv FILE] [MODEL.inr ...]");
       return 0;
     } else files.push_back(a);
   }
-  if (files.empty()) {
-    const std::filesystem::path dir = std::filesystem::path(INR_SOURCE_DIR) / "Testing/Data/models";
-    if (std::filesystem::exists(dir))
-      for (const auto& e : std::filesystem::directory_iterator(dir))
-        if (e.path().extension() == ".inr") files.push_back(e.path().string());
-    std::sort(files.begin(), files.end());
-  }
+  if (files.empty()) files = test::shippedModels();
   const int nthreads = threads > 0 ? threads : omp_get_max_threads();
   std::printf("CPU evaluator (Eigen fp32), batch %d, %d reps, %d threads\n", batch, reps, nthreads);
   std::printf("%-34s %10s %14s %14s %14s\n", "model", "params", "median q/s", "min q/s", "max q/s");
   std::vector<Row> rows;
   auto report = [&](const Row& r) {
-    std::printf("%-34s %10zu %14.4g %14.4g %14.4g\n", r.name.c_str(), r.params, r.median, r.lo, r.hi);
+    std::printf("%-34s %10zu %14.4g %14.4g %14.4g\n", r.name.c_str(), r.params, r.qps.median, r.qps.lo, r.qps.hi);
     std::fflush(stdout);
     rows.push_back(r);
   };
@@ -104,8 +86,8 @@ int main(int argc, char** argv) {
     std::ofstream o(csv);
     o << "model,parameters,threads,batch,median_qps,min_qps,max_qps\n";
     for (const auto& r : rows)
-      o << '"' << r.name << "\"," << r.params << ',' << nthreads << ',' << batch << ',' << r.median << ',' << r.lo
-        << ',' << r.hi << '\n';
+      o << '"' << r.name << "\"," << r.params << ',' << nthreads << ',' << batch << ',' << r.qps.median << ','
+        << r.qps.lo << ',' << r.qps.hi << '\n';
     std::printf("wrote %s\n", csv.c_str());
   }
   return 0;

@@ -7,7 +7,7 @@
 //       to SIZE² by the pixel ratio (work is per pixel); the table says so.
 //   4d  time-step update latency (working grid + majorants; the DDA's traversal structure IS the
 //       majorant grid) at 64³ and 128³ macrocells with all temporal slices built.
-// Models: the synthetic paper architectures (Benchmarks/PaperArchitectures.h, world box
+// Models: the synthetic paper architectures (Kernels/TestSupport/PaperArchitectures.h, world box
 // [-1,1]³, time [-1,1]) unless --no-paper, then every model file given.
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
@@ -19,24 +19,31 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
 #include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
 #include "Cuda/Pipeline/CudaRayMarcher.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Evaluator/ValueRange.h"
-#include "PaperArchitectures.h"
+#include "GpuBenchmarkSupport.h"
+#include "Render/ModelBox.h"
+#include "TestSupport/DevicePoints.h"
+#include "TestSupport/PaperArchitectures.h"
+#include "TestSupport/ShippedModels.h"
+#include "TestSupport/TestScene.h"
 
 using namespace inr;
+using namespace inr::bench;
 
 namespace {
 
@@ -59,59 +66,17 @@ struct Row {
 
 std::vector<Row> rows;
 
-Box3f boxOf(const InrModel& m) {
-  const auto& b = m.domain.bounds;
-  return Box3f{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
-}
-
+// The model tests' scene (TestSupport/TestScene.h) with delta-tracked shadows.
 RenderScene benchScene(const InrModel& model, const std::array<float, 2>& range, bool shadows) {
-  const Box3f box = boxOf(model);
-  RenderScene scene;
-  scene.camera = Camera::framing(box);
-  const auto& f = scene.camera.focalPoint;
-  const double d = scene.camera.position[2] - f[2];
-  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
-  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
-  scene.transferFunction.unitDistance = length(box.hi - box.lo) / 12.0;
-  scene.background = {0.1f, 0.1f, 0.15f};
-  scene.shadows = shadows;
-  scene.ambient = 0.3f;
-  scene.toLight = defaultLightDirection(scene.camera);
-  scene.shadowEstimator = ShadowEstimator::Delta;
-  return scene;
+  return test::testScene(model, range, shadows, ShadowEstimator::Delta);
 }
 
 // Evaluator throughput in this run: median of 10 launches over 2^21 random points of the box.
 double evaluatorGqps(const CudaInrEvaluator& eval, const InrModel& model, float time) {
   const int n = 1 << 21;
-  std::mt19937 rng(7);
-  const auto& b = model.domain.bounds;
-  auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
-  std::vector<float4> pts(n);
-  for (auto& p : pts) p = make_float4(u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), time);
-  cuda::DeviceBuffer<float4> dPts;
-  dPts.upload(pts, nullptr);
+  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, n, 7, time));
   cuda::DeviceBuffer<float> dOut(n);
-  cudaEvent_t e0, e1;
-  INR_CUDA_CHECK(cudaEventCreate(&e0));
-  INR_CUDA_CHECK(cudaEventCreate(&e1));
-  eval.evaluateDevice(dPts.get(), n, dOut.get(), nullptr, nullptr);
-  INR_CUDA_CHECK(cudaDeviceSynchronize());
-  std::vector<double> rates;
-  for (int r = 0; r < 10; ++r) {
-    INR_CUDA_CHECK(cudaEventRecord(e0));
-    eval.evaluateDevice(dPts.get(), n, dOut.get(), nullptr, nullptr);
-    INR_CUDA_CHECK(cudaEventRecord(e1));
-    INR_CUDA_CHECK(cudaEventSynchronize(e1));
-    float ms = 0;
-    INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
-    rates.push_back(n / (ms * 1e-3) * 1e-9);
-  }
-  cudaEventDestroy(e0);
-  cudaEventDestroy(e1);
-  std::sort(rates.begin(), rates.end());
-  return rates[rates.size() / 2];
+  return medianOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), 10)) * 1e-9;
 }
 
 Row fromStats(const std::string& group, const std::string& model, const std::string& variant, int size,
@@ -140,7 +105,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const double gqps = evaluatorGqps(eval, model, time);
   const auto range = valueRangeFor(model, eval);
-  const Box3f box = boxOf(model);
+  const Box3f box = modelWorldBox(model);
   std::printf("\n== %s  (%s)\n   evaluator %.3f G queries/s (2^21 batch, this run); value range [%.3g, %.3g]\n",
               name.c_str(), eval.name().c_str(), gqps, range[0], range[1]);
   std::fflush(stdout);
@@ -222,7 +187,7 @@ void benchTimeStep(const std::string& name, const InrModel& model, int m, int sl
   mo.dims = Int3{m, m, m};
   mo.temporalSlices = slices;
   cuda::Stream stream;
-  CudaMacrocellGrid grid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, mo, stream.get());
+  CudaMacrocellGrid grid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, mo, stream.get());
   const auto t0 = std::chrono::steady_clock::now();
   grid.buildAllSlices();
   const double buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -231,37 +196,29 @@ void benchTimeStep(const std::string& name, const InrModel& model, int m, int sl
   cuda::DeviceTransferFunction tf;
   tf.upload(table, stream.get());
   cuda::DeviceBuffer<float> maj(grid.cellCount());
-  cudaEvent_t e0, e1;
-  INR_CUDA_CHECK(cudaEventCreate(&e0));
-  INR_CUDA_CHECK(cudaEventCreate(&e1));
+  EventTimer timer;
   std::vector<double> gpuMs, wallMs;
   std::mt19937 rng(3);
   for (int k = 0; k < 22; ++k) {
     const double t = std::uniform_real_distribution<double>(model.domain.timeBegin, model.domain.timeEnd)(rng);
     const auto w0 = std::chrono::steady_clock::now();
-    INR_CUDA_CHECK(cudaEventRecord(e0, stream.get()));
+    timer.start(stream.get());
     grid.setTime(t);
     grid.computeMajorants(tf.view(), maj.get());
-    INR_CUDA_CHECK(cudaEventRecord(e1, stream.get()));
-    INR_CUDA_CHECK(cudaEventSynchronize(e1));
+    timer.stop(stream.get());
     const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
-    float ms = 0;
-    INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
+    const float ms = timer.ms();
     if (k == 0) continue;  // first change: warm-up
     gpuMs.push_back(ms);
     wallMs.push_back(wall);
   }
-  cudaEventDestroy(e0);
-  cudaEventDestroy(e1);
-  std::sort(gpuMs.begin(), gpuMs.end());
-  std::sort(wallMs.begin(), wallMs.end());
   Row r;
   r.group = "4d";
   r.model = name;
   r.variant = "timestep " + std::to_string(m) + "^3";
   r.size = m;
-  r.frameMs = gpuMs[gpuMs.size() / 2];
-  r.updateMs = wallMs[wallMs.size() / 2];
+  r.frameMs = medianOf(gpuMs);
+  r.updateMs = medianOf(wallMs);
   r.note = "GPU time (events); update_ms = host wall incl. launches and sync; " + std::to_string(slices) +
            " slices built in " + std::to_string(int(buildMs)) + " ms";
   rows.push_back(r);
@@ -303,25 +260,18 @@ void printTable() {
 
 int main(int argc, char** argv) {
   Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--size") o.size = std::stoi(next());
-    else if (a == "--frames") o.frames = std::max(1, std::stoi(next()));
-    else if (a == "--warmup") o.warmup = std::max(0, std::stoi(next()));
-    else if (a == "--naive-size") o.naiveSize = std::stoi(next());
-    else if (a == "--march-size") o.marchSize = std::stoi(next());
-    else if (a == "--macrocells") o.macrocells = std::stoi(next());
-    else if (a == "--slices") o.slices = std::stoi(next());
+  for (CommandLine cl(argc, argv); !cl.done();) {
+    const std::string a = cl.next();
+    if (a == "--size") o.size = std::stoi(cl.value());
+    else if (a == "--frames") o.frames = std::max(1, std::stoi(cl.value()));
+    else if (a == "--warmup") o.warmup = std::max(0, std::stoi(cl.value()));
+    else if (a == "--naive-size") o.naiveSize = std::stoi(cl.value());
+    else if (a == "--march-size") o.marchSize = std::stoi(cl.value());
+    else if (a == "--macrocells") o.macrocells = std::stoi(cl.value());
+    else if (a == "--slices") o.slices = std::stoi(cl.value());
     else if (a == "--no-paper") o.paper = false;
     else if (a == "--no-baselines") o.baselines = false;
-    else if (a == "--csv") o.csv = next();
+    else if (a == "--csv") o.csv = cl.value();
     else if (a == "-h" || a == "--help") {
       std::printf("usage: gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] "
                   "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] [--csv FILE] "
@@ -347,7 +297,7 @@ int main(int argc, char** argv) {
       models.emplace_back("FFN 256ff 5x256 (synthetic)", bench::ffnPaper());
       models.emplace_back("CoordNet init48 (synthetic)", bench::coordNetPaper());
     }
-    for (const auto& p : o.models) models.emplace_back(std::filesystem::path(p).filename().string(), InrModel::loadFile(p));
+    for (auto& m : loadModelFiles(o.models)) models.push_back(std::move(m));
     for (const auto& [name, model] : models) benchModel(name, model, o);
     std::printf("\n== 4d time-step update latency\n");
     const InrModel m = models.empty() ? bench::sirenPaper() : models.front().second;

@@ -4,20 +4,12 @@
 # benchmark (groups 4b-4d) on the paper-size architectures and the model files.
 # Results (logs, CSV, PNG) go to ${OUT:-gpu-results}.
 #   bash Benchmarks/run_gpu_pipeline.sh [extra benchmark args, e.g. --size 512 --frames 10]
-set -uo pipefail
-cd "$(dirname "$0")/.."
-OUT=${OUT:-gpu-results}
-mkdir -p "$OUT"
-BUILD=${INR_BUILD_DIR:-build-gpu}
-arch=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d .)
+source "$(dirname "$0")/gpu_common.sh"
 nvidia-smi --query-gpu=name,driver_version,compute_cap --format=csv,noheader > "$OUT/gpu.txt" 2>&1
-cmake -S . -B "$BUILD" -G Ninja -DINR_ENABLE_PARAVIEW=OFF -DCMAKE_CUDA_ARCHITECTURES="${arch:-90}" \
-  > "$OUT/configure.log" 2>&1 || { tail -30 "$OUT/configure.log"; exit 1; }
+gpu_configure
 cmake --build "$BUILD" -j "$(nproc)" --target cuda_pipeline_tests cuda_evaluator_tests gpu_render_benchmark \
   > "$OUT/build.log" 2>&1 || { grep -E "error" -A3 "$OUT/build.log" | head -40; exit 1; }
-echo "== GPU tests"
-ctest --test-dir "$BUILD" -L cuda --output-on-failure --timeout 900 2>&1 | tee "$OUT/ctest_cuda.log" \
-  | grep -vE "^\s*(Start|Test command)" | tail -40
+gpu_ctest --timeout 900
 # The pipeline tests' printed PSNRs and errors (ctest keeps them only on failure).
 "$BUILD/Kernels/Cuda/Pipeline/cuda_pipeline_tests" > "$OUT/cuda_pipeline_tests.txt" 2>&1
 echo "== render benchmark"

@@ -10,6 +10,7 @@
 #include "Backends/Refinement.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
+#include "Render/ModelBox.h"
 
 namespace inr {
 namespace {
@@ -28,8 +29,7 @@ struct Fixture {
     s.width = 40;
     s.height = 30;
     session->setSettings(s);
-    const auto& b = model.domain.bounds;
-    const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+    const Box3f box = modelWorldBox(model);
     scene.camera = Camera::framing(box);
     const auto range = valueRangeFor(model, session->evaluator());
     scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.8);

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "Evaluator/CpuInrEvaluator.h"
+#include "Render/ModelBox.h"
 
 #ifdef INR_HAVE_CUDA
 #include "Cuda/CudaDevice.h"
@@ -17,12 +18,6 @@
 namespace inr {
 namespace {
 
-Box3f boxOf(const InrModel& model) {
-  const auto& b = model.domain.bounds;
-  return {{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
-}
-
-
 // The parts every backend shares: it owns evaluator -> macrocell grid -> renderer (in that
 // construction order) and forwards the session interface to the renderer.
 template <typename Evaluator, typename Grid, typename Renderer>
@@ -31,7 +26,7 @@ public:
   template <typename EvaluatorOptions>
   BackendSession(const InrModel& model, const EvaluatorOptions& eo, const RenderSessionOptions& o)
       : evaluator_(model, eo),
-        grid_(evaluator_, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
+        grid_(evaluator_, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
         renderer_(evaluator_, grid_, o.tracking) {}
   const FieldEvaluator& evaluator() const override { return evaluator_; }
   void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }

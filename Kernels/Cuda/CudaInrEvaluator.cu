@@ -8,36 +8,15 @@
 #include <cstdint>
 #include <vector>
 
+#include "Common/Activation.h"
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/FusedMlpKernel.cuh"
 #include "Cuda/MlpProgram.h"
 
 namespace inr {
 namespace {
-
-template <typename T>
-struct DeviceArray {
-  T* ptr = nullptr;
-  std::size_t count = 0;
-  DeviceArray() = default;
-  DeviceArray(const DeviceArray&) = delete;
-  DeviceArray& operator=(const DeviceArray&) = delete;
-  ~DeviceArray() {
-    if (ptr) cudaFree(ptr);
-  }
-  void resize(std::size_t n) {
-    if (n <= count) return;
-    if (ptr) cudaFree(ptr);
-    ptr = nullptr;
-    INR_CUDA_CHECK(cudaMalloc(&ptr, std::max<std::size_t>(n, 1) * sizeof(T)));
-    count = n;
-  }
-  void upload(const std::vector<T>& v) {
-    resize(v.size());
-    if (!v.empty()) INR_CUDA_CHECK(cudaMemcpy(ptr, v.data(), v.size() * sizeof(T), cudaMemcpyHostToDevice));
-  }
-};
 
 void cublasCheck(cublasStatus_t s, const char* what) {
   if (s != CUBLAS_STATUS_SUCCESS)
@@ -45,19 +24,8 @@ void cublasCheck(cublasStatus_t s, const char* what) {
 }
 
 // ---- generic fp32 path: one kernel (or cuBLAS call) per instruction over a chunk of queries.
-// Activations: column per query, `ld` floats per column.
-
-__device__ inline float genericAct(MlpAct a, float v) {
-  switch (a) {
-    case MlpAct::None: return v;
-    case MlpAct::Sine: return sinf(v);
-    case MlpAct::SiLU: return v / (1.f + expf(-v));
-    case MlpAct::ReLU: return fmaxf(v, 0.f);
-    case MlpAct::Sigmoid: return 1.f / (1.f + expf(-v));
-    case MlpAct::Tanh: return tanhf(v);
-  }
-  return v;
-}
+// Activations: column per query, `ld` floats per column; activation functions from
+// Common/Activation.h (exact forms; --use_fast_math maps sinf/expf to intrinsics).
 
 __global__ void genericCoords(cuda::FusedParams P, const float4* points, int n, float* coords) {
   const int q = blockIdx.x * blockDim.x + threadIdx.x;
@@ -73,7 +41,7 @@ __global__ void genericEpilogue(MlpInstr in, const float* bias, float* y, const 
   if (q >= n || o >= in.nPad) return;
   float v = 0.f;
   if (o < in.outWidth) {
-    v = genericAct(in.act, y[q * ld + o] + bias[o]);
+    v = activate(in.act, y[q * ld + o] + bias[o]);
     if (other) v = in.combineScale * (v + other[q * ld + o]);
   }
   y[q * ld + o] = v;
@@ -88,7 +56,7 @@ __global__ void genericElementwise(MlpInstr in, const float* coords, float* dst,
   if (in.op == MlpOp::LoadInput) {
     v = c < inputDim ? coords[q * 4 + c] : 0.f;
   } else if (in.op == MlpOp::Activation) {
-    v = c < in.outWidth ? genericAct(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
+    v = c < in.outWidth ? activate(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
   } else {  // Combine
     v = in.combineScale * (a[q * ld + c] + (other ? other[q * ld + c] : 0.f));
   }
@@ -123,7 +91,7 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   if (W) {
     float acc = 0.f;
     for (int k = 0; k < in.inWidth; ++k) acc += W[k] * src[q * srcLd + k];
-    net = genericAct(in.act, acc + bias[0]);
+    net = activate(in.act, acc + bias[0]);
   } else {
     net = src[q * srcLd];
   }
@@ -171,16 +139,16 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kSmallBatch = 1 << 13;
   static constexpr int kSmallBatchThreshold = 1 << 15;
   cuda::FusedParams params;
-  DeviceArray<MlpInstr> instrs;
-  DeviceArray<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
-  DeviceArray<float> floatW;
-  DeviceArray<float> outputTable;
+  cuda::DeviceBuffer<MlpInstr> instrs;
+  cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
+  cuda::DeviceBuffer<float> floatW;
+  cuda::DeviceBuffer<float> outputTable;
   // host-interface staging
-  mutable DeviceArray<float4> stagePoints;
-  mutable DeviceArray<float> stageOut;
+  mutable cuda::DeviceBuffer<float4> stagePoints;
+  mutable cuda::DeviceBuffer<float> stageOut;
   // generic path
   cublasHandle_t cublas = nullptr;
-  mutable DeviceArray<float> genericBuffers, genericCoords;
+  mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
   static constexpr int kGenericChunk = 1 << 16;
 };
 
@@ -209,26 +177,27 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       model.output.affineAt(t, a, b);
       table.insert(table.end(), {float(t), a, b});
     }
-    I.outputTable.upload(table);
+    I.outputTable.upload(table, nullptr);
     P.output.count = int(model.output.perTime->times.size());
-    P.output.table = I.outputTable.ptr;
+    P.output.table = I.outputTable.get();
   } else {
     P.output.a = model.output.scale;
     P.output.b = model.output.offset;
   }
 
-  I.instrs.upload(prog.instrs);
+  I.instrs.upload(prog.instrs, nullptr);
   for (int kc : {64, 32}) {
     const std::vector<std::uint16_t> packed = cuda::packStagedWeights(prog, kc, P.stagedOffset[cuda::kcIndex(kc)]);
     std::vector<__half> hw(packed.size());
     for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
-    I.stagedW[cuda::kcIndex(kc)].upload(hw);
-    P.stagedWeights[cuda::kcIndex(kc)] = I.stagedW[cuda::kcIndex(kc)].ptr;
+    I.stagedW[cuda::kcIndex(kc)].upload(hw, nullptr);
+    P.stagedWeights[cuda::kcIndex(kc)] = I.stagedW[cuda::kcIndex(kc)].get();
   }
-  I.floatW.upload(prog.floatWeights);
-  P.instrs = I.instrs.ptr;
+  I.floatW.upload(prog.floatWeights, nullptr);
+  INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
+  P.instrs = I.instrs.get();
   P.numInstrs = int(prog.instrs.size());
-  P.floatWeights = I.floatW.ptr;
+  P.floatWeights = I.floatW.get();
   P.numBuffers = std::max(1, prog.numBuffers);
   for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
   P.maxGemmOutPad = std::max(16, prog.maxGemmOutPad);
@@ -287,9 +256,9 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     for (auto& p : pts)
       p = make_float4(uniform(b[0], b[1]), uniform(b[2], b[3]), uniform(b[4], b[5]),
                       uniform(model.domain.timeBegin, model.domain.timeEnd));
-    I.stagePoints.resize(pts.size());
-    I.stageOut.resize(pts.size());
-    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.ptr, pts.data(), pts.size() * sizeof(float4), cudaMemcpyHostToDevice));
+    I.stagePoints.growTo(pts.size());
+    I.stageOut.growTo(pts.size());
+    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), pts.data(), pts.size() * sizeof(float4), cudaMemcpyHostToDevice));
     cudaEvent_t e0, e1;
     INR_CUDA_CHECK(cudaEventCreate(&e0));
     INR_CUDA_CHECK(cudaEventCreate(&e1));
@@ -297,7 +266,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       float best = 0.f;
       for (int r = -1; r < 3; ++r) {
         INR_CUDA_CHECK(cudaEventRecord(e0));
-        evaluateDevice(I.stagePoints.ptr, n, I.stageOut.ptr, nullptr, nullptr);
+        evaluateDevice(I.stagePoints.get(), n, I.stageOut.get(), nullptr, nullptr);
         INR_CUDA_CHECK(cudaEventRecord(e1));
         INR_CUDA_CHECK(cudaEventSynchronize(e1));
         float ms = 0.f;
@@ -382,46 +351,46 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
   const MlpProgram& prog = I.program;
   const int ld = prog.maxWidthPad;
   const int chunk = Impl::kGenericChunk;
-  I.genericBuffers.resize(std::size_t(std::max(1, prog.numBuffers)) * ld * chunk);
-  I.genericCoords.resize(std::size_t(4) * chunk);
+  I.genericBuffers.growTo(std::size_t(std::max(1, prog.numBuffers)) * ld * chunk);
+  I.genericCoords.growTo(std::size_t(4) * chunk);
   cublasCheck(cublasSetStream(I.cublas, stream), "cublasSetStream");
   const float one = 1.f, zero = 0.f;
   for (int begin = 0; begin < n; begin += chunk) {
     const int m = std::min(chunk, n - begin);
-    auto buf = [&](int b) { return I.genericBuffers.ptr + std::size_t(b) * ld * chunk; };
-    genericCoords<<<(m + 255) / 256, 256, 0, stream>>>(I.params, points + begin, m, I.genericCoords.ptr);
+    auto buf = [&](int b) { return I.genericBuffers.get() + std::size_t(b) * ld * chunk; };
+    genericCoords<<<(m + 255) / 256, 256, 0, stream>>>(I.params, points + begin, m, I.genericCoords.get());
     INR_CUDA_CHECK_LAUNCH("genericCoords");
     for (const MlpInstr& in : prog.instrs) {
       // coordInput: a first layer whose fused form reads split coordinates; fp32 reads them raw.
       const bool fromCoords = in.src < 0 || in.coordInput;
-      const float* src = fromCoords ? I.genericCoords.ptr : buf(in.src);
+      const float* src = fromCoords ? I.genericCoords.get() : buf(in.src);
       const int srcLd = fromCoords ? 4 : ld;
       const dim3 block(32, 8), grid2((std::max(in.nPad, 1) + 31) / 32, (m + 7) / 8);
       switch (in.op) {
         case MlpOp::DenseFp32:
         case MlpOp::Gemm:
           if (in.finalOutput) {  // the final width-1 layer: an fp32 dot per query
-            genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(in, I.floatW.ptr + in.floatOffset,
-                                                               I.floatW.ptr + in.biasOffset, src, srcLd, I.params.output,
+            genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(in, I.floatW.get() + in.floatOffset,
+                                                               I.floatW.get() + in.biasOffset, src, srcLd, I.params.output,
                                                                points + begin, m, begin, out, scatter);
             INR_CUDA_CHECK_LAUNCH("genericOutput");
             break;
           }
           cublasCheck(cublasSgemm(I.cublas, CUBLAS_OP_T, CUBLAS_OP_N, in.outWidth, m, in.inWidth, &one,
-                                  I.floatW.ptr + in.floatOffset, in.inWidth, src, srcLd, &zero, buf(in.dst), ld),
+                                  I.floatW.get() + in.floatOffset, in.inWidth, src, srcLd, &zero, buf(in.dst), ld),
                       "cublasSgemm");
-          genericEpilogue<<<grid2, block, 0, stream>>>(in, I.floatW.ptr + in.biasOffset, buf(in.dst),
+          genericEpilogue<<<grid2, block, 0, stream>>>(in, I.floatW.get() + in.biasOffset, buf(in.dst),
                                                       in.other >= 0 ? buf(in.other) : nullptr, ld, m);
           INR_CUDA_CHECK_LAUNCH("genericEpilogue");
           break;
         case MlpOp::Fourier:
-          genericFourier<<<grid2, block, 0, stream>>>(in, I.floatW.ptr + in.floatOffset, src, srcLd, buf(in.dst), ld, m);
+          genericFourier<<<grid2, block, 0, stream>>>(in, I.floatW.get() + in.floatOffset, src, srcLd, buf(in.dst), ld, m);
           INR_CUDA_CHECK_LAUNCH("genericFourier");
           break;
         case MlpOp::LoadInput:
         case MlpOp::Activation:
         case MlpOp::Combine:
-          genericElementwise<<<grid2, block, 0, stream>>>(in, I.genericCoords.ptr, buf(in.dst),
+          genericElementwise<<<grid2, block, 0, stream>>>(in, I.genericCoords.get(), buf(in.dst),
                                                          in.src >= 0 ? buf(in.src) : nullptr,
                                                          in.other >= 0 ? buf(in.other) : nullptr, ld, m, prog.inputDim);
           INR_CUDA_CHECK_LAUNCH("genericElementwise");
@@ -429,7 +398,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
         case MlpOp::OutputDot:
         case MlpOp::Output:
           genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(
-              in, in.op == MlpOp::OutputDot ? I.floatW.ptr + in.floatOffset : nullptr, I.floatW.ptr + in.biasOffset, src,
+              in, in.op == MlpOp::OutputDot ? I.floatW.get() + in.floatOffset : nullptr, I.floatW.get() + in.biasOffset, src,
               srcLd, I.params.output, points + begin, m, begin, out, scatter);
           INR_CUDA_CHECK_LAUNCH("genericOutput");
           break;
@@ -443,11 +412,11 @@ void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* 
   if (n == 0) return;
   if (n > std::size_t(1) << 30) throw std::runtime_error("CudaInrEvaluator::evaluate: batch larger than 2^30 queries");
   static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
-  I.stagePoints.resize(n);
-  I.stageOut.resize(n);
-  INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.ptr, points, n * sizeof(float4), cudaMemcpyHostToDevice));
-  evaluateDevice(I.stagePoints.ptr, int(n), I.stageOut.ptr, nullptr, nullptr);
-  INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.ptr, n * sizeof(float), cudaMemcpyDeviceToHost));
+  I.stagePoints.growTo(n);
+  I.stageOut.growTo(n);
+  INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points, n * sizeof(float4), cudaMemcpyHostToDevice));
+  evaluateDevice(I.stagePoints.get(), int(n), I.stageOut.get(), nullptr, nullptr);
+  INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.get(), n * sizeof(float), cudaMemcpyDeviceToHost));
 }
 
 }  // namespace inr

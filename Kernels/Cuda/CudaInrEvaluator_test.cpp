@@ -6,31 +6,20 @@
 
 #include <cmath>
 #include <filesystem>
-#include <random>
 
-#include "../../Benchmarks/PaperArchitectures.h"
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/MlpProgram.h"
 #include "Evaluator/CpuInrEvaluator.h"
+#include "TestSupport/PaperArchitectures.h"
+#include "TestSupport/RequireGpu.h"
+#include "TestSupport/ShippedModels.h"
 
 namespace inr {
 namespace {
 
-#define REQUIRE_GPU()                                              \
-  do {                                                             \
-    const CudaDeviceInfo dev = queryCudaDevice();                  \
-    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason;     \
-  } while (0)
-
-std::vector<QueryPoint> randomPoints(const InrModel& m, int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  const auto& b = m.domain.bounds;
-  auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
-  std::vector<QueryPoint> pts(n);
-  for (auto& p : pts) p = {u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), u(m.domain.timeBegin, m.domain.timeEnd)};
-  return pts;
-}
+using test::randomQueryPoints;
 
 struct Err {
   double maxAbs = 0, meanAbs = 0;
@@ -52,12 +41,9 @@ std::vector<std::pair<std::string, InrModel>> allModels() {
   out.emplace_back("SIREN paper", bench::sirenPaper());
   out.emplace_back("FFN paper", bench::ffnPaper());
   out.emplace_back("CoordNet paper", bench::coordNetPaper());
-  for (const char* sub : {"models", "real"}) {
-    const auto dir = std::filesystem::path(INR_TEST_DATA_DIR) / sub;
-    if (!std::filesystem::exists(dir)) continue;
-    for (const auto& e : std::filesystem::directory_iterator(dir))
-      if (e.path().extension() == ".inr") out.emplace_back(e.path().filename().string(), InrModel::loadFile(e.path()));
-  }
+  for (const char* folder : {"models", "real"})
+    for (const auto& path : test::shippedModels(folder))
+      out.emplace_back(std::filesystem::path(path).filename().string(), InrModel::loadFile(path));
   return out;
 }
 
@@ -65,7 +51,7 @@ TEST(CudaInrEvaluator, FusedMatchesCpuReferenceOnEveryModel) {
   REQUIRE_GPU();
   for (const auto& [name, model] : allModels()) {
     const CudaInrEvaluator gpu(model);
-    const auto pts = randomPoints(model, 20011, 3);  // not a multiple of the tile
+    const auto pts = randomQueryPoints(model, 20011, 3);  // not a multiple of the tile
     std::vector<float> ref(pts.size()), got(pts.size(), NAN);
     CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
     gpu.evaluate(pts.data(), pts.size(), got.data());
@@ -86,7 +72,7 @@ TEST(CudaInrEvaluator, FusedMatchesItsCpuEmulationClosely) {
   for (const auto& [name, model] : allModels()) {
     const MlpProgram program = MlpProgram::compile(model.architecture);
     if (!program.fusable) continue;
-    const auto pts = randomPoints(model, 4000, 9);
+    const auto pts = randomQueryPoints(model, 4000, 9);
     std::vector<float> net(pts.size() * model.architecture.inputDim);
     for (std::size_t q = 0; q < pts.size(); ++q) {
       const double w[4] = {pts[q].x, pts[q].y, pts[q].z, pts[q].t};
@@ -115,7 +101,7 @@ TEST(CudaInrEvaluator, GenericPathMatchesCpuInFp32) {
     CudaEvaluatorOptions o;
     o.path = CudaEvaluatorPath::Generic;
     const CudaInrEvaluator gpu(model, o);
-    const auto pts = randomPoints(model, 70001, 5);  // spans two generic chunks
+    const auto pts = randomQueryPoints(model, 70001, 5);  // spans two generic chunks
     std::vector<float> ref(pts.size()), got(pts.size(), NAN);
     CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
     gpu.evaluate(pts.data(), pts.size(), got.data());
@@ -131,26 +117,20 @@ TEST(CudaInrEvaluator, ScatterWritesThroughTheIndexArray) {
   const InrModel model = bench::sirenPaper();
   const CudaInrEvaluator gpu(model);
   const int n = 1000;
-  const auto pts = randomPoints(model, n, 1);
+  const auto pts = randomQueryPoints(model, n, 1);
   std::vector<int> idx(n);
   for (int i = 0; i < n; ++i) idx[i] = (i * 7919) % n;  // a permutation (7919 prime, coprime to n)
-  float4* dPts;
-  float* dOut;
-  int* dIdx;
-  INR_CUDA_CHECK(cudaMalloc(&dPts, n * sizeof(float4)));
-  INR_CUDA_CHECK(cudaMalloc(&dOut, n * sizeof(float)));
-  INR_CUDA_CHECK(cudaMalloc(&dIdx, n * sizeof(int)));
-  INR_CUDA_CHECK(cudaMemcpy(dPts, pts.data(), n * sizeof(float4), cudaMemcpyHostToDevice));
-  INR_CUDA_CHECK(cudaMemcpy(dIdx, idx.data(), n * sizeof(int), cudaMemcpyHostToDevice));
-  INR_CUDA_CHECK(cudaMemset(dOut, 0xff, n * sizeof(float)));  // NaN poison
-  gpu.evaluateDevice(dPts, n, dOut, dIdx, nullptr);
+  cuda::DeviceBuffer<float4> dPts(n);
+  cuda::DeviceBuffer<float> dOut(n);
+  cuda::DeviceBuffer<int> dIdx(n);
+  INR_CUDA_CHECK(cudaMemcpy(dPts.get(), pts.data(), n * sizeof(float4), cudaMemcpyHostToDevice));
+  INR_CUDA_CHECK(cudaMemcpy(dIdx.get(), idx.data(), n * sizeof(int), cudaMemcpyHostToDevice));
+  INR_CUDA_CHECK(cudaMemset(dOut.get(), 0xff, n * sizeof(float)));  // NaN poison
+  gpu.evaluateDevice(dPts.get(), n, dOut.get(), dIdx.get(), nullptr);
   std::vector<float> scattered(n), direct(n);
-  INR_CUDA_CHECK(cudaMemcpy(scattered.data(), dOut, n * sizeof(float), cudaMemcpyDeviceToHost));
+  INR_CUDA_CHECK(cudaMemcpy(scattered.data(), dOut.get(), n * sizeof(float), cudaMemcpyDeviceToHost));
   gpu.evaluate(pts.data(), n, direct.data());
   for (int i = 0; i < n; ++i) ASSERT_EQ(scattered[idx[i]], direct[i]) << i;
-  cudaFree(dPts);
-  cudaFree(dOut);
-  cudaFree(dIdx);
 }
 
 // The count comes from device memory (as the pipeline's traversal writes it): exactly the first
@@ -164,26 +144,20 @@ TEST(CudaInrEvaluator, DeviceCountBoundsTheBatch) {
     const CudaInrEvaluator gpu(model, o);
     for (const int bound : {3000, 70000}) {  // below and above the small-batch threshold
       const int count = bound - 777;
-      const auto pts = randomPoints(model, bound, 5);
-      float4* dPts;
-      float* dOut;
-      unsigned* dCount;
-      INR_CUDA_CHECK(cudaMalloc(&dPts, bound * sizeof(float4)));
-      INR_CUDA_CHECK(cudaMalloc(&dOut, bound * sizeof(float)));
-      INR_CUDA_CHECK(cudaMalloc(&dCount, sizeof(unsigned)));
-      INR_CUDA_CHECK(cudaMemcpy(dPts, pts.data(), bound * sizeof(float4), cudaMemcpyHostToDevice));
+      const auto pts = randomQueryPoints(model, bound, 5);
+      cuda::DeviceBuffer<float4> dPts(bound);
+      cuda::DeviceBuffer<float> dOut(bound);
+      cuda::DeviceBuffer<unsigned> dCount(1);
+      INR_CUDA_CHECK(cudaMemcpy(dPts.get(), pts.data(), bound * sizeof(float4), cudaMemcpyHostToDevice));
       const unsigned c = unsigned(count);
-      INR_CUDA_CHECK(cudaMemcpy(dCount, &c, sizeof c, cudaMemcpyHostToDevice));
-      INR_CUDA_CHECK(cudaMemset(dOut, 0xff, bound * sizeof(float)));  // NaN poison
-      gpu.evaluateDevice(dPts, dCount, bound, dOut, nullptr, nullptr);
+      INR_CUDA_CHECK(cudaMemcpy(dCount.get(), &c, sizeof c, cudaMemcpyHostToDevice));
+      INR_CUDA_CHECK(cudaMemset(dOut.get(), 0xff, bound * sizeof(float)));  // NaN poison
+      gpu.evaluateDevice(dPts.get(), dCount.get(), bound, dOut.get(), nullptr, nullptr);
       std::vector<float> got(bound), direct(count);
-      INR_CUDA_CHECK(cudaMemcpy(got.data(), dOut, bound * sizeof(float), cudaMemcpyDeviceToHost));
+      INR_CUDA_CHECK(cudaMemcpy(got.data(), dOut.get(), bound * sizeof(float), cudaMemcpyDeviceToHost));
       gpu.evaluate(pts.data(), count, direct.data());
       for (int i = 0; i < count; ++i) ASSERT_EQ(got[i], direct[i]) << i << " bound " << bound;
       for (int i = count; i < bound; ++i) ASSERT_TRUE(std::isnan(got[i])) << "wrote past the count at " << i;
-      cudaFree(dPts);
-      cudaFree(dOut);
-      cudaFree(dCount);
     }
   }
 }

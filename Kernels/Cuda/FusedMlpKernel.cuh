@@ -18,6 +18,7 @@
 #include <vector>
 #include <cuda_pipeline.h>
 
+#include "Common/Activation.h"
 #include "Cuda/MlpProgram.h"
 
 namespace inr::cuda {
@@ -87,30 +88,8 @@ inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
   return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
 }
 
-// One MUFU.TANH (sm_75+); max. relative error ~2^-11, below the fp16 rounding the activations
-// get anyway.
-__device__ inline float tanhApprox(float v) {
-  float r;
-  asm("tanh.approx.f32 %0, %1;" : "=f"(r) : "f"(v));
-  return r;
-}
-
-// SiLU and sigmoid through tanh: x sigma(x) = h + h tanh(h) with h = x / 2, one special-function
-// instruction instead of two (exp and reciprocal).
-__device__ inline float applyActivation(MlpAct a, float v) {
-  switch (a) {
-    case MlpAct::None: return v;
-    case MlpAct::Sine: return __sinf(v);
-    case MlpAct::SiLU: {
-      const float h = 0.5f * v;
-      return fmaf(h, tanhApprox(h), h);
-    }
-    case MlpAct::ReLU: return fmaxf(v, 0.f);
-    case MlpAct::Sigmoid: return fmaf(0.5f, tanhApprox(0.5f * v), 0.5f);
-    case MlpAct::Tanh: return tanhApprox(v);
-  }
-  return v;
-}
+// The fused kernel's activations: the special-function forms of Common/Activation.h.
+__device__ inline float applyActivation(MlpAct a, float v) { return activate<ActMath::FastDevice>(a, v); }
 
 template <MlpAct A>
 struct ActTag {

@@ -24,12 +24,12 @@
 #include <string>
 #include <vector>
 
+#include "Common/Activation.h"  // MlpAct
 #include "Model/InrModel.h"
 
 namespace inr {
 
 enum class MlpOp : std::int32_t { LoadInput, DenseFp32, Fourier, Gemm, Activation, Combine, OutputDot, Output };
-enum class MlpAct : std::int32_t { None, Sine, SiLU, ReLU, Sigmoid, Tanh };
 
 struct MlpInstr {
   MlpOp op = MlpOp::Output;
@@ -91,7 +91,7 @@ struct MlpProgram {
 
 // Runs the program on the CPU exactly as the fused kernel does arithmetically (fp16 weights and
 // activations, fp32 accumulation and epilogues), on network-space inputs (inputDim floats per
-// query). Slow; for tests and for explaining fp16 error.
+// query). Slow; for tests and for explaining fp16 error. In MlpProgramEmulation.cpp.
 void emulateFusedProgram(const MlpProgram& program, const float* inputs, std::size_t n, float* out);
 
 }  // namespace inr

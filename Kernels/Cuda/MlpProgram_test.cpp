@@ -9,8 +9,9 @@
 #include <filesystem>
 #include <random>
 
-#include "../../Benchmarks/PaperArchitectures.h"
 #include "Evaluator/CpuInrEvaluator.h"
+#include "TestSupport/PaperArchitectures.h"
+#include "TestSupport/ShippedModels.h"
 
 namespace inr {
 namespace {
@@ -110,17 +111,14 @@ TEST(MlpProgram, EmulationMatchesFp32ReferenceWithinFp16Error) {
 }
 
 TEST(MlpProgram, ShippedModelsCompileAndEmulate) {
-  const auto dir = std::filesystem::path(INR_TEST_DATA_DIR) / "models";
-  ASSERT_TRUE(std::filesystem::exists(dir)) << "shipped models missing: " << dir;
   int count = 0;
-  for (const auto& e : std::filesystem::directory_iterator(dir)) {
-    if (e.path().extension() != ".inr") continue;
-    const InrModel m = InrModel::loadFile(e.path().string());
+  for (const auto& path : test::shippedModels()) {  // throws (fails) when the folder is missing or empty
+    const InrModel m = InrModel::loadFile(path);
     const ErrorStats s = compareWithReference(m, 512, 5);
-    std::printf("%-28s max abs %.3g mean abs %.3g range %.3g\n", e.path().filename().c_str(), s.maxAbs, s.meanAbs,
-                s.range);
-    EXPECT_LT(s.meanAbs, 2e-3 * std::max(1.0, s.range)) << e.path();
-    EXPECT_LT(s.maxAbs, 2e-2 * std::max(1.0, s.range)) << e.path();
+    std::printf("%-28s max abs %.3g mean abs %.3g range %.3g\n", std::filesystem::path(path).filename().c_str(),
+                s.maxAbs, s.meanAbs, s.range);
+    EXPECT_LT(s.meanAbs, 2e-3 * std::max(1.0, s.range)) << path;
+    EXPECT_LT(s.maxAbs, 2e-2 * std::max(1.0, s.range)) << path;
     ++count;
   }
   EXPECT_GT(count, 0);

@@ -75,6 +75,9 @@ void runLayer(const CompiledLayer& L, Mat& x) {
       x.swap(y);
       break;
     }
+    // The formulas of Common/Activation.h on whole arrays, by Eigen's vectorised sin/exp/tanh:
+    // other implementations than the scalar library functions that definition calls, so calling
+    // it per element would change this reference's results (and cost the vectorisation).
     case LayerKind::Sine: x = (x.array() * L.param).sin().matrix(); break;
     case LayerKind::SiLU: x = (x.array() / (1.f + (-x.array()).exp())).matrix(); break;
     case LayerKind::ReLU: x = x.cwiseMax(0.f); break;

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "Evaluator/ValueRange.h"
-#include "Model/TestModelBuilder.h"
+#include "TestSupport/TestModelBuilder.h"
 
 namespace inr {
 namespace {

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "Model/TestModelBuilder.h"
+#include "TestSupport/TestModelBuilder.h"
 
 namespace inr {
 namespace {

@@ -5,7 +5,7 @@
 #include <cstring>
 
 #include "Model/InrModel.h"
-#include "Model/TestModelBuilder.h"
+#include "TestSupport/TestModelBuilder.h"
 
 namespace inr {
 namespace {

@@ -6,7 +6,8 @@
 
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/RayMarcher.h"
-#include "Render/TestFields.h"
+#include "TestSupport/TestFields.h"
+#include "TestSupport/TestScene.h"
 
 namespace inr {
 namespace {
@@ -36,6 +37,22 @@ Camera topDown() {
   return c;
 }
 
+// The analytic-medium tests' renderer: field f over 8^3 macrocells, 48 x 48 pixels, viewed
+// topDown(); each test sets the transfer function.
+struct TopDownRender {
+  explicit TopDownRender(const FieldEvaluator& f, std::uint32_t seed = RenderSettings{}.seed)
+      : grid(f, kBox, 0, 1, cells(8)), renderer(f, grid) {
+    settings.width = settings.height = 48;
+    settings.seed = seed;
+    renderer.setSettings(settings);
+    scene.camera = topDown();
+  }
+  MacrocellGrid grid;
+  DeltaTrackingRenderer renderer;
+  RenderSettings settings;
+  RenderScene scene;
+};
+
 double meanCoverage(const ImageRGBA& premultiplied) {
   double s = 0;
   for (int i = 0; i < premultiplied.width * premultiplied.height; ++i) s += premultiplied.data[4 * i + 3];
@@ -44,16 +61,10 @@ double meanCoverage(const ImageRGBA& premultiplied) {
 
 TEST(DeltaTracking, HomogeneousMediumTransmittance) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
-  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer r(f, grid);
-  RenderSettings s;
-  s.width = s.height = 48;
-  s.seed = 11;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = topDown();
-  scene.transferFunction = flatOpacity(0.3, 0.5);
-  r.setScene(scene);
+  TopDownRender t(f, 11);
+  DeltaTrackingRenderer& r = t.renderer;
+  t.scene.transferFunction = flatOpacity(0.3, 0.5);
+  r.setScene(t.scene);
   const int frames = 20;
   for (int k = 0; k < frames; ++k) r.renderFrame();
   const double sigma = -std::log(1.0 - 0.3) / 0.5;
@@ -69,17 +80,11 @@ TEST(DeltaTracking, PiecewiseMediumUsesLocalMajorants) {
   // Two slabs with different extinction, cell faces on the interface: transmittance is
   // exp(-sigma1 - sigma2) for the unit thickness of each.
   test::FunctionField f([](const QueryPoint& p) { return p.z > 0.f ? 1.0f : 0.25f; });
-  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer r(f, grid);
-  RenderSettings s;
-  s.width = s.height = 48;
-  s.seed = 5;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = topDown();
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
-  scene.transferFunction.unitDistance = 1.0;
-  r.setScene(scene);
+  TopDownRender t(f, 5);
+  DeltaTrackingRenderer& r = t.renderer;
+  t.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
+  t.scene.transferFunction.unitDistance = 1.0;
+  r.setScene(t.scene);
   const int frames = 20;
   FrameStats total;
   for (int k = 0; k < frames; ++k) total += r.renderFrame();
@@ -117,22 +122,23 @@ SceneSetup smoothScene(int size, bool shadows) {
   return s;
 }
 
-void convergedVsRayMarch(bool shadows, int frames, double minPsnr) {
+// PSNR of delta tracking after `frames` frames against one ray-marched frame of smoothScene(32).
+double psnrAgainstRayMarching(bool shadows, int frames, const RayMarchOptions& ro) {
   test::FunctionField f(test::smoothField);
   const SceneSetup setup = smoothScene(32, shadows);
   MacrocellGrid grid(f, kBox, 0, 1, cells(16));
   DeltaTrackingRenderer dt(f, grid);
-  dt.setSettings(setup.settings);
-  dt.setScene(setup.scene);
-  for (int k = 0; k < frames; ++k) dt.renderFrame();
+  test::renderFrames(dt, setup.settings, setup.scene, frames);
+  RayMarchRenderer rm(f, kBox, ro);
+  test::renderFrames(rm, setup.settings, setup.scene, 1);
+  return psnrRgb(dt.image(), rm.image());
+}
+
+void convergedVsRayMarch(bool shadows, int frames, double minPsnr) {
   RayMarchOptions ro;
   ro.step = 2.f / 512.f;
   ro.shadowStep = 2.f / 128.f;
-  RayMarchRenderer rm(f, kBox, ro);
-  rm.setSettings(setup.settings);
-  rm.setScene(setup.scene);
-  rm.renderFrame();
-  const double psnr = psnrRgb(dt.image(), rm.image());
+  const double psnr = psnrAgainstRayMarching(shadows, frames, ro);
   std::printf("converged delta tracking (%d frames%s) vs ray marching: PSNR %.2f dB\n", frames,
               shadows ? ", shadows" : "", psnr);
   EXPECT_GE(psnr, minPsnr);
@@ -143,18 +149,7 @@ TEST(DeltaTracking, ConvergesToRayMarchingAnalyticWithShadows) { convergedVsRayM
 
 TEST(DeltaTracking, NotConvergedAfterOneFrame) {
   // Guards the test above against a comparison that cannot fail.
-  test::FunctionField f(test::smoothField);
-  const SceneSetup setup = smoothScene(32, false);
-  MacrocellGrid grid(f, kBox, 0, 1, cells(16));
-  DeltaTrackingRenderer dt(f, grid);
-  dt.setSettings(setup.settings);
-  dt.setScene(setup.scene);
-  dt.renderFrame();
-  RayMarchRenderer rm(f, kBox);
-  rm.setSettings(setup.settings);
-  rm.setScene(setup.scene);
-  rm.renderFrame();
-  EXPECT_LT(psnrRgb(dt.image(), rm.image()), 30.0);
+  EXPECT_LT(psnrAgainstRayMarching(false, 1, RayMarchOptions{}), 30.0);
 }
 
 std::vector<float> renderWithThreads(int threads, bool naive) {
@@ -210,13 +205,9 @@ TEST(DeltaTracking, EmptyTransferFunctionRendersBackgroundWithoutQueries) {
 
 TEST(DeltaTracking, DepthLimitStopsRays) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
-  MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer r(f, grid);
-  RenderSettings s;
-  s.width = s.height = 48;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = topDown();
+  TopDownRender t(f);
+  DeltaTrackingRenderer& r = t.renderer;
+  RenderScene& scene = t.scene;
   scene.transferFunction = flatOpacity(0.3, 0.5);
   const float tEnter = float(scene.camera.position[2]) - 1.f;  // parallel rays start at the eye plane
   scene.depthLimit.assign(48 * 48, tEnter + 1.f);               // opaque surface at z = 0
@@ -236,7 +227,7 @@ TEST(DeltaTracking, DepthLimitStopsRays) {
   EXPECT_NEAR(bottom / (48 * 24), p, 4 * std::sqrt(p * (1 - p) / n));
   // The ray marcher honours the same limit.
   RayMarchRenderer rm(f, kBox);
-  rm.setSettings(s);
+  rm.setSettings(t.settings);
   rm.setScene(scene);
   rm.renderFrame();
   EXPECT_NEAR(rm.premultipliedImage().data[4 * (48 * 40 + 10) + 3], p, 1e-3);

@@ -14,7 +14,7 @@
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/MajorantGrid.h"
-#include "Render/TestFields.h"
+#include "TestSupport/TestFields.h"
 
 namespace inr {
 namespace {

@@ -3,7 +3,6 @@
 // model, so a real network is exercised even before models ship).
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -11,7 +10,10 @@
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/DeltaTrackingRenderer.h"
+#include "Render/ModelBox.h"
 #include "Render/RayMarcher.h"
+#include "TestSupport/ShippedModels.h"
+#include "TestSupport/TestScene.h"
 
 namespace inr {
 namespace {
@@ -27,8 +29,7 @@ struct Comparison {
 Comparison convergedVsRayMarched(const std::string& path, bool shadows, int size, int frames) {
   const InrModel model = InrModel::loadFile(path);
   const CpuInrEvaluator evaluator(model);
-  const auto& b = model.domain.bounds;
-  const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+  const Box3f box = modelWorldBox(model);
   const float diagonal = length(box.hi - box.lo);
   const auto range = valueRangeFor(model, evaluator);
 
@@ -36,41 +37,19 @@ Comparison convergedVsRayMarched(const std::string& path, bool shadows, int size
   settings.width = settings.height = size;
   settings.seed = 9;
   settings.pixelJitter = false;  // compare the per-pixel integral, not edge antialiasing
-  RenderScene scene;
-  scene.camera = Camera::framing(box);
-  // An oblique view, so rays cross the box at varied lengths.
-  const auto& f = scene.camera.focalPoint;
-  const double d = scene.camera.position[2] - f[2];
-  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
-  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
-  scene.transferFunction.unitDistance = diagonal / 12.0;
-  scene.background = {0.1f, 0.1f, 0.15f};
-  scene.shadows = shadows;
-  scene.ambient = 0.3f;
-  scene.toLight = defaultLightDirection(scene.camera);
-  // Ratio-tracked shadow transmittance: same expectation as delta tracking's binary visibility
-  // (DeltaTracking.RatioTrackedShadowsAgreeWithDeltaShadows), less noise per frame, so 1000
-  // frames reach the 40 dB bar with margin on networks; delta shadows are covered analytically.
-  scene.shadowEstimator = ShadowEstimator::Ratio;
+  // Ratio-tracked shadows (the default of testScene): 1000 frames reach the 40 dB bar with margin
+  // on networks; delta shadows are covered analytically.
+  const RenderScene scene = test::testScene(model, range, shadows);
 
-  MacrocellOptions mopts;
-  mopts.dims = Int3{16, 16, 16};
-  mopts.temporalSlices = 8;
-  MacrocellGrid grid(evaluator, box, model.domain.timeBegin, model.domain.timeEnd, mopts);
+  MacrocellGrid grid(evaluator, box, model.domain.timeBegin, model.domain.timeEnd, test::testMacrocells());
   DeltaTrackingRenderer dt(evaluator, grid);
-  dt.setSettings(settings);
-  dt.setScene(scene);
-  FrameStats total;
-  for (int k = 0; k < frames; ++k) total += dt.renderFrame();
+  const FrameStats total = test::renderFrames(dt, settings, scene, frames);
 
   RayMarchOptions ropts;
   ropts.step = diagonal / 512.f;
   ropts.shadowStep = diagonal / 96.f;
   RayMarchRenderer rm(evaluator, box, ropts);
-  rm.setSettings(settings);
-  rm.setScene(scene);
-  rm.renderFrame();
+  test::renderFrames(rm, settings, scene, 1);
   // The comparison only means something if the volume is visible: a background-only image must
   // be far from the reference (a renderer that drew nothing would otherwise pass).
   ImageRGBA empty(size, size);
@@ -79,19 +58,9 @@ Comparison convergedVsRayMarched(const std::string& path, bool shadows, int size
   return {psnrRgb(dt.image(), rm.image()), total.totalQueries() / std::size_t(frames), psnrRgb(empty, rm.image())};
 }
 
-std::vector<std::string> shippedModels() {
-  std::vector<std::string> out;
-  const fs::path dir = fs::path(INR_TEST_DATA_DIR) / "models";
-  if (!fs::is_directory(dir)) return out;
-  for (const auto& e : fs::directory_iterator(dir))
-    if (e.path().extension() == ".inr") out.push_back(e.path().string());
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 TEST(ModelRender, ControlModelConvergesToRayMarching) {
   const std::string path = std::string(INR_TEST_DATA_DIR) + "/malformed/valid_control.inr";
-  if (!fs::exists(path)) GTEST_SKIP() << path << " not found";
+  ASSERT_TRUE(fs::exists(path)) << path << " not found";
   for (bool shadows : {false, true}) {
     const Comparison c = convergedVsRayMarched(path, shadows, shadows ? 24 : 32, 1000);
     std::printf("%s%s: PSNR %.2f dB, %zu queries/frame (background-only image: %.2f dB)\n", path.c_str(),
@@ -102,9 +71,7 @@ TEST(ModelRender, ControlModelConvergesToRayMarching) {
 }
 
 TEST(ModelRender, ShippedModelsConvergeToRayMarching) {
-  const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
-  for (const auto& path : models) {
+  for (const auto& path : test::shippedModels()) {
     for (bool shadows : {false, true}) {
       const Comparison c = convergedVsRayMarched(path, shadows, shadows ? 24 : 32, 1000);
       std::printf("%s%s: PSNR %.2f dB, %zu queries/frame (background-only image: %.2f dB)\n",

@@ -6,8 +6,8 @@
 #include <cstdio>
 
 #include "Render/DeltaTrackingRenderer.h"
-#include "Render/RenderRegressionCases.h"
-#include "Render/TestFields.h"
+#include "TestSupport/RenderRegressionCases.h"
+#include "TestSupport/TestFields.h"
 
 namespace inr {
 namespace {

@@ -22,6 +22,7 @@
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "Render/DeltaTrackingRenderer.h"
+#include "Render/ModelBox.h"
 #include "Render/RayMarcher.h"
 
 namespace inr::cli {
@@ -162,8 +163,7 @@ int runRender(int argc, char** argv) {
 
   // --- model and evaluator
   const InrModel model = InrModel::loadFile(args.positional()[0]);
-  const auto& b = model.domain.bounds;
-  const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+  const Box3f box = modelWorldBox(model);
   const double diagonal = length(box.hi - box.lo);
 
   // --- macrocells

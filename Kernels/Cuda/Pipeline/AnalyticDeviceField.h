@@ -1,6 +1,6 @@
 #pragma once
 // An analytic field with both interfaces, for GPU tests that need no network: the smooth
-// time-varying field of test::smoothField (Render/TestFields.h), written once as an INR_HD
+// time-varying field of test::smoothField (TestSupport/TestFields.h), written once as an INR_HD
 // function and evaluated on the host (FieldEvaluator) or by a kernel (DeviceFieldEvaluator).
 // Host and device values differ from test::smoothField's only by rounding: the ulps of sinf /
 // cosf / expf (the pipeline is built without fast math) and the host compiler's contractions.

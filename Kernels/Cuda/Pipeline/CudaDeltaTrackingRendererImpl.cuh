@@ -5,7 +5,8 @@
 #include <memory>
 
 #include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Cuda/Pipeline/DeviceTraversal.h"
 #include "Cuda/Pipeline/StageTimer.h"
 #include "Render/RayStateArrays.h"

@@ -5,7 +5,8 @@
 #include <stdexcept>
 
 #include "Cuda/DeviceFieldEvaluator.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 
 namespace inr {

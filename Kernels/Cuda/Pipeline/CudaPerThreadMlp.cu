@@ -4,8 +4,8 @@
 #include <stdexcept>
 
 #include "Cuda/CudaDevice.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/MlpProgram.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
 #include "Cuda/Pipeline/PerThreadMlp.cuh"
 
 namespace inr {
@@ -64,7 +64,7 @@ std::size_t CudaPerThreadMlp::scratchBytesPerThread() const {
 PerThreadMlpView CudaPerThreadMlp::view(int threads, float time) const {
   Impl& I = *impl_;
   const std::size_t need = std::size_t(I.base.numBuffers) * I.base.width * std::size_t(std::max(threads, 1));
-  if (I.scratch.size() < need) I.scratch.resize(need);
+  I.scratch.growTo(need);
   PerThreadMlpView v = I.base;
   v.scratch = I.scratch.get();
   v.stride = threads;

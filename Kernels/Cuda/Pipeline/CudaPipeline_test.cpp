@@ -11,91 +11,47 @@
 
 #include "Cuda/CudaDevice.h"
 #include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/Pipeline/AnalyticDeviceField.h"
-#include "Render/TestFields.h"
 #include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
 #include "Cuda/Pipeline/CudaRayMarcher.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/DeltaTrackingRenderer.h"
+#include "Render/ModelBox.h"
 #include "Render/RayMarcher.h"
+#include "TestSupport/RequireGpu.h"
+#include "TestSupport/ShippedModels.h"
+#include "TestSupport/TestFields.h"
+#include "TestSupport/TestScene.h"
 
 namespace inr {
 namespace {
 
 namespace fs = std::filesystem;
+using test::nonFinitePixels;
+using test::shippedModels;
+using test::testMacrocells;
+using test::testScene;
 
-#define REQUIRE_GPU()                                          \
-  do {                                                         \
-    const CudaDeviceInfo dev = queryCudaDevice();              \
-    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason; \
-  } while (0)
-
-std::vector<std::string> shippedModels() {
-  std::vector<std::string> out;
-  const fs::path dir = fs::path(INR_TEST_DATA_DIR) / "models";
-  if (!fs::is_directory(dir)) return out;
-  for (const auto& e : fs::directory_iterator(dir))
-    if (e.path().extension() == ".inr") out.push_back(e.path().string());
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-Box3f boxOf(const InrModel& m) {
-  const auto& b = m.domain.bounds;
-  return Box3f{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
-}
 
 int envInt(const char* name, int fallback) {
   const char* v = std::getenv(name);
   return v ? std::max(1, std::atoi(v)) : fallback;
 }
 
-// The scene of Render/ModelRender_test.cpp: oblique view, preset TF, ratio-tracked shadows.
-RenderScene testScene(const InrModel& model, const std::array<float, 2>& range, bool shadows) {
-  const Box3f box = boxOf(model);
-  RenderScene scene;
-  scene.camera = Camera::framing(box);
-  const auto& f = scene.camera.focalPoint;
-  const double d = scene.camera.position[2] - f[2];
-  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
-  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
-  scene.transferFunction.unitDistance = length(box.hi - box.lo) / 12.0;
-  scene.background = {0.1f, 0.1f, 0.15f};
-  scene.shadows = shadows;
-  scene.ambient = 0.3f;
-  scene.toLight = defaultLightDirection(scene.camera);
-  scene.shadowEstimator = ShadowEstimator::Ratio;
-  return scene;
-}
-
-MacrocellOptions testMacrocells() {
-  MacrocellOptions o;
-  o.dims = Int3{16, 16, 16};
-  o.temporalSlices = 8;
-  return o;
-}
-
-std::size_t nonFinitePixels(const ImageRGBA& img) {
-  std::size_t bad = 0;
-  for (float v : img.data) bad += std::isfinite(v) ? 0 : 1;
-  return bad;
-}
-
 TEST(CudaPipeline, MacrocellGridsMatchCpu) {
   REQUIRE_GPU();
   const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
   for (const auto& path : models) {
     const InrModel model = InrModel::loadFile(path);
     const CudaInrEvaluator gpuEval(model);
     const CpuInrEvaluator cpuEval(model);
-    const Box3f box = boxOf(model);
+    const Box3f box = modelWorldBox(model);
     MacrocellOptions o;
     o.dims = Int3{18, 16, 13};  // partial tiles on every axis
     o.temporalSlices = 5;
@@ -168,7 +124,6 @@ TEST(CudaPipeline, MacrocellGridsMatchCpu) {
 TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
   REQUIRE_GPU();
   const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
   const InrModel model = InrModel::loadFile(models.front());
   const CudaInrEvaluator eval(model);
   const auto range = valueRangeFor(model, eval);
@@ -177,7 +132,7 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
     o.dims = Int3{18, 16, 13};  // partial blocks
     o.temporalSlices = 3;
     o.skipBlockCells = B;
-    CudaMacrocellGrid grid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o);
+    CudaMacrocellGrid grid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, o);
     ASSERT_EQ(grid.blockCount(), ((18 + B - 1) / B) * ((16 + B - 1) / B) * ((13 + B - 1) / B));
     grid.setTime(model.domain.timeBegin);
     // A TF that is transparent over the lower 70% of the range: many empty blocks.
@@ -231,10 +186,10 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
   MacrocellOptions off;
   off.skipBlockCells = 0;
   off.temporalSlices = 1;
-  const CudaMacrocellGrid noSkip(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, off);
+  const CudaMacrocellGrid noSkip(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, off);
   EXPECT_EQ(noSkip.blockCount(), 0);
   off.skipBlockCells = 3;
-  EXPECT_THROW(CudaMacrocellGrid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, off),
+  EXPECT_THROW(CudaMacrocellGrid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, off),
                std::invalid_argument);
 }
 
@@ -243,7 +198,6 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
 TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
   REQUIRE_GPU();
   const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
   const InrModel model = InrModel::loadFile(models.front());
   const CudaInrEvaluator eval(model);
   const auto range = valueRangeFor(model, eval);
@@ -254,7 +208,7 @@ TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
   auto render = [&](int block, const RenderScene& scene) {
     MacrocellOptions o = testMacrocells();
     o.skipBlockCells = block;
-    CudaMacrocellGrid grid(eval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, o);
+    CudaMacrocellGrid grid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, o);
     TrackingOptions topts;
     topts.ghostPassesOnUpdate = 1;
     CudaDeltaTrackingRenderer r(eval, grid, topts);
@@ -262,10 +216,8 @@ TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
     settings.width = 65;
     settings.height = 63;
     settings.seed = 3;
-    r.setSettings(settings);
-    r.setScene(scene);
     Out out;
-    for (int k = 0; k < 4; ++k) out.stats += r.renderFrame();
+    out.stats = test::renderFrames(r, settings, scene, 4);
     out.image = r.image().data;
     return out;
   };
@@ -291,14 +243,13 @@ TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
 TEST(CudaPipeline, ConvergedGpuImageMatchesCpuImage) {
   REQUIRE_GPU();
   const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models in " << INR_TEST_DATA_DIR << "/models";
   const int size = envInt("INR_GPU_TEST_SIZE", 64), frames = envInt("INR_GPU_TEST_FRAMES", 256);
   for (const auto& path : models) {
     const InrModel model = InrModel::loadFile(path);
     const CpuInrEvaluator cpuEval(model);
     const CudaInrEvaluator gpuEval(model);
     const auto range = valueRangeFor(model, cpuEval);
-    const Box3f box = boxOf(model);
+    const Box3f box = modelWorldBox(model);
     for (bool shadows : {false, true}) {
       RenderSettings settings;
       settings.width = settings.height = size;
@@ -308,17 +259,11 @@ TEST(CudaPipeline, ConvergedGpuImageMatchesCpuImage) {
 
       MacrocellGrid cpuGrid(cpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
       DeltaTrackingRenderer cpu(cpuEval, cpuGrid);
-      cpu.setSettings(settings);
-      cpu.setScene(scene);
-      FrameStats cpuTotal;
-      for (int k = 0; k < frames; ++k) cpuTotal += cpu.renderFrame();
+      const FrameStats cpuTotal = test::renderFrames(cpu, settings, scene, frames);
 
       CudaMacrocellGrid gpuGrid(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
       CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid);
-      gpu.setSettings(settings);
-      gpu.setScene(scene);
-      FrameStats gpuTotal;
-      for (int k = 0; k < frames; ++k) gpuTotal += gpu.renderFrame();
+      const FrameStats gpuTotal = test::renderFrames(gpu, settings, scene, frames);
 
       const ImageRGBA a = gpu.image(), b = cpu.image();
       const double psnr = psnrRgb(a, b);
@@ -344,12 +289,8 @@ TEST(CudaPipeline, PerThreadNetworkMatchesCpuReference) {
     const InrModel model = InrModel::loadFile(path);
     const CpuInrEvaluator cpu(model);
     const CudaPerThreadMlp naive(model);
-    std::mt19937 rng(5);
-    const auto& b = model.domain.bounds;
-    auto u = [&](double lo, double hi) { return float(std::uniform_real_distribution<double>(lo, hi)(rng)); };
     const float t = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
-    std::vector<QueryPoint> pts(5003);
-    for (auto& p : pts) p = {u(b[0], b[1]), u(b[2], b[3]), u(b[4], b[5]), t};
+    const std::vector<QueryPoint> pts = test::randomQueryPoints(model, 5003, 5, t);
     std::vector<float> ref(pts.size()), got(pts.size());
     cpu.evaluate(pts.data(), pts.size(), ref.data());
     naive.evaluate(pts.data(), pts.size(), got.data());
@@ -368,7 +309,6 @@ TEST(CudaPipeline, PerThreadNetworkMatchesCpuReference) {
 TEST(CudaPipeline, NaiveTrackerConvergesToWavefrontImage) {
   REQUIRE_GPU();
   const auto models = shippedModels();
-  if (models.empty()) GTEST_SKIP() << "no models";
   const InrModel model = InrModel::loadFile(models.front());
   const CudaInrEvaluator gpuEval(model);
   const CudaPerThreadMlp naiveNet(model);
@@ -379,7 +319,8 @@ TEST(CudaPipeline, NaiveTrackerConvergesToWavefrontImage) {
     settings.pixelJitter = false;
     const RenderScene scene = testScene(model, range, shadows);
     auto render = [&](bool naive) {
-      CudaMacrocellGrid grid(gpuEval, boxOf(model), model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
+      CudaMacrocellGrid grid(gpuEval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd,
+                             testMacrocells());
       CudaDeltaTrackingRenderer r(gpuEval, grid);
       r.setSettings(settings);
       r.setScene(scene);
@@ -404,15 +345,12 @@ TEST(CudaPipeline, GpuRayMarcherMatchesCpuRayMarcher) {
     RenderSettings settings;
     settings.width = settings.height = 40;
     const RenderScene scene = testScene(model, range, false);
+    const Box3f box = modelWorldBox(model);
     RayMarchOptions o;
-    o.step = length(boxOf(model).hi - boxOf(model).lo) / 256.f;
-    RayMarchRenderer cpu(cpuEval, boxOf(model), o);
-    CudaRayMarcher gpu(gpuEval, boxOf(model), o);
-    cpu.setSettings(settings);
-    gpu.setSettings(settings);
-    cpu.setScene(scene);
-    gpu.setScene(scene);
-    const FrameStats a = cpu.renderFrame(), b = gpu.renderFrame();
+    o.step = length(box.hi - box.lo) / 256.f;
+    RayMarchRenderer cpu(cpuEval, box, o);
+    CudaRayMarcher gpu(gpuEval, box, o);
+    const FrameStats a = test::renderFrames(cpu, settings, scene, 1), b = test::renderFrames(gpu, settings, scene, 1);
     const double psnr = psnrRgb(cpu.image(), gpu.image());
     std::printf("%-24s ray marcher GPU vs CPU: PSNR %.2f dB, queries %zu vs %zu\n", fs::path(path).filename().c_str(),
                 psnr, b.queries, a.queries);
@@ -424,15 +362,13 @@ TEST(CudaPipeline, GpuRayMarcherMatchesCpuRayMarcher) {
 class GpuSceneTest : public ::testing::Test {
 protected:
   void SetUp() override {
-    const CudaDeviceInfo dev = queryCudaDevice();
-    if (!dev.usable) GTEST_SKIP() << "no GPU: " << dev.reason;
+    REQUIRE_GPU();
     const auto models = shippedModels();
-    if (models.empty()) GTEST_SKIP() << "no models";
     model = std::make_unique<InrModel>(InrModel::loadFile(models.front()));
     eval = std::make_unique<CudaInrEvaluator>(*model);
     range = valueRangeFor(*model, *eval);
-    grid = std::make_unique<CudaMacrocellGrid>(*eval, boxOf(*model), model->domain.timeBegin, model->domain.timeEnd,
-                                               testMacrocells());
+    grid = std::make_unique<CudaMacrocellGrid>(*eval, modelWorldBox(*model), model->domain.timeBegin,
+                                               model->domain.timeEnd, testMacrocells());
   }
   std::unique_ptr<InrModel> model;
   std::unique_ptr<CudaInrEvaluator> eval;
@@ -514,7 +450,7 @@ TEST_F(GpuSceneTest, NoNanPixelsUnderExtremeInputs) {
   RenderScene scene = testScene(*model, range, true);
   scene.shadowEstimator = ShadowEstimator::Delta;
   // Camera inside the box looking through it.
-  const Box3f box = boxOf(*model);
+  const Box3f box = modelWorldBox(*model);
   const Vec3f c = (box.lo + box.hi) * 0.5f;
   scene.camera.position = {c.x + 0.01, c.y - 0.02, c.z + 0.03};
   scene.camera.focalPoint = {c.x + 1.0, c.y + 0.3, c.z - 0.2};

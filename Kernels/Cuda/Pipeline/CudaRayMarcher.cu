@@ -8,7 +8,8 @@
 #include <stdexcept>
 
 #include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/Pipeline/DeviceBuffer.h"
+#include "Cuda/DeviceBuffer.h"
+#include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Render/CounterRng.h"
 #include "Render/Finalize.h"
 

@@ -15,7 +15,8 @@
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
-#include "Render/RenderRegressionCases.h"
+#include "Render/ModelBox.h"
+#include "TestSupport/RenderRegressionCases.h"
 
 namespace inr {
 namespace {
@@ -37,8 +38,7 @@ TEST(CudaRenderRegression, ImagesAndCountsBitIdenticalToRecorded) {
   const CudaInrEvaluator eval(model, eo);
   const CudaPerThreadMlp naiveNet(model);
   const auto range = valueRangeFor(model, eval);
-  const auto& b = model.domain.bounds;
-  const Box3f box{{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
+  const Box3f box = modelWorldBox(model);
   const double t0 = model.domain.timeBegin, span = model.domain.timeEnd - model.domain.timeBegin;
   const auto& cases = regression::cases();
   ASSERT_EQ(cases.size(), sizeof(kExpectedSm90) / sizeof(kExpectedSm90[0]));

@@ -1,22 +1,12 @@
 #pragma once
 // Device code of the naive per-thread network evaluation (see CudaPerThreadMlp.h). Semantics of
-// each instruction as in the generic fp32 path of CudaInrEvaluator (MlpProgram.h).
+// each instruction as in the generic fp32 path of CudaInrEvaluator (MlpProgram.h); activations
+// in their exact form (Common/Activation.h).
+#include "Common/Activation.h"
 #include "Cuda/MlpProgram.h"
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
 
 namespace inr::cuda {
-
-__device__ inline float perThreadAct(MlpAct a, float v) {
-  switch (a) {
-    case MlpAct::None: return v;
-    case MlpAct::Sine: return sinf(v);
-    case MlpAct::SiLU: return v / (1.f + expf(-v));
-    case MlpAct::ReLU: return fmaxf(v, 0.f);
-    case MlpAct::Sigmoid: return 1.f / (1.f + expf(-v));
-    case MlpAct::Tanh: return tanhf(v);
-  }
-  return v;
-}
 
 // Evaluates the network at world point (x, y, z, t) for thread slot `tid` of the scratch.
 __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, float y, float z, float t, int tid) {
@@ -41,7 +31,7 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
         if (in.finalOutput) {  // the network's final width-1 layer: no destination buffer
           float acc = 0.f;
           for (int k = 0; k < in.inWidth; ++k) acc += W[k] * load(in.src, k);
-          net = perThreadAct(in.act, acc + bias[0]);
+          net = activate(in.act, acc + bias[0]);
           break;
         }
         // Blocks of 8 outputs in registers: each input is read once per block.
@@ -60,7 +50,7 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
           for (int j = 0; j < B; ++j) {
             const int o = o0 + j;
             if (o >= in.outWidth) break;
-            float v = perThreadAct(in.act, acc[j] + bias[o]);
+            float v = activate(in.act, acc[j] + bias[o]);
             if (in.other >= 0) v = in.combineScale * (v + at(in.other, o));
             at(in.dst, o) = v;
           }
@@ -83,7 +73,7 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
         break;
       }
       case MlpOp::Activation:
-        for (int c = 0; c < in.outWidth; ++c) at(in.dst, c) = perThreadAct(in.act, in.actScale * at(in.dst, c));
+        for (int c = 0; c < in.outWidth; ++c) at(in.dst, c) = activate(in.act, in.actScale * at(in.dst, c));
         break;
       case MlpOp::Combine:
         for (int c = 0; c < in.outWidth; ++c)
@@ -93,7 +83,7 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
         const float* W = N.weights + in.floatOffset;
         float acc = 0.f;
         for (int k = 0; k < in.inWidth; ++k) acc += W[k] * load(in.src, k);
-        net = perThreadAct(in.act, acc + N.weights[in.biasOffset]);
+        net = activate(in.act, acc + N.weights[in.biasOffset]);
         break;
       }
       case MlpOp::Output: net = load(in.src, 0); break;

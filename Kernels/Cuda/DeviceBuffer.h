@@ -1,7 +1,7 @@
 #pragma once
-// Small RAII helpers for the GPU pipeline's device memory (host code, no kernels): a typed
-// device array that grows on demand, a pinned host scalar for the per-iteration counter
-// read-back, and a device copy of a TransferFunctionTable. Every CUDA call is checked.
+// RAII helpers for device memory, shared by the CUDA evaluator, the GPU pipeline, tests and
+// benchmarks (host code, no kernels): a typed device array, page-locked host memory for small
+// read-backs, and a stream. Every CUDA call is checked.
 #include <cuda_runtime.h>
 
 #include <cstddef>
@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "Cuda/CudaCheck.h"
-#include "Render/SceneInputs.h"
 
 namespace inr::cuda {
 
@@ -40,6 +39,11 @@ public:
     size_ = 0;
     INR_CUDA_CHECK(cudaMalloc(&ptr_, (n ? n : 1) * sizeof(T)));
     size_ = n;
+  }
+  // At least n elements afterwards: reallocates (contents lost) only when n exceeds size(), so a
+  // staging buffer reused by calls of varying size is allocated once for the largest.
+  void growTo(std::size_t n) {
+    if (n > size_) resize(n);
   }
   void upload(const T* host, std::size_t n, cudaStream_t s) {
     resize(n);
@@ -84,29 +88,6 @@ public:
 private:
   T* ptr_ = nullptr;
   std::size_t n_ = 0;
-};
-
-// A TransferFunctionTable's arrays in device memory, and the view the per-ray code reads.
-class DeviceTransferFunction {
-public:
-  void upload(const TransferFunctionTable& table, cudaStream_t s) {
-    const TransferFunctionView h = table.view();
-    rgba_.upload(h.rgba, std::size_t(h.size), s);
-    opacityMax_.upload(h.opacityMax, std::size_t(h.size) * std::size_t(h.levels), s);
-    view_ = h;
-    view_.rgba = rgba_.get();
-    view_.opacityMax = opacityMax_.get();
-    // The host table must stay alive until the copies ran (they are asynchronous from pageable
-    // memory only in name: the runtime stages them before returning). Synchronise anyway.
-    INR_CUDA_CHECK(cudaStreamSynchronize(s));
-  }
-  const TransferFunctionView& view() const { return view_; }
-  bool valid() const { return view_.size > 0; }
-
-private:
-  DeviceBuffer<Vec4f> rgba_;
-  DeviceBuffer<float> opacityMax_;
-  TransferFunctionView view_{};
 };
 
 // RAII stream.

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "Model/InrModel.h"
-#include "Model/TestModelBuilder.h"
+#include "TestSupport/TestModelBuilder.h"
 
 namespace inr::bench {
 

@@ -1,0 +1,60 @@
+#pragma once
+// What the GPU benchmark programs share on top of BenchmarkSupport.h: CUDA-event timing and the
+// evaluator throughput measurement.
+#include <cuda_runtime.h>
+
+#include <vector>
+
+#include "BenchmarkSupport.h"
+#include "Cuda/CudaCheck.h"
+#include "Cuda/CudaInrEvaluator.h"
+
+namespace inr::bench {
+
+// Milliseconds of GPU work between start() and stop() on one stream, from CUDA events.
+class EventTimer {
+public:
+  EventTimer() {
+    INR_CUDA_CHECK(cudaEventCreate(&e0_));
+    INR_CUDA_CHECK(cudaEventCreate(&e1_));
+  }
+  EventTimer(const EventTimer&) = delete;
+  EventTimer& operator=(const EventTimer&) = delete;
+  ~EventTimer() {
+    cudaEventDestroy(e0_);
+    cudaEventDestroy(e1_);
+  }
+  void start(cudaStream_t s = nullptr) { INR_CUDA_CHECK(cudaEventRecord(e0_, s)); }
+  // Waits for the work queued since start().
+  void stop(cudaStream_t s = nullptr) {
+    INR_CUDA_CHECK(cudaEventRecord(e1_, s));
+    INR_CUDA_CHECK(cudaEventSynchronize(e1_));
+  }
+  float ms() const {
+    float ms = 0;
+    INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0_, e1_));
+    return ms;
+  }
+
+private:
+  cudaEvent_t e0_ = nullptr, e1_ = nullptr;
+};
+
+// Queries per second of `eval` over n points already on the device, one value per launch of
+// `reps` after a warm-up launch.
+inline std::vector<double> evaluatorRates(const CudaInrEvaluator& eval, const float4* points, int n, float* out,
+                                          int reps) {
+  EventTimer timer;
+  eval.evaluateDevice(points, n, out, nullptr, nullptr);  // warm-up
+  INR_CUDA_CHECK(cudaDeviceSynchronize());
+  std::vector<double> rates;
+  for (int r = 0; r < reps; ++r) {
+    timer.start();
+    eval.evaluateDevice(points, n, out, nullptr, nullptr);
+    timer.stop();
+    rates.push_back(n / (timer.ms() * 1e-3));
+  }
+  return rates;
+}
+
+}  // namespace inr::bench

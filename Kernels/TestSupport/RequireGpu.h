@@ -1,0 +1,12 @@
+#pragma once
+// REQUIRE_GPU(): skips the current GoogleTest (reported as skipped, with the reason) when no
+// usable CUDA device is present.
+#include <gtest/gtest.h>
+
+#include "Cuda/CudaDevice.h"
+
+#define REQUIRE_GPU()                                                            \
+  do {                                                                           \
+    const ::inr::CudaDeviceInfo dev_ = ::inr::queryCudaDevice();                 \
+    if (!dev_.usable) GTEST_SKIP() << "no GPU: " << dev_.reason;                 \
+  } while (0)

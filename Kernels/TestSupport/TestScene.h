@@ -1,0 +1,65 @@
+#pragma once
+// The scene the model tests and the GPU render benchmark render (an oblique view of the model's
+// world box, the preset transfer function over the value range, shadows on request), the
+// macrocells they use, and small helpers for rendering and checking images.
+#include <array>
+#include <cmath>
+#include <cstddef>
+
+#include "Common/ImageIO.h"
+#include "Model/InrModel.h"
+#include "Render/MacrocellGrid.h"
+#include "Render/ModelBox.h"
+#include "Render/RenderStats.h"
+#include "Render/SceneInputs.h"
+
+namespace inr::test {
+
+// Oblique view, so rays cross the box at varied lengths; time in the middle of the range.
+// Ratio-tracked shadow transmittance by default: same expectation as delta tracking's binary
+// visibility (DeltaTracking.RatioTrackedShadowsAgreeWithDeltaShadows), less noise per frame.
+inline RenderScene testScene(const InrModel& model, const std::array<float, 2>& range, bool shadows,
+                             ShadowEstimator shadowEstimator = ShadowEstimator::Ratio) {
+  const Box3f box = modelWorldBox(model);
+  RenderScene scene;
+  scene.camera = Camera::framing(box);
+  const auto& f = scene.camera.focalPoint;
+  const double d = scene.camera.position[2] - f[2];
+  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
+  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
+  scene.transferFunction.unitDistance = length(box.hi - box.lo) / 12.0;
+  scene.background = {0.1f, 0.1f, 0.15f};
+  scene.shadows = shadows;
+  scene.ambient = 0.3f;
+  scene.toLight = defaultLightDirection(scene.camera);
+  scene.shadowEstimator = shadowEstimator;
+  return scene;
+}
+
+// The macrocells the model tests render with: 16^3 cells, 8 temporal slices.
+inline MacrocellOptions testMacrocells() {
+  MacrocellOptions o;
+  o.dims = Int3{16, 16, 16};
+  o.temporalSlices = 8;
+  return o;
+}
+
+// Gives a renderer of any backend its settings and scene, renders `frames` frames and returns
+// their summed statistics.
+template <typename Renderer>
+FrameStats renderFrames(Renderer& renderer, const RenderSettings& settings, const RenderScene& scene, int frames) {
+  renderer.setSettings(settings);
+  renderer.setScene(scene);
+  FrameStats total;
+  for (int k = 0; k < frames; ++k) total += renderer.renderFrame();
+  return total;
+}
+
+inline std::size_t nonFinitePixels(const ImageRGBA& img) {
+  std::size_t bad = 0;
+  for (float v : img.data) bad += std::isfinite(v) ? 0 : 1;
+  return bad;
+}
+
+}  // namespace inr::test
