@@ -590,10 +590,12 @@ TEST_F(Stress, OneMacrocellPerAxis) {
 
 TEST_F(Stress, Macrocells256PerAxis) {
 #ifndef INR_STRESS_CUDA
-  // 256^3 cells on the CPU: (2 * 256 + 1)^3 = 135 M lattice queries per slice and ~1 GB of slice,
-  // working-grid and majorant arrays: minutes on a 2-core machine (measured: see the report in
-  // issue 13). StressRun with INR_STRESS_BIG=1; the cuda suite runs it on the GPU.
-  if (!std::getenv("INR_STRESS_BIG")) GTEST_SKIP() << "256^3 macrocells on the CPU takes minutes (set INR_STRESS_BIG=1)";
+  // 256^3 cells on the CPU: 2 slices of (2 * 256 + 1)^3 = 135 M lattice queries each and ~0.7 GB
+  // of slice, working-grid and majorant arrays. Measured on the 2-core development machine: 32 s
+  // (29 s of slice builds), 690 MB resident, passing. Over the suite's budget, so opt-in here
+  // (INR_STRESS_BIG=1); the cuda suite always runs it.
+  if (!std::getenv("INR_STRESS_BIG"))
+    GTEST_SKIP() << "256^3 macrocells take ~30 s and 0.7 GB on a 2-core CPU (measured); set INR_STRESS_BIG=1 to run";
 #endif
   const InrModel model = smoothModel();
   const auto range = finiteRange(model);
