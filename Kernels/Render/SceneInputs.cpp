@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -29,12 +30,49 @@ Camera Camera::framing(const Box3f& box, double viewAngleDegrees) {
   return c;
 }
 
+namespace {
+
+// Finite, and finite once converted to float (the per-ray code's precision).
+bool finiteInFloat(const std::array<double, 3>& a) {
+  for (double v : a)
+    if (!(std::abs(v) <= double(std::numeric_limits<float>::max()))) return false;  // also NaN
+  return true;
+}
+
+// a / |a| computed in double, for vectors whose float length overflows (|a| > ~1.8e19).
+Vec3f unitInDouble(const std::array<double, 3>& a) {
+  const double s = std::max({std::abs(a[0]), std::abs(a[1]), std::abs(a[2])});
+  if (!(s > 0.0)) return Vec3f{0.f, 0.f, 0.f};
+  const double x = a[0] / s, y = a[1] / s, z = a[2] / s, l = std::sqrt(x * x + y * y + z * z);
+  return Vec3f{float(x / l), float(y / l), float(z / l)};
+}
+
+}  // namespace
+
 CameraView Camera::view(int width, int height) const {
   if (width <= 0 || height <= 0) throw std::invalid_argument("camera: image size must be positive");
+  // Non-finite inputs are named as such (they used to surface as "position equals focal point" or
+  // "view-up is parallel to the view direction").
+  if (!finiteInFloat(position)) throw std::invalid_argument("camera: position is not finite (or beyond float range)");
+  if (!finiteInFloat(focalPoint)) {
+    throw std::invalid_argument("camera: focal point is not finite (or beyond float range)");
+  }
+  if (!(std::isfinite(viewUp[0]) && std::isfinite(viewUp[1]) && std::isfinite(viewUp[2]))) {
+    throw std::invalid_argument("camera: view-up is not finite");
+  }
   const Vec3f pos{float(position[0]), float(position[1]), float(position[2])};
   const Vec3f focal{float(focalPoint[0]), float(focalPoint[1]), float(focalPoint[2])};
-  const Vec3f upHint{float(viewUp[0]), float(viewUp[1]), float(viewUp[2])};
-  const Vec3f toFocal = focal - pos;
+  Vec3f upHint{float(viewUp[0]), float(viewUp[1]), float(viewUp[2])};
+  Vec3f toFocal = focal - pos;
+  // A camera ~1e19 or more from its focal point (or a huge view-up) overflows float's dot product,
+  // one ~1e-19 from it underflows: normalise those in double (other inputs take the float path
+  // unchanged, bit for bit).
+  const float focalDistance = length(toFocal);
+  if (!std::isfinite(focalDistance) || focalDistance == 0.f) {
+    toFocal = unitInDouble({focalPoint[0] - position[0], focalPoint[1] - position[1], focalPoint[2] - position[2]});
+  }
+  const float upLength = length(upHint);
+  if (!std::isfinite(upLength) || upLength == 0.f) upHint = unitInDouble(viewUp);
   if (!(length(toFocal) > 0.f)) throw std::invalid_argument("camera: position equals focal point");
   CameraView v{};
   v.forward = normalize(toFocal);
@@ -46,7 +84,9 @@ CameraView Camera::view(int width, int height) const {
   v.up = cross(v.right, v.forward);
   v.position = pos;
   if (parallelProjection) {
-    if (!(parallelScale > 0.0)) throw std::invalid_argument("camera: parallel scale must be > 0");
+    if (!(parallelScale > 0.0 && parallelScale <= double(std::numeric_limits<float>::max()))) {
+      throw std::invalid_argument("camera: parallel scale must be > 0 and finite");
+    }
     v.halfHeight = float(parallelScale);
   } else {
     if (!(viewAngle > 0.0 && viewAngle < 180.0)) {
