@@ -285,6 +285,23 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
   if (!(tf.unitDistance > 0.0)) {
     throw std::invalid_argument("scalar opacity unit distance must be > 0");
   }
+  // A NaN/inf point (a script's or a broken pipeline's) would reach the pixels as NaN colours
+  // (colour) or silently as empty space (opacity): refuse it, naming it.
+  const double fmax = double(std::numeric_limits<float>::max());
+  for (std::size_t k = 0; k < tf.color.size(); ++k) {
+    const auto& p = tf.color[k];
+    if (!(std::abs(p.x) <= fmax && std::isfinite(p.r) && std::isfinite(p.g) && std::isfinite(p.b))) {
+      throw std::invalid_argument("transfer function: colour point " + std::to_string(k) +
+                                  " is not finite (or beyond float range)");
+    }
+  }
+  for (std::size_t k = 0; k < tf.opacity.size(); ++k) {
+    const auto& p = tf.opacity[k];
+    if (!(std::abs(p.x) <= fmax && std::isfinite(p.alpha) && std::isfinite(p.midpoint) && std::isfinite(p.sharpness))) {
+      throw std::invalid_argument("transfer function: opacity point " + std::to_string(k) +
+                                  " is not finite (or beyond float range)");
+    }
+  }
   const auto r = tf.range();
   size_ = size;
   lo_ = float(r[0]);
