@@ -353,8 +353,13 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   fc.seed = settings.seed;
   fc.pixelJitter = settings.pixelJitter ? 1 : 0;
   fc.shadows = scene.shadows ? 1 : 0;
-  fc.ambient = scene.ambient;
+  // Ambient outside [0, 1] makes shading negative or brighter in shadow, and NaN makes NaN pixels:
+  // clamp it (NaN: the default 0.2).
+  fc.ambient = std::isnan(scene.ambient) ? 0.2f : std::clamp(scene.ambient, 0.f, 1.f);
   fc.toLight = normalize(toVec3(scene.toLight));
+  if (!isFiniteValue(length(toVec3(scene.toLight)))) {  // beyond float (e.g. 1e39): normalise in double
+    fc.toLight = unitInDouble(scene.toLight);
+  }
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
   return fc;
