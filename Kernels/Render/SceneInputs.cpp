@@ -39,8 +39,12 @@ bool finiteInFloat(const std::array<double, 3>& a) {
   return true;
 }
 
-// a / |a| computed in double, for vectors whose float length overflows (|a| > ~1.8e19).
-Vec3f unitInDouble(const std::array<double, 3>& a) {
+// a / |a| computed in double, for vectors whose float length overflows (|a| > ~1.8e19); infinite
+// components give the direction of the infinities ((0, -inf, 0) -> (0, -1, 0)).
+Vec3f unitInDouble(std::array<double, 3> a) {
+  if (std::isinf(a[0]) || std::isinf(a[1]) || std::isinf(a[2])) {
+    for (double& v : a) v = std::isinf(v) ? std::copysign(1.0, v) : 0.0;
+  }
   const double s = std::max({std::abs(a[0]), std::abs(a[1]), std::abs(a[2])});
   if (!(s > 0.0)) return Vec3f{0.f, 0.f, 0.f};
   const double x = a[0] / s, y = a[1] / s, z = a[2] / s, l = std::sqrt(x * x + y * y + z * z);
