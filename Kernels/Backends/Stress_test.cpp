@@ -772,9 +772,17 @@ TEST_F(Stress, WeightsOverflowingFp16AndFp32) {
     std::vector<float> v(pts.size());
     cpu.evaluate(pts.data(), pts.size(), v.data());
     const auto bad = std::count_if(v.begin(), v.end(), [](float x) { return !std::isfinite(x); });
-    std::printf("%s: %ld of 512 CPU values non-finite\n", c.name, long(bad));
     const auto range = finiteRange(c.model);
     const RenderSessionOptions o = sessionOptions(64);
+    {
+      // The backend's own evaluator on the same points (on the GPU: the path it picked, fp16 or not).
+      auto s = makeSession(c.model, o, nullptr);
+      std::vector<float> w(pts.size());
+      s->evaluator().evaluate(pts.data(), pts.size(), w.data());
+      const auto badHere = std::count_if(w.begin(), w.end(), [](float x) { return !std::isfinite(x); });
+      std::printf("%s: %ld of 512 values non-finite on the CPU (fp32), %ld on %s\n", c.name, long(bad), long(badHere),
+                  s->description().c_str());
+    }
     for (bool shadows : {false, true}) {
       std::vector<std::string> warnings;
       auto s = makeSession(c.model, o, &warnings);
@@ -933,6 +941,138 @@ TEST_F(Stress, InvalidInputsGiveClearErrors) {
   // The session still renders after all that.
   s->setSettings(tinySettings());
   renderAndCheck(*s, sessionOptions().tracking, good, 2, "after the refused inputs", warnings);
+}
+
+// Non-finite and absurd scene inputs a script (or a broken VTK pipeline) can hand over: each is
+// rendered with clean images or refused with a clear message, and the session keeps working.
+TEST_F(Stress, NonFiniteAndAbsurdSceneInputs) {
+  const InrModel model = smoothModel();
+  const auto range = finiteRange(model);
+  const RenderSessionOptions o = sessionOptions(64);
+  std::vector<std::string> warnings;
+  auto s = makeSession(model, o, &warnings);
+  s->setSettings(tinySettings());
+  const RenderScene good = defaultScene(model, range, true);
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  struct Edit {
+    std::string name;
+    std::function<void(RenderScene&)> apply;
+    std::vector<std::string> keywords;  // what a refusal must mention
+    bool unitRange;                     // colours stay in [0, 1] (false: the input asks for more)
+    // KNOWN, reported in issue 13: a non-finite background is neither refused nor replaced; the
+    // volume stays clean (premultipliedImage) but image() composites over it as given, so its
+    // pixels are NaN/inf. The fix belongs in validateScene (Render/SceneChange.cpp) or
+    // WavefrontRenderer::image, outside this change's files.
+    bool nonFiniteBackground = false;
+  };
+  const std::vector<Edit> edits = {
+      {"camera position NaN", [&](RenderScene& sc) { sc.camera.position[0] = nan; }, {"camera"}, true},
+      {"camera position inf", [&](RenderScene& sc) { sc.camera.position[2] = inf; }, {"camera"}, true},
+      {"camera position 1e39 (inf in float)", [&](RenderScene& sc) { sc.camera.position[2] = 1e39; }, {"camera"}, true},
+      {"focal point NaN", [&](RenderScene& sc) { sc.camera.focalPoint[1] = nan; }, {"camera"}, true},
+      {"view-up NaN", [&](RenderScene& sc) { sc.camera.viewUp = {nan, 1, 0}; }, {"camera"}, true},
+      {"view angle NaN", [&](RenderScene& sc) { sc.camera.viewAngle = nan; }, {"camera"}, true},
+      {"view angle 1e-30 degrees", [&](RenderScene& sc) { sc.camera.viewAngle = 1e-30; }, {"camera"}, true},
+      {"view angle 179.9999 degrees", [&](RenderScene& sc) { sc.camera.viewAngle = 179.9999; }, {"camera"}, true},
+      {"camera 1e6 away, view angle 1e-4 degrees",
+       [&](RenderScene& sc) {
+         sc.camera.position = {0.3e6, 0.4e6, 0.866e6};
+         sc.camera.viewAngle = 1e-4;
+       },
+       {"camera"}, true},
+      {"camera 1e30 away, view angle 1e-28 degrees",
+       [&](RenderScene& sc) {
+         sc.camera.position = {0.3e30, 0.4e30, 0.866e30};
+         sc.camera.viewAngle = 1e-28;
+       },
+       {"camera"}, true},
+      {"parallel scale inf",
+       [&](RenderScene& sc) {
+         sc.camera.parallelProjection = true;
+         sc.camera.parallelScale = inf;
+       },
+       {"camera", "parallel scale"}, true},
+      {"parallel scale NaN",
+       [&](RenderScene& sc) {
+         sc.camera.parallelProjection = true;
+         sc.camera.parallelScale = nan;
+       },
+       {"camera", "parallel scale"}, true},
+      {"parallel scale 1e39 (inf in float)",
+       [&](RenderScene& sc) {
+         sc.camera.parallelProjection = true;
+         sc.camera.parallelScale = 1e39;
+       },
+       {"camera", "parallel scale"}, true},
+      {"parallel scale 1e-40 (denormal in float)",
+       [&](RenderScene& sc) {
+         sc.camera.parallelProjection = true;
+         sc.camera.parallelScale = 1e-40;
+       },
+       {"camera", "parallel scale"}, true},
+      {"light NaN", [&](RenderScene& sc) { sc.toLight = {nan, 0, 1}; }, {"light"}, true},
+      {"light 1e39 (inf in float)", [&](RenderScene& sc) { sc.toLight = {1e39, 0, 0}; }, {"light"}, true},
+      {"light 1e-45 (denormal)", [&](RenderScene& sc) { sc.toLight = {1e-45, 0, 0}; }, {"light"}, true},
+      {"ambient NaN", [&](RenderScene& sc) { sc.ambient = NAN; }, {"ambient"}, true},
+      {"ambient -1", [&](RenderScene& sc) { sc.ambient = -1.f; }, {"ambient"}, true},
+      {"ambient 2", [&](RenderScene& sc) { sc.ambient = 2.f; }, {"ambient"}, true},
+      {"light inf", [&](RenderScene& sc) { sc.toLight = {0, -inf, 0}; }, {"light"}, true},
+      {"background NaN", [&](RenderScene& sc) { sc.background = {NAN, 0.f, 0.f}; }, {"background"}, true, true},
+      {"background inf", [&](RenderScene& sc) { sc.background = {INFINITY, 0.f, 0.f}; }, {"background"}, false, true},
+      {"TF opacity point at NaN",
+       [&](RenderScene& sc) { sc.transferFunction.opacity.push_back({nan, 0.5}); },
+       {"transfer function", "opacity"}, true},
+      {"TF opacity NaN",
+       [&](RenderScene& sc) { sc.transferFunction.opacity[1].alpha = nan; },
+       {"transfer function", "opacity"}, true},
+      {"TF opacity 7 and -3",
+       [&](RenderScene& sc) { sc.transferFunction.opacity = {{range[0], -3.0}, {range[1], 7.0}}; },
+       {"transfer function", "opacity"}, true},
+      {"TF midpoint/sharpness NaN",
+       [&](RenderScene& sc) {
+         sc.transferFunction.opacity[0].midpoint = nan;
+         sc.transferFunction.opacity[0].sharpness = nan;
+       },
+       {"transfer function", "opacity"}, true},
+      {"TF colour NaN", [&](RenderScene& sc) { sc.transferFunction.color[1].g = nan; }, {"transfer function", "colo"}, true},
+      {"TF colour point at NaN",
+       [&](RenderScene& sc) { sc.transferFunction.color[1].x = nan; },
+       {"transfer function", "colo"}, true},
+      {"TF colour 1e30", [&](RenderScene& sc) { sc.transferFunction.color[1].r = 1e30; }, {"transfer function", "colo"}, false},
+      {"TF range 1e-30 wide",
+       [&](RenderScene& sc) { sc.transferFunction.rescale(0.5, 0.5 + 1e-30); },
+       {"transfer function"}, true},
+      {"TF range +-1e39 (beyond float)",
+       [&](RenderScene& sc) { sc.transferFunction.rescale(-1e39, 1e39); },
+       {"transfer function"}, true},
+      {"TF range +-1e30",
+       [&](RenderScene& sc) { sc.transferFunction.rescale(-1e30, 1e30); },
+       {"transfer function"}, true},
+      {"TF points at +-inf",
+       [&](RenderScene& sc) { sc.transferFunction.opacity = {{-inf, 0.0}, {inf, 0.5}}; },
+       {"transfer function", "opacity"}, true},
+      {"unit distance inf", [&](RenderScene& sc) { sc.transferFunction.unitDistance = inf; }, {"unit distance"}, true},
+  };
+  for (const Edit& e : edits) {
+    RenderScene sc = good;
+    e.apply(sc);
+    const bool threw = succeedsOrClearError(
+        [&] {
+          s->setScene(sc);
+          for (int k = 0; k < 2; ++k) s->renderFrame();
+          const ImageRGBA img = s->image(), pre = s->premultipliedImage();
+          if (!e.nonFiniteBackground) EXPECT_EQ(nonFinite(img), 0u) << e.name << ": non-finite values in image()";
+          EXPECT_EQ(nonFinite(pre), 0u) << e.name << ": non-finite values in premultipliedImage()";
+          if (e.unitRange) {
+            if (!e.nonFiniteBackground) EXPECT_EQ(outOfUnitRange(img), 0u) << e.name << ": image() outside [0, 1]";
+            EXPECT_EQ(outOfUnitRange(pre), 0u) << e.name << ": premultipliedImage() outside [0, 1]";
+          }
+        },
+        e.keywords, e.name);
+    if (!threw) std::printf("%s: rendered\n", e.name.c_str());
+    // The session still renders the good scene.
+    renderAndCheck(*s, o.tracking, good, 1, "good scene after " + e.name, warnings);
+  }
 }
 
 // ------------------------------------------------------------------------------------- caps
