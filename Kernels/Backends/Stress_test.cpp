@@ -47,8 +47,11 @@ using test::modelMetadata;
 using test::TensorSpec;
 using Clock = std::chrono::steady_clock;
 
+// The fixture's name differs per build (CudaStress.* / Stress.*) so that ctest, which holds the
+// tests of both executables, gets distinct test names.
 #ifdef INR_STRESS_CUDA
 constexpr RenderBackend kBackend = RenderBackend::Cuda;
+#define Stress CudaStress
 #else
 constexpr RenderBackend kBackend = RenderBackend::Cpu;
 #endif
