@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -29,12 +30,53 @@ Camera Camera::framing(const Box3f& box, double viewAngleDegrees) {
   return c;
 }
 
+namespace {
+
+// Finite, and finite once converted to float (the per-ray code's precision).
+bool finiteInFloat(const std::array<double, 3>& a) {
+  for (double v : a)
+    if (!(std::abs(v) <= double(std::numeric_limits<float>::max()))) return false;  // also NaN
+  return true;
+}
+
+// a / |a| computed in double, for vectors whose float length overflows (|a| > ~1.8e19); infinite
+// components give the direction of the infinities ((0, -inf, 0) -> (0, -1, 0)).
+Vec3f unitInDouble(std::array<double, 3> a) {
+  if (std::isinf(a[0]) || std::isinf(a[1]) || std::isinf(a[2])) {
+    for (double& v : a) v = std::isinf(v) ? std::copysign(1.0, v) : 0.0;
+  }
+  const double s = std::max({std::abs(a[0]), std::abs(a[1]), std::abs(a[2])});
+  if (!(s > 0.0)) return Vec3f{0.f, 0.f, 0.f};
+  const double x = a[0] / s, y = a[1] / s, z = a[2] / s, l = std::sqrt(x * x + y * y + z * z);
+  return Vec3f{float(x / l), float(y / l), float(z / l)};
+}
+
+}  // namespace
+
 CameraView Camera::view(int width, int height) const {
   if (width <= 0 || height <= 0) throw std::invalid_argument("camera: image size must be positive");
+  // Non-finite inputs are named as such (they used to surface as "position equals focal point" or
+  // "view-up is parallel to the view direction").
+  if (!finiteInFloat(position)) throw std::invalid_argument("camera: position is not finite (or beyond float range)");
+  if (!finiteInFloat(focalPoint)) {
+    throw std::invalid_argument("camera: focal point is not finite (or beyond float range)");
+  }
+  if (!(std::isfinite(viewUp[0]) && std::isfinite(viewUp[1]) && std::isfinite(viewUp[2]))) {
+    throw std::invalid_argument("camera: view-up is not finite");
+  }
   const Vec3f pos{float(position[0]), float(position[1]), float(position[2])};
   const Vec3f focal{float(focalPoint[0]), float(focalPoint[1]), float(focalPoint[2])};
-  const Vec3f upHint{float(viewUp[0]), float(viewUp[1]), float(viewUp[2])};
-  const Vec3f toFocal = focal - pos;
+  Vec3f upHint{float(viewUp[0]), float(viewUp[1]), float(viewUp[2])};
+  Vec3f toFocal = focal - pos;
+  // A camera ~1e19 or more from its focal point (or a huge view-up) overflows float's dot product,
+  // one ~1e-19 from it underflows: normalise those in double (other inputs take the float path
+  // unchanged, bit for bit).
+  const float focalDistance = length(toFocal);
+  if (!std::isfinite(focalDistance) || focalDistance == 0.f) {
+    toFocal = unitInDouble({focalPoint[0] - position[0], focalPoint[1] - position[1], focalPoint[2] - position[2]});
+  }
+  const float upLength = length(upHint);
+  if (!std::isfinite(upLength) || upLength == 0.f) upHint = unitInDouble(viewUp);
   if (!(length(toFocal) > 0.f)) throw std::invalid_argument("camera: position equals focal point");
   CameraView v{};
   v.forward = normalize(toFocal);
@@ -46,7 +88,9 @@ CameraView Camera::view(int width, int height) const {
   v.up = cross(v.right, v.forward);
   v.position = pos;
   if (parallelProjection) {
-    if (!(parallelScale > 0.0)) throw std::invalid_argument("camera: parallel scale must be > 0");
+    if (!(parallelScale > 0.0 && parallelScale <= double(std::numeric_limits<float>::max()))) {
+      throw std::invalid_argument("camera: parallel scale must be > 0 and finite");
+    }
     v.halfHeight = float(parallelScale);
   } else {
     if (!(viewAngle > 0.0 && viewAngle < 180.0)) {
@@ -245,6 +289,23 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
   if (!(tf.unitDistance > 0.0)) {
     throw std::invalid_argument("scalar opacity unit distance must be > 0");
   }
+  // A NaN/inf point (a script's or a broken pipeline's) would reach the pixels as NaN colours
+  // (colour) or silently as empty space (opacity): refuse it, naming it.
+  const double fmax = double(std::numeric_limits<float>::max());
+  for (std::size_t k = 0; k < tf.color.size(); ++k) {
+    const auto& p = tf.color[k];
+    if (!(std::abs(p.x) <= fmax && std::isfinite(p.r) && std::isfinite(p.g) && std::isfinite(p.b))) {
+      throw std::invalid_argument("transfer function: colour point " + std::to_string(k) +
+                                  " is not finite (or beyond float range)");
+    }
+  }
+  for (std::size_t k = 0; k < tf.opacity.size(); ++k) {
+    const auto& p = tf.opacity[k];
+    if (!(std::abs(p.x) <= fmax && std::isfinite(p.alpha) && std::isfinite(p.midpoint) && std::isfinite(p.sharpness))) {
+      throw std::invalid_argument("transfer function: opacity point " + std::to_string(k) +
+                                  " is not finite (or beyond float range)");
+    }
+  }
   const auto r = tf.range();
   size_ = size;
   lo_ = float(r[0]);
@@ -296,8 +357,13 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   fc.seed = settings.seed;
   fc.pixelJitter = settings.pixelJitter ? 1 : 0;
   fc.shadows = scene.shadows ? 1 : 0;
-  fc.ambient = scene.ambient;
+  // Ambient outside [0, 1] makes shading negative or brighter in shadow, and NaN makes NaN pixels:
+  // clamp it (NaN: the default 0.2).
+  fc.ambient = std::isnan(scene.ambient) ? 0.2f : std::clamp(scene.ambient, 0.f, 1.f);
   fc.toLight = normalize(toVec3(scene.toLight));
+  if (!isFiniteValue(length(toVec3(scene.toLight)))) {  // beyond float (e.g. 1e39): normalise in double
+    fc.toLight = unitInDouble(scene.toLight);
+  }
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
   return fc;

@@ -1,0 +1,176 @@
+// No growth through the ParaView mapper (issue 13, item 6): vtkInrVolumeMapper (CPU backend) in a
+// plain VTK render window, 1000 time changes through the reader and 1000 edits of the volume
+// property's transfer function (colour, scalar opacity, unit distance), one Render() each. The
+// resident set (/proc/self/statm) may not grow by more than kBoundMiB after the first 100 changes
+// of each kind (warm-up: slices built lazily, the driver's and allocators' pools), the engine is
+// built once and every render shows the volume.
+// Usage: TestInrMapperNoGrowth MODEL.inr [--changes N]
+#include "vtkColorTransferFunction.h"
+#include "vtkInrVolumeMapper.h"
+#include "vtkInrVolumeReader.h"
+#include "vtkNew.h"
+#include "vtkPiecewiseFunction.h"
+#include "vtkRenderWindow.h"
+#include "vtkRenderer.h"
+#include "vtkVolume.h"
+#include "vtkVolumeProperty.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+
+namespace
+{
+const double kBoundMiB = 8.0;
+
+double residentMiB()
+{
+  std::ifstream f("/proc/self/statm");
+  double size = 0, resident = 0;
+  f >> size >> resident;
+  return resident * 4096.0 / (1024.0 * 1024.0);
+}
+
+int failures = 0;
+void check(bool ok, const std::string& what)
+{
+  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
+  if (!ok)
+  {
+    ++failures;
+  }
+}
+
+// Edit k of the transfer function: the opacity ramp's top, a node's midpoint/sharpness, a colour
+// point and the unit distance all move; every third edit has one node more.
+void editTransferFunction(vtkVolumeProperty* prop, vtkColorTransferFunction* ctf,
+  vtkPiecewiseFunction* otf, const double range[2], int k)
+{
+  const double lo = range[0], hi = range[1], span = hi - lo;
+  otf->RemoveAllPoints();
+  otf->AddPoint(lo + 0.3 * span, 0.0);
+  if (k % 3 == 0)
+  {
+    otf->AddPoint(lo + (0.5 + 0.01 * (k % 7)) * span, 0.4, 0.3 + 0.05 * (k % 5), 0.2);
+  }
+  otf->AddPoint(hi, 0.3 + 0.7 * double(k % 37) / 36.0);
+  ctf->RemoveAllPoints();
+  ctf->AddRGBPoint(lo, 0.23, 0.30, 0.75);
+  ctf->AddRGBPoint(lo + (0.4 + 0.2 * double(k % 11) / 10.0) * span, 0.87, 0.87, 0.87);
+  ctf->AddRGBPoint(hi, 0.71, 0.02, 0.15);
+  prop->SetScalarOpacityUnitDistance(0.05 + 0.02 * (k % 5));
+}
+}
+
+int main(int argc, char* argv[])
+{
+  if (argc < 2)
+  {
+    std::fprintf(stderr, "usage: %s MODEL.inr [--changes N]\n", argv[0]);
+    return 2;
+  }
+  int changes = 1000;
+  for (int i = 2; i + 1 < argc; ++i)
+  {
+    if (std::string(argv[i]) == "--changes")
+    {
+      changes = std::max(200, std::atoi(argv[i + 1]));
+    }
+  }
+  const int warmup = 100;
+
+  vtkNew<vtkInrVolumeReader> reader;
+  reader->SetFileName(argv[1]);
+  reader->SetPreviewResolution(2);
+  reader->UpdateInformation();
+  double timeRange[2], valueRange[2];
+  reader->GetTimeRange(timeRange);
+  reader->GetValueRange(valueRange);
+  std::printf("model %s: time [%g, %g], values [%g, %g]\n", argv[1], timeRange[0], timeRange[1],
+    valueRange[0], valueRange[1]);
+
+  vtkNew<vtkInrVolumeMapper> mapper;
+  mapper->SetInputConnection(reader->GetOutputPort());
+  mapper->SetBackend(vtkInrVolumeMapper::BACKEND_CPU);
+  mapper->SetMacrocellResolution(8);
+  mapper->SetTemporalSlices(16);
+  mapper->SetShadows(1);
+  mapper->SetFramesPerRender(1);
+  mapper->SetMaximumFrames(4);
+  vtkNew<vtkVolume> volume;
+  volume->SetMapper(mapper);
+  vtkNew<vtkColorTransferFunction> ctf;
+  vtkNew<vtkPiecewiseFunction> otf;
+  volume->GetProperty()->SetColor(ctf);
+  volume->GetProperty()->SetScalarOpacity(otf);
+  editTransferFunction(volume->GetProperty(), ctf, otf, valueRange, 0);
+
+  vtkNew<vtkRenderer> ren;
+  ren->SetBackground(0.32, 0.34, 0.43);
+  ren->AddVolume(volume);
+  vtkNew<vtkRenderWindow> win;
+  win->SetMultiSamples(0);
+  win->SetSize(48, 32);
+  win->AddRenderer(ren);
+  reader->UpdateTimeStep(timeRange[0]);
+  ren->ResetCamera();
+
+  const auto t0 = std::chrono::steady_clock::now();
+  double warmTime = 0, maxTime = 0, warmTf = 0, maxTf = 0;
+  int noFrame = 0;
+  // 1000 time changes, cycling through 50 times over the range (every slice gets built early).
+  for (int k = 0; k < changes; ++k)
+  {
+    const double t = timeRange[0] + (timeRange[1] - timeRange[0]) * double(k % 50) / 49.0;
+    reader->UpdateTimeStep(t);
+    win->Render();
+    noFrame += mapper->GetAccumulatedFrames() < 1 ? 1 : 0;
+    if (k == warmup - 1)
+    {
+      warmTime = residentMiB();
+    }
+    else if (k >= warmup && k % 10 == 0)
+    {
+      maxTime = std::max(maxTime, residentMiB());
+    }
+  }
+  maxTime = std::max(maxTime, residentMiB());
+  // 1000 transfer-function edits.
+  for (int k = 0; k < changes; ++k)
+  {
+    editTransferFunction(volume->GetProperty(), ctf, otf, valueRange, k + 1);
+    win->Render();
+    noFrame += mapper->GetAccumulatedFrames() < 1 ? 1 : 0;
+    if (k == warmup - 1)
+    {
+      warmTf = residentMiB();
+    }
+    else if (k >= warmup && k % 10 == 0)
+    {
+      maxTf = std::max(maxTf, residentMiB());
+    }
+  }
+  maxTf = std::max(maxTf, residentMiB());
+  const double seconds =
+    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  std::printf("%d time changes + %d TF edits in %.1f s (%.1f ms per render)\n", changes, changes,
+    seconds, 1000.0 * seconds / (2 * changes));
+  std::printf("resident: %.1f MiB after %d time changes, max %.1f MiB after (growth %.2f MiB)\n",
+    warmTime, warmup, maxTime, maxTime - warmTime);
+  std::printf("resident: %.1f MiB after %d TF edits, max %.1f MiB after (growth %.2f MiB)\n",
+    warmTf, warmup, maxTf, maxTf - warmTf);
+  std::printf("engine builds %d, slices built %d, backend %s\n", mapper->GetEngineBuilds(),
+    mapper->GetSlicesBuilt(), mapper->GetBackendInUse());
+  check(maxTime - warmTime < kBoundMiB, "time changes: resident memory grows < 8 MiB after warm-up");
+  check(maxTf - warmTf < kBoundMiB, "TF edits: resident memory grows < 8 MiB after warm-up");
+  check(maxTf - warmTime < kBoundMiB, "whole run: resident memory grows < 8 MiB after warm-up");
+  check(mapper->GetEngineBuilds() == 1, "time and TF changes keep the engine");
+  check(mapper->GetSlicesBuilt() <= 16, "no slice built twice");
+  check(noFrame == 0, "every render accumulated a frame");
+  std::printf("%d failure(s)\n", failures);
+  return failures == 0 ? 0 : 1;
+}
