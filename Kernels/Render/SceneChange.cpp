@@ -1,6 +1,7 @@
 #include "Render/SceneChange.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace inr {
@@ -63,6 +64,9 @@ CameraView validateScene(const RenderScene& scene, const RenderSettings& setting
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels) {
     throw std::invalid_argument("depth limit must have one value per pixel (" + std::to_string(pixels) +
                                 "), got " + std::to_string(scene.depthLimit.size()));
+  }
+  for (float c : scene.background) {
+    if (!std::isfinite(c)) throw std::invalid_argument("background colour must be finite");
   }
   if (scene.shadows && !(length(toVec3(scene.toLight)) > 0.f)) {
     throw std::invalid_argument("light direction must be non-zero");

@@ -17,7 +17,7 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
   const std::uint64_t k = std::uint64_t(std::max(1, maxCollisionsPerRay));
-  return std::uint32_t(std::min<std::uint64_t>(0xffffffffu, 2 + 4 * k + 64));
+  return std::uint32_t(std::min<std::uint64_t>(0xffffffffu, 2 + 2 * k + 32));
 }
 
 WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {

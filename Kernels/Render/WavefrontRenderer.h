@@ -25,17 +25,20 @@ struct TrackingOptions {
   int ghostPassesOnUpdate = 0;   // ghost passes run after each time / TF change
   int ghostPixelStride = 4;      // ghost passes trace every n-th pixel in x and y
   // Bounded work per frame, whatever the scene: candidate collisions (real or null) per ray and
-  // leg (primary, shadow) before the ray is cut off, and traverse-evaluate iterations per loop
-  // before the rays still pending are. Neither is reached by sensible settings (a few tens of
-  // collisions per ray); a tiny opacity unit distance or opacity 1 over a coarse grid reaches
-  // them, and the renderer then says so once (setWarningHandler) and counts the rays
+  // frame, both legs (primary, shadow) together, before the ray is cut off, and traverse-evaluate
+  // iterations per loop before the rays still pending are. The collision cap is a budget of the
+  // ray's random draws (rngDrawBudget: two per delta-tracking candidate, one per ratio-tracking
+  // candidate, 32 draws of slack for roulette): k + 16 delta-tracking candidates, or up to
+  // 2k + 32 for ratio-tracked shadow legs. Neither cap is reached by sensible settings (a few
+  // tens of collisions per ray); a tiny opacity unit distance or opacity 1 over a coarse grid
+  // reaches them, and the renderer then says so once (setWarningHandler) and counts the rays
   // (FrameStats::cappedRays, RendererCounters::truncatedFrames).
   int maxCollisionsPerRay = 4096;
   int maxIterations = 1 << 14;
 };
 
-// The stream-draw budget per ray and frame for `maxCollisionsPerRay` (two draws per collision,
-// two legs, the jitter draws and slack for ratio tracking's roulette).
+// The stream-draw budget per ray and frame for `maxCollisionsPerRay`: the two jitter draws, two
+// per collision, and 32 of slack for ratio tracking's roulette.
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay);
 
 // Work the scene-change policy did (what tests and benchmarks check).
