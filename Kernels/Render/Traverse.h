@@ -53,27 +53,28 @@ INR_HD bool resolveCandidate(const FrameConstants& fc, const TrackingMedium& med
   return false;  // null collision: keep tracking from the candidate position
 }
 
-// Delta tracking inside one segment [t, segmentEnd) of constant majorant m > 0 (a macrocell,
-// or whatever a traversal hands out): draws the free flight and, when the candidate collision
-// lands inside the segment, records it as the ray's pending query and returns true. Any
-// traversal (the DDA below, a ray-tracing-core traversal) calls this per segment.
-INR_HD bool sampleCandidate(const FrameConstants& fc, const RayStateView& rs, int i, std::uint8_t& flags,
-                            RngStream& rng, float m, float t, float segmentEnd) {
-  const float tCandidate = t + freeFlightDistance(m, rng.next());
-  if (!(tCandidate < segmentEnd)) return false;
+// Delta tracking inside a segment of constant majorant m > 0 (a macrocell, or whatever a
+// traversal hands out), in two steps any traversal (the DDA below, a ray-tracing-core traversal)
+// calls: draw the free flight from t; if the candidate collision lands before the segment's end,
+// save the traversal's own state and emit the candidate as the ray's pending query.
+INR_HD float candidateDistance(RngStream& rng, float m, float t) { return t + freeFlightDistance(m, rng.next()); }
+
+INR_HD void emitCandidate(const FrameConstants& fc, const RayStateView& rs, int i, std::uint8_t& flags,
+                          RngStream& rng, float m, float tCandidate) {
   rs.t[i] = tCandidate;
   const bool ratio = (flags & kRayShadow) && fc.shadowEstimator == ShadowEstimator::Ratio;
   rs.collisionProduct[i] = ratio ? m : rng.next() * m;
   rs.sample[i] = NAN;
   flags |= kRayPending;
-  return true;
 }
 
 // The DDA as a walker over the majorant grid: hands out one segment (cell) after another, front
 // to back, jumping over empty blocks (empty-space skipping). Its resumable state is the ray's
 // cell and crossings (RayStateView::cell, tNext).
 struct DdaWalker {
-  const MajorantGridView& grid;
+  // A copy, not a reference: on the GPU the view is a kernel parameter, and a stored reference
+  // to it would force the parameter block into local memory.
+  MajorantGridView grid;
   Vec3f origin, direction;
   Int3 cell;
   Vec3f tNext;
@@ -119,8 +120,10 @@ INR_HD bool trackSegments(const FrameConstants& fc, const RayStateView& rs, int 
         flags |= kRayCapped;
         return false;
       }
-      if (sampleCandidate(fc, rs, i, flags, rng, m, t, segmentEnd)) {
-        walker.store(rs, i);
+      const float tCandidate = candidateDistance(rng, m, t);
+      if (tCandidate < segmentEnd) {
+        walker.store(rs, i);  // before the next draw: fewer live registers on the GPU
+        emitCandidate(fc, rs, i, flags, rng, m, tCandidate);
         return true;
       }
     }

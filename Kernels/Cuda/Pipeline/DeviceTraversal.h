@@ -3,7 +3,7 @@
 // rays. The pipeline fills a TraversalLaunch and calls traverse(); what walks the rays through
 // the majorant grid is the implementation's business: the DDA over the grid (DdaTraversal.cu,
 // always available) or, later, an OptiX GAS over non-empty macrocells. Every implementation runs
-// the same per-ray stage code (Render/Traverse.h: resolveCandidate, sampleCandidate, ...), honours
+// the same per-ray stage code (Render/Traverse.h: resolveCandidate, candidateDistance, emitCandidate), honours
 // the contract below and appends its queries exactly as the DDA does, so the evaluation stage
 // and everything after it do not know which traversal ran.
 #include <cuda_runtime.h>
