@@ -517,6 +517,7 @@ TEST(CudaPipeline, MacrocellGridOnAnalyticDeviceFieldMatchesCpu) {
     gpu.interpolationWeights(t, k0, k1, w);
     std::vector<float> mn, mx, mean;
     for (int k : {k0, k1}) {
+      if (k == k1 && !(w > 0.f)) continue;  // one slice only (a slice time): lazy builds skip k1
       ASSERT_TRUE(gpu.sliceBuilt(k) && cpu.slice(k).built) << "t = " << t;
       gpu.downloadSlice(k, mn, mx, mean);
       const auto& s = cpu.slice(k);
