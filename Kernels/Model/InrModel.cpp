@@ -22,6 +22,8 @@ constexpr int kFormatVersion = 1;
 // The renderer and the evaluators work in fp32: every number that reaches them must fit.
 constexpr double kFloatMax = std::numeric_limits<float>::max();
 
+bool fitsFp32(double v) { return std::fabs(v) <= kFloatMax; }  // false for NaN and infinities
+
 std::string num(double v) {  // shortest text that reads back as v
   char buf[32];
   return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
@@ -79,7 +81,7 @@ public:
   // A number the evaluators use as an fp32 parameter (w0, scales, offsets).
   float floatNumber(const json& obj, const char* key, const std::string& path, std::optional<double> dflt) const {
     const double d = number(obj, key, path, dflt);
-    if (std::fabs(d) > kFloatMax)
+    if (!fitsFp32(d))
       fail(path + "." + key + " is " + num(d) + ", outside the fp32 range (|x| <= " + num(kFloatMax) + ")");
     return static_cast<float>(d);
   }
@@ -90,10 +92,17 @@ public:
     return obj[key].get<std::string>();
   }
 
+  // Throws unless the interval [lo, hi] (`what`: "domain.bounds: the x extent") and its length are
+  // finite in fp32, where the renderer works.
+  void checkFp32Interval(double lo, double hi, const std::string& what) const {
+    if (!fitsFp32(lo) || !fitsFp32(hi) || !fitsFp32(hi - lo))
+      fail(what + " [" + num(lo) + ", " + num(hi) + "] is not finite in fp32 (the ends and the length must be at "
+           "most " + num(kFloatMax) + " in magnitude)");
+  }
+
   // Throws unless the world -> network map of `what` is finite and invertible.
   void checkAxisMap(const AxisMap& m, const std::string& what) const {
-    if (!std::isfinite(m.scale) || !std::isfinite(m.offset) || m.scale == 0 || std::fabs(m.scale) > kFloatMax ||
-        std::fabs(m.offset) > kFloatMax)
+    if (!fitsFp32(m.scale) || !fitsFp32(m.offset) || m.scale == 0)
       fail("domain: the map of world " + what + " onto the network input (scale " + num(m.scale) + ", offset " +
            num(m.offset) + ") is not finite in fp32; check domain.bounds/time_range against input_range");
   }
@@ -263,12 +272,7 @@ public:
       if (!(bounds[2 * i + 1] > bounds[2 * i]))
         fail(std::string("domain.bounds is an empty box: ") + axis[i] + "max (" + std::to_string(bounds[2 * i + 1]) +
              ") must exceed " + axis[i] + "min (" + std::to_string(bounds[2 * i]) + ")");
-      // The renderer works in fp32: the box and its extent must be finite there.
-      const double extent = bounds[2 * i + 1] - bounds[2 * i];
-      if (std::fabs(bounds[2 * i]) > kFloatMax || std::fabs(bounds[2 * i + 1]) > kFloatMax || !(extent <= kFloatMax))
-        fail(std::string("domain.bounds: the ") + axis[i] + " extent [" + num(bounds[2 * i]) + ", " +
-             num(bounds[2 * i + 1]) + "] is not finite in fp32 (bounds and extent must be at most " + num(kFloatMax) +
-             " in magnitude)");
+      checkFp32Interval(bounds[2 * i], bounds[2 * i + 1], std::string("domain.bounds: the ") + axis[i] + " extent");
     }
 
     std::array<std::array<double, 2>, 3> range{{{-1, 1}, {-1, 1}, {-1, 1}}};
@@ -308,9 +312,7 @@ public:
     const auto tr = numberArray(d["time_range"], "domain.time_range", 2);
     if (!(tr[0] < tr[1]))
       fail("domain.time_range [" + std::to_string(tr[0]) + ", " + std::to_string(tr[1]) + "] must have t0 < t1");
-    if (!(tr[1] - tr[0] <= kFloatMax) || std::fabs(tr[0]) > kFloatMax || std::fabs(tr[1]) > kFloatMax)
-      fail("domain.time_range [" + num(tr[0]) + ", " + num(tr[1]) + "] is not finite in fp32 (times and the "
-           "range's length must be at most " + num(kFloatMax) + " in magnitude)");
+    checkFp32Interval(tr[0], tr[1], "domain.time_range");
     dom.timeBegin = tr[0];
     dom.timeEnd = tr[1];
     std::vector<double> tir{-1, 1};
@@ -379,7 +381,7 @@ public:
       const auto& q = *out.perTime;
       for (std::size_t i = 0; i < q.times.size(); ++i) {
         const double a = (q.max[i] - q.min[i]) / (q.networkHi - q.networkLo), b = q.min[i] - a * q.networkLo;
-        if (!(std::fabs(a) <= kFloatMax) || !(std::fabs(b) <= kFloatMax))
+        if (!fitsFp32(a) || !fitsFp32(b))
           fail("output.per_time: the value map at time " + num(q.times[i]) + " (scale " + num(a) + ", offset " +
                num(b) + ") is not finite in fp32; min/max or network_range too large");
       }
@@ -511,7 +513,7 @@ InrModel loadChecked(const std::uint8_t* data, std::size_t size, const std::stri
   if (!vr.is_null()) {
     auto r = builder.numberArray(vr, "value_range", 2);
     if (!(r[0] < r[1])) builder.fail("value_range must be [lo, hi] with lo < hi");
-    if (std::fabs(r[0]) > kFloatMax || std::fabs(r[1]) > kFloatMax || !(float(r[0]) < float(r[1])))
+    if (!fitsFp32(r[0]) || !fitsFp32(r[1]) || !(float(r[0]) < float(r[1])))
       builder.fail("value_range [" + num(r[0]) + ", " + num(r[1]) + "] is not an interval in fp32");
     m.valueRange = std::array<float, 2>{float(r[0]), float(r[1])};
   }
