@@ -6,6 +6,7 @@ PACKAGES=(build-essential cmake ninja-build pkg-config
   libeigen3-dev nlohmann-json3-dev libgtest-dev libpng-dev
   python3 python3-numpy python3-torch
   xvfb xauth
+  clang libclang-rt-dev  # Tools/run-fuzz.sh: libFuzzer and the sanitizer runtimes for clang
   # ParaView plugin: Debian's ParaView 5.11 SDK. find_package(ParaView) makes every module's
   # dependency required, hence the -dev list (../shared/PLATFORM.md; do NOT add libvtk9-dev).
   paraview paraview-dev python3-paraview openmpi-bin mpi-default-dev libhdf5-mpi-dev

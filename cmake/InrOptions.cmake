@@ -5,6 +5,9 @@ set(INR_ENABLE_OPTIX AUTO CACHE STRING "OptiX traversal (needs CUDA and OptiX 9.
 set(INR_ENABLE_PARAVIEW AUTO CACHE STRING "ParaView plugin: AUTO, ON or OFF")
 set(OptiX_INSTALL_DIR "" CACHE PATH "Folder holding OptiX 9.0 'include/optix.h' (NVIDIA/optix-dev)")
 option(INR_BUILD_TESTS "Build the test suite" ON)
+# Checking builds (Tools/run-sanitizers.sh, Tools/run-fuzz.sh; README "Fuzzing and sanitizers").
+set(INR_SANITIZE "" CACHE STRING "Sanitizers for the engine, the CLI and the tests, e.g. address,undefined")
+option(INR_FUZZ "Build only the model loader and its libFuzzer target (Testing/Fuzz; needs clang)" OFF)
 foreach(opt INR_ENABLE_CUDA INR_ENABLE_OPTIX INR_ENABLE_PARAVIEW)
   set_property(CACHE ${opt} PROPERTY STRINGS AUTO ON OFF)
   string(TOUPPER "${${opt}}" _v)
@@ -99,4 +102,24 @@ if(INR_NATIVE_ARCH)
   if(INR_HAS_MARCH_NATIVE)
     add_compile_options($<$<COMPILE_LANGUAGE:CXX>:-march=native>)
   endif()
+endif()
+
+# --- Sanitizers: every C++ target of this project (the engine, the CLI, the tests) is compiled and
+# linked with them. Recovery is off, so a report ends the process with a non-zero status.
+if(INR_SANITIZE)
+  if(NOT INR_SANITIZE MATCHES "^[a-z,_-]+$")
+    message(FATAL_ERROR "INR_SANITIZE=${INR_SANITIZE}: expected a list like address,undefined")
+  endif()
+  if(INR_WITH_CUDA)
+    message(FATAL_ERROR "INR_SANITIZE needs -DINR_ENABLE_CUDA=OFF (nvcc takes no -fsanitize)")
+  endif()
+  set(_san -fsanitize=${INR_SANITIZE} -fno-sanitize-recover=all -fno-omit-frame-pointer)
+  add_compile_options(${_san})
+  add_link_options(${_san})
+endif()
+
+# --- Fuzzing: a separate clang build of the loader alone (the top-level CMakeLists stops after it).
+if(INR_FUZZ AND NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+  message(FATAL_ERROR "INR_FUZZ=ON needs clang (libFuzzer): configure a separate build folder with "
+                      "-DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang, or run Tools/run-fuzz.sh")
 endif()

@@ -1,9 +1,11 @@
 #include "Model/InrModel.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -17,6 +19,15 @@ using nlohmann::json;
 
 constexpr const char* kFormatName = "inr-volume";
 constexpr int kFormatVersion = 1;
+// The renderer and the evaluators work in fp32: every number that reaches them must fit.
+constexpr double kFloatMax = std::numeric_limits<float>::max();
+
+bool fitsFp32(double v) { return std::fabs(v) <= kFloatMax; }  // false for NaN and infinities
+
+std::string num(double v) {  // shortest text that reads back as v
+  char buf[32];
+  return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+}
 
 // Parses the JSON metadata and builds the layer graph; every error names the file and the path
 // inside the metadata ("architecture.layers[3].weight") where the problem is.
@@ -35,7 +46,9 @@ public:
     }
     try {
       return json::parse(it->second);
-    } catch (const json::parse_error& e) {
+    } catch (const json::out_of_range& e) {  // e.g. 406: number overflow parsing '1e999'
+      fail(std::string("metadata '") + key + "' holds a number outside the double range: " + e.what());
+    } catch (const json::exception& e) {
       fail(std::string("metadata '") + key + "' is not valid JSON: " + e.what());
     }
   }
@@ -63,6 +76,35 @@ public:
     const double d = v.get<double>();
     if (!std::isfinite(d)) fail(path + "." + key + " must be finite");
     return d;
+  }
+
+  // A number the evaluators use as an fp32 parameter (w0, scales, offsets).
+  float floatNumber(const json& obj, const char* key, const std::string& path, std::optional<double> dflt) const {
+    const double d = number(obj, key, path, dflt);
+    if (!fitsFp32(d))
+      fail(path + "." + key + " is " + num(d) + ", outside the fp32 range (|x| <= " + num(kFloatMax) + ")");
+    return static_cast<float>(d);
+  }
+
+  std::string optionalString(const json& obj, const char* key, const std::string& path, const char* dflt) const {
+    if (!obj.contains(key)) return dflt;
+    if (!obj[key].is_string()) fail(path + "." + key + " must be a string");
+    return obj[key].get<std::string>();
+  }
+
+  // Throws unless the interval [lo, hi] (`what`: "domain.bounds: the x extent") and its length are
+  // finite in fp32, where the renderer works.
+  void checkFp32Interval(double lo, double hi, const std::string& what) const {
+    if (!fitsFp32(lo) || !fitsFp32(hi) || !fitsFp32(hi - lo))
+      fail(what + " [" + num(lo) + ", " + num(hi) + "] is not finite in fp32 (the ends and the length must be at "
+           "most " + num(kFloatMax) + " in magnitude)");
+  }
+
+  // Throws unless the world -> network map of `what` is finite and invertible.
+  void checkAxisMap(const AxisMap& m, const std::string& what) const {
+    if (!fitsFp32(m.scale) || !fitsFp32(m.offset) || m.scale == 0)
+      fail("domain: the map of world " + what + " onto the network input (scale " + num(m.scale) + ", offset " +
+           num(m.offset) + ") is not finite in fp32; check domain.bounds/time_range against input_range");
   }
 
   std::vector<double> numberArray(const json& v, const std::string& path, std::size_t n = 0) const {
@@ -138,21 +180,22 @@ public:
         fail("tensor '" + L.weightName + "' has shape " + shapeToString(b.shape) + " but " + path +
              " (fourier) receives width " + std::to_string(inWidth) + ", so B must be [m, " + std::to_string(inWidth) + "]");
       L.weight = b.values;
-      L.param = static_cast<float>(number(j, "frequency_scale", path, 6.283185307179586));
-      const std::string inc = j.value("include_input", std::string("none"));
+      L.param = floatNumber(j, "frequency_scale", path, 6.283185307179586);
+      const std::string inc = optionalString(j, "include_input", path, "none");
       if (inc == "none") L.includeInput = IncludeInput::None;
       else if (inc == "first") L.includeInput = IncludeInput::First;
       else if (inc == "last") L.includeInput = IncludeInput::Last;
       else fail(path + ".include_input must be \"none\", \"first\" or \"last\", not \"" + inc + "\"");
+      if (b.shape[0] > 32768) fail(path + ": " + std::to_string(b.shape[0]) + " frequencies out of range (at most 32768)");
       L.outWidth = static_cast<int>(2 * b.shape[0]) + (L.includeInput == IncludeInput::None ? 0 : inWidth);
     } else if (type == "sine") {
       checkKeys(j, path, {"type", "w0"});
       L.kind = LayerKind::Sine;
-      L.param = static_cast<float>(number(j, "w0", path, 30.0));
+      L.param = floatNumber(j, "w0", path, 30.0);
     } else if (type == "scale") {
       checkKeys(j, path, {"type", "factor"});
       L.kind = LayerKind::Scale;
-      L.param = static_cast<float>(number(j, "factor", path, std::nullopt));
+      L.param = floatNumber(j, "factor", path, std::nullopt);
     } else if (type == "silu" || type == "swish" || type == "relu" || type == "sigmoid" || type == "tanh" ||
                type == "identity") {
       checkKeys(j, path, {"type"});
@@ -174,7 +217,7 @@ public:
         fail(path + ": body ends at width " + std::to_string(bodyOut) + " but the shortcut at width " +
              std::to_string(shortOut) + (L.shortcut.empty() ? " (identity; add a shortcut transform)" : ""));
       L.outWidth = bodyOut;
-      L.residualScale = static_cast<float>(number(j, "scale", path, 1.0));
+      L.residualScale = floatNumber(j, "scale", path, 1.0);
     } else {
       fail(path + " has unknown layer type '" + type +
            "' (known: fourier, linear, sine, silu, relu, sigmoid, tanh, identity, scale, residual)");
@@ -187,9 +230,10 @@ public:
     checkKeys(a, "architecture", {"input_dim", "layers"});
     if (!a.contains("input_dim") || !a["input_dim"].is_number_integer()) fail("architecture.input_dim must be an integer");
     Architecture arch;
-    arch.inputDim = a["input_dim"].get<int>();
-    if (arch.inputDim < 3 || arch.inputDim > 4)
-      fail("architecture.input_dim is " + std::to_string(arch.inputDim) + "; must be 3 (x,y,z) or 4 (x,y,z,t)");
+    const std::int64_t inputDim = a["input_dim"].get<std::int64_t>();
+    if (inputDim < 3 || inputDim > 4)
+      fail("architecture.input_dim is " + std::to_string(inputDim) + "; must be 3 (x,y,z) or 4 (x,y,z,t)");
+    arch.inputDim = static_cast<int>(inputDim);
     if (!a.contains("layers")) fail("architecture.layers is required");
     int out = 0;
     arch.layers = layerList(a["layers"], arch.inputDim, "architecture.layers", out, 0);
@@ -224,10 +268,12 @@ public:
     const auto bounds = numberArray(d["bounds"], "domain.bounds", 6);
     for (int i = 0; i < 6; ++i) dom.bounds[i] = bounds[i];
     const char* axis = "xyz";
-    for (int i = 0; i < 3; ++i)
+    for (int i = 0; i < 3; ++i) {
       if (!(bounds[2 * i + 1] > bounds[2 * i]))
         fail(std::string("domain.bounds is an empty box: ") + axis[i] + "max (" + std::to_string(bounds[2 * i + 1]) +
              ") must exceed " + axis[i] + "min (" + std::to_string(bounds[2 * i]) + ")");
+      checkFp32Interval(bounds[2 * i], bounds[2 * i + 1], std::string("domain.bounds: the ") + axis[i] + " extent");
+    }
 
     std::array<std::array<double, 2>, 3> range{{{-1, 1}, {-1, 1}, {-1, 1}}};
     if (d.contains("input_range")) {
@@ -244,7 +290,7 @@ public:
       for (int i = 0; i < 3; ++i)
         if (range[i][0] == range[i][1]) fail("domain.input_range is degenerate (lo == hi)");
     }
-    const std::string centering = d.value("centering", std::string("node"));
+    const std::string centering = optionalString(d, "centering", "domain", "node");
     if (centering != "node" && centering != "cell")
       fail("domain.centering must be \"node\" or \"cell\", not \"" + centering + "\"");
     const bool cell = centering == "cell";
@@ -253,21 +299,27 @@ public:
     if (cell) {
       if (res.empty()) fail("domain.centering \"cell\" needs domain.resolution [nx, ny, nz]");
       for (double r : res)
-        if (r < 2 || r != std::floor(r)) fail("domain.resolution entries must be integers >= 2");
+        if (r < 2 || r > std::numeric_limits<int>::max() || r != std::floor(r))
+          fail("domain.resolution entries must be integers in [2, 2^31 - 1]");
     }
-    for (int i = 0; i < 3; ++i)
+    for (int i = 0; i < 3; ++i) {
       dom.toNetwork[i] = axisMap(bounds[2 * i], bounds[2 * i + 1], range[i][0], range[i][1], cell,
                                  cell ? int(res[i]) : 0);
+      checkAxisMap(dom.toNetwork[i], std::string(1, axis[i]));
+    }
 
     if (!d.contains("time_range")) fail("domain.time_range is required ([t0, t1])");
     const auto tr = numberArray(d["time_range"], "domain.time_range", 2);
     if (!(tr[0] < tr[1]))
       fail("domain.time_range [" + std::to_string(tr[0]) + ", " + std::to_string(tr[1]) + "] must have t0 < t1");
+    checkFp32Interval(tr[0], tr[1], "domain.time_range");
     dom.timeBegin = tr[0];
     dom.timeEnd = tr[1];
     std::vector<double> tir{-1, 1};
     if (d.contains("time_input_range")) tir = numberArray(d["time_input_range"], "domain.time_input_range", 2);
+    if (tir[0] == tir[1]) fail("domain.time_input_range is degenerate (lo == hi)");
     dom.toNetwork[kT] = axisMap(tr[0], tr[1], tir[0], tir[1], false, 0);
+    checkAxisMap(dom.toNetwork[kT], "time");
 
     std::vector<std::string> order{"x", "y", "z", "t"};
     if (d.contains("input_order")) {
@@ -324,9 +376,18 @@ public:
         pt.networkHi = r[1];
       }
       out.perTime = std::move(pt);
+      // affineAt interpolates the tabulated min/max linearly, so a map that fits fp32 at every entry
+      // fits everywhere.
+      const auto& q = *out.perTime;
+      for (std::size_t i = 0; i < q.times.size(); ++i) {
+        const double a = (q.max[i] - q.min[i]) / (q.networkHi - q.networkLo), b = q.min[i] - a * q.networkLo;
+        if (!fitsFp32(a) || !fitsFp32(b))
+          fail("output.per_time: the value map at time " + num(q.times[i]) + " (scale " + num(a) + ", offset " +
+               num(b) + ") is not finite in fp32; min/max or network_range too large");
+      }
     } else {
-      out.scale = static_cast<float>(number(o, "scale", "output", 1.0));
-      out.offset = static_cast<float>(number(o, "offset", "output", 0.0));
+      out.scale = floatNumber(o, "scale", "output", 1.0);
+      out.offset = floatNumber(o, "offset", "output", 0.0);
     }
     return out;
   }
@@ -428,7 +489,8 @@ void OutputMapping::affineAt(double t, float& a, float& b) const {
   b = static_cast<float>(lo - s * p.networkLo);
 }
 
-InrModel InrModel::loadBytes(const std::uint8_t* data, std::size_t size, const std::string& label) {
+namespace {
+InrModel loadChecked(const std::uint8_t* data, std::size_t size, const std::string& label) {
   SafeTensorFile file = parseSafeTensors(data, size, label);
   Builder builder(label, file);
   auto fmt = file.metadata.find("format");
@@ -451,6 +513,8 @@ InrModel InrModel::loadBytes(const std::uint8_t* data, std::size_t size, const s
   if (!vr.is_null()) {
     auto r = builder.numberArray(vr, "value_range", 2);
     if (!(r[0] < r[1])) builder.fail("value_range must be [lo, hi] with lo < hi");
+    if (!fitsFp32(r[0]) || !fitsFp32(r[1]) || !(float(r[0]) < float(r[1])))
+      builder.fail("value_range [" + num(r[0]) + ", " + num(r[1]) + "] is not an interval in fp32");
     m.valueRange = std::array<float, 2>{float(r[0]), float(r[1])};
   }
   auto text = [&](const char* key) {
@@ -462,6 +526,18 @@ InrModel InrModel::loadBytes(const std::uint8_t* data, std::size_t size, const s
   m.provenance = text("provenance");
   return m;
 }
+}  // namespace
+
+InrModel InrModel::loadBytes(const std::uint8_t* data, std::size_t size, const std::string& label) {
+  try {
+    return loadChecked(data, size, label);
+  } catch (const nlohmann::json::exception& e) {
+    // loadChecked checks types before reading; this safety net keeps the file name on anything
+    // the JSON library still throws.
+    throw ModelError(label + ": malformed metadata: " + e.what());
+  }
+}
+
 
 InrModel InrModel::loadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

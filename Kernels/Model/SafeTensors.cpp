@@ -26,14 +26,17 @@ std::size_t dtypeSize(const std::string& dtype) {
   return 0;
 }
 
-void convert(const std::string& dtype, const std::uint8_t* src, std::size_t count, float* dst) {
+// Returns the flat index of the first F64 value outside the fp32 range, or `count` if none.
+std::size_t convert(const std::string& dtype, const std::uint8_t* src, std::size_t count, float* dst) {
   // The file is little-endian; so is every machine we build for (x86-64, aarch64).
+  if (count == 0) return 0;  // nothing to copy; `dst` may be null for an empty vector
   if (dtype == "F32") {
     std::memcpy(dst, src, count * 4);
   } else if (dtype == "F64") {
     for (std::size_t i = 0; i < count; ++i) {
       double d;
       std::memcpy(&d, src + 8 * i, 8);
+      if (std::isfinite(d) && std::fabs(d) > std::numeric_limits<float>::max()) return i;
       dst[i] = static_cast<float>(d);
     }
   } else if (dtype == "F16") {
@@ -50,6 +53,7 @@ void convert(const std::string& dtype, const std::uint8_t* src, std::size_t coun
       std::memcpy(dst + i, &bits, 4);
     }
   }
+  return count;
 }
 
 }  // namespace
@@ -81,7 +85,7 @@ SafeTensorFile parseSafeTensors(const std::uint8_t* data, std::size_t size, cons
   json header;
   try {
     header = json::parse(headerBegin, headerBegin + headerLen);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers like 1e999
     fail(label, std::string("safetensors header is not valid JSON: ") + e.what());
   }
   if (!header.is_object()) fail(label, "safetensors header must be a JSON object");
@@ -150,8 +154,14 @@ SafeTensorFile parseSafeTensors(const std::uint8_t* data, std::size_t size, cons
     if (end - begin != count * elem)
       fail(label, where + ": data_offsets span " + std::to_string(end - begin) + " bytes but shape " +
                       shapeToString(t.shape) + " of " + t.dtype + " needs " + std::to_string(count * elem));
+    if (count == 0)
+      fail(label, where + " has no elements (shape " + shapeToString(t.shape) +
+                      "); an INR model has no empty tensors (remove it from the file)");
     t.values.resize(count);
-    convert(t.dtype, payload + begin, count, t.values.data());
+    const std::size_t tooLarge = convert(t.dtype, payload + begin, count, t.values.data());
+    if (tooLarge < count)
+      fail(label, where + " holds a value outside the fp32 range at flat index " + std::to_string(tooLarge) +
+                      " (F64 weights are converted to fp32); the network weights are corrupt");
     for (std::size_t i = 0; i < count; ++i)
       if (!std::isfinite(t.values[i]))
         fail(label, where + " contains a non-finite value (" + std::to_string(t.values[i]) + ") at flat index " +

@@ -82,6 +82,39 @@ def check_eval_points_file_and_errors(inr, data):
     expect(p.returncode == 2, "unknown command must be a usage error")
 
 
+def check_eval_malformed_input(inr, data):
+    """Malformed point lines are errors naming the line (comments and blank lines count); an
+    input without points gives no output and exit 0 (documented in `inr eval --help`)."""
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    cases = [  # (stdin, line number, what the message must say)
+        ("0.5 abc 0.5\n", 1, "'abc' is not a number"),
+        ("# comment\n\n0.1 0.2 0.3\n0.5 0.5\n", 4, "got 2 field(s)"),
+        ("0.5 0.5 0.5 0.5\n", 1, "got 4 field(s)"),
+        ("0.5,0.5,0.5\n", 1, "got 1 field(s)"),
+        ("0 0 0\nnan 0 0\n", 2, "'nan' is not finite"),
+        ("0 inf 0\n", 1, "'inf' is not finite"),
+        ("0 0 -Infinity\n", 1, "'-Infinity' is not finite"),
+        ("1e39 0 0\n", 1, "'1e39' is outside the fp32 range"),
+        ("0 1e999 0\n", 1, "'1e999' is outside the fp32 range"),
+        ("0 0 0x\n", 1, "'0x' is not a number"),
+    ]
+    for text, line, needle in cases:
+        p = run(inr, "eval", model, "--time", "0.5", stdin=text)
+        expect(p.returncode == 1, "%r: exit %d, want 1: %s" % (text, p.returncode, p.stderr))
+        expect("<stdin>:%d:" % line in p.stderr and needle in p.stderr,
+               "%r: message lacks '<stdin>:%d:' or %r: %s" % (text, line, needle, p.stderr))
+        expect(p.stdout == "", "%r: printed values despite the error: %r" % (text, p.stdout))
+    for text in ("", "# only a comment\n\n   \n"):
+        p = run(inr, "eval", model, "--time", "0.5", stdin=text)
+        expect(p.returncode == 0 and p.stdout == "", "no points %r: exit %d, stdout %r, %s"
+               % (text, p.returncode, p.stdout, p.stderr))
+    # accepted: CRLF line ends, tabs, exponents, values that underflow to ~0
+    p = run(inr, "eval", model, "--time", "0.5", stdin="0.5\t0.5 0.5\r\n1e-400 5e-1 +0.25\n")
+    expect(p.returncode == 0 and len(p.stdout.split()) == 2, "valid variants: " + p.stderr)
+    p = run(inr, "eval", "--help")
+    expect(p.returncode == 0 and "no points" in p.stdout, "--help does not document empty input")
+
+
 def check_info(inr, data):
     model = os.path.join(data, "malformed", "valid_control.inr")
     p = run(inr, "info", model)

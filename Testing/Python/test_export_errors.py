@@ -78,6 +78,28 @@ def main():
         with open(table, "w") as f:
             f.write("0 0 1\n5 0 1\n3 0 1\n")
         p_coord = save(coord, "coord_ok.pth")
+        p_neur = save(neur, "neur_ok.pth")
+        good_table = os.path.join(tmp, "good_table.txt")
+        with open(good_table, "w") as f:
+            f.write("0 -2 5\n1 -1 7\n")
+        good_b = os.path.join(tmp, "goodB.npy")
+        np.save(good_b, np.ones((3, 8), np.float32))
+        # nn.DataParallel keys, and a sub-module under it
+        p_parallel = save({"module." + k: v for k, v in siren.items()}, "siren_parallel.pth")
+        p_nested = save({"module.inr." + k: v for k, v in siren.items()}, "siren_nested.pth")
+        # truncated zip containers: torch says "failed finding central directory" for a small
+        # file, "[Errno 22] Invalid argument" for one past ~50 kB
+        p_trunc = save(siren, "siren_truncated.pth")
+        p_trunc_big = save(L.SirenNotebook(4, 64, 3).state_dict(), "siren_big_truncated.pth")
+        for p in (p_trunc, p_trunc_big):
+            raw = open(p, "rb").read()
+            with open(p, "wb") as f:
+                f.write(raw[:len(raw) * 2 // 3])
+        p_trunc_legacy = os.path.join(tmp, "siren_truncated_legacy.pth")
+        torch.save(siren, p_trunc_legacy, _use_new_zipfile_serialization=False)
+        raw = open(p_trunc_legacy, "rb").read()
+        with open(p_trunc_legacy, "wb") as f:
+            f.write(raw[:len(raw) // 2])
 
         out = os.path.join(tmp, "out.inr")
         # (name, args, strings that must appear in the message)
@@ -113,6 +135,16 @@ def main():
                            "2", "2"], ["--bounds"]),
             ("input order", ["siren-notebook", p_siren, out, "--input-order", "x,y,t"],
              ["--input-order"]),
+            ("B given twice", ["reed-ffn", p_reed, out, "--fourier-B", good_b, "--reed-sigma", "1"],
+             ["--fourier-B", "--reed-sigma", "not both"]),
+            ("truncated .pth (zip)", ["siren-notebook", p_trunc, out],
+             ["siren_truncated.pth", "truncated or corrupt"]),
+            ("truncated large .pth (zip)", ["siren-notebook", p_trunc_big, out],
+             ["siren_big_truncated.pth", "truncated or corrupt"]),
+            ("truncated .pth (legacy)", ["siren-notebook", p_trunc_legacy, out],
+             ["siren_truncated_legacy.pth", "truncated or corrupt"]),
+            ("prefix matches nothing", ["siren-notebook", p_siren, out, "--prefix", "inr."],
+             ["siren_ok.pth", "'inr.'", "'net.0.linear.weight'"]),
         ]
         for name, args, needles in cases:
             rc, msg = export(args)
@@ -128,13 +160,35 @@ def main():
             if bad:
                 print("     " + "; ".join(bad))
                 ok_all = False
-        # and the good inputs do export (so the failures above are about the defects)
-        for name, args in (("good siren", ["siren-notebook", p_siren, out]),
-                           ("good reed", ["reed-ffn", p_reed, out, "--reed-sigma", "1"])):
+        # and the good inputs do export (so the failures above are about the defects); options
+        # whose absence gives values other than the training data's are warned about, and the
+        # warning goes away when they are given. (name, args, warnings that must / must not appear)
+        per_time = "--per-time-table"
+        volume_shape, output_range = "--neurcomp-volume-shape NX NY NZ", "--output-range MIN MAX"
+        neur_full = ["--neurcomp-volume-shape", "9", "17", "5", "--output-range", "0", "3"]
+        goods = [
+            ("good siren", ["siren-notebook", p_siren, out], [], ["warning"]),
+            ("good reed", ["reed-ffn", p_reed, out, "--reed-sigma", "1"], [], ["warning"]),
+            ("good reed, B file", ["reed-ffn", p_reed, out, "--fourier-B", good_b], [], []),
+            ("prefix module.", ["siren-notebook", p_parallel, out, "--prefix", "module."], [], []),
+            ("prefix under module.", ["siren-notebook", p_nested, out, "--prefix", "inr."], [], []),
+            ("prefix module.inr.", ["siren-notebook", p_nested, out, "--prefix", "module.inr."],
+             [], []),
+            ("coordnet without table", ["coordnet", p_coord, out], [per_time, "normalised"], []),
+            ("coordnet with table", ["coordnet", p_coord, out, per_time, good_table], [],
+             ["warning"]),
+            ("neurcomp --bounds only", ["neurcomp", p_neur, out, "--bounds", "0", "8", "0", "16",
+                                        "0", "4"], [volume_shape, "--bounds", output_range], []),
+            ("neurcomp complete", ["neurcomp", p_neur, out] + neur_full, [], ["warning"]),
+        ]
+        for name, args, must, must_not in goods:
             rc, msg = export(args)
-            print("%s %-28s rc=%d" % ("ok  " if rc == 0 else "FAIL", name, rc))
-            if rc != 0:
-                print("     " + msg)
+            bad = [] if rc == 0 else ["exit status %d" % rc]
+            bad += ["message lacks %r" % w for w in must if w not in msg]
+            bad += ["message has %r" % w for w in must_not if w in msg]
+            print("%s %-28s rc=%d" % ("FAIL" if bad else "ok  ", name, rc))
+            if bad:
+                print("     " + "; ".join(bad) + "\n     " + msg.replace("\n", "\n     "))
                 ok_all = False
     return 0 if ok_all else 1
 

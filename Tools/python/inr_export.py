@@ -100,8 +100,8 @@ def load_state_dict(path, prefix=None):
 
     Accepts a bare state_dict, a checkpoint dict holding one under ``state_dict`` /
     ``model_state_dict`` / ``model`` / ``net``, or a pickled nn.Module. A ``module.`` prefix
-    on every key (nn.DataParallel) is removed. With ``prefix`` only keys starting with it are
-    kept, with the prefix removed.
+    on every key (nn.DataParallel) is removed. With ``prefix`` only keys starting with it (as
+    stored, else after removing ``module.``) are kept, with the prefix removed.
     """
     path = str(path)
     if not os.path.exists(path):
@@ -119,7 +119,7 @@ def load_state_dict(path, prefix=None):
             except TypeError:  # torch < 1.13 has no weights_only
                 obj = torch.load(path, map_location="cpu")
         except Exception as e:  # noqa: BLE001 - report any unpickling failure clearly
-            raise ExportError("%s: cannot load with torch.load: %s" % (path, e))
+            raise ExportError("%s: %s (torch.load: %s)" % (path, _damage(path), e))
         if hasattr(obj, "state_dict") and callable(obj.state_dict):
             obj = obj.state_dict()
     if isinstance(obj, dict):
@@ -134,16 +134,44 @@ def load_state_dict(path, prefix=None):
         if not hasattr(v, "shape"):
             continue
         sd[str(k)] = _to_numpy(v)
-    if sd and all(k.startswith("module.") for k in sd):
-        sd = collections.OrderedDict((k[len("module."):], v) for k, v in sd.items())
+    def strip(d, p):
+        return collections.OrderedDict((k[len(p):], v) for k, v in d.items() if k.startswith(p))
+
+    # The prefix is matched against the keys as stored first (so --prefix module.net. works on a
+    # DataParallel checkpoint), then against the keys without DataParallel's "module.".
+    unwrapped = strip(sd, "module.") if sd and all(k.startswith("module.") for k in sd) else sd
     if prefix:
-        sd = collections.OrderedDict((k[len(prefix):], v) for k, v in sd.items()
-                                     if k.startswith(prefix))
+        sd = strip(sd, prefix) or strip(unwrapped, prefix)
         if not sd:
-            raise ExportError("%s: no key starts with prefix %r" % (path, prefix))
+            raise ExportError("%s: no key starts with prefix %r (the file has e.g. %s)"
+                              % (path, prefix, ", ".join(repr(k) for k in list(unwrapped)[:4])))
+    else:
+        sd = unwrapped
     if not sd:
         raise ExportError("%s: the state_dict holds no tensors" % path)
     return sd
+
+
+def _damage(path):
+    """Why torch.load could not read ``path``, in words a user can act on."""
+    size = os.path.getsize(path)
+    if size == 0:
+        return "the file is empty"
+    with open(path, "rb") as f:
+        magic = f.read(4)
+    if magic == b"PK\x03\x04":  # the zip container torch.save writes since PyTorch 1.6
+        import zipfile
+        try:
+            with zipfile.ZipFile(path) as z:
+                bad = z.testzip()
+        except (zipfile.BadZipFile, OSError, EOFError):
+            return ("the file is truncated or corrupt: an incomplete zip archive (the container "
+                    "of torch.save) of %d bytes; copy or download it again" % size)
+        if bad:
+            return "the file is corrupt: archive member %r fails its checksum" % bad
+        return "the file is a complete zip archive but not one torch.load can read"
+    return ("the file is truncated or corrupt, or not a PyTorch file (%d bytes; a state_dict "
+            "is written by torch.save)" % size)
 
 
 class _Keys(object):
@@ -387,6 +415,10 @@ def _reed_ffn(K, o):
         raise ExportError("%s: key 'main.%d.weight' has shape %s: expected [2*nf, 2*nf(,1,1,1)]"
                           % (K.where, idx[0], list(K.sd["main.%d.weight" % idx[0]].shape)))
     nf = first[1] // 2
+    if o.fourier_B and o.reed_sigma is not None:
+        raise ExportError("--fourier-B and --reed-sigma both give the Fourier matrix B: use "
+                          "--fourier-B FILE for the trained B, or --reed-sigma S to regenerate "
+                          "it, not both")
     if o.fourier_B:
         B = np.asarray(_load_matrix(o.fourier_B), dtype=np.float64)
         if B.ndim != 2 or nf not in B.shape:
@@ -706,6 +738,31 @@ def make_parser():
     return ap
 
 
+# Layouts whose networks are trained on normalised targets: without an output mapping the file
+# holds those normalised values, not data units.
+_NORMALISED_OUTPUT = {
+    "coordnet": "CoordNet is trained on targets normalised per time step, so without "
+                "--per-time-table FILE (lines 't min max' of the training data) the file holds "
+                "normalised values, not data units",
+    "neurcomp": "FieldNet is trained on the volume scaled to [-1, 1], so without --output-range "
+                "MIN MAX (the training volume's range) the file holds the network's [-1, 1], "
+                "not data units",
+}
+
+
+def _warn_omissions(opts, output):
+    """Warns about options whose absence silently gives values other than the training data's."""
+    def warn(text):
+        sys.stderr.write("inr_export: warning: %s: %s\n" % (opts.layout, text))
+    if opts.layout in _NORMALISED_OUTPUT and output is None:
+        warn(_NORMALISED_OUTPUT[opts.layout])
+    if opts.layout == "neurcomp" and not opts.neurcomp_volume_shape and not opts.input_range:
+        warn("no --neurcomp-volume-shape: every axis of the box%s maps onto [-1, 1], but FieldNet "
+             "scales its inputs by the training volume's aspect ((n-1)/max(n-1) per axis), so a "
+             "non-cubic volume comes out stretched; give --neurcomp-volume-shape NX NY NZ"
+             % (" (--bounds)" if opts.bounds else ""))
+
+
 def export(opts):
     """Run one export described by parsed options; returns the output path."""
     if opts.first_w0 is None:
@@ -714,6 +771,7 @@ def export(opts):
     tensors, arch, defaults = convert(sd, opts.layout, opts, where=opts.input)
     domain = build_domain(opts, arch["input_dim"], defaults)
     output, vr = build_output(opts, defaults)
+    _warn_omissions(opts, output)
     prov = opts.provenance or defaults.get("provenance") or (
         "inr_export.py %s from %s%s" % (opts.layout, os.path.basename(opts.input),
                                         "; " + defaults["_provenance"]

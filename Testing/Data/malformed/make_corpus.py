@@ -152,6 +152,49 @@ def main():
     case("not an INR model (plain safetensors)", "plain_safetensors.inr", "not an INR Volume model", build(meta=meta))
     case("unsupported format version", "future_version.inr", "not supported",
          build(meta=metadata(format_version="99")))
+    # Numbers that are valid JSON but overflow what the loader and the fp32 renderer can use.
+    case("box extent overflows", "bounds_overflow.inr", "domain.bounds: the x extent",
+         build(meta=metadata(domain={"bounds": [-1e308, 1e308, 0, 1, 0, 1], "time_range": [0, 1]})))
+    case("time range overflows", "time_range_overflow.inr", "domain.time_range",
+         build(meta=metadata(domain={"bounds": [0, 1, 0, 1, 0, 1], "time_range": [-1e308, 1e308]})))
+    case("input map overflows", "input_map_overflow.inr", "onto the network input",
+         build(meta=metadata(domain={"bounds": [0, 1e-300, 0, 1, 0, 1], "time_range": [0, 1]})))
+    case("resolution out of range", "resolution_huge.inr", "domain.resolution entries",
+         build(meta=metadata(domain={"bounds": [0, 1, 0, 1, 0, 1], "time_range": [0, 1], "centering": "cell",
+                                     "resolution": [1e300, 4, 4]})))
+    meta = metadata()
+    meta["architecture"] = json.dumps(ARCH).replace('"w0": 30', '"w0": 1e999')
+    case("number overflows double (JSON library error)", "number_overflow.inr",
+         "'architecture' holds a number outside the double range", build(meta=meta))
+    arch = json.loads(json.dumps(ARCH))
+    arch["layers"][1]["w0"] = 1e300
+    case("parameter beyond fp32", "w0_beyond_fp32.inr", "layers[1].w0 is 1e+300, outside the fp32 range",
+         build(meta=metadata(arch=arch)))
+    arch = json.loads(json.dumps(ARCH))
+    arch["input_dim"] = 2 ** 32 + 4
+    case("input_dim beyond int", "input_dim_huge.inr", "input_dim is 4294967300", build(meta=metadata(arch=arch)))
+    case("field of the wrong JSON type", "centering_not_string.inr", "domain.centering must be a string",
+         build(meta=metadata(domain={"bounds": [0, 1, 0, 1, 0, 1], "time_range": [0, 1], "centering": 5})))
+    case("output scale beyond fp32", "output_scale_huge.inr", "output.scale is",
+         build(meta=metadata(output=json.dumps({"scale": 1e300}))))
+    case("per-time output map overflows", "per_time_overflow.inr", "output.per_time: the value map",
+         build(meta=metadata(output=json.dumps({"per_time": {"times": [0, 1], "min": [-1e308, 0],
+                                                             "max": [1e308, 1]}}))))
+    case("value range beyond fp32", "value_range_huge.inr", "value_range",
+         build(meta=metadata(value_range=json.dumps([1e300, 2e300]))))
+    case("zero-element tensor", "empty_tensor.inr", "has no elements",
+         build(tensors() + [("empty", "F32", [0], [])]))
+    case("F64 weight beyond fp32", "f64_beyond_fp32.inr", "outside the fp32 range",
+         build(replace(tensors(), "l0.bias", dtype="F64", values=[1e300] + [0.0] * 7)))
+
+    def header_overflow(h):
+        h["l0.bias"]["data_offsets"] = "OVERFLOW"
+    raw = build(header_patch=header_overflow)
+    n = struct.unpack("<Q", raw[:8])[0]
+    hdr = raw[8:8 + n].rstrip().replace(b'"OVERFLOW"', b"[32, 1e999]")
+    hdr += b" " * (-len(hdr) % 8)
+    case("header number overflows double", "header_number_overflow.inr", "number overflow",
+         struct.pack("<Q", len(hdr)) + hdr + raw[8 + n:])
     with open(os.path.join(HERE, "manifest.json"), "w") as f:
         json.dump(CASES, f, indent=1)
         f.write("\n")
