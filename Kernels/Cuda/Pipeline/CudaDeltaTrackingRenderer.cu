@@ -209,6 +209,17 @@ void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& dept
 
 void CudaDeltaTrackingRenderer::sceneUpdateDone() { INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
 
+CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int frame) {
+  Impl& I = *impl_;
+  FrameSetup f;
+  f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
+  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
+  f.refine = macrocells_.refineView();
+  f.refine.frameRefinements = I.stats.get() + kStatRefinements;
+  f.rs = I.rays.view();
+  return f;
+}
+
 void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   Impl& I = *impl_;
   I.downloadStats();
@@ -234,11 +245,11 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   I.timer.end(s);
 
-  const FrameConstants fc = WavefrontRenderer::frameConstants(std::uint32_t(st.frame), I.depth.get());
-  const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
-  DeviceRefineView refine = macrocells_.refineView();
-  refine.frameRefinements = I.stats.get() + kStatRefinements;
-  const RayStateView rs = I.rays.view();
+  const FrameSetup f = frameSetup(st.frame);
+  const FrameConstants& fc = f.fc;
+  const TrackingMedium& medium = f.medium;
+  const DeviceRefineView& refine = f.refine;
+  const RayStateView& rs = f.rs;
   const int n = rs.count;
 
   I.timer.begin(cuda::kInit, s);

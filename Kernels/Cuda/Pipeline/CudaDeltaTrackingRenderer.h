@@ -78,6 +78,15 @@ private:
   void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                       FrameStats& total) override;
   void endGhostPasses(FrameStats& total) override;
+  // What every frame's launches read: constants, medium, refinement view (counting into the
+  // frame's statistics), ray state. Callers bring the majorants up to date first.
+  struct FrameSetup {
+    FrameConstants fc;
+    TrackingMedium medium;
+    DeviceRefineView refine;
+    RayStateView rs;
+  };
+  FrameSetup frameSetup(int frame);
   void readFrameStats(FrameStats& st);
 
   const DeviceFieldEvaluator& evaluator_;

@@ -82,11 +82,9 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const auto tFrame = std::chrono::steady_clock::now();
   I.clearStats();
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
-  const FrameConstants fc = WavefrontRenderer::frameConstants(std::uint32_t(st.frame), I.depth.get());
-  const TrackingMedium medium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
-  DeviceRefineView refine = macrocells_.refineView();
-  refine.frameRefinements = I.stats.get() + kStatRefinements;
-  const RayStateView rs = I.rays.view();
+  const FrameSetup f = frameSetup(st.frame);
+  const FrameConstants& fc = f.fc;
+  const RayStateView& rs = f.rs;
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.
   const std::size_t perThread = network.scratchBytesPerThread();
@@ -97,8 +95,8 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const int maxSteps = 1 << 16;
   for (int first = 0; first < n; first += chunk) {
     const int count = std::min(chunk, n - first);
-    naiveKernel<<<blocksFor(count), kThreads, 0, s>>>(fc, medium, rs, I.pixels.view(), net, first, count,
-                                                      options_.refineMacrocells ? 1 : 0, refine, I.stats.get(),
+    naiveKernel<<<blocksFor(count), kThreads, 0, s>>>(fc, f.medium, rs, I.pixels.view(), net, first, count,
+                                                      options_.refineMacrocells ? 1 : 0, f.refine, I.stats.get(),
                                                       I.sums.get(), maxSteps);
     INR_CUDA_CHECK_LAUNCH("naiveKernel");
   }
