@@ -311,7 +311,9 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
   lo_ = float(r[0]);
   hi_ = float(r[1]);
   if (!(hi_ > lo_)) hi_ = lo_ + 1.f;  // a single point: constant function, any span works
-  invUnitDistance_ = float(1.0 / tf.unitDistance);
+  // Clamped so extinction stays finite (a unit distance of 1e-300 would give inf, and 0 * inf =
+  // NaN majorants for transparent cells): 1e30 per world unit is opaque at any scale.
+  invUnitDistance_ = float(std::min(1.0 / tf.unitDistance, 1e30));
   rgba_.resize(size);
   for (int i = 0; i < size; ++i) {
     const double x = double(lo_) + (double(hi_) - lo_) * i / (size - 1);
