@@ -29,7 +29,9 @@
 #include "Backends/RenderSession.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Model/InrModel.h"
+#include "Render/ModelBox.h"
 #include "TestSupport/TestModelBuilder.h"
+#include "TestSupport/TestScene.h"
 #include "Render/WavefrontRenderer.h"
 
 #ifdef INR_STRESS_CUDA
@@ -204,11 +206,6 @@ InrModel fp32OverflowModel(bool mixedSigns) {
                                modelMetadata(arch, domainJson({-1, 1, -1, 1, -1, 1}))));
 }
 
-Box3f boxOf(const InrModel& m) {
-  const auto& b = m.domain.bounds;
-  return {{float(b[0]), float(b[2]), float(b[4])}, {float(b[1]), float(b[3]), float(b[5])}};
-}
-
 // The finite range of the model's values (CPU evaluator, so both builds use the same TF).
 std::array<float, 2> finiteRange(const InrModel& model) {
   const CpuInrEvaluator e(model, CpuEvaluatorOptions{256, 1});
@@ -242,22 +239,10 @@ RenderSettings tinySettings(int w = 24, int h = 16) {
   return s;
 }
 
-// An oblique view of the whole box, the preset TF over `range`, unit distance diag / 12.
+// The tests' oblique view (test::testScene) with the preset TF at opacity 0.8 over `range`.
 RenderScene defaultScene(const InrModel& model, const std::array<float, 2>& range, bool shadows = false) {
-  const Box3f box = boxOf(model);
-  RenderScene scene;
-  scene.camera = Camera::framing(box);
-  const auto& f = scene.camera.focalPoint;
-  const double d = scene.camera.position[2] - f[2];
-  scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
-  scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.8);
-  scene.transferFunction.unitDistance = double(length(box.hi - box.lo)) / 12.0;
+  RenderScene scene = test::testScene(model, range, shadows, ShadowEstimator::Ratio, 0.8);
   scene.background = {0.1f, 0.2f, 0.3f};
-  scene.shadows = shadows;
-  scene.ambient = 0.3f;
-  scene.toLight = defaultLightDirection(scene.camera);
-  scene.shadowEstimator = ShadowEstimator::Ratio;
   return scene;
 }
 
@@ -836,8 +821,10 @@ TEST_F(Stress, BoxesTinyAndHuge) {
 
 // ------------------------------------------------------------------------------------- extreme inputs
 
-// The scenes of GpuSceneTest.NoNanPixelsUnderExtremeInputs (Cuda/Pipeline/CudaPipeline_test.cpp)
-// through RenderSession on either backend.
+// Camera inside the box with NaN / negative / zero / infinite / tiny / huge / denormal depth
+// limits, a nearly opaque TF over a tiny unit distance, a time outside the range, ghost passes;
+// then parallel projection with ratio-tracked shadows (formerly a GPU-only test, now on both
+// backends through RenderSession).
 TEST_F(Stress, ExtremeInputsOfTheGpuSceneTest) {
   const InrModel model = smoothModel();
   const auto range = finiteRange(model);
@@ -849,7 +836,7 @@ TEST_F(Stress, ExtremeInputsOfTheGpuSceneTest) {
   s->setSettings(settings);
   RenderScene scene = defaultScene(model, range, true);
   scene.shadowEstimator = ShadowEstimator::Delta;
-  const Box3f box = boxOf(model);
+  const Box3f box = modelWorldBox(model);
   const Vec3f c = (box.lo + box.hi) * 0.5f;
   scene.camera.position = {c.x + 0.01, c.y - 0.02, c.z + 0.03};
   scene.camera.focalPoint = {c.x + 1.0, c.y + 0.3, c.z - 0.2};

@@ -19,7 +19,7 @@ namespace inr::test {
 // Ratio-tracked shadow transmittance by default: same expectation as delta tracking's binary
 // visibility (DeltaTracking.RatioTrackedShadowsAgreeWithDeltaShadows), less noise per frame.
 inline RenderScene testScene(const InrModel& model, const std::array<float, 2>& range, bool shadows,
-                             ShadowEstimator shadowEstimator = ShadowEstimator::Ratio) {
+                             ShadowEstimator shadowEstimator = ShadowEstimator::Ratio, double maxOpacity = 0.6) {
   const Box3f box = modelWorldBox(model);
   RenderScene scene;
   scene.camera = Camera::framing(box);
@@ -27,7 +27,7 @@ inline RenderScene testScene(const InrModel& model, const std::array<float, 2>& 
   const double d = scene.camera.position[2] - f[2];
   scene.camera.position = {f[0] + 0.55 * d, f[1] + 0.4 * d, f[2] + 0.75 * d};
   scene.time = 0.5 * (model.domain.timeBegin + model.domain.timeEnd);
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.6);
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], maxOpacity);
   scene.transferFunction.unitDistance = length(box.hi - box.lo) / 12.0;
   scene.background = {0.1f, 0.1f, 0.15f};
   scene.shadows = shadows;

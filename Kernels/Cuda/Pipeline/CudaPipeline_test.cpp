@@ -439,48 +439,6 @@ TEST_F(GpuSceneTest, SceneChangesDoOnlyTheWorkTheyNeed) {
   EXPECT_EQ(nonFinitePixels(r.image()), 0u);
 }
 
-TEST_F(GpuSceneTest, NoNanPixelsUnderExtremeInputs) {
-  TrackingOptions topts;
-  topts.ghostPassesOnUpdate = 2;
-  CudaDeltaTrackingRenderer r(*eval, *grid, topts);
-  RenderSettings settings;
-  settings.width = 37;
-  settings.height = 23;  // odd sizes: partial blocks and warps
-  r.setSettings(settings);
-  RenderScene scene = testScene(*model, range, true);
-  scene.shadowEstimator = ShadowEstimator::Delta;
-  // Camera inside the box looking through it.
-  const Box3f box = modelWorldBox(*model);
-  const Vec3f c = (box.lo + box.hi) * 0.5f;
-  scene.camera.position = {c.x + 0.01, c.y - 0.02, c.z + 0.03};
-  scene.camera.focalPoint = {c.x + 1.0, c.y + 0.3, c.z - 0.2};
-  scene.camera.viewUp = {0, 0, 1};
-  // Depth limits: NaN, negative, zero, infinite, tiny.
-  scene.depthLimit.assign(std::size_t(settings.width) * settings.height, INFINITY);
-  for (std::size_t i = 0; i < scene.depthLimit.size(); i += 5) scene.depthLimit[i] = NAN;
-  for (std::size_t i = 1; i < scene.depthLimit.size(); i += 7) scene.depthLimit[i] = -1.f;
-  for (std::size_t i = 2; i < scene.depthLimit.size(); i += 11) scene.depthLimit[i] = 0.f;
-  for (std::size_t i = 3; i < scene.depthLimit.size(); i += 13) scene.depthLimit[i] = 1e-6f;
-  // Nearly opaque TF over a tiny unit distance, and a time outside the model's range.
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 1.0);
-  scene.transferFunction.unitDistance = 1e-4;
-  scene.time = model->domain.timeEnd + 10.0;
-  r.setScene(scene);
-  for (int k = 0; k < 4; ++k) r.renderFrame();
-  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
-  // Parallel projection, transparent-to-opaque step TF, shadows with ratio tracking.
-  scene.camera = Camera::framing(box);
-  scene.camera.parallelProjection = true;
-  scene.camera.parallelScale = 0.5 * length(box.hi - box.lo);
-  scene.depthLimit.clear();
-  scene.shadowEstimator = ShadowEstimator::Ratio;
-  scene.transferFunction.unitDistance = 1e3;
-  r.setScene(scene);
-  for (int k = 0; k < 4; ++k) r.renderFrame();
-  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
-  EXPECT_EQ(r.counters().truncatedFrames, 0);
-}
-
 // CudaMacrocellGrid on a DeviceFieldEvaluator other than the network: the analytic smooth field
 // (test::smoothField on host and device). The GPU grid computes the CPU grid's lattice points,
 // stencil reductions and interpolation bit for bit (MacrocellLayout), so slices and working
