@@ -1101,6 +1101,12 @@ std::size_t deviceBytesInUse() {
 // warm-up. The times cycle through 50 values covering the range, so every slice is built during
 // the warm-up.
 TEST_F(Stress, NoGrowthOverThousandsOfTimeAndTransferFunctionChanges) {
+#if defined(__SANITIZE_ADDRESS__)
+  // ASan keeps freed memory in its quarantine (256 MiB by default), so resident memory grows
+  // with any allocation churn; its leak checker covers this build instead.
+  GTEST_SKIP() << "resident-memory growth is not measurable under AddressSanitizer (quarantine); "
+                  "LeakSanitizer checks this build";
+#endif
   const InrModel model = smoothModel();
   const auto range = finiteRange(model);
   const RenderSessionOptions o = sessionOptions(64, 8, 16);
