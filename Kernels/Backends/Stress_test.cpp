@@ -89,9 +89,11 @@ json domainJson(const std::array<double, 6>& bounds, double t0 = 0.0, double t1 
 
 // A small time-varying SIREN-like network, 4 -> 16 -> 16 -> 1, on `bounds` (the network sees
 // [-1, 1]^4 whatever the box): cheap on the CPU, the fused fp16 kernel on the GPU.
-InrModel smoothModel(const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
+// 4 -> 16 (sine, w0 2) -> 16 (sine, w0 1) -> 1 with the given weights, output bias 0.5.
+InrModel sineNetwork(const std::vector<float>& w0, const std::vector<float>& b0, const std::vector<float>& w1,
+                     const std::vector<float>& b1, const std::vector<float>& w2,
+                     const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
                      double t1 = 10.0) {
-  std::mt19937 rng(11);
   const int h = 16;
   const json arch = {{"input_dim", 4},
                      {"layers",
@@ -100,13 +102,19 @@ InrModel smoothModel(const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}
                        {{"type", "linear"}, {"weight", "w1"}, {"bias", "b1"}},
                        {{"type", "sine"}, {"w0", 1.0}},
                        {{"type", "linear"}, {"weight", "w2"}, {"bias", "b2"}}}}};
-  return load(buildSafeTensors({{"w0", {h, 4}, randomValues(h * 4, rng, 1.5f)},
-                                {"b0", {h}, randomValues(h, rng, 1.f)},
-                                {"w1", {h, h}, randomValues(h * h, rng, 0.4f)},
-                                {"b1", {h}, randomValues(h, rng, 0.5f)},
-                                {"w2", {1, h}, randomValues(h, rng, 0.3f)},
-                                {"b2", {1}, {0.5f}}},
+  return load(buildSafeTensors({{"w0", {h, 4}, w0}, {"b0", {h}, b0}, {"w1", {h, h}, w1}, {"b1", {h}, b1},
+                                {"w2", {1, h}, w2}, {"b2", {1}, {0.5f}}},
                                modelMetadata(arch, domainJson(bounds, t0, t1))));
+}
+
+InrModel smoothModel(const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
+                     double t1 = 10.0) {
+  std::mt19937 rng(11);
+  const int h = 16;
+  std::vector<float> w0 = randomValues(h * 4, rng, 1.5f), b0 = randomValues(h, rng, 1.f),
+                     w1 = randomValues(h * h, rng, 0.4f), b1 = randomValues(h, rng, 0.5f),
+                     w2 = randomValues(h, rng, 0.3f);
+  return sineNetwork(w0, b0, w1, b1, w2, bounds, t0, t1);
 }
 
 // value = `value` everywhere (zero weights): majorant == extinction, every candidate is real.
@@ -130,20 +138,9 @@ InrModel hugeHiddenWeightsModel(float hiddenScale) {
   const int h = 16;
   std::vector<float> w1 = randomValues(h * h, rng, 1.f);
   for (auto& w : w1) w = w < 0.f ? -hiddenScale : hiddenScale;
-  const json arch = {{"input_dim", 4},
-                     {"layers",
-                      {{{"type", "linear"}, {"weight", "w0"}, {"bias", "b0"}},
-                       {{"type", "sine"}, {"w0", 2.0}},
-                       {{"type", "linear"}, {"weight", "w1"}, {"bias", "b1"}},
-                       {{"type", "sine"}, {"w0", 1.0}},
-                       {{"type", "linear"}, {"weight", "w2"}, {"bias", "b2"}}}}};
-  return load(buildSafeTensors({{"w0", {h, 4}, randomValues(h * 4, rng, 1.5f)},
-                                {"b0", {h}, randomValues(h, rng, 1.f)},
-                                {"w1", {h, h}, w1},
-                                {"b1", {h}, randomValues(h, rng, 0.5f)},
-                                {"w2", {1, h}, randomValues(h, rng, 0.3f)},
-                                {"b2", {1}, {0.5f}}},
-                               modelMetadata(arch, domainJson({-1, 1, -1, 1, -1, 1}))));
+  std::vector<float> w0 = randomValues(h * 4, rng, 1.5f), b0 = randomValues(h, rng, 1.f),
+                     b1 = randomValues(h, rng, 0.5f), w2 = randomValues(h, rng, 0.3f);
+  return sineNetwork(w0, b0, w1, b1, w2);
 }
 
 // ReLU network whose activations grow by `scale` per layer: scale 1e5 gives activations ~1e5..1e10

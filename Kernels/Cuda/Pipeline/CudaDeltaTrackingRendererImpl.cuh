@@ -24,10 +24,6 @@ template <typename T>
 T* arrayData(DeviceBuffer<T>& a) {
   return a.get();
 }
-template <typename T>
-T* arrayData(const DeviceBuffer<T>& a) {
-  return a.get();
-}
 }  // namespace cuda
 
 namespace pipeline {
