@@ -37,6 +37,8 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowIterations += o.shadowIterations;
   refinements += o.refinements;
   cappedRays += o.cappedRays;
+  budgetSkipped += o.budgetSkipped;
+  pruned += o.pruned;
   updateMs += o.updateMs;
   initMs += o.initMs;
   traverseMs += o.traverseMs;
@@ -125,7 +127,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.updateMs += applyDirtyMajorants();
 
   const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
-  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view()};
+  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const int n = rs.count;
 
@@ -185,7 +187,7 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   st.updateMs += applyDirtyMajorants();
 
   const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
-  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view()};
+  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const AccumulationView acc = pixels_.view();
   const int n = rs.count;
@@ -233,7 +235,7 @@ void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, c
                                            int stride, FrameStats& total) {
   MajorantArrays ghostMajorants;
   macrocells_.computeMajorants(table.view(), ghostMajorants);
-  const TrackingMedium medium{macrocells_.view(ghostMajorants), table.view()};
+  const TrackingMedium medium{macrocells_.view(ghostMajorants), table.view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const int n = rs.count;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)

@@ -9,8 +9,10 @@
 // simply leave a pixel's ray inactive.
 #include <cstdint>
 
+#include "Render/Budgeting.h"
 #include "Render/CameraView.h"
 #include "Render/MajorantGrid.h"
+#include "Render/Pruning.h"
 #include "Render/RenderMath.h"
 #include "Render/TransferFunctionTable.h"
 
@@ -103,6 +105,7 @@ struct FrameConstants {
   // (kRayCapped; it counts as escaped). Every candidate collision takes two draws, so this caps
   // the null collisions a pathological majorant (a tiny opacity unit distance) can cost.
   std::uint32_t maxRngDraws = 0xffffffffu;
+  BudgetConstants budget;             // which pixels get a ray this frame (Budgeting.h)
 };
 
 // What traversal tracks against: the majorant grid and the transfer function. Ghost passes swap
@@ -110,6 +113,7 @@ struct FrameConstants {
 struct TrackingMedium {
   MajorantGridView grid;
   TransferFunctionView tf;
+  PruneView prune;  // homogeneity pruning (off in ghost passes)
 };
 
 }  // namespace inr

@@ -17,6 +17,8 @@ struct FrameStats {
   int shadowIterations = 0;
   std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
   std::size_t cappedRays = 0;   // rays cut off by the per-ray collision cap (bounded work)
+  std::size_t budgetSkipped = 0;  // pixels ray budgeting left out this frame (no ray cast)
+  std::size_t pruned = 0;         // candidate collisions answered by homogeneity pruning (no query)
   // Sum over all pixels of the convergence residual r_i after this frame (reduced where the
   // pixels live: a few bytes per frame leave the GPU). State, not a count: += keeps the later.
   double residualSum = 0;

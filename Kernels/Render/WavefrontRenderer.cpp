@@ -70,6 +70,14 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   if (change.majorants() && options_.ghostPassesOnUpdate > 0) runGhostPasses(options_.ghostPassesOnUpdate);
 }
 
+void WavefrontRenderer::setQueryReduction(const QueryReductionSettings& settings) {
+  settings.validate();
+  const bool pruningChanged = settings.pruneEpsilon != queryReduction_.pruneEpsilon ||
+                              settings.pruneFalloff != queryReduction_.pruneFalloff;
+  queryReduction_ = settings;
+  if (pruningChanged) resetAccumulation();
+}
+
 void WavefrontRenderer::allocatePixels() {
   resizePixels(std::size_t(settings_.width) * settings_.height);
   clearAccumulation();

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "Common/ImageIO.h"
+#include "Render/QueryReduction.h"
 #include "Render/RayState.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneChange.h"
@@ -65,6 +66,13 @@ public:
   // Ghost passes: primary passes with cosine-bump TFs sweeping the value range, not displayed,
   // so under-estimated macrocells get visited and refined. Returns their summed stats.
   FrameStats runGhostPasses(int count);
+
+  // Query reduction (QueryReduction.h): validates (std::invalid_argument naming the parameter).
+  // Changing the pruning thresholds restarts accumulation (they change what converges);
+  // budgeting and reprojection settings do not (they change which pixels get rays, not the image
+  // the accumulation converges to).
+  void setQueryReduction(const QueryReductionSettings& settings);
+  const QueryReductionSettings& queryReduction() const { return queryReduction_; }
 
   void resetAccumulation();
   int accumulatedFrames() const { return frameIndex_; }
@@ -122,6 +130,7 @@ protected:
   CameraView cameraView_{};
   std::unique_ptr<TransferFunctionTable> tfTable_;
   RendererCounters counters_;
+  QueryReductionSettings queryReduction_;
 
 private:
   int frameIndex_ = 0;

@@ -213,7 +213,7 @@ CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int 
   Impl& I = *impl_;
   FrameSetup f;
   f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
-  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view()};
+  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view(), PruneView{}};
   f.refine = macrocells_.refineView();
   f.refine.frameRefinements = I.stats.get() + kStatRefinements;
   f.rs = I.rays.view();
@@ -303,7 +303,7 @@ void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& tabl
   const cudaStream_t s = I.stream;
   I.ghostTf.upload(table, s);
   macrocells_.computeMajorants(I.ghostTf.view(), I.ghostMajorants.get(), I.ghostBlocks());
-  const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get(), I.ghostBlocks()), I.ghostTf.view()};
+  const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get(), I.ghostBlocks()), I.ghostTf.view(), PruneView{}};
   DeviceRefineView refine = macrocells_.refineView();
   refine.frameRefinements = I.stats.get() + kStatRefinements;
   const RayStateView rs = I.rays.view();

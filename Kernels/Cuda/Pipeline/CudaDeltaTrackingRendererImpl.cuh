@@ -32,7 +32,8 @@ inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThre
 
 // Per-frame device counters (one read-back at the end of the frame).
 enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
-                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCovered = 7, kStatCount = 8 };
+                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCovered = 7, kStatPruned = 8, kStatBudgetSkipped = 9,
+                kStatCount = 10 };
 // Per-frame device sums of the convergence estimate (doubles).
 enum SumSlot { kSumResidual = 0, kSumVariance = 1, kSumCount = 2 };
 }  // namespace pipeline
