@@ -9,6 +9,7 @@
 #include "Render/Evaluate.h"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
+#include "Render/Reproject.h"
 #include "Render/Shadows.h"
 #include "Render/Traverse.h"
 
@@ -126,19 +127,22 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
-  const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
+  const FrameConstants fc = frameConstants(frameKey());
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const int n = rs.count;
 
+  const AccumulationView acc = pixels_.view();
   auto t0 = Clock::now();
-  std::size_t active = 0;
-#pragma omp parallel for schedule(static) reduction(+ : active) if (n >= kParallelMinItems)
+  std::size_t active = 0, skipped = 0;
+#pragma omp parallel for schedule(static) reduction(+ : active, skipped) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) {
-    initPrimaryRay(fc, medium.grid, rs, i);
+    initBudgetedRay(fc, medium.grid, rs, acc, i);
     active += (rs.flags[i] & kRayActive) ? 1 : 0;
+    skipped += (rs.flags[i] & kRayBudgetSkipped) ? 1 : 0;
   }
   st.rays = active;
+  st.budgetSkipped = skipped;
   st.initMs = msSince(t0);
 
   bool truncated = false;
@@ -159,24 +163,25 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   }
 
   t0 = Clock::now();
-  const AccumulationView acc = pixels_.view();
   double residualSum = 0.0, varianceSum = 0.0;
   std::size_t capped = 0, covered = 0;
-#pragma omp parallel for schedule(static) reduction(+ : residualSum, varianceSum, capped, covered) \
-    if (n >= kParallelMinItems)
+  std::uint32_t histogram[kResidualBins] = {};
+#pragma omp parallel for schedule(static) \
+    reduction(+ : residualSum, varianceSum, capped, covered, histogram[:kResidualBins]) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) {
     capped += (rs.flags[i] & kRayCapped) ? 1 : 0;
     const PixelConvergence pc = finalizePixel(fc, rs, acc, i);
     residualSum += pc.residual;
     varianceSum += pc.meanVariance;
     covered += std::size_t(pc.covered);
+    if (pc.residualBin >= 0) ++histogram[pc.residualBin];
   }
   st.residualSum = residualSum;
   st.varianceSum = varianceSum;
   st.coveredPixels = covered;
   st.cappedRays = capped;
   st.finalizeMs = msSince(t0);
-  endFrame(st, truncated);
+  endFrame(st, truncated, histogram);
   st.totalMs = msSince(tFrame);
   return st;
 }
@@ -186,7 +191,7 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
-  const FrameConstants fc = frameConstants(std::uint32_t(st.frame));
+  const FrameConstants fc = frameConstants(frameKey());
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const AccumulationView acc = pixels_.view();
@@ -229,6 +234,24 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   st.totalMs = msSince(tFrame);
   st.traverseMs = st.totalMs;  // traversal and evaluation are interleaved; not separable
   return st;
+}
+
+BlueNoiseMaskView DeltaTrackingRenderer::blueNoiseMask() { return shippedBlueNoiseMask().view(); }
+
+void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                                                  std::uint32_t maxHistory) {
+  const int n = int(pixels_.count);
+  history_.resize(pixels_.count);
+  std::swap(history_, pixels_);
+  pixels_.resize(history_.count);
+  reprojectKeys_.assign(pixels_.count, kNoReprojection);
+  const AccumulationView history = history_.view(), acc = pixels_.view();
+  std::uint64_t* keys = reprojectKeys_.data();
+  // Scatter serially: the minimum is order-independent anyway, and it is a few offers per pixel.
+  for (int j = 0; j < n; ++j)
+    reprojectionOffers(newView, history, j, [&](int i, std::uint64_t key) { keys[i] = std::min(keys[i], key); });
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, history, acc, i, keys[i], maxHistory);
 }
 
 void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,

@@ -48,7 +48,11 @@ private:
                       FrameStats& total) override;
   void endGhostPasses(FrameStats& total) override { total.updateMs = applyDirtyMajorants(); }
 
-  FrameConstants frameConstants(std::uint32_t frame) const {
+  BlueNoiseMaskView blueNoiseMask() override;
+  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                             std::uint32_t maxHistory) override;
+
+  FrameConstants frameConstants(std::uint32_t frame) {
     return WavefrontRenderer::frameConstants(frame, scene_.depthLimit.data());
   }
   double applyDirtyMajorants();
@@ -61,6 +65,8 @@ private:
   MajorantArrays majorants_;
   RayStateArrays<HostArray> rays_;
   PixelStateArrays<HostArray> pixels_;
+  PixelStateArrays<HostArray> history_;       // reprojection's copy of the old accumulation
+  std::vector<std::uint64_t> reprojectKeys_;  // reprojection's per-pixel minimum offer
   QueryBatch batch_;
 };
 

@@ -18,6 +18,8 @@ INR_HD void resetPixel(const AccumulationView& acc, int i) {
   acc.sampleCount[i] = 0u;
   acc.residual[i] = 1.f;
   acc.m2[i] = 0.f;
+  acc.skip[i] = -1;
+  acc.hitPoint[i] = Vec3f{0.f, 0.f, 0.f};
 }
 
 // What a pixel adds to the frame's convergence sums.
@@ -25,7 +27,26 @@ struct PixelConvergence {
   float residual;      // r_i
   float meanVariance;  // estimated variance of the displayed mean (RGB average); 0 when not covered
   int covered;         // the volume has covered the pixel in some frame (accumulated alpha > 0)
+  int residualBin;     // histogram bin of r_i when the pixel was rendered and its ray entered the
+                       // volume (the histogram scheme ranks those), else -1
 };
+
+// What pixel i adds to the convergence sums in its current state.
+INR_HD PixelConvergence pixelConvergence(const AccumulationView& acc, int i) {
+  PixelConvergence pc{acc.residual[i], 0.f, acc.accum[i].w > 0.f ? 1 : 0, -1};
+  if (pc.covered) {
+    // Unknown after one sample: infinite until a second arrives.
+    const std::uint32_t count = acc.sampleCount[i];
+    pc.meanVariance = count > 1 ? acc.m2[i] / (3.f * float(count) * float(count - 1)) : INFINITY;
+  }
+  return pc;
+}
+
+// World position of the primary ray's real collision (valid when kRayHit): a shadow ray starts
+// there; without one the primary ray stopped at t.
+INR_HD Vec3f primaryHitPoint(const RayStateView& rs, int i) {
+  return (rs.flags[i] & kRayShadow) ? rs.origin[i] : rs.origin[i] + rs.direction[i] * rs.t[i];
+}
 
 // This frame's estimate for pixel i: premultiplied emission of the real collision, shaded by the
 // light's visibility when shadows are on; (0,0,0,0) when the ray escaped.
@@ -45,8 +66,11 @@ INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
 }
 
 // Returns what the pixel adds to the convergence sums (the backends reduce them).
+// Pixels that ray budgeting skipped keep their accumulation and add their current state.
 INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateView& rs,
                                       const AccumulationView& acc, int i) {
+  const std::uint8_t flags = rs.flags[i];
+  if (flags & kRayBudgetSkipped) return pixelConvergence(acc, i);
   const Vec4f c = frameEstimate(fc, rs, i);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
@@ -67,11 +91,17 @@ INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateVi
   }
   const std::uint32_t count = n + 1;
   acc.sampleCount[i] = count;
-  PixelConvergence pc{acc.residual[i], 0.f, acc.accum[i].w > 0.f ? 1 : 0};
-  if (pc.covered) {
-    // Unknown after one sample: infinite until a second arrives.
-    pc.meanVariance = count > 1 ? acc.m2[i] / (3.f * float(count) * float(count - 1)) : INFINITY;
+  acc.skip[i] = -1;  // rendered: the histogram scheme decides afresh at the next initialisation
+  if (flags & kRayHit) {
+    // Running mean over the frames that hit: their count is the accumulated coverage times the
+    // frame count (exact up to rounding; only the weights of a mean position depend on it).
+    const float hits = maxf(1.f, acc.accum[i].w * float(count) + 0.5f);
+    const Vec3f p = primaryHitPoint(rs, i), h = acc.hitPoint[i];
+    const float w = 1.f / floorf(hits);
+    acc.hitPoint[i] = Vec3f{h.x + (p.x - h.x) * w, h.y + (p.y - h.y) * w, h.z + (p.z - h.z) * w};
   }
+  PixelConvergence pc = pixelConvergence(acc, i);
+  if (flags & (kRayEntered | kRayHit)) pc.residualBin = residualBin(pc.residual);
   return pc;
 }
 

@@ -39,6 +39,7 @@ void QueryReductionSettings::validate() const {
   if (!(budgetFraction > 0.0 && budgetFraction <= 1.0)) fail("budget fraction (rho)", budgetFraction, "(0, 1]");
   if (budgetMaxSkip < 0 || budgetMaxSkip > 1024) fail("budget max skip (K)", budgetMaxSkip, "0..1024 frames");
   if (!(budgetAlpha >= 0.0 && budgetAlpha <= 1.0)) fail("budget alpha", budgetAlpha, "[0, 1]");
+  if (reprojectHistory < 1 || reprojectHistory > 1 << 20) fail("reprojection history", reprojectHistory, "1..2^20 frames");
   if (!(pruneEpsilon >= 0.0 && pruneEpsilon <= 1.0)) fail("prune epsilon", pruneEpsilon, "[0, 1] of the value range");
   if (!(pruneFalloff >= 0.0 && pruneFalloff <= 1.0)) fail("prune falloff (delta)", pruneFalloff, "[0, 1] of the value range");
 }

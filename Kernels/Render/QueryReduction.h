@@ -24,6 +24,9 @@ struct QueryReductionSettings {
   int budgetMaxSkip = 8;         // K: longest skip countdown of the histogram scheme (frames)
   double budgetAlpha = 0.5;      // alpha: residual steering of weighted STBN (0 = plain STBN)
   bool reproject = false;        // camera moves reproject the accumulation instead of resetting it
+  // Frames of history a reprojected pixel keeps at most: fewer let new samples replace the
+  // reprojection's blur sooner, more keep more of the converged image through small moves.
+  int reprojectHistory = 32;
   // Pruning thresholds as fractions of the field's value range: epsilon (cells whose scalar
   // range is below it are always pruned) and the falloff band delta above it. 0, 0 = off.
   double pruneEpsilon = 0.0;

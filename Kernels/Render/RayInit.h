@@ -42,7 +42,53 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.tEnd[i] = tExit;
   rs.cell[i] = cell;
   rs.tNext[i] = tNext;
-  rs.flags[i] = kRayActive;
+  rs.flags[i] = kRayActive | kRayEntered;
+}
+
+// Ray budgeting (paper §4.2.1), decided per pixel before its ray is cast: does pixel (px, py)
+// = i get a ray this frame? A pixel with nothing accumulated always does (there is nothing to
+// reuse; this also makes the first frame after a reset complete). Otherwise, by scheme:
+//   histogram      a pixel rendered last frame whose residual r_i is below the threshold tau
+//                  starts a skip countdown of floor((1 - r_i / tau) S_max + 0.5) frames (Eq. 6),
+//                  counting this one; a pixel in a countdown skips until it runs out, then
+//                  renders: every pixel renders at least once per S_max + 1 frames.
+//   stbn           u(x, n) < rho, u the blue-noise mask tiled over the screen (Eq. 7).
+//   weighted-stbn  u(x, n) < rho_eff = clamp(rho + alpha (r_i - rho), 2/256, 1) (Eq. 8): the
+//                  floor keeps every pixel rendering at least twice per 256 mask slices.
+// Only the histogram scheme writes pixel state (the countdown).
+INR_HD bool budgetPixel(const BudgetConstants& b, const AccumulationView& acc, int i, int px, int py) {
+  if (b.scheme == 0 || acc.sampleCount[i] == 0u) return true;
+  if (b.scheme == 1) {
+    const std::int32_t left = acc.skip[i];
+    if (left > 0) {
+      acc.skip[i] = left - 1;
+      return false;
+    }
+    if (left == 0) return true;  // countdown over
+    const float r = acc.residual[i];
+    if (!(r < b.tau) || b.maxSkip <= 0) return true;
+    const int frames = int(floorf((1.f - r / b.tau) * float(b.maxSkip) + 0.5f));
+    if (frames <= 0) return true;
+    acc.skip[i] = frames - 1;
+    return false;
+  }
+  const float u = blueNoiseValue(b.mask, px, py, b.noiseFrame);
+  if (b.scheme == 2) return u < b.rho;
+  const float rhoEff = clampf(b.rho + b.alpha * (acc.residual[i] - b.rho), 2.f / 256.f, 1.f);
+  return u < rhoEff;
+}
+
+// Stage I for a displayed frame: the budgeting decision, then the camera ray. A skipped pixel's
+// ray is inactive (kRayBudgetSkipped): it costs nothing in later stages and finalisation keeps
+// its accumulation as it is.
+INR_HD void initBudgetedRay(const FrameConstants& fc, const MajorantGridView& grid, const RayStateView& rs,
+                            const AccumulationView& acc, int i) {
+  const int px = i % fc.camera.width, py = i / fc.camera.width;
+  if (!budgetPixel(fc.budget, acc, i, px, py)) {
+    rs.flags[i] = kRayBudgetSkipped;
+    return;
+  }
+  initPrimaryRay(fc, grid, rs, i);
 }
 
 // Ghost passes (SceneChange.h) trace every stride-th pixel in x and y; the other rays stay

@@ -25,6 +25,8 @@ enum RayFlag : std::uint8_t {
   kRayShadow = 1u << 3,     // the ray is currently a shadow ray towards the light
   kRayBadSample = 1u << 4,  // the evaluator returned NaN/Inf for the pending query
   kRayCapped = 1u << 5,     // cut off by the per-frame work cap (FrameConstants::maxRngDraws)
+  kRayBudgetSkipped = 1u << 6,  // ray budgeting left the pixel out this frame: no ray, accumulation kept
+  kRayEntered = 1u << 7,        // the primary ray entered the volume (its segment was not empty)
 };
 
 enum class ShadowEstimator : int {
@@ -70,11 +72,17 @@ enum class ShadowEstimator : int {
 //   residual     r_i of the last frame that rendered the pixel
 //   m2           Welford's sum of squared deviations of the displayed colour's frame estimates
 //                (summed over R, G, B): the pixel's sample variance is m2 / (3 (n - 1))
+//   skip         histogram budgeting's countdown (paper Eq. 6): frames still to skip; -1 = the
+//                pixel was rendered last, decide at the next initialisation
+//   hitPoint     mean world position of the pixel's real collisions (reprojection after camera
+//                moves); meaningful while accum.w > 0
 #define INR_PIXEL_STATE_FIELDS(X) \
   X(Vec4f, accum)                 \
   X(std::uint32_t, sampleCount)   \
   X(float, residual)              \
-  X(float, m2)
+  X(float, m2)                    \
+  X(std::int32_t, skip)           \
+  X(Vec3f, hitPoint)
 
 #define INR_DECLARE_VIEW_FIELD(type, name) type* name = nullptr;
 struct RayStateView {

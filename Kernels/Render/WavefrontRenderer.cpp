@@ -63,10 +63,19 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   if (change.depthLimit) depthLimitChanged(scene.depthLimit);
   sceneUpdateDone();
   pendingUpdateMs_ += msSince(t0);
+  const CameraView oldView = cameraView_;
   scene_ = scene;
   cameraView_ = view;
   haveScene_ = true;
-  if (change.resetsAccumulation()) resetAccumulation();
+  SceneChange others = change;
+  others.camera = false;
+  if (change.camera && !others.resetsAccumulation() && queryReduction_.reproject && frameIndex_ > 0) {
+    reprojectAccumulation(oldView, view, std::uint32_t(queryReduction_.reprojectHistory));
+    frameIndex_ = std::min(frameIndex_, queryReduction_.reprojectHistory);
+    ++counters_.reprojections;
+  } else if (change.resetsAccumulation()) {
+    resetAccumulation();
+  }
   if (change.majorants() && options_.ghostPassesOnUpdate > 0) runGhostPasses(options_.ghostPassesOnUpdate);
 }
 
@@ -86,16 +95,48 @@ void WavefrontRenderer::allocatePixels() {
 void WavefrontRenderer::resetAccumulation() {
   clearAccumulation();
   frameIndex_ = 0;
+  frameKey_ = 0;
+  residualThreshold_ = 0.f;
   ++counters_.accumulationResets;
 }
 
-FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const float* depthLimit) const {
+FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const float* depthLimit) {
   FrameConstants fc = makeFrameConstants(cameraView_, volumeBox(), scene_, settings_, depthLimit, frame);
   fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
+  const QueryReductionSettings& q = queryReduction_;
+  BudgetConstants& b = fc.budget;
+  b.scheme = int(q.budget);
+  b.rho = float(q.budgetFraction);
+  b.alpha = float(q.budgetAlpha);
+  b.maxSkip = std::min(q.budgetMaxSkip, frameIndex_ / 4);  // S_max = min(K, floor(n / 4))
+  b.tau = residualThreshold_;
+  b.noiseFrame = noiseFrame_;
+  if (q.budget == BudgetScheme::Stbn || q.budget == BudgetScheme::WeightedStbn) b.mask = blueNoiseMask();
   return fc;
 }
 
-void WavefrontRenderer::endFrame(const FrameStats& st, bool truncated) {
+float residualThreshold(const std::uint32_t* histogram, double rho) {
+  if (rho >= 1.0) return 0.f;  // everything renders
+  std::uint64_t total = 0;
+  for (int b = 0; b < kResidualBins; ++b) total += histogram[b];
+  if (total == 0) return 0.f;
+  // The bin where the cumulative fraction reaches 1 - rho: the top rho of the pixels lie at or
+  // above it.
+  const double target = (1.0 - rho) * double(total);
+  std::uint64_t cumulative = 0;
+  for (int b = 0; b < kResidualBins; ++b) {
+    cumulative += histogram[b];
+    if (double(cumulative) >= target) return (float(b) + 0.5f) / float(kResidualBins);
+  }
+  return (float(kResidualBins) - 0.5f) / float(kResidualBins);
+}
+
+void WavefrontRenderer::endFrame(const FrameStats& st, bool truncated, const std::uint32_t* residualHistogram) {
+  ++noiseFrame_;
+  ++frameKey_;
+  residualThreshold_ = queryReduction_.budget == BudgetScheme::Histogram && residualHistogram
+                           ? residualThreshold(residualHistogram, queryReduction_.budgetFraction)
+                           : 0.f;
   counters_.cappedRays += st.cappedRays;
   if (truncated) ++counters_.truncatedFrames;
   const Box3f& box = volumeBox();
@@ -144,6 +185,7 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
   for (int g = 0; g < count; ++g) {
     const TransferFunctionTable table(sweep.transferFunction(g));
     FrameConstants fc = frameConstants(GhostSweep::frameNumber(ghostPasses_++), nullptr);
+    fc.budget = BudgetConstants{};  // every stride-th pixel (initGhostRay)
     fc.shadows = 0;
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
     traceGhostPass(table, fc, stride, total);

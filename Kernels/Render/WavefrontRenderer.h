@@ -38,6 +38,11 @@ struct TrackingOptions {
   int maxIterations = 1 << 14;
 };
 
+// Histogram budgeting's threshold tau (paper §4.2.1): the centre of the bin where the cumulative
+// fraction of `histogram` (kResidualBins counts) reaches 1 - rho; 0 (everything renders) for
+// rho >= 1 or an empty histogram.
+float residualThreshold(const std::uint32_t* histogram, double rho);
+
 // The stream-draw budget per ray and frame for `maxCollisionsPerRay`: the two jitter draws, two
 // per collision, and 32 of slack for ratio tracking's roulette.
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay);
@@ -48,6 +53,7 @@ struct RendererCounters {
   int majorantUpdates = 0;      // full majorant recomputations (time or TF changes)
   int transferFunctionUploads = 0;
   int accumulationResets = 0;
+  int reprojections = 0;        // camera moves that reprojected the accumulation instead
   int truncatedFrames = 0;      // frames where the iteration cap cut rays off
   std::size_t cappedRays = 0;   // rays cut off by the collision cap, all frames
 };
@@ -110,18 +116,30 @@ protected:
   virtual void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                               FrameStats& total) = 0;
   virtual void endGhostPasses(FrameStats& total) = 0;  // apply refinements to the majorants
+  // The blue-noise mask in the backend's memory (STBN budgeting; shippedBlueNoiseMask()).
+  virtual BlueNoiseMaskView blueNoiseMask() = 0;
+  // Reprojection (Reproject.h) of the accumulation rendered from `oldView` into `newView`.
+  virtual void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                                     std::uint32_t maxHistory) = 0;
 
   // Backends call this at the end of their constructor (the hooks are theirs): storage for the
   // default settings' image, accumulation cleared.
   void allocatePixels();
-  // The frame constants of frame `frame` for the current scene; `depthLimit` is the backend's
-  // copy of the scene's depth limit (ignored when the scene has none).
-  FrameConstants frameConstants(std::uint32_t frame, const float* depthLimit) const;
+  // The frame constants of frame `frame` for the current scene, with this frame's budgeting
+  // constants; `depthLimit` is the backend's copy of the scene's depth limit (ignored when the
+  // scene has none). Displayed frames pass frameKey().
+  FrameConstants frameConstants(std::uint32_t frame, const float* depthLimit);
+  // The random-stream key of the next displayed frame: the accumulated frame index, except that
+  // it keeps counting across reprojection (so reprojected history and new samples never share
+  // random numbers).
+  std::uint32_t frameKey() const { return frameKey_; }
   // Starts a frame's statistics (method, frame index, the pending update time); throws when no
   // scene has been set.
   FrameStats beginFrame(const char* method, const char* caller);
-  // Closes a frame: counts capped rays and truncation, warns once per cause, advances the index.
-  void endFrame(const FrameStats& st, bool truncated);
+  // Closes a frame: counts capped rays and truncation, warns once per cause, advances the index;
+  // with the histogram scheme, `residualHistogram` (kResidualBins counts of this frame's
+  // rendered pixels) gives the next frame's threshold.
+  void endFrame(const FrameStats& st, bool truncated, const std::uint32_t* residualHistogram = nullptr);
 
   TrackingOptions options_;
   RenderSettings settings_;
@@ -134,6 +152,9 @@ protected:
 
 private:
   int frameIndex_ = 0;
+  std::uint32_t frameKey_ = 0;
+  std::uint32_t noiseFrame_ = 0;   // blue-noise slice counter: never restarts
+  float residualThreshold_ = 0.f;  // tau for the next frame (histogram scheme)
   std::uint32_t ghostPasses_ = 0;
   std::function<void(const std::string&)> warn_;
   bool warnedCapped_ = false, warnedTruncated_ = false;

@@ -56,6 +56,25 @@ FrameStats renderFrames(Renderer& renderer, const RenderSettings& settings, cons
   return total;
 }
 
+// PSNR (RGB, peak 1) of `a` against `reference` over the pixels the volume covers in the
+// reference (`referenceCoverage`: its premultiplied image, alpha > 0): a mostly-background image
+// would make a whole-image PSNR look good. Infinite when they agree there exactly.
+inline double psnrOverCoverage(const ImageRGBA& a, const ImageRGBA& reference, const ImageRGBA& referenceCoverage) {
+  double se = 0.0;
+  std::size_t n = 0;
+  for (int i = 0; i < reference.width * reference.height; ++i) {
+    if (!(referenceCoverage.data[4 * std::size_t(i) + 3] > 0.f)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a.data[4 * std::size_t(i) + c]) - double(reference.data[4 * std::size_t(i) + c]);
+      se += d * d;
+    }
+    ++n;
+  }
+  if (n == 0) return 0.0;  // nothing covered: no evidence either way
+  const double mse = se / (3.0 * double(n));
+  return mse > 0.0 ? -10.0 * std::log10(mse) : INFINITY;
+}
+
 inline std::size_t nonFinitePixels(const ImageRGBA& img) {
   std::size_t bad = 0;
   for (float v : img.data) bad += std::isfinite(v) ? 0 : 1;

@@ -12,6 +12,7 @@
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
+#include "Render/Reproject.h"
 #include "Render/Shadows.h"
 
 namespace inr {
@@ -25,11 +26,37 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 // ---- kernels: thin wrappers around the shared INR_HD per-ray functions ----
 
-__global__ void initKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, unsigned long long* stats) {
+__global__ void initKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, AccumulationView acc,
+                           unsigned long long* stats) {
+  using Count = cub::BlockReduce<int, kThreads>;
+  __shared__ typename Count::TempStorage scratch;
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= rs.count) return;
-  initPrimaryRay(fc, grid, rs, i);
-  if (rs.flags[i] & kRayActive) atomicAdd(&stats[kStatRays], 1ull);
+  int active = 0, skipped = 0;
+  if (i < rs.count) {
+    initBudgetedRay(fc, grid, rs, acc, i);
+    active = (rs.flags[i] & kRayActive) ? 1 : 0;
+    skipped = (rs.flags[i] & kRayBudgetSkipped) ? 1 : 0;
+  }
+  active = Count(scratch).Sum(active);
+  __syncthreads();
+  skipped = Count(scratch).Sum(skipped);
+  if (threadIdx.x == 0) {
+    if (active) atomicAdd(&stats[kStatRays], (unsigned long long)active);
+    if (skipped) atomicAdd(&stats[kStatBudgetSkipped], (unsigned long long)skipped);
+  }
+}
+
+// Reprojection pass 1: old pixel j offers itself to the new pixels around its hit point.
+__global__ void reprojectScatterKernel(CameraView newView, AccumulationView history, unsigned long long* keys) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j >= history.count) return;
+  reprojectionOffers(newView, history, j, [&](int i, std::uint64_t key) { atomicMin(&keys[i], (unsigned long long)key); });
+}
+
+__global__ void reprojectGatherKernel(CameraView oldView, CameraView newView, AccumulationView history, AccumulationView acc, const unsigned long long* keys,
+                                      std::uint32_t maxHistory) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < acc.count) reprojectionGather(oldView, newView, history, acc, i, keys[i], maxHistory);
 }
 
 __global__ void ghostInitKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, int stride) {
@@ -55,19 +82,27 @@ __global__ void cutoffKernel(RayStateView rs, const int* list, int n) {
 
 // Stage IV, the convergence sums (block reductions, one atomic each per block) and the count of
 // rays the collision cap cut off.
+// With the residual histogram of the histogram scheme (block-local bins in shared memory, one
+// global atomic per non-empty bin and block); `histogram` is null for the other schemes.
 __global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* sums,
-                               unsigned long long* stats) {
+                               unsigned long long* stats, unsigned* histogram) {
   using Reduce = cub::BlockReduce<float, kThreads>;
   using Count = cub::BlockReduce<int, kThreads>;
   __shared__ union {
     typename Reduce::TempStorage sum;
     typename Count::TempStorage count;
   } scratch;
+  __shared__ unsigned bins[kResidualBins];
+  if (histogram) {
+    for (int b = threadIdx.x; b < kResidualBins; b += blockDim.x) bins[b] = 0u;
+    __syncthreads();
+  }
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  PixelConvergence pc{0.f, 0.f, 0};
+  PixelConvergence pc{0.f, 0.f, 0, -1};
   if (i < rs.count) {
     if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
     pc = finalizePixel(fc, rs, acc, i);
+    if (histogram && pc.residualBin >= 0) atomicAdd(&bins[pc.residualBin], 1u);
   }
   const float residual = Reduce(scratch.sum).Sum(pc.residual);
   __syncthreads();
@@ -78,6 +113,11 @@ __global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationV
     atomicAdd(&sums[kSumResidual], double(residual));
     atomicAdd(&sums[kSumVariance], double(variance));
     if (covered) atomicAdd(&stats[kStatCovered], (unsigned long long)covered);
+  }
+  if (histogram) {
+    __syncthreads();
+    for (int b = threadIdx.x; b < kResidualBins; b += blockDim.x)
+      if (bins[b]) atomicAdd(&histogram[b], bins[b]);
   }
 }
 
@@ -158,6 +198,7 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   for (cudaEvent_t& e : I.countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
   I.stats.resize(kStatCount);
   I.sums.resize(kSumCount);
+  I.histogram.resize(kResidualBins);
   I.majorants.resize(std::size_t(macrocells.cellCount()));
   I.majorants.zero(I.stream);
   if (macrocells.blockCount() > 0) {
@@ -245,7 +286,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   I.timer.end(s);
 
-  const FrameSetup f = frameSetup(st.frame);
+  const FrameSetup f = frameSetup(frameKey());
   const FrameConstants& fc = f.fc;
   const TrackingMedium& medium = f.medium;
   const DeviceRefineView& refine = f.refine;
@@ -253,7 +294,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   const int n = rs.count;
 
   I.timer.begin(cuda::kInit, s);
-  initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.stats.get());
+  initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.pixels.view(), I.stats.get());
   INR_CUDA_CHECK_LAUNCH("initKernel");
   I.timer.end(s);
 
@@ -270,10 +311,16 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   }
 
   I.timer.begin(cuda::kFinalize, s);
-  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.sums.get(), I.stats.get());
+  const bool histogram = queryReduction_.budget == BudgetScheme::Histogram;
+  if (histogram) INR_CUDA_CHECK(cudaMemsetAsync(I.histogram.get(), 0, kResidualBins * sizeof(unsigned), s));
+  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.sums.get(), I.stats.get(),
+                                                    histogram ? I.histogram.get() : nullptr);
   INR_CUDA_CHECK_LAUNCH("finalizeKernel");
   I.timer.end(s);
-  readFrameStats(st);
+  if (histogram)
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.hostHistogram.get(), I.histogram.get(), kResidualBins * sizeof(unsigned),
+                                   cudaMemcpyDeviceToHost, s));
+  readFrameStats(st);  // synchronises
   double ms[cuda::kStages];
   I.timer.collect(ms);
   st.updateMs += ms[cuda::kUpdate];
@@ -283,9 +330,33 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   st.shadowTraverseMs = ms[cuda::kShadowTraverse];
   st.shadowEvaluateMs = ms[cuda::kShadowEvaluate];
   st.finalizeMs = ms[cuda::kFinalize];
-  endFrame(st, I.truncated);
+  endFrame(st, I.truncated, histogram ? I.hostHistogram.get() : nullptr);
   st.totalMs = msSince(tFrame);
   return st;
+}
+
+BlueNoiseMaskView CudaDeltaTrackingRenderer::blueNoiseMask() {
+  Impl& I = *impl_;
+  const BlueNoiseMask& mask = shippedBlueNoiseMask();
+  if (I.blueNoise.empty()) I.blueNoise.upload(mask.texels, I.stream);
+  return BlueNoiseMaskView{I.blueNoise.get(), mask.width, mask.height, mask.depth};
+}
+
+void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                                                      std::uint32_t maxHistory) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const std::size_t n = I.pixels.count;
+  std::swap(I.history, I.pixels);  // the old accumulation becomes the history
+  I.pixels.resize(n);
+  I.reprojectKeys.resize(n);
+  INR_CUDA_CHECK(cudaMemsetAsync(I.reprojectKeys.get(), 0xff, n * sizeof(unsigned long long), s));
+  const AccumulationView history = I.history.view(), acc = I.pixels.view();
+  reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(newView, history, I.reprojectKeys.get());
+  INR_CUDA_CHECK_LAUNCH("reprojectScatterKernel");
+  reprojectGatherKernel<<<blocksFor(acc.count), kThreads, 0, s>>>(oldView, newView, history, acc, I.reprojectKeys.get(), maxHistory);
+  INR_CUDA_CHECK_LAUNCH("reprojectGatherKernel");
+  INR_CUDA_CHECK(cudaStreamSynchronize(s));
 }
 
 void CudaDeltaTrackingRenderer::beginGhostPasses() {

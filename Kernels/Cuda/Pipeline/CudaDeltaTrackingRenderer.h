@@ -78,6 +78,9 @@ private:
   void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                       FrameStats& total) override;
   void endGhostPasses(FrameStats& total) override;
+  BlueNoiseMaskView blueNoiseMask() override;
+  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                             std::uint32_t maxHistory) override;
   // What every frame's launches read: constants, medium, refinement view (counting into the
   // frame's statistics), ray state. Callers bring the majorants up to date first.
   struct FrameSetup {

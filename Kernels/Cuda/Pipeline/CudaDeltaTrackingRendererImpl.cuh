@@ -53,6 +53,13 @@ struct CudaDeltaTrackingRenderer::Impl {
   float* ghostBlocks() const { return ghostBlockMajorants.empty() ? nullptr : ghostBlockMajorants.get(); }
   RayStateArrays<cuda::DeviceBuffer> rays;
   PixelStateArrays<cuda::DeviceBuffer> pixels;
+  // Reprojection: the old accumulation and the per-pixel minimum offers (allocated on first use).
+  PixelStateArrays<cuda::DeviceBuffer> history;
+  cuda::DeviceBuffer<unsigned long long> reprojectKeys;
+  cuda::DeviceBuffer<std::uint8_t> blueNoise;  // the shipped STBN mask (uploaded on first use)
+  // The histogram scheme's residual histogram of the last frame (device, and its pinned copy).
+  cuda::DeviceBuffer<unsigned> histogram;
+  cuda::PinnedHost<unsigned> hostHistogram{kResidualBins};
   // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the other).
   cuda::DeviceBuffer<float4> points[2];
   cuda::DeviceBuffer<int> queryRays[2];

@@ -82,7 +82,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const auto tFrame = std::chrono::steady_clock::now();
   I.clearStats();
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
-  const FrameSetup f = frameSetup(st.frame);
+  const FrameSetup f = frameSetup(frameKey());
   const FrameConstants& fc = f.fc;
   const RayStateView& rs = f.rs;
   const int n = rs.count;
