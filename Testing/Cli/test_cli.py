@@ -285,6 +285,30 @@ def check_query_reduction_stats(inr, data):
                    "%s: total budget_skipped is not the sum over frames" % name)
 
 
+def check_query_reduction_xml_defaults(inr, data):
+    """The defaults live in one place, inr::QueryReductionSettings: the CLI runs with them when no
+    option is given (read back from the renderer into --stats-json), and the ParaView plugin's XML
+    must declare the same default for each property."""
+    import xml.etree.ElementTree as ET
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        q = render_stats(inr, model, d, (8, 8), 1)["query_reduction"]
+    xml = os.path.join(data, os.pardir, os.pardir, "ServerManagerXML", "InrVolumeRepresentation.xml")
+    props = {e.get("name"): e for e in ET.parse(xml).getroot().iter() if e.get("default_values") is not None}
+    budget = props["RayBudget"]
+    entries = {e.get("value"): e.get("text") for e in budget.iter("Entry")}
+    expect(entries == {"0": "none", "1": "histogram", "2": "stbn", "3": "weighted-stbn"},
+           "RayBudget entries %r must be the CLI's scheme names" % entries)
+    expect(entries[budget.get("default_values")] == q["budget"],
+           "RayBudget default %r, struct default %r" % (entries[budget.get("default_values")], q["budget"]))
+    for prop, key, cast in (("BudgetFraction", "budget_fraction", float), ("BudgetMaxSkip", "budget_max_skip", int),
+                            ("BudgetAlpha", "budget_alpha", float), ("Reproject", "reproject", lambda v: bool(int(v))),
+                            ("PruneEpsilon", "prune_epsilon", float), ("PruneFalloff", "prune_falloff", float)):
+        expect(prop in props, "the XML has no property %s" % prop)
+        got = cast(props[prop].get("default_values"))
+        expect(got == q[key], "%s: XML default %r, QueryReductionSettings default %r" % (prop, got, q[key]))
+
+
 if __name__ == "__main__":
     inr, data, check = sys.argv[1:4]
     globals()["check_" + check](inr, data)
