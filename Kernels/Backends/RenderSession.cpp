@@ -31,6 +31,8 @@ public:
   const FieldEvaluator& evaluator() const override { return evaluator_; }
   void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
   void setScene(const RenderScene& s) override { renderer_.setScene(s); }
+  void setQueryReduction(const QueryReductionSettings& q) override { renderer_.setQueryReduction(q); }
+  const QueryReductionSettings& queryReduction() const override { return renderer_.queryReduction(); }
   FrameStats renderFrame() override { return renderer_.renderFrame(); }
   FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
   void resetAccumulation() override { renderer_.resetAccumulation(); }

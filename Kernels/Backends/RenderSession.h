@@ -16,6 +16,7 @@
 #include "Model/InrModel.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/MacrocellGrid.h"
+#include "Render/QueryReduction.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneInputs.h"
 
@@ -62,6 +63,11 @@ public:
 
   virtual void setSettings(const RenderSettings& settings) = 0;
   virtual void setScene(const RenderScene& scene) = 0;  // does only the work the changes need
+  // Ray budgeting, reprojection and pruning (QueryReduction.h). Validates first: throws
+  // std::invalid_argument naming the parameter and its range, leaving the old settings in place.
+  // A change of the pruning thresholds restarts the accumulation (the estimator changes).
+  virtual void setQueryReduction(const QueryReductionSettings& settings) = 0;
+  virtual const QueryReductionSettings& queryReduction() const = 0;
   virtual FrameStats renderFrame() = 0;
   virtual FrameStats renderFrameNaive() = 0;  // baseline: network evaluated inside each ray's loop
   virtual FrameStats runGhostPasses(int count) = 0;

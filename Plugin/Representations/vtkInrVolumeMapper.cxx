@@ -15,6 +15,7 @@
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "Model/InrModel.h"
+#include "Render/QueryReduction.h"
 #include "Render/SceneChange.h"
 #include "Render/SceneInputs.h"
 
@@ -23,7 +24,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <sstream>
+#include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace
@@ -48,6 +52,25 @@ bool debugReport()
 {
   return std::getenv("INR_VOLUME_DEBUG") != nullptr;
 }
+
+bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryReductionSettings& b)
+{
+  auto key = [](const inr::QueryReductionSettings& q)
+  {
+    return std::make_tuple(q.budget, q.budgetFraction, q.budgetMaxSkip, q.budgetAlpha, q.reproject,
+      q.pruneEpsilon, q.pruneFalloff);
+  };
+  return key(a) == key(b);
+}
+
+std::string describeQueryReduction(const inr::QueryReductionSettings& q)
+{
+  std::ostringstream s;
+  s << "budget=" << inr::budgetSchemeName(q.budget) << " rho=" << q.budgetFraction
+    << " K=" << q.budgetMaxSkip << " alpha=" << q.budgetAlpha << " reproject=" << int(q.reproject)
+    << " epsilon=" << q.pruneEpsilon << " delta=" << q.pruneFalloff;
+  return s.str();
+}
 }
 
 struct vtkInrVolumeMapper::Internals
@@ -68,6 +91,12 @@ struct vtkInrVolumeMapper::Internals
   bool warnedCuda = false;
   bool haveSettings = false;
   inr::RenderSettings settings;
+  // Query reduction: what the user asked for, what was last handed to the engine (pushed again
+  // only when they differ, so a rejected setting is reported once) and what the engine holds.
+  inr::QueryReductionSettings queryReduction;
+  bool haveQueryReduction = false;
+  inr::QueryReductionSettings queryReductionTried;
+  std::string queryReductionInUse;
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
@@ -84,6 +113,7 @@ struct vtkInrVolumeMapper::Internals
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
+  void PushQueryReduction(vtkInrVolumeMapper* self);
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
@@ -153,6 +183,57 @@ int vtkInrVolumeMapper::GetEngineBuilds()
 double vtkInrVolumeMapper::GetLastQueries()
 {
   return double(this->Internal->lastStep.total.totalQueries());
+}
+
+double vtkInrVolumeMapper::GetLastRays()
+{
+  return double(this->Internal->lastStep.total.rays);
+}
+
+double vtkInrVolumeMapper::GetLastBudgetSkipped()
+{
+  return double(this->Internal->lastStep.total.budgetSkipped);
+}
+
+double vtkInrVolumeMapper::GetLastPruned()
+{
+  return double(this->Internal->lastStep.total.pruned);
+}
+
+// Query reduction: stored as asked (validated when pushed into the engine, so the error names
+// the engine's parameter and range); Modified() makes ParaView render again.
+#define INR_QUERY_REDUCTION(Name, Type, field, toField, fromField)                                 \
+  void vtkInrVolumeMapper::Set##Name(Type v)                                                      \
+  {                                                                                                \
+    if (this->Get##Name() != v)                                                                    \
+    {                                                                                              \
+      this->Internal->queryReduction.field = toField;                                              \
+      this->Modified();                                                                            \
+    }                                                                                              \
+  }                                                                                                \
+  Type vtkInrVolumeMapper::Get##Name()                                                             \
+  {                                                                                                \
+    return fromField;                                                                              \
+  }
+INR_QUERY_REDUCTION(RayBudget, int, budget, static_cast<inr::BudgetScheme>(v),
+  static_cast<int>(this->Internal->queryReduction.budget))
+INR_QUERY_REDUCTION(BudgetFraction, double, budgetFraction, v,
+  this->Internal->queryReduction.budgetFraction)
+INR_QUERY_REDUCTION(BudgetMaxSkip, int, budgetMaxSkip, v,
+  this->Internal->queryReduction.budgetMaxSkip)
+INR_QUERY_REDUCTION(BudgetAlpha, double, budgetAlpha, v,
+  this->Internal->queryReduction.budgetAlpha)
+INR_QUERY_REDUCTION(Reproject, int, reproject, v != 0,
+  this->Internal->queryReduction.reproject ? 1 : 0)
+INR_QUERY_REDUCTION(PruneEpsilon, double, pruneEpsilon, v,
+  this->Internal->queryReduction.pruneEpsilon)
+INR_QUERY_REDUCTION(PruneFalloff, double, pruneFalloff, v,
+  this->Internal->queryReduction.pruneFalloff)
+#undef INR_QUERY_REDUCTION
+
+const char* vtkInrVolumeMapper::GetQueryReductionInUse()
+{
+  return this->Internal->queryReductionInUse.c_str();
 }
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
@@ -264,6 +345,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       this->builtSlices = self->TemporalSlices;
       this->builtBackend = backend;
       this->haveSettings = false;
+      this->haveQueryReduction = false;  // a new engine starts from the struct's defaults
       this->refinement.restart();
       ++this->engineBuilds;
     }
@@ -308,6 +390,29 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   return scene;
 }
 
+// Hands the query-reduction settings to the engine when they changed. A rejected set is reported
+// once and the engine keeps what it had; a pruning change restarts its accumulation, which the
+// refinement driver notices (accumulated frames drop to 0).
+void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self)
+{
+  if (!this->haveQueryReduction ||
+    !sameQueryReduction(this->queryReduction, this->queryReductionTried))
+  {
+    this->haveQueryReduction = true;
+    this->queryReductionTried = this->queryReduction;
+    try
+    {
+      this->session->setQueryReduction(this->queryReduction);
+    }
+    catch (const std::invalid_argument& e)
+    {
+      vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
+                                    << describeQueryReduction(this->session->queryReduction()));
+    }
+  }
+  this->queryReductionInUse = describeQueryReduction(this->session->queryReduction());
+}
+
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(
@@ -336,6 +441,7 @@ bool vtkInrVolumeMapper::Internals::Refine(
       this->lastScene = scene;
       this->haveLastScene = true;
     }
+    this->PushQueryReduction(self);
     this->session->setScene(scene);
 
     inr::RefinementOptions options;
@@ -347,9 +453,13 @@ bool vtkInrVolumeMapper::Internals::Refine(
     this->lastStep = this->refinement.advance(*this->session);
     if (debug && this->lastStep.framesRendered > 0)
     {
-      std::fprintf(stderr, "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d\n",
+      std::fprintf(stderr,
+        "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d; %s: %.0f rays, "
+        "%.0f pixels skipped, %.0f pruned\n",
         this->session->accumulatedFrames(), double(this->lastStep.total.totalQueries()),
-        this->lastStep.total.updateMs, int(this->refinement.converged()));
+        this->lastStep.total.updateMs, int(this->refinement.converged()),
+        this->queryReductionInUse.c_str(), double(this->lastStep.total.rays),
+        double(this->lastStep.total.budgetSkipped), double(this->lastStep.total.pruned));
     }
     return true;
   }
@@ -394,4 +504,6 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ConvergenceTarget: " << this->ConvergenceTarget << "\n";
   os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
+  os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
+     << " (in use: " << this->Internal->queryReductionInUse << ")\n";
 }

@@ -97,6 +97,45 @@ public:
   ///@}
 
   ///@{
+  /// Query reduction (paper sec. 4.2; inr::QueryReductionSettings, whose defaults these start
+  /// from: the one place defaults are defined). Pushed into the engine on the next Render(); an
+  /// invalid combination is reported once (vtkErrorMacro, naming the parameter and its range) and
+  /// the engine keeps its previous settings. A change of PruneEpsilon / PruneFalloff restarts the
+  /// accumulation (the engine does it); the budget and reprojection apply from the next frame.
+  ///  - RayBudget: 0 none, 1 histogram, 2 stbn, 3 weighted-stbn (BUDGET_* below)
+  ///  - BudgetFraction (rho, (0, 1]): fraction of pixels traced per frame by the STBN schemes
+  ///  - BudgetMaxSkip (K, 0..1024 frames): longest skip countdown of the histogram scheme
+  ///  - BudgetAlpha (alpha, [0, 1]): residual steering of weighted STBN
+  ///  - Reproject: camera moves reproject the accumulation instead of restarting it
+  ///  - PruneEpsilon (epsilon), PruneFalloff (delta): pruning thresholds, fractions of the
+  ///    field's value range (0, 0 = off)
+  enum
+  {
+    BUDGET_NONE = 0,
+    BUDGET_HISTOGRAM = 1,
+    BUDGET_STBN = 2,
+    BUDGET_WEIGHTED_STBN = 3
+  };
+  void SetRayBudget(int scheme);
+  int GetRayBudget();
+  void SetBudgetFraction(double rho);
+  double GetBudgetFraction();
+  void SetBudgetMaxSkip(int k);
+  int GetBudgetMaxSkip();
+  void SetBudgetAlpha(double alpha);
+  double GetBudgetAlpha();
+  void SetReproject(int on);
+  int GetReproject();
+  void SetPruneEpsilon(double epsilon);
+  double GetPruneEpsilon();
+  void SetPruneFalloff(double delta);
+  double GetPruneFalloff();
+  /// The settings the engine holds (read back from it after the last Render), e.g.
+  /// "budget=stbn rho=0.75 K=8 alpha=0.5 reproject=0 epsilon=0 delta=0"; "" before the first.
+  const char* GetQueryReductionInUse();
+  ///@}
+
+  ///@{
   /// When on, ignore the volume property and use the engine's default transfer function (cool to
   /// warm colours, linear opacity ramp) over the model's value range. ParaView's representation
   /// turns this on while the representation is not coloured by an array.
@@ -122,6 +161,11 @@ public:
   int GetEngineBuilds();
   /// INR queries issued during the last Render (primary + shadow).
   double GetLastQueries();
+  /// Primary rays, pixels left out by ray budgeting and collisions answered by pruning during the
+  /// last Render (summed over its frames).
+  double GetLastRays();
+  double GetLastBudgetSkipped();
+  double GetLastPruned();
   ///@}
 
   void Render(vtkRenderer* ren, vtkVolume* vol) override;

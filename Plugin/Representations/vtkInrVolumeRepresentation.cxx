@@ -61,6 +61,13 @@ INR_FORWARD(MaximumFrames, int)
 INR_FORWARD(ConvergenceTarget, double)
 INR_FORWARD(FramesPerRender, int)
 INR_FORWARD(Seed, int)
+INR_FORWARD(RayBudget, int)
+INR_FORWARD(BudgetFraction, double)
+INR_FORWARD(BudgetMaxSkip, int)
+INR_FORWARD(BudgetAlpha, double)
+INR_FORWARD(Reproject, int)
+INR_FORWARD(PruneEpsilon, double)
+INR_FORWARD(PruneFalloff, double)
 #undef INR_FORWARD
 
 void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)
@@ -87,6 +94,11 @@ double vtkInrVolumeRepresentation::GetInrConvergenceEstimate()
 const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
 {
   return this->GetInrMapper()->GetBackendInUse();
+}
+
+const char* vtkInrVolumeRepresentation::GetInrQueryReductionInUse()
+{
+  return this->GetInrMapper()->GetQueryReductionInUse();
 }
 
 void vtkInrVolumeRepresentation::PrintSelf(ostream& os, vtkIndent indent)

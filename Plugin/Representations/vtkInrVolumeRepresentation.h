@@ -40,11 +40,24 @@ public:
   ///@}
 
   ///@{
+  /// Query reduction, forwarded to vtkInrVolumeMapper (XML: RayBudget, BudgetFraction,
+  /// BudgetMaxSkip, BudgetAlpha, Reproject, PruneEpsilon, PruneFalloff).
+  void SetInrRayBudget(int);
+  void SetInrBudgetFraction(double);
+  void SetInrBudgetMaxSkip(int);
+  void SetInrBudgetAlpha(double);
+  void SetInrReproject(int);
+  void SetInrPruneEpsilon(double);
+  void SetInrPruneFalloff(double);
+  ///@}
+
+  ///@{
   /// Refinement state after the last render (information properties; the GUI polls them).
   int GetInrAccumulatedFrames();
   int GetInrConverged();
   double GetInrConvergenceEstimate();
   const char* GetInrBackendInUse();
+  const char* GetInrQueryReductionInUse();
   ///@}
 
   vtkInrVolumeMapper* GetInrMapper();

@@ -192,6 +192,123 @@ def check_every_shipped_model(inr, data):
             expect(max(floats) > 0.0, "%s: render is empty (all background)" % m)
 
 
+QUERY_REDUCTION_FLAGS = ("--budget", "--budget-fraction", "--budget-max-skip", "--budget-alpha", "--reproject",
+                         "--prune-epsilon", "--prune-falloff", "--converge")
+
+
+def check_query_reduction_errors(inr, data):
+    """Every query-reduction option is in --help, and a bad value is a usage error (exit 2) that
+    names the option and its valid range, before any work is done."""
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    p = run(inr, "render", "--help")
+    expect(p.returncode == 0, "render --help failed: " + p.stderr)
+    for flag in QUERY_REDUCTION_FLAGS:
+        expect(flag + " " in p.stdout, "render --help does not list %s" % flag)
+    for symbol in ("rho:", "K:", "alpha:", "epsilon:", "delta:"):
+        expect(symbol in p.stdout, "render --help does not name the paper's symbol %r" % symbol)
+    cases = [  # (arguments, what stderr must contain besides the option's name)
+        (["--budget", "foo"], "weighted-stbn"),
+        (["--budget-fraction", "0"], "(0, 1]"),
+        (["--budget-fraction", "1.5"], "(0, 1]"),
+        (["--budget-fraction", "abc"], "not a finite number"),
+        (["--budget-max-skip", "-1"], "0..1024"),
+        (["--budget-max-skip", "99999999999"], "0..1024"),
+        (["--budget-max-skip", "2.5"], "not an integer"),
+        (["--budget-alpha", "2"], "[0, 1]"),
+        (["--prune-epsilon", "-0.1"], "[0, 1]"),
+        (["--prune-falloff", "1.01"], "[0, 1]"),
+    ]
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "r.png")
+        for extra, needle in cases:
+            p = run(inr, "render", model, "--size", "8x8", "--frames", "1", "-o", out, *extra)
+            expect(p.returncode == 2, "%s: exit %d, want 2 (usage error): %s" % (extra, p.returncode, p.stderr))
+            expect(extra[0] in p.stderr and needle in p.stderr,
+                   "%s: message lacks %r or %r: %s" % (extra, extra[0], needle, p.stderr))
+            expect(not os.path.exists(out), "%s: wrote an image despite the error" % extra)
+        p = run(inr, "render", model, "--size", "8x8", "--method", "raymarch", "--budget", "stbn", "-o", out)
+        expect(p.returncode == 2 and "--budget" in p.stderr and "delta tracking" in p.stderr,
+               "--budget with --method raymarch must be refused: " + p.stderr)
+        p = run(inr, "render", model, "--size", "8x8", "--reproject=1", "-o", out)
+        expect(p.returncode == 2 and "--reproject" in p.stderr, "--reproject takes no value: " + p.stderr)
+
+
+def render_stats(inr, model, d, size, frames, *extra):
+    out, stats = os.path.join(d, "r.pfm"), os.path.join(d, "stats.json")
+    p = run(inr, "render", model, "--size", "%dx%d" % size, "--frames", str(frames), "--quiet",
+            "--backend", "cpu", "--stats-json", stats, "-o", out, *extra)
+    expect(p.returncode == 0, "render %s failed: %s" % (" ".join(extra), p.stderr))
+    return json.load(open(stats))
+
+
+def check_query_reduction_stats(inr, data):
+    """--stats-json carries the query-reduction settings the renderer ran with (read back from it)
+    and per frame the rays cast, the pixels ray budgeting left out and the collisions pruning
+    answered, as non-negative integers that fit the image; with everything off nothing is skipped
+    or pruned."""
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    w, h, frames = 20, 16, 4
+    with tempfile.TemporaryDirectory() as d:
+        runs = {
+            "stbn": (["--budget", "stbn", "--budget-fraction", "0.5", "--budget-max-skip", "5", "--budget-alpha",
+                      "0.25", "--reproject", "--prune-epsilon", "0.02", "--prune-falloff", "0.01"],
+                     {"budget": "stbn", "budget_fraction": 0.5, "budget_max_skip": 5, "budget_alpha": 0.25,
+                      "reproject": True, "prune_epsilon": 0.02, "prune_falloff": 0.01}),
+            "histogram": (["--budget", "histogram"], {"budget": "histogram"}),
+            "weighted-stbn": (["--budget", "weighted-stbn", "--budget-fraction", "0.3"],
+                              {"budget": "weighted-stbn", "budget_fraction": 0.3}),
+            "off": (["--budget", "none", "--prune-epsilon", "0", "--prune-falloff", "0"],
+                    {"budget": "none", "prune_epsilon": 0.0, "prune_falloff": 0.0, "reproject": False}),
+        }
+        for name, (extra, want) in runs.items():
+            j = render_stats(inr, model, d, (w, h), frames, *extra)
+            q = j.get("query_reduction")
+            expect(isinstance(q, dict), "%s: no query_reduction header in --stats-json: %s" % (name, list(j)))
+            for k, v in want.items():
+                expect(q.get(k) == v, "%s: header %s = %r, want %r" % (name, k, q.get(k), v))
+            expect(len(j["frames"]) == frames, "%s: %d per-frame records, want %d" % (name, len(j["frames"]), frames))
+            for f in j["frames"] + [j["total"]]:
+                for k in ("rays", "budget_skipped", "pruned"):
+                    expect(isinstance(f.get(k), int) and not isinstance(f.get(k), bool) and f[k] >= 0,
+                           "%s: frame field %s = %r is not a non-negative integer" % (name, k, f.get(k)))
+            for f in j["frames"]:
+                expect(f["pixels"] == w * h, "%s: pixels %r" % (name, f["pixels"]))
+                # A skipped pixel casts no ray.
+                expect(f["rays"] + f["budget_skipped"] <= f["pixels"],
+                       "%s frame %d: rays %d + skipped %d > pixels %d"
+                       % (name, f["frame"], f["rays"], f["budget_skipped"], f["pixels"]))
+            if name == "off":
+                expect(all(f["budget_skipped"] == 0 and f["pruned"] == 0 for f in j["frames"]),
+                       "off: something was skipped or pruned with query reduction off")
+                expect(sum(f["rays"] for f in j["frames"]) > 0, "off: no ray entered the volume")
+            expect(j["total"]["budget_skipped"] == sum(f["budget_skipped"] for f in j["frames"]),
+                   "%s: total budget_skipped is not the sum over frames" % name)
+
+
+def check_query_reduction_xml_defaults(inr, data):
+    """The defaults live in one place, inr::QueryReductionSettings: the CLI runs with them when no
+    option is given (read back from the renderer into --stats-json), and the ParaView plugin's XML
+    must declare the same default for each property."""
+    import xml.etree.ElementTree as ET
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        q = render_stats(inr, model, d, (8, 8), 1)["query_reduction"]
+    xml = os.path.join(data, os.pardir, os.pardir, "ServerManagerXML", "InrVolumeRepresentation.xml")
+    props = {e.get("name"): e for e in ET.parse(xml).getroot().iter() if e.get("default_values") is not None}
+    budget = props["RayBudget"]
+    entries = {e.get("value"): e.get("text") for e in budget.iter("Entry")}
+    expect(entries == {"0": "none", "1": "histogram", "2": "stbn", "3": "weighted-stbn"},
+           "RayBudget entries %r must be the CLI's scheme names" % entries)
+    expect(entries[budget.get("default_values")] == q["budget"],
+           "RayBudget default %r, struct default %r" % (entries[budget.get("default_values")], q["budget"]))
+    for prop, key, cast in (("BudgetFraction", "budget_fraction", float), ("BudgetMaxSkip", "budget_max_skip", int),
+                            ("BudgetAlpha", "budget_alpha", float), ("Reproject", "reproject", lambda v: bool(int(v))),
+                            ("PruneEpsilon", "prune_epsilon", float), ("PruneFalloff", "prune_falloff", float)):
+        expect(prop in props, "the XML has no property %s" % prop)
+        got = cast(props[prop].get("default_values"))
+        expect(got == q[key], "%s: XML default %r, QueryReductionSettings default %r" % (prop, got, q[key]))
+
+
 if __name__ == "__main__":
     inr, data, check = sys.argv[1:4]
     globals()["check_" + check](inr, data)

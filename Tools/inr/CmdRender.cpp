@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -23,13 +24,14 @@
 #include "Backends/RenderSession.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
+#include "Render/QueryReduction.h"
 #include "Render/RayMarcher.h"
 
 namespace inr::cli {
 
 namespace {
 
-const char* kRenderUsage =
+const char* kRenderUsageHead =
     "usage: inr render MODEL -o OUT.png|.pfm [options]\n"
     "scene:\n"
     "  --time T                 world time (default: start of the model's time range)\n"
@@ -70,10 +72,42 @@ const char* kRenderUsage =
     "  --shadow-step S          ray-march shadow step (default: 2 x step)\n"
     "  --threads N              CPU threads (default: all)\n"
     "  --backend B              auto (default: CUDA when a usable GPU is present, else CPU), cpu or cuda;\n"
-    "                           the ray marcher evaluates through the chosen backend's evaluator\n"
+    "                           the ray marcher evaluates through the chosen backend's evaluator\n";
+
+// The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
+// place they are defined (the plugin's XML defaults are checked against the same struct).
+std::string queryReductionUsage() {
+  const QueryReductionSettings d;
+  char text[4096];
+  std::snprintf(
+      text, sizeof text,
+      "query reduction (paper sec. 4.2; delta tracking only; each trades accuracy per frame for speed):\n"
+      "  --budget S               ray budgeting: none, histogram, stbn or weighted-stbn (default %s);\n"
+      "                           fewer rays per frame, the skipped pixels keep their previous estimate\n"
+      "  --budget-fraction RHO    rho: fraction of pixels traced per frame, in (0, 1] (default %g; the\n"
+      "                           histogram scheme thresholds at 1 - rho); lower = cheaper frames, more of them\n"
+      "  --budget-max-skip K      K: histogram scheme's longest skip in frames, S_max = min(K, n/4), 0..1024\n"
+      "                           (default %d); higher = fewer rays on converged pixels, staler ones\n"
+      "  --budget-alpha A         alpha: how strongly weighted-stbn steers rays to high-residual pixels,\n"
+      "                           in [0, 1] (default %g; 0 = plain stbn)\n"
+      "  --reproject              keep the accumulation across camera moves by reprojecting it (default %s);\n"
+      "                           a still camera is unaffected\n"
+      "  --prune-epsilon E        epsilon: macrocells whose value range is below E x the field's range are\n"
+      "                           answered without a network query, in [0, 1] (default %g; 0 = off);\n"
+      "                           higher = fewer queries, a biased image in near-uniform regions\n"
+      "  --prune-falloff D        delta: band above epsilon pruned with falling probability, in [0, 1]\n"
+      "                           (default %g); softens the epsilon edge. --budget none --prune-epsilon 0\n"
+      "                           --prune-falloff 0 renders every pixel exactly, every frame\n",
+      budgetSchemeName(d.budget), d.budgetFraction, d.budgetMaxSkip, d.budgetAlpha, d.reproject ? "on" : "off",
+      d.pruneEpsilon, d.pruneFalloff);
+  return text;
+}
+
+const char* kRenderUsageTail =
     "output:\n"
     "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float)\n"
-    "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells\n"
+    "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells; per\n"
+    "                           frame also budget_skipped (pixels left out) and pruned (queries saved)\n"
     "  --quiet                  only the summary line\n";
 
 std::array<double, 3> list3(const Args& args, const std::string& name) {
@@ -93,6 +127,8 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"refinements", s.refinements},
           {"residual_sum", s.residualSum},
           {"capped_rays", s.cappedRays},
+          {"budget_skipped", s.budgetSkipped},
+          {"pruned", s.pruned},
           {"ms",
            {{"update", s.updateMs},
             {"init", s.initMs},
@@ -102,6 +138,51 @@ nlohmann::json statsJson(const FrameStats& s) {
             {"shadow_evaluate", s.shadowEvaluateMs},
             {"finalize", s.finalizeMs},
             {"total", s.totalMs}}}};
+}
+
+nlohmann::json queryReductionJson(const QueryReductionSettings& q) {
+  return {{"budget", budgetSchemeName(q.budget)},
+          {"budget_fraction", q.budgetFraction},
+          {"budget_max_skip", q.budgetMaxSkip},
+          {"budget_alpha", q.budgetAlpha},
+          {"reproject", q.reproject},
+          {"prune_epsilon", q.pruneEpsilon},
+          {"prune_falloff", q.pruneFalloff}};
+}
+
+// Reads the query-reduction options onto the struct's defaults. Each option is checked as it is
+// applied (the defaults are valid), so an error names the option the user typed.
+QueryReductionSettings parseQueryReduction(const Args& args) {
+  QueryReductionSettings q;
+  auto apply = [&](const char* option, auto&& set) {
+    if (!args.has(option)) return;
+    set();
+    try {
+      q.validate();
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--") + option + ": " + e.what());
+    }
+  };
+  apply("budget", [&] {
+    try {
+      q.budget = parseBudgetScheme(args.get("budget"));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--budget: ") + e.what());
+    }
+  });
+  apply("budget-fraction", [&] { q.budgetFraction = args.getDouble("budget-fraction", q.budgetFraction); });
+  apply("budget-max-skip", [&] {
+    const long k = args.getInt("budget-max-skip", q.budgetMaxSkip);
+    // Beyond int: said here (converting first would show validate() a different number).
+    if (k < 0 || k > (1L << 20))
+      throw UsageError("--budget-max-skip: " + std::to_string(k) + " is out of range (0..1024 frames)");
+    q.budgetMaxSkip = int(k);
+  });
+  apply("budget-alpha", [&] { q.budgetAlpha = args.getDouble("budget-alpha", q.budgetAlpha); });
+  apply("reproject", [&] { q.reproject = true; });
+  apply("prune-epsilon", [&] { q.pruneEpsilon = args.getDouble("prune-epsilon", q.pruneEpsilon); });
+  apply("prune-falloff", [&] { q.pruneFalloff = args.getDouble("prune-falloff", q.pruneFalloff); });
+  return q;
 }
 
 bool endsWith(const std::string& s, const std::string& suffix) {
@@ -115,10 +196,13 @@ int runRender(int argc, char** argv) {
             {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
-             "step", "shadow-step", "threads", "backend", "output", "converge"},
-            {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet"});
+             "step", "shadow-step", "threads", "backend", "output", "converge", "budget", "budget-fraction",
+             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff"},
+            {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject"});
   if (args.has("help")) {
-    std::fputs(kRenderUsage, stdout);
+    std::fputs(kRenderUsageHead, stdout);
+    std::fputs(queryReductionUsage().c_str(), stdout);
+    std::fputs(kRenderUsageTail, stdout);
     return 0;
   }
   if (args.positional().size() != 1) throw UsageError("expects exactly one MODEL file (see --help)");
@@ -155,6 +239,13 @@ int runRender(int argc, char** argv) {
     throw UsageError("--converge must be a PSNR in (0, 200] dB, e.g. 40");
   }
   if (args.has("converge") && method == "raymarch") throw UsageError("--converge applies to delta tracking only");
+  // Checked before the model loads, so a typo fails at once.
+  const QueryReductionSettings queryReduction = parseQueryReduction(args);
+  for (const char* option : {"budget", "budget-fraction", "budget-max-skip", "budget-alpha", "reproject",
+                             "prune-epsilon", "prune-falloff"}) {
+    if (args.has(option) && method == "raymarch")
+      throw UsageError(std::string("--") + option + " applies to delta tracking only, not --method raymarch");
+  }
   if (args.has("threads")) {
     const long t = args.getInt("threads", 0);
     if (t < 1 || t > 4096) throw UsageError("--threads must be >= 1");
@@ -214,6 +305,7 @@ int runRender(int argc, char** argv) {
   const std::unique_ptr<RenderSession> session = RenderSession::create(model, sopts);
   const FieldEvaluator& evaluator = session->evaluator();
   if (!quiet) std::printf("backend: %s\n", session->description().c_str());
+  session->setQueryReduction(queryReduction);
 
   // --- scene
   RenderScene scene;
@@ -285,6 +377,8 @@ int runRender(int argc, char** argv) {
   report["threads"] = omp_get_max_threads();
   report["evaluator"] = evaluator.name();
   report["backend"] = session->description();
+  // What the session holds, read back: the settings every frame below ran with.
+  if (method != "raymarch") report["query_reduction"] = queryReductionJson(session->queryReduction());
 
   FrameStats total;
   long renderedFrames = frames;
@@ -292,9 +386,11 @@ int runRender(int argc, char** argv) {
   ImageRGBA image;
   auto progressLine = [&](const FrameStats& st, long k) {
     if (quiet) return;
-    std::printf("frame %ld/%ld: %zu rays, %zu queries (+%zu shadow) in %d (+%d) iterations, %.1f ms\n",
-                k + 1, frames, st.rays, st.queries, st.shadowQueries, st.iterations, st.shadowIterations,
-                st.totalMs);
+    std::printf("frame %ld/%ld: %zu rays, %zu queries (+%zu shadow) in %d (+%d) iterations, %.1f ms", k + 1, frames,
+                st.rays, st.queries, st.shadowQueries, st.iterations, st.shadowIterations, st.totalMs);
+    // Only when query reduction did something, so the usual line stays as it was.
+    if (st.budgetSkipped || st.pruned) std::printf("; %zu pixels skipped, %zu pruned", st.budgetSkipped, st.pruned);
+    std::printf("\n");
     std::fflush(stdout);
   };
 
