@@ -35,12 +35,16 @@ void RefinementDriver::restart() {
   estimate_ = -std::numeric_limits<double>::infinity();
   converged_ = false;
   lastFrames_ = 0;
+  lastEpoch_ = -1;
 }
 
 RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool naive) {
   Step step;
   int frames = session.accumulatedFrames();
-  if (frames == 0 || frames < lastFrames_) estimate_ = -std::numeric_limits<double>::infinity();
+  // A reset or a reprojection (which keeps some frames) since the last request: start over.
+  const int epoch = session.counters().accumulationResets + session.counters().reprojections;
+  if (frames == 0 || frames < lastFrames_ || epoch != lastEpoch_) estimate_ = -std::numeric_limits<double>::infinity();
+  lastEpoch_ = epoch;
   converged_ = converged(frames);
   const int goal = std::min(options_.maximumFrames, std::max(frames + 1, options_.framesPerRender));
   while (!converged_ && frames < goal) {

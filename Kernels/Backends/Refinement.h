@@ -60,6 +60,7 @@ private:
   double estimate_ = -std::numeric_limits<double>::infinity();
   bool converged_ = false;
   int lastFrames_ = 0;
+  int lastEpoch_ = -1;  // accumulation resets + reprojections the session had at the last request
 };
 
 }  // namespace inr
