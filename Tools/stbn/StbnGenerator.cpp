@@ -229,12 +229,50 @@ std::uint32_t drawBelow(std::mt19937& rng, std::uint32_t bound) {
   }
 }
 
+// 5. Per-pixel temporal stratification. The global ranking leaves a pixel's D values only near
+// evenly spaced, so thresholding at rho can turn a pixel on a few frames more or fewer than
+// rho * D. Here each pixel's D texels are ranked among themselves by their global rank (all
+// distinct, so no ties: the order in time is the global ranking's), and the texel of temporal
+// rank r gets a level from r's own bin [ceil(256 r / D), ceil(256 (r + 1) / D) - 1]; with
+// D <= 256 every bin is non-empty, and the bins are in order and cover 0..255. Each bin holds
+// exactly W * H texels (one per pixel); within it the levels go by global rank: the j-th of them
+// (j = 0 .. W H - 1, in global rank order) gets level lo + floor(j * bin size / (W H)). So every
+// level still occurs equally often (exactly N / 256 times when D divides 256 and W H divides by
+// 256 / D), and within a slice the texels of one bin keep the global ranking's spatial order.
+// Docs/blue-noise.md proves the count property: for every rho in (0, 1), thresholding at rho turns
+// every pixel on floor(rho D) or ceil(rho D) frames of the cycle. All integer arithmetic.
+void stratifyPixelsInTime(const std::vector<std::uint32_t>& rank, int width, int height, int depth,
+                          std::vector<std::uint8_t>& texels) {
+  const std::size_t plane = std::size_t(width) * std::size_t(height), d = std::size_t(depth);
+  const std::size_t n = plane * d;
+  // Temporal rank of every texel.
+  std::vector<std::uint16_t> temporalRank(n);
+  std::vector<std::size_t> order(d);
+  for (std::size_t p = 0; p < plane; ++p) {
+    for (std::size_t t = 0; t < d; ++t) order[t] = t * plane + p;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rank[a] < rank[b]; });
+    for (std::size_t r = 0; r < d; ++r) temporalRank[order[r]] = std::uint16_t(r);
+  }
+  // Texels in global rank order (rank is a permutation of 0 .. N-1), each numbered within its bin.
+  std::vector<std::uint32_t> byRank(n);
+  for (std::size_t i = 0; i < n; ++i) byRank[rank[i]] = std::uint32_t(i);
+  std::vector<std::uint64_t> seen(d, 0);
+  for (std::size_t g = 0; g < n; ++g) {
+    const std::size_t i = byRank[g];
+    const std::uint64_t r = temporalRank[i];
+    const std::uint64_t lo = (256 * r + d - 1) / d, hi = (256 * (r + 1) + d - 1) / d;
+    texels[i] = std::uint8_t(lo + seen[r]++ * (hi - lo) / plane);
+  }
+}
+
 }  // namespace
 
 BlueNoiseMask generateStbnMask(int width, int height, int depth, std::uint32_t seed, double sigma,
                                const StbnProgressCallback& progress) {
   if (width <= 0 || height <= 0 || depth <= 0)
     throw std::invalid_argument("generateStbnMask: sizes must be positive");
+  // More frames than the 256 byte levels could not give each of a pixel's frames its own level.
+  if (depth > 256) throw std::invalid_argument("generateStbnMask: depth must be at most 256");
   if (!(sigma > 0.0)) throw std::invalid_argument("generateStbnMask: sigma must be positive");
   const std::size_t n = std::size_t(width) * std::size_t(height) * std::size_t(depth);
   if (n > std::numeric_limits<std::uint32_t>::max() / 2)
@@ -336,8 +374,7 @@ BlueNoiseMask generateStbnMask(int width, int height, int depth, std::uint32_t s
   mask.height = height;
   mask.depth = depth;
   mask.texels.resize(n);
-  for (std::size_t i = 0; i < n; ++i)
-    mask.texels[i] = std::uint8_t(std::min<std::uint64_t>(255, std::uint64_t(rank[i]) * 256 / n));
+  stratifyPixelsInTime(rank, width, height, depth, mask.texels);
   return mask;
 }
 

@@ -23,8 +23,11 @@ using StbnProgressCallback = std::function<void(const StbnProgress&)>;
 // Deterministic for (width, height, depth, seed, sigma): the random initial pattern comes from
 // std::mt19937 (its output sequence is fixed by the standard) through our own bounded draw, and
 // every argmax / argmin tie goes to the lowest texel index. Texel (x, y, z) at
-// texels[(z * height + y) * width + x], value clamp(rank * 256 / N, 0, 255) for N = W * H * D.
-// Throws std::invalid_argument for non-positive sizes or sigma.
+// texels[(z * height + y) * width + x]. One global ranking of all N = W * H * D texels, then per
+// pixel its D texels get levels by their order in time: the r-th lowest of a pixel's texels gets a
+// level in [ceil(256 r / D), ceil(256 (r + 1) / D)), so thresholding at any rho in (0, 1) turns
+// every pixel on floor(rho D) or ceil(rho D) frames of the cycle (Docs/blue-noise.md).
+// Throws std::invalid_argument for non-positive sizes or sigma, or depth > 256.
 BlueNoiseMask generateStbnMask(int width, int height, int depth, std::uint32_t seed,
                                double sigma = 1.9, const StbnProgressCallback& progress = {});
 

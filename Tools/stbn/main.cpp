@@ -14,7 +14,8 @@ namespace {
 
 const char* kUsage =
     "usage: inr-stbn --out FILE [--size W H D] [--seed S] [--sigma X] [--quiet]\n"
-    "  --size W H D   mask size in texels (default 128 128 64; D = frames of the cycle)\n"
+    "  --size W H D   mask size in texels (default 128 128 64; D = frames of the cycle,\n"
+    "                 at most 256)\n"
     "  --seed S       seed of the random initial pattern (default 1)\n"
     "  --sigma X      Gaussian sigma of the energy, every axis (default 1.9)\n"
     "  --out FILE     raw 8-bit output, W*H*D bytes\n"
@@ -60,8 +61,8 @@ int main(int argc, char** argv) {
         w = int(parseInt(argv[++i], "--size"));
         h = int(parseInt(argv[++i], "--size"));
         d = int(parseInt(argv[++i], "--size"));
-        if (w <= 0 || h <= 0 || d <= 0 || w > 4096 || h > 4096 || d > 4096)
-          throw UsageError("--size: each of W H D must be in [1, 4096]");
+        if (w <= 0 || h <= 0 || d <= 0 || w > 4096 || h > 4096 || d > 256)
+          throw UsageError("--size: W and H must be in [1, 4096], D in [1, 256]");
       } else if (a == "--seed") {
         need(1);
         seed = parseInt(argv[++i], "--seed");
