@@ -223,7 +223,7 @@ TEST(ShippedBlueNoiseMask, EachSliceHasANearUniformHistogram) {
       const double rel = double(bins[b]) / (double(sliceTexels) / 16.0) - 1.0;
       worst = std::max(worst, std::abs(rel));
       // The per-pixel stratification trades some per-slice evenness for exact per-pixel counts:
-      // worst 6.3% after it, 3.8% before (white noise: rms 3.1%, so about 10% worst of 1024 bins).
+      // worst 6.3% after it, 3.8% before (white noise, binomial estimate: rms about 3%).
       EXPECT_LT(std::abs(rel), 0.08) << "slice " << z << " bin " << b;
     }
   }
