@@ -53,8 +53,9 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
 //                  counting this one; a pixel in a countdown skips until it runs out, then
 //                  renders: every pixel renders at least once per S_max + 1 frames.
 //   stbn           u(x, n) < rho, u the blue-noise mask tiled over the screen (Eq. 7).
-//   weighted-stbn  u(x, n) < rho_eff = clamp(rho + alpha (r_i - rho), 2/256, 1) (Eq. 8): the
-//                  floor keeps every pixel rendering at least twice per 256 mask slices.
+//   weighted-stbn  u(x, n) < rho_eff = clamp(rho + alpha (r_i - rho), floor, 1) (Eq. 8): the
+//                  floor (budgetRhoFloor: the paper's 2/256, at least 1/D for a D-slice mask)
+//                  keeps every pixel rendering at least once per D frames.
 // Only the histogram scheme writes pixel state (the countdown).
 INR_HD bool budgetPixel(const BudgetConstants& b, const AccumulationView& acc, int i, int px, int py) {
   if (b.scheme == 0 || acc.sampleCount[i] == 0u) return true;
@@ -74,7 +75,7 @@ INR_HD bool budgetPixel(const BudgetConstants& b, const AccumulationView& acc, i
   }
   const float u = blueNoiseValue(b.mask, px, py, b.noiseFrame);
   if (b.scheme == 2) return u < b.rho;
-  const float rhoEff = clampf(b.rho + b.alpha * (acc.residual[i] - b.rho), 2.f / 256.f, 1.f);
+  const float rhoEff = clampf(b.rho + b.alpha * (acc.residual[i] - b.rho), b.rhoFloor, 1.f);
   return u < rhoEff;
 }
 

@@ -111,7 +111,10 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   b.maxSkip = std::min(q.budgetMaxSkip, frameIndex_ / 4);  // S_max = min(K, floor(n / 4))
   b.tau = residualThreshold_;
   b.noiseFrame = noiseFrame_;
-  if (q.budget == BudgetScheme::Stbn || q.budget == BudgetScheme::WeightedStbn) b.mask = blueNoiseMask();
+  if (q.budget == BudgetScheme::Stbn || q.budget == BudgetScheme::WeightedStbn) {
+    b.mask = blueNoiseMask();
+    b.rhoFloor = budgetRhoFloor(b.mask.depth);
+  }
   return fc;
 }
 
