@@ -27,6 +27,7 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.radiance[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
   rs.visibility[i] = 1.f;
   rs.rngCounter[i] = rng.counter;
+  rs.pruned[i] = 0;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 

@@ -78,6 +78,16 @@ void WavefrontRenderer::setQueryReduction(const QueryReductionSettings& settings
   if (pruningChanged) resetAccumulation();
 }
 
+PruneView WavefrontRenderer::pruneThresholds() const {
+  PruneView v;
+  if (!queryReduction_.pruning()) return v;
+  const std::array<float, 2> r = workingValueRange();
+  const double span = double(r[1]) - double(r[0]);
+  v.epsilon = float(queryReduction_.pruneEpsilon * span);
+  v.falloff = float(queryReduction_.pruneFalloff * span);
+  return v;
+}
+
 void WavefrontRenderer::allocatePixels() {
   resizePixels(std::size_t(settings_.width) * settings_.height);
   clearAccumulation();

@@ -122,6 +122,10 @@ protected:
   FrameStats beginFrame(const char* method, const char* caller);
   // Closes a frame: counts capped rays and truncation, warns once per cause, advances the index.
   void endFrame(const FrameStats& st, bool truncated);
+  // Homogeneity pruning's thresholds in scalar units: the settings' fractions times the span of
+  // workingValueRange(). Arrays unset (the backend fills them from its grid); all zero (off)
+  // unless queryReduction_.pruning().
+  PruneView pruneThresholds() const;
 
   TrackingOptions options_;
   RenderSettings settings_;
