@@ -57,9 +57,10 @@ INR_HD float cellCentreWeight(const MajorantGridView& g, const Int3& cell, const
   for (int a = 0; a < 3; ++a) {
     const float size = component(g.cellSize, a);
     const float centre = component(g.box.lo, a) + (float(component(cell, a)) + 0.5f) * size;
-    d = maxf(d, fabsf(2.f * (component(p, a) - centre) / size));
+    const float u = fabsf(2.f * (component(p, a) - centre) / size);
+    d = (u > d || u != u) ? u : d;  // a NaN offset sticks
   }
-  return d < 1.f ? 1.f - d : 0.f;  // (NaN offsets: 0)
+  return d < 1.f ? 1.f - d : 0.f;  // (NaN: 0)
 }
 
 // Eq. ev_ema: the expected scalar after a real evaluation `sample` with centre weight w:
