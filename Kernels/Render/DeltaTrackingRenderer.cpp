@@ -22,6 +22,15 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+// Candidates pruned this frame, over all rays (RayStateView::pruned, both legs).
+std::size_t sumPruned(const RayStateView& rs) {
+  const int n = rs.count;
+  std::size_t sum = 0;
+#pragma omp parallel for schedule(static) reduction(+ : sum) if (n >= kParallelMinItems)
+  for (int i = 0; i < n; ++i) sum += rs.pruned[i];
+  return sum;
+}
+
 }  // namespace
 
 FrameStats& FrameStats::operator+=(const FrameStats& o) {
@@ -118,6 +127,18 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
         refinements += macrocells_.refine(linearCellIndex(dims, rs.cell[rays[q]]), values[q]) ? 1 : 0;
       }
     }
+    if (medium.prune.expected) {
+      // Pruning's expected scalars learn from every real evaluation (Eq. ev_ema): serial and in
+      // batch (= ray) order, so they and the image do not depend on the thread count. Before
+      // the next traversal reads them.
+      const int* rays = batch_.rayIndices();
+      const float* values = batch_.values();
+      for (std::size_t q = 0; q < k; ++q) {
+        int cell;
+        float estimate;
+        if (expectedAfterQuery(medium, rs, rays[q], values[q], cell, estimate)) medium.prune.expected[cell] = estimate;
+      }
+    }
     evaluateMs += msSince(t0);
   }
 }
@@ -128,7 +149,8 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.updateMs += applyDirtyMajorants();
 
   const FrameConstants fc = frameConstants(frameKey());
-  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
+  const PruneView prune = queryReduction_.pruning() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
+  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), prune};
   const RayStateView rs = rays_.view();
   const int n = rs.count;
 
@@ -161,6 +183,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     runTrackingLoop(fc, medium, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
                     st.shadowEvaluateMs, st.refinements, truncated);
   }
+  if (prune.expected) st.pruned = sumPruned(rs);
 
   t0 = Clock::now();
   double residualSum = 0.0, varianceSum = 0.0;

@@ -20,4 +20,19 @@ INR_HD void storeQueryResult(const RayStateView& rs, int ray, float value) {
   if (!isFiniteValue(value)) rs.flags[ray] |= kRayBadSample;
 }
 
+// Expected-value refinement of homogeneity pruning (Eq. ev_ema, Render/Pruning.h): the evaluated
+// `value` of ray `ray`'s pending query moves the expected scalar of the query's macrocell
+// (rs.cell, the cell the candidate was emitted in), weighted by how central the query point is.
+// Returns false for a non-finite value (nothing to learn); else the cell's linear index and its
+// new estimate, which the caller stores (serially on the CPU, racily on the GPU).
+INR_HD bool expectedAfterQuery(const TrackingMedium& medium, const RayStateView& rs, int ray, float value,
+                               int& cell, float& estimate) {
+  if (!isFiniteValue(value)) return false;
+  const Int3 c = rs.cell[ray];
+  const Vec3f p = rs.origin[ray] + rs.direction[ray] * rs.t[ray];
+  cell = linearCellIndex(medium.grid.dims, c);
+  estimate = emaExpected(medium.prune.expected[cell], value, cellCentreWeight(medium.grid, c, p));
+  return true;
+}
+
 }  // namespace inr

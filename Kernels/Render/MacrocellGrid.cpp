@@ -25,6 +25,7 @@ MacrocellGrid::MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, 
   workMin_.assign(n, 0.f);
   workMax_.assign(n, 0.f);
   workMean_.assign(n, 0.f);
+  expected_.assign(n, 0.f);
   dirtyMask_.assign(n, 0);
   if (!options_.lazySlices) buildAllSlices();
 }
@@ -107,6 +108,16 @@ void MacrocellGrid::interpolateWorkingGrid() {
   const float w = w_;
 #pragma omp parallel for schedule(static) if (cells >= kParallelMinItems)
   for (int c = 0; c < cells; ++c) out.store(c, interpolateCell(av.at(c), bv.at(c), w, pad));
+  // A new working grid restarts pruning's estimates from its lattice means (the old time's
+  // refinements describe another field).
+  expected_ = workMean_;
+}
+
+PruneView MacrocellGrid::pruneView(PruneView thresholds) {
+  thresholds.cellMin = workMin_.data();
+  thresholds.cellMax = workMax_.data();
+  thresholds.expected = expected_.data();
+  return thresholds;
 }
 
 std::array<float, 2> MacrocellGrid::workingValueRange() const {

@@ -16,6 +16,7 @@
 #include "Render/MacrocellGridBase.h"
 #include "Render/MacrocellLayout.h"
 #include "Render/MajorantGrid.h"
+#include "Render/Pruning.h"
 #include "Render/TransferFunctionTable.h"
 
 namespace inr {
@@ -59,6 +60,12 @@ public:
   const std::vector<float>& workingMean() const { return workMean_; }
   // [min, max] over all working cells (finite values only); {0, 1} if none.
   std::array<float, 2> workingValueRange() const;
+  // Homogeneity pruning's expected scalar per working cell (paper Eq. ev_ema): the working
+  // grid's mean after every (re)interpolation, then refined by the renderer's EMA.
+  const std::vector<float>& expected() const { return expected_; }
+  // `thresholds` (absolute epsilon and falloff) with this grid's working bounds and expected
+  // scalars filled in: what TrackingMedium::prune holds for a pruned frame.
+  PruneView pruneView(PruneView thresholds);
 
   // majorant[c] = max extinction of the TF over cell c's [min, max].
   void computeMajorants(const TransferFunctionView& tf, std::vector<float>& majorants) const;
@@ -87,6 +94,7 @@ private:
   const FieldEvaluator& evaluator_;
   std::vector<Slice> slices_;
   std::vector<float> workMin_, workMax_, workMean_;
+  std::vector<float> expected_;
   std::vector<std::uint8_t> dirtyMask_;
   std::vector<int> dirty_;
   std::size_t refinements_ = 0;

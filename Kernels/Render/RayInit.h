@@ -27,6 +27,7 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.radiance[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
   rs.visibility[i] = 1.f;
   rs.rngCounter[i] = rng.counter;
+  rs.pruned[i] = 0;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 
@@ -87,6 +88,7 @@ INR_HD void initBudgetedRay(const FrameConstants& fc, const MajorantGridView& gr
   const int px = i % fc.camera.width, py = i / fc.camera.width;
   if (!budgetPixel(fc.budget, acc, i, px, py)) {
     rs.flags[i] = kRayBudgetSkipped;
+    rs.pruned[i] = 0;  // summed over all rays at the end of the frame
     return;
   }
   initPrimaryRay(fc, grid, rs, i);

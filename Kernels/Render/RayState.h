@@ -51,6 +51,7 @@ enum class ShadowEstimator : int {
 //   radiance           frame result: premultiplied colour of the primary collision (rgb) and
 //                      coverage (w = 1 on a real collision, 0 when the ray escaped)
 //   visibility         visibility towards the light
+//   pruned             candidates answered by homogeneity pruning this frame (Pruning.h), both legs
 #define INR_RAY_STATE_FIELDS(X) \
   X(Vec3f, origin)              \
   X(Vec3f, direction)           \
@@ -63,7 +64,8 @@ enum class ShadowEstimator : int {
   X(Int3, cell)                 \
   X(Vec3f, tNext)               \
   X(Vec4f, radiance)            \
-  X(float, visibility)
+  X(float, visibility)          \
+  X(std::uint32_t, pruned)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
 // declared the same way; resetPixel (Finalize.h) gives their values after a reset.

@@ -85,6 +85,9 @@ struct DdaWalker {
     rs.cell[i] = cell;
     rs.tNext[i] = tNext;
   }
+  // Linear index of the current segment's macrocell (what per-cell data such as pruning's
+  // bounds and expected scalars is indexed by).
+  INR_HD int cellIndex() const { return linearCellIndex(grid.dims, cell); }
   // The current segment from t: its majorant and end (clipped to tEnd). Over empty blocks it
   // first moves to the next non-empty one (updating t where the cell walk would enter it).
   // Returns false when the ray leaves its segment first.
@@ -132,23 +135,67 @@ INR_HD bool trackSegments(const FrameConstants& fc, const RayStateView& rs, int 
   }
 }
 
-// One traversal pass for ray i (paper §4.1.3 with a DDA walker instead of OptiX): resolve the
-// pending candidate, then track to the next candidate or the end of the ray's segment.
-INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium,
-                        const RayStateView& rs, int i) {
+// Homogeneity pruning (Render/Pruning.h) of the candidate just emitted in linear cell `cell`:
+// when the decision says prune, the candidate is answered with the cell's expected scalar
+// (rs.sample, as if the evaluation had returned it; the ray stays pending for resolveCandidate)
+// and counted, and true is returned; false sends it to the evaluator. A non-finite estimate is
+// never substituted.
+INR_HD bool answerPruned(const PruneView& prune, int cell, const RayStateView& rs, int i, RngStream& rng) {
+  if (!prunes(prune, cell, rng)) return false;
+  const float s = prune.expected[cell];
+  if (!isFiniteValue(s)) return false;
+  rs.sample[i] = s;
+  rs.pruned[i] += 1u;
+  return true;
+}
+
+// An empty asm that "redefines" the ray index, so nvcc cannot hoist the addresses derived from
+// it (rs.origin + i, ...) out of traverseRayWith's pruning loop: hoisted, they would stay live
+// through the DDA's inner loop and push ddaTraverseKernel past its register bound (ptxas -v,
+// sm_90: 28 / 104 bytes of spill stores / loads hoisted, 10 / 20 with the barrier, 10 / 16
+// before pruning existed). Emits no instruction.
+INR_HD void opaqueRayIndex(int& i) {
+#if defined(__CUDA_ARCH__)
+  asm volatile("" : "+r"(i));
+#else
+  (void)i;
+#endif
+}
+
+// One traversal pass for ray i (paper §4.1.3) with any walker constructible from (grid, rays,
+// ray) that exposes cellIndex(): resolve the pending candidate, then track to the next candidate
+// or the end of the ray's segment. A pruned candidate is resolved here at once and tracking goes
+// on from it (null collision) or the ray finishes (real collision, blocked shadow ray); only
+// candidates that need the network leave the ray pending. The walker is rebuilt from the ray
+// state after each pruned candidate rather than kept live across resolveCandidate: pruning stays
+// a loop back-edge and the register footprint of the pass without pruning is unchanged.
+template <typename Walker>
+INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];
   if (!(flags & kRayActive)) return;
   RngStream rng{std::uint32_t(i), fc.frame, fc.seed, rs.rngCounter[i]};
 
   bool finished = false;
-  if (flags & kRayPending) finished = resolveCandidate(fc, medium, rs, i, flags, rng);
-  if (!finished) {
-    DdaWalker walker(medium.grid, rs, i);
-    finished = !trackSegments(fc, rs, i, flags, rng, walker, rs.t[i], rs.tEnd[i]);
+  bool resolve = (flags & kRayPending) != 0;
+  for (;;) {
+    opaqueRayIndex(i);
+    if (resolve && (finished = resolveCandidate(fc, medium, rs, i, flags, rng))) break;
+    Walker walker(medium.grid, rs, i);
+    if (!trackSegments(fc, rs, i, flags, rng, walker, rs.t[i], rs.tEnd[i])) {
+      finished = true;
+      break;
+    }
+    resolve = answerPruned(medium.prune, walker.cellIndex(), rs, i, rng);
+    if (!resolve) break;  // a query for the evaluator is pending
   }
   if (finished) flags &= std::uint8_t(~kRayActive);  // primary ray escaped / shadow ray reached light
   rs.flags[i] = flags;
   rs.rngCounter[i] = rng.counter;
+}
+
+// The DDA traversal over the majorant grid.
+INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
+  traverseRayWith<DdaWalker>(fc, medium, rs, i);
 }
 
 }  // namespace inr

@@ -52,6 +52,7 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
     transferFunctionChanged();
     ++counters_.transferFunctionUploads;
   }
+  if (change.first || change.time) pruneRangeValid_ = false;
   if (change.time) {
     setMacrocellTime(scene.time);
     ++counters_.workingGridUpdates;
@@ -85,6 +86,21 @@ void WavefrontRenderer::setQueryReduction(const QueryReductionSettings& settings
                               settings.pruneFalloff != queryReduction_.pruneFalloff;
   queryReduction_ = settings;
   if (pruningChanged) resetAccumulation();
+}
+
+PruneView WavefrontRenderer::pruneThresholds() const {
+  PruneView v;
+  if (!queryReduction_.pruning()) return v;
+  // The range is read once per working grid (a GPU grid reduces and synchronises for it), not
+  // per frame; refinement widening it later leaves the thresholds as they were for that time.
+  if (!pruneRangeValid_) {
+    pruneRange_ = workingValueRange();
+    pruneRangeValid_ = true;
+  }
+  const double span = double(pruneRange_[1]) - double(pruneRange_[0]);
+  v.epsilon = float(queryReduction_.pruneEpsilon * span);
+  v.falloff = float(queryReduction_.pruneFalloff * span);
+  return v;
 }
 
 void WavefrontRenderer::allocatePixels() {

@@ -140,6 +140,10 @@ protected:
   // with the histogram scheme, `residualHistogram` (kResidualBins counts of this frame's
   // rendered pixels) gives the next frame's threshold.
   void endFrame(const FrameStats& st, bool truncated, const std::uint32_t* residualHistogram = nullptr);
+  // Homogeneity pruning's thresholds in scalar units: the settings' fractions times the span of
+  // workingValueRange(). Arrays unset (the backend fills them from its grid); all zero (off)
+  // unless queryReduction_.pruning().
+  PruneView pruneThresholds() const;
 
   TrackingOptions options_;
   RenderSettings settings_;
@@ -155,6 +159,8 @@ private:
   std::uint32_t frameKey_ = 0;
   std::uint32_t noiseFrame_ = 0;   // blue-noise slice counter: never restarts
   float residualThreshold_ = 0.f;  // tau for the next frame (histogram scheme)
+  mutable std::array<float, 2> pruneRange_{0.f, 1.f};  // workingValueRange() for pruneThresholds
+  mutable bool pruneRangeValid_ = false;
   std::uint32_t ghostPasses_ = 0;
   std::function<void(const std::string&)> warn_;
   bool warnedCapped_ = false, warnedTruncated_ = false;

@@ -121,6 +121,15 @@ __global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationV
   }
 }
 
+// Candidates pruned this frame (RayStateView::pruned, both legs): one atomic per block.
+__global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
+  using Reduce = cub::BlockReduce<unsigned, kThreads>;
+  __shared__ typename Reduce::TempStorage scratch;
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  const unsigned sum = Reduce(scratch).Sum(i < rs.count ? rs.pruned[i] : 0u);
+  if (threadIdx.x == 0 && sum) atomicAdd(&stats[kStatPruned], (unsigned long long)sum);
+}
+
 __global__ void resetPixelsKernel(AccumulationView acc) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i < acc.count) resetPixel(acc, i);
@@ -254,7 +263,8 @@ CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int 
   Impl& I = *impl_;
   FrameSetup f;
   f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
-  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view(), PruneView{}};
+  const PruneView prune = queryReduction_.pruning() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
+  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view(), prune};
   f.refine = macrocells_.refineView();
   f.refine.frameRefinements = I.stats.get() + kStatRefinements;
   f.rs = I.rays.view();
@@ -271,6 +281,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.varianceSum = I.hostSums[kSumVariance];
   st.coveredPixels = std::size_t(I.hostStats[kStatCovered]);
   st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
+  st.pruned = std::size_t(I.hostStats[kStatPruned]);
 }
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
@@ -308,6 +319,10 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
     I.timer.end(s);
     I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations,
             cuda::kShadowTraverse, cuda::kShadowEvaluate, st.shadowIterations, st.shadowQueries);
+  }
+  if (medium.prune.expected) {
+    sumPrunedKernel<<<blocksFor(n), kThreads, 0, s>>>(rs, I.stats.get());
+    INR_CUDA_CHECK_LAUNCH("sumPrunedKernel");
   }
 
   I.timer.begin(cuda::kFinalize, s);

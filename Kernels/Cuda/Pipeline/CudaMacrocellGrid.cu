@@ -106,6 +106,7 @@ struct CudaMacrocellGrid::Impl {
   };
   std::vector<Slice> slices;
   cuda::DeviceBuffer<float> workMin, workMax, workMean;
+  cuda::DeviceBuffer<float> expected;  // pruning's s^_c per working cell
   cuda::DeviceBuffer<unsigned> dirtyMask;
   cuda::DeviceBuffer<int> dirtyList;
   cuda::DeviceBuffer<unsigned> dirtyCount;
@@ -128,6 +129,8 @@ CudaMacrocellGrid::CudaMacrocellGrid(const DeviceFieldEvaluator& evaluator, cons
   I.workMin.zero(stream_);
   I.workMax.zero(stream_);
   I.workMean.zero(stream_);
+  I.expected.resize(n);
+  I.expected.zero(stream_);
   I.dirtyMask.resize(n);
   I.dirtyMask.zero(stream_);
   I.dirtyList.resize(n);
@@ -208,7 +211,19 @@ void CudaMacrocellGrid::interpolateWorkingGrid() {
                                                   CellBoundsView{b.min.get(), b.max.get(), b.mean.get()}, w_, pad,
                                                   CellBoundsArrays{I.workMin.get(), I.workMax.get(), I.workMean.get()});
   INR_CUDA_CHECK_LAUNCH("interpolateKernel");
+  // A new working grid restarts pruning's estimates from its lattice means.
+  INR_CUDA_CHECK(cudaMemcpyAsync(I.expected.get(), I.workMean.get(), std::size_t(cells) * sizeof(float),
+                                 cudaMemcpyDeviceToDevice, stream_));
 }
+
+PruneView CudaMacrocellGrid::pruneView(PruneView thresholds) {
+  thresholds.cellMin = impl_->workMin.get();
+  thresholds.cellMax = impl_->workMax.get();
+  thresholds.expected = impl_->expected.get();
+  return thresholds;
+}
+
+std::vector<float> CudaMacrocellGrid::downloadExpected() const { return impl_->expected.download(stream_); }
 
 std::array<float, 2> CudaMacrocellGrid::workingValueRange() const {
   Impl& I = *impl_;

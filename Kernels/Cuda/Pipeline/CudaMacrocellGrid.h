@@ -77,6 +77,11 @@ public:
 
   // [min, max] over valid working cells ({0, 1} if none); synchronises.
   std::array<float, 2> workingValueRange() const;
+  // Homogeneity pruning: `thresholds` (absolute epsilon and falloff) with the device working
+  // bounds and expected scalars (one per working cell: the working mean after every
+  // interpolation, refined by the renderer's EMA; MacrocellGrid::expected's twin) filled in.
+  PruneView pruneView(PruneView thresholds);
+  std::vector<float> downloadExpected() const;  // synchronises
 
   // Host copies (synchronise), for tests and tools.
   void downloadSlice(int k, std::vector<float>& min, std::vector<float>& max, std::vector<float>& mean) const;

@@ -84,6 +84,8 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   const FrameSetup f = frameSetup(frameKey());
   const FrameConstants& fc = f.fc;
+  TrackingMedium medium = f.medium;
+  medium.prune = PruneView{};  // the baseline runs without query reduction (as the CPU's does)
   const RayStateView& rs = f.rs;
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.
@@ -95,7 +97,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const int maxSteps = 1 << 16;
   for (int first = 0; first < n; first += chunk) {
     const int count = std::min(chunk, n - first);
-    naiveKernel<<<blocksFor(count), kThreads, 0, s>>>(fc, f.medium, rs, I.pixels.view(), net, first, count,
+    naiveKernel<<<blocksFor(count), kThreads, 0, s>>>(fc, medium, rs, I.pixels.view(), net, first, count,
                                                       options_.refineMacrocells ? 1 : 0, f.refine, I.stats.get(),
                                                       I.sums.get(), maxSteps);
     INR_CUDA_CHECK_LAUNCH("naiveKernel");

@@ -31,6 +31,14 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
     const float v = rs.sample[i];
     storeQueryResult(rs, i, v);
     if (p.refine) cuda::refineCell(p.refineView, linearCellIndex(p.medium.grid.dims, rs.cell[i]), v);
+    int cell;
+    float estimate;
+    // Pruning's EMA (Eq. ev_ema). Threads of a pass update hot cells concurrently; a benign race
+    // by design: read, then one atomic store of the new estimate. A lost update only drops a
+    // sample (every stored value is still a convex mix of the mean and real samples); a CAS
+    // loop would serialise the many rays in a hot cell for no visible gain.
+    if (p.medium.prune.expected && expectedAfterQuery(p.medium, rs, i, v, cell, estimate))
+      atomicExch(&p.medium.prune.expected[cell], estimate);
   }
   traverseRay(p.fc, p.medium, rs, i);
   if (rs.flags[i] & kRayPending) {

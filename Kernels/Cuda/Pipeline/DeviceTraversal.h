@@ -24,7 +24,9 @@ struct TraversalLaunch {
   const unsigned* listCount = nullptr;
   int n = 0;
   // With a list: the listed rays' previous queries were evaluated into rs.sample; complete them
-  // (storeQueryResult) and, when `refine`, refine their macrocells through refineView first.
+  // (storeQueryResult) and, when `refine`, refine their macrocells through refineView first;
+  // with pruning on (medium.prune.expected) they also feed the cells' expected scalars
+  // (expectedAfterQuery, Render/Evaluate.h).
   bool resolvePrevious = false;
   bool refine = false;
   DeviceRefineView refineView;
