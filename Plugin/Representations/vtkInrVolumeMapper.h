@@ -77,7 +77,7 @@ public:
   ///@}
 
   ///@{
-  /// Refinement control. MaximumFrames (default 256): accumulation stops there.
+  /// Refinement control. MaximumFrames (default 2048): accumulation stops there.
   /// ConvergenceTarget (dB, default 41, 0 = off): accumulation stops when the estimated PSNR of
   /// the displayed image over the pixels the volume covers reaches it (from each pixel's sample
   /// variance; inr::RefinementDriver). FramesPerRender (default 1): one Render() call accumulates until the image holds at
@@ -187,7 +187,7 @@ private:
   double LightDirection[3] = { 0, 0, 0 };
   double Ambient = 0.2;
   int ShadowEstimator = 0;
-  int MaximumFrames = 256;
+  int MaximumFrames = 2048;
   double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
   int Seed = 1;
