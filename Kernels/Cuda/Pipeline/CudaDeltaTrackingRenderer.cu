@@ -281,6 +281,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.varianceSum = I.hostSums[kSumVariance];
   st.coveredPixels = std::size_t(I.hostStats[kStatCovered]);
   st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
+  st.budgetSkipped = std::size_t(I.hostStats[kStatBudgetSkipped]);
   st.pruned = std::size_t(I.hostStats[kStatPruned]);
 }
 
