@@ -1,0 +1,737 @@
+// Run time against error for query reduction (issue 11 item 5; paper §"Query Reduction
+// Tradeoffs"). Per model, through RenderSession on the CPU or CUDA backend:
+//   reference   --reference-frames unbudgeted, unpruned frames (seed 977); its premultiplied alpha
+//               is the coverage mask ("the volume's pixels": alpha > 0).
+//   configs     each a fresh session (fresh accumulation, fresh macrocell refinement; seed 1):
+//               frames until --seconds of summed FrameStats::totalMs (render time only: image
+//               downloads and PSNRs are outside it) and at least --min-frames, or --max-frames.
+//               PSNR over the volume's pixels and over the whole image against the reference,
+//               time to 35 / 40 dB, PSNR at frame 400 and at the end, frames/s.
+//   heatmaps    rays per pixel per frame, over frames 2..--heatmap-frames+1 (see rayHeatmap).
+//   raymarch    fixed-step ray marching, one frame at pixel centres, steps diagonal / D for D in
+//               --march-steps: the one-frame method a user would pick instead (PSNR at its time).
+//   orbit       --orbit-steps camera steps of --orbit-degrees about the focal point, --orbit-frames
+//               frames each, with the compiled defaults with and without reprojection; PSNR per
+//               frame against a --orbit-reference-frames render at that step's camera.
+// CSV (curves, summary, raymarch, orbit) and PNGs (reference, images at --snapshot-seconds,
+// heatmaps, ray-marched frames) under --out; plots: plot_query_reduction.py.
+//   query_reduction_benchmark [--backend cpu|cuda|auto] [--size N] [--seconds S] [--configs LIST]
+//       [--reference-frames N] [--out DIR] [--help for the rest] [MODEL.inr ...]
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "Backends/RenderSession.h"
+#include "BenchmarkSupport.h"
+#include "Common/ImageIO.h"
+#include "Render/ModelBox.h"
+#include "Render/QueryReduction.h"
+#include "Render/RayMarcher.h"
+#include "ShippedScene.h"
+#include "TestSupport/ShippedModels.h"
+#include "TestSupport/TestScene.h"
+
+#ifdef INR_HAVE_CUDA
+#include "Cuda/CudaInrEvaluator.h"
+#include "Cuda/Pipeline/CudaRayMarcher.h"
+#endif
+
+using namespace inr;
+using namespace inr::bench;
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* kUsage =
+    "usage: query_reduction_benchmark [options] [MODEL.inr ...]\n"
+    "  default models: Testing/Data/real/*.inr, the *_small ones on the CPU, the others on the GPU\n"
+    "  --backend B             auto (default), cpu or cuda (no fallback)\n"
+    "  --size N                image N x N (default 1024 GPU, 256 CPU)\n"
+    "  --seconds S             render time per configuration (default 3 GPU, 20 CPU)\n"
+    "  --min-frames N          at least N frames per configuration (default 400 GPU, 0 CPU)\n"
+    "  --max-frames N          at most N frames per configuration (default 100000)\n"
+    "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
+    "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
+    "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA]   (default: the paper's set)\n"
+    "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
+    "                          growing by 2^(1/4), plus 400 and the last; default GPU)\n"
+    "  --heatmap-frames N      frames counted for the rays-per-pixel heatmaps (default 64; 0 = none)\n"
+    "  --snapshot-seconds S    write each configuration's image once S seconds are reached (default 1.2)\n"
+    "  --march-steps LIST      ray-march steps as diagonal divisors (default 64,128,256,512; '' = none)\n"
+    "  --orbit-steps N         camera-orbit steps (default 60 GPU, 12 CPU; 0 = none)\n"
+    "  --orbit-degrees D       degrees per step (default 1)\n"
+    "  --orbit-frames F        frames per step (default 4)\n"
+    "  --orbit-warmup F        frames at the first camera before the orbit starts (default 32)\n"
+    "  --orbit-reference-frames N  frames of each step's reference (default 128 GPU, 64 CPU)\n"
+    "  --macrocells M          M^3 macrocells (default 64)\n"
+    "  --slices T              temporal macrocell slices (default 16; 1 for static models)\n"
+    "  --time T                world time (default: middle of the model's time range)\n"
+    "  --out DIR               results folder (default query-reduction-results)\n"
+    "  --append                add to the CSVs already in DIR (e.g. one model per call)\n";
+
+struct Options {
+  std::string backend = "auto";
+  int size = 0;
+  double seconds = 0;
+  int minFrames = -1, maxFrames = 100000, referenceFrames = 400;
+  std::string configs;
+  std::string psnrSchedule;
+  int heatmapFrames = 64;
+  double snapshotSeconds = 1.2;
+  std::string marchSteps = "64,128,256,512";
+  int orbitSteps = -1, orbitFrames = 4, orbitWarmup = 32, orbitReferenceFrames = -1;
+  double orbitDegrees = 1.0;
+  int macrocells = 64, slices = 16;
+  double time = NAN;
+  std::string out = "query-reduction-results";
+  bool append = false;
+  std::vector<std::string> models;
+};
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string t; std::getline(ss, t, sep);)
+    if (!t.empty()) out.push_back(t);
+  return out;
+}
+
+std::string fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+// ---------------------------------------------------------------- configurations
+
+struct Config {
+  std::string label;   // canonical spec, e.g. "stbn:0.75" (also the file-name stem)
+  std::string family;  // none, defaults, histogram, stbn, weighted-stbn, prune
+  QueryReductionSettings q;
+};
+
+// Everything off: the estimator the reference uses. Spelled out rather than taken from the
+// defaults, which the benchmark is meant to choose and which may turn something on.
+QueryReductionSettings allOff() {
+  QueryReductionSettings q;
+  q.budget = BudgetScheme::None;
+  q.reproject = false;
+  q.pruneEpsilon = 0.0;
+  q.pruneFalloff = 0.0;
+  return q;
+}
+
+Config parseConfig(const std::string& spec) {
+  const std::vector<std::string> t = split(spec, ':');
+  if (t.empty()) throw std::invalid_argument("empty configuration");
+  auto num = [&](std::size_t i, double fallback) {
+    if (i >= t.size()) return fallback;
+    std::size_t used = 0;
+    const double v = std::stod(t[i], &used);
+    if (used != t[i].size()) throw std::invalid_argument("'" + spec + "': '" + t[i] + "' is not a number");
+    return v;
+  };
+  auto arity = [&](std::size_t lo, std::size_t hi) {
+    if (t.size() < lo || t.size() > hi) throw std::invalid_argument("'" + spec + "': wrong number of parameters");
+  };
+  Config c;
+  c.q = allOff();
+  const std::string& f = t[0];
+  if (f == "none") {
+    arity(1, 1);
+    c.family = "none";
+    c.label = "none";
+  } else if (f == "defaults") {
+    arity(1, 1);
+    c.family = "defaults";
+    c.label = "defaults";
+    c.q = QueryReductionSettings{};
+  } else if (f == "histogram") {
+    arity(2, 3);
+    c.family = "histogram";
+    c.q.budget = BudgetScheme::Histogram;
+    c.q.budgetFraction = num(1, 0);
+    c.q.budgetMaxSkip = int(num(2, 8));
+    c.label = "histogram:" + fmt(c.q.budgetFraction) + ":" + std::to_string(c.q.budgetMaxSkip);
+  } else if (f == "stbn") {
+    arity(2, 2);
+    c.family = "stbn";
+    c.q.budget = BudgetScheme::Stbn;
+    c.q.budgetFraction = num(1, 0);
+    c.label = "stbn:" + fmt(c.q.budgetFraction);
+  } else if (f == "weighted" || f == "weighted-stbn") {
+    arity(2, 3);
+    c.family = "weighted-stbn";
+    c.q.budget = BudgetScheme::WeightedStbn;
+    c.q.budgetFraction = num(1, 0);
+    c.q.budgetAlpha = num(2, 0.5);
+    c.label = "weighted:" + fmt(c.q.budgetFraction) + ":" + fmt(c.q.budgetAlpha);
+  } else if (f == "prune") {
+    arity(2, 3);
+    c.family = "prune";
+    c.q.pruneEpsilon = num(1, 0);
+    c.q.pruneFalloff = num(2, 0.006);
+    c.label = "prune:" + fmt(c.q.pruneEpsilon) + ":" + fmt(c.q.pruneFalloff);
+  } else {
+    throw std::invalid_argument("unknown configuration '" + spec +
+                                "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
+                                "prune:EPSILON[:DELTA])");
+  }
+  c.q.validate();
+  return c;
+}
+
+// The paper's budgeting figure (3-6 settings per scheme), its pruning figure (epsilon sweep at
+// delta 0.006) and the compiled defaults.
+const char* kDefaultConfigs =
+    "none;histogram:0.25:8;histogram:0.5:8;histogram:0.75:8;stbn:0.25;stbn:0.5;stbn:0.75;"
+    "weighted:0.5:0.5;weighted:0.75:0.5;prune:0.01:0.006;prune:0.02:0.006;prune:0.05:0.006;prune:0.1:0.006;"
+    "defaults";
+
+std::string describe(const QueryReductionSettings& q) {
+  std::ostringstream s;
+  s << "budget " << budgetSchemeName(q.budget) << " rho " << q.budgetFraction << " K " << q.budgetMaxSkip
+    << " alpha " << q.budgetAlpha << " reproject " << (q.reproject ? "on" : "off") << " (history "
+    << q.reprojectHistory << ") epsilon " << q.pruneEpsilon << " delta " << q.pruneFalloff;
+  return s.str();
+}
+
+std::string fileStem(const std::string& label) {
+  std::string s = label;
+  for (char& ch : s)
+    if (ch == ':') ch = '_';
+  return s;
+}
+
+// ---------------------------------------------------------------- quality
+
+struct Reference {
+  ImageRGBA image;     // composited over the background (what is compared)
+  ImageRGBA coverage;  // premultiplied: alpha > 0 marks the volume's pixels
+  double coveredFraction = 0;
+};
+
+struct Quality {
+  double volume = NAN, image = NAN;  // PSNR (RGB, peak 1) over the volume's pixels / the whole image
+  double madVolume = NAN;            // mean absolute RGB difference over the volume's pixels
+};
+
+Quality measure(const ImageRGBA& img, const Reference& ref) {
+  Quality q;
+  q.volume = test::psnrOverCoverage(img, ref.image, ref.coverage);
+  q.image = psnrRgb(img, ref.image);
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < std::size_t(img.width) * img.height; ++i) {
+    if (!(ref.coverage.data[4 * i + 3] > 0.f)) continue;
+    for (int c = 0; c < 3; ++c) sum += std::fabs(double(img.data[4 * i + c]) - double(ref.image.data[4 * i + c]));
+    ++n;
+  }
+  q.madVolume = n ? sum / (3.0 * double(n)) : NAN;
+  return q;
+}
+
+double coveredFraction(const ImageRGBA& premultiplied) {
+  std::size_t n = 0;
+  const std::size_t total = std::size_t(premultiplied.width) * premultiplied.height;
+  for (std::size_t i = 0; i < total; ++i) n += premultiplied.data[4 * i + 3] > 0.f;
+  return total ? double(n) / double(total) : 0.0;
+}
+
+// ---------------------------------------------------------------- sessions
+
+struct ModelCase {
+  std::string name, path;
+  InrModel model;
+  RenderScene scene;
+};
+
+std::unique_ptr<RenderSession> makeSession(const ModelCase& m, const Options& o, const QueryReductionSettings& q,
+                                           std::uint32_t seed, bool jitter = true) {
+  RenderSessionOptions so;
+  so.backend = parseRenderBackend(o.backend);
+  so.allowFallback = false;  // a CPU number labelled GPU would be worse than no number
+  so.macrocells.dims = Int3{o.macrocells, o.macrocells, o.macrocells};
+  so.macrocells.temporalSlices = m.model.domain.usesTime() ? o.slices : 1;
+  auto s = RenderSession::create(m.model, so);
+  s->setQueryReduction(q);
+  RenderSettings rs;
+  rs.width = rs.height = o.size;
+  rs.seed = seed;
+  rs.pixelJitter = jitter;
+  s->setSettings(rs);
+  s->setScene(m.scene);
+  return s;
+}
+
+// ---------------------------------------------------------------- outputs
+
+struct Outputs {
+  std::ofstream curves, summary, raymarch, orbit;
+  // `append`: add to the CSVs of an earlier run (one model per call under a time limit); headers
+  // only go into files that are new or empty.
+  Outputs(const std::string& dir, bool append) {
+    fs::create_directories(dir);
+    auto open = [&](std::ofstream& f, const std::string& name, const char* header) {
+      const std::string path = dir + "/" + name;
+      const bool fresh = !append || !fs::exists(path) || fs::file_size(path) == 0;
+      f.open(path, append ? std::ios::app : std::ios::trunc);
+      if (!f) throw std::runtime_error(path + ": cannot write");
+      if (fresh) f << header;
+    };
+    open(curves, "curves.csv", "model,config,family,frame,seconds,psnr_volume,psnr_image,rays,budget_skipped,pruned,"
+                               "queries\n");
+    open(summary, "summary.csv",
+         "model,backend,size,config,family,rho,max_skip,alpha,epsilon,delta,frames,seconds,fps,time_to_35,time_to_40,"
+         "psnr_400_volume,psnr_end_volume,psnr_end_image,mad_end_volume,rays_per_frame,budget_skipped_per_frame,"
+         "pruned_per_frame,queries_per_frame,heatmap_mean,reference_frames,covered_fraction\n");
+    open(raymarch, "raymarch.csv", "model,backend,size,step_divisor,step,seconds,psnr_volume,psnr_image,mad_volume,"
+                                   "queries\n");
+    open(orbit, "orbit.csv", "model,mode,step,degrees,frame_in_step,accumulated_frames,seconds,psnr_volume,"
+                             "psnr_image\n");
+  }
+};
+
+// A CSV number; empty for "not measured" so plotting tools see a gap, not a zero.
+std::string csvNum(double v) {
+  if (std::isnan(v)) return "";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
+// Rays per pixel per frame as an 8-bit PNG: an inferno-like ramp from 0 (black) to 1 (every
+// frame, pale yellow); pixels outside the volume (or never measured) grey.
+void writeHeatmapPng(const std::string& path, const std::vector<float>& rate, const Reference& ref) {
+  static const float stops[5][3] = {{0, 0, 0.02f}, {0.34f, 0.06f, 0.43f}, {0.73f, 0.21f, 0.33f},
+                                    {0.98f, 0.55f, 0.04f}, {0.99f, 1.f, 0.64f}};
+  const int w = ref.image.width, h = ref.image.height;
+  std::vector<std::uint8_t> px(std::size_t(3) * w * h);
+  for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+    float rgb[3] = {0.35f, 0.35f, 0.35f};
+    if (ref.coverage.data[4 * i + 3] > 0.f && !std::isnan(rate[i])) {
+      const float x = std::clamp(rate[i], 0.f, 1.f) * 4.f;
+      const int k = std::min(3, int(x));
+      const float f = x - float(k);
+      for (int c = 0; c < 3; ++c) rgb[c] = stops[k][c] + (stops[k + 1][c] - stops[k][c]) * f;
+    }
+    for (int c = 0; c < 3; ++c) px[3 * i + c] = std::uint8_t(std::lround(std::clamp(rgb[c], 0.f, 1.f) * 255.f));
+  }
+  writePng8(path, w, h, 3, px.data());
+}
+
+// ---------------------------------------------------------------- runs
+
+// Frames at which the GPU run measures PSNR: 1..6, then growing by 2^(1/4) (at most 19% late
+// for a time-to-X).
+bool geometricFrame(int frame) {
+  int k = 1;
+  while (k < frame) k = std::max(k + 1, int(std::lround(k * 1.189207115)));
+  return k == frame;
+}
+
+// Rays per pixel, derived through the session's public accessors (the renderer keeps its
+// per-pixel sample counts to itself): a pixel whose accumulation (premultiplied RGBA) or residual
+// changed in a frame was traced in it. That test is only sound once the pixel has accumulated some
+// alpha: before, a traced ray that misses leaves colour 0 and residual 0 as they were, which looks
+// like a skip. So each pixel's rate is (frames it changed) / (frames that began with alpha > 0),
+// over frames 2..N+1; pixels never eligible are shown as outside the volume. A traced pixel whose
+// sample equals its running mean exactly is still missed (a lower bound, rarely off).
+class RayHeatmap {
+public:
+  explicit RayHeatmap(int frames) : frames_(frames) {}
+  bool active(int frame) const { return frames_ > 0 && frame <= frames_ + 1; }
+  void observe(const RenderSession& s, int frame) {
+    ImageRGBA img = s.premultipliedImage();
+    std::vector<float> res = s.residual();
+    if (frame >= 2) {
+      if (count_.empty()) count_.assign(res.size(), 0u), eligible_.assign(res.size(), 0u);
+      for (std::size_t i = 0; i < res.size(); ++i) {
+        if (!(prevImage_.data[4 * i + 3] > 0.f)) continue;
+        bool changed = res[i] != prevResidual_[i];
+        for (int c = 0; c < 4 && !changed; ++c) changed = img.data[4 * i + c] != prevImage_.data[4 * i + c];
+        count_[i] += changed;
+        ++eligible_[i];
+      }
+      observed_ = true;
+    }
+    prevImage_ = std::move(img);
+    prevResidual_ = std::move(res);
+  }
+  bool empty() const { return !observed_; }
+  // Rays per frame per pixel; NaN where no frame was eligible.
+  std::vector<float> rate() const {
+    std::vector<float> r(count_.size());
+    for (std::size_t i = 0; i < r.size(); ++i) r[i] = eligible_[i] ? float(count_[i]) / float(eligible_[i]) : NAN;
+    return r;
+  }
+
+private:
+  int frames_;
+  bool observed_ = false;
+  std::vector<std::uint32_t> count_, eligible_;
+  ImageRGBA prevImage_;
+  std::vector<float> prevResidual_;
+};
+
+struct RunSummary {
+  Config config;
+  int frames = 0;
+  double seconds = 0, time35 = NAN, time40 = NAN, heatmapMean = NAN;
+  Quality at400, end;
+  FrameStats total;
+};
+
+RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, const Reference& ref,
+                     Outputs& out, const std::string& imageDir) {
+  RunSummary r;
+  r.config = c;
+  auto s = makeSession(m, o, c.q, 1u);
+  const bool everyFrame = o.psnrSchedule == "all";
+  RayHeatmap heat(o.heatmapFrames);
+  bool snapshotWritten = false;
+  for (int frame = 1;; ++frame) {
+    const FrameStats st = s->renderFrame();
+    r.total += st;
+    r.seconds += st.totalMs * 1e-3;
+    r.frames = frame;
+    const bool last = (r.seconds >= o.seconds && frame >= o.minFrames) || frame >= o.maxFrames;
+    const bool snapshot = !snapshotWritten && r.seconds >= o.snapshotSeconds;
+    if (heat.active(frame)) heat.observe(*s, frame);
+    Quality q;
+    if (everyFrame || geometricFrame(frame) || frame == 400 || last || snapshot) {
+      const ImageRGBA img = s->image();
+      q = measure(img, ref);
+      if (std::isnan(r.time35) && q.volume >= 35.0) r.time35 = r.seconds;
+      if (std::isnan(r.time40) && q.volume >= 40.0) r.time40 = r.seconds;
+      if (frame == 400) r.at400 = q;
+      if (last) r.end = q;
+      if (snapshot) {
+        writePng(imageDir + "/" + fileStem(c.label) + "_at_" + fmt(o.snapshotSeconds) + "s.png", img);
+        snapshotWritten = true;
+      }
+    }
+    out.curves << m.name << ',' << c.label << ',' << c.family << ',' << frame << ',' << csvNum(r.seconds) << ','
+               << csvNum(q.volume) << ',' << csvNum(q.image) << ',' << st.rays << ',' << st.budgetSkipped << ','
+               << st.pruned << ',' << st.queries << '\n';
+    if (last) break;
+  }
+  if (!heat.empty()) {
+    const std::vector<float> rate = heat.rate();
+    writeHeatmapPng(imageDir + "/" + fileStem(c.label) + "_rays_per_pixel.png", rate, ref);
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < rate.size(); ++i)
+      if (ref.coverage.data[4 * i + 3] > 0.f && !std::isnan(rate[i])) sum += rate[i], ++n;
+    r.heatmapMean = n ? sum / double(n) : NAN;
+  }
+  out.curves.flush();
+  return r;
+}
+
+Reference renderReference(RenderSession& s, int frames, double* seconds) {
+  double ms = 0;
+  for (int k = 0; k < frames; ++k) ms += s.renderFrame().totalMs;
+  if (seconds) *seconds = ms * 1e-3;
+  Reference ref;
+  ref.image = s.image();
+  ref.coverage = s.premultipliedImage();
+  ref.coveredFraction = coveredFraction(ref.coverage);
+  return ref;
+}
+
+// One frame of fixed-step ray marching at pixel centres, on the session's backend. The CUDA
+// marcher gets a warm-up frame first (its first frame allocates the batch buffers).
+void runRayMarch(const ModelCase& m, const Options& o, RenderSession& session, const Reference& ref, Outputs& out,
+                 const std::string& imageDir, const std::string& backend) {
+  const Box3f box = modelWorldBox(m.model);
+  const double diagonal = length(box.hi - box.lo);
+  RenderSettings rs;
+  rs.width = rs.height = o.size;
+  rs.pixelJitter = false;
+  for (const std::string& d : split(o.marchSteps, ',')) {
+    const double divisor = std::stod(d);
+    RayMarchOptions ro;
+    ro.step = float(diagonal / divisor);
+    FrameStats st;
+    ImageRGBA img;
+#ifdef INR_HAVE_CUDA
+    if (session.backend() == RenderBackend::Cuda) {
+      const auto& eval = dynamic_cast<const CudaInrEvaluator&>(session.evaluator());
+      CudaRayMarcher march(eval, box, ro);
+      march.setSettings(rs);
+      march.setScene(m.scene);
+      march.renderFrame();
+      march.resetAccumulation();
+      st = march.renderFrame();
+      img = march.image();
+    } else
+#endif
+    {
+      RayMarchRenderer march(session.evaluator(), box, ro);
+      march.setSettings(rs);
+      march.setScene(m.scene);
+      st = march.renderFrame();
+      img = march.image();
+    }
+    const Quality q = measure(img, ref);
+    writePng(imageDir + "/raymarch_d" + d + ".png", img);
+    out.raymarch << m.name << ',' << backend << ',' << o.size << ',' << d << ',' << csvNum(ro.step) << ','
+                 << csvNum(st.totalMs * 1e-3) << ',' << csvNum(q.volume) << ',' << csvNum(q.image) << ','
+                 << csvNum(q.madVolume) << ',' << st.queries << '\n';
+    std::printf("   raymarch step diag/%-5s %9.4f s  %6.2f dB volume  %6.2f dB image  %12zu queries\n", d.c_str(),
+                st.totalMs * 1e-3, q.volume, q.image, st.queries);
+    std::fflush(stdout);
+  }
+  out.raymarch.flush();
+}
+
+// Camera orbit with the compiled defaults, without and with reprojection. Each step's reference
+// is rendered by its own session (all off, another seed) at that step's camera.
+void runOrbit(const ModelCase& m, const Options& o, Outputs& out) {
+  struct Mode {
+    std::string name;
+    std::unique_ptr<RenderSession> s;
+    double sumFirst = 0, sumLast = 0;
+  };
+  std::vector<Mode> modes;
+  for (bool reproject : {false, true}) {
+    QueryReductionSettings q;
+    q.reproject = reproject;
+    Mode md;
+    md.name = reproject ? "reproject" : "no-reproject";
+    md.s = makeSession(m, o, q, 1u);
+    for (int k = 0; k < o.orbitWarmup; ++k) md.s->renderFrame();
+    modes.push_back(std::move(md));
+  }
+  auto refSession = makeSession(m, o, allOff(), 978u);
+  RenderScene scene = m.scene;
+  for (int step = 1; step <= o.orbitSteps; ++step) {
+    const double degrees = step * o.orbitDegrees;
+    scene.camera = orbitCamera(m.scene.camera, degrees);
+    refSession->setScene(scene);  // a camera move without reprojection restarts it
+    const Reference ref = renderReference(*refSession, o.orbitReferenceFrames, nullptr);
+    for (Mode& md : modes) {
+      md.s->setScene(scene);
+      for (int f = 1; f <= o.orbitFrames; ++f) {
+        const FrameStats st = md.s->renderFrame();
+        const Quality q = measure(md.s->image(), ref);
+        if (f == 1) md.sumFirst += q.volume;
+        if (f == o.orbitFrames) md.sumLast += q.volume;
+        out.orbit << m.name << ',' << md.name << ',' << step << ',' << csvNum(degrees) << ',' << f << ','
+                  << md.s->accumulatedFrames() << ',' << csvNum(st.totalMs * 1e-3) << ',' << csvNum(q.volume) << ','
+                  << csvNum(q.image) << '\n';
+      }
+    }
+  }
+  out.orbit.flush();
+  for (const Mode& md : modes)
+    std::printf("   orbit %-13s mean PSNR over the volume after the 1st frame of a step %6.2f dB, after frame %d "
+                "%6.2f dB (%d steps of %g deg)\n",
+                md.name.c_str(), md.sumFirst / o.orbitSteps, o.orbitFrames, md.sumLast / o.orbitSteps, o.orbitSteps,
+                o.orbitDegrees);
+  std::fflush(stdout);
+}
+
+std::string dbOrDash(double v) {
+  if (std::isnan(v)) return "—";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f", v);
+  return b;
+}
+
+std::string secondsOrDash(double v) {
+  if (std::isnan(v)) return "—";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3f", v);
+  return b;
+}
+
+void printTable(const std::string& model, const std::vector<RunSummary>& runs) {
+  std::printf("\n   %-22s %7s %8s %8s %9s %9s %8s %8s %8s %6s %10s %9s %9s %5s\n", "config", "frames", "seconds", "fps",
+              "t35 [s]", "t40 [s]", "dB@400", "dB end", "dB img", "MAD%", "rays/fr", "skip/fr", "pruned/fr",
+              "rpp");
+  for (const RunSummary& r : runs) {
+    const double n = r.frames;
+    // "—" is 3 bytes and 1 column: printf pads by bytes, so pad those cells by hand.
+    auto cell = [](const std::string& s, int w) {
+      const int cols = int(s.size()) - (s.find("—") != std::string::npos ? 2 : 0);
+      return std::string(std::max(0, w - cols), ' ') + s;
+    };
+    std::printf("   %-22s %7d %8.3f %8.1f %s %s %s %8.2f %8.2f %6.2f %10.0f %9.0f %9.0f %5s\n", r.config.label.c_str(),
+                r.frames, r.seconds, n / r.seconds, cell(secondsOrDash(r.time35), 9).c_str(),
+                cell(secondsOrDash(r.time40), 9).c_str(), cell(dbOrDash(r.at400.volume), 8).c_str(), r.end.volume,
+                r.end.image, 100.0 * r.end.madVolume, r.total.rays / n, r.total.budgetSkipped / n, r.total.pruned / n,
+                std::isnan(r.heatmapMean) ? "—" : fmt(std::round(r.heatmapMean * 100) / 100).c_str());
+  }
+  std::printf("   (%s; t35/t40: render time until the PSNR over the volume's pixels first reached 35/40 dB; dB@400: "
+              "at frame 400; MAD%%: mean absolute RGB difference over the volume at the end; rpp: rays per covered "
+              "pixel per frame from the heatmap)\n",
+              model.c_str());
+  std::fflush(stdout);
+}
+
+void benchModel(const std::string& path, const Options& o, Outputs& out, const std::vector<Config>& configs,
+                const std::string& backendName) {
+  ModelCase m;
+  m.path = path;
+  m.name = fs::path(path).stem().string();
+  m.model = InrModel::loadFile(path);
+  const std::string imageDir = o.out + "/images/" + m.name;
+  fs::create_directories(imageDir);
+
+  // The reference session also supplies the evaluator for the default transfer function's range
+  // and the ray marcher; its scene is set once the scene is known.
+  RenderSessionOptions probe;
+  probe.backend = parseRenderBackend(o.backend);
+  probe.allowFallback = false;
+  probe.macrocells.dims = Int3{o.macrocells, o.macrocells, o.macrocells};
+  probe.macrocells.temporalSlices = m.model.domain.usesTime() ? o.slices : 1;
+  auto refSession = RenderSession::create(m.model, probe);
+  m.scene = shippedScene(m.model, path, refSession->evaluator(), o.time);
+  refSession->setQueryReduction(allOff());
+  RenderSettings rs;
+  rs.width = rs.height = o.size;
+  rs.seed = 977;
+  refSession->setSettings(rs);
+  refSession->setScene(m.scene);
+  const MacrocellInfo mi = refSession->macrocellInfo();
+  std::printf("\n== %s  (%s)  %d^2, t = %g, %d^3 macrocells x %d slices (built %d in %.2f s)%s\n", m.name.c_str(),
+              refSession->description().c_str(), o.size, m.scene.time, mi.dims.x, mi.temporalSlices, mi.slicesBuilt,
+              mi.buildSeconds, suggestedTransferFunctionPath(path).empty() ? ", preset transfer function" : "");
+  std::fflush(stdout);
+  double refSeconds = 0;
+  const Reference ref = renderReference(*refSession, o.referenceFrames, &refSeconds);
+  writePng(imageDir + "/reference.png", ref.image);
+  std::printf("   reference: %d frames in %.2f s; the volume covers %.1f%% of the image\n", o.referenceFrames,
+              refSeconds, 100.0 * ref.coveredFraction);
+  std::fflush(stdout);
+
+  std::vector<RunSummary> runs;
+  for (const Config& c : configs) {
+    RunSummary r = runConfig(m, o, c, ref, out, imageDir);
+    const double n = r.frames;
+    const QueryReductionSettings& q = c.q;
+    out.summary << m.name << ',' << backendName << ',' << o.size << ',' << c.label << ',' << c.family << ','
+                << (q.budget == BudgetScheme::None ? "" : csvNum(q.budgetFraction)) << ','
+                << (q.budget == BudgetScheme::Histogram ? std::to_string(q.budgetMaxSkip) : "") << ','
+                << (q.budget == BudgetScheme::WeightedStbn ? csvNum(q.budgetAlpha) : "") << ','
+                << csvNum(q.pruneEpsilon) << ',' << csvNum(q.pruneFalloff) << ',' << r.frames << ','
+                << csvNum(r.seconds) << ',' << csvNum(n / r.seconds) << ',' << csvNum(r.time35) << ','
+                << csvNum(r.time40) << ',' << csvNum(r.at400.volume) << ',' << csvNum(r.end.volume) << ','
+                << csvNum(r.end.image) << ',' << csvNum(r.end.madVolume) << ',' << csvNum(r.total.rays / n) << ','
+                << csvNum(r.total.budgetSkipped / n) << ',' << csvNum(r.total.pruned / n) << ','
+                << csvNum(r.total.queries / n) << ',' << csvNum(r.heatmapMean) << ',' << o.referenceFrames << ','
+                << csvNum(ref.coveredFraction) << '\n';
+    out.summary.flush();
+    std::printf("   %-22s %6d frames %7.3f s  t35 %s s  t40 %s s  end %.2f dB\n", c.label.c_str(), r.frames, r.seconds,
+                secondsOrDash(r.time35).c_str(), secondsOrDash(r.time40).c_str(), r.end.volume);
+    std::fflush(stdout);
+    runs.push_back(std::move(r));
+  }
+  printTable(m.name, runs);
+  if (!o.marchSteps.empty()) runRayMarch(m, o, *refSession, ref, out, imageDir, backendName);
+  refSession.reset();
+  if (o.orbitSteps > 0) runOrbit(m, o, out);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  try {
+    for (CommandLine cl(argc, argv); !cl.done();) {
+      const std::string a = cl.next();
+      if (a == "--backend") o.backend = cl.value();
+      else if (a == "--size") o.size = std::stoi(cl.value());
+      else if (a == "--seconds") o.seconds = std::stod(cl.value());
+      else if (a == "--min-frames") o.minFrames = std::stoi(cl.value());
+      else if (a == "--max-frames") o.maxFrames = std::max(1, std::stoi(cl.value()));
+      else if (a == "--reference-frames") o.referenceFrames = std::max(1, std::stoi(cl.value()));
+      else if (a == "--configs") o.configs = cl.value();
+      else if (a == "--psnr-schedule") o.psnrSchedule = cl.value();
+      else if (a == "--heatmap-frames") o.heatmapFrames = std::max(0, std::stoi(cl.value()));
+      else if (a == "--snapshot-seconds") o.snapshotSeconds = std::stod(cl.value());
+      else if (a == "--march-steps") o.marchSteps = cl.value();
+      else if (a == "--orbit-steps") o.orbitSteps = std::max(0, std::stoi(cl.value()));
+      else if (a == "--orbit-degrees") o.orbitDegrees = std::stod(cl.value());
+      else if (a == "--orbit-frames") o.orbitFrames = std::max(1, std::stoi(cl.value()));
+      else if (a == "--orbit-warmup") o.orbitWarmup = std::max(0, std::stoi(cl.value()));
+      else if (a == "--orbit-reference-frames") o.orbitReferenceFrames = std::max(1, std::stoi(cl.value()));
+      else if (a == "--macrocells") o.macrocells = std::stoi(cl.value());
+      else if (a == "--slices") o.slices = std::stoi(cl.value());
+      else if (a == "--time") o.time = std::stod(cl.value());
+      else if (a == "--out") o.out = cl.value();
+      else if (a == "--append") o.append = true;
+      else if (a == "-h" || a == "--help") {
+        std::fputs(kUsage, stdout);
+        return 0;
+      } else if (!a.empty() && a[0] == '-') {
+        std::fprintf(stderr, "unknown option %s (see --help)\n", a.c_str());
+        return 2;
+      } else
+        o.models.push_back(a);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bad option value: %s\n", e.what());
+    return 2;
+  }
+  std::vector<Config> configs;
+  try {
+    parseRenderBackend(o.backend);
+    for (const std::string& spec : split(o.configs.empty() ? kDefaultConfigs : o.configs, ';'))
+      configs.push_back(parseConfig(spec));
+    for (const std::string& d : split(o.marchSteps, ','))
+      if (!(std::stod(d) > 0)) throw std::invalid_argument("--march-steps: divisors must be > 0");
+    if (!o.psnrSchedule.empty() && o.psnrSchedule != "all" && o.psnrSchedule != "geometric")
+      throw std::invalid_argument("--psnr-schedule must be all or geometric");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 2;
+  }
+  std::string why;
+  const RenderBackend requested = parseRenderBackend(o.backend);
+  const bool gpu = requested != RenderBackend::Cpu && cudaBackendAvailable(&why);
+  if (requested == RenderBackend::Cuda && !gpu) {
+    std::fprintf(stderr, "--backend cuda: %s\n", why.c_str());
+    return 1;
+  }
+  o.backend = gpu ? "cuda" : "cpu";
+  // GPU and CPU defaults differ by the cost of a frame (issue 11: 1024^2 on the GPU, 256^2 on the CPU).
+  if (o.size <= 0) o.size = gpu ? 1024 : 256;
+  if (!(o.seconds > 0)) o.seconds = gpu ? 3.0 : 20.0;
+  if (o.minFrames < 0) o.minFrames = gpu ? 400 : 0;
+  if (o.psnrSchedule.empty()) o.psnrSchedule = gpu ? "geometric" : "all";
+  if (o.orbitSteps < 0) o.orbitSteps = gpu ? 60 : 12;
+  if (o.orbitReferenceFrames < 0) o.orbitReferenceFrames = gpu ? 128 : 64;
+  if (o.models.empty()) {
+    for (const std::string& p : test::shippedModels("real")) {
+      const bool small = fs::path(p).stem().string().size() > 6 &&
+                         fs::path(p).stem().string().compare(fs::path(p).stem().string().size() - 6, 6, "_small") == 0;
+      if (small != gpu) o.models.push_back(p);
+    }
+  }
+  std::printf("query reduction benchmark: backend %s, %d^2, %g s per configuration (>= %d frames), reference %d "
+              "frames, PSNR schedule %s\ncompiled defaults: %s\n",
+              o.backend.c_str(), o.size, o.seconds, o.minFrames, o.referenceFrames, o.psnrSchedule.c_str(),
+              describe(QueryReductionSettings{}).c_str());
+  std::printf("command:");
+  for (int i = 0; i < argc; ++i) std::printf(" %s", argv[i]);
+  std::printf("\n");
+  try {
+    Outputs out(o.out, o.append);
+    for (const std::string& path : o.models) benchModel(path, o, out, configs, o.backend);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
