@@ -128,7 +128,7 @@ QueryReductionSettings allOff() {
   return q;
 }
 
-Config parseConfig(const std::string& spec) {
+Config parseSingleConfig(const std::string& spec) {
   const std::vector<std::string> t = split(spec, ':');
   if (t.empty()) throw std::invalid_argument("empty configuration");
   auto num = [&](std::size_t i, double fallback) {
@@ -188,12 +188,36 @@ Config parseConfig(const std::string& spec) {
   return c;
 }
 
+// A configuration, or several joined with '+' (e.g. "stbn:0.75+prune:0.02"): the budgeting of the
+// budgeting parts and the pruning of the prune part combined.
+Config parseConfig(const std::string& spec) {
+  const std::vector<std::string> parts = split(spec, '+');
+  if (parts.size() <= 1) return parseSingleConfig(spec);
+  Config c = parseSingleConfig(parts[0]);
+  for (std::size_t k = 1; k < parts.size(); ++k) {
+    const Config p = parseSingleConfig(parts[k]);
+    if (p.family == "prune") {
+      c.q.pruneEpsilon = p.q.pruneEpsilon;
+      c.q.pruneFalloff = p.q.pruneFalloff;
+    } else {
+      const double eps = c.q.pruneEpsilon, delta = c.q.pruneFalloff;
+      c.q = p.q;
+      c.q.pruneEpsilon = eps;
+      c.q.pruneFalloff = delta;
+    }
+    c.label += "+" + p.label;
+  }
+  c.family = "combined";
+  c.q.validate();
+  return c;
+}
+
 // The paper's budgeting figure (3-6 settings per scheme), its pruning figure (epsilon sweep at
 // delta 0.006) and the compiled defaults.
 const char* kDefaultConfigs =
     "none;histogram:0.25:8;histogram:0.5:8;histogram:0.75:8;stbn:0.25;stbn:0.5;stbn:0.75;"
     "weighted:0.5:0.5;weighted:0.75:0.5;prune:0.01:0.006;prune:0.02:0.006;prune:0.05:0.006;prune:0.1:0.006;"
-    "defaults";
+    "stbn:0.75+prune:0.02:0.006;weighted:0.75:0.5+prune:0.02:0.006;defaults";
 
 std::string describe(const QueryReductionSettings& q) {
   std::ostringstream s;

@@ -40,7 +40,7 @@ def cell(v, digits=2):
     return "—" if math.isnan(v) else f"{v:.{digits}f}"
 
 
-FAMILIES = ["histogram", "stbn", "weighted-stbn", "prune"]
+FAMILIES = ["histogram", "stbn", "weighted-stbn", "prune", "combined"]
 
 
 def tables(summary, raymarch, orbit):
