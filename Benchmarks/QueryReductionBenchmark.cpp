@@ -658,6 +658,14 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
     out.summary.flush();
     std::printf("   %-22s %6d frames %7.3f s  t35 %s s  t40 %s s  end %.2f dB\n", c.label.c_str(), r.frames, r.seconds,
                 secondsOrDash(r.time35).c_str(), secondsOrDash(r.time40).c_str(), r.end.volume);
+    // Where a frame's time goes: what budgeting can shrink (per-ray work) and what it cannot
+    // (per-iteration and per-pixel passes).
+    const double f = double(std::max(1, r.frames));
+    std::printf("   %-22s per frame: init %.3f  traverse %.3f  evaluate %.3f  shadow %.3f  finalize %.3f  "
+                "total %.3f ms; %.1f iterations, %.0f queries\n", "", r.total.initMs / f, r.total.traverseMs / f,
+                r.total.evaluateMs / f, (r.total.shadowTraverseMs + r.total.shadowEvaluateMs) / f,
+                r.total.finalizeMs / f, r.total.totalMs / f, double(r.total.iterations) / f,
+                double(r.total.queries) / f);
     std::fflush(stdout);
     runs.push_back(std::move(r));
   }
