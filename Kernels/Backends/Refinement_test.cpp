@@ -3,6 +3,8 @@
 // convergence estimate (estimated PSNR over the volume's pixels vs a converged reference).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -128,12 +130,25 @@ TEST(Refinement, ConvergesBeforeTheLimitAndRestartsAfterAReset) {
   dg.advance(*g.session);
   if (frames - 1 >= o.minimumFrames) EXPECT_LT(dg.estimate(), o.convergenceTarget);
 
-  // A camera change resets the session's accumulation: the driver notices and starts over.
+  // A camera change reprojects the accumulation (the default), keeping at most its history of
+  // frames: the driver notices and starts its estimate over.
+  const QueryReductionSettings q = f.session->queryReduction();
+  ASSERT_TRUE(q.reproject);
+  f.scene.camera.position[0] += 0.05;
+  f.session->setScene(f.scene);
+  EXPECT_EQ(f.session->accumulatedFrames(), std::min(frames, q.reprojectHistory));
+  o.framesPerRender = 1;
+  d.setOptions(o);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 1);
+  EXPECT_FALSE(d.converged());
+
+  // Without reprojection a camera change resets the accumulation: the same.
+  QueryReductionSettings exact = q;
+  exact.reproject = false;
+  f.session->setQueryReduction(exact);
   f.scene.camera.position[0] += 0.05;
   f.session->setScene(f.scene);
   EXPECT_EQ(f.session->accumulatedFrames(), 0);
-  o.framesPerRender = 1;
-  d.setOptions(o);
   EXPECT_EQ(d.advance(*f.session).framesRendered, 1);
   EXPECT_FALSE(d.converged());
   EXPECT_EQ(f.session->accumulatedFrames(), 1);

@@ -257,7 +257,14 @@ TEST(DeltaTracking, ResidualAndAccumulation) {
   EXPECT_EQ(r.accumulatedFrames(), 2);
   RenderScene moved = setup.scene;
   moved.camera.position[0] += 0.1;
-  r.setScene(moved);
+  r.setScene(moved);  // reprojection (on by default) keeps the frames, up to its history
+  EXPECT_EQ(r.accumulatedFrames(), 2);
+  EXPECT_EQ(r.counters().reprojections, 1);
+  QueryReductionSettings exact;
+  exact.reproject = false;
+  r.setQueryReduction(exact);
+  moved.camera.position[0] += 0.1;
+  r.setScene(moved);  // without it a camera move starts over
   EXPECT_EQ(r.accumulatedFrames(), 0);
 }
 

@@ -23,7 +23,7 @@ struct QueryReductionSettings {
   double budgetFraction = 0.75;  // rho: fraction of pixels re-rendered per frame
   int budgetMaxSkip = 8;         // K: longest skip countdown of the histogram scheme (frames)
   double budgetAlpha = 0.5;      // alpha: residual steering of weighted STBN (0 = plain STBN)
-  bool reproject = false;        // camera moves reproject the accumulation instead of resetting it
+  bool reproject = true;         // camera moves reproject the accumulation instead of resetting it
   // Frames of history a reprojected pixel keeps at most: fewer let new samples replace the
   // reprojection's blur sooner, more keep more of the converged image through small moves.
   int reprojectHistory = 32;

@@ -18,10 +18,23 @@ std::string SceneChange::describe() const {
   return s.empty() ? " nothing" : s;
 }
 
+namespace {
+// Equal up to a relative 1e-6: far below a pixel for any sensible view. Hosts recompute camera
+// parameters without moving the camera: vtkWindowToImageFilter's re-render (every screenshot and
+// regression capture) hands back a view angle of 30.000000835 for 30 (a float round trip).
+// Treating that as a move restarted (or reprojected) a converged image on every screenshot.
+bool nearlyEqual(double a, double b) {
+  return std::fabs(a - b) <= 1e-6 * std::max({1.0, std::fabs(a), std::fabs(b)});
+}
+bool nearlyEqual(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return nearlyEqual(a[0], b[0]) && nearlyEqual(a[1], b[1]) && nearlyEqual(a[2], b[2]);
+}
+}  // namespace
+
 bool sameCamera(const Camera& a, const Camera& b) {
-  return a.position == b.position && a.focalPoint == b.focalPoint && a.viewUp == b.viewUp &&
-         a.viewAngle == b.viewAngle && a.parallelProjection == b.parallelProjection &&
-         a.parallelScale == b.parallelScale;
+  return nearlyEqual(a.position, b.position) && nearlyEqual(a.focalPoint, b.focalPoint) &&
+         nearlyEqual(a.viewUp, b.viewUp) && nearlyEqual(a.viewAngle, b.viewAngle) &&
+         a.parallelProjection == b.parallelProjection && nearlyEqual(a.parallelScale, b.parallelScale);
 }
 
 bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <random>
 
+#include "Render/SceneChange.h"
 #include "Render/SceneInputs.h"
 
 namespace inr {
@@ -154,6 +155,31 @@ TEST(TransferFunctionJson, ReadsShippedParaViewFile) {
   EXPECT_DOUBLE_EQ(tf.opacityAt(0.75), 0.35);
   EXPECT_DOUBLE_EQ(tf.colorAt(0.5)[0], 0.865);
   EXPECT_EQ(tf.range()[1], 1.0);
+}
+
+}  // namespace
+}  // namespace inr
+
+namespace inr {
+namespace {
+
+// A camera handed back with float round-off (vtkWindowToImageFilter's re-render turns a view
+// angle of 30 into 30.000000834826057) is the same camera: a screenshot must not restart or
+// reproject a converged image. A real move, however small on screen, is a change.
+TEST(SceneChange, CameraRoundOffIsNoChangeButAMoveIs) {
+  RenderScene a;
+  a.camera.position = {3.1211623972205644, 2.8977774788672055, 5.0488474403641463};
+  a.camera.focalPoint = {1, 0, 0.5};
+  RenderScene b = a;
+  b.camera.viewAngle = 30.000000834826057;
+  EXPECT_FALSE(diffScenes(&a, b).camera);
+  EXPECT_FALSE(diffScenes(&a, b).any());
+  b = a;
+  b.camera.viewAngle = 30.01;
+  EXPECT_TRUE(diffScenes(&a, b).camera);
+  b = a;
+  b.camera.position[0] += 1e-4;  // about a hundredth of a pixel at 1000 pixels across this view
+  EXPECT_TRUE(diffScenes(&a, b).camera);
 }
 
 }  // namespace

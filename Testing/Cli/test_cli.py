@@ -193,7 +193,7 @@ def check_every_shipped_model(inr, data):
 
 
 QUERY_REDUCTION_FLAGS = ("--budget", "--budget-fraction", "--budget-max-skip", "--budget-alpha", "--reproject",
-                         "--prune-epsilon", "--prune-falloff", "--converge")
+                         "--no-reproject", "--prune-epsilon", "--prune-falloff", "--converge")
 
 
 def check_query_reduction_errors(inr, data):
@@ -257,7 +257,7 @@ def check_query_reduction_stats(inr, data):
             "histogram": (["--budget", "histogram"], {"budget": "histogram"}),
             "weighted-stbn": (["--budget", "weighted-stbn", "--budget-fraction", "0.3"],
                               {"budget": "weighted-stbn", "budget_fraction": 0.3}),
-            "off": (["--budget", "none", "--prune-epsilon", "0", "--prune-falloff", "0"],
+            "off": (["--budget", "none", "--prune-epsilon", "0", "--prune-falloff", "0", "--no-reproject"],
                     {"budget": "none", "prune_epsilon": 0.0, "prune_falloff": 0.0, "reproject": False}),
         }
         for name, (extra, want) in runs.items():

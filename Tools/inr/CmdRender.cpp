@@ -91,13 +91,13 @@ std::string queryReductionUsage() {
       "  --budget-alpha A         alpha: how strongly weighted-stbn steers rays to high-residual pixels,\n"
       "                           in [0, 1] (default %g; 0 = plain stbn)\n"
       "  --reproject              keep the accumulation across camera moves by reprojecting it (default %s);\n"
-      "                           a still camera is unaffected\n"
+      "  --no-reproject           restart it instead; a still camera is unaffected either way\n"
       "  --prune-epsilon E        epsilon: macrocells whose value range is below E x the field's range are\n"
       "                           answered without a network query, in [0, 1] (default %g; 0 = off);\n"
       "                           higher = fewer queries, a biased image in near-uniform regions\n"
       "  --prune-falloff D        delta: band above epsilon pruned with falling probability, in [0, 1]\n"
       "                           (default %g); softens the epsilon edge. --budget none --prune-epsilon 0\n"
-      "                           --prune-falloff 0 renders every pixel exactly, every frame\n",
+      "                           --prune-falloff 0 --no-reproject renders every pixel exactly, every frame\n",
       budgetSchemeName(d.budget), d.budgetFraction, d.budgetMaxSkip, d.budgetAlpha, d.reproject ? "on" : "off",
       d.pruneEpsilon, d.pruneFalloff);
   return text;
@@ -180,6 +180,8 @@ QueryReductionSettings parseQueryReduction(const Args& args) {
   });
   apply("budget-alpha", [&] { q.budgetAlpha = args.getDouble("budget-alpha", q.budgetAlpha); });
   apply("reproject", [&] { q.reproject = true; });
+  apply("no-reproject", [&] { q.reproject = false; });
+  if (args.has("reproject") && args.has("no-reproject")) throw UsageError("--reproject and --no-reproject contradict");
   apply("prune-epsilon", [&] { q.pruneEpsilon = args.getDouble("prune-epsilon", q.pruneEpsilon); });
   apply("prune-falloff", [&] { q.pruneFalloff = args.getDouble("prune-falloff", q.pruneFalloff); });
   return q;
@@ -198,7 +200,7 @@ int runRender(int argc, char** argv) {
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
              "step", "shadow-step", "threads", "backend", "output", "converge", "budget", "budget-fraction",
              "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff"},
-            {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject"});
+            {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
     std::fputs(kRenderUsageHead, stdout);
     std::fputs(queryReductionUsage().c_str(), stdout);
@@ -242,7 +244,7 @@ int runRender(int argc, char** argv) {
   // Checked before the model loads, so a typo fails at once.
   const QueryReductionSettings queryReduction = parseQueryReduction(args);
   for (const char* option : {"budget", "budget-fraction", "budget-max-skip", "budget-alpha", "reproject",
-                             "prune-epsilon", "prune-falloff"}) {
+                             "no-reproject", "prune-epsilon", "prune-falloff"}) {
     if (args.has(option) && method == "raymarch")
       throw UsageError(std::string("--") + option + " applies to delta tracking only, not --method raymarch");
   }
