@@ -431,7 +431,18 @@ TEST_F(GpuSceneTest, SceneChangesDoOnlyTheWorkTheyNeed) {
   EXPECT_EQ(r.counters().majorantUpdates, 3);
 
   r.renderFrame();
-  scene.camera.position[0] += 0.1;  // camera: accumulation reset only
+  scene.camera.position[0] += 0.1;  // camera: the accumulation is reprojected (the default), nothing else
+  r.setScene(scene);
+  EXPECT_EQ(r.counters().workingGridUpdates, 2);
+  EXPECT_EQ(r.counters().majorantUpdates, 3);
+  EXPECT_EQ(r.counters().reprojections, 1);
+  EXPECT_EQ(r.accumulatedFrames(), 1);
+  EXPECT_EQ(nonFinitePixels(r.image()), 0u);
+
+  QueryReductionSettings exact = r.queryReduction();
+  exact.reproject = false;
+  r.setQueryReduction(exact);
+  scene.camera.position[0] += 0.1;  // camera without reprojection: accumulation reset only
   r.setScene(scene);
   EXPECT_EQ(r.counters().workingGridUpdates, 2);
   EXPECT_EQ(r.counters().majorantUpdates, 3);
