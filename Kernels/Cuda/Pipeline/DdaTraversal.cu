@@ -16,7 +16,9 @@ constexpr int kThreads = 256;
 // the next candidate's query.
 // Occupancy: with the empty-space skip inlined (Render/MajorantGrid.h) ptxas would take 67
 // registers on sm_90 (3 blocks of 256 per SM; 44 and 5 blocks without the skip). Bounded to 5
-// blocks it fits 48 registers without spills (ptxas -v, sm_86 and sm_90); sm_75 holds 4 blocks.
+// blocks it fits 48 registers; since the DDA walker (Render/Traverse.h) it spills 10 bytes of
+// stores and 16 of loads on sm_90, 20 of loads with the pruning hook (ptxas -v). sm_75 holds 4
+// blocks.
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
 #define INR_TRAVERSE_MIN_BLOCKS 4
 #else
