@@ -270,11 +270,13 @@ void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, con
   reprojectKeys_.assign(pixels_.count, kNoReprojection);
   const AccumulationView history = history_.view(), acc = pixels_.view();
   std::uint64_t* keys = reprojectKeys_.data();
+  const Box3f box = volumeBox();
   // Scatter serially: the minimum is order-independent anyway, and it is a few offers per pixel.
   for (int j = 0; j < n; ++j)
-    reprojectionOffers(newView, history, j, [&](int i, std::uint64_t key) { keys[i] = std::min(keys[i], key); });
+    reprojectionOffers(oldView, newView, box, history, j,
+                       [&](int i, std::uint64_t key) { keys[i] = std::min(keys[i], key); });
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, history, acc, i, keys[i], maxHistory);
+  for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory);
 }
 
 void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,

@@ -4,7 +4,8 @@
 // accumulated colour, residual, variance and mean hit point to where that hit point lands in
 // the new view. Forward splatting with a depth test, in two passes that any backend runs over
 // the pixels (INR_HD, CPU loops or GPU threads):
-//   1. scatter (per old pixel j with a hit): project hitPoint[j] into the new camera and offer
+//   1. scatter (per old pixel j that saw the volume's box): project its representative point
+//      (reprojectionPoint: the mean hit, or mid-box for a pixel that never hit) into the new camera and offer
 //      j to the 2 x 2 new pixels around the projected position, keeping per new pixel the
 //      minimum of a 64-bit key = (depth bucket, distance to the pixel centre, j). The minimum
 //      does not depend on the order the offers arrive in (atomicMin on the GPU), so both
@@ -14,12 +15,13 @@
 //      the winner's hit point lies in the old view, capping the frame count at `maxHistory` so
 //      new samples soon outweigh what reprojection blurred (the variance sum is scaled so the
 //      pixel keeps its sample variance); the residual is the largest of the sources'. New
-//      pixels nobody offered to (disoccluded, or background before) restart with residual 1:
+//      pixels nobody offered to (disoccluded, or outside the box before) restart with residual 1:
 //      every budgeting scheme renders them first.
 // The approximation is the paper's: it degrades under large rotations, and mean hit points of
 // translucent pixels are only representative depths.
 #include <cstdint>
 
+#include "Render/CameraView.h"
 #include "Render/Finalize.h"
 
 namespace inr {
@@ -53,18 +55,46 @@ INR_HD std::uint64_t reprojectionKey(float depth, float fx, float fy, float cx, 
   return (std::uint64_t(bucket) << 40) | (std::uint64_t(dist) << 32) | std::uint64_t(std::uint32_t(j));
 }
 
-// Pass 1 for old pixel j: calls offer(newPixel, key) for each new pixel it may fill.
+// Representative world point of old pixel j: the mean of its real collisions, or, for a pixel
+// whose rays crossed the volume without a collision in any frame, the middle of its centre ray's
+// segment in the box (its history, "empty here", is as valid as a hit's; resetting such pixels
+// left the faint parts of a volume speckled with single samples after every move). False when
+// the pixel has nothing accumulated or never reached the box.
+INR_HD bool reprojectionPoint(const CameraView& oldView, const Box3f& box, const AccumulationView& history, int j,
+                              Vec3f& p, bool& hit) {
+  if (history.sampleCount[j] == 0u) return false;
+  hit = history.accum[j].w > 0.f;
+  if (hit) {
+    p = history.hitPoint[j];
+    return true;
+  }
+  Vec3f o, d;
+  cameraRay(oldView, j % oldView.width, j / oldView.width, 0.5f, 0.5f, o, d);
+  float tEnter, tExit;
+  if (!intersectBox(box, o, d, tEnter, tExit) || !(tExit > 0.f)) return false;
+  p = o + d * (0.5f * (maxf(tEnter, 0.f) + tExit));
+  return true;
+}
+
+// Pass 1 for old pixel j: calls offer(newPixel, key) for each new pixel it may fill. Empty
+// pixels offer themselves behind every hit (the last depth bucket): a surface that moves over
+// them wins.
 template <typename Offer>
-INR_HD void reprojectionOffers(const CameraView& newView, const AccumulationView& history, int j, Offer&& offer) {
-  if (!(history.accum[j].w > 0.f) || history.sampleCount[j] == 0u) return;  // never saw the volume
+INR_HD void reprojectionOffers(const CameraView& oldView, const CameraView& newView, const Box3f& box,
+                               const AccumulationView& history, int j, Offer&& offer) {
+  Vec3f p;
+  bool hit;
+  if (!reprojectionPoint(oldView, box, history, j, p, hit)) return;
   float fx, fy, depth;
-  if (!projectToImage(newView, history.hitPoint[j], fx, fy, depth)) return;
+  if (!projectToImage(newView, p, fx, fy, depth)) return;
   const int x0 = int(floorf(fx - 0.5f)), y0 = int(floorf(fy - 0.5f));
   for (int y = y0; y <= y0 + 1; ++y) {
     if (y < 0 || y >= newView.height) continue;
     for (int x = x0; x <= x0 + 1; ++x) {
       if (x < 0 || x >= newView.width) continue;
-      offer(y * newView.width + x, reprojectionKey(depth, fx, fy, float(x) + 0.5f, float(y) + 0.5f, j));
+      std::uint64_t key = reprojectionKey(depth, fx, fy, float(x) + 0.5f, float(y) + 0.5f, j);
+      if (!hit) key |= std::uint64_t(0xffff) << 40;
+      offer(y * newView.width + x, key);
     }
   }
 }
@@ -75,14 +105,20 @@ INR_HD void reprojectionOffers(const CameraView& newView, const AccumulationView
 // by up to half a pixel, which edges show). Old neighbours whose hit point lies at a clearly
 // different depth (another surface: occlusion) are left out; old background neighbours are
 // kept (empty is a valid value of the image).
-INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newView, const AccumulationView& history,
-                               const AccumulationView& acc, int i, std::uint64_t key, std::uint32_t maxHistory) {
+INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newView, const Box3f& box,
+                               const AccumulationView& history, const AccumulationView& acc, int i, std::uint64_t key,
+                               std::uint32_t maxHistory) {
   if (key == kNoReprojection) {
     resetPixel(acc, i);
     return;
   }
   const int j = int(std::uint32_t(key & 0xffffffffu));
-  const Vec3f p = history.hitPoint[j];
+  Vec3f p;
+  bool hit;
+  if (!reprojectionPoint(oldView, box, history, j, p, hit)) {  // cannot happen: j offered itself
+    resetPixel(acc, i);
+    return;
+  }
   float ox, oy, depth, nx, ny, newDepth;
   float x0f = 0.f, y0f = 0.f;
   int x0 = j % oldView.width, y0 = j / oldView.width;
@@ -137,7 +173,7 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
   acc.residual[i] = residual;
   acc.m2[i] = kept > 1u ? variance * inv * float(kept - 1u) : 0.f;  // keeps the sample variance
   acc.skip[i] = -1;
-  acc.hitPoint[i] = p;
+  acc.hitPoint[i] = hit ? p : history.hitPoint[j];
 }
 
 }  // namespace inr

@@ -66,8 +66,12 @@ SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {
   c.transferFunction = !sameTransferFunction(b.transferFunction, after.transferFunction);
   c.camera = !sameCamera(b.camera, after.camera);
   c.depthLimit = b.depthLimit != after.depthLimit;
-  c.light = b.shadows != after.shadows || b.toLight != after.toLight || b.ambient != after.ambient ||
-            b.shadowEstimator != after.shadowEstimator;
+  // The light only shades through shadows: without them its direction, ambient term and
+  // estimator change nothing (ParaView's light follows the camera, so counting it made every
+  // camera move a light change, which restarts accumulation and so defeated reprojection).
+  c.light = b.shadows != after.shadows ||
+            (after.shadows && (b.toLight != after.toLight || b.ambient != after.ambient ||
+                               b.shadowEstimator != after.shadowEstimator));
   c.background = b.background != after.background;
   return c;
 }

@@ -3,8 +3,10 @@
 // two scenes, and what each difference costs.
 //   time               working grid (interpolated slices) + majorants + accumulation reset
 //   transfer function  table + majorants + accumulation reset
-//   camera, depth limit, light (direction, shadows on/off, ambient, estimator), background
-//                      accumulation reset only
+//   camera, depth limit, light (shadows on/off; with shadows on: direction, ambient,
+//                      estimator), background
+//                      accumulation reset only (a camera-only move reprojects instead when
+//                      QueryReductionSettings::reproject is on)
 //   nothing            nothing: a host re-sending an identical scene keeps accumulating
 // After a time or TF change, optional ghost passes sweep cosine-bump TFs over the working grid's
 // value range so under-estimated macrocells get refined (GhostSweep).

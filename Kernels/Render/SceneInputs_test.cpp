@@ -182,5 +182,20 @@ TEST(SceneChange, CameraRoundOffIsNoChangeButAMoveIs) {
   EXPECT_TRUE(diffScenes(&a, b).camera);
 }
 
+// The light only matters with shadows on (ParaView's light follows the camera: a camera move
+// must stay a camera-only change, which reprojection keeps).
+TEST(SceneChange, LightMattersOnlyWithShadows) {
+  RenderScene a;
+  RenderScene b = a;
+  b.toLight = {0.3, 0.4, 0.8};
+  b.ambient = 0.5f;
+  EXPECT_FALSE(diffScenes(&a, b).light);
+  a.shadows = b.shadows = true;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  b = a;
+  b.shadows = false;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+}
+
 }  // namespace
 }  // namespace inr

@@ -295,7 +295,12 @@ int main(int argc, char* argv[])
     check(mapper->GetAccumulatedFrames() == 2, "unchanged scene keeps accumulating");
     ren->GetActiveCamera()->Azimuth(5);
     win->Render();
-    check(mapper->GetAccumulatedFrames() == 1, "camera move restarts accumulation");
+    // Reprojection (on by default) keeps the 2 frames and adds one; without it a move restarts.
+    check(mapper->GetAccumulatedFrames() == 3, "camera move reprojects the accumulation");
+    mapper->SetReproject(0);
+    ren->GetActiveCamera()->Azimuth(5);
+    win->Render();
+    check(mapper->GetAccumulatedFrames() == 1, "camera move without reprojection restarts accumulation");
     check(mapper->GetSlicesBuilt() == slices0 && mapper->GetEngineBuilds() == 1,
       "unchanged scene / camera move: no engine or macrocell rebuild");
     for (int i = 0; i < 6; ++i)

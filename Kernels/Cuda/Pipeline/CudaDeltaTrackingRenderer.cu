@@ -47,16 +47,19 @@ __global__ void initKernel(FrameConstants fc, MajorantGridView grid, RayStateVie
 }
 
 // Reprojection pass 1: old pixel j offers itself to the new pixels around its hit point.
-__global__ void reprojectScatterKernel(CameraView newView, AccumulationView history, unsigned long long* keys) {
+__global__ void reprojectScatterKernel(CameraView oldView, CameraView newView, Box3f box, AccumulationView history,
+                                       unsigned long long* keys) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j >= history.count) return;
-  reprojectionOffers(newView, history, j, [&](int i, std::uint64_t key) { atomicMin(&keys[i], (unsigned long long)key); });
+  reprojectionOffers(oldView, newView, box, history, j,
+                     [&](int i, std::uint64_t key) { atomicMin(&keys[i], (unsigned long long)key); });
 }
 
-__global__ void reprojectGatherKernel(CameraView oldView, CameraView newView, AccumulationView history, AccumulationView acc, const unsigned long long* keys,
+__global__ void reprojectGatherKernel(CameraView oldView, CameraView newView, Box3f box, AccumulationView history,
+                                      AccumulationView acc, const unsigned long long* keys,
                                       std::uint32_t maxHistory) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < acc.count) reprojectionGather(oldView, newView, history, acc, i, keys[i], maxHistory);
+  if (i < acc.count) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory);
 }
 
 __global__ void ghostInitKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, int stride) {
@@ -368,9 +371,11 @@ void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView,
   I.reprojectKeys.resize(n);
   INR_CUDA_CHECK(cudaMemsetAsync(I.reprojectKeys.get(), 0xff, n * sizeof(unsigned long long), s));
   const AccumulationView history = I.history.view(), acc = I.pixels.view();
-  reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(newView, history, I.reprojectKeys.get());
+  reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history,
+                                                                        I.reprojectKeys.get());
   INR_CUDA_CHECK_LAUNCH("reprojectScatterKernel");
-  reprojectGatherKernel<<<blocksFor(acc.count), kThreads, 0, s>>>(oldView, newView, history, acc, I.reprojectKeys.get(), maxHistory);
+  reprojectGatherKernel<<<blocksFor(acc.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history, acc,
+                                                                  I.reprojectKeys.get(), maxHistory);
   INR_CUDA_CHECK_LAUNCH("reprojectGatherKernel");
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
 }
