@@ -18,7 +18,7 @@
 namespace inr {
 namespace {
 
-const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+const Box3f kBox = test::kCubeBox;
 
 TEST(Budgeting, ResidualThresholdIsTheBinWhereTheCdfReachesOneMinusRho) {
   std::uint32_t h[kResidualBins] = {};
@@ -161,21 +161,12 @@ TEST(Budgeting, PixelsWithNothingAccumulatedAlwaysRender) {
 
 // The sparse blobs seen obliquely: mostly background, the volume's pixels are what matter.
 struct BlobScene {
-  BlobScene() : field(test::sparseField), grid(field, kBox, 0, 1, options()) {
-    settings.width = settings.height = 64;
-    settings.seed = 5;
-    scene.camera = Camera::framing(kBox);
-    scene.camera.position = {2.2, 1.6, 3.4};
+  BlobScene() : field(test::sparseField), grid(field, kBox, 0, 1, test::cubeMacrocells(16, 2)) {
+    const test::SceneSetup s = test::obliqueCubeScene(64, 5);
+    settings = s.settings;
+    scene = s.scene;
     scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.6);
     scene.transferFunction.unitDistance = 0.15;
-    scene.background = {0.1f, 0.2f, 0.3f};
-    scene.time = 0.3;
-  }
-  static MacrocellOptions options() {
-    MacrocellOptions o;
-    o.dims = Int3{16, 16, 16};
-    o.temporalSlices = 2;
-    return o;
   }
   test::FunctionField field;
   MacrocellGrid grid;

@@ -12,7 +12,7 @@
 namespace inr {
 namespace {
 
-const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+const Box3f kBox = test::kCubeBox;
 
 MacrocellOptions cells(int n) {
   MacrocellOptions o;
@@ -100,25 +100,14 @@ TEST(DeltaTracking, PiecewiseMediumUsesLocalMajorants) {
   EXPECT_EQ(total.rays, std::size_t(48 * 48 * frames));
 }
 
-struct SceneSetup {
-  RenderSettings settings;
-  RenderScene scene;
-};
+using test::SceneSetup;
 
 SceneSetup smoothScene(int size, bool shadows) {
-  SceneSetup s;
-  s.settings.width = s.settings.height = size;
-  s.settings.seed = 3;
+  SceneSetup s = test::obliqueCubeScene(size, 3);
   s.settings.pixelJitter = false;  // compare the integral per pixel centre
-  s.scene.camera = Camera::framing(kBox);
-  s.scene.camera.position = {2.2, 1.6, 3.4};
   s.scene.transferFunction = TransferFunction::preset(0.2, 0.9, 0.5);
   s.scene.transferFunction.unitDistance = 0.25;
-  s.scene.background = {0.1f, 0.2f, 0.3f};
-  s.scene.time = 0.3;
-  s.scene.shadows = shadows;
-  s.scene.ambient = 0.3f;
-  s.scene.toLight = defaultLightDirection(s.scene.camera);
+  test::lightScene(s.scene, shadows);
   return s;
 }
 

@@ -17,7 +17,7 @@
 namespace inr {
 namespace {
 
-const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+const Box3f kBox = test::kCubeBox;
 
 // A view over cells whose bounds are [0, range[c]] (or given explicitly).
 struct Cells {
@@ -166,50 +166,26 @@ float plateauField(const QueryPoint& p) {
          0.002f * std::sin(5.f * p.x + 3.f * p.y + 2.f * p.z);
 }
 
-struct PlateauSetup {
-  RenderSettings settings;
-  RenderScene scene;
-};
-
 // Oblique view; the plateau is translucent (opacity 0.15), so rays take many candidates in it.
-PlateauSetup plateauScene(int size, bool shadows, ShadowEstimator estimator = ShadowEstimator::Ratio) {
-  PlateauSetup s;
-  s.settings.width = s.settings.height = size;
-  s.settings.seed = 5;
-  s.scene.camera = Camera::framing(kBox);
-  s.scene.camera.position = {2.2, 1.6, 3.4};
+test::SceneSetup plateauScene(int size, bool shadows, ShadowEstimator estimator = ShadowEstimator::Ratio) {
+  test::SceneSetup s = test::obliqueCubeScene(size, 5);
   s.scene.transferFunction = TransferFunction::preset(0.25, 0.95, 0.8);
   s.scene.transferFunction.opacity = {{0.25, 0.15}, {0.95, 0.8}};
   s.scene.transferFunction.unitDistance = 0.5;
-  s.scene.background = {0.1f, 0.2f, 0.3f};
-  s.scene.time = 0.3;
-  s.scene.shadows = shadows;
-  s.scene.ambient = 0.3f;
-  s.scene.toLight = defaultLightDirection(s.scene.camera);
-  s.scene.shadowEstimator = estimator;
+  test::lightScene(s.scene, shadows, estimator);
   return s;
 }
 
-MacrocellOptions cells16() {
-  MacrocellOptions o;
-  o.dims = Int3{16, 16, 16};
-  o.temporalSlices = 4;
-  return o;
-}
+MacrocellOptions cells16() { return test::cubeMacrocells(16, 4); }
 
-QueryReductionSettings pruning(double epsilon, double falloff) {
-  QueryReductionSettings q;
-  q.pruneEpsilon = epsilon;
-  q.pruneFalloff = falloff;
-  return q;
-}
+using test::pruningAt;
 
 struct RenderRun {
   ImageRGBA premultiplied;
   FrameStats stats;
 };
 
-RenderRun render(const FieldEvaluator& f, const PlateauSetup& s, const QueryReductionSettings& q, int frames) {
+RenderRun render(const FieldEvaluator& f, const test::SceneSetup& s, const QueryReductionSettings& q, int frames) {
   MacrocellGrid grid(f, kBox, 0, 1, cells16());
   DeltaTrackingRenderer r(f, grid);
   r.setSettings(s.settings);
@@ -246,11 +222,11 @@ double coveredPsnr(const ImageRGBA& a, const ImageRGBA& b) {
 TEST(Pruning, NoCellInTheBandIsBitIdenticalToOff) {
   test::FunctionField f(test::smoothField);
   for (const ShadowEstimator est : {ShadowEstimator::Delta, ShadowEstimator::Ratio}) {
-    const PlateauSetup s = plateauScene(40, true, est);
+    const test::SceneSetup s = plateauScene(40, true, est);
     const RenderRun off = render(f, s, QueryReductionSettings{}, 3);
     EXPECT_GT(off.stats.queries, 0u);
-    for (const QueryReductionSettings& q : {pruning(0.0, 0.0), pruning(1e-7, 0.0), pruning(0.0, 1e-7),
-                                            pruning(1e-7, 1e-7)}) {
+    for (const QueryReductionSettings& q : {pruningAt(0.0, 0.0), pruningAt(1e-7, 0.0), pruningAt(0.0, 1e-7),
+                                            pruningAt(1e-7, 1e-7)}) {
       const RenderRun on = render(f, s, q, 3);
       EXPECT_TRUE(on.premultiplied.data == off.premultiplied.data)
           << "epsilon " << q.pruneEpsilon << " falloff " << q.pruneFalloff;
@@ -271,10 +247,10 @@ TEST(Pruning, NoCellInTheBandIsBitIdenticalToOff) {
 TEST(Pruning, PrunesNearUniformRegionsAndConvergesCloseToUnpruned) {
   test::FunctionField f(plateauField);
   const int frames = 256;
-  const PlateauSetup s = plateauScene(48, true);
+  const test::SceneSetup s = plateauScene(48, true);
   const RenderRun ref = render(f, s, QueryReductionSettings{}, frames);
-  const RenderRun on = render(f, s, pruning(0.02, 0.01), frames);
-  PlateauSetup other = s;
+  const RenderRun on = render(f, s, pruningAt(0.02, 0.01), frames);
+  test::SceneSetup other = s;
   other.settings.seed = 77;
   const RenderRun noise = render(f, other, QueryReductionSettings{}, frames);
   const double psnr = coveredPsnr(on.premultiplied, ref.premultiplied);
@@ -291,7 +267,7 @@ TEST(Pruning, PrunesNearUniformRegionsAndConvergesCloseToUnpruned) {
   EXPECT_EQ(test::nonFinitePixels(on.premultiplied), 0u);
 
   // The metric sees a wrong substitution: pruning every cell (the blob too) is far off.
-  const RenderRun all = render(f, s, pruning(1.0, 0.0), frames / 4);
+  const RenderRun all = render(f, s, pruningAt(1.0, 0.0), frames / 4);
   const RenderRun refShort = render(f, s, QueryReductionSettings{}, frames / 4);
   const double psnrAll = coveredPsnr(all.premultiplied, refShort.premultiplied);
   std::printf("pruning everything: %zu queries, covered PSNR %.2f dB\n", all.stats.totalQueries(), psnrAll);
@@ -302,8 +278,8 @@ TEST(Pruning, PrunesNearUniformRegionsAndConvergesCloseToUnpruned) {
 // never prune, and they have no candidates), and the counts add up to the candidates.
 TEST(Pruning, EverythingPrunedCostsNoQueries) {
   test::FunctionField f(plateauField);
-  const PlateauSetup s = plateauScene(32, true);
-  const RenderRun all = render(f, s, pruning(1.0, 0.0), 2);
+  const test::SceneSetup s = plateauScene(32, true);
+  const RenderRun all = render(f, s, pruningAt(1.0, 0.0), 2);
   EXPECT_EQ(all.stats.totalQueries(), 0u);
   EXPECT_GT(all.stats.pruned, all.stats.rays / 2);
   EXPECT_EQ(test::nonFinitePixels(all.premultiplied), 0u);
@@ -313,12 +289,12 @@ TEST(Pruning, EverythingPrunedCostsNoQueries) {
 // estimates that change between passes) the image still does not depend on the thread count.
 TEST(Pruning, IdenticalImagesForOneAndManyThreads) {
   test::FunctionField f(plateauField);
-  const PlateauSetup s = plateauScene(40, true);
+  const test::SceneSetup s = plateauScene(40, true);
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
-  const RenderRun one = render(f, s, pruning(0.01, 0.02), 4);
+  const RenderRun one = render(f, s, pruningAt(0.01, 0.02), 4);
   omp_set_num_threads(std::max(2, threads));
-  const RenderRun many = render(f, s, pruning(0.01, 0.02), 4);
+  const RenderRun many = render(f, s, pruningAt(0.01, 0.02), 4);
   omp_set_num_threads(threads);
   EXPECT_GT(one.stats.pruned, 0u);
   EXPECT_EQ(one.stats.pruned, many.stats.pruned);
@@ -332,9 +308,9 @@ TEST(Pruning, EstimatesStartAtTheMeansAndRestartAtTimeChanges) {
   test::FunctionField f(plateauField);
   MacrocellGrid grid(f, kBox, 0, 1, cells16());
   DeltaTrackingRenderer r(f, grid);
-  const PlateauSetup s = plateauScene(32, false);
+  const test::SceneSetup s = plateauScene(32, false);
   r.setSettings(s.settings);
-  r.setQueryReduction(pruning(0.01, 0.01));
+  r.setQueryReduction(pruningAt(0.01, 0.01));
   r.setScene(s.scene);
   EXPECT_TRUE(grid.expected() == grid.workingMean());
   for (int k = 0; k < 4; ++k) r.renderFrame();

@@ -5,11 +5,13 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 
 #include "Common/ImageIO.h"
 #include "Model/InrModel.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/ModelBox.h"
+#include "Render/QueryReduction.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneInputs.h"
 
@@ -43,6 +45,52 @@ inline MacrocellOptions testMacrocells() {
   o.dims = Int3{16, 16, 16};
   o.temporalSlices = 8;
   return o;
+}
+
+// The analytic-field tests' domain (TestFields.h: the fields live on [-1, 1]^3).
+const Box3f kCubeBox{{-1.f, -1.f, -1.f}, {1.f, 1.f, 1.f}};
+
+// Image settings and scene of one analytic-field test.
+struct SceneSetup {
+  RenderSettings settings;
+  RenderScene scene;
+};
+
+// The analytic-field tests' view: [-1, 1]^3 seen obliquely from (2.2, 1.6, 3.4), background
+// (0.1, 0.2, 0.3), time 0.3, size x size pixels with `seed`. Callers choose the transfer function.
+inline SceneSetup obliqueCubeScene(int size, std::uint32_t seed) {
+  SceneSetup s;
+  s.settings.width = s.settings.height = size;
+  s.settings.seed = seed;
+  s.scene.camera = Camera::framing(kCubeBox);
+  s.scene.camera.position = {2.2, 1.6, 3.4};
+  s.scene.background = {0.1f, 0.2f, 0.3f};
+  s.scene.time = 0.3;
+  return s;
+}
+
+// Their lighting: shadows on or off, ambient 0.3 and the default light for the camera.
+inline void lightScene(RenderScene& scene, bool shadows, ShadowEstimator estimator = ShadowEstimator::Delta) {
+  scene.shadows = shadows;
+  scene.ambient = 0.3f;
+  scene.toLight = defaultLightDirection(scene.camera);
+  scene.shadowEstimator = estimator;
+}
+
+// n^3 macrocells with `temporalSlices` slices.
+inline MacrocellOptions cubeMacrocells(int n, int temporalSlices) {
+  MacrocellOptions o;
+  o.dims = Int3{n, n, n};
+  o.temporalSlices = temporalSlices;
+  return o;
+}
+
+// Query reduction with pruning at (epsilon, falloff) and everything else at its defaults.
+inline QueryReductionSettings pruningAt(double epsilon, double falloff) {
+  QueryReductionSettings q;
+  q.pruneEpsilon = epsilon;
+  q.pruneFalloff = falloff;
+  return q;
 }
 
 // Gives a renderer of any backend its settings and scene, renders `frames` frames and returns

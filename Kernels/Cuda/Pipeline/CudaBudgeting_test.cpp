@@ -16,30 +16,16 @@
 namespace inr {
 namespace {
 
-const Box3f kBox{{-1, -1, -1}, {1, 1, 1}};
+const Box3f kBox = test::kCubeBox;
 
-MacrocellOptions cells() {
-  MacrocellOptions o;
-  o.dims = Int3{16, 16, 16};
-  o.temporalSlices = 2;
-  return o;
-}
+MacrocellOptions cells() { return test::cubeMacrocells(16, 2); }
 
-struct SceneSetup {
-  RenderSettings settings;
-  RenderScene scene;
-};
+using test::SceneSetup;
 
 SceneSetup smoothScene(int size) {
-  SceneSetup s;
-  s.settings.width = s.settings.height = size;
-  s.settings.seed = 9;
-  s.scene.camera = Camera::framing(kBox);
-  s.scene.camera.position = {2.2, 1.6, 3.4};
+  SceneSetup s = test::obliqueCubeScene(size, 9);
   s.scene.transferFunction = TransferFunction::preset(0.45, 0.95, 0.7);
   s.scene.transferFunction.unitDistance = 0.2;
-  s.scene.background = {0.1f, 0.2f, 0.3f};
-  s.scene.time = 0.3;
   return s;
 }
 

@@ -513,61 +513,32 @@ TEST(CudaPipeline, MacrocellGridOnAnalyticDeviceFieldMatchesCpu) {
 // two differ only by ulps of sinf / cosf / expf and by the GPU's concurrent refinement and EMA.
 
 struct PruningRun {
-  std::vector<float> image;
+  ImageRGBA image;  // premultiplied
   FrameStats stats;
 };
 
 // Oblique view of [-1, 1]^3; translucent everywhere (opacity 0.1 at the bottom of the range),
 // so rays take candidates in the near-uniform cells pruning answers.
-RenderScene pruningScene() {
-  RenderScene scene;
-  const Box3f box{{-1.f, -1.f, -1.f}, {1.f, 1.f, 1.f}};
-  scene.camera = Camera::framing(box);
-  scene.camera.position = {2.2, 1.6, 3.4};
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.7);
-  scene.transferFunction.opacity = {{0.0, 0.1}, {1.0, 0.7}};
-  scene.transferFunction.unitDistance = 0.5;
-  scene.background = {0.1f, 0.2f, 0.3f};
-  scene.time = 0.3;
-  scene.shadows = true;
-  scene.ambient = 0.3f;
-  scene.toLight = defaultLightDirection(scene.camera);
-  scene.shadowEstimator = ShadowEstimator::Ratio;
-  return scene;
-}
-
-RenderSettings pruningSettings(int size) {
-  RenderSettings settings;
-  settings.width = settings.height = size;
-  settings.seed = 9;
-  settings.pixelJitter = false;
-  return settings;
-}
-
-QueryReductionSettings pruneAt(double epsilon, double falloff) {
-  QueryReductionSettings q;
-  q.pruneEpsilon = epsilon;
-  q.pruneFalloff = falloff;
-  return q;
-}
-
-MacrocellOptions pruningCells() {
-  MacrocellOptions o;
-  o.dims = Int3{16, 16, 16};
-  o.temporalSlices = 4;
-  return o;
+test::SceneSetup pruningScene(int size) {
+  test::SceneSetup s = test::obliqueCubeScene(size, 9);
+  s.settings.pixelJitter = false;
+  s.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.7);
+  s.scene.transferFunction.opacity = {{0.0, 0.1}, {1.0, 0.7}};
+  s.scene.transferFunction.unitDistance = 0.5;
+  test::lightScene(s.scene, true, ShadowEstimator::Ratio);
+  return s;
 }
 
 template <typename Grid, typename Renderer, typename Field>
 PruningRun renderPruned(const Field& field, const QueryReductionSettings& q, int size, int frames) {
-  const Box3f box{{-1.f, -1.f, -1.f}, {1.f, 1.f, 1.f}};
-  Grid grid(field, box, 0.0, 1.0, pruningCells());
+  Grid grid(field, test::kCubeBox, 0.0, 1.0, test::cubeMacrocells(16, 4));
   Renderer r(field, grid);
-  r.setSettings(pruningSettings(size));
+  const test::SceneSetup s = pruningScene(size);
+  r.setSettings(s.settings);
   r.setQueryReduction(q);
   PruningRun out;
-  out.stats = test::renderFrames(r, pruningSettings(size), pruningScene(), frames);
-  out.image = r.premultipliedImage().data;
+  out.stats = test::renderFrames(r, s.settings, s.scene, frames);
+  out.image = r.premultipliedImage();
   return out;
 }
 
@@ -581,20 +552,20 @@ TEST(CudaPipeline, PruningWithNoCellInTheBandIsIdenticalToOff) {
     return renderPruned<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(field, q, 48, 3);
   };
   const PruningRun off = gpu(QueryReductionSettings{}), again = gpu(QueryReductionSettings{});
-  if (off.image != again.image || off.stats.totalQueries() != again.stats.totalQueries())
+  if (off.image.data != again.image.data || off.stats.totalQueries() != again.stats.totalQueries())
     GTEST_SKIP() << "the GPU pipeline is not bit-reproducible run to run on this device: nothing to compare";
   EXPECT_EQ(off.stats.pruned, 0u);
-  for (const QueryReductionSettings& q : {pruneAt(0.0, 0.0), pruneAt(1e-7, 0.0), pruneAt(1e-7, 1e-7)}) {
+  for (const QueryReductionSettings& q : {test::pruningAt(0.0, 0.0), test::pruningAt(1e-7, 0.0),
+                                            test::pruningAt(1e-7, 1e-7)}) {
     const PruningRun on = gpu(q);
-    EXPECT_TRUE(on.image == off.image) << "epsilon " << q.pruneEpsilon << " falloff " << q.pruneFalloff;
+    EXPECT_TRUE(on.image.data == off.image.data) << "epsilon " << q.pruneEpsilon << " falloff " << q.pruneFalloff;
     EXPECT_EQ(on.stats.pruned, 0u);
     EXPECT_EQ(on.stats.queries, off.stats.queries);
     EXPECT_EQ(on.stats.shadowQueries, off.stats.shadowQueries);
     EXPECT_EQ(on.stats.iterations, off.stats.iterations);
   }
 
-  const Box3f box{{-1.f, -1.f, -1.f}, {1.f, 1.f, 1.f}};
-  CudaMacrocellGrid grid(field, box, 0.0, 1.0, pruningCells());
+  CudaMacrocellGrid grid(field, test::kCubeBox, 0.0, 1.0, test::cubeMacrocells(16, 4));
   grid.setTime(0.3);
   std::vector<float> mn, mx, mean;
   grid.downloadWorking(mn, mx, mean);
@@ -611,16 +582,13 @@ TEST(CudaPipeline, PrunedGpuImageMatchesPrunedCpuImage) {
   const int size = envInt("INR_GPU_TEST_SIZE", 64), frames = envInt("INR_GPU_TEST_FRAMES", 256);
   // epsilon 0.08 + falloff 0.02 of the range prunes about a third of the candidates here (CPU:
   // 34.5% over 64 frames, 64^2).
-  const QueryReductionSettings q = pruneAt(0.08, 0.02);
+  const QueryReductionSettings q = test::pruningAt(0.08, 0.02);
   const PruningRun cpu = renderPruned<MacrocellGrid, DeltaTrackingRenderer>(
       static_cast<const FieldEvaluator&>(field), q, size, frames);
   const PruningRun gpu = renderPruned<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
       static_cast<const DeviceFieldEvaluator&>(field), q, size, frames);
-  ImageRGBA a, b;
-  a.width = b.width = a.height = b.height = size;
-  a.data = gpu.image;
-  b.data = cpu.image;
-  const double psnr = psnrRgb(a, b);
+  // Over the pixels the volume covers (premultiplied images: background is 0 in both).
+  const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.image);
   const double c = double(cpu.stats.pruned), g = double(gpu.stats.pruned);
   const double candidates = c + double(cpu.stats.totalQueries());
   std::printf("pruning 0.08 + 0.02, %dx%d, %d frames: PSNR GPU vs CPU %.2f dB; pruned GPU %.0f CPU %.0f (%.1f%% of "
@@ -630,7 +598,7 @@ TEST(CudaPipeline, PrunedGpuImageMatchesPrunedCpuImage) {
   EXPECT_GE(psnr, 40.0);
   EXPECT_GT(c, 0.1 * candidates);  // the comparison is about pruning, not an idle threshold
   EXPECT_LE(std::abs(g - c), 0.03 * c + 5.0 * std::sqrt(c));
-  EXPECT_EQ(nonFinitePixels(a), 0u);
+  EXPECT_EQ(nonFinitePixels(gpu.image), 0u);
 }
 
 }  // namespace
