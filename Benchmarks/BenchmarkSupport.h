@@ -32,6 +32,23 @@ public:
     return argv_[i_++];
   }
 
+  // What every benchmark does with an argument none of its own options took: -h / --help prints
+  // `usage` (returns 0), another "-..." is an unknown option (returns 2), anything else is a
+  // model path (appended to `models`; returns -1: parsing goes on). Non-negative results are the
+  // program's exit status.
+  int other(const std::string& a, const char* usage, std::vector<std::string>& models) const {
+    if (a == "-h" || a == "--help") {
+      std::fputs(usage, stdout);
+      return 0;
+    }
+    if (!a.empty() && a[0] == '-') {
+      std::fprintf(stderr, "unknown option %s (see --help)\n", a.c_str());
+      return 2;
+    }
+    models.push_back(a);
+    return -1;
+  }
+
 private:
   int argc_;
   char** argv_;

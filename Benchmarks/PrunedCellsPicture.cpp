@@ -83,18 +83,27 @@ std::vector<double> parseList(const std::string& s) {
 // Index of the first cell with a positive majorant along the centre ray of pixel (x, y), -1 when
 // the ray misses the box or meets none. Same entry and walk as RayInit.h / Traverse.h (without
 // the coarse level, which only skips empty cells).
-int firstVisibleCell(const MajorantGridView& g, const CameraView& cam, int x, int y) {
+// The DDA at the entry of the centre ray of pixel (x, y) into the grid's box; false when it misses.
+struct CentreRayWalk {
   Vec3f o, d;
-  cameraRay(cam, x, y, 0.5f, 0.5f, o, d);
   float tEnter = 0.f, tExit = 0.f;
-  if (!intersectBox(g.box, o, d, tEnter, tExit) || !(tEnter < tExit)) return -1;
   Int3 cell;
   Vec3f tNext;
-  ddaStart(g, o, d, tEnter, cell, tNext);
+  bool start(const MajorantGridView& g, const CameraView& cam, int x, int y) {
+    cameraRay(cam, x, y, 0.5f, 0.5f, o, d);
+    if (!intersectBox(g.box, o, d, tEnter, tExit) || !(tEnter < tExit)) return false;
+    ddaStart(g, o, d, tEnter, cell, tNext);
+    return true;
+  }
+};
+
+int firstVisibleCell(const MajorantGridView& g, const CameraView& cam, int x, int y) {
+  CentreRayWalk w;
+  if (!w.start(g, cam, x, y)) return -1;
   for (;;) {
-    if (majorantAt(g, cell) > 0.f) return linearCellIndex(g.dims, cell);
-    if (ddaCellExit(tNext) >= tExit) return -1;
-    if (!ddaStep(g, o, d, cell, tNext)) return -1;
+    if (majorantAt(g, w.cell) > 0.f) return linearCellIndex(g.dims, w.cell);
+    if (ddaCellExit(w.tNext) >= w.tExit) return -1;
+    if (!ddaStep(g, w.o, w.d, w.cell, w.tNext)) return -1;
   }
 }
 
@@ -105,20 +114,15 @@ int firstVisibleCell(const MajorantGridView& g, const CameraView& cam, int x, in
 // visible cell is often a faint one at the box face.
 int dominantCell(const MajorantGridView& g, const TransferFunctionView& tf, const std::vector<float>& mean,
                  const CameraView& cam, int x, int y) {
-  Vec3f o, d;
-  cameraRay(cam, x, y, 0.5f, 0.5f, o, d);
-  float tEnter = 0.f, tExit = 0.f;
-  if (!intersectBox(g.box, o, d, tEnter, tExit) || !(tEnter < tExit)) return -1;
-  Int3 cell;
-  Vec3f tNext;
-  ddaStart(g, o, d, tEnter, cell, tNext);
+  CentreRayWalk w;
+  if (!w.start(g, cam, x, y)) return -1;
   double transmittance = 1.0, best = 0.0;
   int bestCell = -1;
-  float t = tEnter;
+  float t = w.tEnter;
   for (;;) {
-    const float t1 = std::min(ddaCellExit(tNext), tExit);
-    const int c = linearCellIndex(g.dims, cell);
-    if (majorantAt(g, cell) > 0.f && t1 > t) {
+    const float t1 = std::min(ddaCellExit(w.tNext), w.tExit);
+    const int c = linearCellIndex(g.dims, w.cell);
+    if (majorantAt(g, w.cell) > 0.f && t1 > t) {
       const double tau = double(extinctionAt(tf, mean[c])) * double(t1 - t);
       const double p = transmittance * -std::expm1(-tau);
       if (p > best) {
@@ -127,7 +131,7 @@ int dominantCell(const MajorantGridView& g, const TransferFunctionView& tf, cons
       }
       transmittance *= std::exp(-tau);
     }
-    if (t1 >= tExit || !ddaStep(g, o, d, cell, tNext)) return bestCell;
+    if (t1 >= w.tExit || !ddaStep(g, w.o, w.d, w.cell, w.tNext)) return bestCell;
     t = t1;
   }
 }
@@ -276,14 +280,8 @@ int main(int argc, char** argv) {
       else if (a == "--frames") o.frames = std::max(1, std::stoi(cl.value()));
       else if (a == "--time") o.time = std::stod(cl.value());
       else if (a == "--out") o.out = cl.value();
-      else if (a == "-h" || a == "--help") {
-        std::fputs(kUsage, stdout);
-        return 0;
-      } else if (!a.empty() && a[0] == '-') {
-        std::fprintf(stderr, "unknown option %s (see --help)\n", a.c_str());
-        return 2;
-      } else
-        o.models.push_back(a);
+      else if (const int status = cl.other(a, kUsage, o.models); status >= 0)
+        return status;
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bad option value: %s\n", e.what());

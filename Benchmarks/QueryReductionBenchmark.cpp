@@ -703,14 +703,8 @@ int main(int argc, char** argv) {
       else if (a == "--time") o.time = std::stod(cl.value());
       else if (a == "--out") o.out = cl.value();
       else if (a == "--append") o.append = true;
-      else if (a == "-h" || a == "--help") {
-        std::fputs(kUsage, stdout);
-        return 0;
-      } else if (!a.empty() && a[0] == '-') {
-        std::fprintf(stderr, "unknown option %s (see --help)\n", a.c_str());
-        return 2;
-      } else
-        o.models.push_back(a);
+      else if (const int status = cl.other(a, kUsage, o.models); status >= 0)
+        return status;
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bad option value: %s\n", e.what());
