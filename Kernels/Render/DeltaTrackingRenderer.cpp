@@ -264,9 +264,8 @@ BlueNoiseMaskView DeltaTrackingRenderer::blueNoiseMask() { return shippedBlueNoi
 void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
                                                   std::uint32_t maxHistory) {
   const int n = int(pixels_.count);
-  history_.resize(pixels_.count);
-  std::swap(history_, pixels_);
-  pixels_.resize(history_.count);
+  std::swap(history_, pixels_);  // the old accumulation becomes the history
+  pixels_.resize(history_.count);  // every pixel is written by the gather below
   reprojectKeys_.assign(pixels_.count, kNoReprojection);
   const AccumulationView history = history_.view(), acc = pixels_.view();
   std::uint64_t* keys = reprojectKeys_.data();
