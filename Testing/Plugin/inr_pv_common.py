@@ -11,6 +11,23 @@ BACKGROUND = [0.32, 0.34, 0.43]
 UNIT_DISTANCE = 0.1
 
 
+class Checks:
+    """A test's checks: check(ok, what) prints "ok:"/"FAIL:" lines; report() prints the RESULT line
+    and returns the exit status (1 when any check failed)."""
+
+    def __init__(self):
+        self.failures = []
+
+    def __call__(self, ok, what):
+        print(("ok: " if ok else "FAIL: ") + what, flush=True)
+        if not ok:
+            self.failures.append(what)
+
+    def report(self):
+        print("RESULT:", "PASS" if not self.failures else "FAIL " + "; ".join(self.failures), flush=True)
+        return 1 if self.failures else 0
+
+
 def load_plugin(path, remote):
     """Loads the plugin on the client (and the server); already loaded (PV_PLUGIN_PATH) is fine."""
     from paraview import simple

@@ -22,13 +22,7 @@ args = ap.parse_args()
 from paraview import simple  # noqa: E402
 
 C.load_plugin(args.plugin, remote=False)
-failures = []
-
-
-def check(ok, what):
-    print(("ok: " if ok else "FAIL: ") + what, flush=True)
-    if not ok:
-        failures.append(what)
+check = C.Checks()
 
 
 def in_use(display):
@@ -141,7 +135,7 @@ diff = abs(img - bg).max(axis=2)
 covered = float((diff > 8).mean())
 check(covered > 0.05, f"the volume covers {100 * covered:.1f}% of the screenshot")
 
-print("RESULT:", "PASS" if not failures else "FAIL " + "; ".join(failures), flush=True)
+status = check.report()
 sys.stdout.flush()
-if failures:
-    sys.exit(1)
+if status:
+    sys.exit(status)

@@ -35,13 +35,7 @@ if args.connect:
     print("connected to", args.connect, "remote:", servermanager.ActiveConnection.IsRemote())
 C.load_plugin(args.plugin, remote=bool(args.connect))
 
-failures = []
-
-
-def check(ok, what):
-    print(("ok: " if ok else "FAIL: ") + what, flush=True)
-    if not ok:
-        failures.append(what)
+check = C.Checks()
 
 
 # File > Open / OpenDataFile find our reader through the ReaderFactory hint.
@@ -89,11 +83,11 @@ elif args.baseline:
     print("comparison with", os.path.basename(args.baseline) + ":", msg)
     check(ok, "screenshot matches the baseline")
 
-print("RESULT:", "PASS" if not failures else "FAIL " + "; ".join(failures), flush=True)
+status = check.report()
 if args.connect:
     simple.Disconnect()
 # Success: let the script end (a clean exit, also for pvbatch satellites under mpirun);
 # failure: a non-zero status.
 sys.stdout.flush()
-if failures:
-    sys.exit(1)
+if status:
+    sys.exit(status)
