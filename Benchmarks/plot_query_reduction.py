@@ -94,6 +94,15 @@ def plots(d, curves, summary, raymarch, orbit, title):
         print("matplotlib not available: tables only, no plots")
         return
     written = []
+
+    def save(fig, name, heading):
+        fig.suptitle(heading)
+        fig.tight_layout()
+        path = os.path.join(d, name)
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path)
+
     models = list(OrderedDict.fromkeys(r["model"] for r in summary))
     by = defaultdict(list)
     for r in curves:
@@ -131,12 +140,7 @@ def plots(d, curves, summary, raymarch, orbit, title):
                 if col == 0:
                     a.set_ylabel("PSNR vs reference [dB]")
                 a.legend(fontsize=6)
-        fig.suptitle(f"{m}: PSNR against render time {title}")
-        fig.tight_layout()
-        p = os.path.join(d, f"psnr_vs_time_{m}.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        save(fig, f"psnr_vs_time_{m}.png", f"{m}: PSNR against render time {title}")
     prune = [r for r in summary if r["family"] in ("prune", "none")]
     if prune:
         fig, ax = plt.subplots(1, len(models), figsize=(5 * len(models), 4), squeeze=False)
@@ -153,12 +157,7 @@ def plots(d, curves, summary, raymarch, orbit, title):
             b.set_ylabel("PSNR over the volume [dB]", color="tab:blue")
             b.legend(fontsize=7)
             a.set_title(m, fontsize=9)
-        fig.suptitle(f"homogeneity pruning {title}")
-        fig.tight_layout()
-        p = os.path.join(d, "pruning.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        save(fig, "pruning.png", f"homogeneity pruning {title}")
     if orbit:
         omodels = list(OrderedDict.fromkeys(r["model"] for r in orbit))
         fig, ax = plt.subplots(1, len(omodels), figsize=(5 * len(omodels), 4), squeeze=False)
@@ -175,12 +174,7 @@ def plots(d, curves, summary, raymarch, orbit, title):
             a.set_ylabel("PSNR over the volume [dB]")
             a.set_title(m, fontsize=9)
             a.legend(fontsize=7)
-        fig.suptitle(f"camera orbit {title}")
-        fig.tight_layout()
-        p = os.path.join(d, "orbit.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        save(fig, "orbit.png", f"camera orbit {title}")
     for p in written:
         print("wrote", p)
 
