@@ -13,11 +13,13 @@ namespace inr {
 // is off, so the tracking draws do not shift with that option).
 INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& grid,
                            const RayStateView& rs, int i) {
-  RngStream rng{std::uint32_t(i), fc.frame, fc.seed, 0u};
+  RngStream rng{pixelStreamKey(fc, i), fc.frame, fc.seed, 0u};
   const float u0 = rng.next(), u1 = rng.next();
   const int px = i % fc.camera.width, py = i / fc.camera.width;
   Vec3f o, d;
-  cameraRay(fc.camera, px, py, fc.pixelJitter ? u0 : 0.5f, fc.pixelJitter ? u1 : 0.5f, o, d);
+  cameraRayWorld(fc.camera, px, py, fc.pixelJitter ? u0 : 0.5f, fc.pixelJitter ? u1 : 0.5f, o, d);
+  // Model space from here on; the depth limit is a world distance along the world ray.
+  const float modelPerWorld = worldRayToModel(fc.camera, o, d);
 
   rs.origin[i] = o;
   rs.direction[i] = d;
@@ -33,7 +35,7 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
 
   float tEnter, tExit;
   if (!intersectBox(fc.box, o, d, tEnter, tExit)) return;
-  if (fc.depthLimit) tExit = minf(tExit, fc.depthLimit[i]);
+  if (fc.depthLimit) tExit = minf(tExit, fc.depthLimit[i] * modelPerWorld);
   if (!(tEnter < tExit)) return;  // behind opaque geometry (or NaN depth): nothing to do
 
   Int3 cell;
@@ -85,7 +87,8 @@ INR_HD bool budgetPixel(const BudgetConstants& b, const AccumulationView& acc, i
 // its accumulation as it is.
 INR_HD void initBudgetedRay(const FrameConstants& fc, const MajorantGridView& grid, const RayStateView& rs,
                             const AccumulationView& acc, int i) {
-  const int px = i % fc.camera.width, py = i / fc.camera.width;
+  int px, py;
+  picturePixel(fc, i, px, py);  // the blue-noise mask is tiled over the full picture
   if (!budgetPixel(fc.budget, acc, i, px, py)) {
     rs.flags[i] = kRayBudgetSkipped;
     rs.pruned[i] = 0;  // summed over all rays at the end of the frame

@@ -31,6 +31,7 @@ RayMarchRenderer::RayMarchRenderer(const FieldEvaluator& evaluator, const Box3f&
 
 void RayMarchRenderer::setSettings(const RenderSettings& settings) {
   if (settings.width <= 0 || settings.height <= 0) throw std::invalid_argument("image size must be positive");
+  validateImageWindow(settings.window, settings.width, settings.height);
   settings_ = settings;
   accum_.assign(std::size_t(settings_.width) * settings_.height, Vec4f{0, 0, 0, 0});
   resetAccumulation();
@@ -63,8 +64,9 @@ FrameStats RayMarchRenderer::renderFrame() {
   const TransferFunctionView tf = tfTable_->view();
   const int W = settings_.width, n = settings_.width * settings_.height;
   const std::uint32_t frame = std::uint32_t(frameIndex_);
-  const Vec3f toLight = normalize(Vec3f{float(scene_.toLight[0]), float(scene_.toLight[1]),
-                                        float(scene_.toLight[2])});
+  Vec3f toLight = normalize(Vec3f{float(scene_.toLight[0]), float(scene_.toLight[1]),
+                                  float(scene_.toLight[2])});
+  if (cam.transformed) toLight = normalize(applyLinear(cam.modelFromWorld, toLight));  // model space
   const bool shadows = scene_.shadows;
   const float ambient = scene_.ambient;
   st.pixels = std::size_t(n);
@@ -94,17 +96,22 @@ FrameStats RayMarchRenderer::renderFrame() {
     int total = 0;
     for (int k = 0; k < chunkN; ++k) {
       const int i = chunk0 + k;
-      RngStream rng{std::uint32_t(i), frame, settings_.seed, 0u};
+      const ImageWindow& win = settings_.window;  // keyed like the delta tracker's pixels
+      const std::uint32_t key = win.fullWidth == 0 ? std::uint32_t(i)
+                                                   : std::uint32_t(i / W + win.y) * std::uint32_t(win.fullWidth) +
+                                                         std::uint32_t(i % W + win.x);
+      RngStream rng{key, frame, settings_.seed, 0u};
       const float u0 = rng.next(), u1 = rng.next();  // same draws as the delta tracker's jitter
       const float shift = settings_.pixelJitter ? rng.next() : 0.5f;
       RaySeg& s = segs[k];
-      cameraRay(cam, i % W, i / W, settings_.pixelJitter ? u0 : 0.5f,
-                settings_.pixelJitter ? u1 : 0.5f, s.o, s.d);
+      cameraRayWorld(cam, i % W, i / W, settings_.pixelJitter ? u0 : 0.5f,
+                     settings_.pixelJitter ? u1 : 0.5f, s.o, s.d);
+      const float modelPerWorld = worldRayToModel(cam, s.o, s.d);  // model space from here on
       float tEnter, tExit;
       s.first = total;
       s.count = 0;
       if (!intersectBox(box_, s.o, s.d, tEnter, tExit)) continue;
-      if (!scene_.depthLimit.empty()) tExit = std::min(tExit, scene_.depthLimit[i]);
+      if (!scene_.depthLimit.empty()) tExit = std::min(tExit, scene_.depthLimit[i] * modelPerWorld);
       if (!(tEnter < tExit)) continue;
       const float len = tExit - tEnter;
       s.count = std::max(1, int(std::ceil(len / step_)));

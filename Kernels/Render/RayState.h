@@ -101,14 +101,14 @@ struct AccumulationView {
 // Everything the stages read that is constant for one frame.
 struct FrameConstants {
   CameraView camera;
-  Box3f box;                          // the model's world box
-  const float* depthLimit = nullptr;  // per pixel ray distance to opaque geometry, or null
+  Box3f box;                          // the model's box (model space: CameraView.h)
+  const float* depthLimit = nullptr;  // per pixel world ray distance to opaque geometry, or null
   float time = 0.f;                   // world time of every query
   std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)
   int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing)
   int shadows = 0;
   float ambient = 0.2f;               // shading = ambient + (1 - ambient) * visibility
-  Vec3f toLight{0.f, 0.f, 1.f};       // unit vector towards the (directional) light
+  Vec3f toLight{0.f, 0.f, 1.f};       // unit model-space vector towards the (directional) light
   Vec3f background{0.f, 0.f, 0.f};
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking
@@ -116,7 +116,23 @@ struct FrameConstants {
   // the null collisions a pathological majorant (a tiny opacity unit distance) can cost.
   std::uint32_t maxRngDraws = 0xffffffffu;
   BudgetConstants budget;             // which pixels get a ray this frame (Budgeting.h)
+  // The image's place in the full picture (RenderSettings::window): pixel (px, py) is
+  // (px + windowX, py + windowY) of a fullWidth-wide picture, which keys its random stream and
+  // its blue-noise value.
+  int windowX = 0, windowY = 0, fullWidth = 0;
 };
+
+// Position of pixel i in the full picture, and its random-stream key (the full picture's pixel
+// index), so a tile's pixels draw what the same pixels of the whole picture draw.
+INR_HD void picturePixel(const FrameConstants& fc, int i, int& px, int& py) {
+  px = i % fc.camera.width + fc.windowX;
+  py = i / fc.camera.width + fc.windowY;
+}
+INR_HD std::uint32_t pixelStreamKey(const FrameConstants& fc, int i) {
+  int px, py;
+  picturePixel(fc, i, px, py);
+  return std::uint32_t(py) * std::uint32_t(fc.fullWidth) + std::uint32_t(px);
+}
 
 // What traversal tracks against: the majorant grid and the transfer function. Ghost passes swap
 // in their own pair over the same macrocell bounds.

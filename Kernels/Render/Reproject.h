@@ -28,10 +28,15 @@ namespace inr {
 
 constexpr std::uint64_t kNoReprojection = ~std::uint64_t(0);
 
-// Continuous image position (pixel centres at +0.5) and depth along the view direction of world
-// point p in `cam`; false when p is behind the camera or not finite.
+// World depth along the view direction of model point p (hit points are model coordinates).
+INR_HD float viewDepth(const CameraView& cam, const Vec3f& p) {
+  return dot(modelToWorld(cam, p) - cam.position, cam.forward);
+}
+
+// Continuous image position (pixel centres at +0.5) and world depth along the view direction of
+// model point p in `cam`; false when p is behind the camera or not finite.
 INR_HD bool projectToImage(const CameraView& cam, const Vec3f& p, float& fx, float& fy, float& depth) {
-  const Vec3f v = p - cam.position;
+  const Vec3f v = modelToWorld(cam, p) - cam.position;
   depth = dot(v, cam.forward);
   float sx = dot(v, cam.right), sy = dot(v, cam.up);
   if (!cam.parallel) {
@@ -39,9 +44,9 @@ INR_HD bool projectToImage(const CameraView& cam, const Vec3f& p, float& fx, flo
     sx /= depth;
     sy /= depth;
   }
-  // Inverse of cameraRay: sx = (2 fx / W - 1) h a, sy = (1 - 2 fy / H) h.
-  fx = (sx / (cam.halfHeight * cam.aspect) + 1.f) * 0.5f * float(cam.width);
-  fy = (1.f - sy / cam.halfHeight) * 0.5f * float(cam.height);
+  // Inverse of cameraRayWorld: sx = (cx + 2 fx / W - 1) h a, sy = (cy + 1 - 2 fy / H) h.
+  fx = (sx / (cam.halfHeight * cam.aspect) - cam.centerX + 1.f) * 0.5f * float(cam.width);
+  fy = (1.f + cam.centerY - sy / cam.halfHeight) * 0.5f * float(cam.height);
   return fx == fx && fy == fy && depth == depth && fabsf(fx) < 1e9f && fabsf(fy) < 1e9f;
 }
 
@@ -55,7 +60,7 @@ INR_HD std::uint64_t reprojectionKey(float depth, float fx, float fy, float cx, 
   return (std::uint64_t(bucket) << 40) | (std::uint64_t(dist) << 32) | std::uint64_t(std::uint32_t(j));
 }
 
-// Representative world point of old pixel j: the mean of its real collisions, or, for a pixel
+// Representative (model-space) point of old pixel j: the mean of its real collisions, or, for a pixel
 // whose rays crossed the volume without a collision in any frame, the middle of its centre ray's
 // segment in the box (its history, "empty here", is as valid as a hit's; resetting such pixels
 // left the faint parts of a volume speckled with single samples after every move). False when
@@ -100,7 +105,7 @@ INR_HD void reprojectionOffers(const CameraView& oldView, const CameraView& newV
 }
 
 // Pass 2 for new pixel i with the minimum key it was offered: the winner's hit point is the
-// pixel's representative world point; its motion between the views gives where pixel i was in
+// pixel's representative (model-space) point; its motion between the views gives where pixel i was in
 // the old image, and the old accumulation is resampled there bilinearly (nearest-pixel copies would misplace every pixel
 // by up to half a pixel, which edges show). Old neighbours whose hit point lies at a clearly
 // different depth (another surface: occlusion) are left out; old background neighbours are
@@ -147,7 +152,7 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
     const float w = bilinear ? ((k & 1) ? x0f : 1.f - x0f) * ((k >> 1) ? y0f : 1.f - y0f) : 1.f;
     if (!(w > 0.f)) continue;
     if (bilinear && history.accum[o].w > 0.f) {
-      const float d = dot(history.hitPoint[o] - oldView.position, oldView.forward);
+      const float d = viewDepth(oldView, history.hitPoint[o]);
       if (fabsf(d - depth) > 0.1f * fabsf(depth)) continue;  // another surface
     }
     const Vec4f c = history.accum[o];

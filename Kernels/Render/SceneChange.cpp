@@ -34,7 +34,9 @@ bool nearlyEqual(const std::array<double, 3>& a, const std::array<double, 3>& b)
 bool sameCamera(const Camera& a, const Camera& b) {
   return nearlyEqual(a.position, b.position) && nearlyEqual(a.focalPoint, b.focalPoint) &&
          nearlyEqual(a.viewUp, b.viewUp) && nearlyEqual(a.viewAngle, b.viewAngle) &&
-         a.parallelProjection == b.parallelProjection && nearlyEqual(a.parallelScale, b.parallelScale);
+         a.parallelProjection == b.parallelProjection && nearlyEqual(a.parallelScale, b.parallelScale) &&
+         nearlyEqual(a.windowCenter[0], b.windowCenter[0]) && nearlyEqual(a.windowCenter[1], b.windowCenter[1]) &&
+         a.modelToWorld == b.modelToWorld;
 }
 
 bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) {

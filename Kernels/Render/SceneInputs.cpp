@@ -53,6 +53,50 @@ Vec3f unitInDouble(std::array<double, 3> a) {
 
 }  // namespace
 
+namespace {
+
+// The model <-> world maps of a row-major model-to-world matrix, in the view. Inverted in double
+// (a scale of 1e-3 and a translation of 1e3 lose nothing that matters in float).
+void setModelTransform(const std::array<double, 16>& m, CameraView& v) {
+  const Affine3f identity{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
+  v.modelFromWorld = v.worldFromModel = identity;
+  v.transformed = 0;
+  bool isIdentity = true;
+  for (int k = 0; k < 16; ++k) {
+    if (!(std::abs(m[k]) <= double(std::numeric_limits<float>::max()))) {
+      throw std::invalid_argument("camera: the volume's model matrix is not finite (element " + std::to_string(k) + ")");
+    }
+    isIdentity = isIdentity && m[k] == ((k % 5 == 0) ? 1.0 : 0.0);
+  }
+  if (isIdentity) return;
+  if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0) {
+    throw std::invalid_argument("camera: the volume's model matrix is not affine (its last row must be 0 0 0 1)");
+  }
+  const double a = m[0], b = m[1], c = m[2], d = m[4], e = m[5], f = m[6], g = m[8], h = m[9], i = m[10];
+  const double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+  // Relative to the matrix's scale: a volume flattened to nothing has no inside to render.
+  double norm = 0.0;
+  for (double x : {a, b, c, d, e, f, g, h, i}) norm = std::max(norm, std::abs(x));
+  if (!(std::abs(det) > 1e-12 * norm * norm * norm)) {
+    throw std::invalid_argument("camera: the volume's model matrix is singular (a zero scale?)");
+  }
+  const double inv[9] = {(e * i - f * h) / det, (c * h - b * i) / det, (b * f - c * e) / det,
+                         (f * g - d * i) / det, (a * i - c * g) / det, (c * d - a * f) / det,
+                         (d * h - e * g) / det, (b * g - a * h) / det, (a * e - b * d) / det};
+  const double t[3] = {m[3], m[7], m[11]};
+  auto row = [](double x, double y, double z) { return Vec3f{float(x), float(y), float(z)}; };
+  v.worldFromModel = Affine3f{row(a, b, c), row(d, e, f), row(g, h, i), row(t[0], t[1], t[2])};
+  v.modelFromWorld.row0 = row(inv[0], inv[1], inv[2]);
+  v.modelFromWorld.row1 = row(inv[3], inv[4], inv[5]);
+  v.modelFromWorld.row2 = row(inv[6], inv[7], inv[8]);
+  v.modelFromWorld.offset = row(-(inv[0] * t[0] + inv[1] * t[1] + inv[2] * t[2]),
+                                -(inv[3] * t[0] + inv[4] * t[1] + inv[5] * t[2]),
+                                -(inv[6] * t[0] + inv[7] * t[1] + inv[8] * t[2]));
+  v.transformed = 1;
+}
+
+}  // namespace
+
 CameraView Camera::view(int width, int height) const {
   if (width <= 0 || height <= 0) throw std::invalid_argument("camera: image size must be positive");
   // Non-finite inputs are named as such (they used to surface as "position equals focal point" or
@@ -102,7 +146,34 @@ CameraView Camera::view(int width, int height) const {
   v.width = width;
   v.height = height;
   v.parallel = parallelProjection ? 1 : 0;
+  if (!(std::abs(windowCenter[0]) <= 1e6 && std::abs(windowCenter[1]) <= 1e6)) {
+    throw std::invalid_argument("camera: window centre must be finite (and within +-1e6)");
+  }
+  v.centerX = float(windowCenter[0]);
+  v.centerY = float(windowCenter[1]);
+  setModelTransform(modelToWorld, v);
   return v;
+}
+
+bool Camera::hasModelTransform() const {
+  for (int k = 0; k < 16; ++k) {
+    if (modelToWorld[k] != ((k % 5 == 0) ? 1.0 : 0.0)) return true;
+  }
+  return false;
+}
+
+void validateImageWindow(const ImageWindow& w, int width, int height) {
+  if (w.fullWidth == 0 && w.fullHeight == 0 && w.x == 0 && w.y == 0) return;
+  if (w.fullWidth <= 0 || w.fullHeight <= 0 || w.x < 0 || w.y < 0 || w.x > w.fullWidth - width ||
+      w.y > w.fullHeight - height) {
+    throw std::invalid_argument("image window: a " + std::to_string(width) + "x" + std::to_string(height) +
+                                " image at (" + std::to_string(w.x) + ", " + std::to_string(w.y) +
+                                ") does not fit in the " + std::to_string(w.fullWidth) + "x" +
+                                std::to_string(w.fullHeight) + " picture");
+  }
+  if (double(w.fullWidth) * double(w.fullHeight) > 4294967295.0) {
+    throw std::invalid_argument("image window: the full picture has more than 2^32 pixels");
+  }
 }
 
 std::array<double, 3> defaultLightDirection(const Camera& camera) {
@@ -366,6 +437,12 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   if (!isFiniteValue(length(toVec3(scene.toLight)))) {  // beyond float (e.g. 1e39): normalise in double
     fc.toLight = unitInDouble(scene.toLight);
   }
+  // A direction in model space (shadow rays are traced there; ray parameters are model distances).
+  if (camera.transformed) fc.toLight = normalize(applyLinear(camera.modelFromWorld, fc.toLight));
+  const bool whole = settings.window.fullWidth == 0;
+  fc.windowX = whole ? 0 : settings.window.x;
+  fc.windowY = whole ? 0 : settings.window.y;
+  fc.fullWidth = whole ? camera.width : settings.window.fullWidth;
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
   return fc;

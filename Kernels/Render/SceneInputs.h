@@ -15,7 +15,11 @@ namespace inr {
 
 // A vtkCamera's parameters. The view plane normal is position - focal point; the vertical view
 // angle is in degrees (VTK's default 30); parallel projection shows 2 * parallelScale world units
-// vertically.
+// vertically. `windowCenter` is vtkCamera's window centre: the image's centre on the view plane in
+// half-extents (vtkWindowToImageFilter shifts it, with a narrower angle, to render one tile of a
+// larger image). `modelToWorld` is the volume's model-to-world matrix (vtkProp3D::GetMatrix:
+// position, orientation, scale, origin, user matrix), row-major; it must be affine (last row
+// 0 0 0 1) and invertible. The engine renders in model space (CameraView.h).
 struct Camera {
   std::array<double, 3> position{0, 0, 1};
   std::array<double, 3> focalPoint{0, 0, 0};
@@ -23,12 +27,16 @@ struct Camera {
   double viewAngle = 30.0;
   bool parallelProjection = false;
   double parallelScale = 1.0;
+  std::array<double, 2> windowCenter{0, 0};
+  std::array<double, 16> modelToWorld{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 
   // vtkRenderer::ResetCamera's framing of a box from the default direction (+z, up +y): focal
   // point at the centre, the bounding sphere exactly filling the view angle.
   static Camera framing(const Box3f& box, double viewAngleDegrees = 30.0);
-  // Throws std::invalid_argument when degenerate (coincident points, up parallel to the view).
+  // Throws std::invalid_argument when degenerate (coincident points, up parallel to the view,
+  // a model matrix that is not affine, not finite or not invertible).
   CameraView view(int width, int height) const;
+  bool hasModelTransform() const;  // modelToWorld differs from the identity
 };
 
 // Piecewise-linear colour and scalar-opacity functions (vtkColorTransferFunction and
@@ -94,19 +102,34 @@ struct RenderScene {
   TransferFunction transferFunction;
   std::array<float, 3> background{0.f, 0.f, 0.f};
   double time = 0.0;
-  // Per-pixel depth limit (row-major, row 0 at the top): world distance along each pixel's ray
-  // (from its origin, unit direction) to the first opaque surface. Empty = none.
+  // Per-pixel depth limit (row-major, row 0 at the top): world distance along each pixel's world
+  // ray (from its origin, unit direction: CameraView's cameraRayWorld) to the first opaque
+  // surface. Empty = none.
   std::vector<float> depthLimit;
   bool shadows = false;
-  std::array<double, 3> toLight{0.0, 0.0, 1.0};  // direction towards the directional light
+  std::array<double, 3> toLight{0.0, 0.0, 1.0};  // world direction towards the directional light
   float ambient = 0.2f;  // with shadows: emission * (ambient + (1 - ambient) * visibility)
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+};
+
+// Where the rendered image lies in a larger picture (one tile of a tiled render): the image is
+// the window [x, x + width) x [y, y + height) (row 0 at the top) of a fullWidth x fullHeight
+// picture. Each pixel's random stream is keyed by its position in the full picture, so tiles
+// rendered one by one equal the full picture rendered at once. fullWidth = 0: the image is the
+// whole picture. (The camera describes the tile's own view: Camera::windowCenter.)
+struct ImageWindow {
+  int fullWidth = 0, fullHeight = 0, x = 0, y = 0;
+  bool operator==(const ImageWindow& o) const {
+    return fullWidth == o.fullWidth && fullHeight == o.fullHeight && x == o.x && y == o.y;
+  }
+  bool operator!=(const ImageWindow& o) const { return !(*this == o); }
 };
 
 struct RenderSettings {
   int width = 256, height = 256;
   std::uint32_t seed = 1;
   bool pixelJitter = true;  // sub-pixel jitter per frame (antialiasing through accumulation)
+  ImageWindow window;
 };
 
 // The per-frame constants every backend's stages read, from the host scene. `depthLimit` is the
@@ -116,7 +139,11 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
 
 inline Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
 
-// A light direction that looks good for most views: from above-left-behind the camera.
+// Throws std::invalid_argument naming the problem when `window` does not contain a width x height
+// image (fullWidth = 0 is always valid).
+void validateImageWindow(const ImageWindow& window, int width, int height);
+
+// A light direction that looks good for most views: from above-left-behind the camera (world).
 std::array<double, 3> defaultLightDirection(const Camera& camera);
 
 }  // namespace inr

@@ -173,7 +173,7 @@ template <typename Walker>
 INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];
   if (!(flags & kRayActive)) return;
-  RngStream rng{std::uint32_t(i), fc.frame, fc.seed, rs.rngCounter[i]};
+  RngStream rng{pixelStreamKey(fc, i), fc.frame, fc.seed, rs.rngCounter[i]};
 
   bool finished = false;
   bool resolve = (flags & kRayPending) != 0;

@@ -28,6 +28,7 @@ WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options
 
 void WavefrontRenderer::setSettings(const RenderSettings& settings) {
   if (settings.width <= 0 || settings.height <= 0) throw std::invalid_argument("image size must be positive");
+  validateImageWindow(settings.window, settings.width, settings.height);
   const bool sizeChanged = settings.width != settings_.width || settings.height != settings_.height;
   settings_ = settings;
   if (sizeChanged) {
