@@ -10,6 +10,8 @@
 #include "vtkMatrix4x4.h"
 #include "vtkNew.h"
 #include "vtkPiecewiseFunction.h"
+#include "vtkProp3D.h"
+#include "vtkRenderWindow.h"
 #include "vtkVolumeProperty.h"
 
 #include <algorithm>
@@ -34,7 +36,71 @@ inr::Camera InrSceneTranslator::TranslateCamera(vtkCamera* cam, int width, int h
   }
   camera.parallelProjection = cam->GetParallelProjection() != 0;
   camera.parallelScale = cam->GetParallelScale();
+  cam->GetWindowCenter(camera.windowCenter.data());
   return camera;
+}
+
+std::array<double, 16> InrSceneTranslator::ModelToWorld(vtkProp3D* prop)
+{
+  std::array<double, 16> m{ 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+  if (vtkMatrix4x4* matrix = prop ? prop->GetMatrix() : nullptr)
+  {
+    std::copy(matrix->GetData(), matrix->GetData() + 16, m.begin());
+  }
+  return m;
+}
+
+std::string InrSceneTranslator::UnsupportedCameraFeatures(vtkCamera* cam, vtkRenderWindow* win)
+{
+  std::string list;
+  auto add = [&list](const char* what) { list += (list.empty() ? "" : ", ") + std::string(what); };
+  if (win && win->GetStereoRender())
+  {
+    add("stereo (the volume is drawn for the centre eye, without parallax)");
+  }
+  if (cam && cam->GetUseOffAxisProjection())
+  {
+    add("off-axis projection");
+  }
+  if (cam && cam->GetUseExplicitProjectionTransformMatrix())
+  {
+    add("an explicit projection matrix");
+  }
+  if (cam && cam->GetUserTransform())
+  {
+    add("a camera user transform");
+  }
+  if (cam && cam->GetModelTransformMatrix() && !cam->GetModelTransformMatrix()->IsIdentity())
+  {
+    add("a camera model transform matrix");
+  }
+  return list;
+}
+
+inr::ImageWindow InrSceneTranslator::TileWindow(const double vp[4], const double tvp[4],
+  const int size[2], int tileWidth, int tileHeight)
+{
+  // VTK's pixel rounding (vtkViewport::GetTiledSizeAndOrigin): int(v + 0.5) of normalized
+  // coordinates times the tiled window size.
+  auto px = [](double v, int n) { return static_cast<int>(v * n + 0.5); };
+  const int fullWidth = px(vp[2], size[0]) - px(vp[0], size[0]);
+  const int fullHeight = px(vp[3], size[1]) - px(vp[1], size[1]);
+  // The part's lower-left corner in the window: the tile's corner plus the part's offset in it.
+  const int left = px(tvp[0], size[0]) +
+    px(std::min(std::max(vp[0] - tvp[0], 0.0), 1.0), size[0]) - px(vp[0], size[0]);
+  const int bottom = px(tvp[1], size[1]) +
+    px(std::min(std::max(vp[1] - tvp[1], 0.0), 1.0), size[1]) - px(vp[1], size[1]);
+  inr::ImageWindow w;
+  if (tileWidth <= 0 || tileHeight <= 0 || tileWidth > fullWidth || tileHeight > fullHeight ||
+    (tileWidth == fullWidth && tileHeight == fullHeight))
+  {
+    return w;  // the whole picture (or nothing sensible: keyed as a picture of its own)
+  }
+  w.fullWidth = fullWidth;
+  w.fullHeight = fullHeight;
+  w.x = std::min(std::max(left, 0), fullWidth - tileWidth);
+  w.y = std::min(std::max(fullHeight - bottom - tileHeight, 0), fullHeight - tileHeight);
+  return w;
 }
 
 std::vector<float> InrSceneTranslator::DepthToRayDistances(const float* depth, int width,

@@ -3,7 +3,13 @@
  * @brief VTK -> engine scene translation for vtkInrVolumeMapper (plain C++, not wrapped).
  *
  * Each piece works alone, without a render window:
- *  - camera: vtkCamera -> inr::Camera (a horizontal view angle becomes the vertical one);
+ *  - camera: vtkCamera -> inr::Camera (a horizontal view angle becomes the vertical one; the
+ *    window centre, which tiled rendering shifts per tile); the volume's matrix (position,
+ *    orientation, scale, origin, user matrix / transform) -> Camera::modelToWorld; the camera
+ *    features the engine does not reproduce (stereo, off-axis or explicit projections, camera
+ *    user/model transforms), named for a warning;
+ *  - tiles: where the renderer's part of the current tile lies in the full picture (tile scale
+ *    and tile viewport: screenshots larger than the view, tile-display mode) -> ImageWindow;
  *  - depth: depth-buffer values -> per-pixel world distances along each pixel's ray (the engine's
  *    RenderScene::depthLimit), a pure function of the depth values, the inverse composite
  *    projection matrix, the eye, the direction of projection and the image size;
@@ -22,11 +28,15 @@
 
 #include "Render/SceneInputs.h"
 
+#include <array>
+#include <string>
 #include <vector>
 
 class vtkCamera;
 class vtkDataSet;
 class vtkFieldData;
+class vtkProp3D;
+class vtkRenderWindow;
 class vtkVolumeProperty;
 
 class InrSceneTranslator
@@ -40,6 +50,22 @@ public:
   /// `horizontalDegrees`, for an image of aspect width / height.
   static double VerticalViewAngle(double horizontalDegrees, double aspect);
   static inr::Camera TranslateCamera(vtkCamera* camera, int width, int height);
+  /// The prop's model-to-world matrix (vtkProp3D::GetMatrix), row-major.
+  static std::array<double, 16> ModelToWorld(vtkProp3D* prop);
+  /// The camera / window features that the engine's camera does not reproduce, as a readable
+  /// list ("" when none): stereo (the volume is drawn for the centre eye), off-axis projection,
+  /// an explicit projection matrix, a camera user transform or model transform matrix.
+  static std::string UnsupportedCameraFeatures(vtkCamera* camera, vtkRenderWindow* window);
+  ///@}
+
+  ///@{
+  /// Tiled rendering. The renderer's viewport (normalized, of the whole picture), the window's
+  /// tile viewport, the window's size including the tile scale (vtkWindow::GetSize) and the size
+  /// of the renderer's part of the current tile (vtkViewport::GetTiledSizeAndOrigin): where that
+  /// part lies in the renderer's full picture (rows from the top). The whole-picture window
+  /// (fullWidth 0) when the tile is the whole picture or the numbers do not fit together.
+  static inr::ImageWindow TileWindow(const double viewport[4], const double tileViewport[4],
+    const int tiledWindowSize[2], int tileWidth, int tileHeight);
   ///@}
 
   ///@{

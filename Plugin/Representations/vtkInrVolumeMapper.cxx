@@ -1,10 +1,12 @@
 #include "vtkInrVolumeMapper.h"
 
+#include "vtkActor.h"
 #include "vtkDataSet.h"
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
 #include "vtkObjectFactory.h"
 #include "vtkOpenGLRenderWindow.h"
+#include "vtkPropCollection.h"
 #include "vtkRenderer.h"
 #include "vtkUnsignedCharArray.h"
 #include "vtkVolume.h"
@@ -108,6 +110,13 @@ struct vtkInrVolumeMapper::Internals
   // For the INR_VOLUME_DEBUG report of what changed.
   bool haveLastScene = false;
   inr::RenderScene lastScene;
+
+  // Tiled rendering: where this render's image lies in the full picture (whole: fullWidth 0).
+  inr::ImageWindow window;
+  // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
+  bool warnedTranslucent = false;
+  std::string warnedCamera;
+  void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol);
 
   bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
   bool UpdateEngine(vtkInrVolumeMapper* self);
@@ -270,6 +279,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
+  // A tile of a larger picture (screenshot larger than the view, tile display): the camera is
+  // already the tile's (window centre); the window keys the random streams by the full picture.
+  {
+    vtkRenderWindow* win = ren->GetRenderWindow();
+    double tileViewport[4] = { 0, 0, 1, 1 };
+    win->GetTileViewport(tileViewport);
+    I.window = InrSceneTranslator::TileWindow(
+      ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
+  }
+  I.WarnAboutScene(this, ren, vol);
   const inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
   if (!I.Refine(this, scene, tile.width, tile.height))
   {
@@ -368,6 +387,7 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   vtkCamera* cam = ren->GetActiveCamera();
   inr::RenderScene scene;
   scene.camera = InrSceneTranslator::TranslateCamera(cam, width, height);
+  scene.camera.modelToWorld = InrSceneTranslator::ModelToWorld(vol);
   // Depth limit: world distance to the opaque geometry rendered before the volume.
   InrFramebufferCompositor::ReadDepth(
     ren->GetRenderWindow(), tile.x0, tile.y0, width, height, this->depth);
@@ -388,6 +408,45 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   scene.shadowEstimator =
     self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
   return scene;
+}
+
+// Once per mapper: translucent polygonal geometry in the renderer (VTK draws it before volumes
+// and this mapper blends over it without depth order: only VTK's GPU ray-cast mapper joins
+// depth peeling), and camera features the engine ignores (named; warned again when they change).
+void vtkInrVolumeMapper::Internals::WarnAboutScene(
+  vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol)
+{
+  if (!this->warnedTranslucent)
+  {
+    vtkPropCollection* props = ren->GetViewProps();
+    vtkCollectionSimpleIterator it;
+    props->InitTraversal(it);
+    while (vtkProp* prop = props->GetNextProp(it))
+    {
+      auto* actor = vtkActor::SafeDownCast(prop);
+      if (actor && prop != vol && actor->GetVisibility() && actor->HasTranslucentPolygonalGeometry())
+      {
+        vtkWarningWithObjectMacro(self,
+          "INR Volume: translucent geometry (opacity < 1) is drawn before the volume and is not "
+          "depth-sorted with it: translucent surfaces in front of the INR volume appear behind "
+          "it (ParaView's non-GPU volume mappers do the same; only the GPU ray-cast mapper "
+          "interleaves volumes with depth peeling). Opaque geometry is depth-composited "
+          "correctly: set the surface's Opacity to 1 to have it hide the volume behind it.");
+        this->warnedTranslucent = true;
+        break;
+      }
+    }
+  }
+  const std::string ignored = InrSceneTranslator::UnsupportedCameraFeatures(
+    ren->GetActiveCamera(), ren->GetRenderWindow());
+  if (!ignored.empty() && ignored != this->warnedCamera)
+  {
+    vtkWarningWithObjectMacro(self, "INR Volume: the volume is rendered with the camera's "
+                                    "position, focal point, view up, angle/scale and window "
+                                    "centre only; ignored here: "
+        << ignored << ".");
+  }
+  this->warnedCamera = ignored;
 }
 
 // Hands the query-reduction settings to the engine when they changed. A rejected set is reported
@@ -424,8 +483,10 @@ bool vtkInrVolumeMapper::Internals::Refine(
     settings.width = width;
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
+    settings.window = this->window;
     if (!this->haveSettings || settings.width != this->settings.width ||
-      settings.height != this->settings.height || settings.seed != this->settings.seed)
+      settings.height != this->settings.height || settings.seed != this->settings.seed ||
+      settings.window != this->settings.window)
     {
       this->session->setSettings(settings);
       this->settings = settings;
@@ -448,6 +509,12 @@ bool vtkInrVolumeMapper::Internals::Refine(
     options.maximumFrames = self->MaximumFrames;
     options.convergenceTarget = self->ConvergenceTarget;
     options.framesPerRender = self->FramesPerRender;
+    if (this->window.fullWidth > 0)
+    {
+      // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
+      // image's quality (convergence target or frame limit) in this one render.
+      options.framesPerRender = options.maximumFrames;
+    }
     this->refinement.setOptions(options);
     this->lastStep = inr::RefinementDriver::Step{};
     this->lastStep = this->refinement.advance(*this->session);

@@ -6,7 +6,9 @@
 //  - the horizontal view angle conversion, checked against VTK's projection;
 //  - transfer-function sampling (colour ends, opacity nodes with midpoint/sharpness, unit
 //    distance, empty functions, the default TF) and its cache;
-//  - value range and time from field data / DATA_TIME_STEP.
+//  - value range and time from field data / DATA_TIME_STEP;
+//  - the window centre against VTK's projection, the volume's matrix, tile windows, and the
+//    camera features named as ignored.
 #include "InrSceneTranslator.h"
 
 #include "vtkCamera.h"
@@ -19,6 +21,7 @@
 #include "vtkMatrix4x4.h"
 #include "vtkNew.h"
 #include "vtkPiecewiseFunction.h"
+#include "vtkVolume.h"
 #include "vtkVolumeProperty.h"
 
 #include "Render/CameraView.h"
@@ -234,6 +237,107 @@ TEST(InrSceneTranslator, HorizontalViewAngle)
   const inr::Camera parallel = InrSceneTranslator::TranslateCamera(cam, width, height);
   EXPECT_TRUE(parallel.parallelProjection);
   EXPECT_DOUBLE_EQ(parallel.parallelScale, 1.7);
+}
+
+// The window centre (vtkWindowToImageFilter shifts it per tile): the engine's ray through a
+// pixel reaches the point VTK's projection puts at that pixel's centre.
+TEST(InrSceneTranslator, WindowCenterMatchesVtkProjection)
+{
+  for (const bool parallel : { false, true })
+  {
+    vtkNew<vtkCamera> cam;
+    cam->SetPosition(2.0, 1.5, 4.0);
+    cam->SetFocalPoint(0.2, -0.1, 0.3);
+    cam->SetViewUp(0.1, 1.0, 0.0);
+    cam->OrthogonalizeViewUp();
+    cam->SetViewAngle(22.0);
+    cam->SetParallelProjection(parallel);
+    cam->SetParallelScale(1.3);
+    cam->SetWindowCenter(0.7, -1.4);
+    const int width = 40, height = 30;
+    const inr::Camera camera = InrSceneTranslator::TranslateCamera(cam, width, height);
+    EXPECT_EQ(camera.windowCenter[0], 0.7);
+    EXPECT_EQ(camera.windowCenter[1], -1.4);
+    const inr::CameraView view = camera.view(width, height);
+    for (const auto& px : { std::array<int, 2>{ 0, 0 }, { 39, 29 }, { 12, 20 } })
+    {
+      inr::Vec3f o, d;
+      inr::cameraRay(view, px[0], px[1], 0.5f, 0.5f, o, d);
+      const V3 point{ o.x + 3.0 * d.x, o.y + 3.0 * d.y, o.z + 3.0 * d.z };
+      const V3 ndc = projectWithVtk(cam, double(width) / height, point);
+      EXPECT_NEAR(ndc[0], 2.0 * (px[0] + 0.5) / width - 1.0, 1e-5) << parallel;
+      EXPECT_NEAR(ndc[1], 1.0 - 2.0 * (px[1] + 0.5) / height, 1e-5) << parallel;
+    }
+  }
+}
+
+TEST(InrSceneTranslator, ModelToWorldIsTheVolumeMatrix)
+{
+  vtkNew<vtkVolume> volume;
+  const auto identity = InrSceneTranslator::ModelToWorld(volume);
+  EXPECT_EQ(identity, (std::array<double, 16>{ 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 }));
+  EXPECT_EQ(InrSceneTranslator::ModelToWorld(nullptr), identity);
+  volume->SetPosition(1, 2, 3);
+  volume->SetScale(2, 3, 4);
+  volume->RotateZ(90);
+  vtkNew<vtkMatrix4x4> user;
+  user->SetElement(0, 1, 0.5);
+  volume->SetUserMatrix(user);
+  const auto m = InrSceneTranslator::ModelToWorld(volume);
+  vtkMatrix4x4* vtk = volume->GetMatrix();
+  for (int r = 0; r < 4; ++r)
+  {
+    for (int c = 0; c < 4; ++c)
+    {
+      EXPECT_EQ(m[4 * r + c], vtk->GetElement(r, c));  // row-major
+    }
+  }
+  inr::Camera camera;
+  camera.modelToWorld = m;
+  // Model point (1, 0, 0) goes where VTK sends it.
+  const inr::CameraView view = camera.view(4, 4);
+  const inr::Vec3f p = inr::modelToWorld(view, inr::Vec3f{ 1, 0, 0 });
+  double in[4] = { 1, 0, 0, 1 }, out[4];
+  vtk->MultiplyPoint(in, out);
+  EXPECT_NEAR(p.x, out[0], 1e-5);
+  EXPECT_NEAR(p.y, out[1], 1e-5);
+  EXPECT_NEAR(p.z, out[2], 1e-5);
+}
+
+// vtkWindowToImageFilter's tiles (tile scale 2 of a 100 x 80 window: GetSize is 200 x 160) and a
+// renderer covering part of the window.
+TEST(InrSceneTranslator, TileWindow)
+{
+  const double whole[4] = { 0, 0, 1, 1 };
+  const int size[2] = { 200, 160 };
+  const double topRight[4] = { 0.5, 0.5, 1.0, 1.0 }, bottomLeft[4] = { 0, 0, 0.5, 0.5 };
+  inr::ImageWindow w = InrSceneTranslator::TileWindow(whole, topRight, size, 100, 80);
+  EXPECT_EQ(w, (inr::ImageWindow{ 200, 160, 100, 0 }));  // rows from the top
+  w = InrSceneTranslator::TileWindow(whole, bottomLeft, size, 100, 80);
+  EXPECT_EQ(w, (inr::ImageWindow{ 200, 160, 0, 80 }));
+  // Untiled: the whole picture.
+  const int untiled[2] = { 100, 80 };
+  EXPECT_EQ(InrSceneTranslator::TileWindow(whole, whole, untiled, 100, 80).fullWidth, 0);
+  // A renderer on the right half of the window, tile = the window's top-right quarter: the
+  // renderer's picture is 100 x 160; the part in this tile is its top half.
+  const double rightHalf[4] = { 0.5, 0, 1, 1 };
+  w = InrSceneTranslator::TileWindow(rightHalf, topRight, size, 100, 80);
+  EXPECT_EQ(w, (inr::ImageWindow{ 100, 160, 0, 0 }));
+  // Numbers that do not fit: the whole picture.
+  EXPECT_EQ(InrSceneTranslator::TileWindow(whole, topRight, size, 300, 80).fullWidth, 0);
+}
+
+TEST(InrSceneTranslator, UnsupportedCameraFeatures)
+{
+  vtkNew<vtkCamera> cam;
+  EXPECT_EQ(InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr), "");
+  cam->SetUseOffAxisProjection(1);
+  vtkNew<vtkMatrix4x4> model;
+  model->SetElement(0, 3, 2.0);
+  cam->SetModelTransformMatrix(model);
+  const std::string list = InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr);
+  EXPECT_NE(list.find("off-axis projection"), std::string::npos) << list;
+  EXPECT_NE(list.find("camera model transform"), std::string::npos) << list;
 }
 
 TEST(InrSceneTranslator, TransferFunctionSampling)
