@@ -129,6 +129,9 @@ INR_HD void picturePixel(const FrameConstants& fc, int i, int& px, int& py) {
   py = i / fc.camera.width + fc.windowY;
 }
 INR_HD std::uint32_t pixelStreamKey(const FrameConstants& fc, int i) {
+  // The whole picture (every untiled render): the pixel index itself, without the division that
+  // would cost the traversal kernels registers.
+  if (fc.fullWidth == fc.camera.width && (fc.windowX | fc.windowY) == 0) return std::uint32_t(i);
   int px, py;
   picturePixel(fc, i, px, py);
   return std::uint32_t(py) * std::uint32_t(fc.fullWidth) + std::uint32_t(px);

@@ -37,7 +37,49 @@ inr::Camera InrSceneTranslator::TranslateCamera(vtkCamera* cam, int width, int h
   camera.parallelProjection = cam->GetParallelProjection() != 0;
   camera.parallelScale = cam->GetParallelScale();
   cam->GetWindowCenter(camera.windowCenter.data());
+  if (cam->GetUseExplicitProjectionTransformMatrix() && cam->GetExplicitProjectionTransformMatrix())
+  {
+    ProjectionToCamera(
+      &cam->GetExplicitProjectionTransformMatrix()->Element[0][0], width, height, camera);
+  }
   return camera;
+}
+
+bool InrSceneTranslator::ProjectionToCamera(
+  const double p[16], int width, int height, inr::Camera& camera)
+{
+  // Frustum: x_clip = p0 x + p2 z, w = -z; at one unit ahead (z = -1) the image's x in [-1, 1]
+  // covers view-plane x = (x_ndc + p2) / p0, i.e. half-extent 1 / p0 around the window centre
+  // p2 (likewise y with p5, p6). Box (Ortho): x_ndc = p0 x + p3, centre -p3.
+  const bool perspective = p[12] == 0.0 && p[13] == 0.0 && p[14] == -1.0 && p[15] == 0.0;
+  const bool box = p[12] == 0.0 && p[13] == 0.0 && p[14] == 0.0 && p[15] == 1.0;
+  if (!(perspective || box) || p[1] != 0.0 || p[4] != 0.0 || !(p[0] > 0.0) || !(p[5] > 0.0) ||
+    width <= 0 || height <= 0)
+  {
+    return false;
+  }
+  if ((perspective && (p[3] != 0.0 || p[7] != 0.0)) || (box && (p[2] != 0.0 || p[6] != 0.0)))
+  {
+    return false;
+  }
+  const double halfHeight = 1.0 / p[5], halfWidth = 1.0 / p[0];
+  const double aspect = double(width) / double(height);
+  if (!(std::abs(halfWidth - halfHeight * aspect) <= 1e-6 * halfWidth))
+  {
+    return false;  // non-square pixels: not an orthonormal camera over this image
+  }
+  camera.parallelProjection = box;
+  if (box)
+  {
+    camera.parallelScale = halfHeight;
+    camera.windowCenter = { -p[3], -p[7] };
+  }
+  else
+  {
+    camera.viewAngle = 2.0 * std::atan(halfHeight) * 180.0 / M_PI;
+    camera.windowCenter = { p[2], p[6] };
+  }
+  return true;
 }
 
 std::array<double, 16> InrSceneTranslator::ModelToWorld(vtkProp3D* prop)
@@ -50,7 +92,8 @@ std::array<double, 16> InrSceneTranslator::ModelToWorld(vtkProp3D* prop)
   return m;
 }
 
-std::string InrSceneTranslator::UnsupportedCameraFeatures(vtkCamera* cam, vtkRenderWindow* win)
+std::string InrSceneTranslator::UnsupportedCameraFeatures(
+  vtkCamera* cam, vtkRenderWindow* win, int width, int height)
 {
   std::string list;
   auto add = [&list](const char* what) { list += (list.empty() ? "" : ", ") + std::string(what); };
@@ -62,9 +105,13 @@ std::string InrSceneTranslator::UnsupportedCameraFeatures(vtkCamera* cam, vtkRen
   {
     add("off-axis projection");
   }
-  if (cam && cam->GetUseExplicitProjectionTransformMatrix())
+  if (cam && cam->GetUseExplicitProjectionTransformMatrix() && cam->GetExplicitProjectionTransformMatrix())
   {
-    add("an explicit projection matrix");
+    inr::Camera probe;
+    if (!ProjectionToCamera(&cam->GetExplicitProjectionTransformMatrix()->Element[0][0], width, height, probe))
+    {
+      add("an explicit projection matrix that is not a plain frustum or box");
+    }
   }
   if (cam && cam->GetUserTransform())
   {

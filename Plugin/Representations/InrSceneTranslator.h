@@ -49,13 +49,23 @@ public:
   /// Camera. VerticalViewAngle: the vertical angle (degrees) of a view whose horizontal angle is
   /// `horizontalDegrees`, for an image of aspect width / height.
   static double VerticalViewAngle(double horizontalDegrees, double aspect);
+  /// With an explicit projection matrix (ParaView's IceT compositing sets one on every parallel
+  /// or tile-display render: a tile's frustum), the view angle / parallel scale and the window
+  /// centre come from that matrix when it is a plain frustum or box (ProjectionToCamera).
   static inr::Camera TranslateCamera(vtkCamera* camera, int width, int height);
+  /// A projection matrix (row-major, acting on column vectors) of the form VTK's Frustum / Ortho
+  /// build: sets `camera`'s projection type, vertical view angle or parallel scale and window
+  /// centre. False (camera untouched) when the matrix has any other form (stereo shear,
+  /// off-axis, rotation) or its horizontal extent does not match the image aspect width / height.
+  static bool ProjectionToCamera(const double projection[16], int width, int height, inr::Camera& camera);
   /// The prop's model-to-world matrix (vtkProp3D::GetMatrix), row-major.
   static std::array<double, 16> ModelToWorld(vtkProp3D* prop);
   /// The camera / window features that the engine's camera does not reproduce, as a readable
   /// list ("" when none): stereo (the volume is drawn for the centre eye), off-axis projection,
-  /// an explicit projection matrix, a camera user transform or model transform matrix.
-  static std::string UnsupportedCameraFeatures(vtkCamera* camera, vtkRenderWindow* window);
+  /// an explicit projection matrix that ProjectionToCamera cannot follow, a camera user transform
+  /// or model transform matrix.
+  static std::string UnsupportedCameraFeatures(
+    vtkCamera* camera, vtkRenderWindow* window, int width, int height);
   ///@}
 
   ///@{

@@ -116,7 +116,7 @@ struct vtkInrVolumeMapper::Internals
   // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
   bool warnedTranslucent = false;
   std::string warnedCamera;
-  void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol);
+  void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
 
   bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
   bool UpdateEngine(vtkInrVolumeMapper* self);
@@ -288,7 +288,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     I.window = InrSceneTranslator::TileWindow(
       ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
   }
-  I.WarnAboutScene(this, ren, vol);
+  I.WarnAboutScene(this, ren, vol, tile.width, tile.height);
   const inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
   if (!I.Refine(this, scene, tile.width, tile.height))
   {
@@ -414,7 +414,7 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
 // and this mapper blends over it without depth order: only VTK's GPU ray-cast mapper joins
 // depth peeling), and camera features the engine ignores (named; warned again when they change).
 void vtkInrVolumeMapper::Internals::WarnAboutScene(
-  vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol)
+  vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height)
 {
   if (!this->warnedTranslucent)
   {
@@ -438,7 +438,7 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
     }
   }
   const std::string ignored = InrSceneTranslator::UnsupportedCameraFeatures(
-    ren->GetActiveCamera(), ren->GetRenderWindow());
+    ren->GetActiveCamera(), ren->GetRenderWindow(), width, height);
   if (!ignored.empty() && ignored != this->warnedCamera)
   {
     vtkWarningWithObjectMacro(self, "INR Volume: the volume is rendered with the camera's "

@@ -271,6 +271,54 @@ TEST(InrSceneTranslator, WindowCenterMatchesVtkProjection)
   }
 }
 
+// ParaView's IceT compositing renders with an explicit projection matrix: for a tile display,
+// the tile's part of the full frustum (an NDC scale and shift of the camera's projection). The
+// engine's rays through the tile's pixel centres must reach the points VTK projects there.
+TEST(InrSceneTranslator, ExplicitTileProjectionMatchesVtk)
+{
+  for (const bool parallel : { false, true })
+  {
+    vtkNew<vtkCamera> cam;
+    cam->SetPosition(2.0, 1.5, 4.0);
+    cam->SetFocalPoint(0.2, -0.1, 0.3);
+    cam->SetViewUp(0.1, 1.0, 0.0);
+    cam->OrthogonalizeViewUp();
+    cam->SetParallelProjection(parallel);
+    cam->SetParallelScale(1.3);
+    const int fullWidth = 80, fullHeight = 60, width = 40, height = 30;
+    vtkNew<vtkMatrix4x4> full, tileTransform, explicitProjection;
+    full->DeepCopy(cam->GetProjectionTransformMatrix(double(fullWidth) / fullHeight, -1, 1));
+    // The tile covering the right half and bottom half of the display: x_tile = 2 x - 1,
+    // y_tile = 2 y + 1 in normalized device coordinates.
+    tileTransform->SetElement(0, 0, 2.0);
+    tileTransform->SetElement(0, 3, -1.0);
+    tileTransform->SetElement(1, 1, 2.0);
+    tileTransform->SetElement(1, 3, 1.0);
+    vtkMatrix4x4::Multiply4x4(tileTransform, full, explicitProjection);
+    cam->SetExplicitProjectionTransformMatrix(explicitProjection);
+    cam->UseExplicitProjectionTransformMatrixOn();
+    EXPECT_EQ(InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr, width, height), "");
+    const inr::Camera camera = InrSceneTranslator::TranslateCamera(cam, width, height);
+    EXPECT_EQ(camera.parallelProjection, parallel);
+    const inr::CameraView view = camera.view(width, height);
+    for (const auto& px : { std::array<int, 2>{ 0, 0 }, { 39, 29 }, { 25, 7 } })
+    {
+      inr::Vec3f o, d;
+      inr::cameraRay(view, px[0], px[1], 0.5f, 0.5f, o, d);
+      const V3 point{ o.x + 3.0 * d.x, o.y + 3.0 * d.y, o.z + 3.0 * d.z };
+      const V3 ndc = projectWithVtk(cam, double(width) / height, point);
+      EXPECT_NEAR(ndc[0], 2.0 * (px[0] + 0.5) / width - 1.0, 1e-5) << parallel;
+      EXPECT_NEAR(ndc[1], 1.0 - 2.0 * (px[1] + 0.5) / height, 1e-5) << parallel;
+    }
+    // A sheared projection (e.g. stereo) is not an orthonormal camera: named, not followed.
+    explicitProjection->SetElement(0, 1, 0.2);
+    cam->SetExplicitProjectionTransformMatrix(explicitProjection);
+    EXPECT_NE(InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr, width, height)
+                .find("explicit projection"),
+      std::string::npos);
+  }
+}
+
 TEST(InrSceneTranslator, ModelToWorldIsTheVolumeMatrix)
 {
   vtkNew<vtkVolume> volume;
@@ -330,12 +378,12 @@ TEST(InrSceneTranslator, TileWindow)
 TEST(InrSceneTranslator, UnsupportedCameraFeatures)
 {
   vtkNew<vtkCamera> cam;
-  EXPECT_EQ(InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr), "");
+  EXPECT_EQ(InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr, 8, 8), "");
   cam->SetUseOffAxisProjection(1);
   vtkNew<vtkMatrix4x4> model;
   model->SetElement(0, 3, 2.0);
   cam->SetModelTransformMatrix(model);
-  const std::string list = InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr);
+  const std::string list = InrSceneTranslator::UnsupportedCameraFeatures(cam, nullptr, 8, 8);
   EXPECT_NE(list.find("off-axis projection"), std::string::npos) << list;
   EXPECT_NE(list.find("camera model transform"), std::string::npos) << list;
 }
