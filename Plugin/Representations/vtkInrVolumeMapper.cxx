@@ -2,9 +2,12 @@
 
 #include "vtkActor.h"
 #include "vtkDataSet.h"
+#include "vtkDualDepthPeelingPass.h"
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
+#include "vtkInformationObjectBaseVectorKey.h"
 #include "vtkObjectFactory.h"
+#include "vtkOpenGLRenderPass.h"
 #include "vtkOpenGLRenderWindow.h"
 #include "vtkPropCollection.h"
 #include "vtkRenderer.h"
@@ -49,6 +52,25 @@ struct Viewport
 {
   int width = 0, height = 0, x0 = 0, y0 = 0;
 };
+
+// True while VTK's dual depth peeling renders the volume inside its peels (translucent geometry
+// with UseDepthPeelingForVolumes): the pass registers itself in the props' keys.
+bool insideDepthPeeling(vtkVolume* vol)
+{
+  vtkInformation* keys = vol->GetPropertyKeys();
+  if (!keys || !keys->Has(vtkOpenGLRenderPass::RenderPasses()))
+  {
+    return false;
+  }
+  for (int i = 0; i < keys->Length(vtkOpenGLRenderPass::RenderPasses()); ++i)
+  {
+    if (vtkDualDepthPeelingPass::SafeDownCast(keys->Get(vtkOpenGLRenderPass::RenderPasses(), i)))
+    {
+      return true;
+    }
+  }
+  return false;
+}
 
 bool debugReport()
 {
@@ -114,7 +136,7 @@ struct vtkInrVolumeMapper::Internals
   // Tiled rendering: where this render's image lies in the full picture (whole: fullWidth 0).
   inr::ImageWindow window;
   // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
-  bool warnedTranslucent = false;
+  bool warnedTranslucent = false, warnedPeeling = false;
   std::string warnedCamera;
   void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
 
@@ -257,6 +279,19 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   if (!ren || !vol || ren->GetSelector())
   {
     return;  // no picking support: hardware-selection passes skip the volume
+  }
+  if (insideDepthPeeling(vol))
+  {
+    // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
+    // (several times a frame) corrupts the picture. ParaView's representation avoids this path.
+    if (!I.warnedPeeling)
+    {
+      vtkWarningMacro("INR Volume: not drawn while the renderer depth-peels volumes with "
+                      "translucent geometry (UseDepthPeelingForVolumes, which only the GPU "
+                      "ray-cast mapper supports): turn UseDepthPeelingForVolumes off to see it.");
+      I.warnedPeeling = true;
+    }
+    return;
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {

@@ -5,6 +5,8 @@
 #include "vtkInrVolumeMapper.h"
 #include "vtkObjectFactory.h"
 #include "vtkPVLODVolume.h"
+#include "vtkPVRenderView.h"
+#include "vtkPVView.h"
 #include "vtkSmartPointer.h"
 #include "vtkVolumeMapper.h"
 
@@ -99,6 +101,50 @@ const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
 const char* vtkInrVolumeRepresentation::GetInrQueryReductionInUse()
 {
   return this->GetInrMapper()->GetQueryReductionInUse();
+}
+
+int vtkInrVolumeRepresentation::ProcessViewRequest(
+  vtkInformationRequestKey* request_type, vtkInformation* inInfo, vtkInformation* outInfo)
+{
+  if (request_type == vtkPVView::REQUEST_RENDER())
+  {
+    auto* view = vtkPVRenderView::SafeDownCast(inInfo->Get(vtkPVView::VIEW()));
+    vtkRenderer* ren = view ? view->GetRenderer() : nullptr;
+    if (!this->GetVisibility())
+    {
+      this->RestoreDepthPeelingForVolumes();
+    }
+    else if (ren && ren->GetUseDepthPeelingForVolumes())
+    {
+      ren->SetUseDepthPeelingForVolumes(false);
+      this->PeelingRenderer = ren;
+    }
+  }
+  return this->Superclass::ProcessViewRequest(request_type, inInfo, outInfo);
+}
+
+void vtkInrVolumeRepresentation::SetVisibility(bool visible)
+{
+  if (!visible)
+  {
+    this->RestoreDepthPeelingForVolumes();
+  }
+  this->Superclass::SetVisibility(visible);
+}
+
+bool vtkInrVolumeRepresentation::RemoveFromView(vtkView* view)
+{
+  this->RestoreDepthPeelingForVolumes();
+  return this->Superclass::RemoveFromView(view);
+}
+
+void vtkInrVolumeRepresentation::RestoreDepthPeelingForVolumes()
+{
+  if (vtkRenderer* ren = this->PeelingRenderer)
+  {
+    ren->SetUseDepthPeelingForVolumes(true);
+  }
+  this->PeelingRenderer = nullptr;
 }
 
 void vtkInrVolumeRepresentation::PrintSelf(ostream& os, vtkIndent indent)

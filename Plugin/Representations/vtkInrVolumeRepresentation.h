@@ -13,6 +13,8 @@
 
 #include "InrVolumeRepresentationsModule.h"
 #include "vtkImageVolumeRepresentation.h"
+#include "vtkRenderer.h"    // for vtkWeakPointer<vtkRenderer>
+#include "vtkWeakPointer.h" // for PeelingRenderer
 
 class vtkInrVolumeMapper;
 
@@ -62,12 +64,25 @@ public:
 
   vtkInrVolumeMapper* GetInrMapper();
 
+  /// Before each render while visible: VTK would render volumes inside dual depth peeling when
+  /// the view has translucent geometry and "Depth Peeling for Volumes" is on, which only the GPU
+  /// ray-cast mapper supports; the INR mapper is then composited after translucent geometry
+  /// instead (the renderer's flag is set aside while the representation is visible, restored
+  /// when it is hidden or removed).
+  int ProcessViewRequest(vtkInformationRequestKey* request_type, vtkInformation* inInfo,
+    vtkInformation* outInfo) override;
+  void SetVisibility(bool visible) override;
+
 protected:
   vtkInrVolumeRepresentation();
   ~vtkInrVolumeRepresentation() override;
   void UpdateMapperParameters() override;
+  bool RemoveFromView(vtkView* view) override;
+  void RestoreDepthPeelingForVolumes();
 
 private:
+  // The renderer whose UseDepthPeelingForVolumes this representation turned off (null: none).
+  vtkWeakPointer<vtkRenderer> PeelingRenderer;
   vtkInrVolumeRepresentation(const vtkInrVolumeRepresentation&) = delete;
   void operator=(const vtkInrVolumeRepresentation&) = delete;
 };

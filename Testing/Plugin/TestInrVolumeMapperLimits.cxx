@@ -8,7 +8,8 @@
 //                the same camera (the transform is not ignored)
 //   tiled        vtkWindowToImageFilter with SetScale(2) (tiles of a picture twice the window)
 //                against a direct render at twice the size, with an opaque sphere in the scene
-//   translucent  translucent geometry in the renderer: one warning, however many renders
+//   translucent  translucent geometry in the renderer: one warning, however many renders; with
+//                the renderer depth-peeling volumes: one more warning, nothing drawn
 // Images are written to OUTDIR for inspection.
 #include "vtkActor.h"
 #include "vtkCallbackCommand.h"
@@ -399,6 +400,19 @@ int translucentCase(const std::string& model)
   std::printf("translucency warnings after 3 renders with a translucent sphere: %d (warnings: %d)\n",
     translucentWarnings, warnings);
   check(translucentWarnings == 1, "translucent geometry: warned exactly once");
+
+  // VTK's dual depth peeling for volumes renders volumes inside its peels (GPU ray-cast mapper
+  // only): the mapper draws nothing there rather than a corrupted picture, and says so once.
+  s.ren->SetUseDepthPeeling(1);
+  s.ren->SetUseDepthPeelingForVolumes(1);
+  const int before = warnings;
+  for (int i = 0; i < 2; ++i)
+  {
+    s.ren->GetActiveCamera()->Azimuth(10);
+    s.win->Render();
+  }
+  std::printf("warnings while depth-peeling volumes: %d\n", warnings - before);
+  check(warnings - before == 1, "depth peeling for volumes: one warning, the volume left out");
   return 0;
 }
 }
