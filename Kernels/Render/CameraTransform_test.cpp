@@ -211,5 +211,28 @@ TEST(GeneralCamera, TilesEqualTheFullPicture) {
   EXPECT_THROW(validateImageWindow(bad.window, bad.width, bad.height), std::invalid_argument);
 }
 
+// The traversal's division-free stream key equals the full picture's pixel index.
+TEST(GeneralCamera, StreamKeysAreFullPicturePixels) {
+  for (const auto& t : {std::array<int, 6>{7, 5, 31, 17, 9, 4}, {1, 1, 1, 1, 0, 0}, {960, 540, 1920, 1080, 960, 540},
+                        {4093, 37, 9000, 100, 4907, 63}, {48, 36, 48, 36, 0, 0}}) {
+    const int w = t[0], h = t[1];
+    RenderSettings settings;
+    settings.width = w;
+    settings.height = h;
+    settings.window = ImageWindow{t[2], t[3], t[4], t[5]};
+    if (t[2] == w && t[3] == h) settings.window = ImageWindow{};
+    validateImageWindow(settings.window, w, h);
+    RenderScene scene;
+    const CameraView view = scene.camera.view(w, h);
+    const FrameConstants fc = makeFrameConstants(view, test::kCubeBox, scene, settings, nullptr, 0);
+    const int fullWidth = settings.window.fullWidth ? settings.window.fullWidth : w;
+    for (int i = 0; i < w * h; ++i) {
+      const std::uint32_t expected =
+          std::uint32_t(i / w + settings.window.y) * std::uint32_t(fullWidth) + std::uint32_t(i % w + settings.window.x);
+      ASSERT_EQ(pixelStreamKey(fc, i), expected) << w << "x" << h << " pixel " << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace inr

@@ -120,6 +120,11 @@ struct FrameConstants {
   // (px + windowX, py + windowY) of a fullWidth-wide picture, which keys its random stream and
   // its blue-noise value.
   int windowX = 0, windowY = 0, fullWidth = 0;
+  // The same as arithmetic on the pixel index i (pixelStreamKey): key = i + keyBase +
+  // row * keyRowStride, row = (i * rowMagic) >> 42 = i / width without a division (rowMagic =
+  // floor(2^42 / width) + 1, exact while pixels * width < 2^42); all 0 for a whole picture.
+  std::uint64_t rowMagic = 0;
+  std::uint32_t keyBase = 0, keyRowStride = 0;
 };
 
 // Position of pixel i in the full picture, and its random-stream key (the full picture's pixel
@@ -128,13 +133,10 @@ INR_HD void picturePixel(const FrameConstants& fc, int i, int& px, int& py) {
   px = i % fc.camera.width + fc.windowX;
   py = i / fc.camera.width + fc.windowY;
 }
+// Without a division: the traversal kernels call this, and one cost them registers (spills).
 INR_HD std::uint32_t pixelStreamKey(const FrameConstants& fc, int i) {
-  // The whole picture (every untiled render): the pixel index itself, without the division that
-  // would cost the traversal kernels registers.
-  if (fc.fullWidth == fc.camera.width && (fc.windowX | fc.windowY) == 0) return std::uint32_t(i);
-  int px, py;
-  picturePixel(fc, i, px, py);
-  return std::uint32_t(py) * std::uint32_t(fc.fullWidth) + std::uint32_t(px);
+  const std::uint32_t row = std::uint32_t((std::uint64_t(std::uint32_t(i)) * fc.rowMagic) >> 42);
+  return std::uint32_t(i) + fc.keyBase + row * fc.keyRowStride;
 }
 
 // What traversal tracks against: the majorant grid and the transfer function. Ghost passes swap

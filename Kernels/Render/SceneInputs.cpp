@@ -174,6 +174,11 @@ void validateImageWindow(const ImageWindow& w, int width, int height) {
   if (double(w.fullWidth) * double(w.fullHeight) > 4294967295.0) {
     throw std::invalid_argument("image window: the full picture has more than 2^32 pixels");
   }
+  // The per-ray key arithmetic (RayState.h pixelStreamKey) is exact below this.
+  if (double(width) * double(height) * double(width) >= 4398046511104.0) {
+    throw std::invalid_argument("image window: a tile of " + std::to_string(width) + "x" + std::to_string(height) +
+                                " is too large to key by the full picture (pixels x width must stay below 2^42)");
+  }
 }
 
 std::array<double, 3> defaultLightDirection(const Camera& camera) {
@@ -443,6 +448,12 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   fc.windowX = whole ? 0 : settings.window.x;
   fc.windowY = whole ? 0 : settings.window.y;
   fc.fullWidth = whole ? camera.width : settings.window.fullWidth;
+  if (!whole) {
+    // pixelStreamKey's division-free row (validateImageWindow keeps pixels * width < 2^42).
+    fc.rowMagic = (std::uint64_t(1) << 42) / std::uint64_t(camera.width) + 1u;
+    fc.keyBase = std::uint32_t(fc.windowY) * std::uint32_t(fc.fullWidth) + std::uint32_t(fc.windowX);
+    fc.keyRowStride = std::uint32_t(fc.fullWidth - camera.width);
+  }
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
   return fc;
