@@ -137,6 +137,7 @@ struct vtkInrVolumeMapper::Internals
   inr::ImageWindow window;
   // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
   bool warnedTranslucent = false, warnedPeeling = false;
+  int uploadedEpoch = -1;  // the session's resets + reprojections when the image was uploaded
   std::string warnedCamera;
   void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
 
@@ -583,10 +584,16 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     return;
   }
-  if (this->compositor.NeedsUpload(window, width, height, frames, this->lastStep.framesRendered > 0))
+  // A reprojection (camera or volume moved) changes the image without rendering a frame when the
+  // kept history already reaches the frame limit: upload on any new accumulation epoch too.
+  const int epoch =
+    this->session->counters().accumulationResets + this->session->counters().reprojections;
+  if (this->compositor.NeedsUpload(window, width, height, frames,
+        this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch))
   {
     const inr::ImageRGBA image = this->session->premultipliedImage();
     this->compositor.Upload(window, width, height, frames, image.data.data());
+    this->uploadedEpoch = epoch;
   }
   std::string error;
   if (!this->compositor.Blend(window, &error))

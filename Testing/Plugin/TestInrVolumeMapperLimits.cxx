@@ -293,6 +293,15 @@ int transformCase(const std::string& model, const std::string& outDir)
     c.win->Render();
     auto ignored = grab(c.win, 1, outDir + "/transform_" + t.name + "_ignored.png");
 
+    // Moving that volume once its frames are at the limit: the reprojected picture is shown (it
+    // used to keep the old picture: no new frame, so nothing was uploaded).
+    t.apply(c.volume);
+    c.win->Render();
+    auto moved = grab(c.win, 1, outDir + "/transform_" + t.name + "_moved_after_limit.png");
+    const Comparison stale = compare(moved, ignored);
+    std::printf("%s: after moving the volume at the frame limit: %.2f dB vs before\n", t.name, stale.psnr);
+    check(stale.psnr < 30.0, std::string(t.name) + ": moving the volume updates the picture");
+
     const Comparison same = compare(transformed, inverse);
     const Comparison differ = compare(transformed, ignored);
     std::printf("%s: vs inverse-transformed camera PSNR %.2f dB over %d covered pixels (%d of %d "
