@@ -46,11 +46,12 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 
 // A persistent grid (as many blocks as the GPU holds at once) whose warps take 32 rays at a
 // time from p.workCounter until none is left. Why: a ray's walk costs from nothing (it misses
-// the box) to hundreds of DDA steps, so with one thread per ray and blocks handed out once the
-// SMs that drew the heavy blocks ran on long after the others idled (ncu on the H100, first
-// pass of siren_cylinder_vorticity at 1024²: SMs active 54% of the kernel, achieved occupancy
-// 26% of a possible 62%). Taking work warp by warp balances to the last 32 rays; the list
-// length is read here, so a launch sized by a stale upper bound costs nothing extra.
+// the box) to hundreds of DDA steps, and with one thread per ray and blocks handed out once, the
+// SMs that drew heavy blocks ran on while the others idled. Warp-sized fetches balance to the
+// last 32 rays; the list length is read here, so a launch sized by a stale upper bound costs
+// nothing extra. Measured on the H100 (Benchmarks/RESULTS.md, "GPU DDA traversal"): with the
+// tiles and the spill-free bound below, the first pass of siren_cylinder_vorticity at 1024² went
+// from 791 to 617 us; what is left is the slowest rays' own walks (SMs still idle 45% of it).
 // tilesX > 0: the pass over all rays, in 8 x 4 pixel tiles (tilesX tiles per image row).
 // Occupancy: 56 registers (ptxas -v, sm_90, no spills), 9 blocks of 128 = 36 warps per SM. At
 // 48 registers (5 blocks of 256, the bound before the persistent loop) it spilled 30 bytes per
