@@ -44,7 +44,7 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
   }
 }
 
-// A persistent grid (as many blocks as the GPU holds at once) whose warps take 32 rays at a
+// The pass over all rays: a persistent grid (as many blocks as the GPU holds) whose warps take 32 rays at a
 // time from p.workCounter until none is left. Why: a ray's walk costs from nothing (it misses
 // the box) to hundreds of DDA steps, and with one thread per ray and blocks handed out once, the
 // SMs that drew heavy blocks ran on while the others idled. Warp-sized fetches balance to the
@@ -62,11 +62,19 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 #define INR_TRAVERSE_MIN_BLOCKS 9
 #endif
 __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
+  if (p.list) {
+    // List passes: one thread per listed ray, as before the persistent loop (grid-stride when
+    // the list outgrows the grid). They are short and bound by their slowest ray, and a warp's
+    // two same-address atomics (its fetch and the empty fetch that ends it) lie on that path.
+    const int n = p.listCount ? min(p.n, int(*p.listCount)) : p.n;
+    const int stride = int(gridDim.x * blockDim.x);
+    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay(p, p.list[k]);
+    return;
+  }
   const int lane = int(threadIdx.x) & (kWarp - 1);
   const int width = p.fc.camera.width, height = p.fc.camera.height;
   int n = p.n;
-  if (p.listCount) n = min(n, int(*p.listCount));
-  else if (tilesX > 0) n = tilesX * ((height + kTileHeight - 1) / kTileHeight) * kWarp;
+  if (tilesX > 0) n = tilesX * ((height + kTileHeight - 1) / kTileHeight) * kWarp;
   for (;;) {
     unsigned base = 0;
     if (lane == 0) base = atomicAdd(p.workCounter, unsigned(kWarp));
@@ -75,9 +83,7 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
     const int k = int(base) + lane;  // base is a multiple of 32, so k % 32 == lane
     if (k >= n) continue;
     int i = k;
-    if (p.list) {
-      i = p.list[k];
-    } else if (tilesX > 0) {
+    if (tilesX > 0) {
       const int tile = k / kWarp;
       const int px = (tile % tilesX) * kTileWidth + lane % kTileWidth;
       const int py = (tile / tilesX) * kTileHeight + lane / kTileWidth;
