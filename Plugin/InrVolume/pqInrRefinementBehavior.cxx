@@ -163,6 +163,12 @@ void pqInrRefinementBehavior::refine()
           continue;
         }
       }
+      // Progressive refinement off: one frame per render, nothing re-rendered from here (checked
+      // on the client's property, no server round trip).
+      if (vtkSMPropertyHelper(proxy, "InrProgressiveRefinement", true).GetAsInt() == 0)
+      {
+        continue;
+      }
       if (stillRefining(proxy))
       {
         again = true;
