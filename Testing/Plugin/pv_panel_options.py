@@ -15,6 +15,7 @@ Exit status 0 = pass.
 import argparse
 import os
 import sys
+import time
 import xml.etree.ElementTree as ET
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -168,17 +169,21 @@ check(frames == 4, f"refinement on again: Frames Per Render honoured ({frames})"
 check(C.info(display, "InrConverged") == 0, "refinement on again: still refining below Maximum Frames")
 
 # --- ParaView's progress handler sees the macrocell builds of a render and the reader's preview.
+# It forwards at most one event per 0.1 s (vtkPVProgressHandler's interval in a client): each
+# step starts with a pause, so its first event (0 %) always gets through.
 def building(events):
     return [p for text, p in events if text.startswith("INR Volume: building macrocells")]
 
 
 del progress[:]
+time.sleep(0.3)
 display.InrMacrocellResolution = 128  # a rebuild: 2 slices of 128^3 cells
 simple.Render(view)
 seen = building(progress)
 check(len(seen) >= 1 and seen == sorted(seen),
       f"resolution change: ParaView's progress handler saw the build ({seen} %, non-decreasing)")
 del progress[:]
+time.sleep(0.3)
 scene = simple.GetAnimationScene()
 scene.UpdateAnimationUsingDataTimeSteps()
 scene.AnimationTime = 9.3  # slices not built yet
@@ -186,7 +191,8 @@ simple.Render(view)
 seen = building(progress)
 check(len(seen) >= 1 and seen == sorted(seen), f"time change: ParaView's progress handler saw the build ({seen} %)")
 del progress[:]
-reader.PreviewResolution = 96
+time.sleep(0.3)
+reader.PreviewResolution = 160  # about a second of sampling here: several 0.1 s intervals
 reader.UpdatePipeline(9.3)
 seen = [p for text, p in progress if text.startswith("INR Volume reader")]
 check(len(seen) >= 1, f"preview resampling: ParaView's progress handler saw the reader ({seen} %)")
