@@ -366,8 +366,9 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
 }
 
 // The options the engine is built or updated with: each asked value is checked as `inr render`
-// checks it (the engine's own validation and message); a refused one is reported once, naming the
-// property, and the last valid value (at first the engine's default) stays in use.
+// checks it (the engine's validation and message: skipBlockShift, TrackingOptions::validate, the
+// layout's padding rule); a refused one is reported once, naming the property, and the last valid
+// value (at first the engine's default) stays in use.
 void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
 {
   auto accept = [self](const char* property, auto asked, auto& valid, auto& refused, auto check)
@@ -380,7 +381,7 @@ void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
     {
       check(asked);
       valid = asked;
-      refused = asked;  // a later refusal of an earlier value is reported again
+      refused = asked;  // a value refused before is reported again when asked again later
     }
     catch (const std::invalid_argument& e)
     {
