@@ -165,9 +165,12 @@ void pqInrRefinementBehavior::refine()
       }
       // Progressive refinement off: one frame per render, nothing re-rendered from here (checked
       // on the client's property, no server round trip).
-      if (vtkSMPropertyHelper(proxy, "InrProgressiveRefinement", true).GetAsInt() == 0)
+      if (vtkSMProperty* on = proxy->GetProperty("InrProgressiveRefinement"))
       {
-        continue;
+        if (vtkSMPropertyHelper(on).GetAsInt() == 0)
+        {
+          continue;
+        }
       }
       if (stillRefining(proxy))
       {
