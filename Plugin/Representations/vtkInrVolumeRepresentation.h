@@ -7,6 +7,10 @@
  * delivery to the rendering processes, remote rendering) is vtkImageVolumeRepresentation's. While
  * the representation is not coloured by an array, the mapper uses its default transfer function
  * over the model's value range, so the model shows up at once.
+ *
+ * Progress: ParaView's progress handler observes the objects its proxies create (this
+ * representation), not the mapper inside it, so the representation re-issues the mapper's
+ * ProgressEvents (macrocell builds during a render) as its own, with the mapper's progress text.
  */
 #ifndef vtkInrVolumeRepresentation_h
 #define vtkInrVolumeRepresentation_h
@@ -37,6 +41,11 @@ public:
   void SetInrConvergenceTarget(double);
   void SetInrFramesPerRender(int);
   void SetInrSeed(int);
+  void SetInrSkipBlock(int);
+  void SetInrBoundsPadding(double);
+  void SetInrGhostPasses(int);
+  void SetInrRefineMacrocells(int);
+  void SetInrProgressiveRefinement(int);
   ///@}
 
   ///@{
@@ -58,6 +67,7 @@ public:
   double GetInrConvergenceEstimate();
   const char* GetInrBackendInUse();
   const char* GetInrQueryReductionInUse();
+  const char* GetInrMacrocellsInUse();
   ///@}
 
   vtkInrVolumeMapper* GetInrMapper();
@@ -66,6 +76,7 @@ protected:
   vtkInrVolumeRepresentation();
   ~vtkInrVolumeRepresentation() override;
   void UpdateMapperParameters() override;
+  void ForwardMapperProgress(vtkObject* mapper, unsigned long event, void* progress);
 
 private:
   vtkInrVolumeRepresentation(const vtkInrVolumeRepresentation&) = delete;
