@@ -26,8 +26,13 @@ public:
   template <typename EvaluatorOptions>
   BackendSession(const InrModel& model, const EvaluatorOptions& eo, const RenderSessionOptions& o)
       : evaluator_(model, eo),
-        grid_(evaluator_, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, o.macrocells),
-        renderer_(evaluator_, grid_, o.tracking) {}
+        grid_(evaluator_, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, lazy(o.macrocells)),
+        renderer_(evaluator_, grid_, o.tracking) {
+    // The grid is created lazy so that an eager build happens here, once the progress handler
+    // is in place (a grid builds eager slices in its constructor).
+    grid_.setProgressHandler(o.progress);
+    if (!o.macrocells.lazySlices) grid_.buildAllSlices();
+  }
   const FieldEvaluator& evaluator() const override { return evaluator_; }
   void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
   void setScene(const RenderScene& s) override { renderer_.setScene(s); }
@@ -35,6 +40,8 @@ public:
   const QueryReductionSettings& queryReduction() const override { return renderer_.queryReduction(); }
   FrameStats renderFrame() override { return renderer_.renderFrame(); }
   FrameStats runGhostPasses(int count) override { return renderer_.runGhostPasses(count); }
+  void setTrackingOptions(const TrackingOptions& t) override { renderer_.setTrackingOptions(t); }
+  const TrackingOptions& trackingOptions() const override { return renderer_.trackingOptions(); }
   void resetAccumulation() override { renderer_.resetAccumulation(); }
   int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
   ImageRGBA image() const override { return renderer_.image(); }
@@ -44,10 +51,13 @@ public:
   void setWarningHandler(std::function<void(const std::string&)> handler) override {
     renderer_.setWarningHandler(std::move(handler));
   }
+  void setProgressHandler(MacrocellProgress handler) override { grid_.setProgressHandler(std::move(handler)); }
   MacrocellInfo macrocellInfo() const override {
     MacrocellInfo i;
     i.dims = grid_.options().dims;
     i.temporalSlices = grid_.temporalSlices();
+    i.skipBlockCells = grid_.options().skipBlockCells;
+    i.boundsPadding = grid_.options().boundsPadding;
     i.slicesBuilt = grid_.buildStats().slicesBuilt;
     i.buildSeconds = grid_.buildStats().seconds;
     i.latticeQueries = grid_.buildStats().evaluations;
@@ -56,6 +66,10 @@ public:
   }
 
 protected:
+  static MacrocellOptions lazy(MacrocellOptions o) {
+    o.lazySlices = true;
+    return o;
+  }
   Evaluator evaluator_;
   Grid grid_;
   Renderer renderer_;
@@ -64,9 +78,7 @@ protected:
 class CpuRenderSession final : public BackendSession<CpuInrEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
 public:
   CpuRenderSession(const InrModel& model, const RenderSessionOptions& o, std::string note)
-      : BackendSession(model, CpuEvaluatorOptions{256, o.cpuThreads}, o), note_(std::move(note)) {
-    if (o.progress) grid_.setProgressCallback(o.progress);
-  }
+      : BackendSession(model, CpuEvaluatorOptions{256, o.cpuThreads}, o), note_(std::move(note)) {}
   RenderBackend backend() const override { return RenderBackend::Cpu; }
   std::string description() const override {
     return "cpu: " + evaluator_.name() + (note_.empty() ? "" : " (" + note_ + ")");
@@ -78,7 +90,7 @@ private:
 };
 
 #ifdef INR_HAVE_CUDA
-// GPU slice builds take milliseconds, so the progress callback is not used here.
+// GPU slice builds report progress per slice (their lattice batches run asynchronously).
 class CudaRenderSession final
     : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaDeltaTrackingRenderer> {
 public:

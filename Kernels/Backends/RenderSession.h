@@ -38,13 +38,16 @@ struct RenderSessionOptions {
   TrackingOptions tracking;
   int cpuThreads = 0;  // CPU evaluator threads (0 = OpenMP default)
   int cudaDevice = 0;
-  // Macrocell slice builds report (slice index, fraction done).
-  std::function<void(int, double)> progress;
+  // Progress of macrocell builds from the start (with !macrocells.lazySlices every slice is built
+  // while the session is created); RenderSession::setProgressHandler replaces it later.
+  MacrocellProgress progress;
 };
 
 struct MacrocellInfo {
   Int3 dims{};
   int temporalSlices = 0;
+  int skipBlockCells = 0;      // the grid's MacrocellOptions, as it was built
+  double boundsPadding = 0.0;
   int slicesBuilt = 0;
   double buildSeconds = 0.0;
   std::size_t latticeQueries = 0;
@@ -71,6 +74,11 @@ public:
   virtual FrameStats renderFrame() = 0;
   virtual FrameStats renderFrameNaive() = 0;  // baseline: network evaluated inside each ray's loop
   virtual FrameStats runGhostPasses(int count) = 0;
+  // Macrocell refinement and ghost passes on update, work caps (TrackingOptions): validated
+  // (std::invalid_argument naming the option, the old options kept); they apply from the next
+  // frame or scene change, the accumulation is kept.
+  virtual void setTrackingOptions(const TrackingOptions& options) = 0;
+  virtual const TrackingOptions& trackingOptions() const = 0;
   virtual void resetAccumulation() = 0;
   virtual int accumulatedFrames() const = 0;
   virtual ImageRGBA image() const = 0;               // composited over the background
@@ -80,6 +88,11 @@ public:
   virtual const RendererCounters& counters() const = 0;  // scene-change work, capped rays, truncated frames
   // Where the renderer's once-per-cause warnings go (work caps hit); default: stderr.
   virtual void setWarningHandler(std::function<void(const std::string&)> handler) = 0;
+  // Where progress of long engine work goes: macrocell slice builds, on the first setScene (the
+  // slices the first time needs), on a time change that needs slices not built yet, and on every
+  // build after creating a session with another macrocell grid (MacrocellProgress: a fraction in
+  // [0, 1] and a short phase text, a few calls per slice). Default: none.
+  virtual void setProgressHandler(MacrocellProgress handler) = 0;
 };
 
 }  // namespace inr

@@ -57,7 +57,6 @@ void MacrocellGrid::buildSlice(int k) {
   const CellBoundsArrays out{s.min.data(), s.max.data(), s.mean.data()};
   std::vector<QueryPoint> points(std::size_t(std::min(tiles, tilesPerBatch)) * P);
   std::vector<float> values(points.size());
-  if (progress_) progress_(k, 0.0);
 
   for (long long first = 0; first < tiles; first += tilesPerBatch) {
     const long long count = std::min(tilesPerBatch, tiles - first);
@@ -79,7 +78,7 @@ void MacrocellGrid::buildSlice(int k) {
         if (tileCellIndex(layout_, first + b, local, idx)) out.store(idx, reduceCellStencil(tileValues, local));
       }
     }
-    if (progress_) progress_(k, double(first + count) / double(tiles));
+    reportSliceProgress(double(first + count) / double(tiles));  // per batch of maxBatch points
   }
   s.built = true;
 }

@@ -32,9 +32,6 @@ struct MajorantArrays {
 // (blockGridDims(dims, shift) entries). Reference for the GPU's kernel and the tests.
 void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, float* blocks);
 
-// Called during slice builds: slice index and the fraction of that slice done, in [0, 1].
-using MacrocellProgress = std::function<void(int slice, double fraction)>;
-
 class MacrocellGrid final : public MacrocellGridBase {
 public:
   static constexpr int kTileCells = MacrocellLayout::kTileCells;      // cells per tile edge
@@ -47,9 +44,7 @@ public:
   MacrocellGrid(const FieldEvaluator& evaluator, const Box3f& box, double timeBegin,
                 double timeEnd, MacrocellOptions options = {});
 
-  void setProgressCallback(MacrocellProgress cb) { progress_ = std::move(cb); }
-
-  // setTime, buildAllSlices, time and the layout accessors: MacrocellGridBase.
+  // setTime, buildAllSlices, setProgressHandler, time and the layout accessors: MacrocellGridBase.
   const Slice& slice(int k) const { return slices_.at(k); }
   bool sliceBuilt(int k) const override { return slices_.at(k).built; }
   // Replaces a slice's bounds with known values (tests, GPU-built slices).
@@ -98,7 +93,6 @@ private:
   std::vector<std::uint8_t> dirtyMask_;
   std::vector<int> dirty_;
   std::size_t refinements_ = 0;
-  MacrocellProgress progress_;
 };
 
 }  // namespace inr

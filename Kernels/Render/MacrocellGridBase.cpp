@@ -1,5 +1,6 @@
 #include "Render/MacrocellGridBase.h"
 
+#include <algorithm>
 #include <chrono>
 
 namespace inr {
@@ -11,22 +12,59 @@ MacrocellGridBase::MacrocellGridBase(const Box3f& box, double timeBegin, double 
 void MacrocellGridBase::setTime(double t) {
   time_ = t;
   layout_.interpolationWeights(t, k0_, k1_, w_);
-  ensureSlice(k0_);
-  if (w_ > 0.f) ensureSlice(k1_);
+  if (w_ > 0.f) {
+    buildSlices({k0_, k1_});
+  } else {
+    buildSlices({k0_});
+  }
   interpolateWorkingGrid();
   clearDirtyCells();
 }
 
 void MacrocellGridBase::buildAllSlices() {
-  for (int k = 0; k < layout_.temporalSlices; ++k) ensureSlice(k);
+  std::vector<int> all(std::size_t(layout_.temporalSlices));
+  for (int k = 0; k < layout_.temporalSlices; ++k) all[std::size_t(k)] = k;
+  buildSlices(all);
 }
 
-void MacrocellGridBase::ensureSlice(int k) {
-  if (sliceBuilt(k)) return;
-  const auto start = std::chrono::steady_clock::now();
-  buildSlice(k);
-  stats_.slicesBuilt += 1;
-  stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+void MacrocellGridBase::buildSlices(const std::vector<int>& needed) {
+  std::vector<int> missing;
+  for (int k : needed) {
+    if (!sliceBuilt(k) && std::find(missing.begin(), missing.end(), k) == missing.end()) missing.push_back(k);
+  }
+  if (missing.empty()) return;
+  buildCount_ = int(missing.size());
+  buildSlot_ = 0;
+  lastReported_ = -1.0;
+  if (progress_) {
+    const Int3 d = layout_.dims;
+    phase_ = "building macrocells: " + std::to_string(missing.size()) + " of " +
+             std::to_string(layout_.temporalSlices) + " time slice" + (layout_.temporalSlices == 1 ? "" : "s") +
+             ", " + std::to_string(d.x) + "x" + std::to_string(d.y) + "x" + std::to_string(d.z) + " cells";
+    reportProgress(0.0);
+  }
+  for (int k : missing) {
+    const auto start = std::chrono::steady_clock::now();
+    buildSlice(k);
+    stats_.slicesBuilt += 1;
+    stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++buildSlot_;
+    if (progress_) reportProgress(double(buildSlot_) / double(buildCount_));
+  }
+  buildCount_ = 0;
+}
+
+void MacrocellGridBase::reportSliceProgress(double sliceFraction) {
+  if (!progress_ || buildCount_ == 0) return;
+  const double f = std::min(std::max(sliceFraction, 0.0), 1.0);
+  reportProgress((double(buildSlot_) + f) / double(buildCount_));
+}
+
+void MacrocellGridBase::reportProgress(double fraction) {
+  // Only forward: a batch's end and the slice's end are the same point, reported once.
+  if (fraction <= lastReported_) return;
+  lastReported_ = fraction;
+  progress_(fraction, phase_);
 }
 
 }  // namespace inr

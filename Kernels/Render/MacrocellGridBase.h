@@ -5,6 +5,9 @@
 // Each grid supplies its storage: building a slice, interpolating the working grid from the
 // current slices, clearing its dirty-cell list.
 #include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
 
 #include "Render/MacrocellLayout.h"
 
@@ -15,6 +18,14 @@ struct MacrocellBuildStats {
   double seconds = 0.0;          // total time spent building slices
   std::size_t evaluations = 0;   // lattice queries issued
 };
+
+// Progress of a macrocell build (all the slices one setTime or buildAllSlices needs, which may
+// take seconds on the CPU for a paper-size network): `fraction` of that build in [0, 1],
+// non-decreasing, 0 before the first slice and 1 after the last; `phase` says what is built (e.g.
+// "building macrocells: 2 of 16 time slices, 32x32x32 cells"). Called on the thread that called
+// setTime, between lattice batches (the CPU grid) or per slice (the GPU grid, whose batches run
+// asynchronously): a few calls per slice, not per cell. Not called when nothing is built.
+using MacrocellProgress = std::function<void(double fraction, const std::string& phase)>;
 
 class MacrocellGridBase {
 public:
@@ -45,6 +56,8 @@ public:
   Int3 blockDims() const { return layout_.blockDims; }
   int blockCount() const { return layout_.blockCount(); }
   const BuildStats& buildStats() const { return stats_; }
+  // Where slice builds report progress; empty (the default) = nowhere.
+  void setProgressHandler(MacrocellProgress handler) { progress_ = std::move(handler); }
 
 protected:
   // Validates (std::invalid_argument, MacrocellLayout::make). Derived constructors build every
@@ -52,12 +65,16 @@ protected:
   MacrocellGridBase(const Box3f& box, double timeBegin, double timeEnd, const MacrocellOptions& options);
 
   // Builds slice k by lattice sampling and marks it built, counting its queries in
-  // stats_.evaluations (ensureSlice counts the slice and its time).
+  // stats_.evaluations (buildSlices counts the slice and its time).
   virtual void buildSlice(int k) = 0;
   // Working grid from slices k0_ and k1_ with weight w_ (k0_ alone when w_ == 0).
   virtual void interpolateWorkingGrid() = 0;
   virtual void clearDirtyCells() = 0;
-  void ensureSlice(int k);
+  // Builds the slices of `needed` that are not built yet, reporting progress over all of them.
+  void buildSlices(const std::vector<int>& needed);
+  // buildSlice implementations call this between batches: `sliceFraction` of the slice being
+  // built is done. Maps it onto the whole build and reports it when it moved forward.
+  void reportSliceProgress(double sliceFraction);
 
   MacrocellOptions options_;
   MacrocellLayout layout_;
@@ -65,6 +82,14 @@ protected:
   int k0_ = 0, k1_ = 0;
   float w_ = 0.f;
   BuildStats stats_;
+
+private:
+  void reportProgress(double fraction);
+  MacrocellProgress progress_;
+  std::string phase_;        // of the build in progress
+  int buildSlot_ = 0;        // slices of that build done so far
+  int buildCount_ = 0;       // slices that build makes
+  double lastReported_ = -1.0;
 };
 
 }  // namespace inr

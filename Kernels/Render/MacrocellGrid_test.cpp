@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "Render/DeltaTrackingRenderer.h"
@@ -82,19 +83,52 @@ TEST(MacrocellGrid, LazyBuildsOnlyNeededSlicesAndReportsProgress) {
   test::FunctionField f(test::smoothField);
   MacrocellGrid lazy(f, kBox, 0.0, 1.0, options(8, 8));
   std::vector<double> fractions;
-  lazy.setProgressCallback([&](int, double fr) { fractions.push_back(fr); });
+  std::string phase;
+  lazy.setProgressHandler([&](double fr, const std::string& p) {
+    fractions.push_back(fr);
+    phase = p;
+  });
   lazy.setTime(0.5);  // between slices 3 and 4
   EXPECT_EQ(lazy.buildStats().slicesBuilt, 2);
   EXPECT_EQ(f.points(), 2u * 8u * 729u);  // 2 slices x 8 tiles x 9^3
-  ASSERT_FALSE(fractions.empty());
-  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.begin() + fractions.size() / 2));
-  EXPECT_DOUBLE_EQ(fractions.back(), 1.0);
+  // One build over both slices: 0 first, then one report per lattice batch (one batch per slice
+  // here), strictly increasing, ending at 1.
+  EXPECT_EQ(fractions, (std::vector<double>{0.0, 0.5, 1.0}));
+  EXPECT_EQ(phase, "building macrocells: 2 of 8 time slices, 8x8x8 cells");
+  fractions.clear();
+  lazy.setTime(0.45);  // still between slices 3 and 4: nothing to build, nothing reported
+  EXPECT_TRUE(fractions.empty());
   f.resetCounts();
   MacrocellOptions eager = options(8, 8);
   eager.lazySlices = false;
   MacrocellGrid all(f, kBox, 0.0, 1.0, eager);
   EXPECT_EQ(all.buildStats().slicesBuilt, 8);
   EXPECT_EQ(f.points(), 8u * 8u * 729u);
+}
+
+TEST(MacrocellGrid, ProgressPerLatticeBatch) {
+  // 16^3 cells = 64 tiles; batches of 8 tiles: 8 reports per slice, evenly spaced.
+  test::FunctionField f(test::smoothField);
+  MacrocellOptions o = options(16, 4);
+  o.maxBatch = 8 * MacrocellLayout::kTilePoints;
+  MacrocellGrid grid(f, kBox, 0.0, 1.0, o);
+  std::vector<double> fractions;
+  grid.setProgressHandler([&](double fr, const std::string&) { fractions.push_back(fr); });
+  grid.setTime(0.0);  // exactly on slice 0: one slice
+  ASSERT_EQ(fractions.size(), 9u);
+  for (std::size_t i = 0; i < fractions.size(); ++i) EXPECT_DOUBLE_EQ(fractions[i], double(i) / 8.0);
+  fractions.clear();
+  grid.buildAllSlices();  // the three others, as one build
+  ASSERT_EQ(fractions.size(), 25u);
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
+  EXPECT_DOUBLE_EQ(fractions.front(), 0.0);
+  EXPECT_DOUBLE_EQ(fractions.back(), 1.0);
+  EXPECT_EQ(grid.buildStats().slicesBuilt, 4);
+  // The progress handler changes nothing built: same bounds as a grid without one.
+  MacrocellGrid plain(f, kBox, 0.0, 1.0, o);
+  plain.setTime(0.0);
+  EXPECT_EQ(plain.workingMin(), grid.workingMin());
+  EXPECT_EQ(plain.workingMax(), grid.workingMax());
 }
 
 TEST(MacrocellGrid, MajorantUpdateAfterTfChangeIsExact) {

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include "Render/AccumulationImage.h"
 
@@ -20,10 +21,24 @@ std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
   return std::uint32_t(std::min<std::uint64_t>(0xffffffffu, 2 + 2 * k + 32));
 }
 
+void TrackingOptions::validate() const {
+  if (maxCollisionsPerRay < 1) throw std::invalid_argument("maxCollisionsPerRay must be >= 1");
+  if (maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
+  if (ghostPassesOnUpdate < 0 || ghostPassesOnUpdate > kMaxGhostPasses) {
+    throw std::invalid_argument("ghost passes must be in [0, " + std::to_string(kMaxGhostPasses) + "], got " +
+                                std::to_string(ghostPassesOnUpdate));
+  }
+  if (ghostPixelStride < 1) throw std::invalid_argument("ghostPixelStride must be >= 1");
+}
+
 WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {
-  if (options_.maxCollisionsPerRay < 1) throw std::invalid_argument("maxCollisionsPerRay must be >= 1");
-  if (options_.maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
+  options_.validate();
   warn_ = [](const std::string& message) { std::fprintf(stderr, "INR Volume: warning: %s\n", message.c_str()); };
+}
+
+void WavefrontRenderer::setTrackingOptions(const TrackingOptions& options) {
+  options.validate();
+  options_ = options;
 }
 
 void WavefrontRenderer::setSettings(const RenderSettings& settings) {

@@ -22,8 +22,9 @@
 namespace inr {
 
 struct TrackingOptions {
+  static constexpr int kMaxGhostPasses = 1000;  // bounded work per scene change
   bool refineMacrocells = true;  // widen under-estimated cells from evaluated samples
-  int ghostPassesOnUpdate = 0;   // ghost passes run after each time / TF change
+  int ghostPassesOnUpdate = 0;   // ghost passes run after each time / TF change (0..kMaxGhostPasses)
   int ghostPixelStride = 4;      // ghost passes trace every n-th pixel in x and y
   // Bounded work per frame, whatever the scene: candidate collisions (real or null) per ray and
   // frame, both legs (primary, shadow) together, before the ray is cut off, and traverse-evaluate
@@ -36,6 +37,8 @@ struct TrackingOptions {
   // (FrameStats::cappedRays, RendererCounters::truncatedFrames).
   int maxCollisionsPerRay = 4096;
   int maxIterations = 1 << 14;
+  // Throws std::invalid_argument naming the first option out of its range.
+  void validate() const;
 };
 
 // Histogram budgeting's threshold tau (paper §4.2.1): the centre of the bin where the cumulative
@@ -79,6 +82,12 @@ public:
   // the accumulation converges to).
   void setQueryReduction(const QueryReductionSettings& settings);
   const QueryReductionSettings& queryReduction() const { return queryReduction_; }
+
+  // Replaces the tracking options after validating them (the old ones stay on error). They apply
+  // from the next frame (refinement, caps) or scene change (ghost passes); the accumulation is
+  // kept: none of them changes the image the accumulation converges to.
+  void setTrackingOptions(const TrackingOptions& options);
+  const TrackingOptions& trackingOptions() const { return options_; }
 
   void resetAccumulation();
   int accumulatedFrames() const { return frameIndex_; }

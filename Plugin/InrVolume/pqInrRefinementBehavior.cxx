@@ -163,6 +163,15 @@ void pqInrRefinementBehavior::refine()
           continue;
         }
       }
+      // Progressive refinement off: one frame per render, nothing re-rendered from here (checked
+      // on the client's property, no server round trip).
+      if (vtkSMProperty* on = proxy->GetProperty("InrProgressiveRefinement"))
+      {
+        if (vtkSMPropertyHelper(on).GetAsInt() == 0)
+        {
+          continue;
+        }
+      }
       if (stillRefining(proxy))
       {
         again = true;

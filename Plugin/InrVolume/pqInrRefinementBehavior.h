@@ -8,7 +8,8 @@
  * works through pvserver too) whether it is still refining, and if so schedules another render
  * after a short pause (event loop first, so the UI never freezes). Any change re-renders through
  * ParaView as usual; the mapper restarts accumulation and this loop picks it up again. The loop
- * stops by itself at convergence or at the representation's Maximum Frames.
+ * stops by itself at convergence or at the representation's Maximum Frames, and never starts for a
+ * representation whose Progressive Refinement is off (one frame per render).
  *
  * It also colours a freshly shown INR Volume representation by its "value" array and rescales
  * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour

@@ -20,9 +20,11 @@
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "Model/InrModel.h"
+#include "Render/MacrocellLayout.h"
 #include "Render/QueryReduction.h"
 #include "Render/SceneChange.h"
 #include "Render/SceneInputs.h"
+#include "Render/WavefrontRenderer.h"
 
 #include <array>
 #include <cstdint>
@@ -87,6 +89,18 @@ bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryRe
   return key(a) == key(b);
 }
 
+// What the engine holds of the macrocell and tracking options (GetMacrocellsInUse).
+std::string describeMacrocells(const inr::RenderSession& session)
+{
+  const inr::MacrocellInfo m = session.macrocellInfo();
+  const inr::TrackingOptions& t = session.trackingOptions();
+  std::ostringstream s;
+  s << "dims=" << m.dims.x << "x" << m.dims.y << "x" << m.dims.z << " slices=" << m.temporalSlices
+    << " skip_block=" << m.skipBlockCells << " bounds_padding=" << m.boundsPadding
+    << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells);
+  return s.str();
+}
+
 std::string describeQueryReduction(const inr::QueryReductionSettings& q)
 {
   std::ostringstream s;
@@ -122,6 +136,15 @@ struct vtkInrVolumeMapper::Internals
   inr::QueryReductionSettings queryReductionTried;
   std::string queryReductionInUse;
 
+  // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
+  // is built or updated with; initially the engine's defaults) and the last value refused per
+  // option (each refusal is reported once).
+  inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
+  inr::TrackingOptions trackingAsked, trackingValid, trackingRefused;
+  int builtSkipBlock = -1;
+  double builtBoundsPadding = -1.0;
+  std::string macrocellsInUse;
+
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
   std::vector<float> depth;
@@ -142,6 +165,7 @@ struct vtkInrVolumeMapper::Internals
   void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
 
   bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
+  void CheckOptions(vtkInrVolumeMapper* self);
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
@@ -184,7 +208,8 @@ int vtkInrVolumeMapper::GetAccumulatedFrames()
 
 int vtkInrVolumeMapper::GetConverged()
 {
-  return this->Internal->refinement.converged() ? 1 : 0;
+  // Without progressive refinement nothing renders again by itself: "stopped" from the start.
+  return !this->ProgressiveRefinement || this->Internal->refinement.converged() ? 1 : 0;
 }
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
@@ -266,6 +291,36 @@ INR_QUERY_REDUCTION(PruneFalloff, double, pruneFalloff, v,
 const char* vtkInrVolumeMapper::GetQueryReductionInUse()
 {
   return this->Internal->queryReductionInUse.c_str();
+}
+
+// Macrocell and tracking options: stored as asked (checked when the engine is updated, so the
+// error names the property and the engine's range); Modified() makes ParaView render again.
+#define INR_ENGINE_OPTION(Name, Type, member, toField, fromField)                                  \
+  void vtkInrVolumeMapper::Set##Name(Type v)                                                      \
+  {                                                                                                \
+    if (this->Get##Name() != v)                                                                    \
+    {                                                                                              \
+      this->Internal->member = toField;                                                            \
+      this->Modified();                                                                            \
+    }                                                                                              \
+  }                                                                                                \
+  Type vtkInrVolumeMapper::Get##Name()                                                             \
+  {                                                                                                \
+    return fromField;                                                                              \
+  }
+INR_ENGINE_OPTION(SkipBlock, int, macrocellsAsked.skipBlockCells, v,
+  this->Internal->macrocellsAsked.skipBlockCells)
+INR_ENGINE_OPTION(BoundsPadding, double, macrocellsAsked.boundsPadding, v,
+  this->Internal->macrocellsAsked.boundsPadding)
+INR_ENGINE_OPTION(GhostPasses, int, trackingAsked.ghostPassesOnUpdate, v,
+  this->Internal->trackingAsked.ghostPassesOnUpdate)
+INR_ENGINE_OPTION(RefineMacrocells, int, trackingAsked.refineMacrocells, v != 0,
+  this->Internal->trackingAsked.refineMacrocells ? 1 : 0)
+#undef INR_ENGINE_OPTION
+
+const char* vtkInrVolumeMapper::GetMacrocellsInUse()
+{
+  return this->Internal->macrocellsInUse.c_str();
 }
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
@@ -365,13 +420,67 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
   return this->modelOk;
 }
 
+// The options the engine is built or updated with: each asked value is checked as `inr render`
+// checks it (the engine's validation and message: skipBlockShift, TrackingOptions::validate, the
+// layout's padding rule); a refused one is reported once, naming the property, and the last valid
+// value (at first the engine's default) stays in use.
+void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
+{
+  auto accept = [self](const char* property, auto asked, auto& valid, auto& refused, auto check)
+  {
+    if (asked == valid)
+    {
+      return;
+    }
+    try
+    {
+      check(asked);
+      valid = asked;
+      refused = asked;  // a value refused before is reported again when asked again later
+    }
+    catch (const std::invalid_argument& e)
+    {
+      if (refused != asked)
+      {
+        refused = asked;
+        vtkErrorWithObjectMacro(self, << "INR Volume: " << property << " = " << asked
+                                      << " refused: " << e.what() << "; keeping " << valid);
+      }
+    }
+  };
+  accept("Skip Block (InrSkipBlock)", this->macrocellsAsked.skipBlockCells,
+    this->macrocellsValid.skipBlockCells, this->macrocellsRefused.skipBlockCells,
+    [](int cells) { inr::skipBlockShift(cells); });
+  accept("Bounds Padding (InrBoundsPadding)", this->macrocellsAsked.boundsPadding,
+    this->macrocellsValid.boundsPadding, this->macrocellsRefused.boundsPadding,
+    [](double padding)
+    {
+      if (!(padding >= 0.0))
+      {
+        throw std::invalid_argument("bounds padding must be >= 0");
+      }
+    });
+  accept("Ghost Passes (InrGhostPasses)", this->trackingAsked.ghostPassesOnUpdate,
+    this->trackingValid.ghostPassesOnUpdate, this->trackingRefused.ghostPassesOnUpdate,
+    [this](int passes)
+    {
+      inr::TrackingOptions t = this->trackingValid;
+      t.ghostPassesOnUpdate = passes;
+      t.validate();
+    });
+  this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
+}
+
 // The engine (evaluator, macrocells, renderer): rebuilt when the model, the macrocell grid or the
-// backend change.
+// backend change. Its macrocell builds report progress through the mapper's ProgressEvent.
 bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 {
   const int backend = self->Backend;
+  this->CheckOptions(self);
   if (!this->session || this->builtResolution != self->MacrocellResolution ||
-    this->builtSlices != self->TemporalSlices || this->builtBackend != backend)
+    this->builtSlices != self->TemporalSlices || this->builtBackend != backend ||
+    this->builtSkipBlock != this->macrocellsValid.skipBlockCells ||
+    this->builtBoundsPadding != this->macrocellsValid.boundsPadding)
   {
     try
     {
@@ -384,7 +493,19 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       const int n = self->MacrocellResolution;
       so.macrocells.dims = inr::Int3{ n, n, n };
       so.macrocells.temporalSlices = this->model.domain.usesTime() ? self->TemporalSlices : 1;
+      so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
+      so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
+      so.tracking = this->trackingValid;
       this->session = inr::RenderSession::create(this->model, so);
+      // Macrocell builds (inside the engine's setScene during Render) become VTK progress: the
+      // representation forwards it to ParaView's progress bar.
+      this->session->setProgressHandler([self](double fraction, const std::string& phase)
+        {
+          self->SetProgressText(("INR Volume: " + phase).c_str());
+          self->UpdateProgress(fraction);
+          self->SetProgressText(nullptr);  // observers read it during the event; later events
+                                           // (the executive's own) are not the build's
+        });
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
       this->session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
@@ -399,6 +520,8 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       this->builtResolution = self->MacrocellResolution;
       this->builtSlices = self->TemporalSlices;
       this->builtBackend = backend;
+      this->builtSkipBlock = this->macrocellsValid.skipBlockCells;
+      this->builtBoundsPadding = this->macrocellsValid.boundsPadding;
       this->haveSettings = false;
       this->haveQueryReduction = false;  // a new engine starts from the struct's defaults
       this->refinement.restart();
@@ -411,7 +534,14 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       return false;
     }
   }
+  const inr::TrackingOptions& held = this->session->trackingOptions();
+  if (held.ghostPassesOnUpdate != this->trackingValid.ghostPassesOnUpdate ||
+    held.refineMacrocells != this->trackingValid.refineMacrocells)
+  {
+    this->session->setTrackingOptions(this->trackingValid);  // valid: checked above
+  }
   this->backendInUse = this->session->description();
+  this->macrocellsInUse = describeMacrocells(*this->session);
   return true;
 }
 
@@ -544,8 +674,8 @@ bool vtkInrVolumeMapper::Internals::Refine(
     inr::RefinementOptions options;
     options.maximumFrames = self->MaximumFrames;
     options.convergenceTarget = self->ConvergenceTarget;
-    options.framesPerRender = self->FramesPerRender;
-    if (this->window.fullWidth > 0)
+    options.framesPerRender = self->ProgressiveRefinement ? self->FramesPerRender : 1;
+    if (this->window.fullWidth > 0 && self->ProgressiveRefinement)
     {
       // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
       // image's quality (convergence target or frame limit) in this one render.
@@ -612,6 +742,8 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "MaximumFrames: " << this->MaximumFrames << "\n";
   os << indent << "ConvergenceTarget: " << this->ConvergenceTarget << "\n";
   os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
+  os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
+  os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";

@@ -22,6 +22,11 @@
  *    blend ONE, ONE_MINUS_SRC_ALPHA; the texture is loaded only when the image changed).
  * Progressive refinement is driven from outside: call Render() again while !GetConverged()
  * (ParaView's GUI does this through the plugin's pqInrRefinementBehavior).
+ *
+ * Macrocell builds (the slices a new time needs, every build after the engine was rebuilt) take
+ * long on the CPU: the mapper reports them as VTK progress (ProgressEvent, UpdateProgress, a
+ * ProgressText naming the build) from inside Render(); vtkInrVolumeRepresentation forwards them
+ * to ParaView's progress bar.
  */
 #ifndef vtkInrVolumeMapper_h
 #define vtkInrVolumeMapper_h
@@ -63,6 +68,34 @@ public:
   ///@}
 
   ///@{
+  /// More macrocell options (inr::MacrocellOptions and inr::TrackingOptions, whose defaults these
+  /// start from: the one place defaults are defined). Stored as asked and checked the way the
+  /// `inr render` CLI checks them when the engine is next updated: an invalid value is reported
+  /// once (vtkErrorMacro naming the property and its range) and the last valid one is kept.
+  ///  - SkipBlock (--skip-block; 0 = off, else a power of two up to 1024): empty-space skipping,
+  ///    rays jump over empty blocks of SkipBlock^3 macrocells; images are unchanged. Rebuilds the
+  ///    macrocells.
+  ///  - BoundsPadding (--bounds-padding; >= 0): widen each macrocell's [min, max] by this fraction
+  ///    of the value range. Rebuilds the macrocells.
+  ///  - GhostPasses (--ghost-passes; 0..1000): ghost passes after each time or transfer-function
+  ///    change (refine under-estimated macrocells before they are seen). Applies from the next
+  ///    change; the engine is kept.
+  ///  - RefineMacrocells (off = --no-refine): widen under-estimated macrocells from evaluated
+  ///    samples. Applies from the next frame; the engine is kept.
+  void SetSkipBlock(int cells);
+  int GetSkipBlock();
+  void SetBoundsPadding(double fraction);
+  double GetBoundsPadding();
+  void SetGhostPasses(int count);
+  int GetGhostPasses();
+  void SetRefineMacrocells(int on);
+  int GetRefineMacrocells();
+  /// The macrocell options the engine holds (read back from it after the last Render), e.g.
+  /// "dims=32x32x32 slices=16 skip_block=4 bounds_padding=0 ghost_passes=0 refine=1"; "" before.
+  const char* GetMacrocellsInUse();
+  ///@}
+
+  ///@{
   /// Shadows from one directional light. LightDirection points towards the light (world space);
   /// (0,0,0) = automatic: above-left-behind the camera, following it. Ambient in [0,1].
   /// ShadowEstimator: 0 delta (binary visibility), 1 ratio tracking (less noise, more queries).
@@ -88,6 +121,11 @@ public:
   vtkGetMacro(ConvergenceTarget, double);
   vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
   vtkGetMacro(FramesPerRender, int);
+  /// ProgressiveRefinement (default on). Off: each Render() adds exactly one frame (whatever
+  /// FramesPerRender says) and GetConverged() reports 1, so nothing renders again by itself
+  /// (ParaView's GUI then shows one frame per render and stays idle).
+  vtkSetMacro(ProgressiveRefinement, int);
+  vtkGetMacro(ProgressiveRefinement, int);
   ///@}
 
   ///@{
@@ -190,6 +228,7 @@ private:
   int MaximumFrames = 2048;
   double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
+  int ProgressiveRefinement = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;
 

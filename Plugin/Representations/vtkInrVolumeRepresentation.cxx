@@ -1,5 +1,6 @@
 #include "vtkInrVolumeRepresentation.h"
 
+#include "vtkCommand.h"
 #include "vtkDataObject.h"
 #include "vtkInformation.h"
 #include "vtkInrVolumeMapper.h"
@@ -15,6 +16,16 @@ vtkStandardNewMacro(vtkInrVolumeRepresentation);
 vtkInrVolumeRepresentation::vtkInrVolumeRepresentation()
 {
   this->VolumeMapper = vtkSmartPointer<vtkInrVolumeMapper>::New();
+  this->VolumeMapper->AddObserver(
+    vtkCommand::ProgressEvent, this, &vtkInrVolumeRepresentation::ForwardMapperProgress);
+}
+
+void vtkInrVolumeRepresentation::ForwardMapperProgress(vtkObject* mapper, unsigned long, void* progress)
+{
+  auto* algorithm = vtkAlgorithm::SafeDownCast(mapper);
+  this->SetProgressText(algorithm ? algorithm->GetProgressText() : nullptr);
+  this->UpdateProgress(*static_cast<double*>(progress));
+  this->SetProgressText(nullptr);  // only for this event: the executive's own events carry none
 }
 
 vtkInrVolumeRepresentation::~vtkInrVolumeRepresentation() = default;
@@ -63,6 +74,11 @@ INR_FORWARD(MaximumFrames, int)
 INR_FORWARD(ConvergenceTarget, double)
 INR_FORWARD(FramesPerRender, int)
 INR_FORWARD(Seed, int)
+INR_FORWARD(SkipBlock, int)
+INR_FORWARD(BoundsPadding, double)
+INR_FORWARD(GhostPasses, int)
+INR_FORWARD(RefineMacrocells, int)
+INR_FORWARD(ProgressiveRefinement, int)
 INR_FORWARD(RayBudget, int)
 INR_FORWARD(BudgetFraction, double)
 INR_FORWARD(BudgetMaxSkip, int)
@@ -101,6 +117,11 @@ const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
 const char* vtkInrVolumeRepresentation::GetInrQueryReductionInUse()
 {
   return this->GetInrMapper()->GetQueryReductionInUse();
+}
+
+const char* vtkInrVolumeRepresentation::GetInrMacrocellsInUse()
+{
+  return this->GetInrMapper()->GetMacrocellsInUse();
 }
 
 int vtkInrVolumeRepresentation::ProcessViewRequest(

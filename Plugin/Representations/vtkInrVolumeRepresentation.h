@@ -7,6 +7,10 @@
  * delivery to the rendering processes, remote rendering) is vtkImageVolumeRepresentation's. While
  * the representation is not coloured by an array, the mapper uses its default transfer function
  * over the model's value range, so the model shows up at once.
+ *
+ * Progress: ParaView's progress handler observes the objects its proxies create (this
+ * representation), not the mapper inside it, so the representation re-issues the mapper's
+ * ProgressEvents (macrocell builds during a render) as its own, with the mapper's progress text.
  */
 #ifndef vtkInrVolumeRepresentation_h
 #define vtkInrVolumeRepresentation_h
@@ -39,6 +43,11 @@ public:
   void SetInrConvergenceTarget(double);
   void SetInrFramesPerRender(int);
   void SetInrSeed(int);
+  void SetInrSkipBlock(int);
+  void SetInrBoundsPadding(double);
+  void SetInrGhostPasses(int);
+  void SetInrRefineMacrocells(int);
+  void SetInrProgressiveRefinement(int);
   ///@}
 
   ///@{
@@ -60,6 +69,7 @@ public:
   double GetInrConvergenceEstimate();
   const char* GetInrBackendInUse();
   const char* GetInrQueryReductionInUse();
+  const char* GetInrMacrocellsInUse();
   ///@}
 
   vtkInrVolumeMapper* GetInrMapper();
@@ -79,6 +89,7 @@ protected:
   void UpdateMapperParameters() override;
   bool RemoveFromView(vtkView* view) override;
   void RestoreDepthPeelingForVolumes();
+  void ForwardMapperProgress(vtkObject* mapper, unsigned long event, void* progress);
 
 private:
   // The renderer whose UseDepthPeelingForVolumes this representation turned off (null: none).

@@ -309,6 +309,29 @@ def check_query_reduction_xml_defaults(inr, data):
         expect(got == q[key], "%s: XML default %r, QueryReductionSettings default %r" % (prop, got, q[key]))
 
 
+def check_panel_xml_defaults(inr, data):
+    """The INR Volume panel's macrocell options start from the engine's defaults
+    (inr::MacrocellOptions, inr::TrackingOptions): the CLI runs with them when no option is given
+    (read back from the session into --stats-json) and the plugin's XML must declare the same."""
+    import xml.etree.ElementTree as ET
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        m = render_stats(inr, model, d, (8, 8), 1)["macrocells"]
+    xml = os.path.join(data, os.pardir, os.pardir, "ServerManagerXML", "InrVolumeRepresentation.xml")
+    props = {e.get("name"): e.get("default_values") for e in ET.parse(xml).getroot().iter()
+             if e.get("default_values") is not None}
+    expect(m["dims"][0] == m["dims"][1] == m["dims"][2], "engine default dims %r are not a cube" % m["dims"])
+    for prop, got_engine, cast in (("InrMacrocellResolution", m["dims"][0], int),
+                                   ("InrTemporalSlices", m["temporal_slices"], int),
+                                   ("InrSkipBlock", m["skip_block"], int),
+                                   ("InrBoundsPadding", m["bounds_padding"], float),
+                                   ("InrGhostPasses", m["ghost_passes"], int),
+                                   ("InrRefineMacrocells", m["refine"], lambda v: bool(int(v)))):
+        expect(prop in props, "the XML has no property %s" % prop)
+        expect(cast(props[prop]) == got_engine,
+               "%s: XML default %r, engine default %r" % (prop, props[prop], got_engine))
+
+
 if __name__ == "__main__":
     inr, data, check = sys.argv[1:4]
     globals()["check_" + check](inr, data)

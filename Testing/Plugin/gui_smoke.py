@@ -17,6 +17,8 @@ display = simple.Show(reader, view)
 display.InrMaximumFrames = 48
 display.InrFramesPerRender = 1
 display.InrConvergenceTarget = 0.0
+# INR_GUI_REFINEMENT=0: Progressive Refinement off, the view must stay at one frame per render.
+display.InrProgressiveRefinement = int(os.environ.get("INR_GUI_REFINEMENT", "1"))
 simple.ResetCamera(view)
 simple.Render(view)
 proxy = display.SMProxy

@@ -268,19 +268,21 @@ int runRender(int argc, char** argv) {
       if (v < 1 || v > 1024 || v != std::floor(v)) throw UsageError("--macrocells: each must be an integer in [1, 1024]");
     mopts.dims = m.size() == 1 ? Int3{int(m[0]), int(m[0]), int(m[0])} : Int3{int(m[0]), int(m[1]), int(m[2])};
   }
-  const long slices = args.getInt("time-slices", model.domain.usesTime() ? 16 : 1);
+  const long slices = args.getInt("time-slices", model.domain.usesTime() ? mopts.temporalSlices : 1);
   if (slices < 1 || slices > 4096) throw UsageError("--time-slices must be in [1, 4096]");
   mopts.temporalSlices = int(slices);
   mopts.lazySlices = !args.has("eager-slices");
-  mopts.boundsPadding = args.getDouble("bounds-padding", 0.0);
+  mopts.boundsPadding = args.getDouble("bounds-padding", mopts.boundsPadding);
   if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
   const long skipBlock = args.getInt("skip-block", mopts.skipBlockCells);
   if (skipBlock < 0 || skipBlock > 1024 || (skipBlock & (skipBlock - 1)) != 0) {
     throw UsageError("--skip-block must be 0 (off) or a power of two up to 1024");
   }
   mopts.skipBlockCells = int(skipBlock);
-  const long ghost = args.getInt("ghost-passes", 0);
-  if (ghost < 0 || ghost > 1000) throw UsageError("--ghost-passes must be in [0, 1000]");
+  const long ghost = args.getInt("ghost-passes", TrackingOptions{}.ghostPassesOnUpdate);
+  if (ghost < 0 || ghost > TrackingOptions::kMaxGhostPasses) {
+    throw UsageError("--ghost-passes must be in [0, " + std::to_string(TrackingOptions::kMaxGhostPasses) + "]");
+  }
 
 
   // --- backend session (evaluator, macrocells, renderer)
@@ -292,13 +294,13 @@ int runRender(int argc, char** argv) {
   }
   sopts.allowFallback = false;  // an explicit --backend cuda that cannot run is an error
   sopts.macrocells = mopts;
-  sopts.tracking.refineMacrocells = !args.has("no-refine");
+  if (args.has("no-refine")) sopts.tracking.refineMacrocells = false;
   sopts.cpuThreads = int(args.getInt("threads", 0));
   double lastShown = -1.0;
   if (!quiet) {
-    sopts.progress = [&](int slice, double fraction) {
+    sopts.progress = [&](double fraction, const std::string& phase) {
       if (fraction == 0.0 || fraction == 1.0 || fraction - lastShown >= 0.25) {
-        std::printf("macrocells: slice %d %3.0f%%\n", slice, 100.0 * fraction);
+        std::printf("%s: %3.0f%%\n", phase.c_str(), 100.0 * fraction);
         std::fflush(stdout);
         lastShown = fraction == 1.0 ? -1.0 : fraction;
       }
@@ -432,7 +434,10 @@ int runRender(int argc, char** argv) {
                             {"lattice_queries", mi.latticeQueries},
                             {"setup_ms", setupMs},
                             {"lazy", mopts.lazySlices},
-                            {"skip_block", mopts.skipBlockCells}};
+                            {"skip_block", mi.skipBlockCells},
+                            {"bounds_padding", mi.boundsPadding},
+                            {"ghost_passes", ghost},
+                            {"refine", renderer.trackingOptions().refineMacrocells}};
     if (ghost > 0) {
       const FrameStats g = renderer.runGhostPasses(int(ghost));
       if (!quiet) {

@@ -160,18 +160,20 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   launch.n = rs.count;  // upper bound of the rays the next traversal lists
   auto enqueueTraverse = [&](int it) {
     const int cur = it & 1, prev = cur ^ 1;
-    INR_CUDA_CHECK(cudaMemsetAsync(counter.get() + cur, 0, sizeof(unsigned), stream));
+    // The parity's query count and the traversal's work counter, zeroed together.
+    INR_CUDA_CHECK(cudaMemsetAsync(queryCount(cur), 0, 2 * sizeof(unsigned), stream));
     launch.list = it ? queryRays[prev].get() : nullptr;
-    launch.listCount = it ? counter.get() + prev : nullptr;
+    launch.listCount = it ? queryCount(prev) : nullptr;
     launch.resolvePrevious = it != 0;
     launch.outPoints = points[cur].get();
     launch.outRays = queryRays[cur].get();
-    launch.outCount = counter.get() + cur;
+    launch.outCount = queryCount(cur);
+    launch.workCounter = queryCount(cur) + 1;
     timer.begin(traverseStage, stream);
     traversal->traverse(launch, stream);
     timer.end(stream);
     INR_CUDA_CHECK(
-        cudaMemcpyAsync(hostCounter.get() + cur, counter.get() + cur, sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+        cudaMemcpyAsync(hostCounter.get() + cur, queryCount(cur), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
     INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
   };
   enqueueTraverse(0);
@@ -179,7 +181,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
     const int cur = it & 1;
     if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
       timer.begin(evaluateStage, stream);
-      evaluator.evaluateDevice(points[cur].get(), counter.get() + cur, launch.n, rs.sample, queryRays[cur].get(),
+      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), launch.n, rs.sample, queryRays[cur].get(),
                                stream);
       timer.end(stream);
       enqueueTraverse(it + 1);
@@ -206,7 +208,7 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   Impl& I = *impl_;
   I.stream = macrocells.stream();
   I.traversal = makeDdaTraversal();
-  I.counter.resize(2);
+  I.counter.resize(4);
   for (cudaEvent_t& e : I.countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
   I.stats.resize(kStatCount);
   I.sums.resize(kSumCount);

@@ -63,7 +63,9 @@ struct CudaDeltaTrackingRenderer::Impl {
   // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the other).
   cuda::DeviceBuffer<float4> points[2];
   cuda::DeviceBuffer<int> queryRays[2];
-  cuda::DeviceBuffer<unsigned> counter;  // [2]: queries appended per parity
+  // [4]: per parity p, [2p] the queries appended, [2p + 1] the traversal's work counter.
+  cuda::DeviceBuffer<unsigned> counter;
+  unsigned* queryCount(int parity) const { return counter.get() + 2 * parity; }
   cuda::PinnedHost<unsigned> hostCounter{2};
   cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
   // Frame statistics: counters and the convergence sums.

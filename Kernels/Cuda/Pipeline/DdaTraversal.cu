@@ -1,5 +1,6 @@
 // Stage II on the GPU with the DDA walker (Render/Traverse.h), behind the DeviceTraversal seam.
 #include <algorithm>
+#include <stdexcept>
 
 #include "Cuda/CudaCheck.h"
 #include "Cuda/Pipeline/DeviceRefine.cuh"
@@ -10,24 +11,16 @@
 namespace inr {
 namespace {
 
-constexpr int kThreads = 256;
+constexpr int kThreads = 128;
+constexpr int kWarp = 32;
+// In the pass over all rays a warp walks a kTileWidth x kTileHeight block of pixels rather than
+// 32 pixels of one row: neighbouring rays cross nearly the same macrocells, so the lanes of a
+// warp run nearly the same number of DDA steps (less divergence) and read the same majorants.
+constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 
-// One thread per listed ray: complete and refine the previous query, resume tracking, append
-// the next candidate's query.
-// Occupancy: with the empty-space skip inlined (Render/MajorantGrid.h) ptxas would take 67
-// registers on sm_90 (3 blocks of 256 per SM; 44 and 5 blocks without the skip). Bounded to 5
-// blocks it fits 48 registers; since the DDA walker (Render/Traverse.h) it spills 10 bytes of
-// stores and 16 of loads on sm_90, 20 of loads with the pruning hook (ptxas -v). sm_75 holds 4
-// blocks.
-#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
-#define INR_TRAVERSE_MIN_BLOCKS 4
-#else
-#define INR_TRAVERSE_MIN_BLOCKS 5
-#endif
-__global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p) {
-  const int k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k >= p.n || (p.listCount && k >= int(*p.listCount))) return;
-  const int i = p.list ? p.list[k] : k;
+// Stage II for ray i: complete and refine the previous query (when the launch says so), resume
+// tracking, append the next candidate's query.
+__device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
   const RayStateView& rs = p.rs;
   if (p.resolvePrevious) {
     const float v = rs.sample[i];
@@ -51,14 +44,81 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
   }
 }
 
+// The pass over all rays: a persistent grid (as many blocks as the GPU holds) whose warps take 32 rays at a
+// time from p.workCounter until none is left. Why: a ray's walk costs from nothing (it misses
+// the box) to hundreds of DDA steps, and with one thread per ray and blocks handed out once, the
+// SMs that drew heavy blocks ran on while the others idled. Warp-sized fetches balance to the
+// last 32 rays; the list length is read here, so a launch sized by a stale upper bound costs
+// nothing extra. Measured on the H100 (Benchmarks/RESULTS.md, "GPU DDA traversal"): with the
+// tiles and the spill-free bound below, the first pass of siren_cylinder_vorticity at 1024² went
+// from 791 to 617 us; what is left is the slowest rays' own walks (SMs still idle 45% of it).
+// tilesX > 0: the pass over all rays, in 8 x 4 pixel tiles (tilesX tiles per image row).
+// Occupancy: 56 registers (ptxas -v, sm_90, no spills), 9 blocks of 128 = 36 warps per SM. At
+// 48 registers (5 blocks of 256, the bound before the persistent loop) it spilled 30 bytes per
+// thread; sm_75 holds 8 blocks of 128 at its 1024 threads per SM.
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
+#define INR_TRAVERSE_MIN_BLOCKS 8
+#else
+#define INR_TRAVERSE_MIN_BLOCKS 9
+#endif
+__global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
+  if (p.list) {
+    // List passes: one thread per listed ray, as before the persistent loop (grid-stride when
+    // the list outgrows the grid). They are short and bound by their slowest ray, and a warp's
+    // two same-address atomics (its fetch and the empty fetch that ends it) lie on that path.
+    const int n = p.listCount ? min(p.n, int(*p.listCount)) : p.n;
+    const int stride = int(gridDim.x * blockDim.x);
+    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay(p, p.list[k]);
+    return;
+  }
+  const int lane = int(threadIdx.x) & (kWarp - 1);
+  const int width = p.fc.camera.width, height = p.fc.camera.height;
+  int n = p.n;
+  if (tilesX > 0) n = tilesX * ((height + kTileHeight - 1) / kTileHeight) * kWarp;
+  for (;;) {
+    unsigned base = 0;
+    if (lane == 0) base = atomicAdd(p.workCounter, unsigned(kWarp));
+    base = __shfl_sync(0xffffffffu, base, 0);
+    if (base >= unsigned(n)) break;  // the same for every lane of the warp
+    const int k = int(base) + lane;  // base is a multiple of 32, so k % 32 == lane
+    if (k >= n) continue;
+    int i = k;
+    if (tilesX > 0) {
+      const int tile = k / kWarp;
+      const int px = (tile % tilesX) * kTileWidth + lane % kTileWidth;
+      const int py = (tile / tilesX) * kTileHeight + lane / kTileWidth;
+      if (px >= width || py >= height) continue;
+      i = py * width + px;
+    }
+    traverseListedRay(p, i);
+  }
+}
+
 class DdaTraversal final : public DeviceTraversal {
 public:
+  DdaTraversal() {
+    int device = 0, sms = 0, perSm = 0;
+    INR_CUDA_CHECK(cudaGetDevice(&device));
+    INR_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel, kThreads, 0));
+    residentBlocks_ = std::max(1, sms * std::max(1, perSm));
+  }
   const char* name() const override { return "dda"; }
   void traverse(const TraversalLaunch& launch, cudaStream_t stream) const override {
-    const int blocks = int(std::max<long long>(1, (launch.n + kThreads - 1) / kThreads));
-    ddaTraverseKernel<<<blocks, kThreads, 0, stream>>>(launch);
+    if (!launch.workCounter) throw std::invalid_argument("DdaTraversal: TraversalLaunch::workCounter is null");
+    const long long needed = std::max<long long>(1, (launch.n + kThreads - 1) / kThreads);
+    const int blocks = int(std::min<long long>(needed, residentBlocks_));
+    // Pixel tiles only when the rays are exactly the image's pixels (ray i = pixel i).
+    const CameraView& cam = launch.fc.camera;
+    const bool tiled = !launch.list && cam.width > 0 && cam.height > 0 &&
+                       (long long)cam.width * cam.height == (long long)launch.n;
+    const int tilesX = tiled ? (cam.width + kTileWidth - 1) / kTileWidth : 0;
+    ddaTraverseKernel<<<blocks, kThreads, 0, stream>>>(launch, tilesX);
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }
+
+private:
+  int residentBlocks_ = 1;
 };
 
 }  // namespace

@@ -34,6 +34,9 @@ struct TraversalLaunch {
   float4* outPoints = nullptr;
   int* outRays = nullptr;
   unsigned* outCount = nullptr;
+  // Work distribution: a device counter, zero at the launch, that the implementation may use to
+  // hand out rays to its threads (the DDA's persistent warps take them 32 at a time).
+  unsigned* workCounter = nullptr;
 };
 
 class DeviceTraversal {

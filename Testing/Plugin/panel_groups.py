@@ -1,0 +1,92 @@
+"""The INR Volume panel as the plugin's XML declares it, without ParaView: every property of the
+InrVolumeRepresentation proxy is exposed in exactly one of the panel's groups (Rendering,
+Macrocells, Shadows, Query reduction, Refinement, in that order), every group names only real
+properties, and every property has a tooltip (<Documentation>). With README.md: its table of
+property names for pvpython lists every property once, in its group, with the XML's default
+(read-only for information properties). Exit status 0 = pass.
+
+  python3 panel_groups.py ServerManagerXML/InrVolumeRepresentation.xml [README.md]
+"""
+import re
+import sys
+import xml.etree.ElementTree as ET
+
+GROUPS = ["Rendering", "Macrocells", "Shadows", "Query reduction", "Refinement"]
+# The options behind the advanced (gear) toggle that this check pins: the macrocell fine-tuning.
+ADVANCED = {"InrSkipBlock", "InrBoundsPadding", "InrGhostPasses", "InrRefineMacrocells"}
+# The one switch a user looks for first stays visible.
+DEFAULT_VISIBLE = {"InrBackend", "InrMacrocellResolution", "InrShadows", "InrProgressiveRefinement",
+                   "RayBudget"}
+
+failures = []
+
+
+def check(ok, what):
+    print(("ok: " if ok else "FAIL: ") + what, flush=True)
+    if not ok:
+        failures.append(what)
+
+
+root = ET.parse(sys.argv[1]).getroot()
+proxy = next(e for e in root.iter("RepresentationProxy") if e.get("name") == "InrVolumeRepresentation")
+properties = {e.get("name"): e for e in proxy if e.tag.endswith("Property")}
+check(len(properties) > 20, f"{len(properties)} properties declared on InrVolumeRepresentation")
+
+extension = next(e for e in root.iter("Extension") if e.get("name") == "UniformGridRepresentation")
+exposed = extension.find("SubProxy/ExposedProperties")
+groups = [(g.get("label"), [p.get("name") for p in g.iter("Property")]) for g in exposed.iter("PropertyGroup")]
+check([label for label, _ in groups] == GROUPS, f"panel groups {[label for label, _ in groups]} (want {GROUPS})")
+ungrouped = [p.get("name") for p in exposed.findall("Property")]
+check(not ungrouped, f"no property exposed outside a group ({ungrouped})")
+
+membership = {}
+for label, names in groups:
+    check(bool(names), f"group {label!r} is not empty")
+    for n in names:
+        check(n in properties, f"group {label!r}: {n} is a property of InrVolumeRepresentation")
+        membership.setdefault(n, []).append(label)
+for n in properties:
+    where = membership.get(n, [])
+    check(len(where) == 1, f"{n} is in exactly one group ({where})")
+
+for n, e in properties.items():
+    doc = e.find("Documentation")
+    text = " ".join((doc.text or "").split()) if doc is not None else ""
+    check(len(text) >= 30, f"{n} has a tooltip ({len(text)} characters)")
+    visibility = e.get("panel_visibility", "default")
+    if n in ADVANCED:
+        check(visibility == "advanced", f"{n} is behind the advanced toggle ({visibility})")
+    if n in DEFAULT_VISIBLE:
+        check(visibility == "default", f"{n} is visible by default ({visibility})")
+
+if len(sys.argv) > 2:
+    # Rows "| `Name` [⚙] | group | default | what it trades |" of the README's property table.
+    rows = {}
+    for line in open(sys.argv[2], encoding="utf-8"):
+        m = re.match(r"\| `(\w+)`( ⚙)? \| ([^|]+) \| ([^|]+) \|", line)
+        if m and m.group(1) in properties or (m and m.group(3).strip() in GROUPS):
+            check(m.group(1) not in rows, f"README: {m.group(1)} listed once")
+            rows[m.group(1)] = (m.group(3).strip(), m.group(4).strip(), bool(m.group(2)))
+    check(set(rows) == set(properties),
+          f"README: the table lists every property (missing {sorted(set(properties) - set(rows))}, "
+          f"unknown {sorted(set(rows) - set(properties))})")
+    for n, (group, default, advanced) in rows.items():
+        if n not in properties:
+            continue
+        e = properties[n]
+        check(membership.get(n) == [group], f"README: {n} in group {group!r} ({membership.get(n)})")
+        check(advanced == (e.get("panel_visibility") == "advanced"), f"README: {n} marked advanced as in the XML")
+        if e.get("information_only") == "1":
+            check(default == "read-only", f"README: {n} is read-only ({default!r})")
+            continue
+        value = re.search(r"\((-?[\d.]+)\)$", default)
+        written = value.group(1) if value else default
+        want = [float(v) for v in e.get("default_values", "").split()]
+        try:
+            got = [float(v) for v in written.split()]
+        except ValueError:
+            got = None
+        check(got == want, f"README: {n} default {default!r} (XML {e.get('default_values')!r})")
+
+print("RESULT:", "PASS" if not failures else "FAIL " + "; ".join(failures), flush=True)
+sys.exit(1 if failures else 0)
