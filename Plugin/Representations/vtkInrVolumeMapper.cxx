@@ -187,6 +187,7 @@ struct vtkInrVolumeMapper::Internals
   double msPerPixelFrame = 0.0;  // engine time per pixel per frame, without macrocell updates
   double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
   double interactiveMs = 0.0;    // render time of interactive frames at lodScale
+  double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
   bool lastInteractive = false;
   bool haveLastTime = false;
   double lastTime = 0.0;
@@ -393,6 +394,10 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   int width = tile.width, height = tile.height;
   if (interactive)
   {
+    if (!I.lastInteractive)
+    {
+      I.lodCeiling = 2.0;  // a new interaction: the view may have become cheaper or dearer
+    }
     const double s = I.ChooseScale(budgetMs, tile.width, tile.height);
     width = std::max(1, int(std::lround(tile.width * s)));
     height = std::max(1, int(std::lround(tile.height * s)));
@@ -479,6 +484,10 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
     }
     const double engine = std::max(this->interactiveMs - this->overheadMs, 1e-3);
     s = std::min(this->lodScale * std::sqrt(target / engine), this->lodScale * kMaxGrowth);
+    if (this->interactiveMs > kKeepScaleBelow * budgetMs)
+    {
+      this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
+    }
   }
   else if (this->msPerPixelFrame > 0.0)
   {
@@ -493,6 +502,10 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
   {
     // Out of the band but rounded back to the same scale: one step in the needed direction.
     s = std::clamp(s + (this->interactiveMs > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
+  }
+  if (s >= this->lodCeiling)
+  {
+    s = this->lodScale;  // never back up to a scale this interaction found too slow: no oscillation
   }
   if (s != this->lodScale)
   {

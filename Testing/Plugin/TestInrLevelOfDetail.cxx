@@ -140,21 +140,22 @@ int main(int argc, char* argv[])
   win->SetDesiredUpdateRate(kInteractiveRate);
   int dragWidth = -1;
   bool stable = true;
-  for (int step = 1; step <= 4; ++step)
+  for (int step = 1; step <= 5; ++step)
   {
     cam->Azimuth(4);
     win->Render();
     std::printf("drag step %d: image %dx%d, %.1f ms, %d frames\n", step, mapper->GetLastImageWidth(),
       mapper->GetLastImageHeight(), mapper->GetLastRenderMilliseconds(),
       mapper->GetAccumulatedFrames());
-    stable = stable && (dragWidth < 0 || mapper->GetLastImageWidth() == dragWidth);
+    // The first step may adjust the first guess once; then the resolution must hold.
+    stable = stable && (step <= 2 || mapper->GetLastImageWidth() == dragWidth);
     dragWidth = mapper->GetLastImageWidth();
     check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastImageWidth() < kWidth &&
         mapper->GetLastImageHeight() < kHeight,
       "drag step " + std::to_string(step) + ": an interactive, reduced frame");
     check(mapper->GetConverged() == 0, "an interactive frame never counts as converged");
   }
-  check(stable, "the reduced resolution stays the same during the drag");
+  check(stable, "the reduced resolution stays the same during the drag (after one adjustment)");
   check(mapper->GetAccumulatedFrames() >= 2, "reprojection keeps accumulating at that resolution");
   const std::vector<unsigned char> reduced = grab(win);
 
