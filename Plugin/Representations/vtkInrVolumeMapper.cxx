@@ -1,6 +1,8 @@
 #include "vtkInrVolumeMapper.h"
 
 #include "vtkActor2D.h"
+#include "vtkCallbackCommand.h"
+#include "vtkWeakPointer.h"
 #include "vtkDataSet.h"
 #include "vtkMath.h"
 #include "vtkPropCollection.h"
@@ -102,10 +104,10 @@ constexpr int kScaleSteps = 16;
 constexpr double kMinScale = 1.0 / kScaleSteps;
 // Re-choose the scale only when the measured render time leaves this band around the budget, and
 // grow it by at most this factor at a time.
-constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.15;
+constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.0;
 constexpr double kMaxGrowth = 1.25;
 // Aim below the budget: per-frame cost varies with the view (coverage, collisions).
-constexpr double kBudgetMargin = 0.85;
+constexpr double kBudgetMargin = 0.8;
 
 // The depth limits (engine row order) of a width x height image, sampled at the centres of the
 // pixels of a w x h image covering the same view.
@@ -188,6 +190,16 @@ struct vtkInrVolumeMapper::Internals
   double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
   double interactiveMs = 0.0;    // render time of interactive frames at lodScale
   double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
+  // The budget is for the whole window render: what the window spends outside this mapper
+  // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
+  double outsideMs = 0.0;
+  vtkWeakPointer<vtkRenderWindow> observedWindow;
+  vtkNew<vtkCallbackCommand> windowObserver;
+  Clock::time_point windowStart;
+  bool renderedInWindow = false;
+  void ObserveWindow(vtkRenderWindow* window);
+  void StopObserving();
+  static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
   bool lastInteractive = false;
   bool haveLastTime = false;
   double lastTime = 0.0;
@@ -222,6 +234,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
+  this->Internal->StopObserving();
   delete this->Internal;
 }
 
@@ -387,6 +400,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
   const auto renderStart = Clock::now();
+  I.ObserveWindow(ren->GetRenderWindow());
   inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
   // Level of detail: an interactive render draws one frame of a reduced image, upscaled.
   double budgetMs = 0.0;
@@ -429,6 +443,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const double compositeMs = msSince(compositeStart);
   I.lastRenderMs = msSince(renderStart);
   I.lastInteractive = interactive;
+  I.renderedInWindow = true;
   I.imageWidth = width;
   I.imageHeight = height;
   I.MeasureFrame(I.lastRenderMs, refineMs, width, height, interactive);
@@ -441,6 +456,48 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       double(width) / tile.width, I.lastRenderMs, budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       compositeMs, I.session->accumulatedFrames());
+  }
+}
+
+void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
+{
+  if (window == this->observedWindow)
+  {
+    return;
+  }
+  this->StopObserving();
+  this->windowObserver->SetCallback(&Internals::OnWindowEvent);
+  this->windowObserver->SetClientData(this);
+  window->AddObserver(vtkCommand::StartEvent, this->windowObserver);
+  window->AddObserver(vtkCommand::EndEvent, this->windowObserver);
+  this->observedWindow = window;
+  this->windowStart = Clock::now();
+  this->renderedInWindow = false;
+}
+
+void vtkInrVolumeMapper::Internals::StopObserving()
+{
+  if (this->observedWindow)
+  {
+    this->observedWindow->RemoveObserver(this->windowObserver);
+  }
+  this->observedWindow = nullptr;
+}
+
+void vtkInrVolumeMapper::Internals::OnWindowEvent(
+  vtkObject*, unsigned long event, void* clientData, void*)
+{
+  auto* self = static_cast<Internals*>(clientData);
+  if (event == vtkCommand::StartEvent)
+  {
+    self->windowStart = Clock::now();
+    self->renderedInWindow = false;
+  }
+  else if (event == vtkCommand::EndEvent && self->renderedInWindow)
+  {
+    const double outside = std::max(0.0, msSince(self->windowStart) - self->lastRenderMs);
+    self->outsideMs = self->outsideMs > 0.0 ? 0.5 * (self->outsideMs + outside) : outside;
+    self->renderedInWindow = false;
   }
 }
 
@@ -473,18 +530,20 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(
 double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, int height)
 {
   const double pixels = double(width) * double(height);
-  const double target = std::max(kBudgetMargin * budgetMs - this->overheadMs, 0.1 * budgetMs);
+  const double overhead = this->overheadMs + this->outsideMs;
+  const double target = std::max(kBudgetMargin * budgetMs - overhead, 0.1 * budgetMs);
+  // The measured time of an interactive frame, the window's work around the mapper included.
+  const double measured = this->interactiveMs > 0.0 ? this->interactiveMs + this->outsideMs : 0.0;
   double s = this->lodScale;
-  if (this->interactiveMs > 0.0)
+  if (measured > 0.0)
   {
-    if (this->interactiveMs >= kKeepScaleAbove * budgetMs &&
-      this->interactiveMs <= kKeepScaleBelow * budgetMs)
+    if (measured >= kKeepScaleAbove * budgetMs && measured <= kKeepScaleBelow * budgetMs)
     {
       return this->lodScale;
     }
-    const double engine = std::max(this->interactiveMs - this->overheadMs, 1e-3);
+    const double engine = std::max(measured - overhead, 1e-3);
     s = std::min(this->lodScale * std::sqrt(target / engine), this->lodScale * kMaxGrowth);
-    if (this->interactiveMs > kKeepScaleBelow * budgetMs)
+    if (measured > kKeepScaleBelow * budgetMs)
     {
       this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
     }
@@ -498,10 +557,10 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
     s = 0.25;  // nothing measured yet: a cautious first guess
   }
   s = std::clamp(std::floor(s * kScaleSteps) / kScaleSteps, kMinScale, 1.0);
-  if (s == this->lodScale && this->interactiveMs > 0.0)
+  if (s == this->lodScale && measured > 0.0)
   {
     // Out of the band but rounded back to the same scale: one step in the needed direction.
-    s = std::clamp(s + (this->interactiveMs > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
+    s = std::clamp(s + (measured > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
   }
   if (s >= this->lodCeiling)
   {
