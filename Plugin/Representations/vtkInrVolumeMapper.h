@@ -18,6 +18,8 @@
  *  - accumulates frames with the engine's inr::RefinementDriver (at least one new frame while not
  *    converged, and up to FramesPerRender in total, never beyond MaximumFrames or past the
  *    convergence target);
+ *  - during interactive renders renders one frame of a reduced image instead (level of detail,
+ *    InteractiveLevelOfDetail below), drawn upscaled with linear filtering;
  *  - draws the accumulated premultiplied image over the framebuffer (InrFramebufferCompositor:
  *    blend ONE, ONE_MINUS_SRC_ALPHA; the texture is loaded only when the image changed).
  * Progressive refinement is driven from outside: call Render() again while !GetConverged()
@@ -146,14 +148,17 @@ public:
   ///@{
   /// Level of detail while interacting, so the view stays responsive when one frame at full
   /// resolution takes long (the CPU fallback at ~1280x768: about a second). An interactive render
-  /// draws one frame at a reduced resolution, chosen from the measured per-pixel cost of recent
-  /// frames so that the mapper's render takes about InteractiveFrameTime ms, upscaled with linear
-  /// filtering; the next still render is at full resolution and refines exactly as without LOD
-  /// (same seed, same frames: the same image). When the full resolution already fits the budget
-  /// (small views, the GPU) interactive renders are at full resolution.
+  /// draws one frame at a reduced resolution, chosen from the measured time of recent frames so
+  /// that the window's render (the volume and what the window does around it: the mapper observes
+  /// the window's StartEvent/EndEvent) takes about InteractiveFrameTime ms, upscaled with linear
+  /// filtering; the resolution is kept while the frames stay within the budget (a stable
+  /// resolution lets reprojection keep accumulating during a drag). The next still render is at
+  /// full resolution and refines exactly as without LOD (same seed, same frames: the same
+  /// image). When the full resolution already fits the budget (small views, the GPU) interactive
+  /// renders are at full resolution.
   ///  - InteractiveLevelOfDetail: LOD_OFF (every render at full resolution); LOD_INTERACTION:
   ///    renders whose render window asks for at least InteractiveUpdateRate frames per second
-  ///    (ParaView's interactive renders during a camera drag: 5; VTK interactors: 15) ;
+  ///    (ParaView's interactive renders during a camera drag: 5; VTK interactors: 15);
   ///    LOD_INTERACTION_AND_TIME (default): also a render whose time differs from the previous
   ///    render's while FramesPerRender is 1 (ParaView's time-slider drags and animation playback
   ///    are still renders; a script asking for N frames per render always gets full resolution).
