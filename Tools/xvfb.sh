@@ -10,7 +10,7 @@ start_xvfb() {
   local n
   for n in $(seq 90 110); do
     if [ -e /tmp/.X11-unix/X$n ] || [ -e /tmp/.X$n-lock ]; then continue; fi
-    Xvfb :$n -screen 0 1280x1024x24 -nolisten tcp -noreset >/dev/null 2>&1 &
+    Xvfb :$n -screen 0 1920x1200x24 -nolisten tcp -noreset >/dev/null 2>&1 &
     INR_XVFB_PID=$!
     for _ in $(seq 50); do [ -e /tmp/.X11-unix/X$n ] && break; sleep 0.1; done
     export DISPLAY=:$n

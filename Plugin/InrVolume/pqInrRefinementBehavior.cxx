@@ -16,6 +16,7 @@
 #include "vtkClientServerStream.h"
 #include "vtkPVSession.h"
 
+#include <algorithm>
 #include <cstring>
 
 namespace
@@ -29,35 +30,49 @@ bool isInrVolume(vtkSMProxy* proxy)
 
 // Asks the representation object on the render server (the process that renders; the client's
 // copy does not render in client/server mode, so information properties pulled from the client
-// would say nothing) whether it is still refining.
-bool stillRefining(vtkSMProxy* proxy)
+// would say nothing) for an int (`method` of vtkInrVolumeRepresentation); `fallback` when it
+// cannot be asked.
+int askRenderServer(vtkSMProxy* proxy, const char* method, int fallback)
 {
   vtkSMProperty* prop = proxy->GetProperty("InrConverged");
   vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
   vtkSMSession* session = inr ? inr->GetSession() : nullptr;
   if (!session)
   {
-    return false;
+    return fallback;
   }
   vtkClientServerStream stream;
-  stream << vtkClientServerStream::Invoke << VTKOBJECT(inr) << "GetInrConverged"
+  stream << vtkClientServerStream::Invoke << VTKOBJECT(inr) << method
          << vtkClientServerStream::End;
   session->ExecuteStream(vtkPVSession::RENDER_SERVER_ROOT, stream, false);
   const vtkClientServerStream& result = session->GetLastResult(vtkPVSession::RENDER_SERVER_ROOT);
-  int converged = 1;
-  if (result.GetNumberOfMessages() < 1 || !result.GetArgument(0, 0, &converged))
+  int value = fallback;
+  if (result.GetNumberOfMessages() < 1 || !result.GetArgument(0, 0, &value))
   {
-    return false;
+    return fallback;
   }
-  return converged == 0;
+  return value;
 }
+
+bool stillRefining(vtkSMProxy* proxy)
+{
+  return askRenderServer(proxy, "GetInrConverged", 1) == 0;
+}
+
+// After an interactive (reduced) frame the user is probably still dragging the camera or the
+// time slider: the full-resolution refinement waits this long without a new render, so the next
+// drag step gets another fast frame instead of waiting for a full-resolution one. (A camera drag
+// ends with ParaView's own still render, which starts the refinement at once.)
+constexpr int kInteractionSettleMs = 300;
+// Between refinement renders: lets the event loop breathe.
+constexpr int kRefinePauseMs = 15;
 }
 
 pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
   : QObject(parent)
 {
   this->Timer.setSingleShot(true);
-  this->Timer.setInterval(15);  // let the event loop breathe between refinement renders
+  this->Timer.setInterval(kRefinePauseMs);
   QObject::connect(&this->Timer, &QTimer::timeout, this, &pqInrRefinementBehavior::refine);
 }
 
@@ -93,13 +108,14 @@ void pqInrRefinementBehavior::onEndRender()
   {
     return;
   }
+  this->SinceRender.start();
   for (const auto& v : this->Pending)
   {
     if (v == view)
     {
       if (!this->Timer.isActive())
       {
-        this->Timer.start();
+        this->Timer.start(kRefinePauseMs);
       }
       return;
     }
@@ -107,7 +123,7 @@ void pqInrRefinementBehavior::onEndRender()
   this->Pending.push_back(view);
   if (!this->Timer.isActive())
   {
-    this->Timer.start();
+    this->Timer.start(kRefinePauseMs);
   }
 }
 
@@ -122,6 +138,7 @@ void pqInrRefinementBehavior::refine()
       continue;
     }
     bool again = false;
+    bool settling = false;
     for (pqRepresentation* r : view->getRepresentations())
     {
       auto* repr = qobject_cast<pqDataRepresentation*>(r);
@@ -175,9 +192,18 @@ void pqInrRefinementBehavior::refine()
       if (stillRefining(proxy))
       {
         again = true;
+        settling = settling ||
+          (askRenderServer(proxy, "GetInrLastRenderInteractive", 0) != 0 &&
+            this->SinceRender.isValid() && this->SinceRender.elapsed() < kInteractionSettleMs);
       }
     }
-    if (again)
+    if (again && settling)
+    {
+      this->Pending.push_back(view);
+      this->Timer.start(
+        std::max(1, kInteractionSettleMs - static_cast<int>(this->SinceRender.elapsed())));
+    }
+    else if (again)
     {
       // A direct render from this (idle-time) timer callback: pqView::render()'s own deferred
       // timer is held back while test playback pauses, and we are already outside any render.

@@ -9,7 +9,9 @@
  * after a short pause (event loop first, so the UI never freezes). Any change re-renders through
  * ParaView as usual; the mapper restarts accumulation and this loop picks it up again. The loop
  * stops by itself at convergence or at the representation's Maximum Frames, and never starts for a
- * representation whose Progressive Refinement is off (one frame per render).
+ * representation whose Progressive Refinement is off (one frame per render). After an interactive
+ * (reduced-resolution) frame it waits until no render came for a short while, so a camera or
+ * time-slider drag keeps getting fast frames.
  *
  * It also colours a freshly shown INR Volume representation by its "value" array and rescales
  * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour
@@ -19,6 +21,7 @@
 #ifndef pqInrRefinementBehavior_h
 #define pqInrRefinementBehavior_h
 
+#include <QElapsedTimer>
 #include <QObject>
 #include <QPointer>
 #include <QSet>
@@ -44,6 +47,7 @@ private Q_SLOTS:
 
 private:
   QTimer Timer;
+  QElapsedTimer SinceRender;  // since the last render of a view (interaction settling)
   QList<QPointer<pqView>> Pending;
   QSet<void*> AutoColored;
 };

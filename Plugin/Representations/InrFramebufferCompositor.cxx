@@ -38,8 +38,8 @@ bool InrFramebufferCompositor::NeedsUpload(
     imageChanged;
 }
 
-void InrFramebufferCompositor::Upload(
-  vtkOpenGLRenderWindow* window, int width, int height, int frames, const float* rgba)
+void InrFramebufferCompositor::Upload(vtkOpenGLRenderWindow* window, int width, int height,
+  int frames, const float* rgba, bool linear)
 {
   if (!this->Texture)
   {
@@ -61,12 +61,14 @@ void InrFramebufferCompositor::Upload(
   {
     this->Texture->Create2DFromRaw(
       width, height, 4, VTK_FLOAT, const_cast<void*>(static_cast<const void*>(rgba)));
-    this->Texture->SetMinificationFilter(vtkTextureObject::Nearest);
-    this->Texture->SetMagnificationFilter(vtkTextureObject::Nearest);
     this->Width = width;
     this->Height = height;
     this->TextureValid = true;
   }
+  // Applied when the texture is next bound (vtkTextureObject sends modified parameters then).
+  const int filter = linear ? vtkTextureObject::Linear : vtkTextureObject::Nearest;
+  this->Texture->SetMinificationFilter(filter);
+  this->Texture->SetMagnificationFilter(filter);
   this->UploadedFrames = frames;
 }
 

@@ -40,7 +40,10 @@ public:
   bool NeedsUpload(vtkOpenGLRenderWindow* window, int width, int height, int frames,
     bool imageChanged) const;
   /// Loads width * height premultiplied RGBA floats (row 0 at the top) holding `frames` frames.
-  void Upload(vtkOpenGLRenderWindow* window, int width, int height, int frames, const float* rgba);
+  /// `linear`: the image is smaller than the viewport (a level-of-detail frame) and is magnified
+  /// with linear filtering; otherwise each pixel maps to one texel (nearest).
+  void Upload(vtkOpenGLRenderWindow* window, int width, int height, int frames, const float* rgba,
+    bool linear = false);
   /// Draws the texture over the framebuffer. False (with `error` set) when the shader cannot be
   /// built or nothing was uploaded.
   bool Blend(vtkOpenGLRenderWindow* window, std::string* error = nullptr);

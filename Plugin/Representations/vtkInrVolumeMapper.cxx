@@ -1,8 +1,12 @@
 #include "vtkInrVolumeMapper.h"
 
 #include "vtkActor.h"
+#include "vtkActor2D.h"
+#include "vtkCallbackCommand.h"
 #include "vtkDataSet.h"
 #include "vtkDualDepthPeelingPass.h"
+#include "vtkMath.h"
+#include "vtkWeakPointer.h"
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
 #include "vtkInformationObjectBaseVectorKey.h"
@@ -13,6 +17,7 @@
 #include "vtkRenderer.h"
 #include "vtkUnsignedCharArray.h"
 #include "vtkVolume.h"
+#include "vtk_glew.h"
 
 #include "InrFramebufferCompositor.h"
 #include "InrSceneTranslator.h"
@@ -26,7 +31,10 @@
 #include "Render/SceneInputs.h"
 #include "Render/WavefrontRenderer.h"
 
+#include <algorithm>
 #include <array>
+#include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -77,6 +85,75 @@ bool insideDepthPeeling(vtkVolume* vol)
 bool debugReport()
 {
   return std::getenv("INR_VOLUME_DEBUG") != nullptr;
+}
+
+// Whether the renderer draws anything that can write depth before its volumes: a visible prop
+// with data (ParaView keeps empty actors visible, e.g. the selection's) that is neither a volume
+// nor a 2D overlay (those are drawn after the volumes).
+bool geometryDrawnBeforeVolumes(vtkRenderer* ren)
+{
+  vtkPropCollection* props = ren->GetViewProps();
+  vtkCollectionSimpleIterator it;
+  props->InitTraversal(it);
+  while (vtkProp* prop = props->GetNextProp(it))
+  {
+    if (!prop->GetVisibility() || vtkVolume::SafeDownCast(prop) || vtkActor2D::SafeDownCast(prop))
+    {
+      continue;
+    }
+    const double* bounds = prop->GetBounds();
+    if (!bounds || vtkMath::AreBoundsInitialized(bounds))
+    {
+      return true;  // no bounds (e.g. a widget): assume it draws
+    }
+  }
+  return false;
+}
+
+bool lodReport()
+{
+  const char* v = std::getenv("INR_VOLUME_LOD_LOG");
+  return v && v[0] && std::string(v) != "0";
+}
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0)
+{
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// Level of detail: the linear scale of the reduced image is a multiple of 1/kScaleSteps (so small
+// cost fluctuations do not change the resolution, which would restart the accumulation and lose
+// the reprojected history during a drag), never below kMinScale (bounded blur).
+constexpr int kScaleSteps = 16;
+constexpr double kMinScale = 1.0 / kScaleSteps;
+// Re-choose the scale only when the measured render time leaves this band around the budget, and
+// grow it by at most this factor at a time.
+constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.0;
+constexpr double kMaxGrowth = 1.25;
+// Aim below the budget: per-frame cost varies with the view (coverage, collisions).
+constexpr double kBudgetMargin = 0.8;
+
+// The depth limits (engine row order) of a width x height image, sampled at the centres of the
+// pixels of a w x h image covering the same view.
+std::vector<float> resampleDepthLimit(
+  const std::vector<float>& full, int width, int height, int w, int h)
+{
+  if (full.empty())
+  {
+    return {};
+  }
+  std::vector<float> out(std::size_t(w) * std::size_t(h));
+  for (int j = 0; j < h; ++j)
+  {
+    const int sj = std::min(height - 1, int((j + 0.5) * height / h));
+    for (int i = 0; i < w; ++i)
+    {
+      const int si = std::min(width - 1, int((i + 0.5) * width / w));
+      out[std::size_t(j) * w + i] = full[std::size_t(sj) * width + si];
+    }
+  }
+  return out;
 }
 
 bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryReductionSettings& b)
@@ -152,6 +229,30 @@ struct vtkInrVolumeMapper::Internals
   inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
 
+  // Level of detail: the current scale, the measured cost of recent frames (exponential moving
+  // averages; 0 = not measured yet), what the last render did.
+  double lodScale = 1.0;
+  double msPerPixelFrame = 0.0;  // engine time per pixel per frame, without macrocell updates
+  double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
+  double interactiveMs = 0.0;    // render time of interactive frames at lodScale
+  double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
+  // The budget is for the whole window render: what the window spends outside this mapper
+  // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
+  double outsideMs = 0.0;
+  vtkWeakPointer<vtkRenderWindow> observedWindow;
+  vtkNew<vtkCallbackCommand> windowObserver;
+  Clock::time_point windowStart;
+  bool renderedInWindow = false;
+  void ObserveWindow(vtkRenderWindow* window);
+  void StopObserving();
+  static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
+  bool lastInteractive = false;
+  bool haveLastTime = false;
+  double lastTime = 0.0;
+  int imageWidth = 0, imageHeight = 0;
+  double lastRenderMs = 0.0;
+  int interactiveFrames = 0;
+
   // For the INR_VOLUME_DEBUG report of what changed.
   bool haveLastScene = false;
   inr::RenderScene lastScene;
@@ -170,7 +271,12 @@ struct vtkInrVolumeMapper::Internals
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
   void PushQueryReduction(vtkInrVolumeMapper* self);
-  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height);
+  bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
+    double* budgetMs) const;
+  double ChooseScale(double budgetMs, int width, int height);
+  void MeasureFrame(double renderMs, double refineMs, int width, int height, bool interactive);
+  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
+    bool interactive = false);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
@@ -183,6 +289,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
+  this->Internal->StopObserving();
   delete this->Internal;
 }
 
@@ -209,7 +316,31 @@ int vtkInrVolumeMapper::GetAccumulatedFrames()
 int vtkInrVolumeMapper::GetConverged()
 {
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
-  return !this->ProgressiveRefinement || this->Internal->refinement.converged() ? 1 : 0;
+  // A reduced interactive image is never the final one: a still render must follow.
+  return !this->ProgressiveRefinement ||
+      (!this->Internal->lastInteractive && this->Internal->refinement.converged())
+    ? 1
+    : 0;
+}
+
+int vtkInrVolumeMapper::GetLastRenderInteractive()
+{
+  return this->Internal->lastInteractive ? 1 : 0;
+}
+
+int vtkInrVolumeMapper::GetLastImageWidth()
+{
+  return this->Internal->imageWidth;
+}
+
+int vtkInrVolumeMapper::GetLastImageHeight()
+{
+  return this->Internal->imageHeight;
+}
+
+double vtkInrVolumeMapper::GetLastRenderMilliseconds()
+{
+  return this->Internal->lastRenderMs;
 }
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
@@ -380,12 +511,207 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
   }
   I.WarnAboutScene(this, ren, vol, tile.width, tile.height);
-  const inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
-  if (!I.Refine(this, scene, tile.width, tile.height))
+  const auto renderStart = Clock::now();
+  I.ObserveWindow(ren->GetRenderWindow());
+  inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
+  // Level of detail: an interactive render draws one frame of a reduced image, upscaled. Tiles of
+  // a larger picture are captures (still renders) and always render at full resolution.
+  double budgetMs = 0.0;
+  bool interactive = I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs);
+  int width = tile.width, height = tile.height;
+  if (interactive)
+  {
+    if (!I.lastInteractive)
+    {
+      I.lodCeiling = 2.0;  // a new interaction: the view may have become cheaper or dearer
+    }
+    const double s = I.ChooseScale(budgetMs, tile.width, tile.height);
+    width = std::max(1, int(std::lround(tile.width * s)));
+    height = std::max(1, int(std::lround(tile.height * s)));
+    if (width != tile.width || height != tile.height)
+    {
+      scene.depthLimit =
+        resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
+    }
+    else
+    {
+      interactive = false;  // full resolution fits the budget: an ordinary (still) render
+    }
+  }
+  I.haveLastTime = true;
+  I.lastTime = scene.time;
+  const auto refineStart = Clock::now();
+  if (!I.Refine(this, scene, width, height, interactive))
   {
     return;
   }
-  I.Composite(this, ren, tile.width, tile.height);
+  const double refineMs = msSince(refineStart);
+  const auto compositeStart = Clock::now();
+  I.Composite(this, ren, width, height);
+  if (interactive)
+  {
+    // The image must be drawn before the time is read (the GL pipeline is asynchronous).
+    glFinish();
+  }
+  const double compositeMs = msSince(compositeStart);
+  I.lastRenderMs = msSince(renderStart);
+  I.lastInteractive = interactive;
+  I.renderedInWindow = true;
+  I.imageWidth = width;
+  I.imageHeight = height;
+  I.MeasureFrame(I.lastRenderMs, refineMs, width, height, interactive);
+  if (lodReport())
+  {
+    std::fprintf(stderr,
+      "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
+      "update %.1f ms; scene %.1f ms, engine %.1f ms, composite %.1f ms), frames %d\n",
+      interactive ? "interactive" : "still", width, height, tile.width, tile.height,
+      double(width) / tile.width, I.lastRenderMs, budgetMs, I.lastStep.total.updateMs,
+      std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
+      compositeMs, I.session->accumulatedFrames());
+  }
+}
+
+void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
+{
+  if (window == this->observedWindow)
+  {
+    return;
+  }
+  this->StopObserving();
+  this->windowObserver->SetCallback(&Internals::OnWindowEvent);
+  this->windowObserver->SetClientData(this);
+  window->AddObserver(vtkCommand::StartEvent, this->windowObserver);
+  window->AddObserver(vtkCommand::EndEvent, this->windowObserver);
+  this->observedWindow = window;
+  this->windowStart = Clock::now();
+  this->renderedInWindow = false;
+}
+
+void vtkInrVolumeMapper::Internals::StopObserving()
+{
+  if (this->observedWindow)
+  {
+    this->observedWindow->RemoveObserver(this->windowObserver);
+  }
+  this->observedWindow = nullptr;
+}
+
+void vtkInrVolumeMapper::Internals::OnWindowEvent(
+  vtkObject*, unsigned long event, void* clientData, void*)
+{
+  auto* self = static_cast<Internals*>(clientData);
+  if (event == vtkCommand::StartEvent)
+  {
+    self->windowStart = Clock::now();
+    self->renderedInWindow = false;
+  }
+  else if (event == vtkCommand::EndEvent && self->renderedInWindow)
+  {
+    const double outside = std::max(0.0, msSince(self->windowStart) - self->lastRenderMs);
+    self->outsideMs = self->outsideMs > 0.0 ? 0.5 * (self->outsideMs + outside) : outside;
+    self->renderedInWindow = false;
+  }
+}
+
+// Whether this render is interactive (see InteractiveLevelOfDetail) and its budget in ms.
+bool vtkInrVolumeMapper::Internals::InteractiveRender(
+  vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene, double* budgetMs) const
+{
+  *budgetMs = self->InteractiveFrameTime;
+  if (self->InteractiveLevelOfDetail == LOD_OFF)
+  {
+    return false;
+  }
+  const double rate = ren->GetRenderWindow() ? ren->GetRenderWindow()->GetDesiredUpdateRate() : 0;
+  if (rate >= self->InteractiveUpdateRate)
+  {
+    *budgetMs = std::min(*budgetMs, 1000.0 / rate);
+    return true;
+  }
+  return self->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME &&
+    self->FramesPerRender == 1 && this->haveLastTime && scene.time != this->lastTime;
+}
+
+// The linear scale of an interactive image. A stable resolution lets reprojection reuse the
+// accumulation during a drag, so the scale is kept while the measured render time at it stays in
+// a band around the budget; outside it the scale is re-chosen from that measurement (the engine
+// part scales with the pixel count), growing by at most kMaxGrowth per change because small
+// images cost more per pixel (each wavefront iteration has a fixed cost). Before any interactive
+// measurement: from the per-pixel cost of the frames rendered so far. Full resolution when the
+// budget allows it.
+double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, int height)
+{
+  const double pixels = double(width) * double(height);
+  const double overhead = this->overheadMs + this->outsideMs;
+  const double target = std::max(kBudgetMargin * budgetMs - overhead, 0.1 * budgetMs);
+  // The measured time of an interactive frame, the window's work around the mapper included.
+  const double measured = this->interactiveMs > 0.0 ? this->interactiveMs + this->outsideMs : 0.0;
+  double s = this->lodScale;
+  if (measured > 0.0)
+  {
+    if (measured >= kKeepScaleAbove * budgetMs && measured <= kKeepScaleBelow * budgetMs)
+    {
+      return this->lodScale;
+    }
+    const double engine = std::max(measured - overhead, 1e-3);
+    s = std::min(this->lodScale * std::sqrt(target / engine), this->lodScale * kMaxGrowth);
+    if (measured > kKeepScaleBelow * budgetMs)
+    {
+      this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
+    }
+  }
+  else if (this->msPerPixelFrame > 0.0)
+  {
+    s = std::sqrt(target / (this->msPerPixelFrame * pixels));
+  }
+  else
+  {
+    s = 0.25;  // nothing measured yet: a cautious first guess
+  }
+  s = std::clamp(std::floor(s * kScaleSteps) / kScaleSteps, kMinScale, 1.0);
+  if (s == this->lodScale && measured > 0.0)
+  {
+    // Out of the band but rounded back to the same scale: one step in the needed direction.
+    s = std::clamp(s + (measured > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
+  }
+  if (s >= this->lodCeiling)
+  {
+    s = this->lodScale;  // never back up to a scale this interaction found too slow: no oscillation
+  }
+  if (s != this->lodScale)
+  {
+    this->lodScale = s;
+    this->interactiveMs = 0.0;  // not measured at the new scale yet
+  }
+  return s;
+}
+
+// Updates the cost model from a render (exponential moving averages; macrocell/majorant update
+// time is left out: it depends on the time change, not on the resolution): the engine's time per
+// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the render time
+// of interactive frames at the current scale.
+void vtkInrVolumeMapper::Internals::MeasureFrame(
+  double renderMs, double refineMs, int width, int height, bool interactive)
+{
+  const int frames = this->lastStep.framesRendered;
+  if (frames <= 0)
+  {
+    return;
+  }
+  const double updateMs = this->lastStep.total.updateMs;
+  const double perPixel =
+    std::max(0.0, refineMs - updateMs) / (double(frames) * double(width) * double(height));
+  const double overhead = std::max(0.0, renderMs - refineMs);
+  const double render = std::max(0.0, renderMs - updateMs);
+  constexpr double kWeight = 0.5;  // recent frames dominate (the view changes during a drag)
+  auto ema = [](double old, double now) { return old > 0.0 ? (1.0 - kWeight) * old + kWeight * now : now; };
+  this->msPerPixelFrame = ema(this->msPerPixelFrame, perPixel);
+  this->overheadMs = ema(this->overheadMs, overhead);
+  if (interactive)
+  {
+    this->interactiveMs = ema(this->interactiveMs, render);
+  }
 }
 
 // The model: loaded again only when its bytes changed (array, modification time, then hash).
@@ -554,10 +880,15 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   inr::RenderScene scene;
   scene.camera = InrSceneTranslator::TranslateCamera(cam, width, height);
   scene.camera.modelToWorld = InrSceneTranslator::ModelToWorld(vol);
-  // Depth limit: world distance to the opaque geometry rendered before the volume.
-  InrFramebufferCompositor::ReadDepth(
-    ren->GetRenderWindow(), tile.x0, tile.y0, width, height, this->depth);
-  scene.depthLimit = InrSceneTranslator::DepthToRayDistances(this->depth, width, height, cam);
+  // Depth limit: world distance to the opaque geometry rendered before the volume. Without any
+  // such geometry the depth buffer holds only the clear value (no limit): skip the read, which
+  // costs tens of ms per render on a software OpenGL.
+  if (geometryDrawnBeforeVolumes(ren))
+  {
+    InrFramebufferCompositor::ReadDepth(
+      ren->GetRenderWindow(), tile.x0, tile.y0, width, height, this->depth);
+    scene.depthLimit = InrSceneTranslator::DepthToRayDistances(this->depth, width, height, cam);
+  }
   double valueRange[2];
   InrSceneTranslator::ValueRange(input->GetFieldData(), valueRange);
   scene.transferFunction = this->translator.UpdateTransferFunction(
@@ -640,8 +971,8 @@ void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self)
 
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
-bool vtkInrVolumeMapper::Internals::Refine(
-  vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height)
+bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
+  const inr::RenderScene& scene, int width, int height, bool interactive)
 {
   try
   {
@@ -674,8 +1005,9 @@ bool vtkInrVolumeMapper::Internals::Refine(
     inr::RefinementOptions options;
     options.maximumFrames = self->MaximumFrames;
     options.convergenceTarget = self->ConvergenceTarget;
-    options.framesPerRender = self->ProgressiveRefinement ? self->FramesPerRender : 1;
-    if (this->window.fullWidth > 0 && self->ProgressiveRefinement)
+    options.framesPerRender =
+      interactive ? 1 : self->ProgressiveRefinement ? self->FramesPerRender : 1;
+    if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {
       // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
       // image's quality (convergence target or frame limit) in this one render.
@@ -722,7 +1054,11 @@ void vtkInrVolumeMapper::Internals::Composite(
         this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch))
   {
     const inr::ImageRGBA image = this->session->premultipliedImage();
-    this->compositor.Upload(window, width, height, frames, image.data.data());
+    // A reduced (interactive) image is stretched over the viewport: filter it linearly.
+    int viewport[2] = { width, height };
+    ren->GetTiledSize(&viewport[0], &viewport[1]);
+    const bool upscaled = viewport[0] != width || viewport[1] != height;
+    this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     this->uploadedEpoch = epoch;
   }
   std::string error;
@@ -745,6 +1081,9 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
   os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
+  os << indent << "InteractiveLevelOfDetail: " << this->InteractiveLevelOfDetail << "\n";
+  os << indent << "InteractiveFrameTime: " << this->InteractiveFrameTime << " ms\n";
+  os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";
 }

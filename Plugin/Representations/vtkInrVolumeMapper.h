@@ -18,6 +18,8 @@
  *  - accumulates frames with the engine's inr::RefinementDriver (at least one new frame while not
  *    converged, and up to FramesPerRender in total, never beyond MaximumFrames or past the
  *    convergence target);
+ *  - during interactive renders renders one frame of a reduced image instead (level of detail,
+ *    InteractiveLevelOfDetail below), drawn upscaled with linear filtering;
  *  - draws the accumulated premultiplied image over the framebuffer (InrFramebufferCompositor:
  *    blend ONE, ONE_MINUS_SRC_ALPHA; the texture is loaded only when the image changed).
  * Progressive refinement is driven from outside: call Render() again while !GetConverged()
@@ -181,6 +183,50 @@ public:
   vtkGetMacro(UseDefaultTransferFunction, int);
   ///@}
 
+  ///@{
+  /// Level of detail while interacting, so the view stays responsive when one frame at full
+  /// resolution takes long (the CPU fallback at ~1280x768: about a second). An interactive render
+  /// draws one frame at a reduced resolution, chosen from the measured time of recent frames so
+  /// that the window's render (the volume and what the window does around it: the mapper observes
+  /// the window's StartEvent/EndEvent) takes about InteractiveFrameTime ms, upscaled with linear
+  /// filtering; the resolution is kept while the frames stay within the budget (a stable
+  /// resolution lets reprojection keep accumulating during a drag). The next still render is at
+  /// full resolution and refines exactly as without LOD (same seed, same frames: the same
+  /// image). When the full resolution already fits the budget (small views, the GPU) interactive
+  /// renders are at full resolution.
+  ///  - InteractiveLevelOfDetail: LOD_OFF (every render at full resolution); LOD_INTERACTION:
+  ///    renders whose render window asks for at least InteractiveUpdateRate frames per second
+  ///    (ParaView's interactive renders during a camera drag: 5; VTK interactors: 15);
+  ///    LOD_INTERACTION_AND_TIME (default): also a render whose time differs from the previous
+  ///    render's while FramesPerRender is 1 (ParaView's time-slider drags and animation playback
+  ///    are still renders; a script asking for N frames per render always gets full resolution).
+  ///  - InteractiveFrameTime (ms, default 100): the budget; the render window's desired frame
+  ///    time (1000 / DesiredUpdateRate) when that is smaller. It trades resolution for speed.
+  ///  - InteractiveUpdateRate (frames per second, default 1, as vtkSmartVolumeMapper's).
+  /// Environment INR_VOLUME_LOD_LOG=1 prints one line per render (interactive or still,
+  /// resolution, milliseconds).
+  enum
+  {
+    LOD_OFF = 0,
+    LOD_INTERACTION = 1,
+    LOD_INTERACTION_AND_TIME = 2
+  };
+  vtkSetClampMacro(InteractiveLevelOfDetail, int, 0, 2);
+  vtkGetMacro(InteractiveLevelOfDetail, int);
+  vtkSetClampMacro(InteractiveFrameTime, double, 1.0, 60000.0);
+  vtkGetMacro(InteractiveFrameTime, double);
+  vtkSetClampMacro(InteractiveUpdateRate, double, 1e-6, 1e6);
+  vtkGetMacro(InteractiveUpdateRate, double);
+  /// 1 when the last Render drew an interactive (level-of-detail) frame; GetConverged() is 0
+  /// then, so a refinement loop renders again at full resolution.
+  int GetLastRenderInteractive();
+  /// Size of the image the engine rendered in the last Render (the view's size unless reduced).
+  int GetLastImageWidth();
+  int GetLastImageHeight();
+  /// Wall time of the last Render (ms), and of its macrocell/majorant update part.
+  double GetLastRenderMilliseconds();
+  ///@}
+
   /// Forget the accumulated frames (the next Render starts a new estimate).
   void ResetAccumulation();
 
@@ -231,6 +277,9 @@ private:
   int ProgressiveRefinement = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;
+  int InteractiveLevelOfDetail = LOD_INTERACTION_AND_TIME;
+  double InteractiveFrameTime = 100.0;
+  double InteractiveUpdateRate = 1.0;
 
   struct Internals;
   Internals* Internal;

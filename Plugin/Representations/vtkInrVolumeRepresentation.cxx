@@ -86,6 +86,8 @@ INR_FORWARD(BudgetAlpha, double)
 INR_FORWARD(Reproject, int)
 INR_FORWARD(PruneEpsilon, double)
 INR_FORWARD(PruneFalloff, double)
+INR_FORWARD(InteractiveLevelOfDetail, int)
+INR_FORWARD(InteractiveFrameTime, double)
 #undef INR_FORWARD
 
 void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)
@@ -112,6 +114,31 @@ double vtkInrVolumeRepresentation::GetInrConvergenceEstimate()
 const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
 {
   return this->GetInrMapper()->GetBackendInUse();
+}
+
+int vtkInrVolumeRepresentation::GetInrLastRenderInteractive()
+{
+  return this->GetInrMapper()->GetLastRenderInteractive();
+}
+
+int vtkInrVolumeRepresentation::GetInrLastImageWidth()
+{
+  return this->GetInrMapper()->GetLastImageWidth();
+}
+
+int vtkInrVolumeRepresentation::GetInrLastImageHeight()
+{
+  return this->GetInrMapper()->GetLastImageHeight();
+}
+
+double vtkInrVolumeRepresentation::GetInrLastRenderMilliseconds()
+{
+  return this->GetInrMapper()->GetLastRenderMilliseconds();
+}
+
+double vtkInrVolumeRepresentation::GetInrLastUpdateMilliseconds()
+{
+  return this->GetInrMapper()->GetLastUpdateMilliseconds();
 }
 
 const char* vtkInrVolumeRepresentation::GetInrQueryReductionInUse()

@@ -72,6 +72,22 @@ public:
   const char* GetInrMacrocellsInUse();
   ///@}
 
+  ///@{
+  /// Level of detail while interacting, forwarded to vtkInrVolumeMapper (XML:
+  /// InrInteractiveLevelOfDetail, InrInteractiveFrameTime). GetInrLastRenderInteractive: 1 when
+  /// the last render drew a reduced interactive frame (the GUI's refinement loop waits for the
+  /// interaction to settle before refining).
+  void SetInrInteractiveLevelOfDetail(int);
+  void SetInrInteractiveFrameTime(double);
+  int GetInrLastRenderInteractive();
+  /// The last render's image size (reduced during interaction), its wall time and its macrocell /
+  /// majorant update time (ms).
+  int GetInrLastImageWidth();
+  int GetInrLastImageHeight();
+  double GetInrLastRenderMilliseconds();
+  double GetInrLastUpdateMilliseconds();
+  ///@}
+
   vtkInrVolumeMapper* GetInrMapper();
 
   /// Before each render while visible: VTK would render volumes inside dual depth peeling when

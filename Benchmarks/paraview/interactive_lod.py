@@ -1,0 +1,210 @@
+"""Interactive frame times of the INR Volume representation in ParaView, level of detail on/off.
+
+    pvpython Benchmarks/paraview/interactive_lod.py --plugin BUILD/lib/paraview-plugins/InrVolume/InrVolume.so
+        [--models A.inr B.inr ...] [--size 1280 768] [--backend cpu] [--orbit-steps 24]
+        [--scrub-steps 16] [--converge-seconds 120] [--frame-time 100] [--csv lod.csv]
+
+Per model (default: the shipped paper-size models in Testing/Data/real, each with its suggested
+MODEL.tf.json colour map), in one render view of --size (needs X; run under Xvfb):
+  1. a still render at the first time (engine + first macrocell slices built; not timed);
+  2. time scrub, first visits: the view time steps through --scrub-steps times over the range,
+     one still render each (ParaView renders time changes as still renders; with level of detail
+     the mapper draws them as interactive frames); macrocell slices are built as they are first
+     needed, so these are "first visit" figures;
+  3. for level of detail on and off: a camera orbit of --orbit-steps interactive renders
+     (vtkSMViewProxy::InteractiveRender, the path of a mouse drag; 5 degrees azimuth each) and a
+     time scrub over the now built slices;
+  4. with level of detail on: still renders after the orbit until the image converges (the
+     representation's convergence target) or --converge-seconds pass: the still image's time to
+     converge (the still path is the same with level of detail off).
+Frame times are the wall time of the view's render call seen from Python (the whole render:
+pipeline update, geometry, volume, compositing), plus the mapper's own time and image size.
+Prints a table (median, p90, max per model/phase/mode) and writes every frame to --csv.
+"""
+import argparse
+import csv
+import json
+import os
+import statistics
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DATA = os.path.normpath(os.path.join(HERE, "..", "..", "Testing", "Data", "real"))
+PAPER_MODELS = ["siren_cylinder_vorticity.inr", "ffn_mri_head.inr", "coordnet_cylinder_u.inr"]
+
+ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+ap.add_argument("--plugin", default="", help="InrVolume.so (unless PV_PLUGIN_PATH autoloads it)")
+ap.add_argument("--models", nargs="*", default=[os.path.join(DATA, m) for m in PAPER_MODELS])
+ap.add_argument("--size", type=int, nargs=2, default=[1280, 768])
+ap.add_argument("--backend", choices=["auto", "cpu", "cuda"], default="cpu")
+ap.add_argument("--orbit-steps", type=int, default=24)
+ap.add_argument("--scrub-steps", type=int, default=16)
+ap.add_argument("--converge-seconds", type=float, default=120.0)
+ap.add_argument("--frame-time", type=float, default=100.0, help="InrInteractiveFrameTime (ms)")
+ap.add_argument("--csv", default="interactive_lod.csv")
+args = ap.parse_args()
+
+from paraview import simple  # noqa: E402
+
+if args.plugin:
+    simple.LoadPlugin(args.plugin, remote=False, ns=globals())
+
+BACKENDS = {"auto": 0, "cpu": 1, "cuda": 2}
+
+
+def percentile(values, q):
+    s = sorted(values)
+    if not s:
+        return float("nan")
+    k = min(len(s) - 1, max(0, int(round(q * (len(s) - 1)))))
+    return s[k]
+
+
+def apply_tf(display, tf_path):
+    lut = simple.GetColorTransferFunction("value")
+    pwf = simple.GetOpacityTransferFunction("value")
+    lut.AutomaticRescaleRangeMode = "Never"
+    with open(tf_path) as f:
+        preset = json.load(f)
+    preset = preset[0] if isinstance(preset, list) else preset
+    lut.RGBPoints = preset["RGBPoints"]
+    if "ColorSpace" in preset:
+        lut.ColorSpace = preset["ColorSpace"]
+    if "Points" in preset:
+        pwf.Points = preset["Points"]
+
+
+rows = []
+
+
+class RepresentationState:
+    """Information properties of the INR Volume representation, pulled after a render."""
+
+    def __init__(self, display):
+        # The "INR Volume" sub-proxy (the display proxy exposes only the panel's properties).
+        self.proxy = display.SMProxy.GetProperty("InrConverged").GetParent()
+
+    def get(self, name):
+        prop = self.proxy.GetProperty(name)
+        self.proxy.UpdatePropertyInformation(prop)
+        return prop.GetElement(0)
+
+
+def timed(model, phase, lod, step, render, state):
+    t0 = time.perf_counter()
+    render()
+    ms = 1000.0 * (time.perf_counter() - t0)
+    w, h = state.get("InrLastImageWidth"), state.get("InrLastImageHeight")
+    row = dict(model=model, phase=phase, lod=lod, step=step, view_ms=round(ms, 2),
+               mapper_ms=round(state.get("InrLastRenderTime"), 2),
+               update_ms=round(state.get("InrLastUpdateTime"), 2), width=w, height=h,
+               interactive=state.get("InrLastRenderInteractive"),
+               frames=state.get("InrAccumulatedFrames"))
+    rows.append(row)
+    return row
+
+
+view = simple.GetActiveViewOrCreate("RenderView")
+view.ViewSize = args.size
+view.OrientationAxesVisibility = 0
+for model_path in args.models:
+    name = os.path.splitext(os.path.basename(model_path))[0]
+    reader = simple.OpenDataFile(model_path)
+    if reader is None or reader.GetXMLName() != "InrVolumeReader":
+        sys.exit(f"{model_path}: not opened by the INR Volume reader (is the plugin loaded?)")
+    reader.UpdatePipelineInformation()
+    trange = list(reader.GetProperty("TimeRange"))
+    t0, t1 = trange if len(trange) == 2 else (0.0, 0.0)
+    display = simple.Show(reader, view)
+    display.SetRepresentationType("INR Volume")
+    simple.ColorBy(display, ("POINTS", "value"))
+    tf_path = os.path.splitext(model_path)[0] + ".tf.json"
+    if os.path.exists(tf_path):
+        apply_tf(display, tf_path)
+    display.SetScalarBarVisibility(view, False)
+    display.InrBackend = BACKENDS[args.backend]
+    display.InrFramesPerRender = 1
+    display.InrInteractiveFrameTime = args.frame_time
+    bounds = reader.GetDataInformation().GetBounds()
+    display.ScalarOpacityUnitDistance = 0.05 * max(bounds[1] - bounds[0], bounds[3] - bounds[2],
+                                                   bounds[5] - bounds[4])
+    simple.ResetCamera(view)
+    view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
+    view.CameraViewUp = [0.0, 1.0, 0.0]
+    simple.ResetCamera(view)
+    proxy = view.SMProxy
+    mapper = RepresentationState(display)
+    times = [t0 + (t1 - t0) * i / max(1, args.scrub_steps - 1) for i in range(args.scrub_steps)]
+
+    def set_time(t):
+        view.ViewTime = t
+
+    display.InrInteractiveLevelOfDetail = 2
+    set_time(times[0])
+    warm = timed(name, "warmup", "on", 0, proxy.StillRender, mapper)
+    print(f"{name}: first still render {warm['view_ms']:.0f} ms ({mapper.get('InrBackendInUse')})", flush=True)
+    for i, t in enumerate(times[1:], 1):
+        set_time(t)
+        timed(name, "scrub-first-visit", "on", i, proxy.StillRender, mapper)
+    set_time(times[0])
+    timed(name, "settle", "on", 0, proxy.StillRender, mapper)
+    for lod, mode in (("on", 2), ("off", 0)):
+        display.InrInteractiveLevelOfDetail = mode
+        proxy.StillRender()
+        camera = view.GetActiveCamera()
+        for i in range(args.orbit_steps):
+            camera.Azimuth(5.0)
+            timed(name, "orbit", lod, i, proxy.InteractiveRender, mapper)
+        for i, t in enumerate(times[1:], 1):
+            set_time(t)
+            timed(name, "scrub-built", lod, i, proxy.StillRender, mapper)
+        set_time(times[0])
+        proxy.StillRender()
+    # The still image after an orbit step: time to converge (same with LOD on or off).
+    display.InrInteractiveLevelOfDetail = 2
+    view.GetActiveCamera().Azimuth(5.0)
+    proxy.InteractiveRender()
+    start = time.perf_counter()
+    step = 0
+    while True:
+        row = timed(name, "still-refine", "on", step, proxy.StillRender, mapper)
+        step += 1
+        elapsed = time.perf_counter() - start
+        converged = mapper.get("InrConverged")
+        if converged or elapsed > args.converge_seconds:
+            break
+    print(f"{name}: still image {'converged' if converged else 'NOT converged'} after "
+          f"{elapsed:.1f} s, {row['frames']} frames, estimate {mapper.get('InrConvergenceEstimate'):.1f} dB",
+          flush=True)
+    rows.append(dict(model=name, phase="converge", lod="on", step=step, view_ms=round(1000 * elapsed, 1),
+                     mapper_ms="", update_ms="", width=row["width"], height=row["height"],
+                     interactive=0, frames=row["frames"]))
+    simple.Delete(display)
+    simple.Delete(reader)
+
+with open(args.csv, "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+    w.writeheader()
+    w.writerows(rows)
+
+print()
+print(f"INR Volume interactive frames, {args.size[0]}x{args.size[1]} view, backend {args.backend}, "
+      f"budget {args.frame_time:g} ms (view render wall time, ms)")
+header = f"{'model':28s} {'phase':18s} {'LOD':3s} {'n':>3s} {'median':>8s} {'p90':>8s} {'max':>8s} {'image (median)':>15s}"
+print(header)
+print("-" * len(header))
+groups = {}
+for r in rows:
+    if r["phase"] in ("orbit", "scrub-built", "scrub-first-visit"):
+        groups.setdefault((r["model"], r["phase"], r["lod"]), []).append(r)
+for (model, phase, lod), rs in groups.items():
+    v = [r["view_ms"] for r in rs]
+    sizes = sorted(rs, key=lambda r: r["width"])[len(rs) // 2]
+    print(f"{model:28s} {phase:18s} {lod:3s} {len(v):3d} {statistics.median(v):8.1f} "
+          f"{percentile(v, 0.9):8.1f} {max(v):8.1f} {sizes['width']:>7d}x{sizes['height']:<7d}")
+for r in rows:
+    if r["phase"] == "converge":
+        print(f"{r['model']:28s} still image to converge: {r['view_ms'] / 1000:.1f} s, {r['frames']} frames")
+print(f"CSV: {args.csv}")
+sys.stdout.flush()
