@@ -619,7 +619,7 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(
   vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene, double* budgetMs) const
 {
   *budgetMs = self->InteractiveFrameTime;
-  if (self->InteractiveLevelOfDetail == LOD_OFF)
+  if (self->InteractiveLevelOfDetail == LOD_OFF || self->Capturing)
   {
     return false;
   }

@@ -217,6 +217,11 @@ public:
   vtkGetMacro(InteractiveFrameTime, double);
   vtkSetClampMacro(InteractiveUpdateRate, double, 1e-6, 1e6);
   vtkGetMacro(InteractiveUpdateRate, double);
+  /// Capturing (set by the representation while ParaView captures a screenshot or an animation
+  /// frame): never a reduced frame then, whatever the time did, so a saved picture is the still
+  /// image at full resolution.
+  vtkSetMacro(Capturing, bool);
+  vtkGetMacro(Capturing, bool);
   /// 1 when the last Render drew an interactive (level-of-detail) frame; GetConverged() is 0
   /// then, so a refinement loop renders again at full resolution.
   int GetLastRenderInteractive();
@@ -280,6 +285,7 @@ private:
   int InteractiveLevelOfDetail = LOD_INTERACTION_AND_TIME;
   double InteractiveFrameTime = 100.0;
   double InteractiveUpdateRate = 1.0;
+  bool Capturing = false;
 
   struct Internals;
   Internals* Internal;

@@ -13,6 +13,21 @@
 
 vtkStandardNewMacro(vtkInrVolumeRepresentation);
 
+namespace
+{
+// vtkPVView::GetInCaptureScreenshot (true between PrepareForScreenshot and CleanupAfterScreenshot:
+// SaveScreenshot, SaveAnimation) is protected; a pointer to it formed in a derived class's scope
+// reads it on any view. The class is never instantiated.
+class CaptureProbe : public vtkPVView
+{
+public:
+  static bool InCapture(vtkPVView* view)
+  {
+    return view && (view->*(&CaptureProbe::GetInCaptureScreenshot))();
+  }
+};
+}
+
 vtkInrVolumeRepresentation::vtkInrVolumeRepresentation()
 {
   this->VolumeMapper = vtkSmartPointer<vtkInrVolumeMapper>::New();
@@ -158,6 +173,7 @@ int vtkInrVolumeRepresentation::ProcessViewRequest(
   {
     auto* view = vtkPVRenderView::SafeDownCast(inInfo->Get(vtkPVView::VIEW()));
     vtkRenderer* ren = view ? view->GetRenderer() : nullptr;
+    this->GetInrMapper()->SetCapturing(CaptureProbe::InCapture(view));
     if (!this->GetVisibility())
     {
       this->RestoreDepthPeelingForVolumes();

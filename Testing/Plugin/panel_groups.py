@@ -45,8 +45,13 @@ for label, names in groups:
     for n in names:
         check(n in properties, f"group {label!r}: {n} is a property of InrVolumeRepresentation")
         membership.setdefault(n, []).append(label)
-for n in properties:
+for n, e in properties.items():
     where = membership.get(n, [])
+    if e.get("panel_visibility") == "never":
+        # Hidden read-back values (e.g. the last render's size and time, for scripts and tests):
+        # never shown, so in no group.
+        check(not where, f"{n} (never shown) is in no group ({where})")
+        continue
     check(len(where) == 1, f"{n} is in exactly one group ({where})")
 
 for n, e in properties.items():
@@ -67,9 +72,10 @@ if len(sys.argv) > 2:
         if m and m.group(1) in properties or (m and m.group(3).strip() in GROUPS):
             check(m.group(1) not in rows, f"README: {m.group(1)} listed once")
             rows[m.group(1)] = (m.group(3).strip(), m.group(4).strip(), bool(m.group(2)))
-    check(set(rows) == set(properties),
-          f"README: the table lists every property (missing {sorted(set(properties) - set(rows))}, "
-          f"unknown {sorted(set(rows) - set(properties))})")
+    shown = {n for n, e in properties.items() if e.get("panel_visibility") != "never"}
+    check(set(rows) == shown,
+          f"README: the table lists every panel property (missing {sorted(shown - set(rows))}, "
+          f"unknown {sorted(set(rows) - shown)})")
     for n, (group, default, advanced) in rows.items():
         if n not in properties:
             continue
