@@ -11,6 +11,17 @@ BACKGROUND = [0.32, 0.34, 0.43]
 UNIT_DISTANCE = 0.1
 
 
+def argument_parser():
+    """The arguments of the scripted plugin tests: --model M.inr, --out DIR and --plugin
+    InrVolume.so (optional: already loaded through PV_PLUGIN_PATH); scripts add their own."""
+    import argparse
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--model", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--plugin", default="")
+    return ap
+
+
 class Checks:
     """A test's checks: check(ok, what) prints "ok:"/"FAIL:" lines; report() prints the RESULT line
     and returns the exit status (1 when any check failed)."""
@@ -69,6 +80,23 @@ def apply_colormap(display, view):
     pwf.Points = OPACITY_POINTS
     display.ScalarOpacityUnitDistance = UNIT_DISTANCE
     display.SetScalarBarVisibility(view, False)
+
+
+def show_inr(reader, view, seed, maximum_frames, frames_per_render, macrocells=None):
+    """Shows `reader` as INR Volume in `view` with the tests' colour map, a fixed seed, no
+    convergence stop (exactly `maximum_frames` at most) and `frames_per_render` frames per render;
+    `macrocells` per axis when given. Returns the display."""
+    from paraview import simple
+    display = simple.Show(reader, view)
+    display.Representation = "INR Volume"
+    apply_colormap(display, view)
+    display.InrSeed = seed
+    display.InrConvergenceTarget = 0.0
+    display.InrMaximumFrames = maximum_frames
+    display.InrFramesPerRender = frames_per_render
+    if macrocells is not None:
+        display.InrMacrocellResolution = macrocells
+    return display
 
 
 def info(display, name):

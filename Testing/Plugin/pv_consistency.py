@@ -2,17 +2,13 @@
 the same model resampled at 128^3 (the reader's preview grid), same colour map, opacity, unit
 distance and camera. Prints the PSNR and fails below the bound.
   pvpython pv_consistency.py --model M.inr --plugin InrVolume.so --out DIR"""
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--plugin", default="")
-ap.add_argument("--out", required=True)
+ap = C.argument_parser()
 ap.add_argument("--frames", type=int, default=256)
 ap.add_argument("--resolution", type=int, default=128)
 ap.add_argument("--min-psnr", type=float, default=38.0)  # measured 44.5 dB here

@@ -6,17 +6,13 @@ time change renders the full-size still image (captures are never reduced). Exit
 
   pvpython pv_lod_capture.py --model M.inr --out DIR [--plugin InrVolume.so]
 """
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
-ap.add_argument("--plugin", default="")
+ap = C.argument_parser()
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402

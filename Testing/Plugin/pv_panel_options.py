@@ -73,14 +73,7 @@ def expect_in_use(display, want, what):
 SIZE = [64, 48]
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(SIZE)
-display = simple.Show(reader, view)
-display.Representation = "INR Volume"
-C.apply_colormap(display, view)
-display.InrSeed = 3
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = 64
-display.InrFramesPerRender = 1
-display.InrMacrocellResolution = 8
+display = C.show_inr(reader, view, seed=3, maximum_frames=64, frames_per_render=1, macrocells=8)
 
 # --- The panel ParaView loaded: five groups in order, the new options in theirs.
 proxy = display.SMProxy

@@ -6,17 +6,13 @@ renders still work. Exit status 0 = pass.
 
   pvpython pv_query_reduction.py --model M.inr --out DIR [--plugin InrVolume.so]
 """
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
-ap.add_argument("--plugin", default="")
+ap = C.argument_parser()
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
@@ -41,14 +37,7 @@ def expect_in_use(display, want, what):
 SIZE = [96, 80]
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(SIZE)
-display = simple.Show(reader, view)
-display.Representation = "INR Volume"
-C.apply_colormap(display, view)
-display.InrSeed = 3
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = 64
-display.InrFramesPerRender = 1
-display.InrMacrocellResolution = 8
+display = C.show_inr(reader, view, seed=3, maximum_frames=64, frames_per_render=1, macrocells=8)
 
 # The panel: one "Query reduction" group with the seven settings and the read-back, tooltips
 # naming the paper's symbols, the finer knobs under the advanced toggle.

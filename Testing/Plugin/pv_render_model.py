@@ -5,17 +5,13 @@ optionally compares the screenshot with a baseline. Exit status 0 = pass.
       [--time 2.5] [--frames 64] [--size 200 200] [--connect 127.0.0.1:PORT]
       [--baseline B.png --min-psnr 40 --max-abs 64] [--write-baseline]
 """
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
-ap.add_argument("--plugin", default="")
+ap = C.argument_parser()
 ap.add_argument("--time", type=float, default=2.5)
 ap.add_argument("--frames", type=int, default=64)
 ap.add_argument("--size", type=int, nargs=2, default=[200, 200])

@@ -8,7 +8,6 @@ The PSNR is taken over the pixels the volume covers (either image differs from t
 not the whole picture. INR_VOLUME_DEBUG=1 is set so the log shows each render's size (the tiled
 screenshot renders four tiles at the view's size, the direct one renders at the full size).
 """
-import argparse
 import os
 import sys
 
@@ -16,9 +15,7 @@ os.environ["INR_VOLUME_DEBUG"] = "1"
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
+ap = C.argument_parser()
 ap.add_argument("--frames", type=int, default=16)
 ap.add_argument("--view", type=int, nargs=2, default=[160, 120])
 ap.add_argument("--scale", type=int, default=2)
@@ -33,14 +30,7 @@ full = [args.view[0] * args.scale, args.view[1] * args.scale]
 
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(args.view)
-display = simple.Show(reader, view)
-display.Representation = "INR Volume"
-C.apply_colormap(display, view)
-display.InrSeed = 7
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = args.frames
-display.InrFramesPerRender = args.frames
-display.InrMacrocellResolution = 16
+display = C.show_inr(reader, view, seed=7, maximum_frames=args.frames, frames_per_render=args.frames, macrocells=16)
 simple.GetAnimationScene().AnimationTime = 2.5
 simple.Render(view)
 

@@ -4,7 +4,6 @@ the covered pixels), and differs from the unmoved one seen by the same camera. E
 
   pvpython pv_transform.py --model M.inr --out OUTDIR
 """
-import argparse
 import math
 import os
 import sys
@@ -12,9 +11,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
+ap = C.argument_parser()
 ap.add_argument("--min-psnr", type=float, default=40.0)
 args = ap.parse_args()
 
@@ -27,14 +24,7 @@ position, origin, scale, angle = [0.4, -0.3, 0.2], [1.0, 0.0, 0.5], 1.5, 30.0
 
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(size)
-display = simple.Show(reader, view)
-display.Representation = "INR Volume"
-C.apply_colormap(display, view)
-display.InrSeed = 7
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = 16
-display.InrFramesPerRender = 16
-display.InrMacrocellResolution = 16
+display = C.show_inr(reader, view, seed=7, maximum_frames=16, frames_per_render=16, macrocells=16)
 display.Reproject = 0  # each picture from a fresh accumulation
 simple.GetAnimationScene().AnimationTime = 2.5
 

@@ -7,16 +7,13 @@ opaque geometry depth-composited. Exit status 0 = pass.
 
   pvpython pv_translucent.py --model M.inr --out OUTDIR
 """
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import inr_pv_common as C  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("--model", required=True)
-ap.add_argument("--out", required=True)
+ap = C.argument_parser()
 ap.add_argument("--min-psnr", type=float, default=40.0)
 args = ap.parse_args()
 
@@ -29,14 +26,7 @@ reader = simple.OpenDataFile(args.model)
 view = C.setup_view(size)
 check(view.DepthPeeling == 1 and view.DepthPeelingForVolumes == 1,
       "ParaView's defaults: depth peeling, also for volumes")
-display = simple.Show(reader, view)
-display.Representation = "INR Volume"
-C.apply_colormap(display, view)
-display.InrSeed = 7
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = 16
-display.InrFramesPerRender = 16
-display.InrMacrocellResolution = 16
+display = C.show_inr(reader, view, seed=7, maximum_frames=16, frames_per_render=16, macrocells=16)
 simple.GetAnimationScene().AnimationTime = 2.5
 sphere = simple.Sphere(Center=[1.6, -1.2, 0.9], Radius=0.5, ThetaResolution=48, PhiResolution=48)
 surface = simple.Show(sphere, view)
