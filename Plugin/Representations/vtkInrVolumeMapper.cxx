@@ -388,45 +388,10 @@ double vtkInrVolumeMapper::GetLastPruned()
   return double(this->Internal->lastStep.total.pruned);
 }
 
-// Query reduction: stored as asked (validated when pushed into the engine, so the error names
-// the engine's parameter and range); Modified() makes ParaView render again.
-#define INR_QUERY_REDUCTION(Name, Type, field, toField, fromField)                                 \
-  void vtkInrVolumeMapper::Set##Name(Type v)                                                      \
-  {                                                                                                \
-    if (this->Get##Name() != v)                                                                    \
-    {                                                                                              \
-      this->Internal->queryReduction.field = toField;                                              \
-      this->Modified();                                                                            \
-    }                                                                                              \
-  }                                                                                                \
-  Type vtkInrVolumeMapper::Get##Name()                                                             \
-  {                                                                                                \
-    return fromField;                                                                              \
-  }
-INR_QUERY_REDUCTION(RayBudget, int, budget, static_cast<inr::BudgetScheme>(v),
-  static_cast<int>(this->Internal->queryReduction.budget))
-INR_QUERY_REDUCTION(BudgetFraction, double, budgetFraction, v,
-  this->Internal->queryReduction.budgetFraction)
-INR_QUERY_REDUCTION(BudgetMaxSkip, int, budgetMaxSkip, v,
-  this->Internal->queryReduction.budgetMaxSkip)
-INR_QUERY_REDUCTION(BudgetAlpha, double, budgetAlpha, v,
-  this->Internal->queryReduction.budgetAlpha)
-INR_QUERY_REDUCTION(Reproject, int, reproject, v != 0,
-  this->Internal->queryReduction.reproject ? 1 : 0)
-INR_QUERY_REDUCTION(PruneEpsilon, double, pruneEpsilon, v,
-  this->Internal->queryReduction.pruneEpsilon)
-INR_QUERY_REDUCTION(PruneFalloff, double, pruneFalloff, v,
-  this->Internal->queryReduction.pruneFalloff)
-#undef INR_QUERY_REDUCTION
-
-const char* vtkInrVolumeMapper::GetQueryReductionInUse()
-{
-  return this->Internal->queryReductionInUse.c_str();
-}
-
-// Macrocell and tracking options: stored as asked (checked when the engine is updated, so the
-// error names the property and the engine's range); Modified() makes ParaView render again.
-#define INR_ENGINE_OPTION(Name, Type, member, toField, fromField)                                  \
+// Options kept in Internals as asked: query reduction (validated when pushed into the engine, so
+// the error names the engine's parameter and range) and macrocell / tracking options (checked
+// when the engine is updated, naming the property). Modified() makes ParaView render again.
+#define INR_STORED_OPTION(Name, Type, member, toField, fromField)                                  \
   void vtkInrVolumeMapper::Set##Name(Type v)                                                      \
   {                                                                                                \
     if (this->Get##Name() != v)                                                                    \
@@ -439,15 +404,35 @@ const char* vtkInrVolumeMapper::GetQueryReductionInUse()
   {                                                                                                \
     return fromField;                                                                              \
   }
-INR_ENGINE_OPTION(SkipBlock, int, macrocellsAsked.skipBlockCells, v,
+INR_STORED_OPTION(RayBudget, int, queryReduction.budget, static_cast<inr::BudgetScheme>(v),
+  static_cast<int>(this->Internal->queryReduction.budget))
+INR_STORED_OPTION(BudgetFraction, double, queryReduction.budgetFraction, v,
+  this->Internal->queryReduction.budgetFraction)
+INR_STORED_OPTION(BudgetMaxSkip, int, queryReduction.budgetMaxSkip, v,
+  this->Internal->queryReduction.budgetMaxSkip)
+INR_STORED_OPTION(BudgetAlpha, double, queryReduction.budgetAlpha, v,
+  this->Internal->queryReduction.budgetAlpha)
+INR_STORED_OPTION(Reproject, int, queryReduction.reproject, v != 0,
+  this->Internal->queryReduction.reproject ? 1 : 0)
+INR_STORED_OPTION(PruneEpsilon, double, queryReduction.pruneEpsilon, v,
+  this->Internal->queryReduction.pruneEpsilon)
+INR_STORED_OPTION(PruneFalloff, double, queryReduction.pruneFalloff, v,
+  this->Internal->queryReduction.pruneFalloff)
+
+const char* vtkInrVolumeMapper::GetQueryReductionInUse()
+{
+  return this->Internal->queryReductionInUse.c_str();
+}
+
+INR_STORED_OPTION(SkipBlock, int, macrocellsAsked.skipBlockCells, v,
   this->Internal->macrocellsAsked.skipBlockCells)
-INR_ENGINE_OPTION(BoundsPadding, double, macrocellsAsked.boundsPadding, v,
+INR_STORED_OPTION(BoundsPadding, double, macrocellsAsked.boundsPadding, v,
   this->Internal->macrocellsAsked.boundsPadding)
-INR_ENGINE_OPTION(GhostPasses, int, trackingAsked.ghostPassesOnUpdate, v,
+INR_STORED_OPTION(GhostPasses, int, trackingAsked.ghostPassesOnUpdate, v,
   this->Internal->trackingAsked.ghostPassesOnUpdate)
-INR_ENGINE_OPTION(RefineMacrocells, int, trackingAsked.refineMacrocells, v != 0,
+INR_STORED_OPTION(RefineMacrocells, int, trackingAsked.refineMacrocells, v != 0,
   this->Internal->trackingAsked.refineMacrocells ? 1 : 0)
-#undef INR_ENGINE_OPTION
+#undef INR_STORED_OPTION
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()
 {
