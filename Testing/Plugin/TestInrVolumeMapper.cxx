@@ -4,6 +4,7 @@
 // CASE: ea | shadows | time | tf | depth | refine. Image cases compare the window's 8-bit RGB
 // with the baseline through VTK's regression test *and* a strict metric of our own (PSNR and
 // max abs error thresholds below); a missing baseline is a failure, never "not run".
+#include "InrPluginTestScene.h"
 #include "vtkActor.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
@@ -208,17 +209,7 @@ int main(int argc, char* argv[])
 
   if (testCase == "depth")
   {
-    vtkNew<vtkSphereSource> sphere;
-    sphere->SetCenter(1.0, 0.0, 0.5);
-    sphere->SetRadius(0.42);
-    sphere->SetThetaResolution(64);
-    sphere->SetPhiResolution(32);
-    vtkNew<vtkPolyDataMapper> sm;
-    sm->SetInputConnection(sphere->GetOutputPort());
-    vtkNew<vtkActor> actor;
-    actor->SetMapper(sm);
-    actor->GetProperty()->SetColor(0.9, 0.75, 0.2);
-    ren->AddActor(actor);
+    AddOpaqueSphere(ren);
   }
 
   reader->UpdateTimeStep(testCase == "time" ? 7.5 : 2.5);

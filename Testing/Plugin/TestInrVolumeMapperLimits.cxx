@@ -11,6 +11,7 @@
 //   translucent  translucent geometry in the renderer: one warning, however many renders; with
 //                the renderer depth-peeling volumes: one more warning, nothing drawn
 // Images are written to OUTDIR for inspection.
+#include "InrPluginTestScene.h"
 #include "vtkActor.h"
 #include "vtkCallbackCommand.h"
 #include "vtkCamera.h"
@@ -317,20 +318,6 @@ int transformCase(const std::string& model, const std::string& outDir)
 int tiledCase(const std::string& model, const std::string& outDir)
 {
   const int frames = 12, width = 96, height = 72;
-  auto addSphere = [](vtkRenderer* ren)
-  {
-    vtkNew<vtkSphereSource> sphere;
-    sphere->SetCenter(1.0, 0.0, 0.5);
-    sphere->SetRadius(0.42);
-    sphere->SetThetaResolution(64);
-    sphere->SetPhiResolution(32);
-    vtkNew<vtkPolyDataMapper> sm;
-    sm->SetInputConnection(sphere->GetOutputPort());
-    vtkNew<vtkActor> actor;
-    actor->SetMapper(sm);
-    actor->GetProperty()->SetColor(0.9, 0.75, 0.2);
-    ren->AddActor(actor);
-  };
   auto frame = [](vtkRenderer* ren)
   {
     ren->ResetCamera();
@@ -343,14 +330,14 @@ int tiledCase(const std::string& model, const std::string& outDir)
   {
     const std::string tag = parallel ? "parallel" : "perspective";
     Scene direct(model, 2 * width, 2 * height, frames);
-    addSphere(direct.ren);
+    AddOpaqueSphere(direct.ren);
     frame(direct.ren);
     direct.ren->GetActiveCamera()->SetParallelProjection(parallel);
     direct.win->Render();
     auto whole = grab(direct.win, 1, outDir + "/tiled_" + tag + "_direct.png");
 
     Scene tiled(model, width, height, frames);
-    addSphere(tiled.ren);
+    AddOpaqueSphere(tiled.ren);
     frame(tiled.ren);
     tiled.ren->GetActiveCamera()->SetParallelProjection(parallel);
     tiled.win->Render();  // the view itself, as before a screenshot
