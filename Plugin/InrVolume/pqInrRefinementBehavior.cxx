@@ -1,7 +1,9 @@
 #include "pqInrRefinementBehavior.h"
 
+#include "pqAnimationManager.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
+#include "pqPVApplicationCore.h"
 #include "pqServerManagerModel.h"
 #include "pqView.h"
 #include "vtkDataObject.h"
@@ -17,6 +19,8 @@
 #include "vtkPVSession.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 namespace
@@ -52,6 +56,18 @@ int askRenderServer(vtkSMProxy* proxy, const char* method, int fallback)
     return fallback;
   }
   return value;
+}
+
+// While the animation plays, each tick of ParaView's animation scene renders every view itself
+// (vtkSMAnimationScene::TickInternal: StillRenderAllViews), after processing the GUI's events
+// (pqVCRController::onTick). A refinement render from this behaviour, fired inside those events,
+// would render the new time once more just before the tick's own render: two renders per time
+// step, the second at full resolution. So refinement waits until playback ends.
+bool animationPlaying()
+{
+  pqPVApplicationCore* core = pqPVApplicationCore::instance();
+  pqAnimationManager* animation = core ? core->animationManager() : nullptr;
+  return animation && animation->animationPlaying();
 }
 
 bool stillRefining(vtkSMProxy* proxy)
@@ -129,8 +145,17 @@ void pqInrRefinementBehavior::onEndRender()
 
 void pqInrRefinementBehavior::refine()
 {
+  if (animationPlaying())
+  {
+    // Every pending view is rendered by the next tick anyway; look again once playback ended.
+    this->Timer.start(kInteractionSettleMs);
+    return;
+  }
   const auto views = this->Pending;
   this->Pending.clear();
+  // INR_VOLUME_LOD_LOG=1 (the mapper's per-render log) also logs the renders issued from here.
+  const char* log = std::getenv("INR_VOLUME_LOD_LOG");
+  const bool lodLog = log && log[0] && std::strcmp(log, "0") != 0;
   for (const auto& view : views)
   {
     if (!view)
@@ -205,6 +230,10 @@ void pqInrRefinementBehavior::refine()
     }
     else if (again)
     {
+      if (lodLog)
+      {
+        std::fprintf(stderr, "INR Volume refinement: rendering the view again\n");
+      }
       // A direct render from this (idle-time) timer callback: pqView::render()'s own deferred
       // timer is held back while test playback pauses, and we are already outside any render.
       view->forceRender();

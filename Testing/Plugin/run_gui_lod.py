@@ -125,6 +125,20 @@ print("playback (time changes):", describe([r["ms"] for r in play]),
 check(len(play) >= 3, f"playback rendered time changes as interactive frames ({len(play)})")
 check(meets([r["ms"] - r["update"] for r in play]),
       f"playback frame times without slice builds meet {args.target_ms:g} ms")
+# One render per playback tick: every time the animation visited before the last one was
+# rendered exactly once (the tick's own render, a reduced frame); the GUI's refinement waits for
+# playback to end instead of rendering the new time again at full resolution.
+after_drag = renders[(last_drag or 0) + 1:]
+runs = []  # [time, renders] of consecutive renders at one time, from the first time change on
+for r in after_drag:
+    if runs and runs[-1][0] == r["time"]:
+        runs[-1][1] += 1
+    elif runs or r["time"] != after_drag[0]["time"]:
+        runs.append([r["time"], 1])
+ticks = runs[:-1]
+print("playback renders per time step:", [n for _, n in ticks])
+check(len(ticks) >= 3 and all(n == 1 for _, n in ticks),
+      f"one render per playback tick ({sum(n > 1 for _, n in ticks)} of {len(ticks)} steps rendered more than once)")
 times = [r["time"] for r in renders]
 check(bool(times) and times[-1] > times[0], f"time moved to the end ({times[0] if times else None} -> "
       f"{times[-1] if times else None})")
