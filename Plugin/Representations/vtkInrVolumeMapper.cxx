@@ -222,6 +222,32 @@ struct vtkInrVolumeMapper::Internals
   double builtBoundsPadding = -1.0;
   std::string macrocellsInUse;
 
+  // Interactive frames caused by a time change render with a second session on a coarse
+  // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
+  // fine grid's, so the first visit of a time stays interactive; the fine session builds its
+  // slices in the still render that follows. Built lazily, with the fine session's other
+  // options; its own settings / query-reduction caches and refinement driver.
+  struct CoarseEngine
+  {
+    std::unique_ptr<inr::RenderSession> session;
+    int builtResolution = 0, builtSlices = 0, builtBackend = -1, builtSkipBlock = -1;
+    double builtBoundsPadding = -1.0;
+    bool failed = false;  // creation failed once for these options: reported, not retried
+    bool haveSettings = false;
+    inr::RenderSettings settings;
+    bool haveQueryReduction = false;
+    inr::QueryReductionSettings queryReductionTried;
+    inr::RefinementDriver refinement;
+  } coarse;
+  bool shownCoarse = false;     // the last Render drew the coarse session's image
+  bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
+  bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
+  inr::RenderSession* Shown() const
+  {
+    return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
+                                                     : this->session.get();
+  }
+
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
   std::vector<float> depth;
@@ -270,13 +296,14 @@ struct vtkInrVolumeMapper::Internals
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  void PushQueryReduction(vtkInrVolumeMapper* self);
+  void PushQueryReduction(vtkInrVolumeMapper* self, inr::RenderSession& engine,
+    bool& haveQueryReduction, inr::QueryReductionSettings& queryReductionTried);
   bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
-    double* budgetMs) const;
+    double* budgetMs, bool* timeChange) const;
   double ChooseScale(double budgetMs, int width, int height);
   void MeasureFrame(double renderMs, double refineMs, int width, int height, bool interactive);
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
-    bool interactive = false);
+    bool interactive = false, bool useCoarse = false);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
@@ -305,12 +332,18 @@ void vtkInrVolumeMapper::ResetAccumulation()
   {
     this->Internal->session->resetAccumulation();
   }
+  if (this->Internal->coarse.session)
+  {
+    this->Internal->coarse.session->resetAccumulation();
+  }
+  this->Internal->coarse.refinement.restart();
   this->Internal->refinement.restart();
 }
 
 int vtkInrVolumeMapper::GetAccumulatedFrames()
 {
-  return this->Internal->session ? this->Internal->session->accumulatedFrames() : 0;
+  const inr::RenderSession* shown = this->Internal->Shown();
+  return shown ? shown->accumulatedFrames() : 0;
 }
 
 int vtkInrVolumeMapper::GetConverged()
@@ -361,6 +394,17 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
   return this->Internal->session ? this->Internal->session->macrocellInfo().slicesBuilt : 0;
+}
+
+int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
+{
+  const auto& coarse = this->Internal->coarse.session;
+  return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
+}
+
+int vtkInrVolumeMapper::GetLastRenderCoarse()
+{
+  return this->Internal->shownCoarse ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetEngineBuilds()
@@ -502,7 +546,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // Level of detail: an interactive render draws one frame of a reduced image, upscaled. Tiles of
   // a larger picture are captures (still renders) and always render at full resolution.
   double budgetMs = 0.0;
-  bool interactive = I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs);
+  bool timeChange = false;
+  bool interactive =
+    I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs, &timeChange);
   int width = tile.width, height = tile.height;
   if (interactive)
   {
@@ -526,7 +572,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.haveLastTime = true;
   I.lastTime = scene.time;
   const auto refineStart = Clock::now();
-  if (!I.Refine(this, scene, width, height, interactive))
+  // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
+  const bool useCoarse = interactive && timeChange && I.UpdateCoarseEngine(this);
+  if (!I.Refine(this, scene, width, height, interactive, useCoarse))
   {
     return;
   }
@@ -549,11 +597,11 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     std::fprintf(stderr,
       "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms, composite %.1f ms), frames %d\n",
+      "update %.1f ms; scene %.1f ms, engine %.1f ms, composite %.1f ms), frames %d%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
       double(width) / tile.width, I.lastRenderMs, budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      compositeMs, I.session->accumulatedFrames());
+      compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
   }
 }
 
@@ -600,10 +648,11 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
 }
 
 // Whether this render is interactive (see InteractiveLevelOfDetail) and its budget in ms.
-bool vtkInrVolumeMapper::Internals::InteractiveRender(
-  vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene, double* budgetMs) const
+bool vtkInrVolumeMapper::Internals::InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren,
+  const inr::RenderScene& scene, double* budgetMs, bool* timeChange) const
 {
   *budgetMs = self->InteractiveFrameTime;
+  *timeChange = false;
   if (self->InteractiveLevelOfDetail == LOD_OFF || self->Capturing)
   {
     return false;
@@ -614,8 +663,9 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(
     *budgetMs = std::min(*budgetMs, 1000.0 / rate);
     return true;
   }
-  return self->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME &&
+  *timeChange = self->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME &&
     self->FramesPerRender == 1 && this->haveLastTime && scene.time != this->lastTime;
+  return *timeChange;
 }
 
 // The linear scale of an interactive image. A stable resolution lets reprojection reuse the
@@ -713,6 +763,8 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
       this->hash = h;
       this->modelOk = false;
       this->session.reset();
+      this->coarse.session.reset();
+      this->coarse.failed = false;
       try
       {
         this->model = inr::InrModel::loadBytes(bytes->GetPointer(0), n, "INR model (field data)");
@@ -856,6 +908,79 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   return true;
 }
 
+// The coarse session for time-change interactive frames (InteractiveMacrocellResolution), built
+// on first use with the fine session's backend, temporal slices and macrocell options; false
+// (render with the fine session) when it is off, not coarser than the fine grid, the model has
+// no time, or it cannot be created (reported once).
+bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
+{
+  CoarseEngine& c = this->coarse;
+  const int n = self->InteractiveMacrocellResolution;
+  if (n <= 0 || n >= this->builtResolution || !this->session || !this->model.domain.usesTime())
+  {
+    return false;
+  }
+  if (!c.session || c.builtResolution != n || c.builtSlices != this->builtSlices ||
+    c.builtBackend != this->builtBackend || c.builtSkipBlock != this->builtSkipBlock ||
+    c.builtBoundsPadding != this->builtBoundsPadding)
+  {
+    const bool sameOptions = c.builtResolution == n && c.builtSlices == this->builtSlices &&
+      c.builtBackend == this->builtBackend && c.builtSkipBlock == this->builtSkipBlock &&
+      c.builtBoundsPadding == this->builtBoundsPadding;
+    if (c.failed && sameOptions)
+    {
+      return false;
+    }
+    c.session.reset();
+    c.builtResolution = n;
+    c.builtSlices = this->builtSlices;
+    c.builtBackend = this->builtBackend;
+    c.builtSkipBlock = this->builtSkipBlock;
+    c.builtBoundsPadding = this->builtBoundsPadding;
+    try
+    {
+      inr::RenderSessionOptions so;
+      so.backend = this->session->backend();  // what the fine session runs on (after fallback)
+      so.allowFallback = true;
+      so.macrocells.dims = inr::Int3{ n, n, n };
+      so.macrocells.temporalSlices = this->builtSlices;
+      // Skip blocks larger than the grid would be a single block: cap them at the grid.
+      so.macrocells.skipBlockCells = std::min(this->builtSkipBlock, n);
+      while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))
+      {
+        so.macrocells.skipBlockCells &= so.macrocells.skipBlockCells - 1;  // a power of two
+      }
+      so.macrocells.boundsPadding = this->builtBoundsPadding;
+      so.tracking = this->trackingValid;
+      // No progress handler: its builds are short; the progress bar is for the fine ones.
+      c.session = inr::RenderSession::create(this->model, so);
+      c.session->setWarningHandler([self](const std::string& message)
+        { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
+      c.haveSettings = false;
+      c.haveQueryReduction = false;
+      c.refinement.restart();
+      c.failed = false;
+    }
+    catch (const std::exception& e)
+    {
+      vtkErrorWithObjectMacro(self, << "INR Volume: Interactive Macrocell Resolution "
+                                       "(InrInteractiveMacrocellResolution) = "
+                                    << n << ": cannot set up the coarse renderer: " << e.what()
+                                    << "; time changes render with the fine macrocells");
+      c.session.reset();
+      c.failed = true;
+      return false;
+    }
+  }
+  const inr::TrackingOptions& held = c.session->trackingOptions();
+  if (held.ghostPassesOnUpdate != this->trackingValid.ghostPassesOnUpdate ||
+    held.refineMacrocells != this->trackingValid.refineMacrocells)
+  {
+    c.session->setTrackingOptions(this->trackingValid);
+  }
+  return true;
+}
+
 // Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
 inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMapper* self,
   vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input, const Viewport& tile)
@@ -934,31 +1059,39 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 // Hands the query-reduction settings to the engine when they changed. A rejected set is reported
 // once and the engine keeps what it had; a pruning change restarts its accumulation, which the
 // refinement driver notices (accumulated frames drop to 0).
-void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self)
+void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
+  inr::RenderSession& engine, bool& haveQueryReduction,
+  inr::QueryReductionSettings& queryReductionTried)
 {
-  if (!this->haveQueryReduction ||
-    !sameQueryReduction(this->queryReduction, this->queryReductionTried))
+  if (!haveQueryReduction || !sameQueryReduction(this->queryReduction, queryReductionTried))
   {
-    this->haveQueryReduction = true;
-    this->queryReductionTried = this->queryReduction;
+    haveQueryReduction = true;
+    queryReductionTried = this->queryReduction;
     try
     {
-      this->session->setQueryReduction(this->queryReduction);
+      engine.setQueryReduction(this->queryReduction);
     }
     catch (const std::invalid_argument& e)
     {
       vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
-                                    << describeQueryReduction(this->session->queryReduction()));
+                                    << describeQueryReduction(engine.queryReduction()));
     }
   }
-  this->queryReductionInUse = describeQueryReduction(this->session->queryReduction());
+  this->queryReductionInUse = describeQueryReduction(engine.queryReduction());
 }
 
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
-  const inr::RenderScene& scene, int width, int height, bool interactive)
+  const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse)
 {
+  // The session drawing this render and its caches: the fine one, or the coarse one for a
+  // time-change interactive frame.
+  inr::RenderSession& engine = useCoarse ? *this->coarse.session : *this->session;
+  bool& haveSettings = useCoarse ? this->coarse.haveSettings : this->haveSettings;
+  inr::RenderSettings& heldSettings = useCoarse ? this->coarse.settings : this->settings;
+  inr::RefinementDriver& refinement = useCoarse ? this->coarse.refinement : this->refinement;
+  this->shownCoarse = useCoarse;
   try
   {
     inr::RenderSettings settings;
@@ -966,26 +1099,35 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
-    if (!this->haveSettings || settings.width != this->settings.width ||
-      settings.height != this->settings.height || settings.seed != this->settings.seed ||
-      settings.window != this->settings.window)
+    if (!haveSettings || settings.width != heldSettings.width ||
+      settings.height != heldSettings.height || settings.seed != heldSettings.seed ||
+      settings.window != heldSettings.window)
     {
-      this->session->setSettings(settings);
-      this->settings = settings;
-      this->haveSettings = true;
+      engine.setSettings(settings);
+      heldSettings = settings;
+      haveSettings = true;
     }
     const bool debug = debugReport();
     if (debug)
     {
       const inr::SceneChange change =
         inr::diffScenes(this->haveLastScene ? &this->lastScene : nullptr, scene);
-      std::fprintf(stderr, "INR Volume: render %dx%d, frames %d, changed:%s\n", width, height,
-        this->session->accumulatedFrames(), change.describe().c_str());
+      std::fprintf(stderr, "INR Volume: render %dx%d%s, frames %d, changed:%s\n", width, height,
+        useCoarse ? " (coarse macrocells)" : "", engine.accumulatedFrames(),
+        change.describe().c_str());
       this->lastScene = scene;
       this->haveLastScene = true;
     }
-    this->PushQueryReduction(self);
-    this->session->setScene(scene);
+    if (useCoarse)
+    {
+      this->PushQueryReduction(
+        self, engine, this->coarse.haveQueryReduction, this->coarse.queryReductionTried);
+    }
+    else
+    {
+      this->PushQueryReduction(self, engine, this->haveQueryReduction, this->queryReductionTried);
+    }
+    engine.setScene(scene);
 
     inr::RefinementOptions options;
     options.maximumFrames = self->MaximumFrames;
@@ -998,16 +1140,16 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       // image's quality (convergence target or frame limit) in this one render.
       options.framesPerRender = options.maximumFrames;
     }
-    this->refinement.setOptions(options);
+    refinement.setOptions(options);
     this->lastStep = inr::RefinementDriver::Step{};
-    this->lastStep = this->refinement.advance(*this->session);
+    this->lastStep = refinement.advance(engine);
     if (debug && this->lastStep.framesRendered > 0)
     {
       std::fprintf(stderr,
         "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d; %s: %.0f rays, "
         "%.0f pixels skipped, %.0f pruned\n",
-        this->session->accumulatedFrames(), double(this->lastStep.total.totalQueries()),
-        this->lastStep.total.updateMs, int(this->refinement.converged()),
+        engine.accumulatedFrames(), double(this->lastStep.total.totalQueries()),
+        this->lastStep.total.updateMs, int(refinement.converged()),
         this->queryReductionInUse.c_str(), double(this->lastStep.total.rays),
         double(this->lastStep.total.budgetSkipped), double(this->lastStep.total.pruned));
     }
@@ -1026,25 +1168,27 @@ void vtkInrVolumeMapper::Internals::Composite(
   vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height)
 {
   auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
-  const int frames = this->session->accumulatedFrames();
+  inr::RenderSession& shown = *this->Shown();
+  const int frames = shown.accumulatedFrames();
   if (!window || frames == 0)
   {
     return;
   }
   // A reprojection (camera or volume moved) changes the image without rendering a frame when the
   // kept history already reaches the frame limit: upload on any new accumulation epoch too.
-  const int epoch =
-    this->session->counters().accumulationResets + this->session->counters().reprojections;
+  const int epoch = shown.counters().accumulationResets + shown.counters().reprojections;
   if (this->compositor.NeedsUpload(window, width, height, frames,
-        this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch))
+        this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch ||
+          this->shownCoarse != this->uploadedCoarse))
   {
-    const inr::ImageRGBA image = this->session->premultipliedImage();
+    const inr::ImageRGBA image = shown.premultipliedImage();
     // A reduced (interactive) image is stretched over the viewport: filter it linearly.
     int viewport[2] = { width, height };
     ren->GetTiledSize(&viewport[0], &viewport[1]);
     const bool upscaled = viewport[0] != width || viewport[1] != height;
     this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     this->uploadedEpoch = epoch;
+    this->uploadedCoarse = this->shownCoarse;
   }
   std::string error;
   if (!this->compositor.Blend(window, &error))
@@ -1069,6 +1213,8 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "InteractiveLevelOfDetail: " << this->InteractiveLevelOfDetail << "\n";
   os << indent << "InteractiveFrameTime: " << this->InteractiveFrameTime << " ms\n";
   os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
+  os << indent << "InteractiveMacrocellResolution: " << this->InteractiveMacrocellResolution
+     << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";
 }

@@ -217,6 +217,20 @@ public:
   vtkGetMacro(InteractiveFrameTime, double);
   vtkSetClampMacro(InteractiveUpdateRate, double, 1e-6, 1e6);
   vtkGetMacro(InteractiveUpdateRate, double);
+  /// InteractiveMacrocellResolution (cells per axis, default 8; 0 = off): an interactive frame
+  /// caused by a time change is rendered by a second engine session whose majorant grid has
+  /// this many cells per axis (same temporal slices), so a first visit of a time builds coarse
+  /// slices (about 1/50 of the work of 32^3 ones: the build samples (2n+1)^3 lattice points)
+  /// instead of waiting for the fine ones. Coarser cells bound the field more loosely (more null
+  /// collisions per ray) but are still majorants: the image is unbiased. The still render that
+  /// follows builds the fine slices as before (with progress). Off, or when not below
+  /// MacrocellResolution, time-change frames use the fine grid.
+  vtkSetClampMacro(InteractiveMacrocellResolution, int, 0, 256);
+  vtkGetMacro(InteractiveMacrocellResolution, int);
+  /// Macrocell slices built by that coarse session (0 before it is first used).
+  int GetInteractiveSlicesBuilt();
+  /// 1 when the last Render drew a frame of the coarse session.
+  int GetLastRenderCoarse();
   /// Capturing (set by the representation while ParaView captures a screenshot or an animation
   /// frame): never a reduced frame then, whatever the time did, so a saved picture is the still
   /// image at full resolution.
@@ -285,6 +299,7 @@ private:
   int InteractiveLevelOfDetail = LOD_INTERACTION_AND_TIME;
   double InteractiveFrameTime = 100.0;
   double InteractiveUpdateRate = 1.0;
+  int InteractiveMacrocellResolution = 8;
   bool Capturing = false;
 
   struct Internals;

@@ -103,6 +103,7 @@ INR_FORWARD(PruneEpsilon, double)
 INR_FORWARD(PruneFalloff, double)
 INR_FORWARD(InteractiveLevelOfDetail, int)
 INR_FORWARD(InteractiveFrameTime, double)
+INR_FORWARD(InteractiveMacrocellResolution, int)
 #undef INR_FORWARD
 
 void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)

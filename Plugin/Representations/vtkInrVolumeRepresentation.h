@@ -79,6 +79,8 @@ public:
   /// interaction to settle before refining).
   void SetInrInteractiveLevelOfDetail(int);
   void SetInrInteractiveFrameTime(double);
+  /// InrInteractiveMacrocellResolution: the coarse majorant grid of time-change interactive frames.
+  void SetInrInteractiveMacrocellResolution(int);
   int GetInrLastRenderInteractive();
   /// The last render's image size (reduced during interaction), its wall time and its macrocell /
   /// majorant update time (ms).

@@ -7,7 +7,13 @@
 //    frames -> identical pixels (checked: PSNR >= 50 dB over the pixels the volume covers, and
 //    the maximum difference);
 //  - a time change with FramesPerRender 1 is interactive, with FramesPerRender > 1 it is not;
-//    InteractiveLevelOfDetail off renders interactive renders at full resolution.
+//    InteractiveLevelOfDetail off renders interactive renders at full resolution;
+//  - a time-change interactive frame renders with the coarse macrocell session
+//    (InteractiveMacrocellResolution): it builds no fine slices (GetSlicesBuilt unchanged), the
+//    still render after it does; with the option at 0 the fine slices are built at once;
+//  - a coarse grid's images converge to the fine grid's: kConvergeFrames-frame images with
+//    8^3 and 32^3 macrocells (half-size view), same seed, agree to >= 40 dB over the pixels the volume covers
+//    (looser majorants are still majorants: unbiased).
 // Usage: TestInrLevelOfDetail MODEL.inr
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
@@ -24,6 +30,7 @@
 #include "vtkVolumeProperty.h"
 #include "vtkWindowToImageFilter.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -35,6 +42,39 @@ const int kWidth = 200, kHeight = 150;
 const int kStillFrames = 16;
 const double kStillRate = 0.0001;     // vtkRenderWindowInteractor's StillUpdateRate
 const double kInteractiveRate = 15.0;  // vtkRenderWindowInteractor's DesiredUpdateRate
+const int kConvergeFrames = 256;  // at half the view size (kWidth/2 x kHeight/2): ~20 s on 2 cores
+
+// PSNR (dB) of `actual` against `expected` (RGB) over the pixels where `expected` differs from
+// its corner pixel (the background) by more than 2 in some channel; `covered` gets their count.
+double coveredPsnr(const std::vector<unsigned char>& expected,
+  const std::vector<unsigned char>& actual, std::size_t* covered, int* maxDiff)
+{
+  const unsigned char* bg = expected.data();
+  double sum = 0.0;
+  *covered = 0;
+  *maxDiff = 0;
+  for (std::size_t p = 0; p + 2 < expected.size() && p + 2 < actual.size(); p += 3)
+  {
+    bool isVolume = false;
+    for (int c = 0; c < 3; ++c)
+    {
+      isVolume = isVolume || std::abs(int(expected[p + c]) - int(bg[c])) > 2;
+    }
+    if (!isVolume)
+    {
+      continue;
+    }
+    ++*covered;
+    for (int c = 0; c < 3; ++c)
+    {
+      const int d = std::abs(int(expected[p + c]) - int(actual[p + c]));
+      *maxDiff = std::max(*maxDiff, d);
+      sum += double(d) * d;
+    }
+  }
+  const double mse = *covered ? sum / (3.0 * double(*covered)) : 0.0;
+  return mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 999.0;
+}
 
 int failures = 0;
 void check(bool ok, const std::string& what)
@@ -226,6 +266,36 @@ int main(int argc, char* argv[])
   win->Render();
   check(mapper->GetLastRenderInteractive() == 0, "LOD_INTERACTION: time changes stay still renders");
 
+  // A time change to slices not built yet: the interactive frame uses the coarse macrocells
+  // and builds none of the fine slices; the still render after it builds them.
+  mapper->SetInteractiveLevelOfDetail(vtkInrVolumeMapper::LOD_INTERACTION_AND_TIME);
+  win->SetDesiredUpdateRate(kStillRate);
+  check(mapper->GetInteractiveMacrocellResolution() == 8, "InteractiveMacrocellResolution is 8 by default");
+  const int fineBefore = mapper->GetSlicesBuilt();
+  reader->UpdateTimeStep(9.7);
+  win->Render();
+  std::printf("time change to 9.7: coarse %d, image %dx%d, fine slices %d -> %d, coarse slices %d, "
+              "update %.1f ms\n", mapper->GetLastRenderCoarse(), mapper->GetLastImageWidth(),
+    mapper->GetLastImageHeight(), fineBefore, mapper->GetSlicesBuilt(),
+    mapper->GetInteractiveSlicesBuilt(), mapper->GetLastUpdateMilliseconds());
+  check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastRenderCoarse() == 1,
+    "a time-change interactive frame renders with the coarse macrocells");
+  check(mapper->GetSlicesBuilt() == fineBefore, "it builds no fine slices");
+  check(mapper->GetInteractiveSlicesBuilt() > 0, "it built coarse slices");
+  check(mapper->GetAccumulatedFrames() == 1, "the coarse image holds its one frame");
+  win->Render();
+  check(mapper->GetLastRenderInteractive() == 0 && mapper->GetLastRenderCoarse() == 0 &&
+      mapper->GetSlicesBuilt() > fineBefore,
+    "the still render after it builds the fine slices");
+  mapper->SetInteractiveMacrocellResolution(0);
+  const int fineBeforeOff = mapper->GetSlicesBuilt();
+  reader->UpdateTimeStep(0.3);
+  win->Render();
+  check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastRenderCoarse() == 0 &&
+      mapper->GetSlicesBuilt() > fineBeforeOff,
+    "InteractiveMacrocellResolution 0: the time-change frame builds the fine slices");
+  mapper->SetInteractiveMacrocellResolution(8);
+
   // Off: interactive renders at full resolution.
   mapper->SetInteractiveLevelOfDetail(vtkInrVolumeMapper::LOD_OFF);
   win->SetDesiredUpdateRate(kInteractiveRate);
@@ -233,6 +303,40 @@ int main(int argc, char* argv[])
   win->Render();
   check(mapper->GetLastRenderInteractive() == 0 && mapper->GetLastImageWidth() == kWidth,
     "InteractiveLevelOfDetail off: interactive renders at full resolution");
+
+  // Coarse majorants converge to the fine grid's image: 8^3 vs 32^3, same seed and frames.
+  {
+    std::vector<unsigned char> images[2];
+    const int resolutions[2] = { 32, 8 };
+    reader->UpdateTimeStep(2.5);
+    cam->DeepCopy(still);
+    win->SetSize(kWidth / 2, kHeight / 2);
+    win->SetDesiredUpdateRate(kStillRate);
+    for (int k = 0; k < 2; ++k)
+    {
+      vtkNew<vtkVolume> volume;
+      makeMapper(volume);
+      auto* m = vtkInrVolumeMapper::SafeDownCast(volume->GetMapper());
+      m->SetMacrocellResolution(resolutions[k]);
+      m->SetMaximumFrames(kConvergeFrames);
+      m->SetFramesPerRender(kConvergeFrames);
+      ren->RemoveAllViewProps();
+      ren->AddVolume(volume);
+      win->Render();
+      images[k] = grab(win);
+      std::printf("%d^3 macrocells: %d frames, %s\n", resolutions[k], m->GetAccumulatedFrames(),
+        m->GetMacrocellsInUse());
+      check(m->GetAccumulatedFrames() == kConvergeFrames, "the image holds every frame");
+      ren->RemoveAllViewProps();
+    }
+    std::size_t covered = 0;
+    int maxDiff = 0;
+    const double psnr = coveredPsnr(images[0], images[1], &covered, &maxDiff);
+    std::printf("8^3 vs 32^3 macrocells, %d frames each: %zu covered pixels, PSNR %.1f dB, max "
+                "difference %d\n", kConvergeFrames, covered, psnr, maxDiff);
+    check(covered > 500, "the volume covers part of the view");
+    check(psnr >= 40.0, "a coarse majorant grid converges to the fine grid's image (>= 40 dB)");
+  }
 
   std::printf("RESULT: %s\n", failures ? "FAIL" : "PASS");
   return failures ? 1 : 0;
