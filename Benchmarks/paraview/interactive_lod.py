@@ -2,7 +2,8 @@
 
     pvpython Benchmarks/paraview/interactive_lod.py --plugin BUILD/lib/paraview-plugins/InrVolume/InrVolume.so
         [--models A.inr B.inr ...] [--size 1280 768] [--backend cpu] [--orbit-steps 24]
-        [--scrub-steps 16] [--converge-seconds 120] [--frame-time 100] [--csv lod.csv]
+        [--scrub-steps 16] [--converge-seconds 120] [--frame-time 100]
+        [--interactive-macrocells 8] [--csv lod.csv]
 
 Per model (default: the shipped paper-size models in Testing/Data/real, each with its suggested
 MODEL.tf.json colour map), in one render view of --size (needs X; run under Xvfb):
@@ -10,7 +11,11 @@ MODEL.tf.json colour map), in one render view of --size (needs X; run under Xvfb
   2. time scrub, first visits: the view time steps through --scrub-steps times over the range,
      one still render each (ParaView renders time changes as still renders; with level of detail
      the mapper draws them as interactive frames); macrocell slices are built as they are first
-     needed, so these are "first visit" figures;
+     needed, so these are "first visit" figures. Twice: "scrub-first-visit" with the
+     representation's coarse interactive macrocells (--interactive-macrocells cells per axis:
+     only coarse slices are built), then "scrub-first-visit-fine" with them off (0), the fine
+     32^3 slices built by the time-change frame itself (what every time change did before the
+     coarse grid existed); after it the fine slices of every scrub time are built;
   3. for level of detail on and off: a camera orbit of --orbit-steps interactive renders
      (vtkSMViewProxy::InteractiveRender, the path of a mouse drag; 5 degrees azimuth each) and a
      time scrub over the now built slices;
@@ -42,6 +47,8 @@ ap.add_argument("--orbit-steps", type=int, default=24)
 ap.add_argument("--scrub-steps", type=int, default=16)
 ap.add_argument("--converge-seconds", type=float, default=120.0)
 ap.add_argument("--frame-time", type=float, default=100.0, help="InrInteractiveFrameTime (ms)")
+ap.add_argument("--interactive-macrocells", type=int, default=8,
+                help="InrInteractiveMacrocellResolution for the first-visit scrub and the built-slice phases")
 ap.add_argument("--csv", default="interactive_lod.csv")
 args = ap.parse_args()
 
@@ -141,12 +148,22 @@ for model_path in args.models:
         view.ViewTime = t
 
     display.InrInteractiveLevelOfDetail = 2
+    display.InrInteractiveMacrocellResolution = args.interactive_macrocells
     set_time(times[0])
     warm = timed(name, "warmup", "on", 0, proxy.StillRender, mapper)
     print(f"{name}: first still render {warm['view_ms']:.0f} ms ({mapper.get('InrBackendInUse')})", flush=True)
     for i, t in enumerate(times[1:], 1):
         set_time(t)
         timed(name, "scrub-first-visit", "on", i, proxy.StillRender, mapper)
+    # The same first visits for the fine grid (coarse interactive macrocells off): each
+    # time-change frame waits for its fine slices; afterwards every scrub time's fine slices exist.
+    display.InrInteractiveMacrocellResolution = 0
+    set_time(times[0])
+    proxy.StillRender()
+    for i, t in enumerate(times[1:], 1):
+        set_time(t)
+        timed(name, "scrub-first-visit-fine", "on", i, proxy.StillRender, mapper)
+    display.InrInteractiveMacrocellResolution = args.interactive_macrocells
     set_time(times[0])
     timed(name, "settle", "on", 0, proxy.StillRender, mapper)
     for lod, mode in (("on", 2), ("off", 0)):
@@ -190,19 +207,22 @@ with open(args.csv, "w", newline="") as f:
 
 print()
 print(f"INR Volume interactive frames, {args.size[0]}x{args.size[1]} view, backend {args.backend}, "
-      f"budget {args.frame_time:g} ms (view render wall time, ms)")
-header = f"{'model':28s} {'phase':18s} {'LOD':3s} {'n':>3s} {'median':>8s} {'p90':>8s} {'max':>8s} {'image (median)':>15s}"
+      f"budget {args.frame_time:g} ms, interactive macrocells {args.interactive_macrocells} "
+      f"(view render wall time, ms)")
+header = (f"{'model':28s} {'phase':22s} {'LOD':3s} {'n':>3s} {'median':>8s} {'p90':>8s} {'max':>8s} "
+          f"{'update med':>10s} {'image (median)':>15s}")
 print(header)
 print("-" * len(header))
 groups = {}
 for r in rows:
-    if r["phase"] in ("orbit", "scrub-built", "scrub-first-visit"):
+    if r["phase"] in ("orbit", "scrub-built", "scrub-first-visit", "scrub-first-visit-fine"):
         groups.setdefault((r["model"], r["phase"], r["lod"]), []).append(r)
 for (model, phase, lod), rs in groups.items():
     v = [r["view_ms"] for r in rs]
     sizes = sorted(rs, key=lambda r: r["width"])[len(rs) // 2]
-    print(f"{model:28s} {phase:18s} {lod:3s} {len(v):3d} {statistics.median(v):8.1f} "
-          f"{percentile(v, 0.9):8.1f} {max(v):8.1f} {sizes['width']:>7d}x{sizes['height']:<7d}")
+    update = statistics.median([r["update_ms"] for r in rs])
+    print(f"{model:28s} {phase:22s} {lod:3s} {len(v):3d} {statistics.median(v):8.1f} "
+          f"{percentile(v, 0.9):8.1f} {max(v):8.1f} {update:10.1f} {sizes['width']:>7d}x{sizes['height']:<7d}")
 for r in rows:
     if r["phase"] == "converge":
         print(f"{r['model']:28s} still image to converge: {r['view_ms'] / 1000:.1f} s, {r['frames']} frames")
