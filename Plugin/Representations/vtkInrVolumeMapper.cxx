@@ -303,7 +303,7 @@ struct vtkInrVolumeMapper::Internals
   double ChooseScale(double budgetMs, int width, int height);
   void MeasureFrame(double renderMs, double refineMs, int width, int height, bool interactive);
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
-    bool interactive = false, bool useCoarse = false);
+    bool interactive = false, bool useCoarse = false, int interactiveFrames = 1);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
@@ -405,6 +405,27 @@ int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
 int vtkInrVolumeMapper::GetLastRenderCoarse()
 {
   return this->Internal->shownCoarse ? 1 : 0;
+}
+
+// A time-change frame starts its image afresh (one frame of a thin medium is sparse speckle):
+// up to `fresh` frames at a scale that keeps pixels x frames at most what one frame at `scale`
+// costs, so the scale controller's measurement (taken as the render time of one frame at its
+// scale) still holds. The scale is a step of 1/kScaleSteps, never below kMinScale.
+double vtkInrVolumeMapper::InteractiveFreshFrameScale(double scale, int fresh)
+{
+  if (fresh <= 1)
+  {
+    return scale;
+  }
+  const double s = std::max(kMinScale,
+    std::floor(scale / std::sqrt(double(fresh)) * kScaleSteps + 1e-9) / kScaleSteps);
+  return std::floor(scale * scale / (s * s) + 1e-9) >= 2.0 ? s : scale;
+}
+
+int vtkInrVolumeMapper::InteractiveFreshFrameCount(double scale, int fresh)
+{
+  const double s = InteractiveFreshFrameScale(scale, fresh);
+  return s == scale ? 1 : std::clamp(int(std::floor(scale * scale / (s * s) + 1e-9)), 1, fresh);
 }
 
 int vtkInrVolumeMapper::GetEngineBuilds()
@@ -547,6 +568,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // a larger picture are captures (still renders) and always render at full resolution.
   double budgetMs = 0.0;
   bool timeChange = false;
+  int interactiveFrames = 1;
   bool interactive =
     I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs, &timeChange);
   int width = tile.width, height = tile.height;
@@ -556,7 +578,12 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     {
       I.lodCeiling = 2.0;  // a new interaction: the view may have become cheaper or dearer
     }
-    const double s = I.ChooseScale(budgetMs, tile.width, tile.height);
+    double s = I.ChooseScale(budgetMs, tile.width, tile.height);
+    if (timeChange && s < 1.0)
+    {
+      interactiveFrames = InteractiveFreshFrameCount(s, this->InteractiveFreshFrames);
+      s = InteractiveFreshFrameScale(s, this->InteractiveFreshFrames);
+    }
     width = std::max(1, int(std::lround(tile.width * s)));
     height = std::max(1, int(std::lround(tile.height * s)));
     if (width != tile.width || height != tile.height)
@@ -574,7 +601,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const auto refineStart = Clock::now();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
   const bool useCoarse = interactive && timeChange && I.UpdateCoarseEngine(this);
-  if (!I.Refine(this, scene, width, height, interactive, useCoarse))
+  if (!I.Refine(this, scene, width, height, interactive, useCoarse, interactiveFrames))
   {
     return;
   }
@@ -1083,7 +1110,8 @@ void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
-  const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse)
+  const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
+  int interactiveFrames)
 {
   // The session drawing this render and its caches: the fine one, or the coarse one for a
   // time-change interactive frame.
@@ -1133,7 +1161,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     options.maximumFrames = self->MaximumFrames;
     options.convergenceTarget = self->ConvergenceTarget;
     options.framesPerRender =
-      interactive ? 1 : self->ProgressiveRefinement ? self->FramesPerRender : 1;
+      interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {
       // A tile is rendered once per capture, from a fresh accumulation: refine it to the still

@@ -227,6 +227,15 @@ public:
   /// MacrocellResolution, time-change frames use the fine grid.
   vtkSetClampMacro(InteractiveMacrocellResolution, int, 0, 256);
   vtkGetMacro(InteractiveMacrocellResolution, int);
+  /// InteractiveFreshFrames (default 4, 1 = off): a time-change interactive frame starts its
+  /// image afresh, and one sample per pixel of a thin medium is sparse speckle; it renders up to
+  /// this many frames at a resolution lowered so that pixels x frames stay what one frame at the
+  /// chosen resolution costs (the budget holds): a smoother, blurrier reduced image.
+  vtkSetClampMacro(InteractiveFreshFrames, int, 1, 64);
+  vtkGetMacro(InteractiveFreshFrames, int);
+  /// The scale and frame count of such a render, for the scale `scale` chosen for one frame.
+  static double InteractiveFreshFrameScale(double scale, int fresh);
+  static int InteractiveFreshFrameCount(double scale, int fresh);
   /// Macrocell slices built by that coarse session (0 before it is first used).
   int GetInteractiveSlicesBuilt();
   /// 1 when the last Render drew a frame of the coarse session.
@@ -300,6 +309,7 @@ private:
   double InteractiveFrameTime = 100.0;
   double InteractiveUpdateRate = 1.0;
   int InteractiveMacrocellResolution = 8;
+  int InteractiveFreshFrames = 4;
   bool Capturing = false;
 
   struct Internals;

@@ -81,6 +81,8 @@ public:
   void SetInrInteractiveFrameTime(double);
   /// InrInteractiveMacrocellResolution: the coarse majorant grid of time-change interactive frames.
   void SetInrInteractiveMacrocellResolution(int);
+  /// InrInteractiveFreshFrames: frames of a time-change interactive image (at a lower resolution).
+  void SetInrInteractiveFreshFrames(int);
   int GetInrLastRenderInteractive();
   /// The last render's image size (reduced during interaction), its wall time and its macrocell /
   /// majorant update time (ms).

@@ -11,6 +11,8 @@
 //  - a time-change interactive frame renders with the coarse macrocell session
 //    (InteractiveMacrocellResolution): it builds no fine slices (GetSlicesBuilt unchanged), the
 //    still render after it does; with the option at 0 the fine slices are built at once;
+//  - a time-change frame (a fresh image) renders up to InteractiveFreshFrames frames at a
+//    resolution lowered so that pixels x frames stay within one frame at the chosen scale;
 //  - a coarse grid's images converge to the fine grid's: kConvergeFrames-frame images with
 //    8^3 and 32^3 macrocells (half-size view), same seed, agree to >= 40 dB over the pixels the volume covers
 //    (looser majorants are still majorants: unbiased).
@@ -282,7 +284,8 @@ int main(int argc, char* argv[])
     "a time-change interactive frame renders with the coarse macrocells");
   check(mapper->GetSlicesBuilt() == fineBefore, "it builds no fine slices");
   check(mapper->GetInteractiveSlicesBuilt() > 0, "it built coarse slices");
-  check(mapper->GetAccumulatedFrames() == 1, "the coarse image holds its one frame");
+  // The 1 ms budget holds only the smallest scale: no room for more frames.
+  check(mapper->GetAccumulatedFrames() == 1, "the coarse image at the smallest scale holds one frame");
   win->Render();
   check(mapper->GetLastRenderInteractive() == 0 && mapper->GetLastRenderCoarse() == 0 &&
       mapper->GetSlicesBuilt() > fineBefore,
@@ -295,6 +298,26 @@ int main(int argc, char* argv[])
       mapper->GetSlicesBuilt() > fineBeforeOff,
     "InteractiveMacrocellResolution 0: the time-change frame builds the fine slices");
   mapper->SetInteractiveMacrocellResolution(8);
+
+  // Fresh time-change images: more frames at a lower resolution, the same pixels x frames.
+  {
+    using M = vtkInrVolumeMapper;
+    auto fresh = [](double scale, int frames, double wantScale, int wantFrames)
+    {
+      const double s = M::InteractiveFreshFrameScale(scale, frames);
+      const int n = M::InteractiveFreshFrameCount(scale, frames);
+      std::printf("fresh frames: scale %.4f x %d -> %.4f, %d frames\n", scale, frames, s, n);
+      check(s == wantScale && n == wantFrames && n * s * s <= scale * scale + 1e-12,
+        "fresh image at scale " + std::to_string(scale) + ", up to " + std::to_string(frames) +
+          " frames");
+    };
+    fresh(0.5, 4, 0.25, 4);
+    fresh(2.0 / 16, 4, 1.0 / 16, 4);
+    fresh(3.0 / 16, 4, 1.0 / 16, 4);
+    fresh(1.0 / 16, 4, 1.0 / 16, 1);  // the smallest scale: one frame
+    fresh(0.5, 1, 0.5, 1);            // off
+    fresh(5.0 / 16, 2, 3.0 / 16, 2);
+  }
 
   // Off: interactive renders at full resolution.
   mapper->SetInteractiveLevelOfDetail(vtkInrVolumeMapper::LOD_OFF);
