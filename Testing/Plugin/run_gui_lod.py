@@ -15,6 +15,8 @@ script logs each render's state and keeps screenshots. Checks:
     shared machine may be slower; Benchmarks/paraview/interactive_lod.py measures properly);
   - playback rendered time changes as interactive frames; their times without the macrocell
     slice builds (first visits of a time, reported separately) meet the same target;
+  - each playback time step was rendered once (the animation tick's own render: the GUI's
+    refinement waits while the animation plays), on the coarse interactive macrocells;
   - after the interaction stopped the view refined by itself at full resolution (accumulated
     frames grew to at least 3 after the last interactive frame).
 """
@@ -78,7 +80,8 @@ for line in p.stdout.splitlines():
     m = lod.search(line)
     if m:
         frames_log.append(dict(kind=m.group(1), w=int(m.group(2)), h=int(m.group(3)), vw=int(m.group(4)),
-                               vh=int(m.group(5)), ms=float(m.group(6)), update=float(m.group(8))))
+                               vh=int(m.group(5)), ms=float(m.group(6)), update=float(m.group(8)),
+                               coarse=line.rstrip().endswith("coarse macrocells")))
 renders = []
 path = os.path.join(args.out, "gui_lod_renders.txt")
 if os.path.exists(path):
@@ -139,6 +142,12 @@ ticks = runs[:-1]
 print("playback renders per time step:", [n for _, n in ticks])
 check(len(ticks) >= 3 and all(n == 1 for _, n in ticks),
       f"one render per playback tick ({sum(n > 1 for _, n in ticks)} of {len(ticks)} steps rendered more than once)")
+# Time-change frames render on the coarse interactive macrocells (InrInteractiveMacrocellResolution
+# 8 < 32): the mapper's log marks them; every coarse frame is a reduced interactive one.
+coarse = [f for f in frames_log if f["coarse"]]
+print(f"mapper frames on the coarse macrocells: {len(coarse)}")
+check(len(coarse) >= len(ticks) and all(f["kind"] == "interactive" for f in coarse),
+      f"playback frames render on the coarse macrocells ({len(coarse)} coarse, {len(ticks)} ticks)")
 times = [r["time"] for r in renders]
 check(bool(times) and times[-1] > times[0], f"time moved to the end ({times[0] if times else None} -> "
       f"{times[-1] if times else None})")
