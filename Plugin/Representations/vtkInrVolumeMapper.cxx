@@ -1243,6 +1243,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
   os << indent << "InteractiveMacrocellResolution: " << this->InteractiveMacrocellResolution
      << "\n";
+  os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";
 }
