@@ -186,6 +186,31 @@ std::string describeQueryReduction(const inr::QueryReductionSettings& q)
     << " epsilon=" << q.pruneEpsilon << " delta=" << q.pruneFalloff;
   return s.str();
 }
+
+// What an engine session is built from: any difference rebuilds it (the fine session from the
+// properties, the coarse one from the fine one's with its own resolution).
+struct EngineKey
+{
+  int resolution = 0, slices = 0, backend = -1, skipBlock = -1;
+  double boundsPadding = -1.0;
+  bool operator==(const EngineKey& o) const
+  {
+    return std::tie(resolution, slices, backend, skipBlock, boundsPadding) ==
+      std::tie(o.resolution, o.slices, o.backend, o.skipBlock, o.boundsPadding);
+  }
+  bool operator!=(const EngineKey& o) const { return !(*this == o); }
+};
+
+// Ghost passes and macrocell refinement change on a live session, without a rebuild.
+void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
+{
+  const inr::TrackingOptions& held = session.trackingOptions();
+  if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
+    held.refineMacrocells != want.refineMacrocells)
+  {
+    session.setTrackingOptions(want);
+  }
+}
 }
 
 struct vtkInrVolumeMapper::Internals
@@ -200,7 +225,7 @@ struct vtkInrVolumeMapper::Internals
 
   // The engine session: evaluator + macrocells + renderer on the chosen backend.
   std::unique_ptr<inr::RenderSession> session;
-  int builtResolution = 0, builtSlices = 0, builtBackend = -1;
+  EngineKey built;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
   bool warnedCuda = false;
@@ -218,8 +243,6 @@ struct vtkInrVolumeMapper::Internals
   // option (each refusal is reported once).
   inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
   inr::TrackingOptions trackingAsked, trackingValid, trackingRefused;
-  int builtSkipBlock = -1;
-  double builtBoundsPadding = -1.0;
   std::string macrocellsInUse;
 
   // Interactive frames caused by a time change render with a second session on a coarse
@@ -230,8 +253,7 @@ struct vtkInrVolumeMapper::Internals
   struct CoarseEngine
   {
     std::unique_ptr<inr::RenderSession> session;
-    int builtResolution = 0, builtSlices = 0, builtBackend = -1, builtSkipBlock = -1;
-    double builtBoundsPadding = -1.0;
+    EngineKey built;
     bool failed = false;  // creation failed once for these options: reported, not retried
     bool haveSettings = false;
     inr::RenderSettings settings;
@@ -867,10 +889,9 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 {
   const int backend = self->Backend;
   this->CheckOptions(self);
-  if (!this->session || this->builtResolution != self->MacrocellResolution ||
-    this->builtSlices != self->TemporalSlices || this->builtBackend != backend ||
-    this->builtSkipBlock != this->macrocellsValid.skipBlockCells ||
-    this->builtBoundsPadding != this->macrocellsValid.boundsPadding)
+  const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
+    this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding };
+  if (!this->session || this->built != want)
   {
     try
     {
@@ -907,11 +928,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
           "rendering on the CPU (" << this->session->description() << ").");
         this->warnedCuda = true;
       }
-      this->builtResolution = self->MacrocellResolution;
-      this->builtSlices = self->TemporalSlices;
-      this->builtBackend = backend;
-      this->builtSkipBlock = this->macrocellsValid.skipBlockCells;
-      this->builtBoundsPadding = this->macrocellsValid.boundsPadding;
+      this->built = want;
       this->haveSettings = false;
       this->haveQueryReduction = false;  // a new engine starts from the struct's defaults
       this->refinement.restart();
@@ -924,12 +941,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       return false;
     }
   }
-  const inr::TrackingOptions& held = this->session->trackingOptions();
-  if (held.ghostPassesOnUpdate != this->trackingValid.ghostPassesOnUpdate ||
-    held.refineMacrocells != this->trackingValid.refineMacrocells)
-  {
-    this->session->setTrackingOptions(this->trackingValid);  // valid: checked above
-  }
+  syncTrackingOptions(*this->session, this->trackingValid);  // valid: checked above
   this->backendInUse = this->session->description();
   this->macrocellsInUse = describeMacrocells(*this->session);
   return true;
@@ -943,41 +955,34 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
   CoarseEngine& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->builtResolution || !this->session || !this->model.domain.usesTime())
+  if (n <= 0 || n >= this->built.resolution || !this->session || !this->model.domain.usesTime())
   {
     return false;
   }
-  if (!c.session || c.builtResolution != n || c.builtSlices != this->builtSlices ||
-    c.builtBackend != this->builtBackend || c.builtSkipBlock != this->builtSkipBlock ||
-    c.builtBoundsPadding != this->builtBoundsPadding)
+  EngineKey want = this->built;
+  want.resolution = n;
+  if (!c.session || c.built != want)
   {
-    const bool sameOptions = c.builtResolution == n && c.builtSlices == this->builtSlices &&
-      c.builtBackend == this->builtBackend && c.builtSkipBlock == this->builtSkipBlock &&
-      c.builtBoundsPadding == this->builtBoundsPadding;
-    if (c.failed && sameOptions)
+    if (c.failed && c.built == want)
     {
       return false;
     }
     c.session.reset();
-    c.builtResolution = n;
-    c.builtSlices = this->builtSlices;
-    c.builtBackend = this->builtBackend;
-    c.builtSkipBlock = this->builtSkipBlock;
-    c.builtBoundsPadding = this->builtBoundsPadding;
+    c.built = want;
     try
     {
       inr::RenderSessionOptions so;
       so.backend = this->session->backend();  // what the fine session runs on (after fallback)
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = this->builtSlices;
+      so.macrocells.temporalSlices = want.slices;
       // Skip blocks larger than the grid would be a single block: cap them at the grid.
-      so.macrocells.skipBlockCells = std::min(this->builtSkipBlock, n);
+      so.macrocells.skipBlockCells = std::min(want.skipBlock, n);
       while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))
       {
         so.macrocells.skipBlockCells &= so.macrocells.skipBlockCells - 1;  // a power of two
       }
-      so.macrocells.boundsPadding = this->builtBoundsPadding;
+      so.macrocells.boundsPadding = want.boundsPadding;
       so.tracking = this->trackingValid;
       // No progress handler: its builds are short; the progress bar is for the fine ones.
       c.session = inr::RenderSession::create(this->model, so);
@@ -999,12 +1004,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       return false;
     }
   }
-  const inr::TrackingOptions& held = c.session->trackingOptions();
-  if (held.ghostPassesOnUpdate != this->trackingValid.ghostPassesOnUpdate ||
-    held.refineMacrocells != this->trackingValid.refineMacrocells)
-  {
-    c.session->setTrackingOptions(this->trackingValid);
-  }
+  syncTrackingOptions(*c.session, this->trackingValid);
   return true;
 }
 
