@@ -168,8 +168,10 @@ INR_HD void opaqueRayIndex(int& i) {
 // on from it (null collision) or the ray finishes (real collision, blocked shadow ray); only
 // candidates that need the network leave the ray pending. The walker is rebuilt from the ray
 // state after each pruned candidate rather than kept live across resolveCandidate: pruning stays
-// a loop back-edge and the register footprint of the pass without pruning is unchanged.
-template <typename Walker>
+// a loop back-edge. kPruning = false compiles the pass without the loop (one candidate at most):
+// with the loop present but never taken, nvcc still allocated for it, and the GPU traversal of
+// siren_cylinder_vorticity took 1.04 instead of 0.48 ms per frame (H100, Benchmarks/RESULTS.md).
+template <typename Walker, bool kPruning = true>
 INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];
   if (!(flags & kRayActive)) return;
@@ -178,13 +180,14 @@ INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medi
   bool finished = false;
   bool resolve = (flags & kRayPending) != 0;
   for (;;) {
-    opaqueRayIndex(i);
+    if (kPruning) opaqueRayIndex(i);
     if (resolve && (finished = resolveCandidate(fc, medium, rs, i, flags, rng))) break;
     Walker walker(medium.grid, rs, i);
     if (!trackSegments(fc, rs, i, flags, rng, walker, rs.t[i], rs.tEnd[i])) {
       finished = true;
       break;
     }
+    if (!kPruning) break;  // the candidate is pending for the evaluator
     resolve = answerPruned(medium.prune, walker.cellIndex(), rs, i, rng);
     if (!resolve) break;  // a query for the evaluator is pending
   }
@@ -193,9 +196,16 @@ INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medi
   rs.rngCounter[i] = rng.counter;
 }
 
-// The DDA traversal over the majorant grid.
+// The DDA traversal over the majorant grid; pruning only when the medium has expected scalars.
+template <bool kPruning>
+INR_HD void traverseDdaRay(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
+  traverseRayWith<DdaWalker, kPruning>(fc, medium, rs, i);
+}
 INR_HD void traverseRay(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
-  traverseRayWith<DdaWalker>(fc, medium, rs, i);
+  if (medium.prune.expected)
+    traverseDdaRay<true>(fc, medium, rs, i);
+  else
+    traverseDdaRay<false>(fc, medium, rs, i);
 }
 
 }  // namespace inr

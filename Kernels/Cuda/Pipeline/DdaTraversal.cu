@@ -19,7 +19,9 @@ constexpr int kWarp = 32;
 constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 
 // Stage II for ray i: complete and refine the previous query (when the launch says so), resume
-// tracking, append the next candidate's query.
+// tracking, append the next candidate's query. kPruning: the medium has expected scalars (the
+// kernel is compiled twice so the pass without pruning carries none of its registers).
+template <bool kPruning>
 __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
   const RayStateView& rs = p.rs;
   if (p.resolvePrevious) {
@@ -32,10 +34,10 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
     // by design: read, then one atomic store of the new estimate. A lost update only drops a
     // sample (every stored value is still a convex mix of the mean and real samples); a CAS
     // loop would serialise the many rays in a hot cell for no visible gain.
-    if (p.medium.prune.expected && expectedAfterQuery(p.medium, rs, i, v, cell, estimate))
+    if (kPruning && expectedAfterQuery(p.medium, rs, i, v, cell, estimate))
       atomicExch(&p.medium.prune.expected[cell], estimate);
   }
-  traverseRay(p.fc, p.medium, rs, i);
+  traverseDdaRay<kPruning>(p.fc, p.medium, rs, i);
   if (rs.flags[i] & kRayPending) {
     const unsigned slot = cuda::appendSlot(p.outCount);
     const QueryPoint q = pendingQuery(rs, i, p.fc.time);
@@ -61,6 +63,7 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 #else
 #define INR_TRAVERSE_MIN_BLOCKS 9
 #endif
+template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
   if (p.list) {
     // List passes: one thread per listed ray, as before the persistent loop (grid-stride when
@@ -68,7 +71,7 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
     // two same-address atomics (its fetch and the empty fetch that ends it) lie on that path.
     const int n = p.listCount ? min(p.n, int(*p.listCount)) : p.n;
     const int stride = int(gridDim.x * blockDim.x);
-    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay(p, p.list[k]);
+    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay<kPruning>(p, p.list[k]);
     return;
   }
   const int lane = int(threadIdx.x) & (kWarp - 1);
@@ -90,7 +93,7 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
       if (px >= width || py >= height) continue;
       i = py * width + px;
     }
-    traverseListedRay(p, i);
+    traverseListedRay<kPruning>(p, i);
   }
 }
 
@@ -100,25 +103,31 @@ public:
     int device = 0, sms = 0, perSm = 0;
     INR_CUDA_CHECK(cudaGetDevice(&device));
     INR_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel, kThreads, 0));
-    residentBlocks_ = std::max(1, sms * std::max(1, perSm));
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel<false>, kThreads, 0));
+    residentBlocks_[0] = std::max(1, sms * std::max(1, perSm));
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel<true>, kThreads, 0));
+    residentBlocks_[1] = std::max(1, sms * std::max(1, perSm));
   }
   const char* name() const override { return "dda"; }
   void traverse(const TraversalLaunch& launch, cudaStream_t stream) const override {
     if (!launch.workCounter) throw std::invalid_argument("DdaTraversal: TraversalLaunch::workCounter is null");
     const long long needed = std::max<long long>(1, (launch.n + kThreads - 1) / kThreads);
-    const int blocks = int(std::min<long long>(needed, residentBlocks_));
+    const bool pruning = launch.medium.prune.expected != nullptr;
+    const int blocks = int(std::min<long long>(needed, residentBlocks_[pruning]));
     // Pixel tiles only when the rays are exactly the image's pixels (ray i = pixel i).
     const CameraView& cam = launch.fc.camera;
     const bool tiled = !launch.list && cam.width > 0 && cam.height > 0 &&
                        (long long)cam.width * cam.height == (long long)launch.n;
     const int tilesX = tiled ? (cam.width + kTileWidth - 1) / kTileWidth : 0;
-    ddaTraverseKernel<<<blocks, kThreads, 0, stream>>>(launch, tilesX);
+    if (pruning)
+      ddaTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX);
+    else
+      ddaTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX);
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }
 
 private:
-  int residentBlocks_ = 1;
+  int residentBlocks_[2] = {1, 1};  // per kernel: without, with pruning
 };
 
 }  // namespace
