@@ -4,7 +4,10 @@
 # the benchmark scenes twice per build, alternating; results in $OUT. How the traversal
 # regression of e7b64c6 was found (Benchmarks/RESULTS.md).
 #   OUT=dir bash Benchmarks/bisect_render_benchmark.sh COMMIT...
-ROOT=$PWD; W=/tmp/bis; mkdir -p $W
+set -u
+cd "$(dirname "$0")/.."
+OUT=${OUT:-bisect-results}; mkdir -p "$OUT"
+ROOT=$PWD; W=$(mktemp -d)
 git clone -q build-xfer/main.bundle $W/repo -b main || exit 1
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
 build() {
