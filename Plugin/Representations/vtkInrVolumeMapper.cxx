@@ -201,6 +201,20 @@ struct EngineKey
   bool operator!=(const EngineKey& o) const { return !(*this == o); }
 };
 
+// Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
+// progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
+// ParaView's progress bar.
+inr::MacrocellProgress progressHandler(vtkInrVolumeMapper* self, const std::string& prefix)
+{
+  return [self, prefix](double fraction, const std::string& phase)
+  {
+    self->SetProgressText((prefix + phase).c_str());
+    self->UpdateProgress(fraction);
+    self->SetProgressText(nullptr);  // observers read it during the event; later events (the
+                                     // executive's own) are not the build's
+  };
+}
+
 // Ghost passes and macrocell refinement change on a live session, without a rebuild.
 void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
 {
@@ -264,6 +278,7 @@ struct vtkInrVolumeMapper::Internals
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
+  void BuildCoarseAhead(vtkInrVolumeMapper* self);
   inr::RenderSession* Shown() const
   {
     return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
@@ -290,6 +305,8 @@ struct vtkInrVolumeMapper::Internals
   vtkWeakPointer<vtkRenderWindow> observedWindow;
   vtkNew<vtkCallbackCommand> windowObserver;
   Clock::time_point windowStart;
+  double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
+                         // of the window's frames: left out of outsideMs)
   bool renderedInWindow = false;
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
@@ -652,6 +669,14 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
   }
+  // A still render that time-change frames may follow: build the coarse slices they will need
+  // now (after the frame is measured: it is no part of the frame's cost).
+  if (!interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
+    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
+    !this->Capturing)
+  {
+    I.BuildCoarseAhead(this);
+  }
 }
 
 void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
@@ -687,10 +712,12 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   {
     self->windowStart = Clock::now();
     self->renderedInWindow = false;
+    self->aheadMs = 0.0;
   }
   else if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
-    const double outside = std::max(0.0, msSince(self->windowStart) - self->lastRenderMs);
+    const double outside =
+      std::max(0.0, msSince(self->windowStart) - self->lastRenderMs - self->aheadMs);
     self->outsideMs = self->outsideMs > 0.0 ? 0.5 * (self->outsideMs + outside) : outside;
     self->renderedInWindow = false;
   }
@@ -908,15 +935,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
       so.tracking = this->trackingValid;
       this->session = inr::RenderSession::create(this->model, so);
-      // Macrocell builds (inside the engine's setScene during Render) become VTK progress: the
-      // representation forwards it to ParaView's progress bar.
-      this->session->setProgressHandler([self](double fraction, const std::string& phase)
-        {
-          self->SetProgressText(("INR Volume: " + phase).c_str());
-          self->UpdateProgress(fraction);
-          self->SetProgressText(nullptr);  // observers read it during the event; later events
-                                           // (the executive's own) are not the build's
-        });
+      this->session->setProgressHandler(progressHandler(self, "INR Volume: "));
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
       this->session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
@@ -984,7 +1003,8 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       }
       so.macrocells.boundsPadding = want.boundsPadding;
       so.tracking = this->trackingValid;
-      // No progress handler: its builds are short; the progress bar is for the fine ones.
+      // No progress handler for its lazy builds (inside interactive frames, short); the build
+      // ahead reports progress (BuildCoarseAhead).
       c.session = inr::RenderSession::create(this->model, so);
       c.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
@@ -1006,6 +1026,44 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
   }
   syncTrackingOptions(*c.session, this->trackingValid);
   return true;
+}
+
+// Builds every coarse slice not built yet (InteractiveMacrocellsAhead), reporting progress; the
+// coarse session reports none otherwise (its lazy builds happen inside interactive frames).
+void vtkInrVolumeMapper::Internals::BuildCoarseAhead(vtkInrVolumeMapper* self)
+{
+  if (!this->UpdateCoarseEngine(self))
+  {
+    return;
+  }
+  inr::RenderSession& engine = *this->coarse.session;
+  const inr::MacrocellInfo before = engine.macrocellInfo();
+  if (before.slicesBuilt >= before.temporalSlices)
+  {
+    return;
+  }
+  const auto start = Clock::now();
+  engine.setProgressHandler(progressHandler(self, "INR Volume (interactive macrocells): "));
+  try
+  {
+    engine.buildAllSlices();
+  }
+  catch (const std::exception& e)
+  {
+    vtkErrorWithObjectMacro(self, << "INR Volume: building the interactive macrocells ahead "
+                                     "failed: " << e.what()
+                                  << "; time changes build them when needed");
+  }
+  engine.setProgressHandler({});
+  const double ms = msSince(start);
+  this->aheadMs += ms;
+  if (lodReport())
+  {
+    std::fprintf(stderr, "INR Volume LOD: built %d interactive macrocell slices ahead (%dx%dx%d "
+                         "cells), %.1f ms\n",
+      engine.macrocellInfo().slicesBuilt - before.slicesBuilt, before.dims.x, before.dims.y,
+      before.dims.z, ms);
+  }
 }
 
 // Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
@@ -1243,6 +1301,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
   os << indent << "InteractiveMacrocellResolution: " << this->InteractiveMacrocellResolution
      << "\n";
+  os << indent << "InteractiveMacrocellsAhead: " << this->InteractiveMacrocellsAhead << "\n";
   os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";
