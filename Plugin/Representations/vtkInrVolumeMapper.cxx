@@ -215,6 +215,29 @@ inr::MacrocellProgress progressHandler(vtkInrVolumeMapper* self, const std::stri
   };
 }
 
+// One engine session and what the mapper keeps about it: what it was built from, the render
+// settings and query reduction last handed to it (handed again only when they differ, so a
+// rejected setting is reported once) and its refinement driver. The fine session
+// (MacrocellResolution) and the coarse one of time-change interactive frames
+// (InteractiveMacrocellResolution) are two of these.
+struct EngineSlot
+{
+  std::unique_ptr<inr::RenderSession> session;
+  EngineKey built;
+  bool haveSettings = false;
+  inr::RenderSettings settings;
+  bool haveQueryReduction = false;
+  inr::QueryReductionSettings queryReductionTried;
+  inr::RefinementDriver refinement;
+  // A new session starts from the engine's defaults: hand it everything again.
+  void Started()
+  {
+    this->haveSettings = false;
+    this->haveQueryReduction = false;
+    this->refinement.restart();
+  }
+};
+
 // Ghost passes and macrocell refinement change on a live session, without a rebuild.
 void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
 {
@@ -238,18 +261,12 @@ struct vtkInrVolumeMapper::Internals
   inr::InrModel model;
 
   // The engine session: evaluator + macrocells + renderer on the chosen backend.
-  std::unique_ptr<inr::RenderSession> session;
-  EngineKey built;
+  EngineSlot fine;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
   bool warnedCuda = false;
-  bool haveSettings = false;
-  inr::RenderSettings settings;
-  // Query reduction: what the user asked for, what was last handed to the engine (pushed again
-  // only when they differ, so a rejected setting is reported once) and what the engine holds.
+  // Query reduction: what the user asked for and what the engine shown last holds.
   inr::QueryReductionSettings queryReduction;
-  bool haveQueryReduction = false;
-  inr::QueryReductionSettings queryReductionTried;
   std::string queryReductionInUse;
 
   // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
@@ -262,19 +279,10 @@ struct vtkInrVolumeMapper::Internals
   // Interactive frames caused by a time change render with a second session on a coarse
   // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
   // fine grid's, so the first visit of a time stays interactive; the fine session builds its
-  // slices in the still render that follows. Built lazily, with the fine session's other
-  // options; its own settings / query-reduction caches and refinement driver.
-  struct CoarseEngine
-  {
-    std::unique_ptr<inr::RenderSession> session;
-    EngineKey built;
-    bool failed = false;  // creation failed once for these options: reported, not retried
-    bool haveSettings = false;
-    inr::RenderSettings settings;
-    bool haveQueryReduction = false;
-    inr::QueryReductionSettings queryReductionTried;
-    inr::RefinementDriver refinement;
-  } coarse;
+  // slices in the still render that follows. Built with the fine session's other options,
+  // lazily or ahead (InteractiveMacrocellsAhead).
+  EngineSlot coarse;
+  bool coarseFailed = false;  // creation failed once for coarse.built: reported, not retried
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
@@ -282,13 +290,12 @@ struct vtkInrVolumeMapper::Internals
   inr::RenderSession* Shown() const
   {
     return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
-                                                     : this->session.get();
+                                                     : this->fine.session.get();
   }
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
   std::vector<float> depth;
-  inr::RefinementDriver refinement;
   inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
 
@@ -335,8 +342,7 @@ struct vtkInrVolumeMapper::Internals
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  void PushQueryReduction(vtkInrVolumeMapper* self, inr::RenderSession& engine,
-    bool& haveQueryReduction, inr::QueryReductionSettings& queryReductionTried);
+  void PushQueryReduction(vtkInrVolumeMapper* self, EngineSlot& slot);
   bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
     double* budgetMs, bool* timeChange) const;
   double ChooseScale(double budgetMs, int width, int height);
@@ -367,16 +373,14 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  if (this->Internal->session)
+  for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
   {
-    this->Internal->session->resetAccumulation();
+    if (slot->session)
+    {
+      slot->session->resetAccumulation();
+    }
+    slot->refinement.restart();
   }
-  if (this->Internal->coarse.session)
-  {
-    this->Internal->coarse.session->resetAccumulation();
-  }
-  this->Internal->coarse.refinement.restart();
-  this->Internal->refinement.restart();
 }
 
 int vtkInrVolumeMapper::GetAccumulatedFrames()
@@ -390,7 +394,7 @@ int vtkInrVolumeMapper::GetConverged()
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
   // A reduced interactive image is never the final one: a still render must follow.
   return !this->ProgressiveRefinement ||
-      (!this->Internal->lastInteractive && this->Internal->refinement.converged())
+      (!this->Internal->lastInteractive && this->Internal->fine.refinement.converged())
     ? 1
     : 0;
 }
@@ -417,7 +421,7 @@ double vtkInrVolumeMapper::GetLastRenderMilliseconds()
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
 {
-  return this->Internal->refinement.estimate();
+  return this->Internal->fine.refinement.estimate();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()
@@ -432,7 +436,8 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  return this->Internal->session ? this->Internal->session->macrocellInfo().slicesBuilt : 0;
+  const auto& fine = this->Internal->fine.session;
+  return fine ? fine->macrocellInfo().slicesBuilt : 0;
 }
 
 int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
@@ -838,9 +843,9 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
     {
       this->hash = h;
       this->modelOk = false;
-      this->session.reset();
+      this->fine.session.reset();
       this->coarse.session.reset();
-      this->coarse.failed = false;
+      this->coarseFailed = false;
       try
       {
         this->model = inr::InrModel::loadBytes(bytes->GetPointer(0), n, "INR model (field data)");
@@ -918,11 +923,12 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   this->CheckOptions(self);
   const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
     this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding };
-  if (!this->session || this->built != want)
+  EngineSlot& f = this->fine;
+  if (!f.session || f.built != want)
   {
     try
     {
-      this->session.reset();
+      f.session.reset();
       inr::RenderSessionOptions so;
       so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
         : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
@@ -934,35 +940,33 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
       so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
       so.tracking = this->trackingValid;
-      this->session = inr::RenderSession::create(this->model, so);
-      this->session->setProgressHandler(progressHandler(self, "INR Volume: "));
+      f.session = inr::RenderSession::create(this->model, so);
+      f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
-      this->session->setWarningHandler([self](const std::string& message)
+      f.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
-      if (backend == BACKEND_CUDA && this->session->backend() != inr::RenderBackend::Cuda &&
+      if (backend == BACKEND_CUDA && f.session->backend() != inr::RenderBackend::Cuda &&
         !this->warnedCuda)
       {
         vtkWarningWithObjectMacro(self,
           "INR Volume: the CUDA backend was requested but is not usable here; "
-          "rendering on the CPU (" << this->session->description() << ").");
+          "rendering on the CPU (" << f.session->description() << ").");
         this->warnedCuda = true;
       }
-      this->built = want;
-      this->haveSettings = false;
-      this->haveQueryReduction = false;  // a new engine starts from the struct's defaults
-      this->refinement.restart();
+      f.built = want;
+      f.Started();
       ++this->engineBuilds;
     }
     catch (const std::exception& e)
     {
       vtkErrorWithObjectMacro(self, << "INR Volume: cannot set up the renderer: " << e.what());
-      this->session.reset();
+      f.session.reset();
       return false;
     }
   }
-  syncTrackingOptions(*this->session, this->trackingValid);  // valid: checked above
-  this->backendInUse = this->session->description();
-  this->macrocellsInUse = describeMacrocells(*this->session);
+  syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
+  this->backendInUse = f.session->description();
+  this->macrocellsInUse = describeMacrocells(*f.session);
   return true;
 }
 
@@ -972,17 +976,18 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 // no time, or it cannot be created (reported once).
 bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
-  CoarseEngine& c = this->coarse;
+  EngineSlot& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->built.resolution || !this->session || !this->model.domain.usesTime())
+  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session ||
+    !this->model.domain.usesTime())
   {
     return false;
   }
-  EngineKey want = this->built;
+  EngineKey want = this->fine.built;
   want.resolution = n;
   if (!c.session || c.built != want)
   {
-    if (c.failed && c.built == want)
+    if (this->coarseFailed && c.built == want)
     {
       return false;
     }
@@ -991,7 +996,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
     try
     {
       inr::RenderSessionOptions so;
-      so.backend = this->session->backend();  // what the fine session runs on (after fallback)
+      so.backend = this->fine.session->backend();  // what it runs on (after fallback)
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
       so.macrocells.temporalSlices = want.slices;
@@ -1008,10 +1013,8 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       c.session = inr::RenderSession::create(this->model, so);
       c.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
-      c.haveSettings = false;
-      c.haveQueryReduction = false;
-      c.refinement.restart();
-      c.failed = false;
+      c.Started();
+      this->coarseFailed = false;
     }
     catch (const std::exception& e)
     {
@@ -1020,7 +1023,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
                                     << n << ": cannot set up the coarse renderer: " << e.what()
                                     << "; time changes render with the fine macrocells");
       c.session.reset();
-      c.failed = true;
+      this->coarseFailed = true;
       return false;
     }
   }
@@ -1145,13 +1148,13 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 // once and the engine keeps what it had; a pruning change restarts its accumulation, which the
 // refinement driver notices (accumulated frames drop to 0).
 void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
-  inr::RenderSession& engine, bool& haveQueryReduction,
-  inr::QueryReductionSettings& queryReductionTried)
+  EngineSlot& slot)
 {
-  if (!haveQueryReduction || !sameQueryReduction(this->queryReduction, queryReductionTried))
+  inr::RenderSession& engine = *slot.session;
+  if (!slot.haveQueryReduction || !sameQueryReduction(this->queryReduction, slot.queryReductionTried))
   {
-    haveQueryReduction = true;
-    queryReductionTried = this->queryReduction;
+    slot.haveQueryReduction = true;
+    slot.queryReductionTried = this->queryReduction;
     try
     {
       engine.setQueryReduction(this->queryReduction);
@@ -1171,12 +1174,11 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
   int interactiveFrames)
 {
-  // The session drawing this render and its caches: the fine one, or the coarse one for a
-  // time-change interactive frame.
-  inr::RenderSession& engine = useCoarse ? *this->coarse.session : *this->session;
-  bool& haveSettings = useCoarse ? this->coarse.haveSettings : this->haveSettings;
-  inr::RenderSettings& heldSettings = useCoarse ? this->coarse.settings : this->settings;
-  inr::RefinementDriver& refinement = useCoarse ? this->coarse.refinement : this->refinement;
+  // The session drawing this render: the fine one, or the coarse one for a time-change
+  // interactive frame.
+  EngineSlot& slot = useCoarse ? this->coarse : this->fine;
+  inr::RenderSession& engine = *slot.session;
+  inr::RefinementDriver& refinement = slot.refinement;
   this->shownCoarse = useCoarse;
   try
   {
@@ -1185,13 +1187,13 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
-    if (!haveSettings || settings.width != heldSettings.width ||
-      settings.height != heldSettings.height || settings.seed != heldSettings.seed ||
-      settings.window != heldSettings.window)
+    const inr::RenderSettings& held = slot.settings;
+    if (!slot.haveSettings || settings.width != held.width || settings.height != held.height ||
+      settings.seed != held.seed || settings.window != held.window)
     {
       engine.setSettings(settings);
-      heldSettings = settings;
-      haveSettings = true;
+      slot.settings = settings;
+      slot.haveSettings = true;
     }
     const bool debug = debugReport();
     if (debug)
@@ -1204,15 +1206,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       this->lastScene = scene;
       this->haveLastScene = true;
     }
-    if (useCoarse)
-    {
-      this->PushQueryReduction(
-        self, engine, this->coarse.haveQueryReduction, this->coarse.queryReductionTried);
-    }
-    else
-    {
-      this->PushQueryReduction(self, engine, this->haveQueryReduction, this->queryReductionTried);
-    }
+    this->PushQueryReduction(self, slot);
     engine.setScene(scene);
 
     inr::RefinementOptions options;
