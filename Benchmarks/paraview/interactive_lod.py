@@ -3,17 +3,19 @@
     pvpython Benchmarks/paraview/interactive_lod.py --plugin BUILD/lib/paraview-plugins/InrVolume/InrVolume.so
         [--models A.inr B.inr ...] [--size 1280 768] [--backend cpu] [--orbit-steps 24]
         [--scrub-steps 16] [--converge-seconds 120] [--frame-time 100]
-        [--interactive-macrocells 8] [--csv lod.csv]
+        [--interactive-macrocells 8] [--interactive-macrocells-ahead 1] [--csv lod.csv]
 
 Per model (default: the shipped paper-size models in Testing/Data/real, each with its suggested
 MODEL.tf.json colour map), in one render view of --size (needs X; run under Xvfb):
-  1. a still render at the first time (engine + first macrocell slices built; not timed);
+  1. a still render at the first time: "open" is the wall time from Show to its end (engine,
+     first fine macrocell slices, with --interactive-macrocells-ahead every coarse interactive
+     slice, and the renders ParaView does while the view is set up), one per model;
   2. time scrub, first visits: the view time steps through --scrub-steps times over the range,
      one still render each (ParaView renders time changes as still renders; with level of detail
      the mapper draws them as interactive frames); macrocell slices are built as they are first
      needed, so these are "first visit" figures. Twice: "scrub-first-visit" with the
      representation's coarse interactive macrocells (--interactive-macrocells cells per axis:
-     only coarse slices are built), then "scrub-first-visit-fine" with them off (0), the fine
+     only coarse slices are built, or none when they were built ahead), then "scrub-first-visit-fine" with them off (0), the fine
      32^3 slices built by the time-change frame itself (what every time change did before the
      coarse grid existed); after it the fine slices of every scrub time are built;
   3. for level of detail on and off: a camera orbit of --orbit-steps interactive renders
@@ -49,6 +51,9 @@ ap.add_argument("--converge-seconds", type=float, default=120.0)
 ap.add_argument("--frame-time", type=float, default=100.0, help="InrInteractiveFrameTime (ms)")
 ap.add_argument("--interactive-macrocells", type=int, default=8,
                 help="InrInteractiveMacrocellResolution for the first-visit scrub and the built-slice phases")
+ap.add_argument("--interactive-macrocells-ahead", type=int, choices=[0, 1], default=1,
+                help="InrInteractiveMacrocellsAhead: coarse slices built ahead in the first still render (1) "
+                     "or by the time-change frames that need them (0)")
 ap.add_argument("--csv", default="interactive_lod.csv")
 args = ap.parse_args()
 
@@ -58,6 +63,7 @@ if args.plugin:
     simple.LoadPlugin(args.plugin, remote=False, ns=globals())
 
 BACKENDS = {"auto": 0, "cpu": 1, "cuda": 2}
+LOAD_AT_START = os.getloadavg()
 
 
 def percentile(values, q):
@@ -123,15 +129,21 @@ for model_path in args.models:
     reader.UpdatePipelineInformation()
     trange = list(reader.GetProperty("TimeRange"))
     t0, t1 = trange if len(trange) == 2 else (0.0, 0.0)
+    open_start = time.perf_counter()
     display = simple.Show(reader, view)
     display.SetRepresentationType("INR Volume")
+    # Before anything renders (the camera set-up below already renders once): the first still
+    # render builds the coarse interactive slices ahead or not.
+    display.InrInteractiveLevelOfDetail = 2
+    display.InrInteractiveMacrocellResolution = args.interactive_macrocells
+    display.InrInteractiveMacrocellsAhead = args.interactive_macrocells_ahead
+    display.InrFramesPerRender = 1
     simple.ColorBy(display, ("POINTS", "value"))
     tf_path = os.path.splitext(model_path)[0] + ".tf.json"
     if os.path.exists(tf_path):
         apply_tf(display, tf_path)
     display.SetScalarBarVisibility(view, False)
     display.InrBackend = BACKENDS[args.backend]
-    display.InrFramesPerRender = 1
     display.InrInteractiveFrameTime = args.frame_time
     bounds = reader.GetDataInformation().GetBounds()
     display.ScalarOpacityUnitDistance = 0.05 * max(bounds[1] - bounds[0], bounds[3] - bounds[2],
@@ -147,11 +159,12 @@ for model_path in args.models:
     def set_time(t):
         view.ViewTime = t
 
-    display.InrInteractiveLevelOfDetail = 2
-    display.InrInteractiveMacrocellResolution = args.interactive_macrocells
     set_time(times[0])
-    warm = timed(name, "warmup", "on", 0, proxy.StillRender, mapper)
-    print(f"{name}: first still render {warm['view_ms']:.0f} ms ({mapper.get('InrBackendInUse')})", flush=True)
+    warm = timed(name, "first-still", "on", 0, proxy.StillRender, mapper)
+    # From Show to the first still image: engine, first fine slices, coarse slices ahead, frames.
+    rows.append(dict(warm, phase="open", view_ms=round(1000.0 * (time.perf_counter() - open_start), 2)))
+    print(f"{name}: open to first still image {rows[-1]['view_ms']:.0f} ms, last still render "
+          f"{warm['view_ms']:.0f} ms ({mapper.get('InrBackendInUse')})", flush=True)
     for i, t in enumerate(times[1:], 1):
         set_time(t)
         timed(name, "scrub-first-visit", "on", i, proxy.StillRender, mapper)
@@ -208,14 +221,16 @@ with open(args.csv, "w", newline="") as f:
 print()
 print(f"INR Volume interactive frames, {args.size[0]}x{args.size[1]} view, backend {args.backend}, "
       f"budget {args.frame_time:g} ms, interactive macrocells {args.interactive_macrocells} "
-      f"(view render wall time, ms)")
+      f"(built ahead: {'yes' if args.interactive_macrocells_ahead else 'no'}) (view render wall time, ms)")
+print(f"load average at start {LOAD_AT_START[0]:.2f} / {LOAD_AT_START[1]:.2f}, at end "
+      f"{os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} (1 / 5 min) on {os.cpu_count()} CPUs")
 header = (f"{'model':28s} {'phase':22s} {'LOD':3s} {'n':>3s} {'median':>8s} {'p90':>8s} {'max':>8s} "
           f"{'update med':>10s} {'image (median)':>15s}")
 print(header)
 print("-" * len(header))
 groups = {}
 for r in rows:
-    if r["phase"] in ("orbit", "scrub-built", "scrub-first-visit", "scrub-first-visit-fine"):
+    if r["phase"] in ("open", "orbit", "scrub-built", "scrub-first-visit", "scrub-first-visit-fine"):
         groups.setdefault((r["model"], r["phase"], r["lod"]), []).append(r)
 for (model, phase, lod), rs in groups.items():
     v = [r["view_ms"] for r in rs]

@@ -52,6 +52,7 @@ public:
     renderer_.setWarningHandler(std::move(handler));
   }
   void setProgressHandler(MacrocellProgress handler) override { grid_.setProgressHandler(std::move(handler)); }
+  void buildAllSlices() override { grid_.buildAllSlices(); }
   MacrocellInfo macrocellInfo() const override {
     MacrocellInfo i;
     i.dims = grid_.options().dims;

@@ -93,6 +93,10 @@ public:
   // build after creating a session with another macrocell grid (MacrocellProgress: a fraction in
   // [0, 1] and a short phase text, a few calls per slice). Default: none.
   virtual void setProgressHandler(MacrocellProgress handler) = 0;
+  // Builds every temporal macrocell slice not built yet (reporting progress as above), so that
+  // later time changes find their slices built: for a caller that has time to spare now (the
+  // mapper's coarse interactive grid, built ahead during a still render).
+  virtual void buildAllSlices() = 0;
 };
 
 }  // namespace inr

@@ -118,6 +118,25 @@ TEST(RenderSessionProgress, EagerBuildReportsFromTheStart) {
   EXPECT_TRUE(log.fractions.empty());
 }
 
+TEST(RenderSessionProgress, BuildAllSlicesBuildsOnlyTheMissingOnesAhead) {
+  SessionFixture f;
+  auto session = f.open(f.options(16, 5));
+  session->setScene(f.scene);  // slice 0, lazily
+  ASSERT_EQ(session->macrocellInfo().slicesBuilt, 1);
+  ProgressLog log;
+  session->setProgressHandler(log.handler());
+  session->buildAllSlices();  // the 4 others, as one build
+  log.expectOneBuild(4 * 4 + 1, "build ahead");
+  EXPECT_EQ(log.phases.front(), "building macrocells: 4 of 5 time slices, 16x16x16 cells");
+  EXPECT_EQ(session->macrocellInfo().slicesBuilt, 5);
+  log.clear();
+  f.scene.time = f.timeAt(0.7);  // a first visit now finds its slices built
+  session->setScene(f.scene);
+  session->buildAllSlices();  // nothing left: no build, no progress
+  EXPECT_TRUE(log.fractions.empty());
+  EXPECT_EQ(session->macrocellInfo().slicesBuilt, 5);
+}
+
 TEST(RenderSessionProgress, ProgressDoesNotChangeTheImage) {
   SessionFixture f;
   auto quiet = f.open(f.options(16, 3));

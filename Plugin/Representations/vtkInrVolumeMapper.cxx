@@ -201,6 +201,43 @@ struct EngineKey
   bool operator!=(const EngineKey& o) const { return !(*this == o); }
 };
 
+// Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
+// progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
+// ParaView's progress bar.
+inr::MacrocellProgress progressHandler(vtkInrVolumeMapper* self, const std::string& prefix)
+{
+  return [self, prefix](double fraction, const std::string& phase)
+  {
+    self->SetProgressText((prefix + phase).c_str());
+    self->UpdateProgress(fraction);
+    self->SetProgressText(nullptr);  // observers read it during the event; later events (the
+                                     // executive's own) are not the build's
+  };
+}
+
+// One engine session and what the mapper keeps about it: what it was built from, the render
+// settings and query reduction last handed to it (handed again only when they differ, so a
+// rejected setting is reported once) and its refinement driver. The fine session
+// (MacrocellResolution) and the coarse one of time-change interactive frames
+// (InteractiveMacrocellResolution) are two of these.
+struct EngineSlot
+{
+  std::unique_ptr<inr::RenderSession> session;
+  EngineKey built;
+  bool haveSettings = false;
+  inr::RenderSettings settings;
+  bool haveQueryReduction = false;
+  inr::QueryReductionSettings queryReductionTried;
+  inr::RefinementDriver refinement;
+  // A new session starts from the engine's defaults: hand it everything again.
+  void Started()
+  {
+    this->haveSettings = false;
+    this->haveQueryReduction = false;
+    this->refinement.restart();
+  }
+};
+
 // Ghost passes and macrocell refinement change on a live session, without a rebuild.
 void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
 {
@@ -224,18 +261,12 @@ struct vtkInrVolumeMapper::Internals
   inr::InrModel model;
 
   // The engine session: evaluator + macrocells + renderer on the chosen backend.
-  std::unique_ptr<inr::RenderSession> session;
-  EngineKey built;
+  EngineSlot fine;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
   bool warnedCuda = false;
-  bool haveSettings = false;
-  inr::RenderSettings settings;
-  // Query reduction: what the user asked for, what was last handed to the engine (pushed again
-  // only when they differ, so a rejected setting is reported once) and what the engine holds.
+  // Query reduction: what the user asked for and what the engine shown last holds.
   inr::QueryReductionSettings queryReduction;
-  bool haveQueryReduction = false;
-  inr::QueryReductionSettings queryReductionTried;
   std::string queryReductionInUse;
 
   // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
@@ -248,32 +279,23 @@ struct vtkInrVolumeMapper::Internals
   // Interactive frames caused by a time change render with a second session on a coarse
   // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
   // fine grid's, so the first visit of a time stays interactive; the fine session builds its
-  // slices in the still render that follows. Built lazily, with the fine session's other
-  // options; its own settings / query-reduction caches and refinement driver.
-  struct CoarseEngine
-  {
-    std::unique_ptr<inr::RenderSession> session;
-    EngineKey built;
-    bool failed = false;  // creation failed once for these options: reported, not retried
-    bool haveSettings = false;
-    inr::RenderSettings settings;
-    bool haveQueryReduction = false;
-    inr::QueryReductionSettings queryReductionTried;
-    inr::RefinementDriver refinement;
-  } coarse;
+  // slices in the still render that follows. Built with the fine session's other options,
+  // lazily or ahead (InteractiveMacrocellsAhead).
+  EngineSlot coarse;
+  bool coarseFailed = false;  // creation failed once for coarse.built: reported, not retried
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
+  void BuildCoarseAhead(vtkInrVolumeMapper* self);
   inr::RenderSession* Shown() const
   {
     return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
-                                                     : this->session.get();
+                                                     : this->fine.session.get();
   }
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
   std::vector<float> depth;
-  inr::RefinementDriver refinement;
   inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
 
@@ -290,6 +312,8 @@ struct vtkInrVolumeMapper::Internals
   vtkWeakPointer<vtkRenderWindow> observedWindow;
   vtkNew<vtkCallbackCommand> windowObserver;
   Clock::time_point windowStart;
+  double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
+                         // of the window's frames: left out of outsideMs)
   bool renderedInWindow = false;
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
@@ -318,8 +342,7 @@ struct vtkInrVolumeMapper::Internals
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  void PushQueryReduction(vtkInrVolumeMapper* self, inr::RenderSession& engine,
-    bool& haveQueryReduction, inr::QueryReductionSettings& queryReductionTried);
+  void PushQueryReduction(vtkInrVolumeMapper* self, EngineSlot& slot);
   bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
     double* budgetMs, bool* timeChange) const;
   double ChooseScale(double budgetMs, int width, int height);
@@ -350,16 +373,14 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  if (this->Internal->session)
+  for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
   {
-    this->Internal->session->resetAccumulation();
+    if (slot->session)
+    {
+      slot->session->resetAccumulation();
+    }
+    slot->refinement.restart();
   }
-  if (this->Internal->coarse.session)
-  {
-    this->Internal->coarse.session->resetAccumulation();
-  }
-  this->Internal->coarse.refinement.restart();
-  this->Internal->refinement.restart();
 }
 
 int vtkInrVolumeMapper::GetAccumulatedFrames()
@@ -373,7 +394,7 @@ int vtkInrVolumeMapper::GetConverged()
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
   // A reduced interactive image is never the final one: a still render must follow.
   return !this->ProgressiveRefinement ||
-      (!this->Internal->lastInteractive && this->Internal->refinement.converged())
+      (!this->Internal->lastInteractive && this->Internal->fine.refinement.converged())
     ? 1
     : 0;
 }
@@ -400,7 +421,7 @@ double vtkInrVolumeMapper::GetLastRenderMilliseconds()
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
 {
-  return this->Internal->refinement.estimate();
+  return this->Internal->fine.refinement.estimate();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()
@@ -415,7 +436,8 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  return this->Internal->session ? this->Internal->session->macrocellInfo().slicesBuilt : 0;
+  const auto& fine = this->Internal->fine.session;
+  return fine ? fine->macrocellInfo().slicesBuilt : 0;
 }
 
 int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
@@ -652,6 +674,14 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
   }
+  // A still render that time-change frames may follow: build the coarse slices they will need
+  // now (after the frame is measured: it is no part of the frame's cost).
+  if (!interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
+    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
+    !this->Capturing)
+  {
+    I.BuildCoarseAhead(this);
+  }
 }
 
 void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
@@ -687,10 +717,12 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   {
     self->windowStart = Clock::now();
     self->renderedInWindow = false;
+    self->aheadMs = 0.0;
   }
   else if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
-    const double outside = std::max(0.0, msSince(self->windowStart) - self->lastRenderMs);
+    const double outside =
+      std::max(0.0, msSince(self->windowStart) - self->lastRenderMs - self->aheadMs);
     self->outsideMs = self->outsideMs > 0.0 ? 0.5 * (self->outsideMs + outside) : outside;
     self->renderedInWindow = false;
   }
@@ -811,9 +843,9 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
     {
       this->hash = h;
       this->modelOk = false;
-      this->session.reset();
+      this->fine.session.reset();
       this->coarse.session.reset();
-      this->coarse.failed = false;
+      this->coarseFailed = false;
       try
       {
         this->model = inr::InrModel::loadBytes(bytes->GetPointer(0), n, "INR model (field data)");
@@ -891,11 +923,12 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   this->CheckOptions(self);
   const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
     this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding };
-  if (!this->session || this->built != want)
+  EngineSlot& f = this->fine;
+  if (!f.session || f.built != want)
   {
     try
     {
-      this->session.reset();
+      f.session.reset();
       inr::RenderSessionOptions so;
       so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
         : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
@@ -907,43 +940,33 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
       so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
       so.tracking = this->trackingValid;
-      this->session = inr::RenderSession::create(this->model, so);
-      // Macrocell builds (inside the engine's setScene during Render) become VTK progress: the
-      // representation forwards it to ParaView's progress bar.
-      this->session->setProgressHandler([self](double fraction, const std::string& phase)
-        {
-          self->SetProgressText(("INR Volume: " + phase).c_str());
-          self->UpdateProgress(fraction);
-          self->SetProgressText(nullptr);  // observers read it during the event; later events
-                                           // (the executive's own) are not the build's
-        });
+      f.session = inr::RenderSession::create(this->model, so);
+      f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
-      this->session->setWarningHandler([self](const std::string& message)
+      f.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
-      if (backend == BACKEND_CUDA && this->session->backend() != inr::RenderBackend::Cuda &&
+      if (backend == BACKEND_CUDA && f.session->backend() != inr::RenderBackend::Cuda &&
         !this->warnedCuda)
       {
         vtkWarningWithObjectMacro(self,
           "INR Volume: the CUDA backend was requested but is not usable here; "
-          "rendering on the CPU (" << this->session->description() << ").");
+          "rendering on the CPU (" << f.session->description() << ").");
         this->warnedCuda = true;
       }
-      this->built = want;
-      this->haveSettings = false;
-      this->haveQueryReduction = false;  // a new engine starts from the struct's defaults
-      this->refinement.restart();
+      f.built = want;
+      f.Started();
       ++this->engineBuilds;
     }
     catch (const std::exception& e)
     {
       vtkErrorWithObjectMacro(self, << "INR Volume: cannot set up the renderer: " << e.what());
-      this->session.reset();
+      f.session.reset();
       return false;
     }
   }
-  syncTrackingOptions(*this->session, this->trackingValid);  // valid: checked above
-  this->backendInUse = this->session->description();
-  this->macrocellsInUse = describeMacrocells(*this->session);
+  syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
+  this->backendInUse = f.session->description();
+  this->macrocellsInUse = describeMacrocells(*f.session);
   return true;
 }
 
@@ -953,17 +976,18 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 // no time, or it cannot be created (reported once).
 bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
-  CoarseEngine& c = this->coarse;
+  EngineSlot& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->built.resolution || !this->session || !this->model.domain.usesTime())
+  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session ||
+    !this->model.domain.usesTime())
   {
     return false;
   }
-  EngineKey want = this->built;
+  EngineKey want = this->fine.built;
   want.resolution = n;
   if (!c.session || c.built != want)
   {
-    if (c.failed && c.built == want)
+    if (this->coarseFailed && c.built == want)
     {
       return false;
     }
@@ -972,7 +996,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
     try
     {
       inr::RenderSessionOptions so;
-      so.backend = this->session->backend();  // what the fine session runs on (after fallback)
+      so.backend = this->fine.session->backend();  // what it runs on (after fallback)
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
       so.macrocells.temporalSlices = want.slices;
@@ -984,14 +1008,13 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       }
       so.macrocells.boundsPadding = want.boundsPadding;
       so.tracking = this->trackingValid;
-      // No progress handler: its builds are short; the progress bar is for the fine ones.
+      // No progress handler for its lazy builds (inside interactive frames, short); the build
+      // ahead reports progress (BuildCoarseAhead).
       c.session = inr::RenderSession::create(this->model, so);
       c.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
-      c.haveSettings = false;
-      c.haveQueryReduction = false;
-      c.refinement.restart();
-      c.failed = false;
+      c.Started();
+      this->coarseFailed = false;
     }
     catch (const std::exception& e)
     {
@@ -1000,12 +1023,50 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
                                     << n << ": cannot set up the coarse renderer: " << e.what()
                                     << "; time changes render with the fine macrocells");
       c.session.reset();
-      c.failed = true;
+      this->coarseFailed = true;
       return false;
     }
   }
   syncTrackingOptions(*c.session, this->trackingValid);
   return true;
+}
+
+// Builds every coarse slice not built yet (InteractiveMacrocellsAhead), reporting progress; the
+// coarse session reports none otherwise (its lazy builds happen inside interactive frames).
+void vtkInrVolumeMapper::Internals::BuildCoarseAhead(vtkInrVolumeMapper* self)
+{
+  if (!this->UpdateCoarseEngine(self))
+  {
+    return;
+  }
+  inr::RenderSession& engine = *this->coarse.session;
+  const inr::MacrocellInfo before = engine.macrocellInfo();
+  if (before.slicesBuilt >= before.temporalSlices)
+  {
+    return;
+  }
+  const auto start = Clock::now();
+  engine.setProgressHandler(progressHandler(self, "INR Volume (interactive macrocells): "));
+  try
+  {
+    engine.buildAllSlices();
+  }
+  catch (const std::exception& e)
+  {
+    vtkErrorWithObjectMacro(self, << "INR Volume: building the interactive macrocells ahead "
+                                     "failed: " << e.what()
+                                  << "; time changes build them when needed");
+  }
+  engine.setProgressHandler({});
+  const double ms = msSince(start);
+  this->aheadMs += ms;
+  if (lodReport())
+  {
+    std::fprintf(stderr, "INR Volume LOD: built %d interactive macrocell slices ahead (%dx%dx%d "
+                         "cells), %.1f ms\n",
+      engine.macrocellInfo().slicesBuilt - before.slicesBuilt, before.dims.x, before.dims.y,
+      before.dims.z, ms);
+  }
 }
 
 // Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
@@ -1087,13 +1148,13 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 // once and the engine keeps what it had; a pruning change restarts its accumulation, which the
 // refinement driver notices (accumulated frames drop to 0).
 void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
-  inr::RenderSession& engine, bool& haveQueryReduction,
-  inr::QueryReductionSettings& queryReductionTried)
+  EngineSlot& slot)
 {
-  if (!haveQueryReduction || !sameQueryReduction(this->queryReduction, queryReductionTried))
+  inr::RenderSession& engine = *slot.session;
+  if (!slot.haveQueryReduction || !sameQueryReduction(this->queryReduction, slot.queryReductionTried))
   {
-    haveQueryReduction = true;
-    queryReductionTried = this->queryReduction;
+    slot.haveQueryReduction = true;
+    slot.queryReductionTried = this->queryReduction;
     try
     {
       engine.setQueryReduction(this->queryReduction);
@@ -1113,12 +1174,11 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
   int interactiveFrames)
 {
-  // The session drawing this render and its caches: the fine one, or the coarse one for a
-  // time-change interactive frame.
-  inr::RenderSession& engine = useCoarse ? *this->coarse.session : *this->session;
-  bool& haveSettings = useCoarse ? this->coarse.haveSettings : this->haveSettings;
-  inr::RenderSettings& heldSettings = useCoarse ? this->coarse.settings : this->settings;
-  inr::RefinementDriver& refinement = useCoarse ? this->coarse.refinement : this->refinement;
+  // The session drawing this render: the fine one, or the coarse one for a time-change
+  // interactive frame.
+  EngineSlot& slot = useCoarse ? this->coarse : this->fine;
+  inr::RenderSession& engine = *slot.session;
+  inr::RefinementDriver& refinement = slot.refinement;
   this->shownCoarse = useCoarse;
   try
   {
@@ -1127,13 +1187,13 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
-    if (!haveSettings || settings.width != heldSettings.width ||
-      settings.height != heldSettings.height || settings.seed != heldSettings.seed ||
-      settings.window != heldSettings.window)
+    const inr::RenderSettings& held = slot.settings;
+    if (!slot.haveSettings || settings.width != held.width || settings.height != held.height ||
+      settings.seed != held.seed || settings.window != held.window)
     {
       engine.setSettings(settings);
-      heldSettings = settings;
-      haveSettings = true;
+      slot.settings = settings;
+      slot.haveSettings = true;
     }
     const bool debug = debugReport();
     if (debug)
@@ -1146,15 +1206,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       this->lastScene = scene;
       this->haveLastScene = true;
     }
-    if (useCoarse)
-    {
-      this->PushQueryReduction(
-        self, engine, this->coarse.haveQueryReduction, this->coarse.queryReductionTried);
-    }
-    else
-    {
-      this->PushQueryReduction(self, engine, this->haveQueryReduction, this->queryReductionTried);
-    }
+    this->PushQueryReduction(self, slot);
     engine.setScene(scene);
 
     inr::RefinementOptions options;
@@ -1243,6 +1295,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
   os << indent << "InteractiveMacrocellResolution: " << this->InteractiveMacrocellResolution
      << "\n";
+  os << indent << "InteractiveMacrocellsAhead: " << this->InteractiveMacrocellsAhead << "\n";
   os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
   os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";

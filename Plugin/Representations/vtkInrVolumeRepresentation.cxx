@@ -104,6 +104,7 @@ INR_FORWARD(PruneFalloff, double)
 INR_FORWARD(InteractiveLevelOfDetail, int)
 INR_FORWARD(InteractiveFrameTime, double)
 INR_FORWARD(InteractiveMacrocellResolution, int)
+INR_FORWARD(InteractiveMacrocellsAhead, int)
 INR_FORWARD(InteractiveFreshFrames, int)
 #undef INR_FORWARD
 

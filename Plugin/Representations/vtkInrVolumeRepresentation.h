@@ -81,6 +81,8 @@ public:
   void SetInrInteractiveFrameTime(double);
   /// InrInteractiveMacrocellResolution: the coarse majorant grid of time-change interactive frames.
   void SetInrInteractiveMacrocellResolution(int);
+  /// InrInteractiveMacrocellsAhead: build that coarse grid's slices ahead, in a still render.
+  void SetInrInteractiveMacrocellsAhead(int);
   /// InrInteractiveFreshFrames: frames of a time-change interactive image (at a lower resolution).
   void SetInrInteractiveFreshFrames(int);
   int GetInrLastRenderInteractive();

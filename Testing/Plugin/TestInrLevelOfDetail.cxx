@@ -11,6 +11,9 @@
 //  - a time-change interactive frame renders with the coarse macrocell session
 //    (InteractiveMacrocellResolution): it builds no fine slices (GetSlicesBuilt unchanged), the
 //    still render after it does; with the option at 0 the fine slices are built at once;
+//  - the coarse slices are built ahead by the first still render with FramesPerRender 1
+//    (InteractiveMacrocellsAhead), so the time-change frame builds none; with it off they are
+//    built by the time-change frame that needs them, and still renders build none;
 //  - a time-change frame (a fresh image) renders up to InteractiveFreshFrames frames at a
 //    resolution lowered so that pixels x frames stay within one frame at the chosen scale;
 //  - a coarse grid's images converge to the fine grid's: kConvergeFrames-frame images with
@@ -178,7 +181,11 @@ int main(int argc, char* argv[])
   ren->RemoveVolume(reference);
   ren->AddVolume(interacting);
   mapper->SetFramesPerRender(1);
+  check(refMapper->GetInteractiveSlicesBuilt() == 0,
+    "a still render of 16 frames per render builds no coarse slices ahead");
   win->Render();
+  check(mapper->GetInteractiveSlicesBuilt() == mapper->GetTemporalSlices(),
+    "the first still render with FramesPerRender 1 builds every coarse slice ahead");
   win->SetDesiredUpdateRate(kInteractiveRate);
   int dragWidth = -1;
   bool stable = true;
@@ -274,6 +281,7 @@ int main(int argc, char* argv[])
   win->SetDesiredUpdateRate(kStillRate);
   check(mapper->GetInteractiveMacrocellResolution() == 8, "InteractiveMacrocellResolution is 8 by default");
   const int fineBefore = mapper->GetSlicesBuilt();
+  const int coarseBefore = mapper->GetInteractiveSlicesBuilt();
   reader->UpdateTimeStep(9.7);
   win->Render();
   std::printf("time change to 9.7: coarse %d, image %dx%d, fine slices %d -> %d, coarse slices %d, "
@@ -283,7 +291,8 @@ int main(int argc, char* argv[])
   check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastRenderCoarse() == 1,
     "a time-change interactive frame renders with the coarse macrocells");
   check(mapper->GetSlicesBuilt() == fineBefore, "it builds no fine slices");
-  check(mapper->GetInteractiveSlicesBuilt() > 0, "it built coarse slices");
+  check(mapper->GetInteractiveSlicesBuilt() == coarseBefore,
+    "it builds no coarse slices either: they were built ahead");
   // The 1 ms budget holds only the smallest scale: no room for more frames.
   check(mapper->GetAccumulatedFrames() == 1, "the coarse image at the smallest scale holds one frame");
   win->Render();
@@ -297,6 +306,18 @@ int main(int argc, char* argv[])
   check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastRenderCoarse() == 0 &&
       mapper->GetSlicesBuilt() > fineBeforeOff,
     "InteractiveMacrocellResolution 0: the time-change frame builds the fine slices");
+  // Ahead off: a new coarse grid (4^3) is built slice by slice by the time-change frames.
+  mapper->SetInteractiveMacrocellsAhead(0);
+  mapper->SetInteractiveMacrocellResolution(4);
+  reader->UpdateTimeStep(6.1);
+  win->Render();
+  const int coarseLazy = mapper->GetInteractiveSlicesBuilt();
+  check(mapper->GetLastRenderCoarse() == 1 && coarseLazy >= 1 && coarseLazy <= 2,
+    "InteractiveMacrocellsAhead off: the time-change frame builds the 1-2 coarse slices it needs");
+  win->Render();
+  check(mapper->GetLastRenderCoarse() == 0 && mapper->GetInteractiveSlicesBuilt() == coarseLazy,
+    "InteractiveMacrocellsAhead off: a still render builds no coarse slices ahead");
+  mapper->SetInteractiveMacrocellsAhead(1);
   mapper->SetInteractiveMacrocellResolution(8);
 
   // Fresh time-change images: more frames at a lower resolution, the same pixels x frames.

@@ -13,8 +13,10 @@ script logs each render's state and keeps screenshots. Checks:
     between (the GUI's refinement waits for the interaction to settle), and their logged times
     meet the target: median <= target, 90th percentile <= 1.5 x target (single frames on a
     shared machine may be slower; Benchmarks/paraview/interactive_lod.py measures properly);
-  - playback rendered time changes as interactive frames; their times without the macrocell
-    slice builds (first visits of a time, reported separately) meet the same target;
+  - playback rendered time changes as interactive frames and their times meet the same target,
+    first visits of a time included: the coarse interactive macrocell slices were built ahead
+    (InrInteractiveMacrocellsAhead, in the first still render), so no playback frame builds
+    slices (its macrocell update, working grid and majorants, stays under 10 ms);
   - each playback time step was rendered once (the animation tick's own render: the GUI's
     refinement waits while the animation plays), on the coarse interactive macrocells;
   - after the interaction stopped the view refined by itself at full resolution (accumulated
@@ -126,8 +128,9 @@ print("playback (time changes):", describe([r["ms"] for r in play]),
       "| without slice builds:", describe([r["ms"] - r["update"] for r in play]),
       "| slice builds:", describe([r["update"] for r in play if r["update"] > 1.0]))
 check(len(play) >= 3, f"playback rendered time changes as interactive frames ({len(play)})")
-check(meets([r["ms"] - r["update"] for r in play]),
-      f"playback frame times without slice builds meet {args.target_ms:g} ms")
+check(meets([r["ms"] for r in play]), f"playback frame times meet {args.target_ms:g} ms (first visits included)")
+check(bool(play) and max(r["update"] for r in play) < 10.0,
+      "no playback frame builds macrocell slices (built ahead; update < 10 ms)")
 # One render per playback tick: every time the animation visited before the last one was
 # rendered exactly once (the tick's own render, a reduced frame); the GUI's refinement waits for
 # playback to end instead of rendering the new time again at full resolution.
