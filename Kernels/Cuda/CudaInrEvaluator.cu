@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstdint>
 #include <vector>
 
@@ -227,7 +226,6 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       P.hopperWeights[cuda::kcIndex(kc)] = I.hopperW[cuda::kcIndex(kc)].get();
     }
   P.hopperStageRows = cuda::hopperStageRows(prog);
-  P.hopperDescSwap = std::getenv("INR_DEBUG_WGMMA_SWAP") ? 1 : 0;  // DEBUG (not to commit)
   I.floatW.upload(prog.floatWeights, nullptr);
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
   P.instrs = I.instrs.get();
@@ -251,7 +249,9 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
   }
   if (fused) {
-    for (const bool wgmma : {true, false}) {
+    // mma.sync candidates first: without autotuning the first that fits runs, and that stays
+    // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
+    for (const bool wgmma : {false, true}) {
       if (wgmma ? !I.whyNoWgmma.empty() : options.mma == FusedMma::Wgmma) continue;
       for (int t : {128, 64, 32})
         for (int kc : {64, 32}) {

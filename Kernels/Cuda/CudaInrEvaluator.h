@@ -36,7 +36,8 @@ struct CudaEvaluatorOptions {
   int tileQueries = 0;
   int weightChunk = 0;
   int autotuneBatch = 1 << 18;
-  // Auto: the wgmma kernel joins the candidates on Hopper; Wgmma: only it (throws where it
+  // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
+  // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
   // cannot run); MmaSync: never it.
   FusedMma mma = FusedMma::Auto;
 };

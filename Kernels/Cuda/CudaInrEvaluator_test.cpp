@@ -8,6 +8,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <filesystem>
+#include <memory>
+#include <string>
 
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
@@ -115,7 +117,7 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
   for (const auto& [name, model] : allModels()) {
     const MlpProgram program = MlpProgram::compile(model.architecture);
     if (!program.fusable) continue;
-    const auto pts = randomQueryPoints(model, 20011, 13);  // not a multiple of the tile
+    const auto pts = randomQueryPoints(model, 4001, 13);  // not a multiple of the tile (the emulation is slow)
     std::vector<float> ref(pts.size()), emu(pts.size());
     CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
     std::vector<float> net(pts.size() * model.architecture.inputDim);
@@ -134,6 +136,7 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     }
     const float lo = *std::min_element(ref.begin(), ref.end()), hi = *std::max_element(ref.begin(), ref.end());
     const double scale = std::max(1.0, double(hi - lo));
+    int configurations = 0;
     for (const int tile : {128, 64})
       for (const int kc : {64, 32}) {
         CudaEvaluatorOptions o;
@@ -142,7 +145,16 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
         o.tileQueries = tile;
         o.weightChunk = kc;
         o.autotuneBatch = 0;
-        const CudaInrEvaluator gpu(model, o);
+        std::unique_ptr<CudaInrEvaluator> made;
+        try {
+          made = std::make_unique<CudaInrEvaluator>(model, o);
+        } catch (const std::runtime_error& e) {  // e.g. the FFN's 512-wide encoding at tile 128
+          ASSERT_NE(std::string(e.what()).find("shared memory"), std::string::npos) << name << ": " << e.what();
+          std::printf("%-30s wgmma tile %3d x K %2d: does not fit in shared memory\n", name.c_str(), tile, kc);
+          continue;
+        }
+        ++configurations;
+        const CudaInrEvaluator& gpu = *made;
         ASSERT_TRUE(gpu.usesWgmma()) << name << ": " << gpu.launchReport();
         std::vector<float> got(pts.size(), NAN);
         gpu.evaluate(pts.data(), pts.size(), got.data());
@@ -153,6 +165,7 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
         EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << " tile " << tile << " K " << kc;
         EXPECT_LT(em.meanAbs, 5e-4) << name << " tile " << tile << " K " << kc;
       }
+    EXPECT_GT(configurations, 0) << name << ": no wgmma configuration fits";
   }
 }
 

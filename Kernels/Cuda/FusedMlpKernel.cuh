@@ -54,7 +54,6 @@ struct FusedParams {
   const __half* hopperWeights[2] = {nullptr, nullptr};
   int hopperOffset[2][kMaxFusedInstrs] = {};
   int hopperStageRows = 32;
-  int hopperDescSwap = 0;  // DEBUG (not to commit): swap the descriptor's leading/stride offsets
   OutputMap output;
 };
 
@@ -429,7 +428,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                   const unsigned chunkBase = stageBase + unsigned((chunk & 1) * stageHalves * 2);
 #pragma unroll
                   for (int ks = 0; ks < KSTEPS; ++ks)
-                    if (ks * 16 < kLen) wgmmaRS<NW>(acc, a[ks], P.hopperDescSwap ? wgmmaDescriptor(chunkBase + ks * 256, KC * 16, 128) : wgmmaDescriptor(chunkBase + ks * 256, 128, KC * 16));
+                    if (ks * 16 < kLen) wgmmaRS<NW>(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, KC * 16));
                   wgmmaCommit();
                   wgmmaWaitAll();  // the A registers and this stage buffer are free again
                 }
