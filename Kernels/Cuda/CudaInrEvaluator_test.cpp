@@ -117,19 +117,24 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
   for (const auto& [name, model] : allModels()) {
     const MlpProgram program = MlpProgram::compile(model.architecture);
     if (!program.fusable) continue;
-    const auto pts = randomQueryPoints(model, 4001, 13);  // not a multiple of the tile (the emulation is slow)
-    std::vector<float> ref(pts.size()), emu(pts.size());
+    // The fp32 comparison on the points of FusedMatchesCpuReferenceOnEveryModel (its bounds are
+    // fp16 error bounds for those points: on another draw the fp16 arithmetic itself, emulated,
+    // comes within 2% of the maximum bound on coordnet_cylinder_u), the emulation (slow) on the
+    // first kEmulated of them.
+    const auto pts = randomQueryPoints(model, 20011, 3);  // not a multiple of the tile
+    constexpr std::size_t kEmulated = 4001;
+    std::vector<float> ref(pts.size()), emu(kEmulated);
     CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
-    std::vector<float> net(pts.size() * model.architecture.inputDim);
-    for (std::size_t q = 0; q < pts.size(); ++q) {
+    std::vector<float> net(kEmulated * model.architecture.inputDim);
+    for (std::size_t q = 0; q < kEmulated; ++q) {
       const double w[4] = {pts[q].x, pts[q].y, pts[q].z, pts[q].t};
       for (int i = 0; i < model.architecture.inputDim; ++i) {
         const int c = model.domain.inputOrder[i];
         net[q * model.architecture.inputDim + i] = float(model.domain.toNetwork[c].apply(w[c]));
       }
     }
-    emulateFusedProgram(program, net.data(), pts.size(), emu.data());
-    for (std::size_t q = 0; q < pts.size(); ++q) {
+    emulateFusedProgram(program, net.data(), kEmulated, emu.data());
+    for (std::size_t q = 0; q < kEmulated; ++q) {
       float a, b;
       model.output.affineAt(pts[q].t, a, b);
       emu[q] = a * emu[q] + b;
@@ -158,7 +163,7 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
         ASSERT_TRUE(gpu.usesWgmma()) << name << ": " << gpu.launchReport();
         std::vector<float> got(pts.size(), NAN);
         gpu.evaluate(pts.data(), pts.size(), got.data());
-        const Err e = compare(got, ref), em = compare(got, emu);
+        const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
         std::printf("%-30s wgmma tile %3d x K %2d: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                     tile, kc, e.maxAbs, e.meanAbs, em.meanAbs);
         EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << " tile " << tile << " K " << kc;
