@@ -33,13 +33,18 @@ struct Row {
   Spread qps;  // queries per second over the launches
 };
 
-Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath path, int batch, int reps) {
+// mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
+// where the autotuned "fused-fp16" runs the wgmma kernel).
+Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath path, int batch, int reps,
+            FusedMma mma = FusedMma::Auto) {
   CudaEvaluatorOptions o;
   o.path = path;
+  o.mma = mma;
   const CudaInrEvaluator eval(model, o);
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1));
   cuda::DeviceBuffer<float> dOut(batch);
-  return {name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : "fused-fp16", eval.launchReport(),
+  return {name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
+          eval.launchReport(),
           model.architecture.parameterCount(), spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps))};
 }
 
@@ -78,18 +83,23 @@ int main(int argc, char** argv) {
   for (auto& m : loadModelFiles(files)) models.push_back(std::move(m));
 
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
-  std::printf("%-28s %-13s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
+  std::printf("%-28s %-14s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
   for (const auto& [name, model] : models)
-    for (CudaEvaluatorPath p : {CudaEvaluatorPath::Auto, CudaEvaluatorPath::Generic}) {
+    for (int variant = 0; variant < 3; ++variant) {
+      const CudaEvaluatorPath p = variant == 2 ? CudaEvaluatorPath::Generic : CudaEvaluatorPath::Auto;
+      const FusedMma mma = variant == 1 ? FusedMma::MmaSync : FusedMma::Auto;
+      // The mma.sync row only where the autotuned fused row ran the wgmma kernel.
+      if (variant == 1 && (rows.empty() || rows.back().model != name || rows.back().launch.find("-> wgmma") == std::string::npos))
+        continue;
       Row r;
       try {
-        r = measure(model, name, p, batch, reps);
+        r = measure(model, name, p, batch, reps, mma);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
         continue;
       }
-      std::printf("%-28s %-13s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params,
+      std::printf("%-28s %-14s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params,
                   r.qps.median / 1e9, r.qps.lo / 1e9, r.qps.hi / 1e9);
       if (!r.launch.empty()) std::printf("    fused launch autotuning: %s\n", r.launch.c_str());
       std::fflush(stdout);

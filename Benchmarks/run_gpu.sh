@@ -13,6 +13,9 @@ models=$(ls Testing/Data/models/*.inr Testing/Data/real/*.inr 2>/dev/null)
   | tee "$OUT/evaluator_ours.txt"
 python3 Benchmarks/pytorch_baseline.py --csv "$OUT/evaluator_torch.csv" "$OUT"/models/*.inr $models \
   | tee "$OUT/evaluator_torch.txt"
+# torch.compile on the three paper-size networks only (compiling every model takes minutes).
+python3 Benchmarks/pytorch_baseline.py --compile --csv "$OUT/evaluator_torch_compile.csv" "$OUT"/models/*.inr \
+  | tee "$OUT/evaluator_torch_compile.txt"
 python3 Benchmarks/compare_evaluators.py "$OUT/evaluator_ours.csv" "$OUT/evaluator_torch.csv" "$OUT/evaluator_compare" \
   | tee "$OUT/evaluator_compare.txt"
 rm -rf "$OUT/models"

@@ -119,7 +119,16 @@ FusedKernel fusedKernelFor(int tile, int kc) {
   }
 }
 
+#if !defined(INR_HAVE_HOPPER_KERNEL)
+}  // namespace
+namespace cuda {
+HopperKernel hopperKernelFor(int, int) { return nullptr; }  // not built: no Hopper architecture
+}  // namespace cuda
+namespace {
+#endif
+
 struct FusedConfig {
+  bool wgmma = false;  // the Hopper kernel (tile 128 or 64)
   int tile = 0, kc = 0;
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
@@ -141,6 +150,8 @@ struct CudaInrEvaluator::Impl {
   cuda::FusedParams params;
   cuda::DeviceBuffer<MlpInstr> instrs;
   cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
+  cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma core-matrix layout
+  std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
   cuda::DeviceBuffer<float> floatW;
   cuda::DeviceBuffer<float> outputTable;
   // host-interface staging
@@ -193,6 +204,28 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     I.stagedW[cuda::kcIndex(kc)].upload(hw, nullptr);
     P.stagedWeights[cuda::kcIndex(kc)] = I.stagedW[cuda::kcIndex(kc)].get();
   }
+  // The wgmma kernel: built for sm_90a, so it loads only on a compute capability 9.0 device.
+  if (options.mma == FusedMma::MmaSync) I.whyNoWgmma = "not requested";
+  else if (!cuda::hopperKernelFor(128, 64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
+  else if (I.device.major != 9 || I.device.minor != 0) I.whyNoWgmma = "needs compute capability 9.0";
+  else {
+    cudaFuncAttributes attr{};
+    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernelFor(128, 64));
+    if (e != cudaSuccess) {
+      cudaGetLastError();
+      I.whyNoWgmma = std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
+    }
+  }
+  if (I.whyNoWgmma.empty())
+    for (int kc : {64, 32}) {
+      const std::vector<std::uint16_t> packed =
+          cuda::packHopperWeights(prog, kc, P.hopperOffset[cuda::kcIndex(kc)], cuda::kMaxFusedInstrs);
+      std::vector<__half> hw(packed.size());
+      for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
+      I.hopperW[cuda::kcIndex(kc)].upload(hw, nullptr);
+      P.hopperWeights[cuda::kcIndex(kc)] = I.hopperW[cuda::kcIndex(kc)].get();
+    }
+  P.hopperStageRows = cuda::hopperStageRows(prog);
   I.floatW.upload(prog.floatWeights, nullptr);
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
   P.instrs = I.instrs.get();
@@ -211,22 +244,32 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
           std::to_string(cuda::kMaxFusedInstrs) + ")";
   }
   std::vector<FusedConfig> candidates;
+  if (fused && options.mma == FusedMma::Wgmma && !I.whyNoWgmma.empty()) {
+    fused = false;
+    why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
+  }
   if (fused) {
-    for (int t : {128, 64, 32})
-      for (int kc : {64, 32}) {
-        if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
-          continue;
-        const FusedKernel kernel = fusedKernelFor(t, kc);
-        cudaFuncAttributes attr{};
-        INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
-        const std::size_t bytes = cuda::fusedSharedBytes(t, kc, P);
-        if (bytes + attr.sharedSizeBytes > I.device.sharedMemPerBlockOptin) continue;
-        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
-        int perSm = 0;
-        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, bytes));
-        if (perSm < 1) continue;
-        candidates.push_back({t, kc, bytes, perSm * I.device.multiprocessors, 0.0});
-      }
+    // mma.sync candidates first: without autotuning the first that fits runs, and that stays
+    // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
+    for (const bool wgmma : {false, true}) {
+      if (wgmma ? !I.whyNoWgmma.empty() : options.mma == FusedMma::Wgmma) continue;
+      for (int t : {128, 64, 32})
+        for (int kc : {64, 32}) {
+          if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
+            continue;
+          if (wgmma && t == 32) continue;  // warpgroups of 64 rows
+          const FusedKernel kernel = wgmma ? cuda::hopperKernelFor(t, kc) : fusedKernelFor(t, kc);
+          cudaFuncAttributes attr{};
+          INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
+          const std::size_t bytes = cuda::fusedSharedBytes(t, kc, P, wgmma);
+          if (bytes + attr.sharedSizeBytes > I.device.sharedMemPerBlockOptin) continue;
+          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+          int perSm = 0;
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, bytes));
+          if (perSm < 1) continue;
+          candidates.push_back({wgmma, t, kc, bytes, perSm * I.device.multiprocessors, 0.0});
+        }
+    }
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
@@ -283,22 +326,26 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       if (large > bestLarge) bestLarge = large, I.bestLarge = c;
       if (small > bestSmall) bestSmall = small, I.bestSmall = c;
       char line[128];
-      std::snprintf(line, sizeof line, "%stile %d x K %d: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", c.tile, c.kc,
-                    large * 1e-9, small * 1e-9);
+      std::snprintf(line, sizeof line, "%s%stile %d x K %d: %.3f / %.3f Gq/s", report.empty() ? "" : "; ",
+                    c.wgmma ? "wgmma " : "", c.tile, c.kc, large * 1e-9, small * 1e-9);
       report += line;
     }
     cudaEventDestroy(e0);
     cudaEventDestroy(e1);
     I.config = I.bestLarge;
     I.smallConfig = I.bestSmall;
-    auto name = [](const FusedConfig& c) { return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc); };
+    auto name = [](const FusedConfig& c) {
+      return std::string(c.wgmma ? "wgmma " : "") + "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc);
+    };
     I.launchReport = "batch " + std::to_string(batch) + " / " + std::to_string(smallBatch) + ": " + report + " -> " +
                      name(I.config) + ", below " + std::to_string(Impl::kSmallBatchThreshold) + " queries " +
                      name(I.smallConfig);
   } else {
-    I.launchReport = "tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) +
+    I.launchReport = std::string(I.config.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.config.tile) + " x K " +
+                     std::to_string(I.config.kc) +
                      (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
   }
+  if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {
@@ -310,10 +357,10 @@ CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
 std::string CudaInrEvaluator::name() const {
   const Impl& I = *impl_;
   return I.path == CudaEvaluatorPath::Fused
-             ? "cuda-fused-fp16 (tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) + ", " +
+             ? "cuda-fused-fp16 (" + std::string(I.config.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) + ", " +
                    std::to_string(I.config.sharedBytes / 1024) + " KB smem, " +
                    std::to_string(I.config.gridBlocks / std::max(1, I.device.multiprocessors)) + " blocks/SM; under " +
-                   std::to_string(Impl::kSmallBatchThreshold) + " queries tile " + std::to_string(I.smallConfig.tile) +
+                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + (I.smallConfig.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.smallConfig.tile) +
                    " x K " + std::to_string(I.smallConfig.kc) + ") on " +
                    I.device.name
              : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
@@ -321,6 +368,10 @@ std::string CudaInrEvaluator::name() const {
 }
 
 std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport; }
+
+bool CudaInrEvaluator::usesWgmma() const {
+  return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.wgmma || impl_->smallConfig.wgmma);
+}
 
 std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
 
@@ -335,8 +386,8 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
     const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
-    fusedKernelFor(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, deviceCount, out,
-                                                                               scatter);
+    const FusedKernel kernel = c.wgmma ? cuda::hopperKernelFor(c.tile, c.kc) : fusedKernelFor(c.tile, c.kc);
+    kernel<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, deviceCount, out, scatter);
     INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
     return;
   }

@@ -20,6 +20,9 @@
 namespace inr {
 
 enum class CudaEvaluatorPath { Auto, Fused, Generic };
+// The fused kernel's tensor-core instructions: mma.sync (every GPU from Turing on) or warpgroup
+// MMA (wgmma, Hopper only, code built for sm_90a). Auto times both where both run.
+enum class FusedMma { Auto, MmaSync, Wgmma };
 
 struct CudaEvaluatorOptions {
   int device = 0;
@@ -33,6 +36,10 @@ struct CudaEvaluatorOptions {
   int tileQueries = 0;
   int weightChunk = 0;
   int autotuneBatch = 1 << 18;
+  // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
+  // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
+  // cannot run); MmaSync: never it.
+  FusedMma mma = FusedMma::Auto;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
@@ -56,6 +63,8 @@ public:
   // e.g. "... tile 128 x K 64: 0.37 / 0.05 Gq/s; ... -> tile 128 x K 64, below 32768 queries
   // tile 32 x K 64" (large / small batch rates; empty for the generic path).
   std::string launchReport() const;
+  // Whether the fused launches (either batch size) use the wgmma kernel.
+  bool usesWgmma() const;
   std::string describeProgram() const;
 
 private:

@@ -19,6 +19,7 @@
 #include <cuda_pipeline.h>
 
 #include "Common/Activation.h"
+#include "Cuda/FusedMlpKernelHopper.cuh"
 #include "Cuda/MlpProgram.h"
 
 namespace inr::cuda {
@@ -49,6 +50,10 @@ struct FusedParams {
   int numBuffers = 1;
   int bufferLd[kMaxBuffers] = {};  // halves per row (width + 8)
   int maxGemmOutPad = 16;          // rows of the weight stage
+  // The Hopper variant's weights (packHopperWeights) per chunk width, offsets, and stage rows.
+  const __half* hopperWeights[2] = {nullptr, nullptr};
+  int hopperOffset[2][kMaxFusedInstrs] = {};
+  int hopperStageRows = 32;
   OutputMap output;
 };
 
@@ -81,10 +86,15 @@ __host__ __device__ inline int stageRows(const FusedParams& P) {
 
 // Shared memory for a tile of M queries and weight chunks of KC: activation buffers, the
 // weight double buffer, coordinates (M x 4 floats) and the final dot's partial sums (4 x M).
-inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
+// The Hopper variant's stage holds hopperStageRows rows of KC halves (no padding: core matrices).
+__host__ __device__ inline int stageHalvesFor(bool hopper, int KC, const FusedParams& P) {
+  return hopper ? P.hopperStageRows * KC : stageRows(P) * (KC + 8);
+}
+
+inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P, bool hopper = false) {
   std::size_t halves = 0;
   for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
-  halves += std::size_t(2) * stageRows(P) * (KC + 8);
+  halves += std::size_t(2) * stageHalvesFor(hopper, KC, P);
   return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
 }
 
@@ -217,7 +227,8 @@ using BoolTag = std::bool_constant<B>;
 
 // At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
 // exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
-template <int WR, int KC>
+// HOPPER: GEMM layers on wgmma (FusedMlpKernelHopper.cuh); WR 2 or 4 only (64-row warpgroups).
+template <int WR, int KC, bool HOPPER = false>
 __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                   const unsigned* __restrict__ deviceCount,
                                                                   float* __restrict__ out, const int* __restrict__ scatter) {
@@ -245,7 +256,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   }
   int actHalves = 0;
   for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
-  const int stageHalves = stageRows(P) * kStride;
+  const int stageHalves = stageHalvesFor(HOPPER, KC, P);
   __half* const wstage = actBase + actHalves;
   float* const coords = reinterpret_cast<float*>(wstage + 2 * stageHalves);
   float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
@@ -362,6 +373,158 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
           break;
         }
         case MlpOp::Gemm: {
+          if constexpr (HOPPER) {
+            static_assert(WR == 2 || WR == 4, "the Hopper variant needs 64-row warpgroups");
+            // Warpgroup wg: rows 64*(wg>>1) .. +63, column half (wg&1) of NW columns; warp w of
+            // the group holds rows 16w .. 16w+15 of them (wgmma's accumulator layout per warp is
+            // mma.sync's m16n8 one, n8 tile after n8 tile).
+            const int numChunks = (in.kPad + KC - 1) / KC;
+            const float* bias = P.floatWeights + in.biasOffset;
+            const int wg = warp >> 2, colHalf = wg & 1;
+            const int rowBase = (wg >> 1) * 64 + (warp & 3) * 16;
+            const bool prefetchNext = in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles);
+            auto stage = [&](int gemm, int chunk) {
+              const int blockHalves = program[gemm].nPad * KC;
+              const int4* from = reinterpret_cast<const int4*>(P.hopperWeights[kcIndex(KC)] +
+                                                               P.hopperOffset[kcIndex(KC)][gemm] +
+                                                               std::size_t(chunk) * blockHalves);
+              int4* to = reinterpret_cast<int4*>(wstage + (chunk & 1) * stageHalves);
+              for (int i = tid; i < blockHalves / 8; i += THREADS) __pipeline_memcpy_async(to + i, from + i, 16);
+              __pipeline_commit();
+            };
+            auto gemm = [&](auto nwTag) __attribute__((always_inline)) {
+              constexpr int NW = decltype(nwTag)::value;
+              constexpr int KSTEPS = KC / 16;
+              const int n0 = colHalf * NW;
+              const bool active = n0 < in.nPad;  // uniform per warpgroup: wgmma is collective
+              // Accumulators start at the bias: fragment i is row g + 8*((i>>1)&1), column
+              // n0 + 8*(i>>2) + 2*t4 + (i&1).
+              float acc[NW / 2];
+#pragma unroll
+              for (int i = 0; i < NW / 2; ++i) {
+                const int col = n0 + 8 * (i >> 2) + 2 * t4 + (i & 1);
+                acc[i] = col < in.nPad ? bias[col] : 0.f;
+              }
+              const unsigned aAddr = smemAddress(src + (rowBase + ((lane >> 3) & 1) * 8 + (lane & 7)) * ldSrc + (lane >> 4) * 8);
+              const unsigned stageBase = smemAddress(wstage) + unsigned(n0 / 8) * (KC * 16);
+              if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
+              firstChunkStaged = false;
+              for (int chunk = 0; chunk < numChunks; ++chunk) {
+                if (chunk + 1 < numChunks) {
+                  stage(ip, chunk + 1);
+                  __pipeline_wait_prior(1);
+                } else {
+                  __pipeline_wait_prior(0);
+                }
+                fenceProxyAsyncShared();  // cp.async wrote through the generic proxy; wgmma reads via the async one
+                __syncthreads();
+                const int kLen = min(KC, in.kPad - chunk * KC);
+                if (active) {
+                  unsigned a[KSTEPS][4];
+#pragma unroll
+                  for (int ks = 0; ks < KSTEPS; ++ks)
+                    if (ks * 16 < kLen) ldmatrixX4(a[ks], aAddr + unsigned((chunk * KC + ks * 16) * 2));
+                  wgmmaFence();
+                  const unsigned chunkBase = stageBase + unsigned((chunk & 1) * stageHalves * 2);
+#pragma unroll
+                  for (int ks = 0; ks < KSTEPS; ++ks)
+                    if (ks * 16 < kLen) wgmmaRS<NW>(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, KC * 16));
+                  wgmmaCommit();
+                  wgmmaWaitAll();  // the A registers and this stage buffer are free again
+                }
+                __syncthreads();  // the next stage() overwrites this buffer
+              }
+              if (prefetchNext) {
+                stage(in.nextGemm, 0);
+                firstChunkStaged = true;
+              }
+              if (in.finalOutput) {  // column 0 (colHalf 0, t4 0): fragments 0 (row g) and 2 (row g+8)
+                if (colHalf == 0 && t4 == 0) {
+#pragma unroll
+                  for (int half = 0; half < 2; ++half) {
+                    const int row = rowBase + g + half * 8;
+                    if (row < rows) {
+                      const float net = applyActivation(in.act, acc[2 * half]);
+                      float a, b;
+                      outputAffine(P.output, points[base + row].w, a, b);
+                      const int q = base + row;
+                      out[scatter ? scatter[q] : q] = a * net + b;
+                    }
+                  }
+                }
+                return;
+              }
+              dispatchActivation(in.act, [&](auto A) {
+                constexpr MlpAct kAct = decltype(A)::value;
+                // f(half, col, v0, v1) per owned pair of columns (col, col+1) of row g + 8*half.
+                auto forEachPair = [&](auto f) {
+                  auto loop = [&](auto residual) {
+                    constexpr bool kResidual = decltype(residual)::value;
+#pragma unroll
+                    for (int j = 0; j < NW / 8; ++j) {
+                      const int col = n0 + 8 * j + 2 * t4;
+                      if (n0 + 8 * j >= in.nPad) continue;
+#pragma unroll
+                      for (int half = 0; half < 2; ++half) {
+                        float v0 = applyActivation(kAct, acc[4 * j + 2 * half]);
+                        float v1 = applyActivation(kAct, acc[4 * j + 2 * half + 1]);
+                        if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
+                          if (col >= in.outWidth) v0 = 0.f;
+                          if (col + 1 >= in.outWidth) v1 = 0.f;
+                        }
+                        if constexpr (kResidual) {
+                          const float2 o = ldsHalf2AsFloat2InPlace(other + (rowBase + g + 8 * half) * ldOther + col);
+                          v0 = in.combineScale * (v0 + o.x);
+                          v1 = in.combineScale * (v1 + o.y);
+                        }
+                        f(half, col, v0, v1);
+                      }
+                    }
+                  };
+                  if (other)
+                    loop(BoolTag<true>{});
+                  else
+                    loop(BoolTag<false>{});
+                };
+                if (in.dotNext) {  // the final linear: dot over this half's columns, then both halves
+                  const MlpInstr& fin = program[ip + 1];
+                  float part[2] = {0.f, 0.f};
+                  forEachPair([&](int half, int col, float v0, float v1) {
+                    const float2 w = ldsFloat2InPlace(dotWeights + col);
+                    part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
+                  });
+#pragma unroll
+                  for (int half = 0; half < 2; ++half) {
+                    float v = part[half];
+                    v += __shfl_xor_sync(0xffffffffu, v, 1);
+                    v += __shfl_xor_sync(0xffffffffu, v, 2);
+                    if (t4 == 0) dotPart[colHalf * M + rowBase + g + half * 8] = v;
+                  }
+                  __syncthreads();
+                  const float dotBias = P.floatWeights[fin.biasOffset];
+                  for (int r = tid; r < rows; r += THREADS) {
+                    const float net = applyActivation(fin.act, dotPart[r] + dotPart[M + r] + dotBias);
+                    float a, b;
+                    outputAffine(P.output, points[base + r].w, a, b);
+                    const int q = base + r;
+                    out[scatter ? scatter[q] : q] = a * net + b;
+                  }
+                  return;
+                }
+                __half* const dRow = dst + (rowBase + g) * ldDst;
+                forEachPair([&](int half, int col, float v0, float v1) {
+                  *reinterpret_cast<__half2*>(dRow + half * 8 * ldDst + col) = __floats2half2_rn(v0, v1);
+                });
+              });
+            };
+            switch (hopperColumns(in.nPad)) {  // the same for every warp of the block
+              case 16: gemm(IntTag<16>{}); break;
+              case 32: gemm(IntTag<32>{}); break;
+              case 64: gemm(IntTag<64>{}); break;
+              default: gemm(IntTag<128>{}); break;
+            }
+            break;
+          } else {
           const int c16Count = in.nPad / 16;
           const int numChunks = (in.kPad + KC - 1) / KC;
           const float* bias = P.floatWeights + in.biasOffset;
@@ -549,6 +712,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             default: gemm(IntTag<4>{}); break;
           }
           break;
+          }  // mma.sync
         }
         case MlpOp::Activation:
           for (int r = warp; r < M; r += WARPS)
@@ -588,5 +752,10 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
     }
   }
 }
+
+using HopperKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
+// The wgmma variant for tiles of 128 or 64 queries and chunks of 64 or 32 (FusedMlpKernelHopper.cu,
+// built for sm_90a when the CUDA architectures include 90); nullptr when not built.
+HopperKernel hopperKernelFor(int tile, int kc);
 
 }  // namespace inr::cuda
