@@ -146,8 +146,7 @@ TEST(OptixTraversal, RebuiltGasRendersLikeAFreshSession) {
               b.last.traversalPrimitives, a.last.traversalBuildMs);
   EXPECT_EQ(a.last.traversalPrimitives, b.last.traversalPrimitives);
   EXPECT_NE(before.last.traversalPrimitives, a.last.traversalPrimitives) << "the edit should change the non-empty cells";
-  EXPECT_GE(psnr, 60.0);
-  EXPECT_EQ(a.queries.back(), b.queries.back()) << "same majorants, same draws: same queries";
+  EXPECT_GE(psnr, 60.0) << "same majorants, same GAS, same draws: the same image up to evaluator rounding";
 }
 
 // Explicit OptiX where it cannot run is an error naming the reason; auto reports its choice.
