@@ -49,6 +49,10 @@ struct GasWalker {
   __device__ int cellIndex() const { return cell; }
 };
 
+__device__ __forceinline__ void debugCount(OptixDebugCount c) {
+  if (launchParams().debugCounts) atomicAdd(&launchParams().debugCounts[c], 1ull);
+}
+
 __device__ __forceinline__ Int3 cellCoords(const Int3& dims, int cell) {
   const int x = cell % dims.x, yz = cell / dims.x;
   return Int3{x, yz % dims.y, yz / dims.y};
@@ -71,10 +75,16 @@ __device__ bool trackSegments(const FrameConstants& fc, const RayStateView& rs, 
   // majorant, the candidate's parameter (never ~0u, a NaN pattern, so ~0u still there = no hit).
   unsigned p0 = rng.pixel, p1 = rng.counter, p2 = ~0u;
   ++rng.counter;
+  debugCount(kDbgTrace);
   optixTrace(launchParams().gas, make_float3(walker.origin.x, walker.origin.y, walker.origin.z),
              make_float3(walker.direction.x, walker.direction.y, walker.direction.z), t, tEnd, 0.f,
              OptixVisibilityMask(0xff), OPTIX_RAY_FLAG_DISABLE_ANYHIT, 0, 1, 0, p0, p1, p2);
+  if (i == launchParams().debugRay)
+    printf("OptiX debug ray %d: trace [%g, %g) from (%g %g %g) dir (%g %g %g) -> cell %d t %g\n", i, t, tEnd,
+           walker.origin.x, walker.origin.y, walker.origin.z, walker.direction.x, walker.direction.y,
+           walker.direction.z, p2 == ~0u ? -1 : int(p0), p2 == ~0u ? -1.f : __uint_as_float(p2));
   if (p2 == ~0u) return false;  // no candidate before tEnd
+  debugCount(kDbgHit);
   walker.cell = int(p0);
   rs.cell[i] = cellCoords(launchParams().launch.medium.grid.dims, walker.cell);  // refinement's and pruning's cell
   emitCandidate(fc, rs, i, flags, rng, __uint_as_float(p1), __uint_as_float(p2));
@@ -98,6 +108,7 @@ extern "C" __global__ void __raygen__traverse() {
     i = int(idx.y * dims.x + idx.x);  // a 2D launch over the image when rays are its pixels
     if (i >= p.n) return;
   }
+  debugCount(kDbgRaygen);
   if (p.resolvePrevious) inr::cuda::completeListedQuery(p, i);
   traverseRayWith<GasWalker>(p.fc, p.medium, p.rs, i);
   // One atomic per query (no warp aggregation: OptiX does not keep a warp's threads together).
@@ -105,6 +116,7 @@ extern "C" __global__ void __raygen__traverse() {
 }
 
 extern "C" __global__ void __intersection__macrocell() {
+  debugCount(kDbgIntersect);
   const int cell = launchParams().cellOfPrimitive[optixGetPrimitiveIndex()];
   const MajorantGridView& g = launchParams().launch.medium.grid;
   const Int3 c = cellCoords(g.dims, cell);
@@ -129,15 +141,19 @@ extern "C" __global__ void __intersection__macrocell() {
     t1 = fminf(t1, tFar);
   }
   if (!(t0 < t1)) return;
+  debugCount(kDbgInterval);
   const float m = g.majorant[cell];
   const RngStream ray{optixGetPayload_0(), launchParams().launch.fc.frame, launchParams().launch.fc.seed, 0u};
   RngStream rng = cellStream(ray, optixGetPayload_1(), cell);
   float tCandidate;
-  if (trackInSegment(launchParams().launch.fc, rng, m, t0, t1, tCandidate) == SegmentOutcome::Candidate)
+  if (trackInSegment(launchParams().launch.fc, rng, m, t0, t1, tCandidate) == SegmentOutcome::Candidate) {
+    debugCount(kDbgReport);
     optixReportIntersection(tCandidate, 0, unsigned(cell), __float_as_uint(m));
+  }
 }
 
 extern "C" __global__ void __closesthit__macrocell() {
+  debugCount(kDbgClosestHit);
   optixSetPayload_0(optixGetAttribute_0());
   optixSetPayload_1(optixGetAttribute_1());
   optixSetPayload_2(__float_as_uint(optixGetRayTmax()));

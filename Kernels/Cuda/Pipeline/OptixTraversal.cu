@@ -12,6 +12,8 @@
 #include <thrust/iterator/counting_iterator.h>
 
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -71,9 +73,12 @@ public:
     options_.validate();
     INR_CUDA_CHECK(cudaFree(nullptr));  // make sure the primary context exists
     INR_OPTIX_CHECK(optixInit());
+    const char* debug = std::getenv("INR_OPTIX_DEBUG");
+    debug_ = debug && *debug && std::string(debug) != "0";
     OptixDeviceContextOptions co = {};
     co.logCallbackFunction = &logCallback;
-    co.logCallbackLevel = 2;
+    co.logCallbackLevel = debug_ ? 4 : 2;
+    if (debug_) co.validationMode = OPTIX_DEVICE_CONTEXT_VALIDATION_MODE_ALL;
     INR_OPTIX_CHECK(optixDeviceContextCreate(nullptr, &co, &context_));
     unsigned rt = 0;
     INR_OPTIX_CHECK(optixDeviceContextGetProperty(context_, OPTIX_DEVICE_PROPERTY_RTCORE_VERSION, &rt, sizeof(rt)));
@@ -82,8 +87,22 @@ public:
     params_.resize(1);
     count_.resize(1);
     compactedSize_.resize(1);
+    if (debug_) {
+      debugCounts_.resize(kDbgCounts);
+      INR_CUDA_CHECK(cudaMemset(debugCounts_.get(), 0, kDbgCounts * sizeof(unsigned long long)));
+    }
   }
   ~OptixTraversal() override {
+    if (debug_) {
+      unsigned long long c[kDbgCounts] = {};
+      if (cudaDeviceSynchronize() == cudaSuccess &&
+          cudaMemcpy(c, debugCounts_.get(), sizeof(c), cudaMemcpyDeviceToHost) == cudaSuccess)
+        std::fprintf(stderr,
+                     "OptiX debug: raygen %llu, traces %llu, intersection calls %llu (interval %llu, reported %llu), "
+                     "closest hits %llu, hits %llu; %zu builds, %zu primitives\n",
+                     c[kDbgRaygen], c[kDbgTrace], c[kDbgIntersect], c[kDbgInterval], c[kDbgReport], c[kDbgClosestHit],
+                     c[kDbgHit], info_.builds, info_.primitives);
+    }
     if (pipeline_) optixPipelineDestroy(pipeline_);
     for (OptixProgramGroup g : groups_)
       if (g) optixProgramGroupDestroy(g);
@@ -115,6 +134,14 @@ public:
     unsigned primitives = 0;
     INR_CUDA_CHECK(cudaMemcpyAsync(&primitives, count_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    if (debug_ && primitives > 0) {
+      OptixAabb a;
+      int c0 = 0;
+      INR_CUDA_CHECK(cudaMemcpy(&a, aabbs_.get(), sizeof(a), cudaMemcpyDeviceToHost));
+      INR_CUDA_CHECK(cudaMemcpy(&c0, cellOfPrimitive_.get(), sizeof(c0), cudaMemcpyDeviceToHost));
+      std::fprintf(stderr, "OptiX debug: %u of %d cells; primitive 0 = cell %d [%g %g %g]-[%g %g %g]\n", primitives,
+                   cells, c0, a.minX, a.minY, a.minZ, a.maxX, a.maxY, a.maxZ);
+    }
 
     builtFor_ = grid.majorant;
     gas_ = 0;
@@ -174,6 +201,11 @@ public:
     p.launch = launch;
     p.gas = gas_;
     p.cellOfPrimitive = cellOfPrimitive_.get();
+    if (debug_) {
+      p.debugCounts = debugCounts_.get();
+      if (!launch.list && launch.fc.camera.width > 0)
+        p.debugRay = launch.fc.camera.height / 2 * launch.fc.camera.width + launch.fc.camera.width / 2;
+    }
     // Stream-ordered: a launch still reading the previous parameters finishes before the copy.
     INR_CUDA_CHECK(cudaMemcpyAsync(params_.get(), &p, sizeof(p), cudaMemcpyHostToDevice, stream));
     const CameraView& cam = launch.fc.camera;
@@ -254,6 +286,8 @@ private:
   OptixPipeline pipeline_ = nullptr;
   OptixShaderBindingTable sbt_ = {};
   bool rtCores_ = false;
+  bool debug_ = false;  // INR_OPTIX_DEBUG: validation mode, counters, one ray printed
+  cuda::DeviceBuffer<unsigned long long> debugCounts_;
   cuda::DeviceBuffer<SbtRecord> sbtRecords_;
   cuda::DeviceBuffer<OptixTraversalParams> params_;
   // The GAS and its inputs, reused (grown, never shrunk) from build to build.
