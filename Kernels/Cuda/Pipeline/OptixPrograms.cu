@@ -109,6 +109,9 @@ extern "C" __global__ void __raygen__traverse() {
     if (i >= p.n) return;
   }
   debugCount(kDbgRaygen);
+  if (i == launchParams().debugRay)
+    printf("OptiX debug ray %d at raygen: flags %u t %g tEnd %g draws %u (cap %u)\n", i, unsigned(p.rs.flags[i]),
+           p.rs.t[i], p.rs.tEnd[i], p.rs.rngCounter[i], p.fc.maxRngDraws);
   if (p.resolvePrevious) inr::cuda::completeListedQuery(p, i);
   traverseRayWith<GasWalker>(p.fc, p.medium, p.rs, i);
   // One atomic per query (no warp aggregation: OptiX does not keep a warp's threads together).

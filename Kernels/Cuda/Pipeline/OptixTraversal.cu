@@ -84,6 +84,13 @@ public:
     INR_OPTIX_CHECK(optixDeviceContextGetProperty(context_, OPTIX_DEVICE_PROPERTY_RTCORE_VERSION, &rt, sizeof(rt)));
     rtCores_ = rt != 0;
     createPipeline();
+    // OptiX work runs on a stream of its own, ordered after and before the caller's stream by
+    // events: the renderer's stream may be the legacy default stream (0), and the first runs
+    // showed launches given stream 0 not ordered after the ray initialisation enqueued there
+    // (every ray still looked finished: no trace at all).
+    INR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+    INR_CUDA_CHECK(cudaEventCreateWithFlags(&callerReady_, cudaEventDisableTiming));
+    INR_CUDA_CHECK(cudaEventCreateWithFlags(&optixDone_, cudaEventDisableTiming));
     params_.resize(1);
     count_.resize(1);
     compactedSize_.resize(1);
@@ -103,6 +110,10 @@ public:
                      c[kDbgRaygen], c[kDbgTrace], c[kDbgIntersect], c[kDbgInterval], c[kDbgReport], c[kDbgClosestHit],
                      c[kDbgHit], info_.builds, info_.primitives);
     }
+    if (stream_) cudaStreamSynchronize(stream_);
+    if (callerReady_) cudaEventDestroy(callerReady_);
+    if (optixDone_) cudaEventDestroy(optixDone_);
+    if (stream_) cudaStreamDestroy(stream_);
     if (pipeline_) optixPipelineDestroy(pipeline_);
     for (OptixProgramGroup g : groups_)
       if (g) optixProgramGroupDestroy(g);
@@ -114,8 +125,12 @@ public:
   const char* name() const override { return "optix"; }
   TraversalBuildInfo buildInfo() const override { return info_; }
 
-  void majorantsChanged(const MajorantGridView& grid, cudaStream_t stream) override {
+  void majorantsChanged(const MajorantGridView& grid, cudaStream_t caller) override {
     const auto t0 = std::chrono::steady_clock::now();
+    // After the caller's majorant computation; everything below runs on the OptiX stream.
+    INR_CUDA_CHECK(cudaEventRecord(callerReady_, caller));
+    INR_CUDA_CHECK(cudaStreamWaitEvent(stream_, callerReady_, 0));
+    const cudaStream_t stream = stream_;
     const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
     cellOfPrimitive_.growTo(std::size_t(cells));
     // The selected cells in increasing index order (deterministic: the same majorants give the
@@ -190,13 +205,16 @@ public:
     info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
 
-  void traverse(const TraversalLaunch& launch, cudaStream_t stream) const override {
+  void traverse(const TraversalLaunch& launch, cudaStream_t caller) const override {
     // Majorants the GAS was not built from (ghost passes' own), or no GAS yet, or nothing in it
     // (every cell empty: the DDA is as fast and exact): the DDA.
     if (launch.medium.grid.majorant != builtFor_ || !gas_) {
-      dda_->traverse(launch, stream);
+      dda_->traverse(launch, caller);
       return;
     }
+    const cudaStream_t stream = stream_;
+    INR_CUDA_CHECK(cudaEventRecord(callerReady_, caller));
+    INR_CUDA_CHECK(cudaStreamWaitEvent(stream, callerReady_, 0));
     OptixTraversalParams p;
     p.launch = launch;
     p.gas = gas_;
@@ -215,6 +233,8 @@ public:
     const unsigned height = image ? unsigned(cam.height) : 1u;
     INR_OPTIX_CHECK(optixLaunch(pipeline_, stream, reinterpret_cast<CUdeviceptr>(params_.get()),
                                 sizeof(OptixTraversalParams), &sbt_, width, height, 1));
+    INR_CUDA_CHECK(cudaEventRecord(optixDone_, stream));
+    INR_CUDA_CHECK(cudaStreamWaitEvent(caller, optixDone_, 0));  // the caller's next work waits
   }
 
 private:
@@ -286,7 +306,9 @@ private:
   OptixPipeline pipeline_ = nullptr;
   OptixShaderBindingTable sbt_ = {};
   bool rtCores_ = false;
-  bool debug_ = false;  // INR_OPTIX_DEBUG: validation mode, counters, one ray printed
+  bool debug_ = false;
+  cudaStream_t stream_ = nullptr;
+  cudaEvent_t callerReady_ = nullptr, optixDone_ = nullptr;  // INR_OPTIX_DEBUG: validation mode, counters, one ray printed
   cuda::DeviceBuffer<unsigned long long> debugCounts_;
   cuda::DeviceBuffer<SbtRecord> sbtRecords_;
   cuda::DeviceBuffer<OptixTraversalParams> params_;
