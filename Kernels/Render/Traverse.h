@@ -169,9 +169,11 @@ INR_HD bool answerPruned(const PruneView& prune, int cell, const RayStateView& r
 // it (rs.origin + i, ...) out of traverseRayWith's pruning loop: hoisted, they would stay live
 // through the DDA's inner loop and push ddaTraverseKernel past its register bound (ptxas -v,
 // sm_90: 28 / 104 bytes of spill stores / loads hoisted, 10 / 20 with the barrier, 10 / 16
-// before pruning existed). Emits no instruction.
+// before pruning existed). Emits no instruction. Left out where INR_NO_REGISTER_BARRIERS is
+// defined: the OptiX programs (Cuda/Pipeline/OptixPrograms.cu), whose OptiX-IR OptiX compiles
+// itself and whose register allocation this trick was never measured for.
 INR_HD void opaqueRayIndex(int& i) {
-#if defined(__CUDA_ARCH__)
+#if defined(__CUDA_ARCH__) && !defined(INR_NO_REGISTER_BARRIERS)
   asm volatile("" : "+r"(i));
 #else
   (void)i;

@@ -63,8 +63,9 @@ __global__ void cellAabbKernel(MajorantGridView g, const int* cells, const unsig
   aabbs[k] = a;
 }
 
+// Errors always; everything the context reports (its level is 4 then) under INR_OPTIX_DEBUG.
 void logCallback(unsigned level, const char* tag, const char* message, void*) {
-  if (level <= 2) std::fprintf(stderr, "OptiX [%u][%s]: %s\n", level, tag, message);
+  std::fprintf(stderr, "OptiX [%u][%s]: %s\n", level, tag, message);
 }
 
 class OptixTraversal final : public DeviceTraversal {
@@ -85,9 +86,8 @@ public:
     rtCores_ = rt != 0;
     createPipeline();
     // OptiX work runs on a stream of its own, ordered after and before the caller's stream by
-    // events: the renderer's stream may be the legacy default stream (0), and the first runs
-    // showed launches given stream 0 not ordered after the ray initialisation enqueued there
-    // (every ray still looked finished: no trace at all).
+    // events, so it never depends on how OptiX treats the legacy default stream (0), which the
+    // renderer's stream may be.
     INR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
     INR_CUDA_CHECK(cudaEventCreateWithFlags(&callerReady_, cudaEventDisableTiming));
     INR_CUDA_CHECK(cudaEventCreateWithFlags(&optixDone_, cudaEventDisableTiming));
