@@ -1,4 +1,4 @@
-// The OptiX GAS traversal against the DDA (labels cuda, optix): the same converged images with
+// The OptiX GAS traversal against the DDA (label optix): the same converged images with
 // and without shadows, the same query counts within statistical bounds, and a GAS rebuilt after
 // a time change and a transfer-function edit that renders what a fresh session renders. Without
 // a GPU, or in a build or on a driver without OptiX, the tests report skipped and say why.
