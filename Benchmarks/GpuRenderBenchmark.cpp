@@ -11,7 +11,7 @@
 // [-1,1]³, time [-1,1]) unless --no-paper, then every model file given.
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
-//                        [--csv FILE] [MODEL.inr ...]
+//                        [--traversal auto|dda|optix] [--csv FILE] [MODEL.inr ...]
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -50,6 +50,7 @@ namespace {
 struct Options {
   int size = 1024, frames = 20, warmup = 5, naiveSize = 256, marchSize = 256, macrocells = 64, slices = 16;
   bool paper = true, baselines = true;
+  TraversalKind traversal = TraversalKind::Dda;  // --traversal: the wavefront rows' GPU traversal
   std::string csv;
   std::vector<std::string> models;
 };
@@ -114,6 +115,10 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   mo.temporalSlices = o.slices;
   CudaMacrocellGrid grid(eval, box, model.domain.timeBegin, model.domain.timeEnd, mo);
   CudaDeltaTrackingRenderer renderer(eval, grid);
+  TraversalOptions traversal;
+  traversal.kind = o.traversal;
+  renderer.setTraversal(traversal);
+  std::printf("   traversal %s\n", renderer.traversalChoice().c_str());
   RenderSettings settings;
   settings.width = settings.height = o.size;
   renderer.setSettings(settings);
@@ -272,9 +277,11 @@ int main(int argc, char** argv) {
     else if (a == "--no-paper") o.paper = false;
     else if (a == "--no-baselines") o.baselines = false;
     else if (a == "--csv") o.csv = cl.value();
+    else if (a == "--traversal") o.traversal = parseTraversalKind(cl.value());
     else if (a == "-h" || a == "--help") {
       std::printf("usage: gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] "
-                  "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] [--csv FILE] "
+                  "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] "
+                  "[--traversal auto|dda|optix (default dda)] [--csv FILE] "
                   "[MODEL.inr ...]\n");
       return 0;
     } else if (!a.empty() && a[0] == '-') {

@@ -96,9 +96,13 @@ class CudaRenderSession final
     : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaDeltaTrackingRenderer> {
 public:
   CudaRenderSession(const InrModel& model, const RenderSessionOptions& o)
-      : BackendSession(model, CudaEvaluatorOptions{o.cudaDevice}, o), model_(model) {}
+      : BackendSession(model, CudaEvaluatorOptions{o.cudaDevice}, o), model_(model) {
+    renderer_.setTraversal(o.traversal);
+  }
   RenderBackend backend() const override { return RenderBackend::Cuda; }
-  std::string description() const override { return "cuda: " + evaluator_.name(); }
+  std::string description() const override {
+    return "cuda: " + evaluator_.name() + "; traversal " + renderer_.traversalChoice();
+  }
   FrameStats renderFrameNaive() override {
     if (!perThread_) perThread_ = std::make_unique<CudaPerThreadMlp>(model_);
     return renderer_.renderFrameNaive(*perThread_);

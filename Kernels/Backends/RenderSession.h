@@ -19,6 +19,7 @@
 #include "Render/QueryReduction.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneInputs.h"
+#include "Render/TraversalOptions.h"
 
 namespace inr {
 
@@ -38,6 +39,9 @@ struct RenderSessionOptions {
   TrackingOptions tracking;
   int cpuThreads = 0;  // CPU evaluator threads (0 = OpenMP default)
   int cudaDevice = 0;
+  // GPU traversal (DDA or OptiX GAS; auto decides, description() says what runs and why). The
+  // CPU backend always runs the DDA.
+  TraversalOptions traversal;
   // Progress of macrocell builds from the start (with !macrocells.lazySlices every slice is built
   // while the session is created); RenderSession::setProgressHandler replaces it later.
   MacrocellProgress progress;

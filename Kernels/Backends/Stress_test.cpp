@@ -252,6 +252,9 @@ RenderSessionOptions sessionOptions(int maxCollisions = 64, int macrocells = 8, 
   o.tracking.maxCollisionsPerRay = maxCollisions;
   o.tracking.maxIterations = 1 << 14;
   o.cpuThreads = 2;
+#ifdef INR_STRESS_OPTIX
+  o.traversal.kind = TraversalKind::Optix;  // the OptiX GAS traversal under the same extremes
+#endif
   return o;
 }
 

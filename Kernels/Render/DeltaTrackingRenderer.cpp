@@ -57,6 +57,9 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowEvaluateMs += o.shadowEvaluateMs;
   finalizeMs += o.finalizeMs;
   totalMs += o.totalMs;
+  traversalBuildMs += o.traversalBuildMs;
+  traversalPrimitives = o.traversalPrimitives;  // state: the structure after the later frame
+  traversalBytes = o.traversalBytes;
   return *this;
 }
 

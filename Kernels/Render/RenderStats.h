@@ -30,6 +30,12 @@ struct FrameStats {
   double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
          shadowEvaluateMs = 0, finalizeMs = 0, totalMs = 0;
 
+  // The traversal's structure over the majorants (OptiX GAS; zero for the DDA): wall time of the
+  // rebuilds since the previous frame (scene updates, refinements), and its primitives (non-empty
+  // macrocells) and device bytes now.
+  double traversalBuildMs = 0;
+  std::size_t traversalPrimitives = 0, traversalBytes = 0;
+
   std::size_t totalQueries() const { return queries + shadowQueries; }
   // Sums counts and times (for run totals); keeps the later frame index.
   FrameStats& operator+=(const FrameStats& o);

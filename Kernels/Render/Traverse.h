@@ -68,6 +68,23 @@ INR_HD void emitCandidate(const FrameConstants& fc, const RayStateView& rs, int 
   flags |= kRayPending;
 }
 
+// What delta tracking inside one segment of constant majorant found.
+enum class SegmentOutcome { Passed, Candidate, Capped };
+
+// Delta tracking inside one segment [t, segmentEnd) of constant majorant m: the per-segment step
+// every traversal runs, the DDA (trackSegments below) and the OptiX intersection program
+// (Cuda/Pipeline/OptixPrograms.cu) alike. Empty segments (m <= 0, NaN) draw nothing; the
+// per-frame draw budget is checked before the draw (bounded work); a free flight that ends
+// before segmentEnd is a candidate collision at tCandidate. No collision in the segment:
+// exponential flights are memoryless, so the next segment restarts from its own entry.
+INR_HD SegmentOutcome trackInSegment(const FrameConstants& fc, RngStream& rng, float m, float t, float segmentEnd,
+                                     float& tCandidate) {
+  if (!(m > 0.f)) return SegmentOutcome::Passed;
+  if (rng.counter >= fc.maxRngDraws) return SegmentOutcome::Capped;  // (no draw: images unchanged below)
+  tCandidate = candidateDistance(rng, m, t);
+  return tCandidate < segmentEnd ? SegmentOutcome::Candidate : SegmentOutcome::Passed;
+}
+
 // The DDA as a walker over the majorant grid: hands out one segment (cell) after another, front
 // to back, jumping over empty blocks (empty-space skipping). Its resumable state is the ray's
 // cell and crossings (RayStateView::cell, tNext).
@@ -110,25 +127,24 @@ struct DdaWalker {
 
 // Delta tracking from t to tEnd over the segments of `walker`: returns true when a candidate
 // was emitted (the walker's state is stored for resuming), false when the ray left its segment.
-// No collision in a segment: exponential flights are memoryless, so restarting the sampling at
-// the segment boundary with the next segment's majorant is exact.
+// A walker that is not a segment walker (the OptiX GAS walker) supplies its own non-template
+// overload, which traverseRayWith picks up by argument-dependent lookup.
 template <typename Walker>
 INR_HD bool trackSegments(const FrameConstants& fc, const RayStateView& rs, int i, std::uint8_t& flags,
                           RngStream& rng, Walker& walker, float t, float tEnd) {
   for (;;) {
     float m, segmentEnd;
     if (!walker.segment(tEnd, t, m, segmentEnd)) return false;
-    if (m > 0.f) {
-      if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame (no draw: images unchanged below)
-        flags |= kRayCapped;
-        return false;
-      }
-      const float tCandidate = candidateDistance(rng, m, t);
-      if (tCandidate < segmentEnd) {
-        walker.store(rs, i);  // before the next draw: fewer live registers on the GPU
-        emitCandidate(fc, rs, i, flags, rng, m, tCandidate);
-        return true;
-      }
+    float tCandidate;
+    const SegmentOutcome outcome = trackInSegment(fc, rng, m, t, segmentEnd, tCandidate);
+    if (outcome == SegmentOutcome::Capped) {  // bounded work per frame
+      flags |= kRayCapped;
+      return false;
+    }
+    if (outcome == SegmentOutcome::Candidate) {
+      walker.store(rs, i);  // before the next draw: fewer live registers on the GPU
+      emitCandidate(fc, rs, i, flags, rng, m, tCandidate);
+      return true;
     }
     if (!walker.advance(segmentEnd, tEnd)) return false;
     t = segmentEnd;
@@ -153,9 +169,11 @@ INR_HD bool answerPruned(const PruneView& prune, int cell, const RayStateView& r
 // it (rs.origin + i, ...) out of traverseRayWith's pruning loop: hoisted, they would stay live
 // through the DDA's inner loop and push ddaTraverseKernel past its register bound (ptxas -v,
 // sm_90: 28 / 104 bytes of spill stores / loads hoisted, 10 / 20 with the barrier, 10 / 16
-// before pruning existed). Emits no instruction.
+// before pruning existed). Emits no instruction. Left out where INR_NO_REGISTER_BARRIERS is
+// defined: the OptiX programs (Cuda/Pipeline/OptixPrograms.cu), whose OptiX-IR OptiX compiles
+// itself and whose register allocation this trick was never measured for.
 INR_HD void opaqueRayIndex(int& i) {
-#if defined(__CUDA_ARCH__)
+#if defined(__CUDA_ARCH__) && !defined(INR_NO_REGISTER_BARRIERS)
   asm volatile("" : "+r"(i));
 #else
   (void)i;

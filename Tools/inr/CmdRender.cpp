@@ -72,7 +72,12 @@ const char* kRenderUsageHead =
     "  --shadow-step S          ray-march shadow step (default: 2 x step)\n"
     "  --threads N              CPU threads (default: all)\n"
     "  --backend B              auto (default: CUDA when a usable GPU is present, else CPU), cpu or cuda;\n"
-    "                           the ray marcher evaluates through the chosen backend's evaluator\n";
+    "                           the ray marcher evaluates through the chosen backend's evaluator\n"
+    "  --traversal T            GPU macrocell traversal: auto (default: OptiX on GPUs with RT cores, else\n"
+    "                           the DDA; the choice and its reason are printed), dda or optix (a GAS over\n"
+    "                           the non-empty macrocells; needs a build with OptiX). The CPU runs the DDA\n"
+    "  --gas-min-majorant M     OptiX: leave macrocells with majorant <= M out of the GAS (default 0:\n"
+    "                           exact; > 0 ignores nearly transparent cells, biased)\n";
 
 // The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
 // place they are defined (the plugin's XML defaults are checked against the same struct).
@@ -129,6 +134,8 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"capped_rays", s.cappedRays},
           {"budget_skipped", s.budgetSkipped},
           {"pruned", s.pruned},
+          {"traversal_primitives", s.traversalPrimitives},
+          {"traversal_bytes", s.traversalBytes},
           {"ms",
            {{"update", s.updateMs},
             {"init", s.initMs},
@@ -137,6 +144,7 @@ nlohmann::json statsJson(const FrameStats& s) {
             {"shadow_traverse", s.shadowTraverseMs},
             {"shadow_evaluate", s.shadowEvaluateMs},
             {"finalize", s.finalizeMs},
+            {"traversal_build", s.traversalBuildMs},
             {"total", s.totalMs}}}};
 }
 
@@ -198,7 +206,7 @@ int runRender(int argc, char** argv) {
             {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
-             "step", "shadow-step", "threads", "backend", "output", "converge", "budget", "budget-fraction",
+             "step", "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge", "budget", "budget-fraction",
              "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
@@ -293,6 +301,13 @@ int runRender(int argc, char** argv) {
     throw UsageError(std::string("--backend: ") + e.what());
   }
   sopts.allowFallback = false;  // an explicit --backend cuda that cannot run is an error
+  try {
+    sopts.traversal.kind = parseTraversalKind(args.get("traversal", "auto"));
+    sopts.traversal.gasMinMajorant = float(args.getDouble("gas-min-majorant", 0.0));
+    sopts.traversal.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--traversal / --gas-min-majorant: ") + e.what());
+  }
   sopts.macrocells = mopts;
   if (args.has("no-refine")) sopts.tracking.refineMacrocells = false;
   sopts.cpuThreads = int(args.getInt("threads", 0));

@@ -226,6 +226,21 @@ CudaDeltaTrackingRenderer::~CudaDeltaTrackingRenderer() = default;
 
 const DeviceTraversal& CudaDeltaTrackingRenderer::traversal() const { return *impl_->traversal; }
 
+void CudaDeltaTrackingRenderer::setTraversal(const TraversalOptions& options) {
+  std::string reason;
+  std::unique_ptr<DeviceTraversal> t = makeDeviceTraversal(options, reason);
+  impl_->traversal = std::move(t);
+  impl_->traversalStale = true;
+  traversalChoice_ = reason;
+}
+
+void CudaDeltaTrackingRenderer::rebuildTraversal() {
+  Impl& I = *impl_;
+  I.traversal->majorantsChanged(macrocells_.view(I.majorants.get(), I.blocks()), I.stream);
+  I.pendingBuildMs += I.traversal->buildInfo().lastBuildMs;
+  I.traversalStale = false;
+}
+
 void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
   if (n > (std::size_t(1) << 30))
     throw std::invalid_argument("image too large for the GPU pipeline (more than 2^30 pixels)");
@@ -253,6 +268,7 @@ void CudaDeltaTrackingRenderer::transferFunctionChanged() { impl_->tf.upload(*tf
 
 void CudaDeltaTrackingRenderer::recomputeMajorants() {
   macrocells_.computeMajorants(impl_->tf.view(), impl_->majorants.get(), impl_->blocks());
+  rebuildTraversal();  // part of the scene update (time step, transfer-function edit)
 }
 
 void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
@@ -288,6 +304,9 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
   st.budgetSkipped = std::size_t(I.hostStats[kStatBudgetSkipped]);
   st.pruned = std::size_t(I.hostStats[kStatPruned]);
+  // Refinement raised majorants: the next frame's updateDirtyMajorants applies them, and the
+  // traversal's structure is rebuilt over them.
+  if (st.refinements > 0) I.traversalStale = true;
 }
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
@@ -301,6 +320,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
 
   I.timer.begin(cuda::kUpdate, s);
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  if (I.traversalStale) rebuildTraversal();
   I.timer.end(s);
 
   const FrameSetup f = frameSetup(frameKey());
@@ -351,6 +371,11 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   st.shadowTraverseMs = ms[cuda::kShadowTraverse];
   st.shadowEvaluateMs = ms[cuda::kShadowEvaluate];
   st.finalizeMs = ms[cuda::kFinalize];
+  const TraversalBuildInfo built = I.traversal->buildInfo();
+  st.traversalBuildMs = I.pendingBuildMs;
+  st.traversalPrimitives = built.primitives;
+  st.traversalBytes = built.bytes;
+  I.pendingBuildMs = 0;
   endFrame(st, I.truncated, histogram ? I.hostHistogram.get() : nullptr);
   st.totalMs = msSince(tFrame);
   return st;
@@ -413,6 +438,7 @@ void CudaDeltaTrackingRenderer::endGhostPasses(FrameStats& total) {
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   I.downloadStats();
   total.refinements = std::size_t(I.hostStats[kStatRefinements]);
+  if (total.refinements > 0) rebuildTraversal();
   total.updateMs = msSince(tUpdate);
 }
 

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
+#include "Render/TraversalOptions.h"
 #include "Render/WavefrontRenderer.h"
 
 namespace inr {
@@ -58,6 +59,13 @@ public:
   std::vector<float> blockMajorants() const override;
   const CudaMacrocellGrid& macrocells() const { return macrocells_; }
   const DeviceTraversal& traversal() const;
+  // Replaces the traversal (the DDA until called): TraversalOptions::kind, with auto deciding
+  // here. Throws (std::invalid_argument for a bad option, std::runtime_error saying why OptiX
+  // cannot run) and keeps the old traversal. Structures over the majorants are built before the
+  // next frame.
+  void setTraversal(const TraversalOptions& options);
+  // The traversal running and why it was chosen, e.g. "dda (auto: the GPU has no RT cores; ...)".
+  const std::string& traversalChoice() const { return traversalChoice_; }
 
   struct Impl;  // device state (CudaDeltaTrackingRendererImpl.cuh)
 
@@ -91,11 +99,15 @@ private:
   };
   FrameSetup frameSetup(int frame);
   void readFrameStats(FrameStats& st);
+  // Rebuilds what the traversal keeps over the displayed majorants (the OptiX GAS) after they
+  // changed; its time goes into the next frame's statistics.
+  void rebuildTraversal();
 
   const DeviceFieldEvaluator& evaluator_;
   CudaMacrocellGrid& macrocells_;
   CudaPipelineOptions pipeline_;
   std::unique_ptr<Impl> impl_;
+  std::string traversalChoice_ = "dda (default)";
 };
 
 }  // namespace inr

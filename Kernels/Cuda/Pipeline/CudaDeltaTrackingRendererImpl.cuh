@@ -45,6 +45,10 @@ struct CudaDeltaTrackingRenderer::Impl {
   }
   cudaStream_t stream = nullptr;
   std::unique_ptr<DeviceTraversal> traversal;
+  // The traversal's structure no longer matches the displayed majorants (refinements of the last
+  // frame, a new traversal); build time not yet reported in a frame's statistics.
+  bool traversalStale = false;
+  double pendingBuildMs = 0;
   cuda::DeviceTransferFunction tf, ghostTf;
   cuda::DeviceBuffer<float> majorants, ghostMajorants, depth;
   // Coarse levels of the two majorant grids (empty-space skipping); null when skipping is off.

@@ -5,7 +5,7 @@
 #include "Cuda/CudaCheck.h"
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 #include "Cuda/Pipeline/DeviceTraversal.h"
-#include "Render/Evaluate.h"
+#include "Cuda/Pipeline/ListedRay.cuh"
 #include "Render/Traverse.h"
 
 namespace inr {
@@ -23,27 +23,9 @@ constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 // kernel is compiled twice so the pass without pruning carries none of its registers).
 template <bool kPruning>
 __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
-  const RayStateView& rs = p.rs;
-  if (p.resolvePrevious) {
-    const float v = rs.sample[i];
-    storeQueryResult(rs, i, v);
-    if (p.refine) cuda::refineCell(p.refineView, linearCellIndex(p.medium.grid.dims, rs.cell[i]), v);
-    int cell;
-    float estimate;
-    // Pruning's EMA (Eq. ev_ema). Threads of a pass update hot cells concurrently; a benign race
-    // by design: read, then one atomic store of the new estimate. A lost update only drops a
-    // sample (every stored value is still a convex mix of the mean and real samples); a CAS
-    // loop would serialise the many rays in a hot cell for no visible gain.
-    if (kPruning && expectedAfterQuery(p.medium, rs, i, v, cell, estimate))
-      atomicExch(&p.medium.prune.expected[cell], estimate);
-  }
-  traverseDdaRay<kPruning>(p.fc, p.medium, rs, i);
-  if (rs.flags[i] & kRayPending) {
-    const unsigned slot = cuda::appendSlot(p.outCount);
-    const QueryPoint q = pendingQuery(rs, i, p.fc.time);
-    p.outPoints[slot] = make_float4(q.x, q.y, q.z, q.t);
-    p.outRays[slot] = i;
-  }
+  if (p.resolvePrevious) cuda::completeListedQuery<kPruning>(p, i);
+  traverseDdaRay<kPruning>(p.fc, p.medium, p.rs, i);
+  if (p.rs.flags[i] & kRayPending) cuda::writeListedQuery(p, i, cuda::appendSlot(p.outCount));
 }
 
 // The pass over all rays: a persistent grid (as many blocks as the GPU holds) whose warps take 32 rays at a

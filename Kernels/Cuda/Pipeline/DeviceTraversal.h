@@ -2,16 +2,19 @@
 // The seam between the GPU pipeline and its traversal: one launch of Stage II over a set of
 // rays. The pipeline fills a TraversalLaunch and calls traverse(); what walks the rays through
 // the majorant grid is the implementation's business: the DDA over the grid (DdaTraversal.cu,
-// always available) or, later, an OptiX GAS over non-empty macrocells. Every implementation runs
+// always available) or an OptiX GAS over non-empty macrocells (OptixTraversal.cu). Every one runs
 // the same per-ray stage code (Render/Traverse.h: resolveCandidate, candidateDistance, emitCandidate), honours
 // the contract below and appends its queries exactly as the DDA does, so the evaluation stage
 // and everything after it do not know which traversal ran.
 #include <cuda_runtime.h>
 
+#include <cstddef>
 #include <memory>
+#include <string>
 
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
 #include "Render/RayState.h"
+#include "Render/TraversalOptions.h"
 
 namespace inr {
 
@@ -39,15 +42,40 @@ struct TraversalLaunch {
   unsigned* workCounter = nullptr;
 };
 
+// What a traversal keeps over the majorants (the OptiX GAS), for the frame statistics.
+struct TraversalBuildInfo {
+  double lastBuildMs = 0;      // wall time of the last rebuild (selection, build, compaction)
+  std::size_t primitives = 0;  // macrocells in the structure
+  std::size_t bytes = 0;       // its device size (compacted)
+  std::size_t builds = 0;      // rebuilds so far
+};
+
 class DeviceTraversal {
 public:
   virtual ~DeviceTraversal() = default;
   virtual const char* name() const = 0;
   // Enqueues the traversal on `stream` (asynchronous).
   virtual void traverse(const TraversalLaunch& launch, cudaStream_t stream) const = 0;
+  // The majorants behind `grid` (device arrays) changed: a time step, a transfer-function edit,
+  // refinements. Rebuilds what the traversal keeps over them before returning; traverse() calls
+  // over another majorant array (ghost passes) must still work. The DDA reads the grid directly.
+  virtual void majorantsChanged(const MajorantGridView& grid, cudaStream_t stream) {
+    (void)grid;
+    (void)stream;
+  }
+  virtual TraversalBuildInfo buildInfo() const { return {}; }
 };
 
 // The 3D DDA over the majorant grid with empty-space skipping.
 std::unique_ptr<DeviceTraversal> makeDdaTraversal();
+
+// The OptiX GAS traversal (OptixTraversal.cu) on the current device; throws std::runtime_error
+// saying why when this build has no OptiX or it does not initialise. `rtCores` (optional) says
+// whether the GPU has RT cores (otherwise OptiX traverses in software).
+std::unique_ptr<DeviceTraversal> makeOptixTraversal(const TraversalOptions& options, bool* rtCores = nullptr);
+
+// The traversal `options` ask for; `reason` says what was chosen and why (auto's choice, or why
+// OptiX is unavailable). Dda never fails; Optix throws when OptiX cannot run.
+std::unique_ptr<DeviceTraversal> makeDeviceTraversal(const TraversalOptions& options, std::string& reason);
 
 }  // namespace inr
