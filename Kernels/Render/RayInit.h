@@ -34,7 +34,8 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.tEnd[i] = 0.f;
 
   float tEnter, tExit;
-  if (!intersectBox(fc.box, o, d, tEnter, tExit)) return;
+  // The primary box is the whole box, or this rank's brick (sub-domain rendering).
+  if (!intersectBox(fc.primaryBox, o, d, tEnter, tExit)) return;
   if (fc.depthLimit) tExit = minf(tExit, fc.depthLimit[i] * modelPerWorld);
   if (!(tEnter < tExit)) return;  // behind opaque geometry (or NaN depth): nothing to do
 

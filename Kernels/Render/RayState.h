@@ -102,6 +102,7 @@ struct AccumulationView {
 struct FrameConstants {
   CameraView camera;
   Box3f box;                          // the model's box (model space: CameraView.h)
+  Box3f primaryBox;                   // where primary rays are clipped: box, or this rank's brick
   const float* depthLimit = nullptr;  // per pixel world ray distance to opaque geometry, or null
   float time = 0.f;                   // world time of every query
   std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)

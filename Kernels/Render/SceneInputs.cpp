@@ -429,6 +429,7 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   FrameConstants fc;
   fc.camera = camera;
   fc.box = box;
+  fc.primaryBox = settings.clipToBrick ? settings.brick : box;
   fc.depthLimit = scene.depthLimit.empty() ? nullptr : depthLimit;
   fc.time = float(scene.time);
   fc.frame = frame;

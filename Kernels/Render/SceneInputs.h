@@ -130,6 +130,11 @@ struct RenderSettings {
   std::uint32_t seed = 1;
   bool pixelJitter = true;  // sub-pixel jitter per frame (antialiasing through accumulation)
   ImageWindow window;
+  // Sub-domain rendering (Render/BrickDecomposition.h): with clipToBrick, primary rays are
+  // clipped to `brick` (model space, inside the model's box) and the image is this brick's
+  // premultiplied RGBA; shadow rays still cross the whole box. Off: the whole box.
+  bool clipToBrick = false;
+  Box3f brick{};
 };
 
 // The per-frame constants every backend's stages read, from the host scene. `depthLimit` is the

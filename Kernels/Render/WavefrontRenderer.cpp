@@ -44,6 +44,12 @@ void WavefrontRenderer::setTrackingOptions(const TrackingOptions& options) {
 void WavefrontRenderer::setSettings(const RenderSettings& settings) {
   if (settings.width <= 0 || settings.height <= 0) throw std::invalid_argument("image size must be positive");
   validateImageWindow(settings.window, settings.width, settings.height);
+  if (settings.clipToBrick) {
+    const Box3f& b = settings.brick;
+    const bool valid = b.lo.x < b.hi.x && b.lo.y < b.hi.y && b.lo.z < b.hi.z && isFiniteValue(b.lo.x + b.lo.y + b.lo.z) &&
+                       isFiniteValue(b.hi.x + b.hi.y + b.hi.z);
+    if (!valid) throw std::invalid_argument("brick: the box to clip primary rays to must be finite with lo < hi");
+  }
   const bool sizeChanged = settings.width != settings_.width || settings.height != settings_.height;
   settings_ = settings;
   if (sizeChanged) {

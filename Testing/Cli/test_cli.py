@@ -332,6 +332,74 @@ def check_panel_xml_defaults(inr, data):
                "%s: XML default %r, engine default %r" % (prop, props[prop], got_engine))
 
 
+def check_brick_errors(inr, data):
+    """--brick I/N is checked before anything renders: malformed indices, a non-.npy output and
+    another method are refused with the option named."""
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "b.npy")
+        for bad in ("2/2", "-1/2", "1/0", "x/2", "1"):
+            p = run(inr, "render", model, "--size", "8x8", "--brick", bad, "-o", out)
+            expect(p.returncode == 2 and "--brick" in p.stderr, "--brick %s must be refused: %s" % (bad, p.stderr))
+        p = run(inr, "render", model, "--size", "8x8", "--brick", "0/2", "-o", os.path.join(d, "b.png"))
+        expect(p.returncode == 2 and ".npy" in p.stderr, "--brick with a .png output must be refused: " + p.stderr)
+        p = run(inr, "render", model, "--size", "8x8", "--brick", "0/2", "--method", "raymarch", "-o", out)
+        expect(p.returncode == 2 and "--brick" in p.stderr, "--brick with raymarch must be refused: " + p.stderr)
+        p = run(inr, "render", model, "--size", "8x8", "--macrocells", "1", "--brick", "0/2", "-o", out)
+        expect(p.returncode == 2 and "macrocells" in p.stderr, "2 bricks of 1 macrocell must be refused: " + p.stderr)
+
+
+def check_brick_composite(inr, data):
+    """Sub-domain rendering without MPI: N = 2 and 4 bricks rendered one process each
+    (`inr render --brick I/N`, premultiplied RGBA .npy) and composited front to back by
+    Benchmarks/composite_bricks.py equal the whole box rendered at once (--brick 0/1) to >= 40 dB
+    over the volume's pixels, with and without shadows, seen obliquely so that bricks overlap in
+    depth; composited in the reverse order they do not (the check can fail)."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
+    common = ["--size", "40x40", "--camera", "4.5,-2.5,3,1,0,0.5,0,0,1,30", "--backend", "cpu",
+              "--converge", "48", "--frames", "20000", "--quiet"]
+    with tempfile.TemporaryDirectory() as d:
+        for shadows in ([], ["--shadows"]):
+            def brick(spec):
+                out = os.path.join(d, "b%s.npy" % spec.replace("/", "_"))
+                p = run(inr, "render", model, *common, *shadows, "--brick", spec, "-o", out)
+                expect(p.returncode == 0, "render --brick %s failed: %s" % (spec, p.stderr))
+                return out
+            whole = brick("0/1")
+            for n in (2, 4):
+                parts = [brick("%d/%d" % (i, n)) for i in range(n)]
+                meta = [json.load(open(b[:-4] + ".brick.json")) for b in parts]
+                expect(all(m["brick"]["count"] == n for m in meta), "brick descriptions: %r" % meta)
+                p = subprocess.run([sys.executable, script, *parts, "--reference", whole, "--min-psnr", "40",
+                                    "-o", os.path.join(d, "c%d.png" % n)], capture_output=True, text=True, timeout=120)
+                print(p.stdout)
+                expect(p.returncode == 0, "%d bricks%s: composite differs from the whole render:\n%s%s"
+                       % (n, " with shadows" if shadows else "", p.stdout, p.stderr))
+                expect(os.path.getsize(os.path.join(d, "c%d.png" % n)) > 0, "no composite PNG")
+            # Back to front (the order reversed) must not pass: the order matters in this view.
+            p = subprocess.run([sys.executable, "-c", REVERSED_ORDER, script, whole, *parts],
+                               capture_output=True, text=True, timeout=120)
+            expect(p.returncode == 0, "reverse-order check failed to run: " + p.stderr)
+            expect(float(p.stdout.split()[-1]) < 38.0, "4 bricks composited back to front still match: " + p.stdout)
+
+
+# Composites the bricks in the reverse of their visibility order and prints the PSNR against the
+# whole render: argv = script, whole, bricks...
+REVERSED_ORDER = """
+import importlib.util, sys, numpy as np
+spec = importlib.util.spec_from_file_location("cb", sys.argv[1]); cb = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(cb)
+whole = np.load(sys.argv[2]).astype(float)
+loaded = [cb.load_brick(p) for p in sys.argv[3:]]
+order = cb.visibility_order([m["box"] for _, m in loaded], cb.eye_of(loaded[0][1]["camera"]))[::-1]
+out = np.zeros_like(whole)
+for k in order:
+    out += (1.0 - out[..., 3:4]) * loaded[k][0]
+print(cb.psnr_over_volume(out, whole)[0])
+"""
+
+
 if __name__ == "__main__":
     inr, data, check = sys.argv[1:4]
     globals()["check_" + check](inr, data)

@@ -22,6 +22,7 @@
 #include "Model/InrModel.h"
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
+#include "Render/BrickDecomposition.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
 #include "Render/QueryReduction.h"
@@ -77,7 +78,13 @@ const char* kRenderUsageHead =
     "                           the DDA; the choice and its reason are printed), dda or optix (a GAS over\n"
     "                           the non-empty macrocells; needs a build with OptiX). The CPU runs the DDA\n"
     "  --gas-min-majorant M     OptiX: leave macrocells with majorant <= M out of the GAS (default 0:\n"
-    "                           exact; > 0 ignores nearly transparent cells, biased)\n";
+    "                           exact; > 0 ignores nearly transparent cells, biased)\n"
+    "  --brick I/N              sub-domain rendering (delta tracking): split the box into N bricks on\n"
+    "                           macrocell boundaries and render brick I only (primary rays clipped to it,\n"
+    "                           shadow rays through the whole box, seed varied per brick); -o must be\n"
+    "                           .npy: premultiplied RGBA float32, shape (height, width, 4), row 0 at the\n"
+    "                           top; OUT.brick.json beside it gives the brick's box and the camera, for\n"
+    "                           Benchmarks/composite_bricks.py (front-to-back over in visibility order)\n";
 
 // The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
 // place they are defined (the plugin's XML defaults are checked against the same struct).
@@ -110,7 +117,8 @@ std::string queryReductionUsage() {
 
 const char* kRenderUsageTail =
     "output:\n"
-    "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float)\n"
+    "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float);\n"
+    "                           .npy with --brick (premultiplied RGBA, see --brick)\n"
     "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells; per\n"
     "                           frame also budget_skipped (pixels left out) and pruned (queries saved)\n"
     "  --quiet                  only the summary line\n";
@@ -195,6 +203,28 @@ QueryReductionSettings parseQueryReduction(const Args& args) {
   return q;
 }
 
+// NumPy's .npy format (version 1.0): float32 little-endian, shape (height, width, 4), C order:
+// the premultiplied RGBA of a brick, readable with numpy.load.
+void writeNpyRgba(const std::string& path, const ImageRGBA& image) {
+  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(image.height) + ", " +
+                       std::to_string(image.width) + ", 4), }";
+  // Magic (6) + version (2) + length (2) + header + newline, padded to a multiple of 64.
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header += '\n';
+  std::ofstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error(path + ": cannot write the brick image");
+  const unsigned char magic[8] = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0};
+  f.write(reinterpret_cast<const char*>(magic), 8);
+  const unsigned char len[2] = {static_cast<unsigned char>(header.size() & 0xff),
+                                static_cast<unsigned char>(header.size() >> 8)};
+  f.write(reinterpret_cast<const char*>(len), 2);
+  f.write(header.data(), std::streamsize(header.size()));
+  static_assert(sizeof(float) == 4, "float32 output");
+  f.write(reinterpret_cast<const char*>(image.data.data()), std::streamsize(image.data.size() * sizeof(float)));
+  if (!f) throw std::runtime_error(path + ": write failed");
+}
+
 bool endsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
@@ -207,7 +237,7 @@ int runRender(int argc, char** argv) {
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
              "step", "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge", "budget", "budget-fraction",
-             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff"},
+             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
     std::fputs(kRenderUsageHead, stdout);
@@ -218,13 +248,23 @@ int runRender(int argc, char** argv) {
   if (args.positional().size() != 1) throw UsageError("expects exactly one MODEL file (see --help)");
   if (!args.has("output")) throw UsageError("-o OUT.png|.pfm is required");
   const std::string out = args.get("output");
-  if (!endsWith(out, ".png") && !endsWith(out, ".pfm")) {
+  const bool brickMode = args.has("brick");
+  BrickIndex brick;
+  if (brickMode) {
+    try {
+      brick = parseBrickIndex(args.get("brick"));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--brick: ") + e.what());
+    }
+    if (!endsWith(out, ".npy")) throw UsageError("-o: with --brick the output must end in .npy, got '" + out + "'");
+  } else if (!endsWith(out, ".png") && !endsWith(out, ".pfm")) {
     throw UsageError("-o: output must end in .png or .pfm, got '" + out + "'");
   }
   const std::string method = args.get("method", "delta");
   if (method != "delta" && method != "raymarch" && method != "naive") {
     throw UsageError("--method must be delta, raymarch or naive, got '" + method + "'");
   }
+  if (brickMode && method != "delta") throw UsageError("--brick applies to --method delta only");
   const bool quiet = args.has("quiet");
 
   // --- image settings
@@ -240,7 +280,7 @@ int runRender(int argc, char** argv) {
   }
   const long seed = args.getInt("seed", 1);
   if (seed < 0 || seed > 0xffffffffL) throw UsageError("--seed must be in [0, 2^32)");
-  settings.seed = std::uint32_t(seed);
+  settings.seed = brickMode ? brickSeed(std::uint32_t(seed), brick.index) : std::uint32_t(seed);
   settings.pixelJitter = !args.has("no-jitter");
   const long frames = args.getInt("frames", method == "raymarch" && !settings.pixelJitter ? 1 : 64);
   if (frames < 1 || frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
@@ -292,6 +332,17 @@ int runRender(int argc, char** argv) {
     throw UsageError("--ghost-passes must be in [0, " + std::to_string(TrackingOptions::kMaxGhostPasses) + "]");
   }
 
+
+  std::vector<Brick> bricks;
+  if (brickMode) {
+    try {
+      bricks = brickDecomposition(box, mopts.dims, brick.count);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--brick: ") + e.what());
+    }
+    settings.clipToBrick = true;
+    settings.brick = bricks[std::size_t(brick.index)].box;
+  }
 
   // --- backend session (evaluator, macrocells, renderer)
   RenderSessionOptions sopts;
@@ -493,10 +544,35 @@ int runRender(int argc, char** argv) {
                   driver.estimate(), convergeTarget);
     }
     report["macrocells"]["refinements"] = renderer.macrocellInfo().refinements;
-    image = renderer.image();
+    image = brickMode ? renderer.premultipliedImage() : renderer.image();
+    if (brickMode) {
+      // What the compositing script needs to order the bricks, and what the run cost.
+      const Brick& b = bricks[std::size_t(brick.index)];
+      const Camera& c = scene.camera;
+      nlohmann::json meta;
+      meta["brick"] = {{"index", brick.index}, {"count", brick.count}};
+      meta["box"] = {b.box.lo.x, b.box.hi.x, b.box.lo.y, b.box.hi.y, b.box.lo.z, b.box.hi.z};
+      meta["cells"] = {b.cellLo.x, b.cellHi.x, b.cellLo.y, b.cellHi.y, b.cellLo.z, b.cellHi.z};
+      meta["camera"] = {{"position", c.position}, {"focal_point", c.focalPoint}, {"parallel", c.parallelProjection}};
+      meta["seed"] = settings.seed;
+      meta["width"] = settings.width;
+      meta["height"] = settings.height;
+      meta["frames"] = renderer.accumulatedFrames();
+      meta["queries"] = total.queries;
+      meta["shadow_queries"] = total.shadowQueries;
+      meta["render_seconds"] = renderSeconds;
+      meta["ms_per_frame"] = total.totalMs / std::max(1, renderer.accumulatedFrames());
+      meta["estimated_psnr_db"] = driver.estimate();
+      meta["backend"] = session->description();
+      const std::string metaPath = out.substr(0, out.size() - 4) + ".brick.json";
+      std::ofstream js(metaPath);
+      if (!js) throw std::runtime_error(metaPath + ": cannot write the brick description");
+      js << meta.dump(2) << "\n";
+    }
   }
 
-  writeImage(out, image);
+  if (brickMode) writeNpyRgba(out, image);
+  else writeImage(out, image);
   const double n = double(renderedFrames);
   std::printf("%s: %s %dx%d, %ld frame(s), t=%g: %.0f rays, %.0f queries (+%.0f shadow), %.1f iterations per "
               "frame; %.1f ms per frame (traverse %.1f, evaluate %.1f, shadows %.1f, finalize %.1f) -> %s\n",
