@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace inr {
@@ -93,8 +94,19 @@ CameraView validateScene(const RenderScene& scene, const RenderSettings& setting
   return scene.camera.view(settings.width, settings.height);  // validates the camera
 }
 
+namespace {
+// A working-range end as a transfer-function position: a network that overflows (fp16 or fp32)
+// leaves +-inf in its cells' value range, which no transfer function may hold; the sweep then
+// spans a quarter of the float range each way (its bumps reach up to half the span beyond the
+// ends and must stay within float) instead (NaN: 0).
+double finiteEnd(float v) {
+  const double fmax = 0.25 * double(std::numeric_limits<float>::max());
+  return std::isnan(v) ? 0.0 : std::clamp(double(v), -fmax, fmax);
+}
+}  // namespace
+
 GhostSweep::GhostSweep(const std::array<float, 2>& range, const Vec3f& cellSize, int count)
-    : lo_(range[0]), span_(std::max(double(range[1]) - range[0], 1e-6)),
+    : lo_(finiteEnd(range[0])), span_(std::max(finiteEnd(range[1]) - finiteEnd(range[0]), 1e-6)),
       meanCell_((double(cellSize.x) + cellSize.y + cellSize.z) / 3.0), count_(count) {}
 
 TransferFunction GhostSweep::transferFunction(int pass) const {

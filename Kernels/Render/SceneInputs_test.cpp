@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "Render/SceneChange.h"
@@ -195,6 +197,27 @@ TEST(SceneChange, LightMattersOnlyWithShadows) {
   b = a;
   b.shadows = false;
   EXPECT_TRUE(diffScenes(&a, b).light);
+}
+
+// A network that overflows leaves +-inf in the working value range (seen on the GPU's fp16 path:
+// relu activations ~1e10): the ghost sweep's transfer functions must still be valid ones, with
+// the same sweep as before over a finite range.
+TEST(GhostSweep, OverflowedWorkingRangeGivesValidTransferFunctions) {
+  const Vec3f cell{0.1f, 0.1f, 0.1f};
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const std::array<float, 2> range : {std::array<float, 2>{-inf, inf}, std::array<float, 2>{0.f, inf},
+                                           std::array<float, 2>{-inf, 2.f}, std::array<float, 2>{NAN, NAN}}) {
+    const GhostSweep sweep(range, cell, 3);
+    for (int g = 0; g < 3; ++g) {
+      const TransferFunction tf = sweep.transferFunction(g);
+      EXPECT_NO_THROW(TransferFunctionTable table(tf)) << range[0] << ".." << range[1] << ", pass " << g;
+    }
+  }
+  // A finite range sweeps as it did: pass 1 of 2 over [1, 3] is the bump at 2.5, half-width 1.
+  const TransferFunction finite = GhostSweep({1.f, 3.f}, cell, 2).transferFunction(1);
+  const TransferFunction expected = TransferFunction::cosineBump(1.0, 3.0, 2.5, 1.0, 0.5);
+  EXPECT_EQ(finite.range(), expected.range());
+  EXPECT_EQ(finite.opacity.size(), expected.opacity.size());
 }
 
 }  // namespace
