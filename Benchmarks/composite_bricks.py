@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Composites the bricks of `inr render --brick I/N` (premultiplied RGBA .npy, each with its
 .brick.json beside it) front to back with the over operator, in the bricks' visibility order from
-the camera: what ParaView's ordered compositing does under MPI, for runs without ParaView (one
-process per GPU). Optionally compares the composite with a whole-box render (`--brick 0/1`, or
+the camera, or the pixel shares of `inr render --pixel-share I/N` (disjoint pixels: any order):
+what ParaView's ordered compositing does under MPI, for runs without ParaView (one process per
+GPU). Optionally compares the composite with a whole-box render (`--brick 0/1`, or
 any premultiplied RGBA .npy) over the pixels the volume covers.
 
   composite_bricks.py B0.npy B1.npy ... [-o OUT.png|OUT.npy] [--background R,G,B]
@@ -108,7 +109,13 @@ def main():
     if len(shapes) != 1:
         sys.exit(f"composite_bricks: the bricks' image sizes differ: {sorted(shapes)}")
     eye = eye_of(loaded[0][1]["camera"])
-    order = visibility_order([m["box"] for _, m in loaded], eye)
+    splits = {m.get("split", "bricks") for _, m in loaded}
+    if len(splits) != 1:
+        sys.exit(f"composite_bricks: the images mix splits {sorted(splits)}")
+    if splits == {"pixels"}:
+        order = list(range(count))  # disjoint pixel shares: any order adds them up
+    else:
+        order = visibility_order([m["box"] for _, m in loaded], eye)
 
     out = np.zeros_like(loaded[0][0])
     for k in order:

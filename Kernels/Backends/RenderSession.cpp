@@ -145,6 +145,14 @@ bool cudaBackendAvailable(std::string* reason) {
 #endif
 }
 
+int cudaDeviceCount() {
+#ifdef INR_HAVE_CUDA
+  return countCudaDevices();
+#else
+  return 0;
+#endif
+}
+
 std::unique_ptr<RenderSession> RenderSession::create(const InrModel& model, const RenderSessionOptions& options) {
   std::string why;
   if (options.backend == RenderBackend::Cpu) return std::make_unique<CpuRenderSession>(model, options, "");

@@ -31,6 +31,9 @@ const char* renderBackendName(RenderBackend backend);
 
 // Whether this build has the CUDA backend and a usable GPU is present; `reason` says why not.
 bool cudaBackendAvailable(std::string* reason = nullptr);
+// How many CUDA devices this process sees (0 without the CUDA backend, a driver or a device):
+// one process per GPU picks RenderSessionOptions::cudaDevice = local rank modulo this.
+int cudaDeviceCount();
 
 struct RenderSessionOptions {
   RenderBackend backend = RenderBackend::Auto;

@@ -41,4 +41,13 @@ CudaDeviceInfo queryCudaDevice(int device) {
   return info;
 }
 
+int countCudaDevices() {
+  int count = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess) {
+    cudaGetLastError();
+    return 0;
+  }
+  return count;
+}
+
 }  // namespace inr

@@ -17,5 +17,7 @@ struct CudaDeviceInfo {
 };
 
 CudaDeviceInfo queryCudaDevice(int device = 0);
+// The number of CUDA devices visible to this process (0 without a driver or device).
+int countCudaDevices();
 
 }  // namespace inr

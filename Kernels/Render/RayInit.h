@@ -33,6 +33,13 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 
+  if (fc.shareCount > 1) {
+    // Image-space split: another share's pixel stays empty, like one behind geometry at depth 0.
+    int x, y;
+    picturePixel(fc, i, x, y);
+    if ((x + y) % fc.shareCount != fc.shareIndex) return;
+  }
+
   float tEnter, tExit;
   // The primary box is the whole box, or this rank's brick (sub-domain rendering).
   if (!intersectBox(fc.primaryBox, o, d, tEnter, tExit)) return;

@@ -126,6 +126,9 @@ struct FrameConstants {
   // floor(2^42 / width) + 1, exact while pixels * width < 2^42); all 0 for a whole picture.
   std::uint64_t rowMagic = 0;
   std::uint32_t keyBase = 0, keyRowStride = 0;
+  // RenderSettings::pixelShare: this image traces the pixels with (x + y) mod shareCount =
+  // shareIndex of the full picture (shareCount 1: all).
+  int shareIndex = 0, shareCount = 1;
 };
 
 // Position of pixel i in the full picture, and its random-stream key (the full picture's pixel

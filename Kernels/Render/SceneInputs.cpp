@@ -430,6 +430,8 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   fc.camera = camera;
   fc.box = box;
   fc.primaryBox = settings.clipToBrick ? settings.brick : box;
+  fc.shareIndex = settings.pixelShare.index;
+  fc.shareCount = settings.pixelShare.count;
   fc.depthLimit = scene.depthLimit.empty() ? nullptr : depthLimit;
   fc.time = float(scene.time);
   fc.frame = frame;

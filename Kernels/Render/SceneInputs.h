@@ -125,6 +125,17 @@ struct ImageWindow {
   bool operator!=(const ImageWindow& o) const { return !(*this == o); }
 };
 
+// Image-space split over ranks (sub-domain rendering under MPI, `inr render --pixel-share`):
+// pixel (x, y) of the full picture belongs to share (x + y) mod count, and an image rendered with
+// share `index` traces that share's pixels only. The others stay empty (premultiplied zero, as if
+// opaque geometry stood at depth 0), so the shares' premultiplied images add up, in any order, to
+// the whole picture. count = 1: every pixel.
+struct PixelShare {
+  int index = 0, count = 1;
+  bool operator==(const PixelShare& o) const { return index == o.index && count == o.count; }
+  bool operator!=(const PixelShare& o) const { return !(*this == o); }
+};
+
 struct RenderSettings {
   int width = 256, height = 256;
   std::uint32_t seed = 1;
@@ -135,6 +146,7 @@ struct RenderSettings {
   // premultiplied RGBA; shadow rays still cross the whole box. Off: the whole box.
   bool clipToBrick = false;
   Box3f brick{};
+  PixelShare pixelShare;
 };
 
 // The per-frame constants every backend's stages read, from the host scene. `depthLimit` is the

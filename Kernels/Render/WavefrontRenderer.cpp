@@ -50,6 +50,10 @@ void WavefrontRenderer::setSettings(const RenderSettings& settings) {
                        isFiniteValue(b.hi.x + b.hi.y + b.hi.z);
     if (!valid) throw std::invalid_argument("brick: the box to clip primary rays to must be finite with lo < hi");
   }
+  const PixelShare& share = settings.pixelShare;
+  if (share.count < 1 || share.index < 0 || share.index >= share.count)
+    throw std::invalid_argument("pixel share " + std::to_string(share.index) + "/" + std::to_string(share.count) +
+                                ": need a count of at least 1 and 0 <= index < count");
   const bool sizeChanged = settings.width != settings_.width || settings.height != settings_.height;
   settings_ = settings;
   if (sizeChanged) {
@@ -92,7 +96,10 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   haveScene_ = true;
   SceneChange others = change;
   others.camera = false;
-  if (change.camera && !others.resetsAccumulation() && queryReduction_.reproject && frameIndex_ > 0) {
+  // A pixel share's neighbours belong to other shares (empty here): resampling its accumulation
+  // would blend them in, so an image-space split restarts instead.
+  if (change.camera && !others.resetsAccumulation() && queryReduction_.reproject && frameIndex_ > 0 &&
+      settings_.pixelShare.count == 1) {
     reprojectAccumulation(oldView, view, std::uint32_t(queryReduction_.reprojectHistory));
     frameIndex_ = std::min(frameIndex_, queryReduction_.reprojectHistory);
     ++counters_.reprojections;

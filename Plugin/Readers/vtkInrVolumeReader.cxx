@@ -159,6 +159,9 @@ int vtkInrVolumeReader::RequestInformation(
   outInfo->Set(vtkDataObject::ORIGIN(), origin, 3);
   outInfo->Set(vtkDataObject::SPACING(), spacing, 3);
   vtkDataObject::SetPointDataActiveScalarInfo(outInfo, VTK_FLOAT, 1);
+  // Every piece executes (the model travels with each: sub-domain rendering under MPI); without
+  // this the executive hands ranks > 0 an empty image without running the reader.
+  outInfo->Set(vtkAlgorithm::CAN_HANDLE_PIECE_REQUEST(), 1);
   outInfo->Remove(vtkStreamingDemandDrivenPipeline::TIME_STEPS());
   if (d.usesTime() && d.timeEnd > d.timeBegin)
   {
@@ -202,10 +205,40 @@ int vtkInrVolumeReader::RequestData(
   output->SetOrigin(d.bounds[0], d.bounds[2], d.bounds[4]);
   output->SetSpacing((d.bounds[1] - d.bounds[0]) / (r - 1), (d.bounds[3] - d.bounds[2]) / (r - 1),
     (d.bounds[5] - d.bounds[4]) / (r - 1));
+  // The model (a few MB at most) travels with every piece: under MPI each rank renders its own
+  // brick of it with the whole network (sub-domain rendering, vtkInrVolumeMapper). The preview
+  // grid, data for other filters, lives on piece 0 only.
+  auto addModelArrays = [&](vtkFieldData* fd) {
+    fd->AddArray(I.bytes);
+    vtkNew<vtkDoubleArray> range;
+    range->SetName("InrValueRange");
+    range->SetNumberOfTuples(2);
+    range->SetValue(0, this->ValueRange[0]);
+    range->SetValue(1, this->ValueRange[1]);
+    fd->AddArray(range);
+    vtkNew<vtkDoubleArray> time;
+    time->SetName("InrTime");
+    time->SetNumberOfTuples(1);
+    time->SetValue(0, t);
+    fd->AddArray(time);
+    vtkNew<vtkDoubleArray> bounds;  // the model's box, for the ranks' brick bounds
+    bounds->SetName("InrDomainBounds");
+    bounds->SetNumberOfTuples(6);
+    for (int k = 0; k < 6; ++k)
+    {
+      bounds->SetValue(k, d.bounds[k]);
+    }
+    fd->AddArray(bounds);
+  };
   if (piece > 0)
   {
-    // Parallel runs: the model lives on piece 0 only, so it is rendered exactly once.
     output->SetExtent(0, -1, 0, -1, 0, -1);
+    // An empty "value" array as the active scalars: ParaView's volume prop draws a volume only
+    // when its input has scalars (vtkPVLODVolume::CanRender), and each rank draws its share.
+    vtkNew<vtkFloatArray> none;
+    none->SetName("value");
+    output->GetPointData()->SetScalars(none);
+    addModelArrays(output->GetFieldData());
     output->GetInformation()->Set(vtkDataObject::DATA_TIME_STEP(), t);
     return 1;
   }
@@ -257,19 +290,7 @@ int vtkInrVolumeReader::RequestData(
   }
   output->GetPointData()->SetScalars(values);
 
-  vtkFieldData* fd = output->GetFieldData();
-  fd->AddArray(I.bytes);
-  vtkNew<vtkDoubleArray> range;
-  range->SetName("InrValueRange");
-  range->SetNumberOfTuples(2);
-  range->SetValue(0, this->ValueRange[0]);
-  range->SetValue(1, this->ValueRange[1]);
-  fd->AddArray(range);
-  vtkNew<vtkDoubleArray> time;
-  time->SetName("InrTime");
-  time->SetNumberOfTuples(1);
-  time->SetValue(0, t);
-  fd->AddArray(time);
+  addModelArrays(output->GetFieldData());
   output->GetInformation()->Set(vtkDataObject::DATA_TIME_STEP(), t);
   return 1;
 }

@@ -20,6 +20,7 @@
 #include "vtk_glew.h"
 
 #include "InrFramebufferCompositor.h"
+#include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
 
 #include "Backends/Refinement.h"
@@ -38,6 +39,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -331,6 +334,18 @@ struct vtkInrVolumeMapper::Internals
 
   // Tiled rendering: where this render's image lies in the full picture (whole: fullWidth 0).
   inr::ImageWindow window;
+  // Sub-domain rendering under MPI (InrParallelRendering.h): this rank's place, the refinement
+  // state reduced over all ranks after each render (what the getters report with several ranks).
+  InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
+  InrParallelRendering::Refinement reduced;
+  std::string rankInUse;  // appended to the backend description
+  int cudaDevice = 0;     // the fine session's device (the coarse one follows it)
+  std::string ranksInUse;  // one line per rank after each render (several ranks only)
+  // With several ranks: this rank's pixel share (image-space split).
+  void RankSettings(inr::RenderSettings& settings) const;
+  // Reduces the refinement state over the ranks (ReduceRefinement) once per Render, on every exit
+  // path: every rank must take part in the collective or the others wait forever.
+  void ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered);
   // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
   bool warnedTranslucent = false, warnedPeeling = false;
   int uploadedEpoch = -1;  // the session's resets + reprojections when the image was uploaded
@@ -385,11 +400,24 @@ void vtkInrVolumeMapper::ResetAccumulation()
 
 int vtkInrVolumeMapper::GetAccumulatedFrames()
 {
+  if (this->Internal->ranks.count > 1)
+  {
+    return this->Internal->reduced.frames;  // the fewest of all ranks
+  }
   const inr::RenderSession* shown = this->Internal->Shown();
   return shown ? shown->accumulatedFrames() : 0;
 }
 
 int vtkInrVolumeMapper::GetConverged()
+{
+  if (this->Internal->ranks.count > 1)
+  {
+    return this->Internal->reduced.converged;  // every rank has converged
+  }
+  return this->GetLocalConverged();
+}
+
+int vtkInrVolumeMapper::GetLocalConverged()
 {
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
   // A reduced interactive image is never the final one: a still render must follow.
@@ -421,12 +449,37 @@ double vtkInrVolumeMapper::GetLastRenderMilliseconds()
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
 {
+  if (this->Internal->ranks.count > 1)
+  {
+    return this->Internal->reduced.estimate;  // the lowest of all ranks
+  }
   return this->Internal->fine.refinement.estimate();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()
 {
   return this->Internal->backendInUse.c_str();
+}
+
+double* vtkInrVolumeMapper::GetBounds()
+{
+  vtkDataSet* input = this->GetInput();
+  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
+  vtkDataArray* domain = fd ? fd->GetArray("InrDomainBounds") : nullptr;
+  if (domain && domain->GetNumberOfValues() == 6)
+  {
+    for (int k = 0; k < 6; ++k)
+    {
+      this->Bounds[k] = domain->GetTuple1(k);
+    }
+    return this->Bounds;
+  }
+  return this->Superclass::GetBounds();
+}
+
+const char* vtkInrVolumeMapper::GetRanksInUse()
+{
+  return this->Internal->ranksInUse.c_str();
 }
 
 double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
@@ -574,6 +627,15 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     }
     return;
   }
+  // Under MPI every rank reaches this point in every render (IceT composites all of them):
+  // whatever happens below, the refinement state is reduced over the ranks once on the way out.
+  struct RankReduction
+  {
+    Internals& I;
+    vtkInrVolumeMapper* self;
+    bool rendered = false;
+    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
+  } reduction{ I, this };
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {
     producer->Update();
@@ -649,6 +711,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
+  reduction.rendered = true;
   const double refineMs = msSince(refineStart);
   const auto compositeStart = Clock::now();
   I.Composite(this, ren, width, height);
@@ -734,7 +797,9 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(vtkInrVolumeMapper* self, 
 {
   *budgetMs = self->InteractiveFrameTime;
   *timeChange = false;
-  if (self->InteractiveLevelOfDetail == LOD_OFF || self->Capturing)
+  // Under MPI with several ranks every frame is a full-resolution one: each rank would choose its
+  // own reduced scale from its own timings, and images of different sizes do not composite.
+  if (self->InteractiveLevelOfDetail == LOD_OFF || self->Capturing || this->ranks.count > 1)
   {
     return false;
   }
@@ -940,8 +1005,32 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
       so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
       so.tracking = this->trackingValid;
+      // One GPU per rank: the rank's index on its node picks the device.
+      std::string localSource;
+      const int localRank = InrParallelRendering::LocalRank(&localSource);
+      const int devices = inr::cudaDeviceCount();
+      if (localRank >= 0 && devices > 0)
+      {
+        so.cudaDevice = localRank % devices;
+      }
+      this->cudaDevice = so.cudaDevice;
       f.session = inr::RenderSession::create(this->model, so);
       f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
+      this->rankInUse.clear();
+      if (this->ranks.count > 1 || localRank >= 0)
+      {
+        std::ostringstream note;
+        note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
+        if (localRank >= 0)
+        {
+          note << " (local rank " << localRank << " from " << localSource << ")";
+        }
+        if (f.session->backend() == inr::RenderBackend::Cuda)
+        {
+          note << ", CUDA device " << so.cudaDevice << " of " << devices;
+        }
+        this->rankInUse = note.str();
+      }
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
       f.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
@@ -965,7 +1054,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
     }
   }
   syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
-  this->backendInUse = f.session->description();
+  this->backendInUse = f.session->description() + this->rankInUse;
   this->macrocellsInUse = describeMacrocells(*f.session);
   return true;
 }
@@ -997,6 +1086,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
     {
       inr::RenderSessionOptions so;
       so.backend = this->fine.session->backend();  // what it runs on (after fallback)
+      so.cudaDevice = this->cudaDevice;
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
       so.macrocells.temporalSlices = want.slices;
@@ -1187,9 +1277,11 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
+    this->RankSettings(settings);
     const inr::RenderSettings& held = slot.settings;
     if (!slot.haveSettings || settings.width != held.width || settings.height != held.height ||
-      settings.seed != held.seed || settings.window != held.window)
+      settings.seed != held.seed || settings.window != held.window ||
+      settings.pixelShare != held.pixelShare)
     {
       engine.setSettings(settings);
       slot.settings = settings;
@@ -1240,6 +1332,61 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     vtkErrorWithObjectMacro(self, << "INR Volume: rendering failed: " << e.what());
     return false;
   }
+}
+
+// With several ranks, the image-space split: rank r of N traces the pixels (x + y) mod N = r of
+// the picture at full depth (RenderSettings::pixelShare) with the same seed as one rank would,
+// so the ranks' premultiplied images add up to the single-rank image (IceT blends them; disjoint
+// pixels blend the same in any order).
+void vtkInrVolumeMapper::Internals::RankSettings(inr::RenderSettings& settings) const
+{
+  if (this->ranks.count > 1)
+  {
+    settings.pixelShare = inr::PixelShare{ this->ranks.rank, this->ranks.count };
+  }
+}
+
+void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered)
+{
+  // What every rank did (GetRanksInUse): how a user checks that all of them render.
+  std::ostringstream line;
+  line << "rank " << this->ranks.rank << " of " << this->ranks.count << ": ";
+  if (rendered)
+  {
+    line << this->lastStep.total.totalQueries() << " queries in the last render, "
+         << (this->Shown() ? this->Shown()->accumulatedFrames() : 0) << " frames, "
+         << (self->GetLocalConverged() ? "converged" : "refining") << "; "
+         << this->backendInUse;
+  }
+  else
+  {
+    line << "nothing drawn in the last render";
+  }
+  if (this->ranks.count < 2)
+  {
+    this->ranksInUse = line.str();
+    return;
+  }
+  // A rank that drew nothing (no model on its piece, a failed engine) neither holds back nor
+  // speeds up the others: it reports "converged", the most frames and the highest estimate.
+  InrParallelRendering::Refinement local;
+  local.converged = rendered ? self->GetLocalConverged() : 1;
+  local.frames = rendered && this->Shown() ? this->Shown()->accumulatedFrames()
+                                           : std::numeric_limits<int>::max();
+  local.estimate =
+    rendered ? this->fine.refinement.estimate() : std::numeric_limits<double>::infinity();
+  InrParallelRendering::Refinement all = InrParallelRendering::ReduceRefinement(local);
+  if (all.frames == std::numeric_limits<int>::max())
+  {
+    all = InrParallelRendering::Refinement{ 0, 0, 0.0 };  // no rank drew anything
+  }
+  this->reduced = all;
+  std::string text;
+  for (const std::string& l : InrParallelRendering::GatherText(line.str()))
+  {
+    text += (text.empty() ? "" : "\n") + l;
+  }
+  this->ranksInUse = text;
 }
 
 // Draws the accumulated image over what is in the framebuffer; the texture is loaded again only

@@ -270,12 +270,25 @@ public:
   void ResetAccumulation();
 
   ///@{
-  /// State after the last Render().
+  /// State after the last Render(). Under MPI with several ranks (sub-domain rendering: each rank
+  /// renders an interleaved share of the pixels, see InrParallelRendering.h) these are reduced
+  /// over all ranks at the end of each Render: converged only when every rank is, the fewest
+  /// frames, the lowest estimate; GetLocalConverged is this rank's own state.
   int GetAccumulatedFrames();
   int GetConverged();
+  int GetLocalConverged();
   double GetConvergenceEstimate();
   /// e.g. "CPU (auto: this build has no CUDA renderer)".
   const char* GetBackendInUse();
+  /// One line per rank (under MPI with several ranks; else one line) after the last Render: its
+  /// queries, frames, state and backend (device).
+  const char* GetRanksInUse();
+
+  /// The model's box (InrDomainBounds of the input) when the input carries it: under MPI the
+  /// pieces of ranks > 0 hold the model but no preview grid, and every rank draws its pixel share
+  /// of the whole box, so none may cull the volume.
+  double* GetBounds() override;
+  using Superclass::GetBounds;
   /// Working-grid / majorant update time reported by the engine during the last Render (ms).
   double GetLastUpdateMilliseconds();
   /// Macrocell slices built since the engine was created (time changes build new ones lazily).

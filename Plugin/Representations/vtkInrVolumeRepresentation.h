@@ -68,6 +68,7 @@ public:
   int GetInrConverged();
   double GetInrConvergenceEstimate();
   const char* GetInrBackendInUse();
+  const char* GetInrRanksInUse();
   const char* GetInrQueryReductionInUse();
   const char* GetInrMacrocellsInUse();
   ///@}
@@ -106,6 +107,10 @@ public:
   void SetVisibility(bool visible) override;
 
 protected:
+  /// Under MPI with several ranks: reports this rank's box of a tiling of the model's box as its
+  /// geometry bounds (ordered compositing), from the InrDomainBounds the reader adds to every piece.
+  void ReportRankBrick(vtkInformation* inInfo);
+
   vtkInrVolumeRepresentation();
   ~vtkInrVolumeRepresentation() override;
   void UpdateMapperParameters() override;

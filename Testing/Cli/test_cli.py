@@ -8,6 +8,7 @@ import json
 import math
 import os
 import struct
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -382,6 +383,89 @@ def check_brick_composite(inr, data):
                                capture_output=True, text=True, timeout=120)
             expect(p.returncode == 0, "reverse-order check failed to run: " + p.stderr)
             expect(float(p.stdout.split()[-1]) < 38.0, "4 bricks composited back to front still match: " + p.stdout)
+
+
+def check_pixel_share_composite(inr, data):
+    """The image-space split without MPI (`inr render --pixel-share I/N`, what the plugin does per
+    rank): N = 2 and 3 shares rendered one process each add up to the whole image (same seed, each
+    pixel's stream keyed by its place in the picture) to >= 60 dB over the volume's pixels with
+    and without shadows; every share's queries are about 1/N of the whole's; a share's pixels of
+    other shares are empty; bad specs fail naming the option."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
+    common = ["--size", "41x37", "--backend", "cpu", "--frames", "32", "--quiet"]
+    with tempfile.TemporaryDirectory() as d:
+        for shadows in ([], ["--shadows"]):
+            def share(spec):
+                out = os.path.join(d, "p%s.npy" % spec.replace("/", "_"))
+                p = run(inr, "render", model, *common, *shadows, "--pixel-share", spec, "-o", out)
+                expect(p.returncode == 0, "render --pixel-share %s failed: %s" % (spec, p.stderr))
+                return out
+            whole = share("0/1")
+            whole_queries = json.load(open(whole[:-4] + ".brick.json"))["queries"]
+            for n in (2, 3):
+                parts = [share("%d/%d" % (i, n)) for i in range(n)]
+                meta = [json.load(open(b[:-4] + ".brick.json")) for b in parts]
+                expect(all(m["split"] == "pixels" and m["brick"]["count"] == n for m in meta), "descriptions: %r" % meta)
+                for m in meta:
+                    ratio = m["queries"] / (whole_queries / n)
+                    expect(abs(ratio - 1) < 0.25, "share %d/%d: queries %s vs whole %s / %d" % (
+                        m["brick"]["index"], n, m["queries"], whole_queries, n))
+                p = subprocess.run([sys.executable, script, *parts, "--reference", whole, "--min-psnr", "60"],
+                                   capture_output=True, text=True, timeout=120)
+                print(p.stdout)
+                expect(p.returncode == 0, "%d shares%s: sum differs from the whole render:\n%s%s"
+                       % (n, " with shadows" if shadows else "", p.stdout, p.stderr))
+        check = subprocess.run([sys.executable, "-c",
+                                "import numpy as np, sys; a = np.load(sys.argv[1]); h, w, _ = a.shape; "
+                                "print(int(sum(np.abs(a[y, x]).sum() > 0 for y in range(h) for x in range(w) if (x + y) % 3 != 1)))",
+                                os.path.join(d, "p1_3.npy")], capture_output=True, text=True, timeout=60)
+        expect(check.returncode == 0 and check.stdout.strip() == "0",
+               "share 1/3 has non-empty pixels of other shares: " + check.stdout + check.stderr)
+    for spec, what in (("3/3", "--pixel-share"), ("0/0", "--pixel-share"), ("x", "--pixel-share")):
+        p = run(inr, "render", model, "--pixel-share", spec, "-o", "/nonexistent/x.npy")
+        expect(p.returncode != 0 and what in p.stderr, "--pixel-share %s: %s" % (spec, p.stderr))
+    p = run(inr, "render", model, "--pixel-share", "0/2", "--brick", "0/2", "-o", "/nonexistent/x.npy")
+    expect(p.returncode != 0 and "give one" in p.stderr, "both splits: " + p.stderr)
+
+
+def check_pixel_share_two_gpus(inr, data):
+    """Issue 16 on a 2-GPU machine: the two pixel shares of a paper-size model rendered at once,
+    one process per GPU (CUDA_VISIBLE_DEVICES 0 and 1), composited, equal the one-GPU image to
+    >= 40 dB over the volume's pixels, with shadows. Exits 77 (skipped, with the reason) where
+    fewer than two GPUs are visible."""
+    p = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True) \
+        if shutil.which("nvidia-smi") else None
+    gpus = [l for l in (p.stdout.splitlines() if p and p.returncode == 0 else []) if l.strip()]
+    if len(gpus) < 2:
+        print("SKIPPED: needs 2 GPUs, nvidia-smi lists %d" % len(gpus))
+        sys.exit(77)
+    print("GPUs:", gpus)
+    # The compositing script needs numpy, which the test's own interpreter may lack.
+    python = next((py for py in (sys.executable, shutil.which("python3"), "/usr/bin/python3")
+                   if py and subprocess.run([py, "-c", "import numpy"], capture_output=True).returncode == 0), None)
+    expect(python is not None, "no Python with numpy for Benchmarks/composite_bricks.py (apt install python3-numpy)")
+    model = os.path.join(data, "real", "siren_cylinder_vorticity.inr")
+    script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
+    common = ["--size", "512x512", "--backend", "cuda", "--frames", "512", "--shadows", "--time", "2",
+              "--tf", model[:-4] + ".tf.json", "--quiet"]
+    with tempfile.TemporaryDirectory() as d:
+        whole = os.path.join(d, "whole.npy")
+        p = subprocess.run([inr, "render", model, *common, "--pixel-share", "0/1", "-o", whole],
+                           env=dict(os.environ, CUDA_VISIBLE_DEVICES="0"), capture_output=True, text=True, timeout=300)
+        expect(p.returncode == 0, "one GPU: " + p.stderr)
+        procs = [subprocess.Popen([inr, "render", model, *common, "--pixel-share", "%d/2" % i,
+                                   "-o", os.path.join(d, "p%d.npy" % i)], env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(i)),
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in (0, 1)]
+        for i, q in enumerate(procs):
+            out, err = q.communicate(timeout=300)
+            expect(q.returncode == 0, "GPU %d: %s" % (i, err))
+            meta = json.load(open(os.path.join(d, "p%d.brick.json" % i)))
+            expect("cuda" in meta["backend"].lower(), "GPU %d ran on %s" % (i, meta["backend"]))
+        p = subprocess.run([python, script, os.path.join(d, "p0.npy"), os.path.join(d, "p1.npy"),
+                            "--reference", whole, "--min-psnr", "40"], capture_output=True, text=True, timeout=120)
+        print(p.stdout)
+        expect(p.returncode == 0, "two GPUs composited differ from one GPU:\n" + p.stdout + p.stderr)
 
 
 # Composites the bricks in the reverse of their visibility order and prints the PSNR against the

@@ -138,3 +138,13 @@ def compare(out_png, baseline, min_psnr, max_abs):
     m = int(np.max(np.abs(a - b)))
     ok = p >= min_psnr and m <= max_abs
     return ok, f"PSNR {p:.2f} dB (>= {min_psnr}), max abs error {m} (<= {max_abs})"
+
+
+def refine_in_one_render(display, frames, seed=7, macrocells=16):
+    """The scripted tests' INR Volume settings: seed, no convergence target, `frames` frames
+    accumulated within each render (so one render or screenshot gives the refined image)."""
+    display.InrSeed = seed
+    display.InrConvergenceTarget = 0.0
+    display.InrMaximumFrames = frames
+    display.InrFramesPerRender = frames
+    display.InrMacrocellResolution = macrocells

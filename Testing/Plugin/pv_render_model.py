@@ -52,11 +52,7 @@ display = simple.Show(reader, view)
 check(display.Representation == "INR Volume", "the reader's hint shows it as 'INR Volume'")
 check("INR Volume" in display.Representation.Available, "'INR Volume' is in the list")
 C.apply_colormap(display, view)
-display.InrSeed = 7
-display.InrConvergenceTarget = 0.0
-display.InrMaximumFrames = args.frames
-display.InrFramesPerRender = args.frames
-display.InrMacrocellResolution = 16
+C.refine_in_one_render(display, args.frames)
 scene.AnimationTime = args.time
 check(abs(view.ViewTime - args.time) < 1e-9, f"view time {view.ViewTime}")
 

@@ -84,7 +84,11 @@ const char* kRenderUsageHead =
     "                           shadow rays through the whole box, seed varied per brick); -o must be\n"
     "                           .npy: premultiplied RGBA float32, shape (height, width, 4), row 0 at the\n"
     "                           top; OUT.brick.json beside it gives the brick's box and the camera, for\n"
-    "                           Benchmarks/composite_bricks.py (front-to-back over in visibility order)\n";
+    "                           Benchmarks/composite_bricks.py (front-to-back over in visibility order)\n"
+    "  --pixel-share I/N        sub-domain rendering, image-space split (what the ParaView plugin does under\n"
+    "                           MPI): trace only the pixels (x + y) mod N = I at full depth, same seed as the\n"
+    "                           whole image; output as for --brick (split \"pixels\" in the .brick.json;\n"
+    "                           composite_bricks.py adds the shares)\n";
 
 // The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
 // place they are defined (the plugin's XML defaults are checked against the same struct).
@@ -237,7 +241,7 @@ int runRender(int argc, char** argv) {
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
              "step", "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge", "budget", "budget-fraction",
-             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick"},
+             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick", "pixel-share"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
     std::fputs(kRenderUsageHead, stdout);
@@ -248,15 +252,19 @@ int runRender(int argc, char** argv) {
   if (args.positional().size() != 1) throw UsageError("expects exactly one MODEL file (see --help)");
   if (!args.has("output")) throw UsageError("-o OUT.png|.pfm is required");
   const std::string out = args.get("output");
-  const bool brickMode = args.has("brick");
+  const bool pixelShareMode = args.has("pixel-share");
+  if (pixelShareMode && args.has("brick")) throw UsageError("--brick and --pixel-share are two splits: give one");
+  const bool brickMode = args.has("brick") || pixelShareMode;  // both write a premultiplied .npy
+  const char* splitOption = pixelShareMode ? "--pixel-share" : "--brick";
   BrickIndex brick;
   if (brickMode) {
     try {
-      brick = parseBrickIndex(args.get("brick"));
+      brick = parseBrickIndex(args.get(pixelShareMode ? "pixel-share" : "brick"));
     } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string("--brick: ") + e.what());
+      throw UsageError(std::string(splitOption) + ": " + e.what());
     }
-    if (!endsWith(out, ".npy")) throw UsageError("-o: with --brick the output must end in .npy, got '" + out + "'");
+    if (!endsWith(out, ".npy"))
+      throw UsageError(std::string("-o: with ") + splitOption + " the output must end in .npy, got '" + out + "'");
   } else if (!endsWith(out, ".png") && !endsWith(out, ".pfm")) {
     throw UsageError("-o: output must end in .png or .pfm, got '" + out + "'");
   }
@@ -264,7 +272,7 @@ int runRender(int argc, char** argv) {
   if (method != "delta" && method != "raymarch" && method != "naive") {
     throw UsageError("--method must be delta, raymarch or naive, got '" + method + "'");
   }
-  if (brickMode && method != "delta") throw UsageError("--brick applies to --method delta only");
+  if (brickMode && method != "delta") throw UsageError(std::string(splitOption) + " applies to --method delta only");
   const bool quiet = args.has("quiet");
 
   // --- image settings
@@ -280,7 +288,9 @@ int runRender(int argc, char** argv) {
   }
   const long seed = args.getInt("seed", 1);
   if (seed < 0 || seed > 0xffffffffL) throw UsageError("--seed must be in [0, 2^32)");
-  settings.seed = brickMode ? brickSeed(std::uint32_t(seed), brick.index) : std::uint32_t(seed);
+  // Bricks vary the seed (rays of two bricks must not share noise); pixel shares keep it, so the
+  // shares add up to the whole image's pixels.
+  settings.seed = brickMode && !pixelShareMode ? brickSeed(std::uint32_t(seed), brick.index) : std::uint32_t(seed);
   settings.pixelJitter = !args.has("no-jitter");
   const long frames = args.getInt("frames", method == "raymarch" && !settings.pixelJitter ? 1 : 64);
   if (frames < 1 || frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
@@ -334,7 +344,14 @@ int runRender(int argc, char** argv) {
 
 
   std::vector<Brick> bricks;
-  if (brickMode) {
+  if (pixelShareMode) {
+    Brick whole;
+    whole.box = box;
+    whole.cellLo = Int3{0, 0, 0};
+    whole.cellHi = mopts.dims;
+    bricks.assign(std::size_t(brick.count), whole);
+    settings.pixelShare = PixelShare{brick.index, brick.count};
+  } else if (brickMode) {
     try {
       bricks = brickDecomposition(box, mopts.dims, brick.count);
     } catch (const std::invalid_argument& e) {
@@ -551,6 +568,7 @@ int runRender(int argc, char** argv) {
       const Camera& c = scene.camera;
       nlohmann::json meta;
       meta["brick"] = {{"index", brick.index}, {"count", brick.count}};
+      meta["split"] = pixelShareMode ? "pixels" : "bricks";
       meta["box"] = {b.box.lo.x, b.box.hi.x, b.box.lo.y, b.box.hi.y, b.box.lo.z, b.box.hi.z};
       meta["cells"] = {b.cellLo.x, b.cellHi.x, b.cellLo.y, b.cellHi.y, b.cellLo.z, b.cellHi.z};
       meta["camera"] = {{"position", c.position}, {"focal_point", c.focalPoint}, {"parallel", c.parallelProjection}};

@@ -1,0 +1,52 @@
+// Sub-domain rendering under MPI (pvbatch / pvserver with several ranks): the ranks split the
+// picture (image space: rank r traces the pixels (x + y) mod N = r at full depth,
+// inr::RenderSettings::pixelShare), each takes the GPU of its local rank, and the refinement state
+// is reduced over all ranks. IceT composites the ranks' premultiplied images in the order of
+// boxes each rank reports (RankBrick: bricks that tile the model's box, as ParaView's ordered
+// compositing requires); disjoint pixels blend alike in any order. A plain C++ helper of the
+// mapper and the representation; with one process (the GUI's builtin server, pvpython)
+// everything here is the identity.
+#ifndef InrParallelRendering_h
+#define InrParallelRendering_h
+
+#include <string>
+#include <vector>
+
+#include "Render/BrickDecomposition.h"
+
+namespace InrParallelRendering
+{
+/// This process's rank and the number of ranks of ParaView's global controller (1 without MPI).
+struct Ranks
+{
+  int rank = 0;
+  int count = 1;
+};
+Ranks GlobalRanks();
+
+/// The rank's index among the ranks of its node, from the launcher's environment
+/// (OMPI_COMM_WORLD_LOCAL_RANK for Open MPI, MPI_LOCALRANKID for MPICH / Intel MPI, SLURM_LOCALID
+/// under srun), or -1 when none is set. `source` names the variable it came from.
+int LocalRank(std::string* source = nullptr);
+
+/// The box rank `rank` reports to ParaView's ordered compositing: the brick of rank `rank` of `count` for a model box (xmin, xmax, ymin, ymax, zmin, zmax) and
+/// a macrocell grid of `resolution`^3 cells (refined to at least `count` cells per axis, so any
+/// rank count splits); the same on every rank (the decomposition is deterministic).
+inr::Brick RankBrick(const double bounds[6], int resolution, int rank, int count);
+
+/// The refinement state of all ranks: converged only when every rank has converged, the fewest
+/// accumulated frames and the lowest convergence estimate. Collective: every rank must call it
+/// once per render. Without MPI it returns its arguments.
+struct Refinement
+{
+  int converged = 0;
+  int frames = 0;
+  double estimate = 0.0;
+};
+Refinement ReduceRefinement(const Refinement& local);
+
+/// Every rank's `local` text, in rank order. Collective like ReduceRefinement.
+std::vector<std::string> GatherText(const std::string& local);
+}
+
+#endif
