@@ -4,10 +4,12 @@
 //     queries per frame at SIZE² (the render benchmark's scene: TestSupport/TestScene.h, preset
 //     transfer function, delta-tracked shadows), after warm-up frames;
 //   - structure: GAS primitives (macrocells with a positive majorant), compacted bytes, build
-//     milliseconds (selection + build + compaction, host wall incl. synchronisation), and the
-//     rebuild time per frame that refinement caused;
+//     milliseconds (selection + build + compaction, host wall incl. synchronisation), the device
+//     memory reserved for it, and the builds and build time per frame that refinement caused
+//     (a build only when the set of selected cells changes);
 //   - time step: a scene time change (working-grid interpolation + majorants + GAS rebuild; all
-//     slices prebuilt), host wall, median of 21 changes.
+//     slices prebuilt), host wall, median of 21 changes, with the GAS built at every change
+//     (TraversalOptions::rebuildEveryUpdate: the worst case, and the build time measured).
 // OptiX traverses in software on GPUs without RT cores (H100, H200): the table shows it as it is.
 //   gpu_traversal_benchmark [--size N] [--frames F] [--warmup W] [--macrocells M[,M...]] [--slices T]
 //                           [--csv FILE] MODEL.inr ...
@@ -53,8 +55,8 @@ struct Row {
   int macrocells = 0;
   bool shadows = false;
   double frameMs = 0, traverseMs = 0, shadowTraverseMs = 0, queries = 0, rebuildMsPerFrame = 0;
-  std::size_t primitives = 0, bytes = 0;
-  double buildMs = 0, timeStepMs = 0;
+  std::size_t primitives = 0, bytes = 0, reservedBytes = 0;
+  double buildMs = 0, timeStepMs = 0, buildsPerFrame = 0;
 };
 std::vector<Row> rows;
 
@@ -73,6 +75,7 @@ void benchModel(const std::string& name, const InrModel& model, int m, const Opt
   for (TraversalKind kind : {TraversalKind::Dda, TraversalKind::Optix}) {
     TraversalOptions to;
     to.kind = kind;
+    to.rebuildEveryUpdate = true;  // time steps: every change builds (timed); frames below: only as needed
     try {
       renderer.setTraversal(to);
     } catch (const std::exception& e) {
@@ -94,12 +97,16 @@ void benchModel(const std::string& name, const InrModel& model, int m, const Opt
       stepMs.push_back(wall);
       buildMs.push_back(renderer.traversal().buildInfo().lastBuildMs);
     }
+    to.rebuildEveryUpdate = false;
+    renderer.setTraversal(to);
     for (bool shadows : {false, true}) {
       scene = test::testScene(model, range, shadows, ShadowEstimator::Delta);
       renderer.setScene(scene);
       for (int k = 0; k < o.warmup; ++k) renderer.renderFrame();
       FrameStats total;
+      const std::size_t buildsBefore = renderer.traversal().buildInfo().builds;
       for (int k = 0; k < o.frames; ++k) total += renderer.renderFrame();
+      const TraversalBuildInfo info = renderer.traversal().buildInfo();
       Row r;
       r.model = name;
       r.traversal = traversalKindName(kind);
@@ -113,13 +120,17 @@ void benchModel(const std::string& name, const InrModel& model, int m, const Opt
       r.rebuildMsPerFrame = total.traversalBuildMs / f;
       r.primitives = total.traversalPrimitives;
       r.bytes = total.traversalBytes;
+      r.reservedBytes = info.reservedBytes;
+      r.buildsPerFrame = double(info.builds - buildsBefore) / f;
       r.buildMs = kind == TraversalKind::Optix ? medianOf(buildMs) : 0.0;
       r.timeStepMs = medianOf(stepMs);
       rows.push_back(r);
       std::printf("     %-8s %8.3f ms/frame  traverse %7.3f  shadow traverse %7.3f  %9.0f queries  "
-                  "GAS %zu cells %.2f MB build %.3f ms (rebuilds %.3f ms/frame)  time step %.3f ms\n",
+                  "GAS %zu cells %.2f MB (reserved %.2f MB) build %.3f ms (%.2f builds, %.3f ms per frame)  "
+                  "time step %.3f ms\n",
                   shadows ? "shadows" : "primary", r.frameMs, r.traverseMs, r.shadowTraverseMs, r.queries,
-                  r.primitives, r.bytes / 1048576.0, r.buildMs, r.rebuildMsPerFrame, r.timeStepMs);
+                  r.primitives, r.bytes / 1048576.0, r.reservedBytes / 1048576.0, r.buildMs, r.buildsPerFrame,
+                  r.rebuildMsPerFrame, r.timeStepMs);
       std::fflush(stdout);
     }
   }
@@ -128,20 +139,23 @@ void benchModel(const std::string& name, const InrModel& model, int m, const Opt
 void writeCsv(const std::string& path) {
   std::ofstream f(path);
   f << "model,macrocells,traversal,shadows,frame_ms,traverse_ms,shadow_traverse_ms,queries_per_frame,"
-       "gas_primitives,gas_bytes,gas_build_ms,rebuild_ms_per_frame,time_step_ms\n";
+       "gas_primitives,gas_bytes,gas_reserved_bytes,gas_build_ms,builds_per_frame,rebuild_ms_per_frame,time_step_ms\n";
   for (const Row& r : rows)
     f << '"' << r.model << "\"," << r.macrocells << ',' << r.traversal << ',' << (r.shadows ? 1 : 0) << ','
       << r.frameMs << ',' << r.traverseMs << ',' << r.shadowTraverseMs << ',' << r.queries << ',' << r.primitives
-      << ',' << r.bytes << ',' << r.buildMs << ',' << r.rebuildMsPerFrame << ',' << r.timeStepMs << '\n';
+      << ',' << r.bytes << ',' << r.reservedBytes << ',' << r.buildMs << ',' << r.buildsPerFrame << ','
+      << r.rebuildMsPerFrame << ',' << r.timeStepMs << '\n';
 }
 
 void printTable() {
-  std::printf("\n%-28s %5s %-6s %-7s %9s %9s %9s %10s %9s %9s %9s %9s\n", "model", "cells", "trav", "shadows",
-              "ms/frame", "traverse", "s.trav", "queries", "GAS prims", "GAS MB", "build ms", "step ms");
+  std::printf("\n%-28s %5s %-6s %-7s %9s %9s %9s %10s %9s %9s %9s %9s %9s %9s\n", "model", "cells", "trav",
+              "shadows", "ms/frame", "traverse", "s.trav", "queries", "GAS prims", "GAS MB", "rsrv MB", "build ms",
+              "builds/fr", "step ms");
   for (const Row& r : rows)
-    std::printf("%-28.28s %5d %-6s %-7s %9.3f %9.3f %9.3f %10.0f %9zu %9.2f %9.3f %9.3f\n", r.model.c_str(),
-                r.macrocells, r.traversal.c_str(), r.shadows ? "yes" : "no", r.frameMs, r.traverseMs,
-                r.shadowTraverseMs, r.queries, r.primitives, r.bytes / 1048576.0, r.buildMs, r.timeStepMs);
+    std::printf("%-28.28s %5d %-6s %-7s %9.3f %9.3f %9.3f %10.0f %9zu %9.2f %9.2f %9.3f %9.2f %9.3f\n",
+                r.model.c_str(), r.macrocells, r.traversal.c_str(), r.shadows ? "yes" : "no", r.frameMs,
+                r.traverseMs, r.shadowTraverseMs, r.queries, r.primitives, r.bytes / 1048576.0,
+                r.reservedBytes / 1048576.0, r.buildMs, r.buildsPerFrame, r.timeStepMs);
 }
 
 }  // namespace

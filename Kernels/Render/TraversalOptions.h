@@ -20,6 +20,10 @@ struct TraversalOptions {
   // so the image is the DDA's; a small positive value drops nearly transparent cells (fewer
   // primitives, faster traces) at the price of ignoring their absorption (biased).
   float gasMinMajorant = 0.f;
+  // OptiX: the GAS holds the selected cells' boxes only, so it is rebuilt only when the set of
+  // selected cells changes (refinements, which widen majorants, rarely change it). true rebuilds
+  // on every majorant update (time step, TF edit, refinement): for measuring build times.
+  bool rebuildEveryUpdate = false;
 
   // Throws std::invalid_argument naming the option when gasMinMajorant is negative or not finite.
   void validate() const {

@@ -196,10 +196,11 @@ struct EngineKey
 {
   int resolution = 0, slices = 0, backend = -1, skipBlock = -1;
   double boundsPadding = -1.0;
+  int traversal = -1;
   bool operator==(const EngineKey& o) const
   {
-    return std::tie(resolution, slices, backend, skipBlock, boundsPadding) ==
-      std::tie(o.resolution, o.slices, o.backend, o.skipBlock, o.boundsPadding);
+    return std::tie(resolution, slices, backend, skipBlock, boundsPadding, traversal) ==
+      std::tie(o.resolution, o.slices, o.backend, o.skipBlock, o.boundsPadding, o.traversal);
   }
   bool operator!=(const EngineKey& o) const { return !(*this == o); }
 };
@@ -987,7 +988,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   const int backend = self->Backend;
   this->CheckOptions(self);
   const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
-    this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding };
+    this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding, self->Traversal };
   EngineSlot& f = this->fine;
   if (!f.session || f.built != want)
   {
@@ -1005,6 +1006,9 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
       so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
       so.tracking = this->trackingValid;
+      so.traversal.kind = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
+        : self->Traversal == TRAVERSAL_OPTIX              ? inr::TraversalKind::Optix
+                                                          : inr::TraversalKind::Auto;
       // One GPU per rank: the rank's index on its node picks the device.
       std::string localSource;
       const int localRank = InrParallelRendering::LocalRank(&localSource);
@@ -1014,7 +1018,24 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
         so.cudaDevice = localRank % devices;
       }
       this->cudaDevice = so.cudaDevice;
-      f.session = inr::RenderSession::create(this->model, so);
+      try
+      {
+        f.session = inr::RenderSession::create(this->model, so);
+      }
+      catch (const std::exception& e)
+      {
+        if (so.traversal.kind != inr::TraversalKind::Optix)
+        {
+          throw;
+        }
+        // OptiX asked for where it cannot run (no OptiX in this build, or the driver's): say why
+        // and let auto choose, rather than leaving the view empty.
+        vtkWarningWithObjectMacro(self,
+          "INR Volume: the OptiX traversal is not available here (" << e.what()
+                                                                     << "); using Traversal Auto.");
+        so.traversal.kind = inr::TraversalKind::Auto;
+        f.session = inr::RenderSession::create(this->model, so);
+      }
       f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
       this->rankInUse.clear();
       if (this->ranks.count > 1 || localRank >= 0)
@@ -1428,6 +1449,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
 {
   this->Superclass::PrintSelf(os, indent);
   os << indent << "Backend: " << this->Backend << " (" << this->GetBackendInUse() << ")\n";
+  os << indent << "Traversal: " << this->Traversal << "\n";
   os << indent << "MacrocellResolution: " << this->MacrocellResolution << "\n";
   os << indent << "TemporalSlices: " << this->TemporalSlices << "\n";
   os << indent << "Shadows: " << this->Shadows << "\n";

@@ -61,6 +61,21 @@ public:
   vtkGetMacro(Backend, int);
   ///@}
 
+  enum
+  {
+    TRAVERSAL_AUTO = 0,
+    TRAVERSAL_DDA = 1,
+    TRAVERSAL_OPTIX = 2
+  };
+
+  ///@{
+  /// GPU traversal of the macrocells: AUTO (the OptiX GAS on GPUs with RT cores, else the DDA),
+  /// DDA, or OPTIX (the GAS; falls back to AUTO with a warning where this build or driver has no
+  /// OptiX). The CPU backend always runs the DDA. GetBackendInUse() says which runs and why.
+  vtkSetClampMacro(Traversal, int, 0, 2);
+  vtkGetMacro(Traversal, int);
+  ///@}
+
   ///@{
   /// Macrocells per axis (default 32) and temporal slices (default 16) of the majorant grid.
   vtkSetClampMacro(MacrocellResolution, int, 2, 256);
@@ -317,6 +332,7 @@ private:
   void operator=(const vtkInrVolumeMapper&) = delete;
 
   int Backend = BACKEND_AUTO;
+  int Traversal = TRAVERSAL_AUTO;
   int MacrocellResolution = 32;
   int TemporalSlices = 16;
   int Shadows = 0;

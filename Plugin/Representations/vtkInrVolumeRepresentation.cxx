@@ -83,6 +83,7 @@ void vtkInrVolumeRepresentation::UpdateMapperParameters()
     this->Modified();                                                                              \
   }
 INR_FORWARD(Backend, int)
+INR_FORWARD(Traversal, int)
 INR_FORWARD(MacrocellResolution, int)
 INR_FORWARD(TemporalSlices, int)
 INR_FORWARD(Shadows, int)

@@ -33,6 +33,7 @@ public:
   ///@{
   /// Forwarded to vtkInrVolumeMapper (see there).
   void SetInrBackend(int);
+  void SetInrTraversal(int);
   void SetInrMacrocellResolution(int);
   void SetInrTemporalSlices(int);
   void SetInrShadows(int);

@@ -90,7 +90,8 @@ check(inr_groups == ["Rendering", "Macrocells", "Shadows", "Query reduction", "R
       f"the INR Volume groups in panel order: {inr_groups}")
 placement = {"InrSkipBlock": "Macrocells", "InrBoundsPadding": "Macrocells", "InrGhostPasses": "Macrocells",
              "InrRefineMacrocells": "Macrocells", "InrMacrocellsInUse": "Macrocells",
-             "InrProgressiveRefinement": "Refinement", "InrBackend": "Rendering", "InrShadows": "Shadows"}
+             "InrProgressiveRefinement": "Refinement", "InrBackend": "Rendering", "InrShadows": "Shadows",
+             "InrTraversal": "Rendering"}
 for name, label in placement.items():
     check(proxy.GetProperty(name) in groups.get(label, []), f"{name} is in the {label!r} group")
 
@@ -98,7 +99,7 @@ for name, label in placement.items():
 root = ET.parse(args.xml).getroot()
 xml_defaults = {e.get("name"): e.get("default_values") for e in root.iter() if e.get("default_values") is not None}
 new_options = ["InrSkipBlock", "InrBoundsPadding", "InrGhostPasses", "InrRefineMacrocells",
-               "InrProgressiveRefinement"]
+               "InrProgressiveRefinement", "InrTraversal"]
 for name in new_options:
     got = display.GetPropertyValue(name)
     check(float(got) == float(xml_defaults[name]), f"{name} starts at the XML default {xml_defaults[name]} ({got})")
@@ -143,6 +144,18 @@ simple.Render(view)
 del errors[:]
 simple.Render(view)
 check(not errors, f"valid values again: no more errors ({errors})")
+
+# --- GPU traversal: a new one rebuilds the renderer (a new image); the CPU backend runs the DDA
+# whatever is chosen, so the choice never fails here.
+simple.Render(view)
+check(C.info(display, "InrAccumulatedFrames") > 1, "accumulating before the traversal change")
+del errors[:]
+display.InrTraversal = 2  # OptiX
+simple.Render(view)
+check(C.info(display, "InrAccumulatedFrames") == 1, "InrTraversal = 2 rebuilds the renderer (a new image)")
+check(not errors, f"InrTraversal = 2: no error ({errors})")
+display.InrTraversal = 0
+simple.Render(view)
 
 # --- Progressive refinement off: exactly one frame per render, never "still refining".
 display.InrFramesPerRender = 4

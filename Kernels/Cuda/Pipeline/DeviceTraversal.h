@@ -44,10 +44,13 @@ struct TraversalLaunch {
 
 // What a traversal keeps over the majorants (the OptiX GAS), for the frame statistics.
 struct TraversalBuildInfo {
-  double lastBuildMs = 0;      // wall time of the last rebuild (selection, build, compaction)
+  double lastBuildMs = 0;      // wall time of the last update (selection check, build, compaction)
+  bool lastRebuilt = false;    // the last update built the structure (false: the selection was unchanged)
   std::size_t primitives = 0;  // macrocells in the structure
   std::size_t bytes = 0;       // its device size (compacted)
-  std::size_t builds = 0;      // rebuilds so far
+  std::size_t reservedBytes = 0;  // device memory held for it (sized once per grid shape for the worst case)
+  std::size_t builds = 0;      // builds so far
+  std::size_t reuses = 0;      // updates that kept the structure (same cells selected: refinements, most edits)
 };
 
 class DeviceTraversal {

@@ -63,6 +63,18 @@ __global__ void cellAabbKernel(MajorantGridView g, const int* cells, const unsig
   aabbs[k] = a;
 }
 
+// Records which cells are selected now and flags any difference from the last update's selection.
+__global__ void selectionChangeKernel(const float* majorant, int cells, float threshold, unsigned char* selected,
+                                      unsigned* changed) {
+  const int cell = blockIdx.x * blockDim.x + threadIdx.x;
+  if (cell >= cells) return;
+  const unsigned char now = majorant[cell] > threshold ? 1 : 0;  // NaN: out, as MajorantAbove
+  if (now != selected[cell]) {
+    selected[cell] = now;
+    *changed = 1u;  // every writer writes the same value
+  }
+}
+
 // Errors always; everything the context reports (its level is 4 then) under INR_OPTIX_DEBUG.
 void logCallback(unsigned level, const char* tag, const char* message, void*) {
   std::fprintf(stderr, "OptiX [%u][%s]: %s\n", level, tag, message);
@@ -94,6 +106,7 @@ public:
     params_.resize(1);
     count_.resize(1);
     compactedSize_.resize(1);
+    changed_.resize(1);
     if (debug_) {
       debugCounts_.resize(kDbgCounts);
       INR_CUDA_CHECK(cudaMemset(debugCounts_.get(), 0, kDbgCounts * sizeof(unsigned long long)));
@@ -132,76 +145,35 @@ public:
     INR_CUDA_CHECK(cudaStreamWaitEvent(stream_, callerReady_, 0));
     const cudaStream_t stream = stream_;
     const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
-    cellOfPrimitive_.growTo(std::size_t(cells));
-    // The selected cells in increasing index order (deterministic: the same majorants give the
-    // same primitives, whichever session built them).
-    std::size_t tempBytes = 0;
-    const thrust::counting_iterator<int> first(0);
-    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
-    INR_CUDA_CHECK(cub::DeviceSelect::If(nullptr, tempBytes, first, cellOfPrimitive_.get(), count_.get(), cells,
-                                         above, stream));
-    selectTemp_.growTo(tempBytes);
-    INR_CUDA_CHECK(cub::DeviceSelect::If(selectTemp_.get(), tempBytes, first, cellOfPrimitive_.get(), count_.get(),
-                                         cells, above, stream));
-    aabbs_.growTo(std::size_t(cells));
-    cellAabbKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid, cellOfPrimitive_.get(), count_.get(), aabbs_.get());
-    INR_CUDA_CHECK_LAUNCH("cellAabbKernel");
-    unsigned primitives = 0;
-    INR_CUDA_CHECK(cudaMemcpyAsync(&primitives, count_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
-    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
-    if (debug_ && primitives > 0) {
-      OptixAabb a;
-      int c0 = 0;
-      INR_CUDA_CHECK(cudaMemcpy(&a, aabbs_.get(), sizeof(a), cudaMemcpyDeviceToHost));
-      INR_CUDA_CHECK(cudaMemcpy(&c0, cellOfPrimitive_.get(), sizeof(c0), cudaMemcpyDeviceToHost));
-      std::fprintf(stderr, "OptiX debug: %u of %d cells; primitive 0 = cell %d [%g %g %g]-[%g %g %g]\n", primitives,
-                   cells, c0, a.minX, a.minY, a.minZ, a.maxX, a.maxY, a.maxZ);
-    }
+    const bool newShape = !(grid.dims.x == shape_.x && grid.dims.y == shape_.y && grid.dims.z == shape_.z);
+    if (newShape) reserveFor(grid);
 
+    // The GAS holds the cells' boxes only (the intersection program reads each cell's majorant
+    // from the grid), so it needs a build only when the set of selected cells changes: a time
+    // step or a TF edit may change it, refinements (which only widen majorants) rarely do.
+    INR_CUDA_CHECK(cudaMemsetAsync(changed_.get(), 0, sizeof(unsigned), stream));
+    selectionChangeKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid.majorant, cells, options_.gasMinMajorant,
+                                                                    selected_.get(), changed_.get());
+    INR_CUDA_CHECK_LAUNCH("selectionChangeKernel");
+    unsigned changed = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&changed, changed_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
     builtFor_ = grid.majorant;
-    gas_ = 0;
-    info_.primitives = primitives;
-    info_.bytes = 0;
-    if (primitives > 0) {
-      CUdeviceptr aabbPtr = reinterpret_cast<CUdeviceptr>(aabbs_.get());
-      const unsigned geometryFlags = OPTIX_GEOMETRY_FLAG_DISABLE_ANYHIT;
-      OptixBuildInput input = {};
-      input.type = OPTIX_BUILD_INPUT_TYPE_CUSTOM_PRIMITIVES;
-      input.customPrimitiveArray.aabbBuffers = &aabbPtr;
-      input.customPrimitiveArray.numPrimitives = primitives;
-      input.customPrimitiveArray.flags = &geometryFlags;
-      input.customPrimitiveArray.numSbtRecords = 1;
-      OptixAccelBuildOptions build = {};
-      build.buildFlags = OPTIX_BUILD_FLAG_PREFER_FAST_TRACE | OPTIX_BUILD_FLAG_ALLOW_COMPACTION;
-      build.operation = OPTIX_BUILD_OPERATION_BUILD;
-      OptixAccelBufferSizes sizes = {};
-      INR_OPTIX_CHECK(optixAccelComputeMemoryUsage(context_, &build, &input, 1, &sizes));
-      buildTemp_.growTo(sizes.tempSizeInBytes);
-      uncompacted_.growTo(sizes.outputSizeInBytes);
-      OptixAccelEmitDesc emit = {};
-      emit.type = OPTIX_PROPERTY_TYPE_COMPACTED_SIZE;
-      emit.result = reinterpret_cast<CUdeviceptr>(compactedSize_.get());
-      OptixTraversableHandle handle = 0;
-      INR_OPTIX_CHECK(optixAccelBuild(context_, stream, &build, &input, 1,
-                                      reinterpret_cast<CUdeviceptr>(buildTemp_.get()), sizes.tempSizeInBytes,
-                                      reinterpret_cast<CUdeviceptr>(uncompacted_.get()), sizes.outputSizeInBytes,
-                                      &handle, &emit, 1));
-      std::size_t compacted = 0;
-      INR_CUDA_CHECK(cudaMemcpyAsync(&compacted, compactedSize_.get(), sizeof(compacted), cudaMemcpyDeviceToHost, stream));
-      INR_CUDA_CHECK(cudaStreamSynchronize(stream));
-      if (compacted < sizes.outputSizeInBytes) {
-        gasBuffer_.growTo(compacted);
-        INR_OPTIX_CHECK(optixAccelCompact(context_, stream, handle, reinterpret_cast<CUdeviceptr>(gasBuffer_.get()),
-                                          compacted, &handle));
-        INR_CUDA_CHECK(cudaStreamSynchronize(stream));
-        info_.bytes = compacted;
-      } else {
-        // Compaction saved nothing: trace the build's own output (kept until the next build).
-        info_.bytes = sizes.outputSizeInBytes;
-      }
-      gas_ = handle;
+    if (!changed && !newShape && !options_.rebuildEveryUpdate) {
+      ++info_.reuses;
+      info_.lastRebuilt = false;
+      info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      return;
+    }
+    try {
+      build(grid, stream);
+    } catch (...) {
+      shape_ = Int3{0, 0, 0};  // the next update reserves and builds afresh
+      gas_ = 0;
+      throw;
     }
     ++info_.builds;
+    info_.lastRebuilt = true;
     info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
 
@@ -238,6 +210,116 @@ public:
   }
 
 private:
+  // Device memory for the GAS of a grid of this shape, sized once for the worst case (every cell
+  // a primitive), so that rebuilds never allocate and the memory held does not creep up with the
+  // scene (it is reported as reservedBytes): the selection and its boxes, cub's temporary, the
+  // build's temporary and output and the compacted GAS (never larger than the build's output).
+  void reserveFor(const MajorantGridView& grid) {
+    const std::size_t cells = std::size_t(grid.dims.x) * grid.dims.y * grid.dims.z;
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // nothing of the OptiX stream reads the old buffers
+    gas_ = 0;
+    cellOfPrimitive_.resize(cells);
+    aabbs_.resize(cells);
+    selected_.resize(cells);
+    INR_CUDA_CHECK(cudaMemsetAsync(selected_.get(), 0, cells, stream_));
+    std::size_t tempBytes = 0;
+    const thrust::counting_iterator<int> first(0);
+    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
+    INR_CUDA_CHECK(cub::DeviceSelect::If(nullptr, tempBytes, first, cellOfPrimitive_.get(), count_.get(), int(cells),
+                                         above, stream_));
+    selectTemp_.resize(tempBytes);
+    const OptixAccelBufferSizes sizes = buildSizes(unsigned(cells));
+    buildTemp_.resize(sizes.tempSizeInBytes);
+    uncompacted_.resize(sizes.outputSizeInBytes);
+    gasBuffer_.resize(sizes.outputSizeInBytes);
+    info_.reservedBytes = cells * (sizeof(int) + sizeof(OptixAabb) + 1) + tempBytes + sizes.tempSizeInBytes +
+                          2 * sizes.outputSizeInBytes;
+    shape_ = grid.dims;
+  }
+
+  OptixBuildInput buildInput(unsigned primitives, const CUdeviceptr* aabbPtr) const {
+    static const unsigned geometryFlags = OPTIX_GEOMETRY_FLAG_DISABLE_ANYHIT;
+    OptixBuildInput input = {};
+    input.type = OPTIX_BUILD_INPUT_TYPE_CUSTOM_PRIMITIVES;
+    input.customPrimitiveArray.aabbBuffers = aabbPtr;
+    input.customPrimitiveArray.numPrimitives = primitives;
+    input.customPrimitiveArray.flags = &geometryFlags;
+    input.customPrimitiveArray.numSbtRecords = 1;
+    return input;
+  }
+  static OptixAccelBuildOptions buildOptions() {
+    OptixAccelBuildOptions build = {};
+    build.buildFlags = OPTIX_BUILD_FLAG_PREFER_FAST_TRACE | OPTIX_BUILD_FLAG_ALLOW_COMPACTION;
+    build.operation = OPTIX_BUILD_OPERATION_BUILD;
+    return build;
+  }
+  OptixAccelBufferSizes buildSizes(unsigned primitives) const {
+    const CUdeviceptr aabbPtr = reinterpret_cast<CUdeviceptr>(aabbs_.get());
+    const OptixBuildInput input = buildInput(primitives, &aabbPtr);
+    const OptixAccelBuildOptions options = buildOptions();
+    OptixAccelBufferSizes sizes = {};
+    INR_OPTIX_CHECK(optixAccelComputeMemoryUsage(context_, &options, &input, 1, &sizes));
+    return sizes;
+  }
+
+  // The selected cells (increasing index order: the same majorants give the same primitives,
+  // whichever session built them), their boxes, the build and the compaction, into the reserved
+  // buffers.
+  void build(const MajorantGridView& grid, cudaStream_t stream) {
+    const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
+    std::size_t tempBytes = selectTemp_.size();
+    const thrust::counting_iterator<int> first(0);
+    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
+    INR_CUDA_CHECK(cub::DeviceSelect::If(selectTemp_.get(), tempBytes, first, cellOfPrimitive_.get(), count_.get(),
+                                         cells, above, stream));
+    cellAabbKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid, cellOfPrimitive_.get(), count_.get(), aabbs_.get());
+    INR_CUDA_CHECK_LAUNCH("cellAabbKernel");
+    unsigned primitives = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&primitives, count_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    if (debug_ && primitives > 0) {
+      OptixAabb a;
+      int c0 = 0;
+      INR_CUDA_CHECK(cudaMemcpy(&a, aabbs_.get(), sizeof(a), cudaMemcpyDeviceToHost));
+      INR_CUDA_CHECK(cudaMemcpy(&c0, cellOfPrimitive_.get(), sizeof(c0), cudaMemcpyDeviceToHost));
+      std::fprintf(stderr, "OptiX debug: %u of %d cells; primitive 0 = cell %d [%g %g %g]-[%g %g %g]\n", primitives,
+                   cells, c0, a.minX, a.minY, a.minZ, a.maxX, a.maxY, a.maxZ);
+    }
+    gas_ = 0;
+    info_.primitives = primitives;
+    info_.bytes = 0;
+    if (primitives == 0) return;  // every cell empty: traverse() runs the DDA, as fast and exact
+    const CUdeviceptr aabbPtr = reinterpret_cast<CUdeviceptr>(aabbs_.get());
+    const OptixBuildInput input = buildInput(primitives, &aabbPtr);
+    const OptixAccelBuildOptions options = buildOptions();
+    OptixAccelBufferSizes sizes = {};
+    INR_OPTIX_CHECK(optixAccelComputeMemoryUsage(context_, &options, &input, 1, &sizes));
+    // Within the worst-case reservation (sizes grow with the primitive count); checked, not assumed.
+    if (sizes.tempSizeInBytes > buildTemp_.size() || sizes.outputSizeInBytes > uncompacted_.size())
+      throw std::logic_error("OptiX GAS: build needs more than the reservation for all cells");
+    OptixAccelEmitDesc emit = {};
+    emit.type = OPTIX_PROPERTY_TYPE_COMPACTED_SIZE;
+    emit.result = reinterpret_cast<CUdeviceptr>(compactedSize_.get());
+    OptixTraversableHandle handle = 0;
+    INR_OPTIX_CHECK(optixAccelBuild(context_, stream, &options, &input, 1,
+                                    reinterpret_cast<CUdeviceptr>(buildTemp_.get()), sizes.tempSizeInBytes,
+                                    reinterpret_cast<CUdeviceptr>(uncompacted_.get()), sizes.outputSizeInBytes,
+                                    &handle, &emit, 1));
+    std::size_t compacted = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&compacted, compactedSize_.get(), sizeof(compacted), cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    if (compacted < sizes.outputSizeInBytes) {
+      INR_OPTIX_CHECK(optixAccelCompact(context_, stream, handle, reinterpret_cast<CUdeviceptr>(gasBuffer_.get()),
+                                        compacted, &handle));
+      INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+      info_.bytes = compacted;
+    } else {
+      // Compaction saved nothing: trace the build's own output (kept until the next build).
+      info_.bytes = sizes.outputSizeInBytes;
+    }
+    gas_ = handle;
+  }
+
   void createPipeline() {
     OptixModuleCompileOptions mco = {};
     mco.maxRegisterCount = OPTIX_COMPILE_DEFAULT_MAX_REGISTER_COUNT;
@@ -312,12 +394,15 @@ private:
   cuda::DeviceBuffer<unsigned long long> debugCounts_;
   cuda::DeviceBuffer<SbtRecord> sbtRecords_;
   cuda::DeviceBuffer<OptixTraversalParams> params_;
-  // The GAS and its inputs, reused (grown, never shrunk) from build to build.
+  // The GAS and its inputs, reserved per grid shape (reserveFor) and reused from build to build.
   cuda::DeviceBuffer<int> cellOfPrimitive_;
   cuda::DeviceBuffer<unsigned> count_;
   cuda::DeviceBuffer<unsigned char> selectTemp_, buildTemp_, uncompacted_, gasBuffer_;
   cuda::DeviceBuffer<OptixAabb> aabbs_;
   cuda::DeviceBuffer<std::size_t> compactedSize_;
+  cuda::DeviceBuffer<unsigned char> selected_;  // per cell: in the GAS (majorant above the threshold)
+  cuda::DeviceBuffer<unsigned> changed_;        // set when a cell's selection differs from selected_
+  Int3 shape_{0, 0, 0};                         // the grid shape the buffers are reserved for
   OptixTraversableHandle gas_ = 0;
   const float* builtFor_ = nullptr;
   TraversalBuildInfo info_;

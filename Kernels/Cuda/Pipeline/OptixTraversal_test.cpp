@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "Backends/RenderSession.h"
+#include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
+#include "Cuda/DeviceBuffer.h"
 #include "Cuda/Pipeline/DeviceTraversal.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
@@ -147,6 +149,89 @@ TEST(OptixTraversal, RebuiltGasRendersLikeAFreshSession) {
   EXPECT_EQ(a.last.traversalPrimitives, b.last.traversalPrimitives);
   EXPECT_NE(before.last.traversalPrimitives, a.last.traversalPrimitives) << "the edit should change the non-empty cells";
   EXPECT_GE(psnr, 60.0) << "same majorants, same GAS, same draws: the same image up to evaluator rounding";
+}
+
+MajorantGridView gridOver(const float* majorant, int m) {
+  MajorantGridView g{};
+  g.box = Box3f{Vec3f{-1.f, -1.f, -1.f}, Vec3f{1.f, 1.f, 1.f}};
+  g.dims = Int3{m, m, m};
+  g.cellSize = Vec3f{2.f / m, 2.f / m, 2.f / m};
+  g.invCellSize = Vec3f{m / 2.f, m / 2.f, m / 2.f};
+  g.majorant = majorant;
+  return g;
+}
+
+std::size_t deviceBytesInUse() {
+  std::size_t freeBytes = 0, total = 0;
+  EXPECT_EQ(cudaMemGetInfo(&freeBytes, &total), cudaSuccess);
+  return total - freeBytes;
+}
+
+// The GAS is built only when the set of selected cells changes (the intersection program reads
+// the majorants themselves from the grid): widened majorants reuse it, an emptied or a filled
+// cell rebuilds it; a new grid shape reserves anew. Its device memory is reserved once per grid
+// shape for the worst case, so hundreds of updates with varying selections allocate nothing.
+TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain) {
+  REQUIRE_OPTIX();
+  auto t = makeOptixTraversal(TraversalOptions{});
+  const int m = 32, cells = m * m * m;
+  std::vector<float> host(cells, 0.f);
+  for (int c = 0; c < cells; c += 3) host[c] = 1.f;  // a third of the cells
+  cuda::DeviceBuffer<float> majorant(cells);
+  auto upload = [&] {
+    INR_CUDA_CHECK(cudaMemcpy(majorant.get(), host.data(), cells * sizeof(float), cudaMemcpyHostToDevice));
+  };
+  upload();
+  const MajorantGridView g = gridOver(majorant.get(), m);
+  t->majorantsChanged(g, nullptr);
+  TraversalBuildInfo info = t->buildInfo();
+  EXPECT_EQ(info.builds, 1u);
+  EXPECT_EQ(info.primitives, std::size_t((cells + 2) / 3));
+  EXPECT_GT(info.reservedBytes, info.bytes);
+  const std::size_t reserved = info.reservedBytes;
+
+  for (float& v : host) v *= 2.f;  // widened majorants (refinement): same cells
+  upload();
+  t->majorantsChanged(g, nullptr);
+  info = t->buildInfo();
+  EXPECT_EQ(info.builds, 1u) << "same selected cells: no build";
+  EXPECT_EQ(info.reuses, 1u);
+  EXPECT_FALSE(info.lastRebuilt);
+
+  host[1] = 0.5f;  // a cell becomes non-empty
+  upload();
+  t->majorantsChanged(g, nullptr);
+  info = t->buildInfo();
+  EXPECT_EQ(info.builds, 2u);
+  EXPECT_TRUE(info.lastRebuilt);
+  EXPECT_EQ(info.primitives, std::size_t((cells + 2) / 3 + 1));
+
+  // Hundreds of updates with selections from nearly empty to full: no device allocation.
+  const std::size_t before = deviceBytesInUse();
+  for (int k = 0; k < 300; ++k) {
+    const int stride = 1 + (k * 7) % 11;
+    for (int c = 0; c < cells; ++c) host[c] = (c % stride == 0) ? 1.f : 0.f;
+    upload();
+    t->majorantsChanged(g, nullptr);
+  }
+  INR_CUDA_CHECK(cudaDeviceSynchronize());
+  const std::size_t after = deviceBytesInUse();
+  info = t->buildInfo();
+  std::printf("300 updates: %zu builds, %zu reuses; reserved %.2f MB; device memory %+.2f MB\n", info.builds,
+              info.reuses, info.reservedBytes / 1048576.0, (double(after) - double(before)) / 1048576.0);
+  EXPECT_EQ(info.reservedBytes, reserved);
+  EXPECT_LE(after, before + (std::size_t(2) << 20)) << "device memory grew over updates";
+
+  // Another grid shape: reserved for it, built.
+  cuda::DeviceBuffer<float> small(8 * 8 * 8);
+  std::vector<float> ones(8 * 8 * 8, 1.f);
+  INR_CUDA_CHECK(cudaMemcpy(small.get(), ones.data(), ones.size() * sizeof(float), cudaMemcpyHostToDevice));
+  const std::size_t builds = info.builds;
+  t->majorantsChanged(gridOver(small.get(), 8), nullptr);
+  info = t->buildInfo();
+  EXPECT_EQ(info.builds, builds + 1);
+  EXPECT_EQ(info.primitives, 512u);
+  EXPECT_LT(info.reservedBytes, reserved);
 }
 
 // Explicit OptiX where it cannot run is an error naming the reason; auto reports its choice.
