@@ -80,7 +80,9 @@ endif()
 # Adds a GoogleTest executable and registers its tests with ctest.
 #   inr_add_gtest(NAME name SOURCES a.cpp ... [LIBS ...] [LABELS ...])
 function(inr_add_gtest)
-  cmake_parse_arguments(T "" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
+  # SERIAL: its tests run alone under ctest -j (RUN_SERIAL), for tests that measure something
+  # the whole machine shares (a GPU's memory in use).
+  cmake_parse_arguments(T "SERIAL" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${T_NAME} ${T_SOURCES})
   target_link_libraries(${T_NAME} PRIVATE inr_engine GTest::gtest GTest::gtest_main ${T_LIBS})
   target_compile_definitions(${T_NAME} PRIVATE
@@ -89,6 +91,9 @@ function(inr_add_gtest)
   set(props SKIP_REGULAR_EXPRESSION "  SKIPPED ")
   if(T_LABELS)
     list(APPEND props LABELS "${T_LABELS}")
+  endif()
+  if(T_SERIAL)
+    list(APPEND props RUN_SERIAL TRUE)
   endif()
   gtest_discover_tests(${T_NAME} DISCOVERY_TIMEOUT 60 PROPERTIES ${props})
 endfunction()
