@@ -145,8 +145,11 @@ public:
     INR_CUDA_CHECK(cudaStreamWaitEvent(stream_, callerReady_, 0));
     const cudaStream_t stream = stream_;
     const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
+    // A new grid shape reserves anew; a new box (same shape) moves every cell's AABB: both build.
     const bool newShape = !(grid.dims.x == shape_.x && grid.dims.y == shape_.y && grid.dims.z == shape_.z);
+    const bool newBox = !sameBox(grid.box, box_);
     if (newShape) reserveFor(grid);
+    box_ = grid.box;
 
     // The GAS holds the cells' boxes only (the intersection program reads each cell's majorant
     // from the grid), so it needs a build only when the set of selected cells changes: a time
@@ -159,7 +162,7 @@ public:
     INR_CUDA_CHECK(cudaMemcpyAsync(&changed, changed_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
     builtFor_ = grid.majorant;
-    if (!changed && !newShape && !options_.rebuildEveryUpdate) {
+    if (!changed && !newShape && !newBox && !options_.rebuildEveryUpdate) {
       ++info_.reuses;
       info_.lastRebuilt = false;
       info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -210,6 +213,11 @@ public:
   }
 
 private:
+  static bool sameBox(const Box3f& a, const Box3f& b) {
+    return a.lo.x == b.lo.x && a.lo.y == b.lo.y && a.lo.z == b.lo.z && a.hi.x == b.hi.x && a.hi.y == b.hi.y &&
+           a.hi.z == b.hi.z;
+  }
+
   // Device memory for the GAS of a grid of this shape, sized once for the worst case (every cell
   // a primitive), so that rebuilds never allocate and the memory held does not creep up with the
   // scene (it is reported as reservedBytes): the selection and its boxes, cub's temporary, the
@@ -403,6 +411,7 @@ private:
   cuda::DeviceBuffer<unsigned char> selected_;  // per cell: in the GAS (majorant above the threshold)
   cuda::DeviceBuffer<unsigned> changed_;        // set when a cell's selection differs from selected_
   Int3 shape_{0, 0, 0};                         // the grid shape the buffers are reserved for
+  Box3f box_{};                                 // the box of the last build's cells
   OptixTraversableHandle gas_ = 0;
   const float* builtFor_ = nullptr;
   TraversalBuildInfo info_;

@@ -232,6 +232,11 @@ TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain)
   EXPECT_EQ(info.builds, builds + 1);
   EXPECT_EQ(info.primitives, 512u);
   EXPECT_LT(info.reservedBytes, reserved);
+  // The same shape and cells in another box (other AABBs): built.
+  MajorantGridView moved = gridOver(small.get(), 8);
+  moved.box.hi = Vec3f{2.f, 2.f, 2.f};
+  t->majorantsChanged(moved, nullptr);
+  EXPECT_EQ(t->buildInfo().builds, builds + 2) << "a moved box must rebuild";
 }
 
 // Explicit OptiX where it cannot run is an error naming the reason; auto reports its choice.
