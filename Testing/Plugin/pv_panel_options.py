@@ -99,10 +99,14 @@ for name, label in placement.items():
 root = ET.parse(args.xml).getroot()
 xml_defaults = {e.get("name"): e.get("default_values") for e in root.iter() if e.get("default_values") is not None}
 new_options = ["InrSkipBlock", "InrBoundsPadding", "InrGhostPasses", "InrRefineMacrocells",
-               "InrProgressiveRefinement", "InrTraversal"]
+               "InrProgressiveRefinement"]
 for name in new_options:
     got = display.GetPropertyValue(name)
     check(float(got) == float(xml_defaults[name]), f"{name} starts at the XML default {xml_defaults[name]} ({got})")
+traversal = proxy.GetProperty("InrTraversal")  # an enumeration: its integer through the SM property
+check(traversal.GetElement(0) == int(xml_defaults["InrTraversal"]),
+      f"InrTraversal starts at the XML default {xml_defaults['InrTraversal']} ({traversal.GetElement(0)})")
+check(display.InrTraversal.GetData() == "Auto", f"InrTraversal reads as Auto ({display.InrTraversal.GetData()})")
 simple.Render(view)
 expect_in_use(display, {"skip_block": xml_defaults["InrSkipBlock"],
                         "bounds_padding": xml_defaults["InrBoundsPadding"],
@@ -150,11 +154,12 @@ check(not errors, f"valid values again: no more errors ({errors})")
 simple.Render(view)
 check(C.info(display, "InrAccumulatedFrames") > 1, "accumulating before the traversal change")
 del errors[:]
-display.InrTraversal = 2  # OptiX
+display.InrTraversal = "OptiX"
 simple.Render(view)
-check(C.info(display, "InrAccumulatedFrames") == 1, "InrTraversal = 2 rebuilds the renderer (a new image)")
-check(not errors, f"InrTraversal = 2: no error ({errors})")
-display.InrTraversal = 0
+check(traversal.GetElement(0) == 2, f"InrTraversal = 'OptiX' is value 2 ({traversal.GetElement(0)})")
+check(C.info(display, "InrAccumulatedFrames") == 1, "InrTraversal = OptiX rebuilds the renderer (a new image)")
+check(not errors, f"InrTraversal = OptiX: no error ({errors})")
+display.InrTraversal = "Auto"
 simple.Render(view)
 
 # --- Progressive refinement off: exactly one frame per render, never "still refining".
