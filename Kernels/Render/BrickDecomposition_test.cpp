@@ -291,5 +291,32 @@ TEST(PixelShare, SharesAddUpToTheWholeImage) {
   EXPECT_THROW(r.renderer.setSettings(bad), std::invalid_argument);
 }
 
+// Ghost passes refine the process's whole macrocell grid: with a pixel share they trace every
+// ghost pixel as without one (the ghost pixels, every 4th in x and y, all lie on share 0 of 2
+// or 4, so a share-filtered ghost pass would leave the other ranks' grids unrefined).
+TEST(PixelShare, GhostPassesIgnoreTheShare) {
+  test::FunctionField f(test::smoothField);
+  const RenderScene scene = obliqueBlobScene();
+  RenderSettings settings;
+  settings.width = 32;
+  settings.height = 24;
+  const auto ghost = [&](PixelShare share) {
+    BrickRender r(f, Int3{8, 8, 8});
+    RenderSettings s = settings;
+    s.pixelShare = share;
+    r.renderer.setSettings(s);
+    r.renderer.setScene(scene);
+    return r.renderer.runGhostPasses(3);
+  };
+  const FrameStats whole = ghost(PixelShare{0, 1});
+  ASSERT_GT(whole.queries, 0u);
+  for (int n : {2, 4})
+    for (int k = 0; k < n; ++k) {
+      const FrameStats g = ghost(PixelShare{k, n});
+      EXPECT_EQ(g.queries, whole.queries) << "share " << k << " of " << n;
+      EXPECT_EQ(g.refinements, whole.refinements) << "share " << k << " of " << n;
+    }
+}
+
 }  // namespace
 }  // namespace inr

@@ -236,6 +236,10 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     fc.budget = BudgetConstants{};  // every stride-th pixel (initGhostRay)
     fc.shadows = 0;
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
+    // Ghost rays refine this process's whole macrocell grid, not its pixels: with a pixel share
+    // every rank traces all of them (the ghost pixels' pattern would otherwise fall on one share).
+    fc.shareIndex = 0;
+    fc.shareCount = 1;
     traceGhostPass(table, fc, stride, total);
   }
   endGhostPasses(total);

@@ -615,6 +615,17 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // no picking support: hardware-selection passes skip the volume
   }
+  // Under MPI every rank reaches this point in every render (IceT composites all of them):
+  // whatever happens below, the refinement state is reduced over the ranks once on the way out
+  // (also where this rank draws nothing: depth peeling depends on its own geometry, and a rank
+  // that skipped the reduction would leave the others waiting in it).
+  struct RankReduction
+  {
+    Internals& I;
+    vtkInrVolumeMapper* self;
+    bool rendered = false;
+    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
+  } reduction{ I, this };
   if (insideDepthPeeling(vol))
   {
     // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
@@ -628,15 +639,6 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     }
     return;
   }
-  // Under MPI every rank reaches this point in every render (IceT composites all of them):
-  // whatever happens below, the refinement state is reduced over the ranks once on the way out.
-  struct RankReduction
-  {
-    Internals& I;
-    vtkInrVolumeMapper* self;
-    bool rendered = false;
-    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
-  } reduction{ I, this };
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {
     producer->Update();

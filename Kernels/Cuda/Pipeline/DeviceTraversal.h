@@ -51,6 +51,7 @@ struct TraversalBuildInfo {
   std::size_t reservedBytes = 0;  // device memory held for it (sized once per grid shape for the worst case)
   std::size_t builds = 0;      // builds so far
   std::size_t reuses = 0;      // updates that kept the structure (same cells selected: refinements, most edits)
+  std::size_t reservations = 0;  // device allocations of its buffers (once per grid shape)
 };
 
 class DeviceTraversal {

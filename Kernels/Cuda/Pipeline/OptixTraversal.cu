@@ -140,43 +140,16 @@ public:
 
   void majorantsChanged(const MajorantGridView& grid, cudaStream_t caller) override {
     const auto t0 = std::chrono::steady_clock::now();
-    // After the caller's majorant computation; everything below runs on the OptiX stream.
-    INR_CUDA_CHECK(cudaEventRecord(callerReady_, caller));
-    INR_CUDA_CHECK(cudaStreamWaitEvent(stream_, callerReady_, 0));
-    const cudaStream_t stream = stream_;
-    const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
-    // A new grid shape reserves anew; a new box (same shape) moves every cell's AABB: both build.
-    const bool newShape = !(grid.dims.x == shape_.x && grid.dims.y == shape_.y && grid.dims.z == shape_.z);
-    const bool newBox = !sameBox(grid.box, box_);
-    if (newShape) reserveFor(grid);
-    box_ = grid.box;
-
-    // The GAS holds the cells' boxes only (the intersection program reads each cell's majorant
-    // from the grid), so it needs a build only when the set of selected cells changes: a time
-    // step or a TF edit may change it, refinements (which only widen majorants) rarely do.
-    INR_CUDA_CHECK(cudaMemsetAsync(changed_.get(), 0, sizeof(unsigned), stream));
-    selectionChangeKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid.majorant, cells, options_.gasMinMajorant,
-                                                                    selected_.get(), changed_.get());
-    INR_CUDA_CHECK_LAUNCH("selectionChangeKernel");
-    unsigned changed = 0;
-    INR_CUDA_CHECK(cudaMemcpyAsync(&changed, changed_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
-    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
-    builtFor_ = grid.majorant;
-    if (!changed && !newShape && !newBox && !options_.rebuildEveryUpdate) {
-      ++info_.reuses;
-      info_.lastRebuilt = false;
-      info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      return;
-    }
     try {
-      build(grid, stream);
+      update(grid, caller);
     } catch (...) {
-      shape_ = Int3{0, 0, 0};  // the next update reserves and builds afresh
+      // Whatever failed (the selection record may already be the new one while the GAS is
+      // not), the next update reserves and builds afresh, and traverse() runs the DDA until then.
+      shape_ = Int3{0, 0, 0};
       gas_ = 0;
+      builtFor_ = nullptr;
       throw;
     }
-    ++info_.builds;
-    info_.lastRebuilt = true;
     info_.lastBuildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
 
@@ -213,6 +186,40 @@ public:
   }
 
 private:
+  void update(const MajorantGridView& grid, cudaStream_t caller) {
+    // After the caller's majorant computation; everything below runs on the OptiX stream.
+    INR_CUDA_CHECK(cudaEventRecord(callerReady_, caller));
+    INR_CUDA_CHECK(cudaStreamWaitEvent(stream_, callerReady_, 0));
+    const cudaStream_t stream = stream_;
+    const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
+    // A new grid shape reserves anew; a new box (same shape) moves every cell's AABB: both build.
+    const bool newShape = !(grid.dims.x == shape_.x && grid.dims.y == shape_.y && grid.dims.z == shape_.z);
+    const bool newBox = !sameBox(grid.box, box_);
+    if (newShape) reserveFor(grid);
+    box_ = grid.box;
+
+    // The GAS holds the cells' boxes only (the intersection program reads each cell's majorant
+    // from the grid), so it needs a build only when the set of selected cells changes: a time
+    // step or a TF edit may change it, refinements (which only widen majorants) rarely do.
+    INR_CUDA_CHECK(cudaMemsetAsync(changed_.get(), 0, sizeof(unsigned), stream));
+    selectionChangeKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid.majorant, cells, options_.gasMinMajorant,
+                                                                    selected_.get(), changed_.get());
+    INR_CUDA_CHECK_LAUNCH("selectionChangeKernel");
+    unsigned changed = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&changed, changed_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    if (!changed && !newShape && !newBox && !options_.rebuildEveryUpdate) {
+      builtFor_ = grid.majorant;
+      ++info_.reuses;
+      info_.lastRebuilt = false;
+      return;
+    }
+    build(grid, stream);
+    builtFor_ = grid.majorant;
+    ++info_.builds;
+    info_.lastRebuilt = true;
+  }
+
   static bool sameBox(const Box3f& a, const Box3f& b) {
     return a.lo.x == b.lo.x && a.lo.y == b.lo.y && a.lo.z == b.lo.z && a.hi.x == b.hi.x && a.hi.y == b.hi.y &&
            a.hi.z == b.hi.z;
@@ -224,8 +231,9 @@ private:
   // build's temporary and output and the compacted GAS (never larger than the build's output).
   void reserveFor(const MajorantGridView& grid) {
     const std::size_t cells = std::size_t(grid.dims.x) * grid.dims.y * grid.dims.z;
-    INR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // nothing of the OptiX stream reads the old buffers
+    shape_ = Int3{0, 0, 0};  // until every buffer below is in place
     gas_ = 0;
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // nothing of the OptiX stream reads the old buffers
     cellOfPrimitive_.resize(cells);
     aabbs_.resize(cells);
     selected_.resize(cells);
@@ -243,6 +251,7 @@ private:
     info_.reservedBytes = cells * (sizeof(int) + sizeof(OptixAabb) + 1) + tempBytes + sizes.tempSizeInBytes +
                           2 * sizes.outputSizeInBytes;
     shape_ = grid.dims;
+    ++info_.reservations;
   }
 
   OptixBuildInput buildInput(unsigned primitives, const CUdeviceptr* aabbPtr) const {

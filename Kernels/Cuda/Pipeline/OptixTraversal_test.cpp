@@ -187,7 +187,7 @@ TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain)
   TraversalBuildInfo info = t->buildInfo();
   EXPECT_EQ(info.builds, 1u);
   EXPECT_EQ(info.primitives, std::size_t((cells + 2) / 3));
-  EXPECT_GT(info.reservedBytes, info.bytes);
+  EXPECT_EQ(info.reservations, 1u);
   const std::size_t reserved = info.reservedBytes;
 
   for (float& v : host) v *= 2.f;  // widened majorants (refinement): same cells
@@ -206,8 +206,17 @@ TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain)
   EXPECT_TRUE(info.lastRebuilt);
   EXPECT_EQ(info.primitives, std::size_t((cells + 2) / 3 + 1));
 
-  // Hundreds of updates with selections from nearly empty to full: no device allocation.
+  host[0] = 0.f;  // a cell becomes empty
+  upload();
+  t->majorantsChanged(g, nullptr);
+  info = t->buildInfo();
+  EXPECT_EQ(info.builds, 3u);
+  EXPECT_EQ(info.primitives, std::size_t((cells + 2) / 3));
+
+  // Hundreds of updates with selections from nearly empty to full (consecutive strides always
+  // differ: 7 is invertible mod 11), each one a build, none an allocation.
   const std::size_t before = deviceBytesInUse();
+  const std::size_t buildsBefore = t->buildInfo().builds, reusesBefore = t->buildInfo().reuses;
   for (int k = 0; k < 300; ++k) {
     const int stride = 1 + (k * 7) % 11;
     for (int c = 0; c < cells; ++c) host[c] = (c % stride == 0) ? 1.f : 0.f;
@@ -220,6 +229,9 @@ TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain)
   std::printf("300 updates: %zu builds, %zu reuses; reserved %.2f MB; device memory %+.2f MB\n", info.builds,
               info.reuses, info.reservedBytes / 1048576.0, (double(after) - double(before)) / 1048576.0);
   EXPECT_EQ(info.reservedBytes, reserved);
+  EXPECT_EQ(info.reservations, 1u) << "an update allocated";
+  EXPECT_EQ(info.builds - buildsBefore, 300u) << "every changed selection builds";
+  EXPECT_EQ(info.reuses, reusesBefore);
   EXPECT_LE(after, before + (std::size_t(2) << 20)) << "device memory grew over updates";
 
   // Another grid shape: reserved for it, built.
@@ -230,6 +242,7 @@ TEST(OptixTraversal, BuildsOnlyWhenTheSelectedCellsChangeAndNeverAllocatesAgain)
   t->majorantsChanged(gridOver(small.get(), 8), nullptr);
   info = t->buildInfo();
   EXPECT_EQ(info.builds, builds + 1);
+  EXPECT_EQ(info.reservations, 2u);
   EXPECT_EQ(info.primitives, 512u);
   EXPECT_LT(info.reservedBytes, reserved);
   // The same shape and cells in another box (other AABBs): built.
