@@ -64,11 +64,10 @@ __global__ void cellAabbKernel(MajorantGridView g, const int* cells, const unsig
 }
 
 // Records which cells are selected now and flags any difference from the last update's selection.
-__global__ void selectionChangeKernel(const float* majorant, int cells, float threshold, unsigned char* selected,
-                                      unsigned* changed) {
+__global__ void selectionChangeKernel(MajorantAbove above, int cells, unsigned char* selected, unsigned* changed) {
   const int cell = blockIdx.x * blockDim.x + threadIdx.x;
   if (cell >= cells) return;
-  const unsigned char now = majorant[cell] > threshold ? 1 : 0;  // NaN: out, as MajorantAbove
+  const unsigned char now = above(cell) ? 1 : 0;
   if (now != selected[cell]) {
     selected[cell] = now;
     *changed = 1u;  // every writer writes the same value
@@ -202,8 +201,8 @@ private:
     // from the grid), so it needs a build only when the set of selected cells changes: a time
     // step or a TF edit may change it, refinements (which only widen majorants) rarely do.
     INR_CUDA_CHECK(cudaMemsetAsync(changed_.get(), 0, sizeof(unsigned), stream));
-    selectionChangeKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid.majorant, cells, options_.gasMinMajorant,
-                                                                    selected_.get(), changed_.get());
+    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
+    selectionChangeKernel<<<(cells + 255) / 256, 256, 0, stream>>>(above, cells, selected_.get(), changed_.get());
     INR_CUDA_CHECK_LAUNCH("selectionChangeKernel");
     unsigned changed = 0;
     INR_CUDA_CHECK(cudaMemcpyAsync(&changed, changed_.get(), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
@@ -239,10 +238,7 @@ private:
     selected_.resize(cells);
     INR_CUDA_CHECK(cudaMemsetAsync(selected_.get(), 0, cells, stream_));
     std::size_t tempBytes = 0;
-    const thrust::counting_iterator<int> first(0);
-    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
-    INR_CUDA_CHECK(cub::DeviceSelect::If(nullptr, tempBytes, first, cellOfPrimitive_.get(), count_.get(), int(cells),
-                                         above, stream_));
+    selectCells(grid, nullptr, tempBytes, stream_);  // cub's temporary for this many cells
     selectTemp_.resize(tempBytes);
     const OptixAccelBufferSizes sizes = buildSizes(unsigned(cells));
     buildTemp_.resize(sizes.tempSizeInBytes);
@@ -252,6 +248,16 @@ private:
                           2 * sizes.outputSizeInBytes;
     shape_ = grid.dims;
     ++info_.reservations;
+  }
+
+  // The cells above the GAS threshold, in increasing index order, into cellOfPrimitive_ and their
+  // number into count_ (cub's select; with temp == nullptr only the temporary's size).
+  void selectCells(const MajorantGridView& grid, void* temp, std::size_t& tempBytes, cudaStream_t stream) {
+    const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
+    const thrust::counting_iterator<int> first(0);
+    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
+    INR_CUDA_CHECK(cub::DeviceSelect::If(temp, tempBytes, first, cellOfPrimitive_.get(), count_.get(), cells, above,
+                                         stream));
   }
 
   OptixBuildInput buildInput(unsigned primitives, const CUdeviceptr* aabbPtr) const {
@@ -285,10 +291,7 @@ private:
   void build(const MajorantGridView& grid, cudaStream_t stream) {
     const int cells = grid.dims.x * grid.dims.y * grid.dims.z;
     std::size_t tempBytes = selectTemp_.size();
-    const thrust::counting_iterator<int> first(0);
-    const MajorantAbove above{grid.majorant, options_.gasMinMajorant};
-    INR_CUDA_CHECK(cub::DeviceSelect::If(selectTemp_.get(), tempBytes, first, cellOfPrimitive_.get(), count_.get(),
-                                         cells, above, stream));
+    selectCells(grid, selectTemp_.get(), tempBytes, stream);
     cellAabbKernel<<<(cells + 255) / 256, 256, 0, stream>>>(grid, cellOfPrimitive_.get(), count_.get(), aabbs_.get());
     INR_CUDA_CHECK_LAUNCH("cellAabbKernel");
     unsigned primitives = 0;
@@ -306,17 +309,16 @@ private:
     info_.primitives = primitives;
     info_.bytes = 0;
     if (primitives == 0) return;  // every cell empty: traverse() runs the DDA, as fast and exact
-    const CUdeviceptr aabbPtr = reinterpret_cast<CUdeviceptr>(aabbs_.get());
-    const OptixBuildInput input = buildInput(primitives, &aabbPtr);
-    const OptixAccelBuildOptions options = buildOptions();
-    OptixAccelBufferSizes sizes = {};
-    INR_OPTIX_CHECK(optixAccelComputeMemoryUsage(context_, &options, &input, 1, &sizes));
+    const OptixAccelBufferSizes sizes = buildSizes(primitives);
     // Within the worst-case reservation (sizes grow with the primitive count); checked, not assumed.
     if (sizes.tempSizeInBytes > buildTemp_.size() || sizes.outputSizeInBytes > uncompacted_.size())
       throw std::logic_error("OptiX GAS: build needs more than the reservation for all cells");
     OptixAccelEmitDesc emit = {};
     emit.type = OPTIX_PROPERTY_TYPE_COMPACTED_SIZE;
     emit.result = reinterpret_cast<CUdeviceptr>(compactedSize_.get());
+    const CUdeviceptr aabbPtr = reinterpret_cast<CUdeviceptr>(aabbs_.get());
+    const OptixBuildInput input = buildInput(primitives, &aabbPtr);
+    const OptixAccelBuildOptions options = buildOptions();
     OptixTraversableHandle handle = 0;
     INR_OPTIX_CHECK(optixAccelBuild(context_, stream, &options, &input, 1,
                                     reinterpret_cast<CUdeviceptr>(buildTemp_.get()), sizes.tempSizeInBytes,
