@@ -350,6 +350,14 @@ def check_brick_errors(inr, data):
         expect(p.returncode == 2 and "macrocells" in p.stderr, "2 bricks of 1 macrocell must be refused: " + p.stderr)
 
 
+def render_split_part(inr, model, args, option, spec, out_dir):
+    """`inr render MODEL ARGS OPTION SPEC` (--brick or --pixel-share I/N) into OUT_DIR; the .npy path."""
+    out = os.path.join(out_dir, "%s%s.npy" % (option.strip("-")[0], spec.replace("/", "_")))
+    p = run(inr, "render", model, *args, option, spec, "-o", out)
+    expect(p.returncode == 0, "render %s %s failed: %s" % (option, spec, p.stderr))
+    return out
+
+
 def check_brick_composite(inr, data):
     """Sub-domain rendering without MPI: N = 2 and 4 bricks rendered one process each
     (`inr render --brick I/N`, premultiplied RGBA .npy) and composited front to back by
@@ -363,10 +371,7 @@ def check_brick_composite(inr, data):
     with tempfile.TemporaryDirectory() as d:
         for shadows in ([], ["--shadows"]):
             def brick(spec):
-                out = os.path.join(d, "b%s.npy" % spec.replace("/", "_"))
-                p = run(inr, "render", model, *common, *shadows, "--brick", spec, "-o", out)
-                expect(p.returncode == 0, "render --brick %s failed: %s" % (spec, p.stderr))
-                return out
+                return render_split_part(inr, model, [*common, *shadows], "--brick", spec, d)
             whole = brick("0/1")
             for n in (2, 4):
                 parts = [brick("%d/%d" % (i, n)) for i in range(n)]
@@ -397,10 +402,7 @@ def check_pixel_share_composite(inr, data):
     with tempfile.TemporaryDirectory() as d:
         for shadows in ([], ["--shadows"]):
             def share(spec):
-                out = os.path.join(d, "p%s.npy" % spec.replace("/", "_"))
-                p = run(inr, "render", model, *common, *shadows, "--pixel-share", spec, "-o", out)
-                expect(p.returncode == 0, "render --pixel-share %s failed: %s" % (spec, p.stderr))
-                return out
+                return render_split_part(inr, model, [*common, *shadows], "--pixel-share", spec, d)
             whole = share("0/1")
             whole_queries = json.load(open(whole[:-4] + ".brick.json"))["queries"]
             for n in (2, 3):
