@@ -13,6 +13,7 @@
 #include "Cuda/CudaDevice.h"
 #include "Cuda/DeviceBuffer.h"
 #include "Cuda/FusedMlpKernel.cuh"
+#include "Cuda/FusedMlpKernelHopper.cuh"
 #include "Cuda/MlpProgram.h"
 
 namespace inr {
@@ -101,7 +102,7 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   out[scatter ? scatter[g] : g] = a * net + b;
 }
 
-using FusedKernel = void (*)(cuda::FusedParams, const float4*, int, const unsigned*, float*, const int*);
+using cuda::FusedKernel;
 
 // Tile of 32*WR queries, 4*WR warps; weight chunks of KC columns.
 FusedKernel fusedKernelFor(int tile, int kc) {
@@ -122,18 +123,30 @@ FusedKernel fusedKernelFor(int tile, int kc) {
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-HopperKernel hopperKernelFor(int, int) { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernelFor(int) { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
 
+struct FusedConfig;
+std::string configName(const FusedConfig& c);
+
 struct FusedConfig {
-  bool wgmma = false;  // the Hopper kernel (tile 128 or 64)
+  bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
   int tile = 0, kc = 0;
+  int stages = 0;         // wgmma: weight ring slots
+  bool pingPong = false;  // wgmma: the consumers take turns (every layer's chunks fit the ring)
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
   double measuredQps = 0.0;
 };
+
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x K 64, 4 slots, ping-pong".
+std::string configName(const FusedConfig& c) {
+  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc);
+  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + " x K " +
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+}
 
 }  // namespace
 
@@ -149,6 +162,8 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kSmallBatchThreshold = 1 << 15;
   cuda::FusedParams params;
   cuda::DeviceBuffer<MlpInstr> instrs;
+  MlpProgram hopperProgram;  // program.withGemmsInPlace()
+  cuda::DeviceBuffer<MlpInstr> hopperInstrs;
   cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
   cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma core-matrix layout
   std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
@@ -206,17 +221,18 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   }
   // The wgmma kernel: built for sm_90a, so it loads only on a compute capability 9.0 device.
   if (options.mma == FusedMma::MmaSync) I.whyNoWgmma = "not requested";
-  else if (!cuda::hopperKernelFor(128, 64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
+  else if (!cuda::hopperKernelFor(64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
   else if (I.device.major != 9 || I.device.minor != 0) I.whyNoWgmma = "needs compute capability 9.0";
   else {
     cudaFuncAttributes attr{};
-    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernelFor(128, 64));
+    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernelFor(64));
     if (e != cudaSuccess) {
       cudaGetLastError();
       I.whyNoWgmma = std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
     }
   }
-  if (I.whyNoWgmma.empty())
+  I.hopperProgram = prog.withGemmsInPlace();
+  if (I.whyNoWgmma.empty()) {
     for (int kc : {64, 32}) {
       const std::vector<std::uint16_t> packed =
           cuda::packHopperWeights(prog, kc, P.hopperOffset[cuda::kcIndex(kc)], cuda::kMaxFusedInstrs);
@@ -225,7 +241,14 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       I.hopperW[cuda::kcIndex(kc)].upload(hw, nullptr);
       P.hopperWeights[cuda::kcIndex(kc)] = I.hopperW[cuda::kcIndex(kc)].get();
     }
+    I.hopperInstrs.upload(I.hopperProgram.instrs, nullptr);
+    P.hopperInstrs = I.hopperInstrs.get();
+  }
   P.hopperStageRows = cuda::hopperStageRows(prog);
+  P.hopperNumBuffers = std::max(1, I.hopperProgram.numBuffers);
+  for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
+    P.hopperBufferLd[b] = I.hopperProgram.bufferWidthPad[b] + 8;
+  for (const MlpInstr& in : prog.instrs) P.fusedFourier |= in.fourierInput >= 0 ? 1 : 0;
   I.floatW.upload(prog.floatWeights, nullptr);
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
   P.instrs = I.instrs.get();
@@ -257,17 +280,29 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
         for (int kc : {64, 32}) {
           if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
             continue;
-          if (wgmma && t == 32) continue;  // warpgroups of 64 rows
-          const FusedKernel kernel = wgmma ? cuda::hopperKernelFor(t, kc) : fusedKernelFor(t, kc);
+          if (wgmma && t != cuda::kHopperQueriesPerRound) continue;
+          const FusedKernel kernel = wgmma ? cuda::hopperKernelFor(kc) : fusedKernelFor(t, kc);
           cudaFuncAttributes attr{};
           INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
-          const std::size_t bytes = cuda::fusedSharedBytes(t, kc, P, wgmma);
-          if (bytes + attr.sharedSizeBytes > I.device.sharedMemPerBlockOptin) continue;
+          const std::size_t limit = I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
+          std::size_t bytes = 0;
+          int stages = 0;
+          if (wgmma) {  // as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
+            for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
+              if (cuda::hopperSharedBytes(kc, s, P) <= limit) stages = s;
+            if (!stages) continue;
+            bytes = cuda::hopperSharedBytes(kc, stages, P);
+          } else {
+            bytes = cuda::fusedSharedBytes(t, kc, P);
+            if (bytes > limit) continue;
+          }
+          const int threads = wgmma ? cuda::kHopperThreads : t * 4;
           INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
           int perSm = 0;
-          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, bytes));
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, threads, bytes));
           if (perSm < 1) continue;
-          candidates.push_back({wgmma, t, kc, bytes, perSm * I.device.multiprocessors, 0.0});
+          const bool pingPong = wgmma && cuda::hopperMaxChunks(I.hopperProgram, kc) <= stages;
+          candidates.push_back({wgmma, t, kc, stages, pingPong, bytes, perSm * I.device.multiprocessors, 0.0});
         }
     }
     if (candidates.empty()) {
@@ -326,23 +361,19 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       if (large > bestLarge) bestLarge = large, I.bestLarge = c;
       if (small > bestSmall) bestSmall = small, I.bestSmall = c;
       char line[128];
-      std::snprintf(line, sizeof line, "%s%stile %d x K %d: %.3f / %.3f Gq/s", report.empty() ? "" : "; ",
-                    c.wgmma ? "wgmma " : "", c.tile, c.kc, large * 1e-9, small * 1e-9);
+      std::snprintf(line, sizeof line, "%s%s: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", configName(c).c_str(),
+                    large * 1e-9, small * 1e-9);
       report += line;
     }
     cudaEventDestroy(e0);
     cudaEventDestroy(e1);
     I.config = I.bestLarge;
     I.smallConfig = I.bestSmall;
-    auto name = [](const FusedConfig& c) {
-      return std::string(c.wgmma ? "wgmma " : "") + "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc);
-    };
     I.launchReport = "batch " + std::to_string(batch) + " / " + std::to_string(smallBatch) + ": " + report + " -> " +
-                     name(I.config) + ", below " + std::to_string(Impl::kSmallBatchThreshold) + " queries " +
-                     name(I.smallConfig);
+                     configName(I.config) + ", below " + std::to_string(Impl::kSmallBatchThreshold) + " queries " +
+                     configName(I.smallConfig);
   } else {
-    I.launchReport = std::string(I.config.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.config.tile) + " x K " +
-                     std::to_string(I.config.kc) +
+    I.launchReport = configName(I.config) +
                      (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
   }
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
@@ -357,11 +388,10 @@ CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
 std::string CudaInrEvaluator::name() const {
   const Impl& I = *impl_;
   return I.path == CudaEvaluatorPath::Fused
-             ? "cuda-fused-fp16 (" + std::string(I.config.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.config.tile) + " x K " + std::to_string(I.config.kc) + ", " +
+             ? "cuda-fused-fp16 (" + configName(I.config) + ", " +
                    std::to_string(I.config.sharedBytes / 1024) + " KB smem, " +
                    std::to_string(I.config.gridBlocks / std::max(1, I.device.multiprocessors)) + " blocks/SM; under " +
-                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + (I.smallConfig.wgmma ? "wgmma " : "") + "tile " + std::to_string(I.smallConfig.tile) +
-                   " x K " + std::to_string(I.smallConfig.kc) + ") on " +
+                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallConfig) + ") on " +
                    I.device.name
              : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
                    I.device.name;
@@ -386,8 +416,13 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
     const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
-    const FusedKernel kernel = c.wgmma ? cuda::hopperKernelFor(c.tile, c.kc) : fusedKernelFor(c.tile, c.kc);
-    kernel<<<grid, c.tile * 4, c.sharedBytes, stream>>>(I.params, points, n, deviceCount, out, scatter);
+    const FusedKernel kernel = c.wgmma ? cuda::hopperKernelFor(c.kc) : fusedKernelFor(c.tile, c.kc);
+    cuda::FusedParams P = I.params;
+    if (c.wgmma) {
+      P.hopperStages = c.stages;
+      P.hopperPingPong = c.pingPong ? 1 : 0;
+    }
+    kernel<<<grid, c.wgmma ? cuda::kHopperThreads : c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, out, scatter);
     INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
     return;
   }

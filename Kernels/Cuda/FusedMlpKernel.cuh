@@ -19,7 +19,6 @@
 #include <cuda_pipeline.h>
 
 #include "Common/Activation.h"
-#include "Cuda/FusedMlpKernelHopper.cuh"
 #include "Cuda/MlpProgram.h"
 
 namespace inr::cuda {
@@ -50,10 +49,21 @@ struct FusedParams {
   int numBuffers = 1;
   int bufferLd[kMaxBuffers] = {};  // halves per row (width + 8)
   int maxGemmOutPad = 16;          // rows of the weight stage
-  // The Hopper variant's weights (packHopperWeights) per chunk width, offsets, and stage rows.
+  // The program has a Fourier encoding fused into a GEMM: the mma.sync kernel computes it chunk
+  // by chunk into a stage of M x (KC + 8) halves.
+  int fusedFourier = 0;
+  // The Hopper kernel (FusedMlpKernelHopper.cuh): its program (MlpProgram::withGemmsInPlace, the
+  // same instructions over fewer buffers) and buffers, its weights (packHopperWeights) per chunk
+  // width with each instruction's offset, the rows and number of ring slots, and whether the
+  // consumers take turns.
+  const MlpInstr* hopperInstrs = nullptr;
+  int hopperNumBuffers = 1;
+  int hopperBufferLd[kMaxBuffers] = {};
   const __half* hopperWeights[2] = {nullptr, nullptr};
   int hopperOffset[2][kMaxFusedInstrs] = {};
-  int hopperStageRows = 32;
+  int hopperStageRows = 16;
+  int hopperStages = 2;
+  int hopperPingPong = 1;
   OutputMap output;
 };
 
@@ -85,16 +95,16 @@ __host__ __device__ inline int stageRows(const FusedParams& P) {
 }
 
 // Shared memory for a tile of M queries and weight chunks of KC: activation buffers, the
-// weight double buffer, coordinates (M x 4 floats) and the final dot's partial sums (4 x M).
-// The Hopper variant's stage holds hopperStageRows rows of KC halves (no padding: core matrices).
-__host__ __device__ inline int stageHalvesFor(bool hopper, int KC, const FusedParams& P) {
-  return hopper ? P.hopperStageRows * KC : stageRows(P) * (KC + 8);
+// weight double buffer, a fused Fourier encoding's chunk, coordinates (M x 4 floats), the final
+// dot's partial sums (4 x M) and weights.
+__host__ __device__ inline int encodingStageHalves(int M, int KC, const FusedParams& P) {
+  return P.fusedFourier ? M * (KC + 8) : 0;
 }
 
-inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P, bool hopper = false) {
+inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
   std::size_t halves = 0;
   for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
-  halves += std::size_t(2) * stageHalvesFor(hopper, KC, P);
+  halves += std::size_t(2) * stageRows(P) * (KC + 8) + encodingStageHalves(M, KC, P);
   return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
 }
 
@@ -227,8 +237,166 @@ using BoolTag = std::bool_constant<B>;
 
 // At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
 // exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
-// HOPPER: GEMM layers on wgmma (FusedMlpKernelHopper.cuh); WR 2 or 4 only (64-row warpgroups).
-template <int WR, int KC, bool HOPPER = false>
+// The rows of a tile that a group of threads runs the row-wise instructions on (everything but
+// a GEMM): the activation buffers, the network inputs, how many rows are queries, and the query
+// index of row 0.
+struct RowTile {
+  __half* act;
+  const int* bufferStart;  // per buffer, halves from act
+  const int* bufferLd;
+  const float* coords;  // 4 floats per row
+  int rows, base;
+};
+
+// LoadInput, DenseFp32, Fourier, Activation, Combine, OutputDot and Output on M rows with THREADS
+// threads (tid: this thread's index among them); the caller synchronises afterwards.
+template <int M, int THREADS>
+__device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+                                   const float4* __restrict__ points, float* __restrict__ out,
+                                   const int* __restrict__ scatter) {
+  constexpr int WARPS = THREADS / 32;
+  const int warp = tid >> 5, lane = tid & 31;
+  const int rows = t.rows, base = t.base;
+  const float* const coords = t.coords;
+  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
+  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
+  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
+  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
+  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
+  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
+  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]); };
+  switch (in.op) {
+    case MlpOp::LoadInput:
+      if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
+        for (int idx = tid; idx < M * 4; idx += THREADS) {
+          const int r = idx >> 2, c = idx & 3;
+          const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
+          const __half hi = __float2half(x);
+          __half* d = dst + r * ldDst + c;
+          d[0] = hi;
+          d[4] = __float2half(x - __half2float(hi));
+          d[8] = hi;
+          d[12] = __float2half(0.f);
+        }
+      } else {
+        for (int r = warp; r < M; r += WARPS)
+          for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+      }
+      break;
+    case MlpOp::DenseFp32:
+    case MlpOp::Fourier: {
+      // One thread per output column (its weights in registers), looping over the rows.
+      const bool fourier = in.op == MlpOp::Fourier;
+      const int inc = fourier && in.includeInput ? in.inWidth : 0;
+      const int m = fourier ? (in.outWidth - inc) / 2 : in.outWidth;  // computed columns
+      const int sinBase = fourier && in.includeInput == 1 ? in.inWidth : 0;
+      const float* W = P.floatWeights + in.floatOffset;
+      const int colsPerPass = min(m, THREADS), rowsPerPass = THREADS / colsPerPass;
+      for (int c0 = 0; c0 < m; c0 += colsPerPass) {
+        const int o = c0 + tid % colsPerPass;
+        if (tid >= rowsPerPass * colsPerPass || o >= m) continue;
+        float w[16];
+#pragma unroll
+        for (int k = 0; k < 16; ++k) w[k] = k < in.inWidth ? __ldg(W + o * in.inWidth + k) : 0.f;
+        const float bias = fourier ? 0.f : __ldg(P.floatWeights + in.biasOffset + o);
+        const int rStart = tid / colsPerPass;
+        auto dot = [&](int r) {
+          float acc = bias;
+          if (in.src < 0) {  // coordinates: one 16-byte load; weights past inputDim are zero
+            const float4 c = reinterpret_cast<const float4*>(coords)[r];
+            acc = fmaf(w[0], c.x, fmaf(w[1], c.y, fmaf(w[2], c.z, fmaf(w[3], c.w, acc))));
+          } else if (in.inWidth <= 16) {
+#pragma unroll
+            for (int k = 0; k < 16; ++k)
+              if (k < in.inWidth) acc = fmaf(w[k], input(r, k), acc);
+          } else {
+            for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), input(r, k), acc);
+          }
+          return acc;
+        };
+        if (fourier) {
+          for (int r = rStart; r < M; r += rowsPerPass) {
+            float sn, cs;
+            __sincosf(dot(r), &sn, &cs);
+            dst[r * ldDst + sinBase + o] = __float2half(sn);
+            dst[r * ldDst + sinBase + m + o] = __float2half(cs);
+          }
+        } else {
+          dispatchActivation(in.act, [&](auto A) {
+            for (int r = rStart; r < M; r += rowsPerPass) {
+              float v = applyActivation(decltype(A)::value, dot(r));
+              if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
+              dst[r * ldDst + o] = __float2half(v);
+            }
+          });
+        }
+      }
+      // Included inputs and zero padding: only those columns.
+      const int at = fourier && in.includeInput == 1 ? 0 : 2 * m;
+      for (int r = warp; r < M; r += WARPS) {
+        for (int c = lane; c < inc; c += 32) dst[r * ldDst + at + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+      }
+      break;
+    }
+    case MlpOp::Activation:
+      for (int r = warp; r < M; r += WARPS)
+        for (int c = lane; c < in.outWidth; c += 32)
+          dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
+      break;
+    case MlpOp::Combine: {
+      for (int r = warp; r < M; r += WARPS)
+        for (int c = lane; c < in.nPad; c += 32) {
+          const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
+          dst[r * ldDst + c] = __float2half(in.combineScale * v);
+        }
+      break;
+    }
+    case MlpOp::OutputDot:
+    case MlpOp::Output: {
+      const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
+      for (int r = warp; r < rows; r += WARPS) {
+        float acc = 0.f;
+        if (W) {
+          for (int k = lane; k < in.inWidth; k += 32) acc = fmaf(__ldg(W + k), input(r, k), acc);
+#pragma unroll
+          for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
+        }
+        if (lane == 0) {
+          const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
+          float a, b;
+          outputAffine(P.output, points[base + r].w, a, b);
+          const int q = base + r;
+          out[scatter ? scatter[q] : q] = a * net + b;
+        }
+      }
+      break;
+    }
+    default: break;  // Gemm: the kernels' own code
+  }
+}
+
+// Column k of Fourier instruction f's encoding of the coordinates x (4 floats), before fp16
+// rounding: what runRowInstr stores there (the same fp32 arithmetic, so fusing the encoding into
+// a GEMM's operand changes no bit): sin / cos of the projection, the inputs first or last, zero
+// past the encoding's width.
+__device__ inline float fourierElement(const FusedParams& P, const MlpInstr& f, const float* x, int k) {
+  const int inc = f.includeInput ? f.inWidth : 0;
+  const int m = (f.outWidth - inc) / 2;
+  if (inc) {
+    const int at = f.includeInput == 1 ? 0 : 2 * m;
+    if (k >= at && k < at + inc) return x[k - at];
+  }
+  const int j = k - (f.includeInput == 1 ? f.inWidth : 0);
+  if (j < 0 || j >= 2 * m) return 0.f;
+  const float* w = P.floatWeights + f.floatOffset + (j < m ? j : j - m) * f.inWidth;
+  const float w0 = __ldg(w), w1 = f.inWidth > 1 ? __ldg(w + 1) : 0.f, w2 = f.inWidth > 2 ? __ldg(w + 2) : 0.f,
+              w3 = f.inWidth > 3 ? __ldg(w + 3) : 0.f;
+  const float d = fmaf(w0, x[0], fmaf(w1, x[1], fmaf(w2, x[2], fmaf(w3, x[3], 0.f))));
+  return j < m ? __sinf(d) : __cosf(d);
+}
+
+template <int WR, int KC>
 __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                   const unsigned* __restrict__ deviceCount,
                                                                   float* __restrict__ out, const int* __restrict__ scatter) {
@@ -237,7 +405,6 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   if (deviceCount) n = min(n, int(*deviceCount));
   constexpr int M = 32 * WR;  // queries per tile
   constexpr int THREADS = WR * 128;
-  constexpr int WARPS = THREADS / 32;
   constexpr int kStride = KC + 8;  // halves per staged weight row
   extern __shared__ __align__(128) unsigned char smem[];
   // The program and the buffer layout are read from shared memory (uniform, indexable without
@@ -256,9 +423,10 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   }
   int actHalves = 0;
   for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
-  const int stageHalves = stageHalvesFor(HOPPER, KC, P);
+  const int stageHalves = stageRows(P) * kStride;
   __half* const wstage = actBase + actHalves;
-  float* const coords = reinterpret_cast<float*>(wstage + 2 * stageHalves);
+  __half* const encStage = wstage + 2 * stageHalves;  // a fused Fourier encoding's chunk, if any
+  float* const coords = reinterpret_cast<float*>(encStage + encodingStageHalves(M, KC, P));
   float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
   float* const dotWeights = dotPart + M * 4;  // the final dot's weights (zero-padded), if any
   for (int ip = 0; ip < P.numInstrs; ++ip)
@@ -288,243 +456,23 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
       const MlpInstr in = program[ip];  // a copy: fields stay in registers inside the loops
-      if (in.fusedIntoPrevious) continue;  // done by the previous GEMM's epilogue (uniform)
+      // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
+      if (in.fusedIntoPrevious || in.fusedIntoNext) continue;  // uniform
+      if (in.op != MlpOp::Gemm) {
+        runRowInstr<M, THREADS>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out, scatter);
+        __syncthreads();
+        continue;
+      }
       const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
-      const int ldSrc = in.src >= 0 ? bufferLd[in.src] : 0;
       __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
-      const __half* src = in.src >= 0 ? actBase + bufferStart[in.src] : nullptr;
       const __half* other = in.other >= 0 ? actBase + bufferStart[in.other] : nullptr;
       const int ldOther = in.other >= 0 ? bufferLd[in.other] : 0;
-      auto input = [&](int r, int k) -> float {
-        return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]);
-      };
-      switch (in.op) {
-        case MlpOp::LoadInput:
-          if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
-            for (int idx = tid; idx < M * 4; idx += THREADS) {
-              const int r = idx >> 2, c = idx & 3;
-              const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
-              const __half hi = __float2half(x);
-              __half* d = dst + r * ldDst + c;
-              d[0] = hi;
-              d[4] = __float2half(x - __half2float(hi));
-              d[8] = hi;
-              d[12] = __float2half(0.f);
-            }
-          } else {
-            for (int r = warp; r < M; r += WARPS)
-              for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
-          }
-          break;
-        case MlpOp::DenseFp32:
-        case MlpOp::Fourier: {
-          // One thread per output column (its weights in registers), looping over the rows.
-          const bool fourier = in.op == MlpOp::Fourier;
-          const int inc = fourier && in.includeInput ? in.inWidth : 0;
-          const int m = fourier ? (in.outWidth - inc) / 2 : in.outWidth;  // computed columns
-          const int sinBase = fourier && in.includeInput == 1 ? in.inWidth : 0;
-          const float* W = P.floatWeights + in.floatOffset;
-          const int colsPerPass = min(m, THREADS), rowsPerPass = THREADS / colsPerPass;
-          for (int c0 = 0; c0 < m; c0 += colsPerPass) {
-            const int o = c0 + tid % colsPerPass;
-            if (tid >= rowsPerPass * colsPerPass || o >= m) continue;
-            float w[16];
-#pragma unroll
-            for (int k = 0; k < 16; ++k) w[k] = k < in.inWidth ? __ldg(W + o * in.inWidth + k) : 0.f;
-            const float bias = fourier ? 0.f : __ldg(P.floatWeights + in.biasOffset + o);
-            const int rStart = tid / colsPerPass;
-            auto dot = [&](int r) {
-              float acc = bias;
-              if (in.src < 0) {  // coordinates: one 16-byte load; weights past inputDim are zero
-                const float4 c = reinterpret_cast<const float4*>(coords)[r];
-                acc = fmaf(w[0], c.x, fmaf(w[1], c.y, fmaf(w[2], c.z, fmaf(w[3], c.w, acc))));
-              } else if (in.inWidth <= 16) {
-#pragma unroll
-                for (int k = 0; k < 16; ++k)
-                  if (k < in.inWidth) acc = fmaf(w[k], input(r, k), acc);
-              } else {
-                for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), input(r, k), acc);
-              }
-              return acc;
-            };
-            if (fourier) {
-              for (int r = rStart; r < M; r += rowsPerPass) {
-                float sn, cs;
-                __sincosf(dot(r), &sn, &cs);
-                dst[r * ldDst + sinBase + o] = __float2half(sn);
-                dst[r * ldDst + sinBase + m + o] = __float2half(cs);
-              }
-            } else {
-              dispatchActivation(in.act, [&](auto A) {
-                for (int r = rStart; r < M; r += rowsPerPass) {
-                  float v = applyActivation(decltype(A)::value, dot(r));
-                  if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
-                  dst[r * ldDst + o] = __float2half(v);
-                }
-              });
-            }
-          }
-          // Included inputs and zero padding: only those columns.
-          const int at = fourier && in.includeInput == 1 ? 0 : 2 * m;
-          for (int r = warp; r < M; r += WARPS) {
-            for (int c = lane; c < inc; c += 32) dst[r * ldDst + at + c] = __float2half(input(r, c));
-            for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
-          }
-          break;
-        }
-        case MlpOp::Gemm: {
-          if constexpr (HOPPER) {
-            static_assert(WR == 2 || WR == 4, "the Hopper variant needs 64-row warpgroups");
-            // Warpgroup wg: rows 64*(wg>>1) .. +63, column half (wg&1) of NW columns; warp w of
-            // the group holds rows 16w .. 16w+15 of them (wgmma's accumulator layout per warp is
-            // mma.sync's m16n8 one, n8 tile after n8 tile).
-            const int numChunks = (in.kPad + KC - 1) / KC;
-            const float* bias = P.floatWeights + in.biasOffset;
-            const int wg = warp >> 2, colHalf = wg & 1;
-            const int rowBase = (wg >> 1) * 64 + (warp & 3) * 16;
-            const bool prefetchNext = in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles);
-            auto stage = [&](int gemm, int chunk) {
-              const int blockHalves = program[gemm].nPad * KC;
-              const int4* from = reinterpret_cast<const int4*>(P.hopperWeights[kcIndex(KC)] +
-                                                               P.hopperOffset[kcIndex(KC)][gemm] +
-                                                               std::size_t(chunk) * blockHalves);
-              int4* to = reinterpret_cast<int4*>(wstage + (chunk & 1) * stageHalves);
-              for (int i = tid; i < blockHalves / 8; i += THREADS) __pipeline_memcpy_async(to + i, from + i, 16);
-              __pipeline_commit();
-            };
-            auto gemm = [&](auto nwTag) __attribute__((always_inline)) {
-              constexpr int NW = decltype(nwTag)::value;
-              constexpr int KSTEPS = KC / 16;
-              const int n0 = colHalf * NW;
-              const bool active = n0 < in.nPad;  // uniform per warpgroup: wgmma is collective
-              // Accumulators start at the bias: fragment i is row g + 8*((i>>1)&1), column
-              // n0 + 8*(i>>2) + 2*t4 + (i&1).
-              float acc[NW / 2];
-#pragma unroll
-              for (int i = 0; i < NW / 2; ++i) {
-                const int col = n0 + 8 * (i >> 2) + 2 * t4 + (i & 1);
-                acc[i] = col < in.nPad ? bias[col] : 0.f;
-              }
-              const unsigned aAddr = smemAddress(src + (rowBase + ((lane >> 3) & 1) * 8 + (lane & 7)) * ldSrc + (lane >> 4) * 8);
-              const unsigned stageBase = smemAddress(wstage) + unsigned(n0 / 8) * (KC * 16);
-              if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
-              firstChunkStaged = false;
-              for (int chunk = 0; chunk < numChunks; ++chunk) {
-                if (chunk + 1 < numChunks) {
-                  stage(ip, chunk + 1);
-                  __pipeline_wait_prior(1);
-                } else {
-                  __pipeline_wait_prior(0);
-                }
-                fenceProxyAsyncShared();  // cp.async wrote through the generic proxy; wgmma reads via the async one
-                __syncthreads();
-                const int kLen = min(KC, in.kPad - chunk * KC);
-                if (active) {
-                  unsigned a[KSTEPS][4];
-#pragma unroll
-                  for (int ks = 0; ks < KSTEPS; ++ks)
-                    if (ks * 16 < kLen) ldmatrixX4(a[ks], aAddr + unsigned((chunk * KC + ks * 16) * 2));
-                  wgmmaFence();
-                  const unsigned chunkBase = stageBase + unsigned((chunk & 1) * stageHalves * 2);
-#pragma unroll
-                  for (int ks = 0; ks < KSTEPS; ++ks)
-                    if (ks * 16 < kLen) wgmmaRS<NW>(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, KC * 16));
-                  wgmmaCommit();
-                  wgmmaWaitAll();  // the A registers and this stage buffer are free again
-                }
-                __syncthreads();  // the next stage() overwrites this buffer
-              }
-              if (prefetchNext) {
-                stage(in.nextGemm, 0);
-                firstChunkStaged = true;
-              }
-              if (in.finalOutput) {  // column 0 (colHalf 0, t4 0): fragments 0 (row g) and 2 (row g+8)
-                if (colHalf == 0 && t4 == 0) {
-#pragma unroll
-                  for (int half = 0; half < 2; ++half) {
-                    const int row = rowBase + g + half * 8;
-                    if (row < rows) {
-                      const float net = applyActivation(in.act, acc[2 * half]);
-                      float a, b;
-                      outputAffine(P.output, points[base + row].w, a, b);
-                      const int q = base + row;
-                      out[scatter ? scatter[q] : q] = a * net + b;
-                    }
-                  }
-                }
-                return;
-              }
-              dispatchActivation(in.act, [&](auto A) {
-                constexpr MlpAct kAct = decltype(A)::value;
-                // f(half, col, v0, v1) per owned pair of columns (col, col+1) of row g + 8*half.
-                auto forEachPair = [&](auto f) {
-                  auto loop = [&](auto residual) {
-                    constexpr bool kResidual = decltype(residual)::value;
-#pragma unroll
-                    for (int j = 0; j < NW / 8; ++j) {
-                      const int col = n0 + 8 * j + 2 * t4;
-                      if (n0 + 8 * j >= in.nPad) continue;
-#pragma unroll
-                      for (int half = 0; half < 2; ++half) {
-                        float v0 = applyActivation(kAct, acc[4 * j + 2 * half]);
-                        float v1 = applyActivation(kAct, acc[4 * j + 2 * half + 1]);
-                        if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
-                          if (col >= in.outWidth) v0 = 0.f;
-                          if (col + 1 >= in.outWidth) v1 = 0.f;
-                        }
-                        if constexpr (kResidual) {
-                          const float2 o = ldsHalf2AsFloat2InPlace(other + (rowBase + g + 8 * half) * ldOther + col);
-                          v0 = in.combineScale * (v0 + o.x);
-                          v1 = in.combineScale * (v1 + o.y);
-                        }
-                        f(half, col, v0, v1);
-                      }
-                    }
-                  };
-                  if (other)
-                    loop(BoolTag<true>{});
-                  else
-                    loop(BoolTag<false>{});
-                };
-                if (in.dotNext) {  // the final linear: dot over this half's columns, then both halves
-                  const MlpInstr& fin = program[ip + 1];
-                  float part[2] = {0.f, 0.f};
-                  forEachPair([&](int half, int col, float v0, float v1) {
-                    const float2 w = ldsFloat2InPlace(dotWeights + col);
-                    part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
-                  });
-#pragma unroll
-                  for (int half = 0; half < 2; ++half) {
-                    float v = part[half];
-                    v += __shfl_xor_sync(0xffffffffu, v, 1);
-                    v += __shfl_xor_sync(0xffffffffu, v, 2);
-                    if (t4 == 0) dotPart[colHalf * M + rowBase + g + half * 8] = v;
-                  }
-                  __syncthreads();
-                  const float dotBias = P.floatWeights[fin.biasOffset];
-                  for (int r = tid; r < rows; r += THREADS) {
-                    const float net = applyActivation(fin.act, dotPart[r] + dotPart[M + r] + dotBias);
-                    float a, b;
-                    outputAffine(P.output, points[base + r].w, a, b);
-                    const int q = base + r;
-                    out[scatter ? scatter[q] : q] = a * net + b;
-                  }
-                  return;
-                }
-                __half* const dRow = dst + (rowBase + g) * ldDst;
-                forEachPair([&](int half, int col, float v0, float v1) {
-                  *reinterpret_cast<__half2*>(dRow + half * 8 * ldDst + col) = __floats2half2_rn(v0, v1);
-                });
-              });
-            };
-            switch (hopperColumns(in.nPad)) {  // the same for every warp of the block
-              case 16: gemm(IntTag<16>{}); break;
-              case 32: gemm(IntTag<32>{}); break;
-              case 64: gemm(IntTag<64>{}); break;
-              default: gemm(IntTag<128>{}); break;
-            }
-            break;
-          } else {
+      // A fused Fourier encoding is computed chunk by chunk into encStage (below), read like a
+      // buffer whose column 0 is the chunk's first.
+      const bool encoded = in.fourierInput >= 0;
+      const int ldSrc = encoded ? KC + 8 : bufferLd[in.src];
+      const __half* src = encoded ? encStage : actBase + bufferStart[in.src];
+      {
           const int c16Count = in.nPad / 16;
           const int numChunks = (in.kPad + KC - 1) / KC;
           const float* bias = P.floatWeights + in.biasOffset;
@@ -587,8 +535,17 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
               } else {
                 __pipeline_wait_prior(0);
               }
+              if (encoded) {  // this chunk's columns of the encoding, two per thread and step
+                const MlpInstr& f = program[in.fourierInput];
+                for (int idx = tid; idx < M * (KC / 2); idx += THREADS) {
+                  const int r = idx / (KC / 2), k = 2 * (idx % (KC / 2)), col = chunk * KC + k;
+                  const float* x = coords + r * 4;
+                  *reinterpret_cast<__half2*>(encStage + r * (KC + 8) + k) =
+                      __floats2half2_rn(fourierElement(P, f, x, col), fourierElement(P, f, x, col + 1));
+                }
+              }
               __syncthreads();
-              const unsigned aChunk = unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
+              const unsigned aChunk = encoded ? 0u : unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
               const int kLen = min(KC, in.kPad - chunk * KC);
               kStep(aChunk, bChunk, firstTag);  // every chunk holds at least one k step of 16
               if (kLen == KC) {
@@ -711,51 +668,16 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             case 3: gemm(IntTag<3>{}); break;
             default: gemm(IntTag<4>{}); break;
           }
-          break;
-          }  // mma.sync
-        }
-        case MlpOp::Activation:
-          for (int r = warp; r < M; r += WARPS)
-            for (int c = lane; c < in.outWidth; c += 32)
-              dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
-          break;
-        case MlpOp::Combine: {
-          for (int r = warp; r < M; r += WARPS)
-            for (int c = lane; c < in.nPad; c += 32) {
-              const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
-              dst[r * ldDst + c] = __float2half(in.combineScale * v);
-            }
-          break;
-        }
-        case MlpOp::OutputDot:
-        case MlpOp::Output: {
-          const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
-          for (int r = warp; r < rows; r += WARPS) {
-            float acc = 0.f;
-            if (W) {
-              for (int k = lane; k < in.inWidth; k += 32) acc = fmaf(__ldg(W + k), input(r, k), acc);
-#pragma unroll
-              for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
-            }
-            if (lane == 0) {
-              const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
-              float a, b;
-              outputAffine(P.output, points[base + r].w, a, b);
-              const int q = base + r;
-              out[scatter ? scatter[q] : q] = a * net + b;
-            }
-          }
-          break;
-        }
       }
       __syncthreads();
     }
   }
 }
 
-using HopperKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
-// The wgmma variant for tiles of 128 or 64 queries and chunks of 64 or 32 (FusedMlpKernelHopper.cu,
-// built for sm_90a when the CUDA architectures include 90); nullptr when not built.
-HopperKernel hopperKernelFor(int tile, int kc);
+using FusedKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
+// The Hopper kernel (FusedMlpKernelHopper.cuh) for weight chunks of 64 or 32, 128 queries per
+// round (FusedMlpKernelHopper.cu, built for sm_90a when the CUDA architectures include 90);
+// nullptr when not built.
+FusedKernel hopperKernelFor(int kc);
 
 }  // namespace inr::cuda

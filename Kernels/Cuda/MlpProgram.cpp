@@ -315,6 +315,17 @@ private:
   std::vector<bool> inUse_;
 };
 
+// Whether buffer b's value is read by instruction `from` or a later one before being overwritten.
+// A standalone activation reads its destination (it works in place).
+bool readsBeforeWrite(const std::vector<MlpInstr>& instrs, std::size_t from, int b) {
+  for (std::size_t j = from; j < instrs.size(); ++j) {
+    const MlpInstr& in = instrs[j];
+    if (in.src == b || in.other == b || (in.op == MlpOp::Activation && in.dst == b)) return true;
+    if (in.dst == b) return false;
+  }
+  return false;
+}
+
 const char* opName(MlpOp op) {
   switch (op) {
     case MlpOp::LoadInput: return "load-input";
@@ -367,13 +378,25 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
       for (int k = 0; k < prev.nPad; ++k) p.floatWeights.push_back(k < fin.inWidth ? p.floatWeights[w + k] : 0.f);
     }
   }
+  // A Fourier encoding of the coordinates read only by the next instruction, a Gemm, is computed
+  // inside that Gemm's operand load (no 2m-wide buffer; FusedMlpKernel.cuh fourierElement).
+  for (std::size_t i = 0; i + 1 < p.instrs.size(); ++i) {
+    MlpInstr& f = p.instrs[i];
+    MlpInstr& g = p.instrs[i + 1];
+    if (f.op != MlpOp::Fourier || f.src >= 0 || f.inWidth > 4 || g.op != MlpOp::Gemm || g.fusedIntoPrevious ||
+        g.src != f.dst || g.other == f.dst)
+      continue;
+    if (readsBeforeWrite(p.instrs, i + 2, f.dst)) continue;
+    f.fusedIntoNext = 1;
+    g.fourierInput = int(i);
+  }
   std::vector<int> gemms;
   for (std::size_t i = 0; i < p.instrs.size(); ++i)
     if (p.instrs[i].op == MlpOp::Gemm && !p.instrs[i].fusedIntoPrevious) gemms.push_back(int(i));
   for (std::size_t g = 0; g < gemms.size(); ++g) p.instrs[gemms[g]].nextGemm = gemms[(g + 1) % gemms.size()];
   p.bufferWidthPad.assign(std::max(p.numBuffers, 1), 16);
   for (const MlpInstr& in : p.instrs) {
-    if (in.dst >= 0) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);
+    if (in.dst >= 0 && !in.fusedIntoNext) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);
     if (in.op == MlpOp::Gemm && !in.fusedIntoPrevious) p.maxGemmOutPad = std::max(p.maxGemmOutPad, in.nPad);
   }
   if (p.maxGemmOutPad > kMaxFusedGemmOut) {
@@ -392,6 +415,56 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   return p;
 }
 
+MlpProgram MlpProgram::withGemmsInPlace() const {
+  MlpProgram p = *this;
+  std::vector<int> slotOf(std::max(numBuffers, 1), -1);  // buffer -> slot holding its current value
+  std::vector<bool> busy;
+  std::vector<int> width;
+  auto take = [&]() {
+    for (std::size_t s = 0; s < busy.size(); ++s)
+      if (!busy[s]) {
+        busy[s] = true;
+        return int(s);
+      }
+    busy.push_back(true);
+    width.push_back(16);
+    return int(busy.size()) - 1;
+  };
+  for (std::size_t i = 0; i < instrs.size(); ++i) {
+    const MlpInstr& in = instrs[i];
+    MlpInstr& to = p.instrs[i];
+    const int s = in.src >= 0 ? slotOf[in.src] : -1, o = in.other >= 0 ? slotOf[in.other] : -1;
+    to.src = s;
+    to.other = o;
+    const bool srcDies = in.src >= 0 && in.src != in.dst && in.src != in.other && !readsBeforeWrite(instrs, i + 1, in.src);
+    int d = -1;
+    if (in.dst >= 0) {
+      if (in.dst == in.src || (in.op == MlpOp::Activation && slotOf[in.dst] >= 0)) {
+        d = slotOf[in.dst];  // already in place
+      } else if (in.dst == in.other) {
+        d = o;
+      } else {
+        // The destination's previous value is overwritten: its slot is free (it is not read here).
+        if (slotOf[in.dst] >= 0) busy[slotOf[in.dst]] = false;
+        slotOf[in.dst] = -1;
+        d = in.op == MlpOp::Gemm && srcDies ? s : take();
+      }
+      if (!in.fusedIntoNext) width[d] = std::max(width[d], in.nPad);
+    }
+    to.dst = d;
+    if (srcDies && s != d) busy[s] = false;
+    if (srcDies) slotOf[in.src] = -1;
+    if (in.other >= 0 && in.other != in.dst && !readsBeforeWrite(instrs, i + 1, in.other)) {
+      if (o != d) busy[o] = false;
+      slotOf[in.other] = -1;
+    }
+    if (in.dst >= 0) slotOf[in.dst] = d;
+  }
+  p.numBuffers = int(busy.size());
+  p.bufferWidthPad = width.empty() ? std::vector<int>{16} : width;
+  return p;
+}
+
 std::string MlpProgram::describe() const {
   std::ostringstream s;
   for (const MlpInstr& in : instrs) {
@@ -403,6 +476,7 @@ std::string MlpProgram::describe() const {
     if (in.dotNext) s << " (+ final dot in the epilogue)";
     if (in.fusedIntoPrevious) s << " (fused into the previous gemm)";
     if (in.splitPrecision) s << " (fp16 hi/lo split)";
+    if (in.fusedIntoNext) s << " (computed in the next gemm's operand load)";
     s << "\n";
   }
   s << numBuffers << " buffers, width " << maxWidthPad << (fusable ? ", fused" : ", generic: " + whyNotFused);

@@ -63,7 +63,10 @@ struct MlpInstr {
   std::int32_t dotNext = 0;
   std::int32_t fusedIntoPrevious = 0;
   std::int64_t dotOffset = -1;  // dotNext: the final layer's fp32 weights, zero-padded to nPad
-
+  // Fourier (of the coordinates) read only by the next instruction, a Gemm: never stored; that
+  // Gemm computes each encoding element where it loads its A operand (fourierInput).
+  std::int32_t fusedIntoNext = 0;
+  std::int32_t fourierInput = -1;  // Gemm: index of the fused Fourier instruction it reads, or -1
 };
 
 struct MlpProgram {
@@ -86,6 +89,11 @@ struct MlpProgram {
   static constexpr int kMaxFusedBuffers = 4;
 
   static MlpProgram compile(const Architecture& arch);
+  // The same instructions over fewer buffers: a Gemm writes over its own input wherever nothing
+  // reads that input afterwards (a kernel whose warps each read their A rows completely before
+  // their epilogue writes those rows can run it; SIREN and FFN then need one buffer, not two).
+  // Same arithmetic: emulateFusedProgram gives identical results for both.
+  MlpProgram withGemmsInPlace() const;
   std::string describe() const;  // one line per instruction, for logs and `inr info`
 };
 

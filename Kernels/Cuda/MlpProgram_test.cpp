@@ -124,5 +124,45 @@ TEST(MlpProgram, ShippedModelsCompileAndEmulate) {
   EXPECT_GT(count, 0);
 }
 
+// The FFN's encoding is computed inside its first GEMM's operand load: no buffer holds the
+// 2m-wide encoding, so the buffers are as wide as the hidden layers.
+TEST(MlpProgram, FourierEncodingFusesIntoTheFirstGemm) {
+  const InrModel m = bench::ffnPaper();
+  const MlpProgram p = MlpProgram::compile(m.architecture);
+  ASSERT_GE(p.instrs.size(), 2u);
+  EXPECT_EQ(p.instrs[0].op, MlpOp::Fourier) << p.describe();
+  EXPECT_EQ(p.instrs[0].fusedIntoNext, 1);
+  EXPECT_EQ(p.instrs[1].op, MlpOp::Gemm);
+  EXPECT_EQ(p.instrs[1].fourierInput, 0);
+  EXPECT_GT(p.instrs[1].kPad, 256) << "the paper FFN's encoding is 2 x 256 features wide";
+  for (int w : p.bufferWidthPad) EXPECT_LE(w, 256) << p.describe();
+  for (std::size_t i = 2; i < p.instrs.size(); ++i) EXPECT_EQ(p.instrs[i].fourierInput, -1);
+}
+
+// Every model (synthetic paper sizes, shipped and real ones) emulates bit-identically through
+// the in-place buffer plan, which never needs more buffers; SIREN and FFN chains need one.
+TEST(MlpProgram, GemmsInPlaceKeepTheArithmeticAndSaveBuffers) {
+  std::vector<std::pair<std::string, InrModel>> models = {
+      {"siren", bench::sirenPaper()}, {"ffn", bench::ffnPaper()}, {"coordnet", bench::coordNetPaper()}};
+  for (const char* folder : {"models", "real"})
+    for (const auto& path : test::shippedModels(folder)) models.emplace_back(path, InrModel::loadFile(path));
+  for (const auto& [name, model] : models) {
+    const MlpProgram p = MlpProgram::compile(model.architecture);
+    const MlpProgram q = p.withGemmsInPlace();
+    ASSERT_EQ(q.instrs.size(), p.instrs.size());
+    EXPECT_LE(q.numBuffers, p.numBuffers) << name << "\n" << p.describe() << "\n" << q.describe();
+    EXPECT_EQ(int(q.bufferWidthPad.size()), q.numBuffers);
+    if (name == "siren" || name == "ffn") EXPECT_EQ(q.numBuffers, 1) << q.describe();
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    constexpr int n = 64;
+    std::vector<float> inputs(std::size_t(n) * model.architecture.inputDim), a(n), b(n);
+    for (auto& v : inputs) v = u(rng);
+    emulateFusedProgram(p, inputs.data(), n, a.data());
+    emulateFusedProgram(q, inputs.data(), n, b.data());
+    for (int i = 0; i < n; ++i) ASSERT_EQ(a[i], b[i]) << name << " query " << i << "\n" << q.describe();
+  }
+}
+
 }  // namespace
 }  // namespace inr
