@@ -415,7 +415,7 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   return p;
 }
 
-MlpProgram MlpProgram::withGemmsInPlace() const {
+MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
   MlpProgram p = *this;
   std::vector<int> slotOf(std::max(numBuffers, 1), -1);  // buffer -> slot holding its current value
   std::vector<bool> busy;
@@ -447,7 +447,7 @@ MlpProgram MlpProgram::withGemmsInPlace() const {
         // The destination's previous value is overwritten: its slot is free (it is not read here).
         if (slotOf[in.dst] >= 0) busy[slotOf[in.dst]] = false;
         slotOf[in.dst] = -1;
-        d = in.op == MlpOp::Gemm && srcDies ? s : take();
+        d = in.op == MlpOp::Gemm && in.kPad <= maxK && srcDies ? s : take();
       }
       if (!in.fusedIntoNext) width[d] = std::max(width[d], in.nPad);
     }

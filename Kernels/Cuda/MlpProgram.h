@@ -89,11 +89,11 @@ struct MlpProgram {
   static constexpr int kMaxFusedBuffers = 4;
 
   static MlpProgram compile(const Architecture& arch);
-  // The same instructions over fewer buffers: a Gemm writes over its own input wherever nothing
-  // reads that input afterwards (a kernel whose warps each read their A rows completely before
-  // their epilogue writes those rows can run it; SIREN and FFN then need one buffer, not two).
-  // Same arithmetic: emulateFusedProgram gives identical results for both.
-  MlpProgram withGemmsInPlace() const;
+  // The same instructions over fewer buffers: a Gemm with K <= maxK writes over its own input
+  // wherever nothing reads that input afterwards (for a kernel whose warps each hold their A rows,
+  // K <= maxK columns, in registers before their epilogue writes those rows; SIREN and FFN then
+  // need one buffer, not two). Same arithmetic: emulateFusedProgram gives identical results.
+  MlpProgram withGemmsInPlace(int maxK) const;
   std::string describe() const;  // one line per instruction, for logs and `inr info`
 };
 

@@ -148,7 +148,7 @@ TEST(MlpProgram, GemmsInPlaceKeepTheArithmeticAndSaveBuffers) {
     for (const auto& path : test::shippedModels(folder)) models.emplace_back(path, InrModel::loadFile(path));
   for (const auto& [name, model] : models) {
     const MlpProgram p = MlpProgram::compile(model.architecture);
-    const MlpProgram q = p.withGemmsInPlace();
+    const MlpProgram q = p.withGemmsInPlace(256);
     ASSERT_EQ(q.instrs.size(), p.instrs.size());
     EXPECT_LE(q.numBuffers, p.numBuffers) << name << "\n" << p.describe() << "\n" << q.describe();
     EXPECT_EQ(int(q.bufferWidthPad.size()), q.numBuffers);
