@@ -447,7 +447,8 @@ MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
         // The destination's previous value is overwritten: its slot is free (it is not read here).
         if (slotOf[in.dst] >= 0) busy[slotOf[in.dst]] = false;
         slotOf[in.dst] = -1;
-        d = in.op == MlpOp::Gemm && in.kPad <= maxK && srcDies ? s : take();
+        // (a Gemm reading a fused encoding never reads its source buffer: any K)
+        d = in.op == MlpOp::Gemm && (in.kPad <= maxK || in.fourierInput >= 0) && srcDies ? s : take();
       }
       if (!in.fusedIntoNext) width[d] = std::max(width[d], in.nPad);
     }

@@ -92,7 +92,8 @@ struct MlpProgram {
   // The same instructions over fewer buffers: a Gemm with K <= maxK writes over its own input
   // wherever nothing reads that input afterwards (for a kernel whose warps each hold their A rows,
   // K <= maxK columns, in registers before their epilogue writes those rows; SIREN and FFN then
-  // need one buffer, not two). Same arithmetic: emulateFusedProgram gives identical results.
+  // need one buffer, not two; a Gemm reading a fused Fourier encoding reads no buffer: any K).
+  // Same arithmetic: emulateFusedProgram gives identical results.
   MlpProgram withGemmsInPlace(int maxK) const;
   std::string describe() const;  // one line per instruction, for logs and `inr info`
 };
