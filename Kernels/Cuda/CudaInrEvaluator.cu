@@ -137,6 +137,10 @@ struct FusedConfig {
   int tile = 0, kc = 0;
   int stages = 0;         // wgmma: weight ring slots
   bool pingPong = false;  // wgmma: the consumers take turns (every layer's chunks fit the ring)
+  // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
+  // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
+  // form sits on the GEMM's critical path; measured on ffn_mri_head, H100: 0.40 vs 0.28 G q/s).
+  bool storedEncoding = false;
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
   double measuredQps = 0.0;
@@ -144,7 +148,7 @@ struct FusedConfig {
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x K 64, 4 slots, ping-pong".
 std::string configName(const FusedConfig& c) {
-  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc);
+  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
   return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + " x K " +
          std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
 }
@@ -162,6 +166,8 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kSmallBatch = 1 << 13;
   static constexpr int kSmallBatchThreshold = 1 << 15;
   cuda::FusedParams params;
+  cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
+  cuda::DeviceBuffer<MlpInstr> storedInstrs;
   cuda::DeviceBuffer<MlpInstr> instrs;
   MlpProgram hopperProgram;  // program.withGemmsInPlace(any K)
   cuda::DeviceBuffer<MlpInstr> hopperInstrs;
@@ -260,6 +266,22 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   P.numBuffers = std::max(1, prog.numBuffers);
   for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
   P.maxGemmOutPad = std::max(16, prog.maxGemmOutPad);
+  // The same program with any Fourier encoding stored in its buffer (not fused into the GEMM).
+  I.paramsStored = P;
+  if (P.fusedFourier) {
+    std::vector<MlpInstr> stored = prog.instrs;
+    std::vector<int> width(std::size_t(P.numBuffers), 16);
+    for (MlpInstr& in : stored) {
+      in.fusedIntoNext = 0;
+      in.fourierInput = -1;
+      if (in.dst >= 0 && in.dst < P.numBuffers) width[std::size_t(in.dst)] = std::max(width[std::size_t(in.dst)], in.nPad);
+    }
+    I.storedInstrs.upload(stored, nullptr);
+    INR_CUDA_CHECK(cudaDeviceSynchronize());
+    I.paramsStored.instrs = I.storedInstrs.get();
+    I.paramsStored.fusedFourier = 0;
+    for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) I.paramsStored.bufferLd[b] = width[std::size_t(b)] + 8;
+  }
 
   // Path and tile size.
   bool fused = prog.fusable && options.path != CudaEvaluatorPath::Generic;
@@ -288,6 +310,21 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
           cudaFuncAttributes attr{};
           INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
           const std::size_t limit = I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
+          if (!wgmma) {  // the fused and the stored encoding (where the program has one), each if it fits
+            // (one kernel, two shared-memory sizes: its limit allows either at launch)
+            INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+            for (const bool stored : {true, false}) {  // stored first: the kernel of earlier versions
+              if (stored && !P.fusedFourier) continue;
+              const std::size_t b = cuda::fusedSharedBytes(t, kc, stored ? I.paramsStored : P);
+              if (b > limit) continue;
+              int perSm = 0;
+              INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
+              if (perSm < 1) continue;
+              FusedConfig c{false, t, kc, 0, false, stored, b, perSm * I.device.multiprocessors, 0.0};
+              candidates.push_back(c);
+            }
+            continue;
+          }
           std::size_t bytes = 0;
           int stages = 0;
           if (wgmma) {  // as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
@@ -295,9 +332,6 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
               if (cuda::hopperSharedBytes(kc, s, P) <= limit) stages = s;
             if (!stages) continue;
             bytes = cuda::hopperSharedBytes(kc, stages, P);
-          } else {
-            bytes = cuda::fusedSharedBytes(t, kc, P);
-            if (bytes > limit) continue;
           }
           const int threads = wgmma ? cuda::kHopperThreads : t * 4;
           INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
@@ -305,7 +339,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
           INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, threads, bytes));
           if (perSm < 1) continue;
           const bool pingPong = wgmma && cuda::hopperMaxChunks(I.hopperProgram, kc) <= stages;
-          candidates.push_back({wgmma, t, kc, stages, pingPong, bytes, perSm * I.device.multiprocessors, 0.0});
+          candidates.push_back({wgmma, t, kc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
         }
     }
     if (candidates.empty()) {
@@ -420,7 +454,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
     const FusedKernel kernel = c.wgmma ? cuda::hopperKernelFor(c.kc) : fusedKernelFor(c.tile, c.kc);
-    cuda::FusedParams P = I.params;
+    cuda::FusedParams P = c.storedEncoding ? I.paramsStored : I.params;
     if (c.wgmma) {
       P.hopperStages = c.stages;
       P.hopperPingPong = c.pingPong ? 1 : 0;

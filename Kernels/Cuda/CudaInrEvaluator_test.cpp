@@ -176,6 +176,7 @@ TEST(CudaInrEvaluator, FusedFourierEncodingRunsAtTheLargestTile) {
   o.autotuneBatch = 0;
   const CudaInrEvaluator gpu(model, o);
   EXPECT_NE(gpu.launchReport().find("tile 128"), std::string::npos) << gpu.launchReport();
+  EXPECT_EQ(gpu.launchReport().find("stored encoding"), std::string::npos) << gpu.launchReport();
   const auto pts = randomQueryPoints(model, 5003, 9);
   std::vector<float> ref(pts.size()), got(pts.size(), NAN);
   CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
