@@ -32,9 +32,7 @@ void cublasCheck(cublasStatus_t s, const char* what) {
 __global__ void genericCoords(cuda::FusedParams P, const float4* points, int n, float* coords) {
   const int q = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n) return;
-  const float4 p = points[q];
-  const float w[4] = {p.x, p.y, p.z, p.w};
-  for (int i = 0; i < 4; ++i) coords[q * 4 + i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
+  cuda::networkInputs(P, points[q], coords + q * 4);
 }
 
 __global__ void genericEpilogue(MlpInstr in, const float* bias, float* y, const float* other, int ld, int n) {
@@ -97,10 +95,7 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   } else {
     net = src[q * srcLd];
   }
-  float a, b;
-  cuda::outputAffine(map, points[q].w, a, b);
-  const int g = offset + q;
-  out[scatter ? scatter[g] : g] = a * net + b;
+  cuda::writeOutput(map, points[q].w, net, offset + q, out, scatter);
 }
 
 using cuda::FusedKernel;
@@ -128,9 +123,6 @@ FusedKernel hopperKernelFor(int) { return nullptr; }  // not built: no Hopper ar
 }  // namespace cuda
 namespace {
 #endif
-
-struct FusedConfig;
-std::string configName(const FusedConfig& c);
 
 struct FusedConfig {
   bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
@@ -258,6 +250,8 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
     P.hopperBufferLd[b] = I.hopperProgram.bufferWidthPad[b] + 8;
   for (const MlpInstr& in : prog.instrs) P.fusedFourier |= in.fourierInput >= 0 ? 1 : 0;
+  const MlpProgram storedProgram = prog.withEncodingsStored();
+  if (P.fusedFourier) I.storedInstrs.upload(storedProgram.instrs, nullptr);
   I.floatW.upload(prog.floatWeights, nullptr);
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
   P.instrs = I.instrs.get();
@@ -269,18 +263,10 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   // The same program with any Fourier encoding stored in its buffer (not fused into the GEMM).
   I.paramsStored = P;
   if (P.fusedFourier) {
-    std::vector<MlpInstr> stored = prog.instrs;
-    std::vector<int> width(std::size_t(P.numBuffers), 16);
-    for (MlpInstr& in : stored) {
-      in.fusedIntoNext = 0;
-      in.fourierInput = -1;
-      if (in.dst >= 0 && in.dst < P.numBuffers) width[std::size_t(in.dst)] = std::max(width[std::size_t(in.dst)], in.nPad);
-    }
-    I.storedInstrs.upload(stored, nullptr);
-    INR_CUDA_CHECK(cudaDeviceSynchronize());
     I.paramsStored.instrs = I.storedInstrs.get();
     I.paramsStored.fusedFourier = 0;
-    for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) I.paramsStored.bufferLd[b] = width[std::size_t(b)] + 8;
+    for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b)
+      I.paramsStored.bufferLd[b] = storedProgram.bufferWidthPad[std::size_t(b)] + 8;
   }
 
   // Path and tile size.
@@ -325,21 +311,18 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
             }
             continue;
           }
-          std::size_t bytes = 0;
+          // wgmma: as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
           int stages = 0;
-          if (wgmma) {  // as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
-            for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
-              if (cuda::hopperSharedBytes(kc, s, P) <= limit) stages = s;
-            if (!stages) continue;
-            bytes = cuda::hopperSharedBytes(kc, stages, P);
-          }
-          const int threads = wgmma ? cuda::kHopperThreads : t * 4;
+          for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
+            if (cuda::hopperSharedBytes(kc, s, P) <= limit) stages = s;
+          if (!stages) continue;
+          const std::size_t bytes = cuda::hopperSharedBytes(kc, stages, P);
           INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
           int perSm = 0;
-          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, threads, bytes));
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
           if (perSm < 1) continue;
-          const bool pingPong = wgmma && cuda::hopperMaxChunks(I.hopperProgram, kc) <= stages;
-          candidates.push_back({wgmma, t, kc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
+          const bool pingPong = cuda::hopperMaxChunks(I.hopperProgram, kc) <= stages;
+          candidates.push_back({true, t, kc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
         }
     }
     if (candidates.empty()) {

@@ -153,6 +153,32 @@ __device__ inline void outputAffine(const OutputMap& m, float t, float& a, float
   b = T[3 * (m.count - 1) + 2];
 }
 
+// The value query q gets from the network output `net` at time t (the output map), stored at
+// q or, with a scatter array, at scatter[q].
+__device__ inline void writeOutput(const OutputMap& m, float t, float net, int q, float* __restrict__ out,
+                                   const int* __restrict__ scatter) {
+  float a, b;
+  outputAffine(m, t, a, b);
+  out[scatter ? scatter[q] : q] = a * net + b;
+}
+
+// The network inputs of a query at world point p (x, y, z, t): the model's input order and
+// domain mapping, zero past inputDim.
+__device__ inline void networkInputs(const FusedParams& P, float4 p, float* x) {
+  const float w[4] = {p.x, p.y, p.z, p.w};
+#pragma unroll
+  for (int i = 0; i < 4; ++i) x[i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
+}
+
+// Coordinates of a tile's M rows (network inputs, 4 floats per row; zero rows past `rows`),
+// THREADS threads, tid this thread's index among them; the caller synchronises.
+template <int M, int THREADS>
+__device__ inline void loadTileCoords(const FusedParams& P, const float4* __restrict__ points, int base, int rows,
+                                      float* coords, int tid) {
+  for (int r = tid; r < M; r += THREADS)
+    networkInputs(P, r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f), coords + r * 4);
+}
+
 __device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
 
 // Reads a half2 from shared memory where it stands (see ldsFloat2InPlace): the residual operand
@@ -235,8 +261,6 @@ using IntTag = std::integral_constant<int, N>;
 template <bool B>
 using BoolTag = std::bool_constant<B>;
 
-// At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
-// exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
 // The rows of a tile that a group of threads runs the row-wise instructions on (everything but
 // a GEMM): the activation buffers, the network inputs, how many rows are queries, and the query
 // index of row 0.
@@ -364,10 +388,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
         }
         if (lane == 0) {
           const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
-          float a, b;
-          outputAffine(P.output, points[base + r].w, a, b);
-          const int q = base + r;
-          out[scatter ? scatter[q] : q] = a * net + b;
+          writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
         }
       }
       break;
@@ -396,6 +417,8 @@ __device__ inline float fourierElement(const FusedParams& P, const MlpInstr& f, 
   return j < m ? __sinf(d) : __cosf(d);
 }
 
+// At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
+// exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
 template <int WR, int KC>
 __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                   const unsigned* __restrict__ deviceCount,
@@ -445,13 +468,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   for (int tile = blockIdx.x; tile < numTiles; tile += gridDim.x) {
     const int base = tile * M;
     const int rows = min(M, n - base);
-    for (int r = tid; r < M; r += THREADS) {
-      const float4 p = r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f);
-      const float w[4] = {p.x, p.y, p.z, p.w};
-#pragma unroll
-      for (int i = 0; i < 4; ++i)
-        coords[r * 4 + i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
-    }
+    loadTileCoords<M, THREADS>(P, points, base, rows, coords, tid);
     __syncthreads();
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
@@ -574,10 +591,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                     const int row = rowBase + mt * 16 + g + half * 8;
                     if (row < rows) {
                       const float net = applyActivation(in.act, acc[mt][0][0][2 * half]);
-                      float a, b;
-                      outputAffine(P.output, points[base + row].w, a, b);
-                      const int q = base + row;
-                      out[scatter ? scatter[q] : q] = a * net + b;
+                      writeOutput(P.output, points[base + row].w, net, base + row, out, scatter);
                     }
                   }
               }
@@ -649,10 +663,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 for (int r = tid; r < rows; r += THREADS) {
                   const float net =
                       applyActivation(fin.act, dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + dotBias);
-                  float a, b;
-                  outputAffine(P.output, points[base + r].w, a, b);
-                  const int q = base + r;
-                  out[scatter ? scatter[q] : q] = a * net + b;
+                  writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
                 }
                 return;
               }

@@ -365,12 +365,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
   for (int round = blockIdx.x; round < numRounds; round += gridDim.x) {
     const int base = (round * kHopperConsumers + c) * kHopperRows;
     const int rows = max(0, min(kHopperRows, n - base));  // 0: this consumer only keeps the pace
-    for (int r = tid; r < kHopperRows; r += 128) {
-      const float4 p = r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f);
-      const float w[4] = {p.x, p.y, p.z, p.w};
-#pragma unroll
-      for (int i = 0; i < 4; ++i) coords[r * 4 + i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
-    }
+    loadTileCoords<kHopperRows, 128>(P, points, base, rows, coords, tid);
     consumerSync();
     const bool lastRound = round + int(gridDim.x) >= numRounds;
     const RowTile view{act, bufferStart, bufferLd, coords, rows, base};
@@ -455,10 +450,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
               const int row = rowBase + g + half * 8;
               if (row < rows) {
                 const float net = applyActivation(in.act, acc[2 * half]);
-                float a, b;
-                outputAffine(P.output, points[base + row].w, a, b);
-                const int q = base + row;
-                out[scatter ? scatter[q] : q] = a * net + b;
+                writeOutput(P.output, points[base + row].w, net, base + row, out, scatter);
               }
             }
           }
@@ -516,10 +508,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
               const int row = rowBase + g + 8 * half;
               if (t4 == 0 && row < rows) {
                 const float net = applyActivation(fin.act, v + dotBias);
-                float a, b;
-                outputAffine(P.output, points[base + row].w, a, b);
-                const int q = base + row;
-                out[scatter ? scatter[q] : q] = a * net + b;
+                writeOutput(P.output, points[base + row].w, net, base + row, out, scatter);
               }
             }
             return;

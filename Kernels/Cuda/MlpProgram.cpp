@@ -326,6 +326,14 @@ bool readsBeforeWrite(const std::vector<MlpInstr>& instrs, std::size_t from, int
   return false;
 }
 
+// Per buffer, the widest value an instruction stores there (a fused encoding is never stored).
+std::vector<int> bufferWidths(const MlpProgram& p) {
+  std::vector<int> width(std::size_t(std::max(p.numBuffers, 1)), 16);
+  for (const MlpInstr& in : p.instrs)
+    if (in.dst >= 0 && !in.fusedIntoNext) width[std::size_t(in.dst)] = std::max(width[std::size_t(in.dst)], in.nPad);
+  return width;
+}
+
 const char* opName(MlpOp op) {
   switch (op) {
     case MlpOp::LoadInput: return "load-input";
@@ -394,11 +402,9 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   for (std::size_t i = 0; i < p.instrs.size(); ++i)
     if (p.instrs[i].op == MlpOp::Gemm && !p.instrs[i].fusedIntoPrevious) gemms.push_back(int(i));
   for (std::size_t g = 0; g < gemms.size(); ++g) p.instrs[gemms[g]].nextGemm = gemms[(g + 1) % gemms.size()];
-  p.bufferWidthPad.assign(std::max(p.numBuffers, 1), 16);
-  for (const MlpInstr& in : p.instrs) {
-    if (in.dst >= 0 && !in.fusedIntoNext) p.bufferWidthPad[in.dst] = std::max(p.bufferWidthPad[in.dst], in.nPad);
+  p.bufferWidthPad = bufferWidths(p);
+  for (const MlpInstr& in : p.instrs)
     if (in.op == MlpOp::Gemm && !in.fusedIntoPrevious) p.maxGemmOutPad = std::max(p.maxGemmOutPad, in.nPad);
-  }
   if (p.maxGemmOutPad > kMaxFusedGemmOut) {
     p.fusable = false;
     p.whyNotFused = "a linear layer has " + std::to_string(p.maxGemmOutPad) + " outputs (fused kernel: up to " +
@@ -415,11 +421,20 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
   return p;
 }
 
+MlpProgram MlpProgram::withEncodingsStored() const {
+  MlpProgram p = *this;
+  for (MlpInstr& in : p.instrs) {
+    in.fusedIntoNext = 0;
+    in.fourierInput = -1;
+  }
+  p.bufferWidthPad = bufferWidths(p);
+  return p;
+}
+
 MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
   MlpProgram p = *this;
   std::vector<int> slotOf(std::max(numBuffers, 1), -1);  // buffer -> slot holding its current value
   std::vector<bool> busy;
-  std::vector<int> width;
   auto take = [&]() {
     for (std::size_t s = 0; s < busy.size(); ++s)
       if (!busy[s]) {
@@ -427,7 +442,6 @@ MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
         return int(s);
       }
     busy.push_back(true);
-    width.push_back(16);
     return int(busy.size()) - 1;
   };
   for (std::size_t i = 0; i < instrs.size(); ++i) {
@@ -450,7 +464,6 @@ MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
         // (a Gemm reading a fused encoding never reads its source buffer: any K)
         d = in.op == MlpOp::Gemm && (in.kPad <= maxK || in.fourierInput >= 0) && srcDies ? s : take();
       }
-      if (!in.fusedIntoNext) width[d] = std::max(width[d], in.nPad);
     }
     to.dst = d;
     if (srcDies && s != d) busy[s] = false;
@@ -462,7 +475,7 @@ MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
     if (in.dst >= 0) slotOf[in.dst] = d;
   }
   p.numBuffers = int(busy.size());
-  p.bufferWidthPad = width.empty() ? std::vector<int>{16} : width;
+  p.bufferWidthPad = bufferWidths(p);
   return p;
 }
 

@@ -95,6 +95,9 @@ struct MlpProgram {
   // need one buffer, not two; a Gemm reading a fused Fourier encoding reads no buffer: any K).
   // Same arithmetic: emulateFusedProgram gives identical results.
   MlpProgram withGemmsInPlace(int maxK) const;
+  // The same program with every fused Fourier encoding stored in its buffer again (the Fourier
+  // instruction writes it, the GEMM reads it; buffers as wide as that needs).
+  MlpProgram withEncodingsStored() const;
   std::string describe() const;  // one line per instruction, for logs and `inr info`
 };
 

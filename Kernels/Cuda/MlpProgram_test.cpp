@@ -137,6 +137,13 @@ TEST(MlpProgram, FourierEncodingFusesIntoTheFirstGemm) {
   EXPECT_GT(p.instrs[1].kPad, 256) << "the paper FFN's encoding is 2 x 256 features wide";
   for (int w : p.bufferWidthPad) EXPECT_LE(w, 256) << p.describe();
   for (std::size_t i = 2; i < p.instrs.size(); ++i) EXPECT_EQ(p.instrs[i].fourierInput, -1);
+  // Stored again (the mma.sync kernel's alternative): no fusion, the encoding's buffer wide enough.
+  const MlpProgram stored = p.withEncodingsStored();
+  for (const MlpInstr& in : stored.instrs) {
+    EXPECT_EQ(in.fusedIntoNext, 0);
+    EXPECT_EQ(in.fourierInput, -1);
+  }
+  EXPECT_GE(stored.bufferWidthPad[std::size_t(stored.instrs[0].dst)], p.instrs[1].kPad) << stored.describe();
 }
 
 // Every model (synthetic paper sizes, shipped and real ones) emulates bit-identically through
