@@ -1,7 +1,12 @@
 // GPU evaluator throughput (queries/s): the fused tensor-core kernel and the generic fp32 path
 // on the paper-size architectures and on model files, timed with CUDA events (median of R
 // launches over one batch of N random world points already on the device).
-//   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR] [MODEL.inr ...]
+//   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
+//                           [--only NAME] [--mma wgmma|mma.sync] [--weight-chunk KC] [--ping-pong 0|1]
+//                           [--no-autotune] [MODEL.inr ...]
+// --only keeps the models whose name contains NAME; --mma, --weight-chunk (mma.sync),
+// --ping-pong (wgmma: the consumers take turns) and --no-autotune fix
+// the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel.
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
@@ -36,10 +41,9 @@ struct Row {
 // mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
 // where the autotuned "fused-fp16" runs the wgmma kernel).
 Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath path, int batch, int reps,
-            FusedMma mma = FusedMma::Auto) {
-  CudaEvaluatorOptions o;
+            CudaEvaluatorOptions o) {
   o.path = path;
-  o.mma = mma;
+  const FusedMma mma = o.mma;
   const CudaInrEvaluator eval(model, o);
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1));
   cuda::DeviceBuffer<float> dOut(batch);
@@ -52,14 +56,27 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
 
 int main(int argc, char** argv) {
   int batch = 1 << 21, reps = 20;
-  std::string csv, writeDir;
+  std::string csv, writeDir, only;
   std::vector<std::string> files;
+  CudaEvaluatorOptions fixed;
   for (CommandLine cl(argc, argv); !cl.done();) {
     const std::string a = cl.next();
     if (a == "--batch") batch = std::max(1, std::stoi(cl.value()));
     else if (a == "--reps") reps = std::max(1, std::stoi(cl.value()));
     else if (a == "--csv") csv = cl.value();
     else if (a == "--write-models") writeDir = cl.value();
+    else if (a == "--only") only = cl.value();
+    else if (a == "--weight-chunk") fixed.weightChunk = std::stoi(cl.value());
+    else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
+    else if (a == "--no-autotune") fixed.autotuneBatch = 0;
+    else if (a == "--mma") {
+      const std::string m = cl.value();
+      if (m != "wgmma" && m != "mma.sync") {
+        std::fprintf(stderr, "gpu_evaluator_benchmark: --mma takes wgmma or mma.sync, not '%s'\n", m.c_str());
+        return 2;
+      }
+      fixed.mma = m == "wgmma" ? FusedMma::Wgmma : FusedMma::MmaSync;
+    }
     else files.push_back(a);
   }
   const CudaDeviceInfo dev = queryCudaDevice();
@@ -85,16 +102,22 @@ int main(int argc, char** argv) {
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
   std::printf("%-28s %-14s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || !fixed.autotuneBatch;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 3; ++variant) {
+      if (!only.empty() && name.find(only) == std::string::npos) continue;
       const CudaEvaluatorPath p = variant == 2 ? CudaEvaluatorPath::Generic : CudaEvaluatorPath::Auto;
-      const FusedMma mma = variant == 1 ? FusedMma::MmaSync : FusedMma::Auto;
-      // The mma.sync row only where the autotuned fused row ran the wgmma kernel.
-      if (variant == 1 && (rows.empty() || rows.back().model != name || rows.back().launch.find("-> wgmma") == std::string::npos))
+      CudaEvaluatorOptions o = fixed;
+      if (variant == 1) o.mma = FusedMma::MmaSync;
+      // The mma.sync row only where the autotuned fused row ran the wgmma kernel; a fixed
+      // configuration gives its fused row alone.
+      if (variant == 1 && (fixedConfig || rows.empty() || rows.back().model != name ||
+                           rows.back().launch.find("-> wgmma") == std::string::npos))
         continue;
+      if (variant == 2 && fixedConfig) continue;
       Row r;
       try {
-        r = measure(model, name, p, batch, reps, mma);
+        r = measure(model, name, p, batch, reps, o);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
         continue;

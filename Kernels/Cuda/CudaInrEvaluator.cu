@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
-#include <limits>
 #include <vector>
 
 #include "Common/Activation.h"
@@ -119,7 +118,7 @@ FusedKernel fusedKernelFor(int tile, int kc) {
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-FusedKernel hopperKernelFor(int) { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernel() { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
@@ -138,11 +137,11 @@ struct FusedConfig {
   double measuredQps = 0.0;
 };
 
-// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x K 64, 4 slots, ping-pong".
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64, 4 slots, ping-pong".
 std::string configName(const FusedConfig& c) {
   if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
-  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + " x K " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + ", " +
+         std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
 }
 
 }  // namespace
@@ -161,10 +160,10 @@ struct CudaInrEvaluator::Impl {
   cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
   cuda::DeviceBuffer<MlpInstr> storedInstrs;
   cuda::DeviceBuffer<MlpInstr> instrs;
-  MlpProgram hopperProgram;  // program.withGemmsInPlace(any K)
+  MlpProgram hopperProgram;  // program.withGemmsInPlace(kHopperKSegment)
   cuda::DeviceBuffer<MlpInstr> hopperInstrs;
   cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
-  cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma core-matrix layout
+  cuda::DeviceBuffer<__half> hopperW;     // the same in the wgmma chunks' core-matrix layout
   std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
   cuda::DeviceBuffer<float> floatW;
   cuda::DeviceBuffer<float> outputTable;
@@ -220,32 +219,30 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   }
   // The wgmma kernel: built for sm_90a, so it loads only on a compute capability 9.0 device.
   if (options.mma == FusedMma::MmaSync) I.whyNoWgmma = "not requested";
-  else if (!cuda::hopperKernelFor(64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
+  else if (!cuda::hopperKernel()) I.whyNoWgmma = "not built (no CUDA architecture 90)";
   else if (I.device.major != 9 || I.device.minor != 0) I.whyNoWgmma = "needs compute capability 9.0";
   else {
     cudaFuncAttributes attr{};
-    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernelFor(64));
+    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel());
     if (e != cudaSuccess) {
       cudaGetLastError();
       I.whyNoWgmma = std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
     }
   }
-  // Each warp of the wgmma kernel reads all its A rows (chunk by chunk) before its epilogue
-  // writes them: in place at any K.
-  I.hopperProgram = prog.withGemmsInPlace(std::numeric_limits<int>::max());
+  // Each warp of the wgmma kernel holds a layer's A (K <= 256) in registers before its
+  // epilogues write the rows: in place up to that K.
+  I.hopperProgram = prog.withGemmsInPlace(cuda::kHopperKSegment);
   if (I.whyNoWgmma.empty()) {
-    for (int kc : {64, 32}) {
-      const std::vector<std::uint16_t> packed =
-          cuda::packHopperWeights(prog, kc, P.hopperOffset[cuda::kcIndex(kc)], cuda::kMaxFusedInstrs);
-      std::vector<__half> hw(packed.size());
-      for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
-      I.hopperW[cuda::kcIndex(kc)].upload(hw, nullptr);
-      P.hopperWeights[cuda::kcIndex(kc)] = I.hopperW[cuda::kcIndex(kc)].get();
-    }
+    const std::vector<std::uint16_t> packed = cuda::packHopperWeights(prog, P.hopperOffset, cuda::kMaxFusedInstrs);
+    std::vector<__half> hw(packed.size());
+    for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
+    I.hopperW.upload(hw, nullptr);
+    P.hopperWeights = I.hopperW.get();
     I.hopperInstrs.upload(I.hopperProgram.instrs, nullptr);
     P.hopperInstrs = I.hopperInstrs.get();
   }
-  P.hopperStageRows = cuda::hopperStageRows(prog);
+  P.hopperStageHalves = cuda::hopperStageHalves(prog);
+  P.hopperBiasFloats = cuda::hopperBiasLayout(prog, P.hopperBiasStart, cuda::kMaxFusedInstrs);
   P.hopperNumBuffers = std::max(1, I.hopperProgram.numBuffers);
   for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
     P.hopperBufferLd[b] = I.hopperProgram.bufferWidthPad[b] + 8;
@@ -289,10 +286,11 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       if (wgmma ? !I.whyNoWgmma.empty() : options.mma == FusedMma::Wgmma) continue;
       for (int t : {128, 64, 32})
         for (int kc : {64, 32}) {
-          if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
+          // one wgmma configuration (ring slots as many as fit), with and without turns
+          if (wgmma ? t != cuda::kHopperQueriesPerRound || kc != 64
+                    : (options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
             continue;
-          if (wgmma && t != cuda::kHopperQueriesPerRound) continue;
-          const FusedKernel kernel = wgmma ? cuda::hopperKernelFor(kc) : fusedKernelFor(t, kc);
+          const FusedKernel kernel = wgmma ? cuda::hopperKernel() : fusedKernelFor(t, kc);
           cudaFuncAttributes attr{};
           INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
           const std::size_t limit = I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
@@ -314,15 +312,17 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
           // wgmma: as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
           int stages = 0;
           for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
-            if (cuda::hopperSharedBytes(kc, s, P) <= limit) stages = s;
+            if (cuda::hopperSharedBytes(s, P) <= limit) stages = s;
           if (!stages) continue;
-          const std::size_t bytes = cuda::hopperSharedBytes(kc, stages, P);
+          const std::size_t bytes = cuda::hopperSharedBytes(stages, P);
           INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
           int perSm = 0;
           INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
           if (perSm < 1) continue;
-          const bool pingPong = cuda::hopperMaxChunks(I.hopperProgram, kc) <= stages;
-          candidates.push_back({true, t, kc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
+          const bool turnsPossible = cuda::hopperMaxChunks(prog) <= stages;
+          for (const bool pingPong : {false, true})
+            if ((!pingPong || turnsPossible) && (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong)))
+              candidates.push_back({true, t, 0, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
         }
     }
     if (candidates.empty()) {
@@ -436,7 +436,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
     const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
-    const FusedKernel kernel = c.wgmma ? cuda::hopperKernelFor(c.kc) : fusedKernelFor(c.tile, c.kc);
+    const FusedKernel kernel = c.wgmma ? cuda::hopperKernel() : fusedKernelFor(c.tile, c.kc);
     cuda::FusedParams P = c.storedEncoding ? I.paramsStored : I.params;
     if (c.wgmma) {
       P.hopperStages = c.stages;

@@ -38,8 +38,12 @@ struct CudaEvaluatorOptions {
   int autotuneBatch = 1 << 18;
   // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
   // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
-  // cannot run); MmaSync: never it.
+  // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
+  // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of 64 columns).
   FusedMma mma = FusedMma::Auto;
+  // wgmma kernel: its two consumer warpgroups take turns issuing GEMM layers (1), never (0), or
+  // both are autotuned (-1). Turns need every layer's weight chunks to fit the shared-memory ring.
+  int wgmmaPingPong = -1;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
