@@ -127,7 +127,7 @@ struct FusedConfig {
   bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
   int tile = 0, kc = 0;
   int stages = 0;         // wgmma: weight ring slots
-  bool pingPong = false;  // wgmma: the consumers take turns (every layer's chunks fit the ring)
+  bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
   // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
   // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
   // form sits on the GEMM's critical path; measured on ffn_mri_head, H100: 0.40 vs 0.28 G q/s).
@@ -309,7 +309,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
             }
             continue;
           }
-          // wgmma: as many ring slots as fit (2 at least; all of a layer's chunks for ping-pong)
+          // wgmma: as many ring slots as fit (2 at least)
           int stages = 0;
           for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
             if (cuda::hopperSharedBytes(s, P) <= limit) stages = s;
@@ -319,9 +319,8 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
           int perSm = 0;
           INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
           if (perSm < 1) continue;
-          const bool turnsPossible = cuda::hopperMaxChunks(prog) <= stages;
           for (const bool pingPong : {false, true})
-            if ((!pingPong || turnsPossible) && (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong)))
+            if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
               candidates.push_back({true, t, 0, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
         }
     }

@@ -41,8 +41,8 @@ struct CudaEvaluatorOptions {
   // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
   // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of 64 columns).
   FusedMma mma = FusedMma::Auto;
-  // wgmma kernel: its two consumer warpgroups take turns issuing GEMM layers (1), never (0), or
-  // both are autotuned (-1). Turns need every layer's weight chunks to fit the shared-memory ring.
+  // wgmma kernel: its two consumer warpgroups take turns issuing each weight chunk's MMAs (1),
+  // never (0), or both are autotuned (-1).
   int wgmmaPingPong = -1;
 };
 

@@ -86,13 +86,18 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
   __half* const act = reinterpret_cast<__half*>(consumerBase + c * consumerBytes);
   float* const coords = reinterpret_cast<float*>(consumerBase + c * consumerBytes + std::size_t(actHalves) * 2);
   auto consumerSync = [&]() { namedBarrierSync(kConsumerBarrier + c, 128); };
-  // Ping-pong turns: GEMM layers whose chunks all fit in the ring; the last such layer of the
-  // block's last round, after which consumer 1 gives no turn (nobody would take it).
-  int lastOrdered = -1;
-  if (P.hopperPingPong)
-    for (int ip = 0; ip < P.numInstrs; ++ip)
-      if (isStreamedGemm(program[ip]) && hopperChunks(program[ip]) <= stages) lastOrdered = ip;
-  if (lastOrdered >= 0 && c == 1 && int(blockIdx.x) < numRounds) namedBarrierArrive(kTurnBarrier + 0, 256);
+  // Ping-pong: the consumers take turns issuing a chunk's MMAs (named barriers; consumer 1
+  // gives the first turn). A turn passes as soon as the MMAs are issued, so the other
+  // consumer's queue behind them while this one waits and runs the chunk's epilogue: the
+  // tensor cores always have one consumer's chunk to work on, and the two epilogues never
+  // coincide. After the last chunk of the block's last round consumer 1 gives no turn (nobody
+  // would take it). Deadlock-free with any ring of >= 2 slots: a consumer is at most one chunk
+  // ahead of the other, so every slot older than the chunk it waits for has been released.
+  int lastGemm = -1;
+  for (int ip = 0; ip < P.numInstrs; ++ip)
+    if (isStreamedGemm(program[ip])) lastGemm = ip;
+  const bool turns = P.hopperPingPong && lastGemm >= 0;
+  if (turns && c == 1 && int(blockIdx.x) < numRounds) namedBarrierArrive(kTurnBarrier + 0, 256);
 
   int slot = 0;
   unsigned phase = 0;
@@ -114,8 +119,6 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
       }
       const int kSegments = (in.kPad + kHopperKSegment - 1) / kHopperKSegment;
       const int numChunks = (in.nPad + NC - 1) / NC;  // column chunks, kSegments slots each
-      const bool ordered = lastOrdered >= 0 && hopperChunks(in) <= stages;
-      const bool giveTurn = ordered && !(c == 1 && lastRound && ip == lastOrdered);
       const float* const bias = biases + P.hopperBiasStart[ip];
       const int ldSrc = in.src >= 0 ? bufferLd[in.src] : 0;
       const __half* src = in.src >= 0 ? act + bufferStart[in.src] : nullptr;
@@ -157,8 +160,13 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
       // Chunk j's MMAs, complete on return (slots released): one wgmma per k16 step per K
       // segment, the first overwriting the accumulators (the bias joins in the epilogue, which
       // costs less than starting them at the bias: ptxas shuffled those loads into place with
-      // a move per register). The turn passes once the layer's last MMAs are issued.
+      // a move per register). With turns, the turn is taken before the first MMA and passed on
+      // once the last is issued.
+      float2 chunkBias[NC / 8];  // this thread's bias pairs of the chunk (columns 8*jj + 2*t4 + {0,1})
       auto step = [&](int j) __attribute__((always_inline)) {
+#pragma unroll
+        for (int jj = 0; jj < NC / 8; ++jj)  // loaded while the MMAs run (bias is zero-padded per chunk)
+          chunkBias[jj] = *reinterpret_cast<const float2*>(bias + j * NC + 8 * jj + 2 * t4);
         for (int s = 0; s < kSegments; ++s) {
           const int k0 = s * kHopperKSegment, kLen = min(kHopperKSegment, in.kPad - k0);
           if (kSegments > 1) loadA(k0, kLen);  // K > 256: A per segment
@@ -191,7 +199,8 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
             case 15: mma(IntTag<15>{}); break;
             default: mma(IntTag<16>{}); break;
           }
-          if (s + 1 == kSegments && j + 1 == numChunks && giveTurn) namedBarrierArrive(kTurnBarrier + (1 - c), 256);
+          if (s + 1 == kSegments && turns && !(c == 1 && lastRound && ip == lastGemm && j + 1 == numChunks))
+            namedBarrierArrive(kTurnBarrier + (1 - c), 256);
           wgmmaWait<0>();
           if (lane == 0) mbarrierArrive(&emptyBar[slot]);
           if (++slot == stages) slot = 0, phase ^= 1u;
@@ -221,7 +230,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
             for (int jj = 0; jj < NC / 8; ++jj) {
               if (8 * jj >= width) break;  // the same for the whole warpgroup
               const int col = j * NC + 8 * jj + 2 * t4;
-              const float2 b = ldsFloat2InPlace(bias + col);
+              const float2 b = chunkBias[jj];
 #pragma unroll
               for (int half = 0; half < 2; ++half) {
                 float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
@@ -254,8 +263,8 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
           }
         });
       };
-      if (ordered) namedBarrierSync(kTurnBarrier + c, 256);
       for (int j = 0; j < numChunks; ++j) {
+        if (turns) namedBarrierSync(kTurnBarrier + c, 256);
         step(j);
         epilogue(j);
       }

@@ -12,26 +12,24 @@
 // barrier) and the final dot product reduces within a quad.
 // GEMM layers: A (the layer's input, K <= 256) goes to registers once per layer (ldmatrix from
 // the row-major buffer, or the Fourier encoding computed in place); the weights arrive in chunks
-// of 64 output columns x all K (one chunk per segment of 256 for wider K). Once chunk j's MMAs
-// (m64n64k16) complete, its accumulators are copied out and chunk j+1's MMAs are issued before
-// chunk j's epilogue (sine/SiLU, residual, fp16 store or the final dot) runs on the copy: the
-// special-function work of one chunk overlaps the tensor-core work of the next within a
-// warpgroup, and the two consumers interleave on top. (Reading the accumulators of a completed
-// wgmma while another is in flight, or writing them, makes ptxas serialise every wgmma of the
-// kernel, C7514/C7515: hence the copy, which costs 32 moves per chunk.) Accumulators start at
-// the bias (staged in shared memory once per block). A warp has read all its A rows before any
-// epilogue writes them, so a GEMM may write over its input
-// (MlpProgram::withGemmsInPlace(kHopperKSegment): one activation buffer for SIREN and FFN).
-// Ping-pong (optional, autotuned): the consumers take turns issuing a GEMM layer (named
-// barriers). A turn covers a whole layer, so a layer's chunks must all fit in the ring (else the
-// second consumer could never free a slot the first one waits for): layers with more chunks
-// than slots run unordered.
+// of 64 output columns x all K (one chunk per segment of 256 for wider K); a chunk's MMAs
+// (m64n64k16, the first overwriting the accumulators) complete, then its epilogue (bias,
+// sine/SiLU, residual, fp16 store or the final dot) runs while the other consumer's MMAs keep
+// the tensor cores busy. (Overlapping within a warpgroup, with a second accumulator set in
+// flight, makes ptxas serialise every wgmma of the kernel: C7514/C7515 for non-wgmma reads or
+// writes of accumulators between a wgmma and its wait; copying them out first cost ~100 moves
+// per chunk, measured slower.) A warp's GEMM reads only its own 16 rows, all of them before its
+// epilogues write them: a GEMM may write over its input (MlpProgram::withGemmsInPlace(
+// kHopperKSegment): one activation buffer for SIREN and FFN), and consecutive GEMM layers need
+// no barrier between the consumer's warps.
+// Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
+// barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
 // One instruction shape and one epilogue per activation keep the kernel small: ptxas compiles
 // it in well under a minute (48 shape x activation x residual instantiations took over nine),
 // and the instruction cache holds it.
 // ptxas allocates registers for the kernel's launch bound (168 for 384 threads) whatever
 // setmaxnreg later grants, so the consumer's working set is sized for 168: A 64, accumulators
-// and their copy 2 x 32.
+// 32.
 // The wgmma/mbarrier/bulk-copy instructions exist only in sm_90a code (__CUDA_ARCH_FEAT_SM90_ALL);
 // other targets compile the kernel body away and the host never launches it there (it asks the
 // loaded code with hopperKernel() and cudaFuncGetAttributes).
@@ -112,17 +110,6 @@ inline int hopperStageHalves(const MlpProgram& prog) {
     if (isStreamedGemm(in))
       forEachHopperChunk(in.nPad, in.kPad, [&](int, int, int kLen) { halves = std::max(halves, kHopperChunkColumns * kLen); });
   return halves;
-}
-
-// The most chunks of one GEMM layer (a ping-pong turn needs them all in the ring).
-__host__ __device__ inline int hopperChunks(const MlpInstr& in) {
-  return (in.nPad + kHopperChunkColumns - 1) / kHopperChunkColumns * ((in.kPad + kHopperKSegment - 1) / kHopperKSegment);
-}
-inline int hopperMaxChunks(const MlpProgram& prog) {
-  int most = 1;
-  for (const MlpInstr& in : prog.instrs)
-    if (isStreamedGemm(in)) most = std::max(most, hopperChunks(in));
-  return most;
 }
 
 // The GEMMs' biases in shared memory: starts[i] = instruction i's first (floats), each padded
