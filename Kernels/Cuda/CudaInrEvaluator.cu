@@ -118,14 +118,14 @@ FusedKernel fusedKernelFor(int tile, int kc) {
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-FusedKernel hopperKernel() { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernel(int) { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
 
 struct FusedConfig {
   bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
-  int tile = 0, kc = 0;
+  int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
   int stages = 0;         // wgmma: weight ring slots
   bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
   // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
@@ -137,11 +137,11 @@ struct FusedConfig {
   double measuredQps = 0.0;
 };
 
-// "tile 128 x K 64" (mma.sync) or "wgmma 2x64, 4 slots, ping-pong".
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong".
 std::string configName(const FusedConfig& c) {
   if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
-  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + ", " +
-         std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + " x N " +
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
 }
 
 }  // namespace
@@ -163,7 +163,7 @@ struct CudaInrEvaluator::Impl {
   MlpProgram hopperProgram;  // program.withGemmsInPlace(kHopperKSegment)
   cuda::DeviceBuffer<MlpInstr> hopperInstrs;
   cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
-  cuda::DeviceBuffer<__half> hopperW;     // the same in the wgmma chunks' core-matrix layout
+  cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma chunks' core-matrix layout, chunks of 64 / 128 columns
   std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
   cuda::DeviceBuffer<float> floatW;
   cuda::DeviceBuffer<float> outputTable;
@@ -219,11 +219,11 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   }
   // The wgmma kernel: built for sm_90a, so it loads only on a compute capability 9.0 device.
   if (options.mma == FusedMma::MmaSync) I.whyNoWgmma = "not requested";
-  else if (!cuda::hopperKernel()) I.whyNoWgmma = "not built (no CUDA architecture 90)";
+  else if (!cuda::hopperKernel(64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
   else if (I.device.major != 9 || I.device.minor != 0) I.whyNoWgmma = "needs compute capability 9.0";
   else {
     cudaFuncAttributes attr{};
-    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel());
+    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64));
     if (e != cudaSuccess) {
       cudaGetLastError();
       I.whyNoWgmma = std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
@@ -233,15 +233,18 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   // epilogues write the rows: in place up to that K.
   I.hopperProgram = prog.withGemmsInPlace(cuda::kHopperKSegment);
   if (I.whyNoWgmma.empty()) {
-    const std::vector<std::uint16_t> packed = cuda::packHopperWeights(prog, P.hopperOffset, cuda::kMaxFusedInstrs);
-    std::vector<__half> hw(packed.size());
-    for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
-    I.hopperW.upload(hw, nullptr);
-    P.hopperWeights = I.hopperW.get();
+    for (const int nc : cuda::kHopperChunkWidths) {
+      const int w = cuda::chunkIndex(nc);
+      const std::vector<std::uint16_t> packed = cuda::packHopperWeights(prog, nc, P.hopperOffset[w], cuda::kMaxFusedInstrs);
+      std::vector<__half> hw(packed.size());
+      for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
+      I.hopperW[w].upload(hw, nullptr);
+      P.hopperWeights[w] = I.hopperW[w].get();
+      P.hopperStageHalves[w] = cuda::hopperStageHalves(prog, nc);
+    }
     I.hopperInstrs.upload(I.hopperProgram.instrs, nullptr);
     P.hopperInstrs = I.hopperInstrs.get();
   }
-  P.hopperStageHalves = cuda::hopperStageHalves(prog);
   P.hopperBiasFloats = cuda::hopperBiasLayout(prog, P.hopperBiasStart, cuda::kMaxFusedInstrs);
   P.hopperNumBuffers = std::max(1, I.hopperProgram.numBuffers);
   for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
@@ -287,10 +290,10 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       for (int t : {128, 64, 32})
         for (int kc : {64, 32}) {
           // one wgmma configuration (ring slots as many as fit), with and without turns
-          if (wgmma ? t != cuda::kHopperQueriesPerRound || kc != 64
+          if (wgmma ? t != cuda::kHopperQueriesPerRound || kc != 64  // its own loop over chunk widths
                     : (options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
             continue;
-          const FusedKernel kernel = wgmma ? cuda::hopperKernel() : fusedKernelFor(t, kc);
+          const FusedKernel kernel = wgmma ? cuda::hopperKernel(64) : fusedKernelFor(t, kc);
           cudaFuncAttributes attr{};
           INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
           const std::size_t limit = I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
@@ -309,19 +312,23 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
             }
             continue;
           }
-          // wgmma: as many ring slots as fit (2 at least)
-          int stages = 0;
-          for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
-            if (cuda::hopperSharedBytes(s, P) <= limit) stages = s;
-          if (!stages) continue;
-          const std::size_t bytes = cuda::hopperSharedBytes(stages, P);
-          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
-          int perSm = 0;
-          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
-          if (perSm < 1) continue;
-          for (const bool pingPong : {false, true})
-            if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
-              candidates.push_back({true, t, 0, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
+          // wgmma: per chunk width (widest first), as many ring slots as fit (2 at least)
+          for (const int nc : {128, 64}) {
+            if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
+            const FusedKernel hk = cuda::hopperKernel(nc);
+            int stages = 0;
+            for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
+              if (cuda::hopperSharedBytes(nc, s, P) <= limit) stages = s;
+            if (!stages) continue;
+            const std::size_t bytes = cuda::hopperSharedBytes(nc, stages, P);
+            INR_CUDA_CHECK(cudaFuncSetAttribute(hk, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+            int perSm = 0;
+            INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, hk, cuda::kHopperThreads, bytes));
+            if (perSm < 1) continue;
+            for (const bool pingPong : {true, false})
+              if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
+                candidates.push_back({true, t, nc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
+          }
         }
     }
     if (candidates.empty()) {
@@ -435,7 +442,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
     const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
     const int tiles = (n + c.tile - 1) / c.tile;
     const int grid = std::min(tiles, c.gridBlocks);
-    const FusedKernel kernel = c.wgmma ? cuda::hopperKernel() : fusedKernelFor(c.tile, c.kc);
+    const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc) : fusedKernelFor(c.tile, c.kc);
     cuda::FusedParams P = c.storedEncoding ? I.paramsStored : I.params;
     if (c.wgmma) {
       P.hopperStages = c.stages;

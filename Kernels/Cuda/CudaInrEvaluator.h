@@ -39,11 +39,13 @@ struct CudaEvaluatorOptions {
   // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
   // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
   // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
-  // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of 64 columns).
+  // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of
+  // wgmmaChunkColumns output columns: 64 or 128, 0 = both autotuned).
   FusedMma mma = FusedMma::Auto;
   // wgmma kernel: its two consumer warpgroups take turns issuing each weight chunk's MMAs (1),
   // never (0), or both are autotuned (-1).
   int wgmmaPingPong = -1;
+  int wgmmaChunkColumns = 0;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {

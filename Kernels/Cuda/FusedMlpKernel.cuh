@@ -54,16 +54,16 @@ struct FusedParams {
   int fusedFourier = 0;
   // The Hopper kernel (FusedMlpKernelHopper.cuh): its program (MlpProgram::withGemmsInPlace, the
   // same instructions over fewer buffers) and buffers, its weights (packHopperWeights) with each
-  // instruction's offset, each GEMM's bias offset in shared memory (hopperBiasLayout) and their
+  // instruction's offset (per chunk width), each GEMM's bias offset in shared memory (hopperBiasLayout) and their
   // total, the size and number of ring slots, and whether the consumers take turns.
   const MlpInstr* hopperInstrs = nullptr;
   int hopperNumBuffers = 1;
   int hopperBufferLd[kMaxBuffers] = {};
-  const __half* hopperWeights = nullptr;
-  int hopperOffset[kMaxFusedInstrs] = {};
+  const __half* hopperWeights[2] = {nullptr, nullptr};  // per chunk width (chunkIndex)
+  int hopperOffset[2][kMaxFusedInstrs] = {};
   int hopperBiasStart[kMaxFusedInstrs] = {};
   int hopperBiasFloats = 0;
-  int hopperStageHalves = 1024;
+  int hopperStageHalves[2] = {1024, 2048};
   int hopperStages = 2;
   int hopperPingPong = 1;
   OutputMap output;
@@ -688,8 +688,9 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
 }
 
 using FusedKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
-// The Hopper kernel (FusedMlpKernelHopper.cuh; 128 queries per round; FusedMlpKernelHopper.cu,
-// built for sm_90a when the CUDA architectures include 90); nullptr when not built.
-FusedKernel hopperKernel();
+// The Hopper kernel (FusedMlpKernelHopper.cuh) for weight chunks of 64 or 128 output columns
+// (128 queries per round; FusedMlpKernelHopper.cu, built for sm_90a when the CUDA architectures
+// include 90); nullptr when not built.
+FusedKernel hopperKernel(int chunkColumns);
 
 }  // namespace inr::cuda

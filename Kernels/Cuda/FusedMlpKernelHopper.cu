@@ -9,19 +9,19 @@ namespace inr::cuda {
 // GEMM (256 threads: c waits, the other consumer arrives). 0 is __syncthreads.
 constexpr int kConsumerBarrier = 1, kTurnBarrier = 3;
 
+template <int NC>
 __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                    const unsigned* __restrict__ deviceCount,
                                                                    float* __restrict__ out, const int* __restrict__ scatter) {
 #if INR_HAVE_WGMMA
   if (deviceCount) n = min(n, int(*deviceCount));
   constexpr int KSTEPS = kHopperKSegment / 16;
-  constexpr int NC = kHopperChunkColumns;
   extern __shared__ __align__(1024) unsigned char smem[];
   __shared__ MlpInstr program[kMaxFusedInstrs];
   __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
   __shared__ alignas(8) std::uint64_t fullBar[kHopperMaxStages], emptyBar[kHopperMaxStages];
   const int stages = P.hopperStages;
-  const int stageHalves = P.hopperStageHalves;
+  const int stageHalves = P.hopperStageHalves[chunkIndex(NC)];
   __half* const ring = reinterpret_cast<__half*>(smem);
   const int actHalves = hopperActHalves(P);
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
@@ -34,7 +34,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
     if (in.dotNext)
       for (int c = threadIdx.x; c < in.nPad; c += kHopperThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
     if (isStreamedGemm(in))
-      for (int c = threadIdx.x; c < (in.nPad + NC - 1) / NC * NC; c += kHopperThreads)
+      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kHopperThreads)
         biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
   }
   if (threadIdx.x == 0) {
@@ -64,8 +64,8 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
       for (int ip = 0; ip < P.numInstrs; ++ip) {
         const MlpInstr& in = program[ip];
         if (!isStreamedGemm(in)) continue;
-        const __half* from = P.hopperWeights + P.hopperOffset[ip];
-        forEachHopperChunk(in.nPad, in.kPad, [&](int rows, int, int kLen) {
+        const __half* from = P.hopperWeights[chunkIndex(NC)] + P.hopperOffset[chunkIndex(NC)][ip];
+        forEachHopperChunk(NC, in.nPad, in.kPad, [&](int rows, int, int kLen) {
           const unsigned halves = unsigned(rows * kLen);
           mbarrierWait(&emptyBar[slot], phase ^ 1u);  // a fresh barrier counts as released
           mbarrierArriveExpectTx(&fullBar[slot], halves * 2);
@@ -178,7 +178,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
             wgmmaFence();
 #pragma unroll
             for (int ks = 0; ks < decltype(kSteps)::value; ++ks)
-              wgmmaRS64(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, kLen * 16), s > 0 || ks > 0);
+              wgmmaRS<NC>(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, kLen * 16), s > 0 || ks > 0);
             wgmmaCommit();
           };
           switch (kLen / 16) {
@@ -292,6 +292,6 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
 #endif
 }
 
-FusedKernel hopperKernel() { return hopperMlpKernel; }
+FusedKernel hopperKernel(int chunkColumns) { return chunkColumns == 128 ? hopperMlpKernel<128> : hopperMlpKernel<64>; }
 
 }  // namespace inr::cuda

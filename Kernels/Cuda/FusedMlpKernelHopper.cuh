@@ -12,8 +12,8 @@
 // barrier) and the final dot product reduces within a quad.
 // GEMM layers: A (the layer's input, K <= 256) goes to registers once per layer (ldmatrix from
 // the row-major buffer, or the Fourier encoding computed in place); the weights arrive in chunks
-// of 64 output columns x all K (one chunk per segment of 256 for wider K); a chunk's MMAs
-// (m64n64k16, the first overwriting the accumulators) complete, then its epilogue (bias,
+// of 64 or 128 output columns (autotuned) x all K (one chunk per segment of 256 for wider K); a
+// chunk's MMAs (m64n64k16 / m64n128k16, the first overwriting the accumulators) complete, then its epilogue (bias,
 // sine/SiLU, residual, fp16 store or the final dot) runs while the other consumer's MMAs keep
 // the tensor cores busy. (Overlapping within a warpgroup, with a second accumulator set in
 // flight, makes ptxas serialise every wgmma of the kernel: C7514/C7515 for non-wgmma reads or
@@ -29,7 +29,7 @@
 // and the instruction cache holds it.
 // ptxas allocates registers for the kernel's launch bound (168 for 384 threads) whatever
 // setmaxnreg later grants, so the consumer's working set is sized for 168: A 64, accumulators
-// 32.
+// 32 or 64.
 // The wgmma/mbarrier/bulk-copy instructions exist only in sm_90a code (__CUDA_ARCH_FEAT_SM90_ALL);
 // other targets compile the kernel body away and the host never launches it there (it asks the
 // loaded code with hopperKernel() and cudaFuncGetAttributes).
@@ -57,21 +57,22 @@ constexpr int kHopperRows = 64;  // queries per consumer tile (wgmma's M)
 constexpr int kHopperThreads = 128 * (1 + kHopperConsumers);
 constexpr int kHopperQueriesPerRound = kHopperRows * kHopperConsumers;
 constexpr int kHopperMaxStages = 8;
-constexpr int kHopperChunkColumns = 64;  // output columns per weight chunk (wgmma's N)
+constexpr int kHopperChunkWidths[2] = {64, 128};  // output columns per weight chunk (wgmma's N), autotuned
+constexpr int kHopperBiasPad = 128;               // each GEMM's biases padded to whole chunks of either width
+__host__ __device__ constexpr int chunkIndex(int nc) { return nc == 64 ? 0 : 1; }
 constexpr int kHopperKSegment = 256;     // K columns of A held in registers (64 per thread)
 // setmaxnreg budgets (multiples of 8): 128 x 40 + 256 x 232 = 64512 of the SM's 65536.
 constexpr int kHopperProducerRegisters = 40, kHopperConsumerRegisters = 232;
 
 // Calls f(rows, k0, kLen) for the weight chunks of a GEMM in streaming order: column blocks of
-// 64 (the last may have fewer rows), each split into K segments of 256.
+// nc (the last may have fewer rows), each split into K segments of 256.
 // (host and device: f is a host lambda in the packing code, a device one in the kernel)
 #pragma nv_exec_check_disable
 template <typename F>
-__host__ __device__ inline void forEachHopperChunk(int nPad, int kPad, F&& f) {
-  for (int j0 = 0; j0 < nPad; j0 += kHopperChunkColumns)
+__host__ __device__ inline void forEachHopperChunk(int nc, int nPad, int kPad, F&& f) {
+  for (int j0 = 0; j0 < nPad; j0 += nc)
     for (int k0 = 0; k0 < kPad; k0 += kHopperKSegment)
-      f(nPad - j0 < kHopperChunkColumns ? nPad - j0 : kHopperChunkColumns, k0,
-        kPad - k0 < kHopperKSegment ? kPad - k0 : kHopperKSegment);
+      f(nPad - j0 < nc ? nPad - j0 : nc, k0, kPad - k0 < kHopperKSegment ? kPad - k0 : kHopperKSegment);
 }
 
 __host__ __device__ inline bool isStreamedGemm(const MlpInstr& in) { return in.op == MlpOp::Gemm && !in.fusedIntoPrevious; }
@@ -81,16 +82,16 @@ __host__ __device__ inline bool isStreamedGemm(const MlpInstr& in) { return in.o
 // 8 k (128 contiguous bytes), the kLen/8 core matrices of an 8-row group next to each other
 // (leading byte offset 128 between the two k halves of a k16 step), 8-row groups kLen*16 bytes
 // apart (stride byte offset). offsets[i] = instruction i's first chunk (halves).
-inline std::vector<std::uint16_t> packHopperWeights(const MlpProgram& prog, int* offsets, int maxInstrs) {
+inline std::vector<std::uint16_t> packHopperWeights(const MlpProgram& prog, int nc, int* offsets, int maxInstrs) {
   std::vector<std::uint16_t> packed;
   for (std::size_t i = 0; i < prog.instrs.size() && i < std::size_t(maxInstrs); ++i) {
     const MlpInstr& in = prog.instrs[i];
     offsets[i] = 0;
     if (!isStreamedGemm(in)) continue;
     offsets[i] = int(packed.size());
-    int j0 = -kHopperChunkColumns;
-    forEachHopperChunk(in.nPad, in.kPad, [&](int rows, int k0, int kLen) {
-      if (k0 == 0) j0 += kHopperChunkColumns;  // the next column block
+    int j0 = -nc;
+    forEachHopperChunk(nc, in.nPad, in.kPad, [&](int rows, int k0, int kLen) {
+      if (k0 == 0) j0 += nc;  // the next column block
       const std::size_t at = packed.size();
       packed.resize(at + std::size_t(rows) * kLen, 0);
       for (int r = 0; r < rows; ++r)
@@ -102,13 +103,12 @@ inline std::vector<std::uint16_t> packHopperWeights(const MlpProgram& prog, int*
   return packed;
 }
 
-// Halves of a ring slot: 64 rows of the widest K segment (wgmma reads 64 rows of B; past a
+// Halves of a ring slot: nc rows of the widest K segment (wgmma reads nc rows of B; past a
 // narrow layer's rows it reads what the slot held before and the columns fed are discarded).
-inline int hopperStageHalves(const MlpProgram& prog) {
-  int halves = kHopperChunkColumns * 16;
+inline int hopperStageHalves(const MlpProgram& prog, int nc) {
+  int halves = nc * 16;
   for (const MlpInstr& in : prog.instrs)
-    if (isStreamedGemm(in))
-      forEachHopperChunk(in.nPad, in.kPad, [&](int, int, int kLen) { halves = std::max(halves, kHopperChunkColumns * kLen); });
+    if (isStreamedGemm(in)) forEachHopperChunk(nc, in.nPad, in.kPad, [&](int, int, int kLen) { halves = std::max(halves, nc * kLen); });
   return halves;
 }
 
@@ -120,7 +120,7 @@ inline int hopperBiasLayout(const MlpProgram& prog, int* starts, int maxInstrs) 
   for (std::size_t i = 0; i < prog.instrs.size() && i < std::size_t(maxInstrs); ++i) {
     starts[i] = at;
     if (isStreamedGemm(prog.instrs[i]))
-      at += (prog.instrs[i].nPad + kHopperChunkColumns - 1) / kHopperChunkColumns * kHopperChunkColumns;
+      at += (prog.instrs[i].nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad;
   }
   return at;
 }
@@ -132,8 +132,8 @@ __host__ __device__ inline int hopperActHalves(const FusedParams& P) {
   for (int b = 0; b < P.hopperNumBuffers; ++b) halves += kHopperRows * P.hopperBufferLd[b];
   return (halves + 63) / 64 * 64;  // keeps every consumer region 128-byte aligned
 }
-__host__ __device__ inline std::size_t hopperSharedBytes(int stages, const FusedParams& P) {
-  return std::size_t(stages) * P.hopperStageHalves * 2 +
+__host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, const FusedParams& P) {
+  return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 +
          std::size_t(kHopperConsumers) * (std::size_t(hopperActHalves(P)) * 2 + kHopperRows * 4 * 4) +
          (MlpProgram::kMaxFusedGemmOut + std::size_t(P.hopperBiasFloats)) * 4;
 }
@@ -194,25 +194,43 @@ __device__ inline void setMaxRegistersInc() {
   asm volatile("setmaxnreg.inc.sync.aligned.u32 %0;\n" ::"n"(REGS));
 }
 
-// d(64 x 64, f32, this thread's 32 fragment values) = A(64 x 16, f16 registers) * B(16 x 64, f16
-// shared memory via desc) + (accumulate ? d : 0), issued by the whole warpgroup.
-__device__ inline void wgmmaRS64(float (&d)[32], const unsigned (&a)[4], std::uint64_t desc, int accumulate) {
+// d(64 x N, f32, this thread's N/2 fragment values) = A(64 x 16, f16 registers) * B(16 x N, f16
+// shared memory via desc) + (accumulate ? d : 0), issued by the whole warpgroup; N = 64 or 128.
+template <int N>
+__device__ inline void wgmmaRS(float (&d)[N / 2], const unsigned (&a)[4], std::uint64_t desc, int accumulate) {
+  if constexpr (N == 64) {
     asm volatile(
-        "{\n.reg .pred p;\nsetp.ne.b32 p, %37, 0;\n"
-        "wgmma.mma_async.sync.aligned.m64n64k16.f32.f16.f16 {%0, %1, %2, %3, %4, %5, %6, %7, %8, %9, %10, %11, %12, %13, %14, %15, %16, %17, %18, %19, %20, %21, %22, %23, %24, %25, %26, %27, %28, %29, %30, %31}, {%32, %33, %34, %35}, %36, p, 1, 1, 0;\n}\n"
-        :
-          "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3]), "+f"(d[4]), "+f"(d[5]), "+f"(d[6]), "+f"(d[7]),
-          "+f"(d[8]), "+f"(d[9]), "+f"(d[10]), "+f"(d[11]), "+f"(d[12]), "+f"(d[13]), "+f"(d[14]), "+f"(d[15]),
-          "+f"(d[16]), "+f"(d[17]), "+f"(d[18]), "+f"(d[19]), "+f"(d[20]), "+f"(d[21]), "+f"(d[22]), "+f"(d[23]),
-          "+f"(d[24]), "+f"(d[25]), "+f"(d[26]), "+f"(d[27]), "+f"(d[28]), "+f"(d[29]), "+f"(d[30]), "+f"(d[31])
-        : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "l"(desc), "r"(accumulate));
+          "{\n.reg .pred p;\nsetp.ne.b32 p, %37, 0;\n"
+          "wgmma.mma_async.sync.aligned.m64n64k16.f32.f16.f16 {%0, %1, %2, %3, %4, %5, %6, %7, %8, %9, %10, %11, %12, %13, %14, %15, %16, %17, %18, %19, %20, %21, %22, %23, %24, %25, %26, %27, %28, %29, %30, %31}, {%32, %33, %34, %35}, %36, p, 1, 1, 0;\n}\n"
+          :
+            "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3]), "+f"(d[4]), "+f"(d[5]), "+f"(d[6]), "+f"(d[7]),
+            "+f"(d[8]), "+f"(d[9]), "+f"(d[10]), "+f"(d[11]), "+f"(d[12]), "+f"(d[13]), "+f"(d[14]), "+f"(d[15]),
+            "+f"(d[16]), "+f"(d[17]), "+f"(d[18]), "+f"(d[19]), "+f"(d[20]), "+f"(d[21]), "+f"(d[22]), "+f"(d[23]),
+            "+f"(d[24]), "+f"(d[25]), "+f"(d[26]), "+f"(d[27]), "+f"(d[28]), "+f"(d[29]), "+f"(d[30]), "+f"(d[31])
+          : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "l"(desc), "r"(accumulate));
+  } else {
+    asm volatile(
+          "{\n.reg .pred p;\nsetp.ne.b32 p, %69, 0;\n"
+          "wgmma.mma_async.sync.aligned.m64n128k16.f32.f16.f16 {%0, %1, %2, %3, %4, %5, %6, %7, %8, %9, %10, %11, %12, %13, %14, %15, %16, %17, %18, %19, %20, %21, %22, %23, %24, %25, %26, %27, %28, %29, %30, %31, %32, %33, %34, %35, %36, %37, %38, %39, %40, %41, %42, %43, %44, %45, %46, %47, %48, %49, %50, %51, %52, %53, %54, %55, %56, %57, %58, %59, %60, %61, %62, %63}, {%64, %65, %66, %67}, %68, p, 1, 1, 0;\n}\n"
+          :
+            "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3]), "+f"(d[4]), "+f"(d[5]), "+f"(d[6]), "+f"(d[7]),
+            "+f"(d[8]), "+f"(d[9]), "+f"(d[10]), "+f"(d[11]), "+f"(d[12]), "+f"(d[13]), "+f"(d[14]), "+f"(d[15]),
+            "+f"(d[16]), "+f"(d[17]), "+f"(d[18]), "+f"(d[19]), "+f"(d[20]), "+f"(d[21]), "+f"(d[22]), "+f"(d[23]),
+            "+f"(d[24]), "+f"(d[25]), "+f"(d[26]), "+f"(d[27]), "+f"(d[28]), "+f"(d[29]), "+f"(d[30]), "+f"(d[31]),
+            "+f"(d[32]), "+f"(d[33]), "+f"(d[34]), "+f"(d[35]), "+f"(d[36]), "+f"(d[37]), "+f"(d[38]), "+f"(d[39]),
+            "+f"(d[40]), "+f"(d[41]), "+f"(d[42]), "+f"(d[43]), "+f"(d[44]), "+f"(d[45]), "+f"(d[46]), "+f"(d[47]),
+            "+f"(d[48]), "+f"(d[49]), "+f"(d[50]), "+f"(d[51]), "+f"(d[52]), "+f"(d[53]), "+f"(d[54]), "+f"(d[55]),
+            "+f"(d[56]), "+f"(d[57]), "+f"(d[58]), "+f"(d[59]), "+f"(d[60]), "+f"(d[61]), "+f"(d[62]), "+f"(d[63])
+          : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "l"(desc), "r"(accumulate));
+  }
 }
 
 // Keeps the compiler from moving reads of an accumulator above the wgmma wait that completes it
 // (the asm of wgmma names the registers, the wait does not).
-__device__ inline void fenceAccumulators(float (&d)[32]) {
+template <int M>
+__device__ inline void fenceAccumulators(float (&d)[M]) {
 #pragma unroll
-  for (int i = 0; i < 32; ++i) asm volatile("" : "+f"(d[i])::"memory");
+  for (int i = 0; i < M; ++i) asm volatile("" : "+f"(d[i])::"memory");
 }
 #endif  // INR_HAVE_WGMMA
 
