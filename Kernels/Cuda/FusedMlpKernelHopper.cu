@@ -174,14 +174,17 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
           const unsigned chunkBase = ringBase + unsigned(slot * stageHalves * 2);
           // One straight run of wgmma per K length: a wgmma under a condition makes ptxas
           // serialise them all (C7520).
+          // k step ks starts 256 bytes further: + 16 in the descriptor's address field (in 16-byte
+          // units; shared addresses stay below 2^18, so the field never carries).
+          const std::uint64_t desc = wgmmaDescriptor(chunkBase, 128, kLen * 16);
           auto mma = [&](auto kSteps) __attribute__((always_inline)) {
             wgmmaFence();
 #pragma unroll
-            for (int ks = 0; ks < decltype(kSteps)::value; ++ks)
-              wgmmaRS<NC>(acc, a[ks], wgmmaDescriptor(chunkBase + ks * 256, 128, kLen * 16), s > 0 || ks > 0);
+            for (int ks = 0; ks < decltype(kSteps)::value; ++ks) wgmmaRS<NC>(acc, a[ks], desc + std::uint64_t(ks * 16), s > 0 || ks > 0);
             wgmmaCommit();
           };
-          switch (kLen / 16) {
+          if (kLen == kHopperKSegment) mma(IntTag<KSTEPS>{});  // the common case first
+          else switch (kLen / 16) {
             case 1: mma(IntTag<1>{}); break;
             case 2: mma(IntTag<2>{}); break;
             case 3: mma(IntTag<3>{}); break;
@@ -209,8 +212,9 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
       };
       // Chunk j's epilogue: act(acc + bias) [+ residual] to fp16 in dst, or into the final dot,
       // or (finalOutput) column 0 straight to the output. Fragment i of acc is row
-      // g + 8*((i>>1)&1), column j*64 + 8*(i>>2) + 2*t4 + (i&1). One body per activation,
-      // residual and dot: runtime tests inside the unrolled loop cost a branch per pair.
+      // g + 8*((i>>1)&1), column j*NC + 8*(i>>2) + 2*t4 + (i&1). One body per activation,
+      // residual and dot for whole chunks: runtime tests inside the unrolled loop cost a branch
+      // per pair.
       auto epilogue = [&](int j) __attribute__((always_inline)) {
         if (in.finalOutput) {  // column 0 (t4 0, chunk 0): fragments 0 (row g) and 2 (row g+8)
           if (t4 == 0 && j == 0)
@@ -225,41 +229,52 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
         const int width = min(NC, in.nPad - j * NC);  // a multiple of 16
         dispatchActivation(in.act, [&](auto A) {
           constexpr MlpAct kAct = decltype(A)::value;
-          auto body = [&](auto residual, auto dot) __attribute__((always_inline)) {
-#pragma unroll
-            for (int jj = 0; jj < NC / 8; ++jj) {
-              if (8 * jj >= width) break;  // the same for the whole warpgroup
-              const int col = j * NC + 8 * jj + 2 * t4;
-              const float2 b = chunkBias[jj];
-#pragma unroll
-              for (int half = 0; half < 2; ++half) {
-                float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
-                float v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
-                if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
-                  if (col >= in.outWidth) v0 = 0.f;
-                  if (col + 1 >= in.outWidth) v1 = 0.f;
-                }
-                const int row = rowBase + g + 8 * half;
-                if constexpr (decltype(residual)::value) {
-                  const float2 o = ldsHalf2AsFloat2InPlace(other + row * ldOther + col);
-                  v0 = in.combineScale * (v0 + o.x);
-                  v1 = in.combineScale * (v1 + o.y);
-                }
-                if constexpr (decltype(dot)::value) {
-                  const float2 w = ldsFloat2InPlace(dotWeights + col);
-                  part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
-                } else {
-                  *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
-                }
-              }
+          // The pair of columns (col, col + 1) of row g + 8*half from fragments 4*jj + 2*half, +1.
+          auto pair = [&](int jj, int half, bool residual, bool dot) __attribute__((always_inline)) {
+            const int col = j * NC + 8 * jj + 2 * t4;
+            const float2 b = chunkBias[jj];
+            float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
+            float v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
+            if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
+              if (col >= in.outWidth) v0 = 0.f;
+              if (col + 1 >= in.outWidth) v1 = 0.f;
+            }
+            const int row = rowBase + g + 8 * half;
+            if (residual) {
+              const float2 o = ldsHalf2AsFloat2InPlace(other + row * ldOther + col);
+              v0 = in.combineScale * (v0 + o.x);
+              v1 = in.combineScale * (v1 + o.y);
+            }
+            if (dot) {
+              const float2 w = ldsFloat2InPlace(dotWeights + col);
+              part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
+            } else {
+              *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
             }
           };
-          if (other) {
-            if (in.dotNext) body(BoolTag<true>{}, BoolTag<true>{});
-            else body(BoolTag<true>{}, BoolTag<false>{});
-          } else {
-            if (in.dotNext) body(BoolTag<false>{}, BoolTag<true>{});
-            else body(BoolTag<false>{}, BoolTag<false>{});
+          // A whole chunk: no test inside the unrolled loop, so ptxas interleaves all its pairs
+          // (a branch per 8 columns left 4 sines in flight; MUFU latency showed as stalls).
+          auto whole = [&](auto residual, auto dot) __attribute__((always_inline)) {
+#pragma unroll
+            for (int jj = 0; jj < NC / 8; ++jj)
+#pragma unroll
+              for (int half = 0; half < 2; ++half) pair(jj, half, decltype(residual)::value, decltype(dot)::value);
+          };
+          if (width == NC) {
+            if (other) {
+              if (in.dotNext) whole(BoolTag<true>{}, BoolTag<true>{});
+              else whole(BoolTag<true>{}, BoolTag<false>{});
+            } else {
+              if (in.dotNext) whole(BoolTag<false>{}, BoolTag<true>{});
+              else whole(BoolTag<false>{}, BoolTag<false>{});
+            }
+            return;
+          }
+#pragma unroll
+          for (int jj = 0; jj < NC / 8; ++jj) {  // the last chunk of a layer narrower than NC
+            if (8 * jj >= width) break;           // the same for the whole warpgroup
+#pragma unroll
+            for (int half = 0; half < 2; ++half) pair(jj, half, other != nullptr, in.dotNext != 0);
           }
         });
       };
