@@ -2,10 +2,10 @@
 // on the paper-size architectures and on model files, timed with CUDA events (median of R
 // launches over one batch of N random world points already on the device).
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
-//                           [--only NAME] [--mma wgmma|mma.sync] [--weight-chunk KC] [--ping-pong 0|1]
+//                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
 //                           [--wgmma-columns 64|128]
 //                           [--no-autotune] [MODEL.inr ...]
-// --only keeps the models whose name contains NAME; --mma, --weight-chunk (mma.sync),
+// --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
 // the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel.
@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
     else if (a == "--write-models") writeDir = cl.value();
     else if (a == "--only") only = cl.value();
     else if (a == "--weight-chunk") fixed.weightChunk = std::stoi(cl.value());
+    else if (a == "--tile") fixed.tileQueries = std::stoi(cl.value());
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--no-autotune") fixed.autotuneBatch = 0;
@@ -105,7 +106,7 @@ int main(int argc, char** argv) {
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
   std::printf("%-28s %-14s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
-  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch;
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 3; ++variant) {
       if (!only.empty() && name.find(only) == std::string::npos) continue;
