@@ -283,54 +283,54 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
   }
   if (fused) {
+    // Dynamic shared memory a kernel may have beside its static shared memory.
+    auto sharedLimit = [&](FusedKernel kernel) {
+      cudaFuncAttributes attr{};
+      INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
+      return I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
+    };
     // mma.sync candidates first: without autotuning the first that fits runs, and that stays
     // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
-    for (const bool wgmma : {false, true}) {
-      if (wgmma ? !I.whyNoWgmma.empty() : options.mma == FusedMma::Wgmma) continue;
+    if (options.mma != FusedMma::Wgmma)
       for (int t : {128, 64, 32})
         for (int kc : {64, 32}) {
-          // one wgmma configuration (ring slots as many as fit), with and without turns
-          if (wgmma ? t != cuda::kHopperQueriesPerRound || kc != 64  // its own loop over chunk widths
-                    : (options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc))
-            continue;
-          const FusedKernel kernel = wgmma ? cuda::hopperKernel(64) : fusedKernelFor(t, kc);
-          cudaFuncAttributes attr{};
-          INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
-          const std::size_t limit = I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
-          if (!wgmma) {  // the fused and the stored encoding (where the program has one), each if it fits
-            // (one kernel, two shared-memory sizes: its limit allows either at launch)
-            INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
-            for (const bool stored : {true, false}) {  // stored first: the kernel of earlier versions
-              if (stored && !P.fusedFourier) continue;
-              const std::size_t b = cuda::fusedSharedBytes(t, kc, stored ? I.paramsStored : P);
-              if (b > limit) continue;
-              int perSm = 0;
-              INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
-              if (perSm < 1) continue;
-              FusedConfig c{false, t, kc, 0, false, stored, b, perSm * I.device.multiprocessors, 0.0};
-              candidates.push_back(c);
-            }
-            continue;
-          }
-          // wgmma: per chunk width (widest first), as many ring slots as fit (2 at least)
-          for (const int nc : {128, 64}) {
-            if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
-            const FusedKernel hk = cuda::hopperKernel(nc);
-            int stages = 0;
-            for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
-              if (cuda::hopperSharedBytes(nc, s, P) <= limit) stages = s;
-            if (!stages) continue;
-            const std::size_t bytes = cuda::hopperSharedBytes(nc, stages, P);
-            INR_CUDA_CHECK(cudaFuncSetAttribute(hk, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+          if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc)) continue;
+          const FusedKernel kernel = fusedKernelFor(t, kc);
+          // the fused and the stored encoding (where the program has one), each if it fits (one
+          // kernel, two shared-memory sizes: its limit allows either at launch)
+          const std::size_t limit = sharedLimit(kernel);
+          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+          for (const bool stored : {true, false}) {  // stored first: the kernel of earlier versions
+            if (stored && !P.fusedFourier) continue;
+            const std::size_t b = cuda::fusedSharedBytes(t, kc, stored ? I.paramsStored : P);
+            if (b > limit) continue;
             int perSm = 0;
-            INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, hk, cuda::kHopperThreads, bytes));
+            INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
             if (perSm < 1) continue;
-            for (const bool pingPong : {true, false})
-              if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
-                candidates.push_back({true, t, nc, stages, pingPong, false, bytes, perSm * I.device.multiprocessors, 0.0});
+            candidates.push_back({false, t, kc, 0, false, stored, b, perSm * I.device.multiprocessors, 0.0});
           }
         }
-    }
+    // wgmma (2 x 64 queries per round): per chunk width (widest first), as many ring slots as
+    // fit (2 at least), with and without turns
+    if (I.whyNoWgmma.empty())
+      for (const int nc : {128, 64}) {
+        if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
+        const FusedKernel kernel = cuda::hopperKernel(nc);
+        const std::size_t limit = sharedLimit(kernel);
+        int stages = 0;
+        for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
+          if (cuda::hopperSharedBytes(nc, s, P) <= limit) stages = s;
+        if (!stages) continue;
+        const std::size_t bytes = cuda::hopperSharedBytes(nc, stages, P);
+        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+        int perSm = 0;
+        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
+        if (perSm < 1) continue;
+        for (const bool pingPong : {true, false})
+          if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
+            candidates.push_back({true, cuda::kHopperQueriesPerRound, nc, stages, pingPong, false, bytes,
+                                  perSm * I.device.multiprocessors, 0.0});
+      }
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";

@@ -54,8 +54,9 @@ struct FusedParams {
   int fusedFourier = 0;
   // The Hopper kernel (FusedMlpKernelHopper.cuh): its program (MlpProgram::withGemmsInPlace, the
   // same instructions over fewer buffers) and buffers, its weights (packHopperWeights) with each
-  // instruction's offset (per chunk width), each GEMM's bias offset in shared memory (hopperBiasLayout) and their
-  // total, the size and number of ring slots, and whether the consumers take turns.
+  // instruction's offset (per chunk width), each GEMM's bias offset in shared memory
+  // (hopperBiasLayout) and their total, the size and number of ring slots, and whether the
+  // consumers take turns.
   const MlpInstr* hopperInstrs = nullptr;
   int hopperNumBuffers = 1;
   int hopperBufferLd[kMaxBuffers] = {};
