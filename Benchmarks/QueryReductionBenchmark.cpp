@@ -59,7 +59,9 @@ const char* kUsage =
     "  --max-frames N          at most N frames per configuration (default 100000)\n"
     "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
-    "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA]   (default: the paper's set)\n"
+    "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]]\n"
+    "                          (ratio tracking, majorant scale K, points per iteration P, roulette\n"
+    "                          threshold R; join with '+', e.g. ratio:4+prune:0.02; default: the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
     "                          growing by 2^(1/4), plus 400 and the last; default GPU)\n"
     "  --heatmap-frames N      frames counted for the rays-per-pixel heatmaps (default 64; 0 = none)\n"
@@ -113,8 +115,9 @@ std::string fmt(double v) {
 
 struct Config {
   std::string label;   // canonical spec, e.g. "stbn:0.75" (also the file-name stem)
-  std::string family;  // none, defaults, histogram, stbn, weighted-stbn, prune
+  std::string family;  // none, defaults, histogram, stbn, weighted-stbn, prune, delta, ratio
   QueryReductionSettings q;
+  TrackingOptions tracking;  // the primary estimator (delta unless a ratio part says otherwise)
 };
 
 // Everything off: the estimator the reference uses. Spelled out rather than taken from the
@@ -173,6 +176,20 @@ Config parseSingleConfig(const std::string& spec) {
     c.q.budgetFraction = num(1, 0);
     c.q.budgetAlpha = num(2, 0.5);
     c.label = "weighted:" + fmt(c.q.budgetFraction) + ":" + fmt(c.q.budgetAlpha);
+  } else if (f == "delta") {
+    arity(1, 1);
+    c.family = "delta";
+    c.label = "delta";
+  } else if (f == "ratio") {
+    arity(1, 4);
+    c.family = "ratio";
+    c.tracking.estimator = PrimaryEstimator::Ratio;
+    c.tracking.majorantScale = num(1, c.tracking.majorantScale);
+    c.tracking.pointsPerIteration = int(num(2, c.tracking.pointsPerIteration));
+    c.tracking.rouletteThreshold = num(3, c.tracking.rouletteThreshold);
+    c.tracking.validate();
+    c.label = "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
+              fmt(c.tracking.rouletteThreshold);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -182,7 +199,7 @@ Config parseSingleConfig(const std::string& spec) {
   } else {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
-                                "prune:EPSILON[:DELTA])");
+                                "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]])");
   }
   c.q.validate();
   return c;
@@ -196,7 +213,9 @@ Config parseConfig(const std::string& spec) {
   Config c = parseSingleConfig(parts[0]);
   for (std::size_t k = 1; k < parts.size(); ++k) {
     const Config p = parseSingleConfig(parts[k]);
-    if (p.family == "prune") {
+    if (p.family == "ratio" || p.family == "delta") {
+      c.tracking = p.tracking;
+    } else if (p.family == "prune") {
       c.q.pruneEpsilon = p.q.pruneEpsilon;
       c.q.pruneFalloff = p.q.pruneFalloff;
     } else {
@@ -278,8 +297,10 @@ struct ModelCase {
 };
 
 std::unique_ptr<RenderSession> makeSession(const ModelCase& m, const Options& o, const QueryReductionSettings& q,
-                                           std::uint32_t seed, bool jitter = true) {
+                                           std::uint32_t seed, bool jitter = true,
+                                           const TrackingOptions& tracking = TrackingOptions{}) {
   RenderSessionOptions so;
+  so.tracking = tracking;
   so.backend = parseRenderBackend(o.backend);
   so.allowFallback = false;  // a CPU number labelled GPU would be worse than no number
   so.macrocells.dims = Int3{o.macrocells, o.macrocells, o.macrocells};
@@ -315,7 +336,8 @@ struct Outputs {
     open(summary, "summary.csv",
          "model,backend,size,config,family,rho,max_skip,alpha,epsilon,delta,frames,seconds,fps,time_to_35,time_to_40,"
          "psnr_400_volume,psnr_end_volume,psnr_end_image,mad_end_volume,rays_per_frame,budget_skipped_per_frame,"
-         "pruned_per_frame,queries_per_frame,heatmap_mean,reference_frames,covered_fraction\n");
+         "pruned_per_frame,queries_per_frame,heatmap_mean,reference_frames,covered_fraction,estimator,majorant_scale,"
+         "points_per_iteration,iterations_per_frame,traverse_ms_per_frame,evaluate_ms_per_frame\n");
     open(raymarch, "raymarch.csv", "model,backend,size,step_divisor,step,seconds,psnr_volume,psnr_image,mad_volume,"
                                    "queries\n");
     open(orbit, "orbit.csv", "model,mode,step,degrees,frame_in_step,accumulated_frames,seconds,psnr_volume,"
@@ -418,7 +440,7 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
                      Outputs& out, const std::string& imageDir) {
   RunSummary r;
   r.config = c;
-  auto s = makeSession(m, o, c.q, 1u);
+  auto s = makeSession(m, o, c.q, 1u, true, c.tracking);
   const bool everyFrame = o.psnrSchedule == "all";
   RayHeatmap heat(o.heatmapFrames);
   bool snapshotWritten = false;
@@ -654,10 +676,16 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
                 << csvNum(r.end.image) << ',' << csvNum(r.end.madVolume) << ',' << csvNum(r.total.rays / n) << ','
                 << csvNum(r.total.budgetSkipped / n) << ',' << csvNum(r.total.pruned / n) << ','
                 << csvNum(r.total.queries / n) << ',' << csvNum(r.heatmapMean) << ',' << o.referenceFrames << ','
-                << csvNum(ref.coveredFraction) << '\n';
+                << csvNum(ref.coveredFraction) << ',' << primaryEstimatorName(c.tracking.estimator) << ','
+                << csvNum(c.tracking.majorantScale) << ',' << c.tracking.pointsPerIteration << ','
+                << csvNum(r.total.iterations / n) << ',' << csvNum(r.total.traverseMs / n) << ','
+                << csvNum(r.total.evaluateMs / n) << '\n';
     out.summary.flush();
-    std::printf("   %-22s %6d frames %7.3f s  t35 %s s  t40 %s s  end %.2f dB\n", c.label.c_str(), r.frames, r.seconds,
-                secondsOrDash(r.time35).c_str(), secondsOrDash(r.time40).c_str(), r.end.volume);
+    std::printf("   %-22s %6d frames %7.3f s  t35 %s s  t40 %s s  end %.2f dB  (%.1f iterations, %.0f queries, "
+                "%.3f ms per frame: traverse %.3f, evaluate %.3f)\n",
+                c.label.c_str(), r.frames, r.seconds, secondsOrDash(r.time35).c_str(), secondsOrDash(r.time40).c_str(),
+                r.end.volume, r.total.iterations / n, r.total.queries / n, 1e3 * r.seconds / n, r.total.traverseMs / n,
+                r.total.evaluateMs / n);
     // Where a frame's time goes: what budgeting can shrink (per-ray work) and what it cannot
     // (per-iteration and per-pixel passes).
     const double f = double(std::max(1, r.frames));

@@ -11,6 +11,7 @@
 #include "Render/RayInit.h"
 #include "Render/Reproject.h"
 #include "Render/Shadows.h"
+#include "Render/RatioTracking.h"
 #include "Render/Traverse.h"
 
 namespace inr {
@@ -89,29 +90,46 @@ double DeltaTrackingRenderer::applyDirtyMajorants() {
 }
 
 void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
-                                            int& iterations, std::size_t& queries,
+                                            const PointStateView* points, int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
                                             std::size_t& refinements, bool& truncated) {
   const RayStateView rs = rays_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
+  const bool pruning = medium.prune.expected != nullptr;
+  auto noop = [](auto&&...) {};
   for (int loopIterations = 0;; ++loopIterations) {
     auto t0 = Clock::now();
+    if (points) {
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-    for (int i = 0; i < n; ++i) traverseRay(fc, medium, rs, i);
+      for (int i = 0; i < n; ++i) {
+        if (pruning)
+          traverseRatioRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+        else
+          traverseRatioRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+      }
+    } else {
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
+      for (int i = 0; i < n; ++i) traverseRay(fc, medium, rs, i);
+    }
     traverseMs += msSince(t0);
 
     t0 = Clock::now();
-    const std::size_t k = batch_.gather(rs, fc.time);
+    // Delta tracking: one query per pending ray (batch entries are ray indices); ratio tracking:
+    // the rays' points that need the network (entries are point slots, ray = slot mod n).
+    const std::size_t k = points ? batch_.gatherPoints(rs, *points, fc.time) : batch_.gather(rs, fc.time);
     if (k == 0) {
       evaluateMs += msSince(t0);
       break;
     }
+    const int* entries = batch_.rayIndices();
+    auto rayOf = [&](std::size_t q) { return points ? entries[q] % n : entries[q]; };
     if (loopIterations >= options_.maxIterations) {  // bounded work: the pending rays stop here
-      const int* rays = batch_.rayIndices();
       for (std::size_t q = 0; q < k; ++q) {
-        rs.flags[rays[q]] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
-        rs.sample[rays[q]] = NAN;
+        const int i = rayOf(q);
+        rs.flags[i] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
+        rs.sample[i] = NAN;
+        rs.pointCount[i] = 0;
       }
       truncated = true;
       evaluateMs += msSince(t0);
@@ -120,26 +138,29 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
     ++iterations;
     queries += k;
     batch_.evaluate(evaluator_);
-    batch_.scatter(rs);
+    if (points)
+      batch_.scatterPoints(*points);
+    else
+      batch_.scatter(rs);
+    const float* values = batch_.values();
     if (options_.refineMacrocells) {
       // Serial and in batch order: widening is order-independent anyway, and majorants only
       // change between frames, so the image does not depend on the thread count.
-      const int* rays = batch_.rayIndices();
-      const float* values = batch_.values();
       for (std::size_t q = 0; q < k; ++q) {
-        refinements += macrocells_.refine(linearCellIndex(dims, rs.cell[rays[q]]), values[q]) ? 1 : 0;
+        const int cell = points ? points->cell[entries[q]] : linearCellIndex(dims, rs.cell[entries[q]]);
+        refinements += macrocells_.refine(cell, values[q]) ? 1 : 0;
       }
     }
-    if (medium.prune.expected) {
+    if (pruning) {
       // Pruning's expected scalars learn from every real evaluation (Eq. ev_ema): serial and in
       // batch (= ray) order, so they and the image do not depend on the thread count. Before
       // the next traversal reads them.
-      const int* rays = batch_.rayIndices();
-      const float* values = batch_.values();
       for (std::size_t q = 0; q < k; ++q) {
         int cell;
         float estimate;
-        if (expectedAfterQuery(medium, rs, rays[q], values[q], cell, estimate)) medium.prune.expected[cell] = estimate;
+        const bool learned = points ? expectedAfterPoint(medium, rs, *points, rayOf(q), entries[q], values[q], cell, estimate)
+                                    : expectedAfterQuery(medium, rs, entries[q], values[q], cell, estimate);
+        if (learned) medium.prune.expected[cell] = estimate;
       }
     }
     evaluateMs += msSince(t0);
@@ -147,7 +168,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
 }
 
 FrameStats DeltaTrackingRenderer::renderFrame() {
-  FrameStats st = beginFrame("delta", "renderFrame");
+  FrameStats st = beginFrame(options_.estimator == PrimaryEstimator::Ratio ? "ratio" : "delta", "renderFrame");
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
@@ -171,7 +192,15 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.initMs = msSince(t0);
 
   bool truncated = false;
-  runTrackingLoop(fc, medium, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements, truncated);
+  const PointStateView* points = nullptr;
+  if (fc.estimator == PrimaryEstimator::Ratio) {
+    const std::size_t slots = std::size_t(n) * std::size_t(fc.pointsPerIteration);
+    if (points_.count != slots) points_.resize(slots);
+    pointsView_ = points_.view();
+    points = &pointsView_;
+  }
+  runTrackingLoop(fc, medium, points, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
+                  truncated);
 
   if (fc.shadows) {
     t0 = Clock::now();
@@ -183,7 +212,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     }
     st.shadowRays = shadowRays;
     st.shadowTraverseMs += msSince(t0);
-    runTrackingLoop(fc, medium, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
+    runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
                     st.shadowEvaluateMs, st.refinements, truncated);
   }
   if (prune.expected) st.pruned = sumPruned(rs);
@@ -291,7 +320,7 @@ void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, c
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
   bool truncated = false;
-  runTrackingLoop(fc, medium, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
+  runTrackingLoop(fc, medium, nullptr, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
                   total.refinements, truncated);
 }
 

@@ -56,7 +56,9 @@ private:
     return WavefrontRenderer::frameConstants(frame, scene_.depthLimit.data());
   }
   double applyDirtyMajorants();
-  void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, int& iterations,
+  // `points`: ratio tracking's point storage for a ratio-tracked primary leg, else null.
+  void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, const PointStateView* points,
+                       int& iterations,
                        std::size_t& queries, double& traverseMs, double& evaluateMs,
                        std::size_t& refinements, bool& truncated);
 
@@ -64,6 +66,8 @@ private:
   MacrocellGrid& macrocells_;
   MajorantArrays majorants_;
   RayStateArrays<HostArray> rays_;
+  PointStateArrays<HostArray> points_;  // ratio tracking: rays x pointsPerIteration (sized on use)
+  PointStateView pointsView_;
   PixelStateArrays<HostArray> pixels_;
   PixelStateArrays<HostArray> history_;       // reprojection's copy of the old accumulation
   std::vector<std::uint64_t> reprojectKeys_;  // reprojection's per-pixel minimum offer

@@ -1,5 +1,7 @@
 #include "Render/QueryBatch.h"
 
+#include <algorithm>
+
 #include "Render/CpuParallel.h"
 #include "Render/Evaluate.h"
 
@@ -10,15 +12,15 @@ namespace {
 constexpr int kChunk = 4096;
 }  // namespace
 
-std::size_t QueryBatch::gather(const RayStateView& rs, float time) {
-  const int n = rs.count;
+template <typename Count, typename Write>
+std::size_t QueryBatch::compact(int n, Count&& count, Write&& write) {
   const int chunks = (n + kChunk - 1) / kChunk;
   chunkOffsets_.assign(std::size_t(chunks) + 1, 0);
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int c = 0; c < chunks; ++c) {
     std::size_t k = 0;
     const int end = std::min(n, (c + 1) * kChunk);
-    for (int i = c * kChunk; i < end; ++i) k += (rs.flags[i] & kRayPending) ? 1 : 0;
+    for (int i = c * kChunk; i < end; ++i) k += count(i);
     chunkOffsets_[c + 1] = k;
   }
   for (int c = 0; c < chunks; ++c) chunkOffsets_[c + 1] += chunkOffsets_[c];
@@ -32,14 +34,47 @@ std::size_t QueryBatch::gather(const RayStateView& rs, float time) {
   for (int c = 0; c < chunks; ++c) {
     std::size_t k = chunkOffsets_[c];
     const int end = std::min(n, (c + 1) * kChunk);
-    for (int i = c * kChunk; i < end; ++i) {
-      if (!(rs.flags[i] & kRayPending)) continue;
-      points_[k] = pendingQuery(rs, i, time);
-      rays_[k] = i;
-      ++k;
-    }
+    for (int i = c * kChunk; i < end; ++i) write(i, k);
   }
   return count_;
+}
+
+std::size_t QueryBatch::gather(const RayStateView& rs, float time) {
+  return compact(
+      rs.count, [&](int i) -> std::size_t { return (rs.flags[i] & kRayPending) ? 1 : 0; },
+      [&](int i, std::size_t& k) {
+        if (!(rs.flags[i] & kRayPending)) return;
+        points_[k] = pendingQuery(rs, i, time);
+        rays_[k] = i;
+        ++k;
+      });
+}
+
+std::size_t QueryBatch::gatherPoints(const RayStateView& rs, const PointStateView& pts, float time) {
+  const int n = rs.count;
+  auto pending = [&](int i) { return (rs.flags[i] & kRayPending) ? int(rs.pointCount[i]) : 0; };
+  return compact(
+      n,
+      [&](int i) -> std::size_t {
+        std::size_t k = 0;
+        for (int j = 0, m = pending(i); j < m; ++j) k += pts.majorant[pointSlot(n, i, j)] > 0.f ? 1 : 0;
+        return k;
+      },
+      [&](int i, std::size_t& k) {
+        for (int j = 0, m = pending(i); j < m; ++j) {
+          const int slot = pointSlot(n, i, j);
+          if (!(pts.majorant[slot] > 0.f)) continue;  // pruned: answered already
+          points_[k] = ratioPointQuery(rs, pts, i, slot, time);
+          rays_[k] = slot;
+          ++k;
+        }
+      });
+}
+
+void QueryBatch::scatterPoints(const PointStateView& pts) const {
+  const long long n = (long long)count_;
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (long long k = 0; k < n; ++k) pts.sample[rays_[k]] = values_[k];
 }
 
 void QueryBatch::evaluate(const FieldEvaluator& evaluator) {

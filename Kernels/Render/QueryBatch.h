@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
+#include "Render/RatioTracking.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -16,12 +17,20 @@ public:
   std::size_t gather(const RayStateView& rs, float time);
   void evaluate(const FieldEvaluator& evaluator);
   void scatter(const RayStateView& rs) const;
+  // Ratio tracking (RatioTracking.h): the pending points that need the network (majorant > 0),
+  // in ray order, then point order; rayIndices() then holds their slots.
+  std::size_t gatherPoints(const RayStateView& rs, const PointStateView& pts, float time);
+  void scatterPoints(const PointStateView& pts) const;
 
   std::size_t size() const { return count_; }
   const int* rayIndices() const { return rays_.data(); }
   const float* values() const { return values_.data(); }
 
 private:
+  // Compacts, in ray order, the queries `count(i)` says ray i has, written by write(i, k).
+  template <typename Count, typename Write>
+  std::size_t compact(int n, Count&& count, Write&& write);
+
   std::vector<QueryPoint> points_;
   std::vector<int> rays_;
   std::vector<float> values_;

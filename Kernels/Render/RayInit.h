@@ -30,6 +30,8 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.visibility[i] = 1.f;
   rs.rngCounter[i] = rng.counter;
   rs.pruned[i] = 0;
+  rs.pointCount[i] = 0;
+  rs.hitT[i] = 0.f;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 

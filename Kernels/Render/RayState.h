@@ -29,6 +29,12 @@ enum RayFlag : std::uint8_t {
   kRayEntered = 1u << 7,        // the primary ray entered the volume (its segment was not empty)
 };
 
+// The primary (camera-ray) estimator of the emission-absorption integral.
+enum class PrimaryEstimator : int {
+  Delta = 0,  // the paper's delta tracking, collision estimator: one binary event per ray
+  Ratio = 1,  // ratio-tracking emission weights at every tentative collision (RatioTracking.h)
+};
+
 enum class ShadowEstimator : int {
   Delta = 0,  // binary visibility: stop at the first real collision (fewest queries)
   Ratio = 1,  // transmittance product over all tentative collisions (less noise, more queries)
@@ -52,6 +58,9 @@ enum class ShadowEstimator : int {
 //                      coverage (w = 1 on a real collision, 0 when the ray escaped)
 //   visibility         visibility towards the light
 //   pruned             candidates answered by homogeneity pruning this frame (Pruning.h), both legs
+//   pointCount         ratio tracking (RatioTracking.h): the ray's points waiting for the evaluator
+//   hitT               ratio tracking: ray parameter of the emission point picked for the shadow ray
+//                      and the reprojection hit point (reservoir over the emission weights)
 #define INR_RAY_STATE_FIELDS(X) \
   X(Vec3f, origin)              \
   X(Vec3f, direction)           \
@@ -65,7 +74,9 @@ enum class ShadowEstimator : int {
   X(Vec3f, tNext)               \
   X(Vec4f, radiance)            \
   X(float, visibility)          \
-  X(std::uint32_t, pruned)
+  X(std::uint32_t, pruned)       \
+  X(std::uint8_t, pointCount)    \
+  X(float, hitT)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
 // declared the same way; resetPixel (Finalize.h) gives their values after a reset.
@@ -112,6 +123,11 @@ struct FrameConstants {
   Vec3f toLight{0.f, 0.f, 1.f};       // unit model-space vector towards the (directional) light
   Vec3f background{0.f, 0.f, 0.f};
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+  // Primary estimator and ratio tracking's knobs (TrackingOptions; RatioTracking.h).
+  PrimaryEstimator estimator = PrimaryEstimator::Delta;
+  float majorantScale = 1.f;       // tentative collisions at majorantScale x the cell majorant
+  float rouletteThreshold = 0.05f; // Russian roulette below this transmittance estimate
+  int pointsPerIteration = 1;      // tentative collisions a ray hands the evaluator per iteration
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking
   // (kRayCapped; it counts as escaped). Every candidate collision takes two draws, so this caps
   // the null collisions a pathological majorant (a tiny opacity unit distance) can cost.

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "Render/RatioTracking.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -49,6 +50,8 @@ T* arrayData(HostArray<T>& a) {
 INR_DEFINE_STATE_ARRAYS(RayStateArrays, RayStateView, INR_RAY_STATE_FIELDS)
 // Reset the accumulation (resetPixel) after a resize.
 INR_DEFINE_STATE_ARRAYS(PixelStateArrays, AccumulationView, INR_PIXEL_STATE_FIELDS)
+// Ratio tracking's pending points (RatioTracking.h): rays x pointsPerIteration slots.
+INR_DEFINE_STATE_ARRAYS(PointStateArrays, PointStateView, INR_POINT_STATE_FIELDS)
 
 #undef INR_DEFINE_STATE_ARRAYS
 #undef INR_STATE_DECLARE_ARRAY

@@ -16,6 +16,14 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 }  // namespace
 
+const char* primaryEstimatorName(PrimaryEstimator e) { return e == PrimaryEstimator::Ratio ? "ratio" : "delta"; }
+
+PrimaryEstimator parsePrimaryEstimator(const std::string& name) {
+  if (name == "delta") return PrimaryEstimator::Delta;
+  if (name == "ratio") return PrimaryEstimator::Ratio;
+  throw std::invalid_argument("estimator must be delta or ratio, got '" + name + "'");
+}
+
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
   const std::uint64_t k = std::uint64_t(std::max(1, maxCollisionsPerRay));
   return std::uint32_t(std::min<std::uint64_t>(0xffffffffu, 2 + 2 * k + 32));
@@ -29,6 +37,15 @@ void TrackingOptions::validate() const {
                                 std::to_string(ghostPassesOnUpdate));
   }
   if (ghostPixelStride < 1) throw std::invalid_argument("ghostPixelStride must be >= 1");
+  if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio)
+    throw std::invalid_argument("estimator must be delta (0) or ratio (1), got " + std::to_string(int(estimator)));
+  if (!(majorantScale >= 1.0 && majorantScale <= 1024.0))
+    throw std::invalid_argument("majorant scale must be in [1, 1024], got " + std::to_string(majorantScale));
+  if (pointsPerIteration < 1 || pointsPerIteration > kMaxPointsPerIteration)
+    throw std::invalid_argument("points per iteration must be in [1, " + std::to_string(kMaxPointsPerIteration) +
+                                "], got " + std::to_string(pointsPerIteration));
+  if (!(rouletteThreshold > 0.0 && rouletteThreshold <= 1.0))
+    throw std::invalid_argument("roulette threshold must be in (0, 1], got " + std::to_string(rouletteThreshold));
 }
 
 WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {
@@ -148,6 +165,10 @@ void WavefrontRenderer::resetAccumulation() {
 FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const float* depthLimit) {
   FrameConstants fc = makeFrameConstants(cameraView_, volumeBox(), scene_, settings_, depthLimit, frame);
   fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
+  fc.estimator = options_.estimator;
+  fc.majorantScale = float(options_.majorantScale);
+  fc.rouletteThreshold = float(options_.rouletteThreshold);
+  fc.pointsPerIteration = options_.pointsPerIteration;
   const QueryReductionSettings& q = queryReduction_;
   BudgetConstants& b = fc.budget;
   b.scheme = int(q.budget);
@@ -235,6 +256,7 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     FrameConstants fc = frameConstants(GhostSweep::frameNumber(ghostPasses_++), nullptr);
     fc.budget = BudgetConstants{};  // every stride-th pixel (initGhostRay)
     fc.shadows = 0;
+    fc.estimator = PrimaryEstimator::Delta;  // ghost rays only need to visit cells
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
     // Ghost rays refine this process's whole macrocell grid, not its pixels: with a pixel share
     // every rank traces all of them (the ghost pixels' pattern would otherwise fall on one share).

@@ -37,9 +37,26 @@ struct TrackingOptions {
   // (FrameStats::cappedRays, RendererCounters::truncatedFrames).
   int maxCollisionsPerRay = 4096;
   int maxIterations = 1 << 14;
+  // The primary estimator (RatioTracking.h) and ratio tracking's knobs; shadow legs keep
+  // RenderScene::shadowEstimator, ghost passes always delta-track. Ratio tracking draws its
+  // tentative collisions at majorantScale x the cell majorant (>= 1: more queries, less
+  // variance), hands the evaluator up to pointsPerIteration of a ray's points per wavefront
+  // iteration (1..kMaxPointsPerIteration: fewer, fuller iterations; the image does not depend on
+  // it) and plays Russian roulette below rouletteThreshold (0 < threshold <= 1). Each point is
+  // one draw of the ray's stream, so the collision cap allows it 2 * maxCollisionsPerRay points.
+  static constexpr int kMaxPointsPerIteration = 64;
+  PrimaryEstimator estimator = PrimaryEstimator::Delta;
+  double majorantScale = 1.0;
+  int pointsPerIteration = 16;
+  double rouletteThreshold = 0.05;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
 };
+
+// "delta" / "ratio" (the CLI's --estimator, the plugin's InrEstimator); parse throws
+// std::invalid_argument naming the accepted names.
+const char* primaryEstimatorName(PrimaryEstimator e);
+PrimaryEstimator parsePrimaryEstimator(const std::string& name);
 
 // Histogram budgeting's threshold tau (paper §4.2.1): the centre of the bin where the cumulative
 // fraction of `histogram` (kResidualBins counts) reaches 1 - rho; 0 (everything renders) for

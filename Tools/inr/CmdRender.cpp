@@ -127,6 +127,49 @@ const char* kRenderUsageTail =
     "                           frame also budget_skipped (pixels left out) and pruned (queries saved)\n"
     "  --quiet                  only the summary line\n";
 
+// The primary estimator's options (TrackingOptions; Render/RatioTracking.h), checked before the
+// model loads; the help prints TrackingOptions' defaults.
+TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
+  for (const char* option : {"estimator", "majorant-scale", "points-per-iteration", "roulette-threshold"}) {
+    if (args.has(option) && method != "delta")
+      throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
+  }
+  try {
+    t.estimator = parsePrimaryEstimator(args.get("estimator", primaryEstimatorName(t.estimator)));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--estimator: ") + e.what());
+  }
+  t.majorantScale = args.getDouble("majorant-scale", t.majorantScale);
+  t.pointsPerIteration = int(args.getInt("points-per-iteration", t.pointsPerIteration));
+  t.rouletteThreshold = args.getDouble("roulette-threshold", t.rouletteThreshold);
+  try {
+    t.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--estimator / --majorant-scale / --points-per-iteration / --roulette-threshold: ") +
+                     e.what());
+  }
+  return t;
+}
+
+std::string estimatorUsage() {
+  const TrackingOptions d;
+  char text[2048];
+  std::snprintf(
+      text, sizeof text,
+      "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
+      "  --estimator E            delta: the paper's delta tracking, one collision event per ray; ratio:\n"
+      "                           ratio-tracking emission weights at every tentative collision, unbiased,\n"
+      "                           far less noise per frame for more (cheap) queries (default %s)\n"
+      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant, in [1, 1024]\n"
+      "                           (default %g); higher = more queries per frame, less noise\n"
+      "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
+      "                           (default %d); the image does not depend on it, only the frame time\n"
+      "  --roulette-threshold R   ratio: Russian roulette below this transmittance, in (0, 1] (default %g)\n",
+      primaryEstimatorName(d.estimator), d.majorantScale, TrackingOptions::kMaxPointsPerIteration,
+      d.pointsPerIteration, d.rouletteThreshold);
+  return text;
+}
+
 std::array<double, 3> list3(const Args& args, const std::string& name) {
   const auto v = args.getList(name, 3);
   return {v[0], v[1], v[2]};
@@ -241,10 +284,12 @@ int runRender(int argc, char** argv) {
              "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
              "step", "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge", "budget", "budget-fraction",
-             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick", "pixel-share"},
+             "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick", "pixel-share",
+             "estimator", "majorant-scale", "points-per-iteration", "roulette-threshold"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
     std::fputs(kRenderUsageHead, stdout);
+    std::fputs(estimatorUsage().c_str(), stdout);
     std::fputs(queryReductionUsage().c_str(), stdout);
     std::fputs(kRenderUsageTail, stdout);
     return 0;
@@ -301,6 +346,7 @@ int runRender(int argc, char** argv) {
   if (args.has("converge") && method == "raymarch") throw UsageError("--converge applies to delta tracking only");
   // Checked before the model loads, so a typo fails at once.
   const QueryReductionSettings queryReduction = parseQueryReduction(args);
+  const TrackingOptions estimatorOptions = parseEstimatorOptions(args, TrackingOptions{}, method);
   for (const char* option : {"budget", "budget-fraction", "budget-max-skip", "budget-alpha", "reproject",
                              "no-reproject", "prune-epsilon", "prune-falloff"}) {
     if (args.has(option) && method == "raymarch")
@@ -377,6 +423,7 @@ int runRender(int argc, char** argv) {
     throw UsageError(std::string("--traversal / --gas-min-majorant: ") + e.what());
   }
   sopts.macrocells = mopts;
+  sopts.tracking = estimatorOptions;
   if (args.has("no-refine")) sopts.tracking.refineMacrocells = false;
   sopts.cpuThreads = int(args.getInt("threads", 0));
   double lastShown = -1.0;
@@ -457,6 +504,13 @@ int runRender(int argc, char** argv) {
   nlohmann::json report;
   report["model"] = args.positional()[0];
   report["method"] = method;
+  if (method == "delta") {
+    const TrackingOptions& t = session->trackingOptions();
+    report["estimator"] = {{"name", primaryEstimatorName(t.estimator)},
+                           {"majorant_scale", t.majorantScale},
+                           {"points_per_iteration", t.pointsPerIteration},
+                           {"roulette_threshold", t.rouletteThreshold}};
+  }
   report["width"] = settings.width;
   report["height"] = settings.height;
   report["time"] = scene.time;

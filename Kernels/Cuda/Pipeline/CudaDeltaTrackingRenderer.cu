@@ -74,13 +74,15 @@ __global__ void spawnShadowKernel(FrameConstants fc, MajorantGridView grid, RayS
   if (rs.flags[i] & kRayActive) atomicAdd(&stats[kStatShadowRays], 1ull);
 }
 
-// Iteration cap reached: the listed rays stop where they are (no real collision recorded).
-__global__ void cutoffKernel(RayStateView rs, const int* list, int n) {
+// Iteration cap reached: the listed rays stop where they are (no real collision recorded); the
+// list holds min(n, *count) rays (count null: n).
+__global__ void cutoffKernel(RayStateView rs, const int* list, const unsigned* count, int n) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k >= n) return;
+  if (k >= (count ? min(n, int(*count)) : n)) return;
   const int i = list[k];
   rs.flags[i] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
   rs.sample[i] = NAN;
+  rs.pointCount[i] = 0;
 }
 
 // Stage IV, the convergence sums (block reductions, one atomic each per block) and the count of
@@ -143,46 +145,64 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // The traverse-evaluate loop: returns when no query is pending (or at the iteration cap).
 // The host never waits on the GPU mid-loop: iteration i + 1's traversal and evaluation read
 // iteration i's query count on the device, with grids sized by the last count the host knows
-// (an upper bound: counts never grow), while the host reads count i from pinned memory. When
+// (an upper bound: the rays a pass lists never outnumber the previous pass's queries, and a ray
+// has at most pointsPerIteration queries), while the host reads count i from pinned memory. When
 // count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
 void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
                                             cuda::Stage traverseStage, cuda::Stage evaluateStage, int& iterations,
-                                            std::size_t& queries) {
+                                            std::size_t& queries, bool ratio) {
   const RayStateView rs = rays.view();
+  const int perRay = ratio ? fc.pointsPerIteration : 1;
+  const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
+  if (ratio) {
+    if (pointState.count != slots) pointState.resize(slots);
+    for (int b = 0; b < 2; ++b) {
+      points[b].growTo(slots);
+      queryRays[b].growTo(slots);
+      rayList[b].growTo(std::size_t(rs.count));
+    }
+    if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
+  }
+  const DeviceTraversal& walker = ratio && !traversal->supportsRatioTracking() ? *ratioTraversal : *traversal;
   TraversalLaunch launch;
   launch.fc = fc;
   launch.medium = medium;
   launch.rs = rs;
   launch.refine = refine;
   launch.refineView = refineView;
+  launch.ratio = ratio;
+  if (ratio) launch.points = pointState.view();
   launch.n = rs.count;  // upper bound of the rays the next traversal lists
   auto enqueueTraverse = [&](int it) {
     const int cur = it & 1, prev = cur ^ 1;
-    // The parity's query count and the traversal's work counter, zeroed together.
-    INR_CUDA_CHECK(cudaMemsetAsync(queryCount(cur), 0, 2 * sizeof(unsigned), stream));
-    launch.list = it ? queryRays[prev].get() : nullptr;
-    launch.listCount = it ? queryCount(prev) : nullptr;
+    // The parity's counts and the traversal's work counter, zeroed together.
+    INR_CUDA_CHECK(cudaMemsetAsync(queryCount(cur), 0, 3 * sizeof(unsigned), stream));
+    launch.list = it ? (ratio ? rayList[prev].get() : queryRays[prev].get()) : nullptr;
+    launch.listCount = it ? (ratio ? rayCount(prev) : queryCount(prev)) : nullptr;
     launch.resolvePrevious = it != 0;
     launch.outPoints = points[cur].get();
     launch.outRays = queryRays[cur].get();
     launch.outCount = queryCount(cur);
+    launch.outRayList = ratio ? rayList[cur].get() : nullptr;
+    launch.outRayCount = ratio ? rayCount(cur) : nullptr;
     launch.workCounter = queryCount(cur) + 1;
     timer.begin(traverseStage, stream);
-    traversal->traverse(launch, stream);
+    walker.traverse(launch, stream);
     timer.end(stream);
     INR_CUDA_CHECK(
         cudaMemcpyAsync(hostCounter.get() + cur, queryCount(cur), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
     INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
   };
+  float* sampleOut = ratio ? launch.points.sample : rs.sample;
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
     const int cur = it & 1;
     if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
+      const long long bound = std::min<long long>((long long)slots, (long long)launch.n * perRay);
       timer.begin(evaluateStage, stream);
-      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), launch.n, rs.sample, queryRays[cur].get(),
-                               stream);
+      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(), stream);
       timer.end(stream);
       enqueueTraverse(it + 1);
     }
@@ -190,7 +210,9 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
     const int k = int(hostCounter[cur]);
     if (k == 0) break;
     if (it >= maxIterations) {
-      cutoffKernel<<<blocksFor(k), kThreads, 0, stream>>>(rs, queryRays[cur].get(), k);
+      // Delta: the listed queries' rays; ratio: the listed rays.
+      cutoffKernel<<<blocksFor(k), kThreads, 0, stream>>>(rs, ratio ? rayList[cur].get() : queryRays[cur].get(),
+                                                            ratio ? rayCount(cur) : nullptr, k);
       INR_CUDA_CHECK_LAUNCH("cutoffKernel");
       truncated = true;
       break;
@@ -208,7 +230,7 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   Impl& I = *impl_;
   I.stream = macrocells.stream();
   I.traversal = makeDdaTraversal();
-  I.counter.resize(4);
+  I.counter.resize(6);
   for (cudaEvent_t& e : I.countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
   I.stats.resize(kStatCount);
   I.sums.resize(kSumCount);
@@ -229,6 +251,7 @@ const DeviceTraversal& CudaDeltaTrackingRenderer::traversal() const { return *im
 void CudaDeltaTrackingRenderer::setTraversal(const TraversalOptions& options) {
   std::string reason;
   std::unique_ptr<DeviceTraversal> t = makeDeviceTraversal(options, reason);
+  if (!t->supportsRatioTracking()) reason += "; ratio-tracked primary rays run through the DDA";
   impl_->traversal = std::move(t);
   impl_->traversalStale = true;
   traversalChoice_ = reason;
@@ -310,7 +333,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
 }
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
-  FrameStats st = beginFrame("delta", "renderFrame");
+  FrameStats st = beginFrame(options_.estimator == PrimaryEstimator::Ratio ? "ratio" : "delta", "renderFrame");
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const auto tFrame = Clock::now();
@@ -336,7 +359,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   I.timer.end(s);
 
   I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
-          cuda::kEvaluate, st.iterations, st.queries);
+          cuda::kEvaluate, st.iterations, st.queries, fc.estimator == PrimaryEstimator::Ratio);
 
   if (fc.shadows) {
     I.timer.begin(cuda::kShadowTraverse, s);

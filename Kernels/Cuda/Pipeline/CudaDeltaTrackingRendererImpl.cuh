@@ -64,12 +64,21 @@ struct CudaDeltaTrackingRenderer::Impl {
   // The histogram scheme's residual histogram of the last frame (device, and its pinned copy).
   cuda::DeviceBuffer<unsigned> histogram;
   cuda::PinnedHost<unsigned> hostHistogram{kResidualBins};
-  // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the other).
+  // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the
+  // other). Delta tracking: one query per listed ray, queryRays doubling as the next list;
+  // ratio tracking: up to pointsPerIteration queries per ray (queryRays hold point slots, grown
+  // on first use) and a list of rays of its own (rayList).
   cuda::DeviceBuffer<float4> points[2];
   cuda::DeviceBuffer<int> queryRays[2];
-  // [4]: per parity p, [2p] the queries appended, [2p + 1] the traversal's work counter.
+  cuda::DeviceBuffer<int> rayList[2];
+  PointStateArrays<cuda::DeviceBuffer> pointState;  // ratio tracking's pending points
+  // The DDA for ratio-tracked legs when `traversal` cannot run them (OptiX).
+  std::unique_ptr<DeviceTraversal> ratioTraversal;
+  // [6]: per parity p, [3p] the queries appended, [3p + 1] the traversal's work counter,
+  // [3p + 2] the rays listed for the next pass (ratio tracking).
   cuda::DeviceBuffer<unsigned> counter;
-  unsigned* queryCount(int parity) const { return counter.get() + 2 * parity; }
+  unsigned* queryCount(int parity) const { return counter.get() + 3 * parity; }
+  unsigned* rayCount(int parity) const { return counter.get() + 3 * parity + 2; }
   cuda::PinnedHost<unsigned> hostCounter{2};
   cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
   // Frame statistics: counters and the convergence sums.
@@ -94,9 +103,10 @@ struct CudaDeltaTrackingRenderer::Impl {
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
 
+  // `ratio`: the leg is a ratio-tracked primary leg (fc.pointsPerIteration points per ray).
   void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
              const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
-             cuda::Stage evaluateStage, int& iterations, std::size_t& queries);
+             cuda::Stage evaluateStage, int& iterations, std::size_t& queries, bool ratio = false);
 };
 
 }  // namespace inr

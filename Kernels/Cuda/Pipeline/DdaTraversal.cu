@@ -21,8 +21,12 @@ constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 // Stage II for ray i: complete and refine the previous query (when the launch says so), resume
 // tracking, append the next candidate's query. kPruning: the medium has expected scalars (the
 // kernel is compiled twice so the pass without pruning carries none of its registers).
-template <bool kPruning>
+template <bool kPruning, bool kRatio>
 __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
+  if (kRatio) {  // ratio tracking resolves its own points (RatioTracking.h)
+    cuda::traverseRatioListedRay<DdaWalker, kPruning>(p, i);
+    return;
+  }
   if (p.resolvePrevious) cuda::completeListedQuery<kPruning>(p, i);
   traverseDdaRay<kPruning>(p.fc, p.medium, p.rs, i);
   if (p.rs.flags[i] & kRayPending) cuda::writeListedQuery(p, i, cuda::appendSlot(p.outCount));
@@ -45,15 +49,15 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 #else
 #define INR_TRAVERSE_MIN_BLOCKS 9
 #endif
-template <bool kPruning>
-__global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
+template <bool kPruning, bool kRatio>
+__device__ __forceinline__ void traversePass(const TraversalLaunch& p, int tilesX) {
   if (p.list) {
     // List passes: one thread per listed ray, as before the persistent loop (grid-stride when
     // the list outgrows the grid). They are short and bound by their slowest ray, and a warp's
     // two same-address atomics (its fetch and the empty fetch that ends it) lie on that path.
     const int n = p.listCount ? min(p.n, int(*p.listCount)) : p.n;
     const int stride = int(gridDim.x * blockDim.x);
-    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay<kPruning>(p, p.list[k]);
+    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay<kPruning, kRatio>(p, p.list[k]);
     return;
   }
   const int lane = int(threadIdx.x) & (kWarp - 1);
@@ -75,8 +79,21 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
       if (px >= width || py >= height) continue;
       i = py * width + px;
     }
-    traverseListedRay<kPruning>(p, i);
+    traverseListedRay<kPruning, kRatio>(p, i);
   }
+}
+
+// Delta tracking's pass (one candidate per ray) at the occupancy above.
+template <bool kPruning, bool kRatio>
+__global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
+  traversePass<kPruning, kRatio>(p, tilesX);
+}
+// Ratio tracking's pass (RatioTracking.h) carries the ray's estimate and a transfer-function
+// lookup per point: at the delta kernel's 56-register bound it spilled (up to 160 bytes of
+// loads per thread), so it gets a bound of its own.
+template <bool kPruning, bool kRatio>
+__global__ void __launch_bounds__(kThreads, 6) ddaRatioTraverseKernel(TraversalLaunch p, int tilesX) {
+  traversePass<kPruning, kRatio>(p, tilesX);
 }
 
 class DdaTraversal final : public DeviceTraversal {
@@ -85,31 +102,39 @@ public:
     int device = 0, sms = 0, perSm = 0;
     INR_CUDA_CHECK(cudaGetDevice(&device));
     INR_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel<false>, kThreads, 0));
-    residentBlocks_[0] = std::max(1, sms * std::max(1, perSm));
-    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, ddaTraverseKernel<true>, kThreads, 0));
-    residentBlocks_[1] = std::max(1, sms * std::max(1, perSm));
+    const void* kernels[4] = {(const void*)ddaTraverseKernel<false, false>, (const void*)ddaTraverseKernel<true, false>,
+                              (const void*)ddaRatioTraverseKernel<false, true>, (const void*)ddaRatioTraverseKernel<true, true>};
+    for (int k = 0; k < 4; ++k) {
+      INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernels[k], kThreads, 0));
+      residentBlocks_[k] = std::max(1, sms * std::max(1, perSm));
+    }
   }
+  bool supportsRatioTracking() const override { return true; }
   const char* name() const override { return "dda"; }
   void traverse(const TraversalLaunch& launch, cudaStream_t stream) const override {
     if (!launch.workCounter) throw std::invalid_argument("DdaTraversal: TraversalLaunch::workCounter is null");
     const long long needed = std::max<long long>(1, (launch.n + kThreads - 1) / kThreads);
     const bool pruning = launch.medium.prune.expected != nullptr;
-    const int blocks = int(std::min<long long>(needed, residentBlocks_[pruning]));
+    if (launch.ratio && (!launch.outRayList || !launch.outRayCount || !launch.points.t))
+      throw std::invalid_argument("DdaTraversal: a ratio-tracking launch needs its point storage and ray list");
+    const int variant = (launch.ratio ? 2 : 0) + (pruning ? 1 : 0);
+    const int blocks = int(std::min<long long>(needed, residentBlocks_[variant]));
     // Pixel tiles only when the rays are exactly the image's pixels (ray i = pixel i).
     const CameraView& cam = launch.fc.camera;
     const bool tiled = !launch.list && cam.width > 0 && cam.height > 0 &&
                        (long long)cam.width * cam.height == (long long)launch.n;
     const int tilesX = tiled ? (cam.width + kTileWidth - 1) / kTileWidth : 0;
-    if (pruning)
-      ddaTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX);
-    else
-      ddaTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX);
+    switch (variant) {
+      case 0: ddaTraverseKernel<false, false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 1: ddaTraverseKernel<true, false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 2: ddaRatioTraverseKernel<false, true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      default: ddaRatioTraverseKernel<true, true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+    }
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }
 
 private:
-  int residentBlocks_[2] = {1, 1};  // per kernel: without, with pruning
+  int residentBlocks_[4] = {1, 1, 1, 1};  // per kernel: delta / ratio x without / with pruning
 };
 
 }  // namespace

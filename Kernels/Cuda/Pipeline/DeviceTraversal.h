@@ -13,6 +13,7 @@
 #include <string>
 
 #include "Cuda/Pipeline/CudaMacrocellGrid.h"
+#include "Render/RatioTracking.h"
 #include "Render/RayState.h"
 #include "Render/TraversalOptions.h"
 
@@ -37,6 +38,14 @@ struct TraversalLaunch {
   float4* outPoints = nullptr;
   int* outRays = nullptr;
   unsigned* outCount = nullptr;
+  // Ratio tracking's primary leg (RatioTracking.h): the rays draw up to
+  // fc.pointsPerIteration points each; every point that needs the network is appended to
+  // outPoints / outRays with its slot in `points` (the evaluator writes points.sample[slot]), and
+  // every ray left waiting is appended once to outRayList (the next pass's list).
+  bool ratio = false;
+  PointStateView points;
+  int* outRayList = nullptr;
+  unsigned* outRayCount = nullptr;
   // Work distribution: a device counter, zero at the launch, that the implementation may use to
   // hand out rays to its threads (the DDA's persistent warps take them 32 at a time).
   unsigned* workCounter = nullptr;
@@ -68,6 +77,9 @@ public:
     (void)stream;
   }
   virtual TraversalBuildInfo buildInfo() const { return {}; }
+  // Whether traverse() runs ratio-tracked primary legs (TraversalLaunch::ratio); the pipeline
+  // runs those through the DDA otherwise.
+  virtual bool supportsRatioTracking() const { return false; }
 };
 
 // The 3D DDA over the majorant grid with empty-space skipping.

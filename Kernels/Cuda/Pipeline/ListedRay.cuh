@@ -4,6 +4,7 @@
 #include "Cuda/Pipeline/DeviceRefine.cuh"
 #include "Cuda/Pipeline/DeviceTraversal.h"
 #include "Render/Evaluate.h"
+#include "Render/RatioTracking.h"
 
 namespace inr::cuda {
 
@@ -31,6 +32,32 @@ __device__ __forceinline__ void writeListedQuery(const TraversalLaunch& p, int i
   const QueryPoint q = pendingQuery(p.rs, i, p.fc.time);
   p.outPoints[slot] = make_float4(q.x, q.y, q.z, q.t);
   p.outRays[slot] = i;
+}
+
+// A ratio-tracked primary ray's traversal pass (Render/RatioTracking.h) for any walker: its
+// evaluated points refine their macrocells and feed pruning's expected scalars as they are
+// folded in; the points that need the network are appended to the launch's query output with
+// their slots, and the ray to the next pass's list while it waits for them.
+template <typename Walker, bool kPruning>
+__device__ __forceinline__ void traverseRatioListedRay(const TraversalLaunch& p, int i) {
+  const RayStateView& rs = p.rs;
+  const PointStateView& pts = p.points;
+  auto onEvaluated = [&](int slot, float v) {
+    if (p.refine) refineCell(p.refineView, pts.cell[slot], v);
+    int cell;
+    float estimate;
+    // The same benign race as completeListedQuery's.
+    if (kPruning && p.medium.prune.expected && expectedAfterPoint(p.medium, rs, pts, i, slot, v, cell, estimate))
+      atomicExch(&p.medium.prune.expected[cell], estimate);
+  };
+  auto emitQuery = [&](int slot) {
+    const QueryPoint q = ratioPointQuery(rs, pts, i, slot, p.fc.time);
+    const unsigned k = appendSlot(p.outCount);
+    p.outPoints[k] = make_float4(q.x, q.y, q.z, q.t);
+    p.outRays[k] = slot;
+  };
+  traverseRatioRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
+  if (rs.flags[i] & kRayPending) p.outRayList[appendSlot(p.outRayCount)] = i;
 }
 
 }  // namespace inr::cuda
