@@ -39,13 +39,13 @@ int envInt(const char* name, int fallback) {
   return v ? std::max(1, std::atoi(v)) : fallback;
 }
 
-struct Run {
+struct RatioRun {
   ImageRGBA image, premultiplied;
   FrameStats stats;
 };
 
 template <typename Grid, typename Renderer, typename Field>
-Run renderAnalytic(const Field& field, const TrackingOptions& options, bool shadows, int size, int frames) {
+RatioRun renderAnalytic(const Field& field, const TrackingOptions& options, bool shadows, int size, int frames) {
   Grid grid(field, test::kCubeBox, 0.0, 1.0, test::cubeMacrocells(16, 4));
   Renderer r(field, grid, options);
   test::SceneSetup s = test::obliqueCubeScene(size, 5);
@@ -53,7 +53,7 @@ Run renderAnalytic(const Field& field, const TrackingOptions& options, bool shad
   s.scene.transferFunction = TransferFunction::preset(0.2, 0.9, 0.5);
   s.scene.transferFunction.unitDistance = 0.25;
   test::lightScene(s.scene, shadows, ShadowEstimator::Ratio);
-  Run out;
+  RatioRun out;
   out.stats = test::renderFrames(r, s.settings, s.scene, frames);
   out.image = r.image();
   out.premultiplied = r.premultipliedImage();
@@ -66,9 +66,9 @@ TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
   for (bool shadows : {false, true}) {
-    const Run cpu = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(static_cast<const FieldEvaluator&>(field),
+    const RatioRun cpu = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(static_cast<const FieldEvaluator&>(field),
                                                                           ratio(4.0, 16), shadows, 64, 4);
-    const Run gpu = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
+    const RatioRun gpu = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
         static_cast<const DeviceFieldEvaluator&>(field), ratio(4.0, 16), shadows, 64, 4);
     const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
     std::printf("ratio tracking%s, 64x64, 4 frames: GPU vs CPU %.2f dB; queries GPU %zu CPU %zu; iterations GPU %d "
@@ -94,10 +94,10 @@ TEST(CudaRatioTracking, ImageDoesNotDependOnPointsPerIteration) {
     return renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(static_cast<const DeviceFieldEvaluator&>(field),
                                                                         t, false, 64, 2);
   };
-  const Run one = gpu(1), again = gpu(1);
+  const RatioRun one = gpu(1), again = gpu(1);
   if (one.image.data != again.image.data)
     GTEST_SKIP() << "the GPU pipeline is not bit-reproducible run to run on this device: nothing to compare";
-  const Run many = gpu(32);
+  const RatioRun many = gpu(32);
   EXPECT_TRUE(one.image.data == many.image.data);
   EXPECT_GE(many.stats.queries, one.stats.queries);
   EXPECT_LT(4 * many.stats.iterations, one.stats.iterations);
