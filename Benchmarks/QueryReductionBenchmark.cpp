@@ -59,9 +59,11 @@ const char* kUsage =
     "  --max-frames N          at most N frames per configuration (default 100000)\n"
     "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
-    "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]]\n"
-    "                          (ratio tracking, majorant scale K, points per iteration P, roulette\n"
-    "                          threshold R; join with '+', e.g. ratio:4+prune:0.02; default: the paper's set)\n"
+    "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
+    "                          march[:K[:KR[:P[:R]]]] (ratio tracking with majorant scale K; unbiased ray\n"
+    "                          marching with comb density K and residual scale KR; points per iteration\n"
+    "                          P, roulette threshold R; join with '+', e.g. ratio:4+prune:0.02; default:\n"
+    "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
     "                          growing by 2^(1/4), plus 400 and the last; default GPU)\n"
     "  --heatmap-frames N      frames counted for the rays-per-pixel heatmaps (default 64; 0 = none)\n"
@@ -190,6 +192,17 @@ Config parseSingleConfig(const std::string& spec) {
     c.tracking.validate();
     c.label = "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
               fmt(c.tracking.rouletteThreshold);
+  } else if (f == "march") {
+    arity(1, 5);
+    c.family = "march";
+    c.tracking.estimator = PrimaryEstimator::March;
+    c.tracking.majorantScale = num(1, c.tracking.majorantScale);
+    c.tracking.residualScale = num(2, c.tracking.residualScale);
+    c.tracking.pointsPerIteration = int(num(3, c.tracking.pointsPerIteration));
+    c.tracking.rouletteThreshold = num(4, c.tracking.rouletteThreshold);
+    c.tracking.validate();
+    c.label = "march:" + fmt(c.tracking.majorantScale) + ":" + fmt(c.tracking.residualScale) + ":" +
+              std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -199,7 +212,7 @@ Config parseSingleConfig(const std::string& spec) {
   } else {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
-                                "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]])");
+                                "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]])");
   }
   c.q.validate();
   return c;
@@ -213,7 +226,7 @@ Config parseConfig(const std::string& spec) {
   Config c = parseSingleConfig(parts[0]);
   for (std::size_t k = 1; k < parts.size(); ++k) {
     const Config p = parseSingleConfig(parts[k]);
-    if (p.family == "ratio" || p.family == "delta") {
+    if (p.family == "ratio" || p.family == "march" || p.family == "delta") {
       c.tracking = p.tracking;
     } else if (p.family == "prune") {
       c.q.pruneEpsilon = p.q.pruneEpsilon;
@@ -337,7 +350,7 @@ struct Outputs {
          "model,backend,size,config,family,rho,max_skip,alpha,epsilon,delta,frames,seconds,fps,time_to_35,time_to_40,"
          "psnr_400_volume,psnr_end_volume,psnr_end_image,mad_end_volume,rays_per_frame,budget_skipped_per_frame,"
          "pruned_per_frame,queries_per_frame,heatmap_mean,reference_frames,covered_fraction,estimator,majorant_scale,"
-         "points_per_iteration,iterations_per_frame,traverse_ms_per_frame,evaluate_ms_per_frame\n");
+         "points_per_iteration,residual_scale,iterations_per_frame,traverse_ms_per_frame,evaluate_ms_per_frame\n");
     open(raymarch, "raymarch.csv", "model,backend,size,step_divisor,step,seconds,psnr_volume,psnr_image,mad_volume,"
                                    "queries\n");
     open(orbit, "orbit.csv", "model,mode,step,degrees,frame_in_step,accumulated_frames,seconds,psnr_volume,"
@@ -678,6 +691,7 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
                 << csvNum(r.total.queries / n) << ',' << csvNum(r.heatmapMean) << ',' << o.referenceFrames << ','
                 << csvNum(ref.coveredFraction) << ',' << primaryEstimatorName(c.tracking.estimator) << ','
                 << csvNum(c.tracking.majorantScale) << ',' << c.tracking.pointsPerIteration << ','
+                << csvNum(c.tracking.residualScale) << ','
                 << csvNum(r.total.iterations / n) << ',' << csvNum(r.total.traverseMs / n) << ','
                 << csvNum(r.total.evaluateMs / n) << '\n';
     out.summary.flush();

@@ -168,7 +168,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
 }
 
 FrameStats DeltaTrackingRenderer::renderFrame() {
-  FrameStats st = beginFrame(options_.estimator == PrimaryEstimator::Ratio ? "ratio" : "delta", "renderFrame");
+  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
@@ -193,7 +193,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
 
   bool truncated = false;
   const PointStateView* points = nullptr;
-  if (fc.estimator == PrimaryEstimator::Ratio) {
+  if (fc.estimator != PrimaryEstimator::Delta) {  // ratio tracking, march: points per ray
     const std::size_t slots = std::size_t(n) * std::size_t(fc.pointsPerIteration);
     if (points_.count != slots) points_.resize(slots);
     pointsView_ = points_.view();

@@ -31,6 +31,22 @@
 // E[W c_I V(x_I)] = sum_j w_j c_j V(x_j). Without shadows the colour is the full weighted sum;
 // the picked point still gives the reprojection hit point.
 //
+// Unbiased ray marching (PrimaryEstimator::March) uses the same point machinery with two kinds of
+// points per macrocell segment of majorant m: a jittered comb of spacing 1 / (k m) (one uniform
+// offset per segment) for the emission integral, and residual ratio-tracking points at rate
+// mu_r = k_r m (FrameConstants::residualScale) for the transmittance. The control extinction
+// sigma~ is piecewise constant: the extinction at the last comb point (half the majorant before
+// the first one and after empty space; 0 in empty space), so
+//     T(t) = exp(-int_0^t sigma~) * prod over residual points y < t of (1 - (sigma(y) - sigma~(y)) / mu_r)
+// is unbiased for exp(-int sigma) for any sigma~ fixed before the residual points are drawn (the
+// Poisson generating functional; the residual process is independent of the comb), and
+//     L = sum over comb points x of T(x) sigma(x) c(x) / (k m)
+// is unbiased for int T sigma c because a jittered comb is an unbiased quadrature of any fixed
+// integrand. Where the field is smooth the control is close to sigma, the residual factors stay
+// near 1 and the comb's error falls like a marcher's: ray-marching efficiency per query without
+// a bias floor. Factors can leave [0, 1] where the control is poor; the estimate stays unbiased
+// (roulette works on |T|, the shadow reservoir on |weights|).
+//
 // Majorants from lattice samples can underestimate sigma (refinement widens them as samples
 // arrive); the weight sigma / mu is then clamped at 1 (the only bias, as Falcor's ratio tracker
 // clamps; shared with delta tracking, whose acceptance probability clamps the same way).
@@ -46,16 +62,27 @@
 namespace inr {
 
 // The per-point fields, declared once (storage in Render/RayStateArrays.h).
-//   t         ray parameter of the tentative collision
-//   majorant  the rate mu it was drawn with; negative (-mu) when pruning answered it without a
-//             query (it then feeds neither refinement nor pruning's expected scalars)
+//   t         ray parameter of the point
+//   majorant  ratio tracking and residual points: the rate mu it was drawn with; comb points:
+//             their spacing
+//   gap       march: length of non-empty macrocells between the previous point and this one
+//             (where the control extinction applies)
 //   sample    the network's value there (or the pruned estimate); NaN while pending
 //   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
+//   kind      PointKind bits
 #define INR_POINT_STATE_FIELDS(X) \
   X(float, t)                     \
   X(float, majorant)              \
+  X(float, gap)                   \
   X(float, sample)                \
-  X(int, cell)
+  X(int, cell)                    \
+  X(std::uint8_t, kind)
+
+enum PointKind : std::uint8_t {
+  kPointComb = 1u << 0,          // march: an emission (comb) point, else a transmittance point
+  kPointPruned = 1u << 1,        // answered by pruning without a query (no refinement, no EMA)
+  kPointControlReset = 1u << 2,  // march: the walk crossed empty space before it (control = 0)
+};
 
 #define INR_DECLARE_POINT_VIEW_FIELD(type, name) type* name = nullptr;
 struct PointStateView {
@@ -91,44 +118,69 @@ INR_HD QueryPoint ratioPointQuery(const RayStateView& rs, const PointStateView& 
   return QueryPoint{p.x, p.y, p.z, time};
 }
 
-// Folds ray i's `count` pending points, in order, into its estimate (radiance: colour sum or,
-// with shadows, the picked colour; radiance.w = W; visibility = T; hitT). `onEvaluated(slot,
-// value)` is called for each point the network answered (refinement, pruning's EMA on the GPU;
-// the CPU does that in its batch loop). Returns true when roulette ended the ray.
+// Folds ray i's `count` pending points, in order, into its estimate: radiance (colour sum or,
+// with shadows, the picked colour with its sign), radiance.w = W (the emission weights' sum,
+// coverage), collisionProduct = the weights' absolute sum (the shadow reservoir's total),
+// visibility = T, lastExtinction = march's control, hitT. `onEvaluated(slot, value)` is called
+// for each point the network answered (refinement, pruning's EMA on the GPU; the CPU does that in
+// its batch loop). Returns true when roulette ended the ray.
 template <typename OnEvaluated>
 INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
                                const PointStateView& pts, int i, int count, const RngStream& ray,
                                OnEvaluated&& onEvaluated) {
+  const bool march = fc.estimator == PrimaryEstimator::March;
   float T = rs.visibility[i];
   Vec4f L = rs.radiance[i];
+  float absSum = rs.collisionProduct[i];
+  float control = rs.lastExtinction[i];
   float hitT = rs.hitT[i];
   bool ended = false;
   for (int j = 0; j < count; ++j) {
     const int slot = pointSlot(rs.count, i, j);
     const float s = pts.sample[slot], mu = pts.majorant[slot];
-    if (mu > 0.f) onEvaluated(slot, s);
+    const std::uint8_t kind = pts.kind[slot];
+    if (!(kind & kPointPruned)) onEvaluated(slot, s);
     if (ended) continue;  // (the remaining points still refine)
     const float t = pts.t[slot];
     const Vec4f c = isFiniteValue(s) ? lookupTransferFunction(medium.tf, s) : Vec4f{0.f, 0.f, 0.f, 0.f};
     const float sigma = opacityToExtinction(c.w, medium.tf.invUnitDistance);
-    const float r = minf(1.f, sigma / fabsf(mu));
     RngStream pointRng = ratioPointStream(ray, t);
     const float pick = pointRng.next();
-    if (r > 0.f) {
-      const float w = T * r;
+    float w = 0.f;  // this point's emission weight
+    if (march) {
+      // Until the ray's first comb point (and after empty space) the control is half the
+      // macrocell majorant (`gap` then holds the majorant optical depth since the last point);
+      // from then on the extinction at the last comb point (`gap` a length).
+      if (kind & kPointControlReset) control = NAN;
+      const bool known = control == control;
+      T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
+      if (kind & kPointComb) {
+        w = T * sigma * mu;  // mu: the comb's spacing
+        control = sigma;
+      } else {
+        const float controlHere = known ? control : 0.5f * mu / maxf(fc.residualScale, fc.majorantScale);
+        T *= 1.f - (sigma - controlHere) / mu;
+      }
+    } else {
+      const float r = minf(1.f, sigma / mu);
+      w = T * r;
+      T *= 1.f - r;
+    }
+    if (w != 0.f) {
       L.w += w;
-      const bool picked = pick * L.w < w;  // reservoir: point j with probability w / W
+      absSum += fabsf(w);
+      const bool picked = pick * absSum < fabsf(w);  // reservoir: point j with probability |w| / sum |w|
       if (fc.shadows) {
-        if (picked) L = Vec4f{c.x, c.y, c.z, L.w};
+        if (picked) L = w > 0.f ? Vec4f{c.x, c.y, c.z, L.w} : Vec4f{-c.x, -c.y, -c.z, L.w};
       } else {
         L = Vec4f{L.x + w * c.x, L.y + w * c.y, L.z + w * c.z, L.w};
       }
       if (picked) hitT = t;
-      T *= 1.f - r;
     }
-    if (T < fc.rouletteThreshold) {
-      if (pointRng.next() * fc.rouletteThreshold < T) {
-        T = fc.rouletteThreshold;
+    const float a = fabsf(T);
+    if (a < fc.rouletteThreshold) {  // survivors continue with |T| = threshold: unbiased
+      if (pointRng.next() * fc.rouletteThreshold < a) {
+        T = T < 0.f ? -fc.rouletteThreshold : fc.rouletteThreshold;
       } else {
         T = 0.f;
         ended = true;
@@ -137,8 +189,45 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
   }
   rs.visibility[i] = T;
   rs.radiance[i] = L;
+  rs.collisionProduct[i] = absSum;
+  rs.lastExtinction[i] = control;
   rs.hitT[i] = hitT;
   return ended;
+}
+
+// Stores a drawn point in slot `count` of ray i: pruning may answer it at once (then it needs no
+// query), else emitQuery(slot) is called. Returns whether it needs the network.
+template <bool kPruning, typename EmitQuery>
+INR_HD bool storeRatioPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts, int i,
+                            int count, float t, float rate, float gap, std::uint8_t kind, int cell, RngStream& rng,
+                            EmitQuery&& emitQuery) {
+  const int slot = pointSlot(rs.count, i, count);
+  pts.t[slot] = t;
+  pts.majorant[slot] = rate;
+  pts.gap[slot] = gap;
+  pts.cell[slot] = cell;
+  float estimate = NAN;
+  const bool pruned = kPruning && prunes(medium.prune, cell, rng) && isFiniteValue(estimate = medium.prune.expected[cell]);
+  pts.kind[slot] = std::uint8_t(kind | (pruned ? kPointPruned : 0));
+  pts.sample[slot] = estimate;
+  if (pruned) {
+    rs.pruned[i] += 1u;
+    return false;
+  }
+  emitQuery(slot);
+  return true;
+}
+
+// The phase of a march ray's comb in this frame: uniform in [0, 1) for every pixel and frame
+// (so each frame's estimate is unbiased), and a golden-ratio sequence over the frames of one pixel
+// (a per-pixel random start, Cranley-Patterson rotated), so successive frames place their combs
+// evenly between each other's and the error falls faster than 1 / sqrt(frames) where the
+// integrand is smooth. Drawn from the ray's stream for the count only (bounded work).
+INR_HD float combOffset(const FrameConstants& fc, RngStream& rng) {
+  rng.next();
+  const float start = counterUniform(rng.pixel, 0u, fc.seed ^ 0x68e31da4u, 0u);
+  const float u = start + float(fc.frame % 16777216u) * 0.61803398875f;
+  return u - floorf(u);
 }
 
 // Draws ray i's next tentative points from rs.t on (at most fc.pointsPerIteration), resuming the
@@ -149,50 +238,116 @@ template <typename Walker, bool kPruning, typename EmitQuery>
 INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
                            const PointStateView& pts, int i, std::uint8_t& flags, RngStream& rng, int& queries,
                            bool& left, EmitQuery&& emitQuery) {
+  const bool march = fc.estimator == PrimaryEstimator::March;
   const float tEnd = rs.tEnd[i];
   float t = rs.t[i];
+  // March: the next comb and residual points of the current segment (NaN: the walk is at a
+  // segment's start and draws them afresh).
+  float combNext = rs.combNext[i], residualNext = rs.residualNext[i], combPhase = rs.combPhase[i];
+  float gap = 0.f;          // non-empty length since the last point
+  bool crossedEmpty = false;
+  bool controlKnown = rs.controlKnown[i] != 0;  // march: a comb point since the last empty stretch
   int count = 0;
   left = false;
   Walker walker(medium.grid, rs, i);
   for (;;) {
     float m, segmentEnd;
+    const float tBefore = t;
     if (!walker.segment(tEnd, t, m, segmentEnd)) break;
-    const float mu = m * fc.majorantScale;
-    while (mu > 0.f) {
-      if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame
-        flags |= kRayCapped;
-        left = true;
-        break;
+    if (t > tBefore) crossedEmpty = true;  // the walker jumped over empty blocks
+    if (march && m > 0.f) {
+      // The comb is regular in majorant optical depth (k points per unit), continuous along the
+      // ray across macrocells: its phase (the fraction of a comb interval still to go) carries
+      // over from segment to segment, so cells shorter than the spacing keep the stratification.
+      // Until the walk has a comb point since it last crossed empty space the control is half the
+      // majorant, and the residual points there come at the comb's density (at least), so their
+      // factors 1 - (sigma - m / 2) / mu stay near 1.
+      const float density = m * fc.majorantScale, spacing = 1.f / density;
+      const float muKnown = m * fc.residualScale, muUnknown = m * maxf(fc.residualScale, fc.majorantScale);
+      bool& known = controlKnown;
+      if (crossedEmpty) known = false;
+      if (combNext != combNext) {  // a segment's start: its first comb and residual points
+        if (rng.counter >= fc.maxRngDraws) {
+          flags |= kRayCapped;
+          left = true;
+          break;
+        }
+        if (combPhase != combPhase) combPhase = combOffset(fc, rng);  // the ray's first comb point
+        combNext = t + combPhase * spacing;
+        const float mu = known ? muKnown : muUnknown;
+        residualNext = mu > 0.f ? candidateDistance(rng, mu, t) : INFINITY;
       }
-      const float tc = candidateDistance(rng, mu, t);
-      if (!(tc < segmentEnd)) break;
-      t = tc;
-      const int slot = pointSlot(rs.count, i, count);
-      const int cell = walker.cellIndex();
-      pts.t[slot] = tc;
-      pts.cell[slot] = cell;
-      float estimate = NAN;
-      const bool pruned = kPruning && prunes(medium.prune, cell, rng) &&
-                          isFiniteValue(estimate = medium.prune.expected[cell]);
-      pts.majorant[slot] = pruned ? -mu : mu;
-      pts.sample[slot] = pruned ? estimate : NAN;
-      if (pruned) {
-        rs.pruned[i] += 1u;
-      } else {
-        ++queries;
-        emitQuery(slot);
+      for (;;) {
+        const bool comb = combNext <= residualNext;
+        const float next = comb ? combNext : residualNext;
+        if (!(next < segmentEnd)) break;
+        if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame
+          flags |= kRayCapped;
+          left = true;
+          break;
+        }
+        gap += (next - t) * (known ? 1.f : m);
+        t = next;
+        const float muNow = known ? muKnown : muUnknown;
+        const std::uint8_t kind = std::uint8_t((comb ? kPointComb : 0) | (crossedEmpty ? kPointControlReset : 0));
+        if (storeRatioPoint<kPruning>(medium, rs, pts, i, count, t, comb ? spacing : muNow, gap, kind,
+                                      walker.cellIndex(), rng, emitQuery))
+          ++queries;
+        gap = 0.f;
+        crossedEmpty = false;
+        if (comb) {
+          combNext += spacing;
+          if (!known) {  // the control is known from here on: the residual process at its own rate
+            known = true;
+            residualNext = muKnown > 0.f ? candidateDistance(rng, muKnown, t) : INFINITY;
+          }
+        } else {
+          residualNext = candidateDistance(rng, muNow, t);
+        }
+        if (++count == fc.pointsPerIteration) {  // the batch is full: resume here next iteration
+          walker.store(rs, i);
+          rs.t[i] = t;
+          rs.combNext[i] = combNext;
+          rs.residualNext[i] = residualNext;
+          rs.combPhase[i] = combPhase;
+          rs.controlKnown[i] = controlKnown ? 1 : 0;
+          return count;
+        }
       }
-      if (++count == fc.pointsPerIteration) {  // the batch is full: resume here next iteration
-        walker.store(rs, i);
-        rs.t[i] = t;
-        return count;
+      if (left) break;
+      gap += (segmentEnd - t) * (known ? 1.f : m);
+      combPhase = (combNext - segmentEnd) * density;  // what is left of the comb interval
+    } else if (m > 0.f) {
+      const float mu = m * fc.majorantScale;
+      for (;;) {
+        if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame
+          flags |= kRayCapped;
+          left = true;
+          break;
+        }
+        const float tc = candidateDistance(rng, mu, t);
+        if (!(tc < segmentEnd)) break;
+        t = tc;
+        if (storeRatioPoint<kPruning>(medium, rs, pts, i, count, t, mu, 0.f, 0, walker.cellIndex(), rng, emitQuery))
+          ++queries;
+        if (++count == fc.pointsPerIteration) {
+          walker.store(rs, i);
+          rs.t[i] = t;
+          return count;
+        }
       }
+      if (left) break;
+    } else {
+      crossedEmpty = true;
     }
-    if (left || !walker.advance(segmentEnd, tEnd)) break;
+    combNext = NAN;
+    if (!walker.advance(segmentEnd, tEnd)) break;
     t = segmentEnd;
   }
   left = true;
   rs.t[i] = tEnd;
+  rs.controlKnown[i] = controlKnown ? 1 : 0;
+  rs.combPhase[i] = combPhase;
   return count;
 }
 
@@ -230,10 +385,11 @@ INR_HD void traverseRatioRayWith(const FrameConstants& fc, const TrackingMedium&
   }
   if (finished) {
     flags &= std::uint8_t(~(kRayActive | kRayPending));
-    Vec4f L = rs.radiance[i];
-    if (L.w > 0.f) {
+    const Vec4f L = rs.radiance[i];
+    const float absSum = rs.collisionProduct[i];
+    if (absSum > 0.f) {
       flags |= kRayHit;
-      if (fc.shadows) rs.radiance[i] = Vec4f{L.x * L.w, L.y * L.w, L.z * L.w, L.w};  // W c_I
+      if (fc.shadows) rs.radiance[i] = Vec4f{L.x * absSum, L.y * absSum, L.z * absSum, L.w};  // +-sum|w| c_I
       rs.t[i] = rs.hitT[i];
     }
     rs.pointCount[i] = 0;

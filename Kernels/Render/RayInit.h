@@ -32,6 +32,11 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.pruned[i] = 0;
   rs.pointCount[i] = 0;
   rs.hitT[i] = 0.f;
+  rs.combNext[i] = NAN;
+  rs.residualNext[i] = NAN;
+  rs.lastExtinction[i] = NAN;  // march's control: not known yet
+  rs.controlKnown[i] = 0;
+  rs.combPhase[i] = NAN;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 

@@ -33,6 +33,7 @@ enum RayFlag : std::uint8_t {
 enum class PrimaryEstimator : int {
   Delta = 0,  // the paper's delta tracking, collision estimator: one binary event per ray
   Ratio = 1,  // ratio-tracking emission weights at every tentative collision (RatioTracking.h)
+  March = 2,  // unbiased ray marching: comb emission, residual ratio-tracked transmittance (same)
 };
 
 enum class ShadowEstimator : int {
@@ -52,7 +53,8 @@ enum class ShadowEstimator : int {
 //   collisionProduct   delta tracking: xi * majorant, drawn when the candidate is emitted, so the
 //                      acceptance test after evaluation is `collisionProduct < sigma(sample)` and
 //                      neither xi nor the majorant has to be stored; ratio-tracked shadow rays
-//                      store the majorant itself
+//                      store the majorant itself; ratio / march primary rays the sum of their
+//                      emission weights' magnitudes
 //   cell, tNext        DDA: current majorant cell, ray parameter of the next crossing per axis
 //   radiance           frame result: premultiplied colour of the primary collision (rgb) and
 //                      coverage (w = 1 on a real collision, 0 when the ray escaped)
@@ -61,6 +63,12 @@ enum class ShadowEstimator : int {
 //   pointCount         ratio tracking (RatioTracking.h): the ray's points waiting for the evaluator
 //   hitT               ratio tracking: ray parameter of the emission point picked for the shadow ray
 //                      and the reprojection hit point (reservoir over the emission weights)
+//   combNext, residualNext  march: the next comb and residual points of the current macrocell
+//                      segment (NaN: draw them afresh at the next segment)
+//   lastExtinction     march: the control extinction (at the last comb point)
+//   combPhase          march: fraction of a comb interval to the next comb point, carried from
+//                      one macrocell segment to the next (NaN: the ray has not started its comb)
+//   controlKnown       march: a comb point was drawn since the walk last crossed empty space
 #define INR_RAY_STATE_FIELDS(X) \
   X(Vec3f, origin)              \
   X(Vec3f, direction)           \
@@ -76,7 +84,12 @@ enum class ShadowEstimator : int {
   X(float, visibility)          \
   X(std::uint32_t, pruned)       \
   X(std::uint8_t, pointCount)    \
-  X(float, hitT)
+  X(float, hitT)                 \
+  X(float, combNext)             \
+  X(float, residualNext)         \
+  X(float, lastExtinction)       \
+  X(float, combPhase)            \
+  X(std::uint8_t, controlKnown)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
 // declared the same way; resetPixel (Finalize.h) gives their values after a reset.
@@ -125,7 +138,8 @@ struct FrameConstants {
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
   // Primary estimator and ratio tracking's knobs (TrackingOptions; RatioTracking.h).
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
-  float majorantScale = 1.f;       // tentative collisions at majorantScale x the cell majorant
+  float majorantScale = 1.f;       // ratio: points at this x the cell majorant; march: comb density
+  float residualScale = 1.f;       // march: residual points at this x the cell majorant
   float rouletteThreshold = 0.05f; // Russian roulette below this transmittance estimate
   int pointsPerIteration = 1;      // tentative collisions a ray hands the evaluator per iteration
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking

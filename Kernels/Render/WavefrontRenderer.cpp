@@ -16,12 +16,15 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 }  // namespace
 
-const char* primaryEstimatorName(PrimaryEstimator e) { return e == PrimaryEstimator::Ratio ? "ratio" : "delta"; }
+const char* primaryEstimatorName(PrimaryEstimator e) {
+  return e == PrimaryEstimator::Ratio ? "ratio" : e == PrimaryEstimator::March ? "march" : "delta";
+}
 
 PrimaryEstimator parsePrimaryEstimator(const std::string& name) {
   if (name == "delta") return PrimaryEstimator::Delta;
   if (name == "ratio") return PrimaryEstimator::Ratio;
-  throw std::invalid_argument("estimator must be delta or ratio, got '" + name + "'");
+  if (name == "march") return PrimaryEstimator::March;
+  throw std::invalid_argument("estimator must be delta, ratio or march, got '" + name + "'");
 }
 
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
@@ -37,8 +40,11 @@ void TrackingOptions::validate() const {
                                 std::to_string(ghostPassesOnUpdate));
   }
   if (ghostPixelStride < 1) throw std::invalid_argument("ghostPixelStride must be >= 1");
-  if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio)
-    throw std::invalid_argument("estimator must be delta (0) or ratio (1), got " + std::to_string(int(estimator)));
+  if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio && estimator != PrimaryEstimator::March)
+    throw std::invalid_argument("estimator must be delta (0), ratio (1) or march (2), got " +
+                                std::to_string(int(estimator)));
+  if (!(residualScale >= 0.0 && residualScale <= 1024.0))
+    throw std::invalid_argument("residual scale must be in [0, 1024], got " + std::to_string(residualScale));
   if (!(majorantScale >= 1.0 && majorantScale <= 1024.0))
     throw std::invalid_argument("majorant scale must be in [1, 1024], got " + std::to_string(majorantScale));
   if (pointsPerIteration < 1 || pointsPerIteration > kMaxPointsPerIteration)
@@ -167,6 +173,7 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
   fc.estimator = options_.estimator;
   fc.majorantScale = float(options_.majorantScale);
+  fc.residualScale = float(options_.residualScale);
   fc.rouletteThreshold = float(options_.rouletteThreshold);
   fc.pointsPerIteration = options_.pointsPerIteration;
   const QueryReductionSettings& q = queryReduction_;

@@ -45,15 +45,19 @@ struct TrackingOptions {
   // it) and plays Russian roulette below rouletteThreshold (0 < threshold <= 1). Each point is
   // one draw of the ray's stream, so the collision cap allows it 2 * maxCollisionsPerRay points.
   static constexpr int kMaxPointsPerIteration = 64;
+  // March (unbiased ray marching, RatioTracking.h) puts a comb of majorantScale points per unit
+  // of majorant optical depth in each macrocell and residual ratio-tracking points at
+  // residualScale x the majorant (0: none: a plain jittered marcher, biased).
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   double majorantScale = 1.0;
+  double residualScale = 1.0;
   int pointsPerIteration = 16;
   double rouletteThreshold = 0.05;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
 };
 
-// "delta" / "ratio" (the CLI's --estimator, the plugin's InrEstimator); parse throws
+// "delta" / "ratio" / "march" (the CLI's --estimator, the plugin's InrEstimator); parse throws
 // std::invalid_argument naming the accepted names.
 const char* primaryEstimatorName(PrimaryEstimator e);
 PrimaryEstimator parsePrimaryEstimator(const std::string& name);

@@ -130,7 +130,8 @@ const char* kRenderUsageTail =
 // The primary estimator's options (TrackingOptions; Render/RatioTracking.h), checked before the
 // model loads; the help prints TrackingOptions' defaults.
 TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
-  for (const char* option : {"estimator", "majorant-scale", "points-per-iteration", "roulette-threshold"}) {
+  for (const char* option :
+       {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold"}) {
     if (args.has(option) && method != "delta")
       throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
   }
@@ -140,12 +141,14 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
     throw UsageError(std::string("--estimator: ") + e.what());
   }
   t.majorantScale = args.getDouble("majorant-scale", t.majorantScale);
+  t.residualScale = args.getDouble("residual-scale", t.residualScale);
   t.pointsPerIteration = int(args.getInt("points-per-iteration", t.pointsPerIteration));
   t.rouletteThreshold = args.getDouble("roulette-threshold", t.rouletteThreshold);
   try {
     t.validate();
   } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--estimator / --majorant-scale / --points-per-iteration / --roulette-threshold: ") +
+    throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
+                                 "--roulette-threshold: ") +
                      e.what());
   }
   return t;
@@ -158,14 +161,19 @@ std::string estimatorUsage() {
       text, sizeof text,
       "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
       "  --estimator E            delta: the paper's delta tracking, one collision event per ray; ratio:\n"
-      "                           ratio-tracking emission weights at every tentative collision, unbiased,\n"
-      "                           far less noise per frame for more (cheap) queries (default %s)\n"
-      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant, in [1, 1024]\n"
-      "                           (default %g); higher = more queries per frame, less noise\n"
+      "                           ratio-tracking emission weights at every tentative collision; march:\n"
+      "                           unbiased ray marching (a jittered comb per macrocell, transmittance\n"
+      "                           corrected by residual ratio tracking). All three converge to the same\n"
+      "                           image; ratio and march spend cheap queries for far less noise (default %s)\n"
+      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; march: comb\n"
+      "                           points per unit of majorant optical depth; in [1, 1024] (default %g);\n"
+      "                           higher = more queries per frame, less noise\n"
+      "  --residual-scale KR      march: residual points at KR x the majorant, in [0, 1024] (default %g;\n"
+      "                           0 = no correction: a plain jittered marcher, biased)\n"
       "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
       "                           (default %d); the image does not depend on it, only the frame time\n"
       "  --roulette-threshold R   ratio: Russian roulette below this transmittance, in (0, 1] (default %g)\n",
-      primaryEstimatorName(d.estimator), d.majorantScale, TrackingOptions::kMaxPointsPerIteration,
+      primaryEstimatorName(d.estimator), d.majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
       d.pointsPerIteration, d.rouletteThreshold);
   return text;
 }
@@ -285,7 +293,7 @@ int runRender(int argc, char** argv) {
              "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes",
              "step", "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge", "budget", "budget-fraction",
              "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff", "brick", "pixel-share",
-             "estimator", "majorant-scale", "points-per-iteration", "roulette-threshold"},
+             "estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold"},
             {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   if (args.has("help")) {
     std::fputs(kRenderUsageHead, stdout);
@@ -508,6 +516,7 @@ int runRender(int argc, char** argv) {
     const TrackingOptions& t = session->trackingOptions();
     report["estimator"] = {{"name", primaryEstimatorName(t.estimator)},
                            {"majorant_scale", t.majorantScale},
+                           {"residual_scale", t.residualScale},
                            {"points_per_iteration", t.pointsPerIteration},
                            {"roulette_threshold", t.rouletteThreshold}};
   }

@@ -333,7 +333,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
 }
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
-  FrameStats st = beginFrame(options_.estimator == PrimaryEstimator::Ratio ? "ratio" : "delta", "renderFrame");
+  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const auto tFrame = Clock::now();
@@ -359,7 +359,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   I.timer.end(s);
 
   I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
-          cuda::kEvaluate, st.iterations, st.queries, fc.estimator == PrimaryEstimator::Ratio);
+          cuda::kEvaluate, st.iterations, st.queries, fc.estimator != PrimaryEstimator::Delta);
 
   if (fc.shadows) {
     I.timer.begin(cuda::kShadowTraverse, s);

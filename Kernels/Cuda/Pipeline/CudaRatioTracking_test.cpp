@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <vector>
 
 #include "Cuda/CudaInrEvaluator.h"
 #include "Cuda/Pipeline/AnalyticDeviceField.h"
@@ -34,6 +35,16 @@ TrackingOptions ratio(double scale, int points) {
   return t;
 }
 
+TrackingOptions march(double scale, double residual, int points) {
+  TrackingOptions t = ratio(scale, points);
+  t.estimator = PrimaryEstimator::March;
+  t.residualScale = residual;
+  return t;
+}
+
+// The estimators under test: ratio tracking (k = 4) and unbiased ray marching (k = 2, kr = 1).
+std::vector<TrackingOptions> estimators(int points) { return {ratio(4.0, points), march(2.0, 1.0, points)}; }
+
 int envInt(const char* name, int fallback) {
   const char* v = std::getenv(name);
   return v ? std::max(1, std::atoi(v)) : fallback;
@@ -60,26 +71,37 @@ RatioRun renderAnalytic(const Field& field, const TrackingOptions& options, bool
   return out;
 }
 
-// Same random streams and per-ray code on both backends: the GPU's ratio-tracked image is the
-// CPU's up to the device's ulps (sinf, expf in the field) and its concurrent refinement.
+// Same random streams and per-ray code on both backends: the GPU's image is the CPU's up to the
+// device's ulps (sinf, expf in the field) and its concurrent refinement. Without shadows after 4
+// frames; with shadows, where an ulp can flip a shadow ray's decision (delta tracking's GPU and
+// CPU shadow images differ the same way, printed beside), after 64 frames.
 TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
-  for (bool shadows : {false, true}) {
-    const RatioRun cpu = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(static_cast<const FieldEvaluator&>(field),
-                                                                          ratio(4.0, 16), shadows, 64, 4);
-    const RatioRun gpu = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
-        static_cast<const DeviceFieldEvaluator&>(field), ratio(4.0, 16), shadows, 64, 4);
-    const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
-    std::printf("ratio tracking%s, 64x64, 4 frames: GPU vs CPU %.2f dB; queries GPU %zu CPU %zu; iterations GPU %d "
-                "CPU %d\n",
-                shadows ? " (shadows)" : "", psnr, gpu.stats.queries, cpu.stats.queries, gpu.stats.iterations,
-                cpu.stats.iterations);
-    EXPECT_GE(psnr, 50.0);
-    const double q = double(cpu.stats.queries);
-    EXPECT_NEAR(double(gpu.stats.queries), q, 0.01 * q);
-    EXPECT_EQ(gpu.stats.iterations, cpu.stats.iterations);
-    EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u);
+  const FieldEvaluator& host = field;
+  const DeviceFieldEvaluator& device = field;
+  for (const TrackingOptions& options : estimators(16)) {
+    for (bool shadows : {false, true}) {
+      const int frames = shadows ? 64 : 4;
+      const RatioRun cpu = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(host, options, shadows, 64, frames);
+      const RatioRun gpu = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(device, options, shadows, 64, frames);
+      const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
+      double control = NAN;
+      if (shadows) {
+        const RatioRun a = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(host, TrackingOptions{}, true, 64, frames);
+        const RatioRun b = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(device, TrackingOptions{}, true, 64,
+                                                                                        frames);
+        control = test::psnrOverCoverage(b.image, a.image, a.premultiplied);
+      }
+      std::printf("%s%s, 64x64, %d frames: GPU vs CPU %.2f dB (delta tracking: %.2f dB); queries GPU %zu CPU %zu; "
+                  "iterations GPU %d CPU %d\n",
+                  primaryEstimatorName(options.estimator), shadows ? " (shadows)" : "", frames, psnr, control,
+                  gpu.stats.queries, cpu.stats.queries, gpu.stats.iterations, cpu.stats.iterations);
+      EXPECT_GE(psnr, shadows ? 40.0 : 50.0) << primaryEstimatorName(options.estimator);
+      const double q = double(cpu.stats.queries);
+      EXPECT_NEAR(double(gpu.stats.queries), q, 0.01 * q);
+      EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u);
+    }
   }
 }
 
@@ -88,19 +110,22 @@ TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
 TEST(CudaRatioTracking, ImageDoesNotDependOnPointsPerIteration) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
-  auto gpu = [&](int points) {
-    TrackingOptions t = ratio(3.0, points);
-    t.refineMacrocells = false;
-    return renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(static_cast<const DeviceFieldEvaluator&>(field),
-                                                                        t, false, 64, 2);
-  };
-  const RatioRun one = gpu(1), again = gpu(1);
-  if (one.image.data != again.image.data)
-    GTEST_SKIP() << "the GPU pipeline is not bit-reproducible run to run on this device: nothing to compare";
-  const RatioRun many = gpu(32);
-  EXPECT_TRUE(one.image.data == many.image.data);
-  EXPECT_GE(many.stats.queries, one.stats.queries);
-  EXPECT_LT(4 * many.stats.iterations, one.stats.iterations);
+  for (TrackingOptions options : estimators(1)) {
+    auto gpu = [&](int points) {
+      TrackingOptions t = options;
+      t.pointsPerIteration = points;
+      t.refineMacrocells = false;
+      return renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
+          static_cast<const DeviceFieldEvaluator&>(field), t, false, 64, 2);
+    };
+    const RatioRun one = gpu(1), again = gpu(1);
+    if (one.image.data != again.image.data)
+      GTEST_SKIP() << "the GPU pipeline is not bit-reproducible run to run on this device: nothing to compare";
+    const RatioRun many = gpu(32);
+    EXPECT_TRUE(one.image.data == many.image.data) << primaryEstimatorName(options.estimator);
+    EXPECT_GE(many.stats.queries, one.stats.queries);
+    EXPECT_LT(4 * many.stats.iterations, one.stats.iterations);
+  }
 }
 
 // The shipped networks (fp16 tensor-core evaluator) with ratio tracking: the GPU image agrees
@@ -120,28 +145,29 @@ TEST(CudaRatioTracking, ShippedModelsMatchCpuAndDeltaTracking) {
     settings.pixelJitter = false;
     const RenderScene scene = test::testScene(model, range, false);
     const double t0 = model.domain.timeBegin, t1 = model.domain.timeEnd;
-
-    MacrocellGrid cpuGrid(cpuEval, box, t0, t1, test::testMacrocells());
-    DeltaTrackingRenderer cpu(cpuEval, cpuGrid, ratio(4.0, 16));
-    test::renderFrames(cpu, settings, scene, frames / 4);
-    CudaMacrocellGrid gpuGrid(gpuEval, box, t0, t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid, ratio(4.0, 16));
-    const FrameStats g = test::renderFrames(gpu, settings, scene, frames / 4);
     CudaMacrocellGrid deltaGrid(gpuEval, box, t0, t1, test::testMacrocells());
     CudaDeltaTrackingRenderer delta(gpuEval, deltaGrid);
     test::renderFrames(delta, settings, scene, 8 * frames);
-
     const ImageRGBA reference = delta.image(), coverage = delta.premultipliedImage();
-    const double vsCpu = test::psnrOverCoverage(gpu.image(), cpu.image(), cpu.premultipliedImage());
-    const double vsDelta = test::psnrOverCoverage(gpu.image(), reference, coverage);
-    std::printf("%-28s ratio k=4, %dx%d, %d frames: GPU vs CPU %.2f dB, vs GPU delta (%d frames) %.2f dB; "
-                "%.1f iterations, %zu queries per frame\n",
-                fs::path(path).filename().c_str(), size, size, frames / 4, vsCpu, 8 * frames, vsDelta,
-                double(g.iterations) / (frames / 4), g.queries / std::size_t(frames / 4));
-    EXPECT_GE(vsCpu, 40.0) << path;
-    EXPECT_GE(vsDelta, 38.0) << path;
-    EXPECT_EQ(test::nonFinitePixels(gpu.image()), 0u) << path;
-    EXPECT_EQ(gpu.counters().truncatedFrames, 0) << path;
+
+    for (const TrackingOptions& options : estimators(16)) {
+      MacrocellGrid cpuGrid(cpuEval, box, t0, t1, test::testMacrocells());
+      DeltaTrackingRenderer cpu(cpuEval, cpuGrid, options);
+      test::renderFrames(cpu, settings, scene, frames / 4);
+      CudaMacrocellGrid gpuGrid(gpuEval, box, t0, t1, test::testMacrocells());
+      CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid, options);
+      const FrameStats g = test::renderFrames(gpu, settings, scene, frames / 4);
+      const double vsCpu = test::psnrOverCoverage(gpu.image(), cpu.image(), cpu.premultipliedImage());
+      const double vsDelta = test::psnrOverCoverage(gpu.image(), reference, coverage);
+      std::printf("%-28s %s, %dx%d, %d frames: GPU vs CPU %.2f dB, vs GPU delta (%d frames) %.2f dB; "
+                  "%.1f iterations, %zu queries per frame\n",
+                  fs::path(path).filename().c_str(), primaryEstimatorName(options.estimator), size, size, frames / 4,
+                  vsCpu, 8 * frames, vsDelta, double(g.iterations) / (frames / 4), g.queries / std::size_t(frames / 4));
+      EXPECT_GE(vsCpu, 40.0) << path;
+      EXPECT_GE(vsDelta, 38.0) << path;
+      EXPECT_EQ(test::nonFinitePixels(gpu.image()), 0u) << path;
+      EXPECT_EQ(gpu.counters().truncatedFrames, 0) << path;
+    }
   }
 }
 

@@ -90,9 +90,9 @@ __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverse
 }
 // Ratio tracking's pass (RatioTracking.h) carries the ray's estimate and a transfer-function
 // lookup per point: at the delta kernel's 56-register bound it spilled (up to 160 bytes of
-// loads per thread), so it gets a bound of its own.
+// loads per thread; with march at 6 blocks, 20), so it gets a bound of its own.
 template <bool kPruning, bool kRatio>
-__global__ void __launch_bounds__(kThreads, 6) ddaRatioTraverseKernel(TraversalLaunch p, int tilesX) {
+__global__ void __launch_bounds__(kThreads, 5) ddaRatioTraverseKernel(TraversalLaunch p, int tilesX) {
   traversePass<kPruning, kRatio>(p, tilesX);
 }
 
