@@ -36,7 +36,7 @@
 // offset per segment) for the emission integral, and residual ratio-tracking points at rate
 // mu_r = k_r m (FrameConstants::residualScale) for the transmittance. The control extinction
 // sigma~ is piecewise constant: the extinction at the last comb point (half the majorant before
-// the first one and after empty space; 0 in empty space), so
+// the first one; 0 in empty space), so
 //     T(t) = exp(-int_0^t sigma~) * prod over residual points y < t of (1 - (sigma(y) - sigma~(y)) / mu_r)
 // is unbiased for exp(-int sigma) for any sigma~ fixed before the residual points are drawn (the
 // Poisson generating functional; the residual process is independent of the comb), and
@@ -81,7 +81,6 @@ namespace inr {
 enum PointKind : std::uint8_t {
   kPointComb = 1u << 0,          // march: an emission (comb) point, else a transmittance point
   kPointPruned = 1u << 1,        // answered by pruning without a query (no refinement, no EMA)
-  kPointControlReset = 1u << 2,  // march: the walk crossed empty space before it (control = 0)
 };
 
 #define INR_DECLARE_POINT_VIEW_FIELD(type, name) type* name = nullptr;
@@ -148,10 +147,8 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
     const float pick = pointRng.next();
     float w = 0.f;  // this point's emission weight
     if (march) {
-      // Until the ray's first comb point (and after empty space) the control is half the
-      // macrocell majorant (`gap` then holds the majorant optical depth since the last point);
+      // Until the ray's first comb point the control is half the macrocell majorant (`gap` then holds the majorant optical depth since the last point);
       // from then on the extinction at the last comb point (`gap` a length).
-      if (kind & kPointControlReset) control = NAN;
       const bool known = control == control;
       T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
       if (kind & kPointComb) {
@@ -245,27 +242,24 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
   // segment's start and draws them afresh).
   float combNext = rs.combNext[i], residualNext = rs.residualNext[i], combPhase = rs.combPhase[i];
   float gap = 0.f;          // non-empty length since the last point
-  bool crossedEmpty = false;
-  bool controlKnown = rs.controlKnown[i] != 0;  // march: a comb point since the last empty stretch
+  bool controlKnown = rs.controlKnown[i] != 0;  // march: the ray has had a comb point
   int count = 0;
   left = false;
   Walker walker(medium.grid, rs, i);
   for (;;) {
     float m, segmentEnd;
-    const float tBefore = t;
     if (!walker.segment(tEnd, t, m, segmentEnd)) break;
-    if (t > tBefore) crossedEmpty = true;  // the walker jumped over empty blocks
     if (march && m > 0.f) {
       // The comb is regular in majorant optical depth (k points per unit), continuous along the
       // ray across macrocells: its phase (the fraction of a comb interval still to go) carries
       // over from segment to segment, so cells shorter than the spacing keep the stratification.
-      // Until the walk has a comb point since it last crossed empty space the control is half the
-      // majorant, and the residual points there come at the comb's density (at least), so their
-      // factors 1 - (sigma - m / 2) / mu stay near 1.
+      // Until the ray's first comb point the control is half the majorant, and the residual
+      // points there come at the comb's density (at least), so their factors
+      // 1 - (sigma - m / 2) / mu stay near 1. The control then carries over empty space (where
+      // it does not apply: gaps count non-empty length only) to the next comb point.
       const float density = m * fc.majorantScale, spacing = 1.f / density;
       const float muKnown = m * fc.residualScale, muUnknown = m * maxf(fc.residualScale, fc.majorantScale);
       bool& known = controlKnown;
-      if (crossedEmpty) known = false;
       if (combNext != combNext) {  // a segment's start: its first comb and residual points
         if (rng.counter >= fc.maxRngDraws) {
           flags |= kRayCapped;
@@ -289,12 +283,11 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
         gap += (next - t) * (known ? 1.f : m);
         t = next;
         const float muNow = known ? muKnown : muUnknown;
-        const std::uint8_t kind = std::uint8_t((comb ? kPointComb : 0) | (crossedEmpty ? kPointControlReset : 0));
+        const std::uint8_t kind = comb ? kPointComb : 0;
         if (storeRatioPoint<kPruning>(medium, rs, pts, i, count, t, comb ? spacing : muNow, gap, kind,
                                       walker.cellIndex(), rng, emitQuery))
           ++queries;
         gap = 0.f;
-        crossedEmpty = false;
         if (comb) {
           combNext += spacing;
           if (!known) {  // the control is known from here on: the residual process at its own rate
@@ -337,8 +330,6 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
         }
       }
       if (left) break;
-    } else {
-      crossedEmpty = true;
     }
     combNext = NAN;
     if (!walker.advance(segmentEnd, tEnd)) break;

@@ -68,7 +68,7 @@ enum class ShadowEstimator : int {
 //   lastExtinction     march: the control extinction (at the last comb point)
 //   combPhase          march: fraction of a comb interval to the next comb point, carried from
 //                      one macrocell segment to the next (NaN: the ray has not started its comb)
-//   controlKnown       march: a comb point was drawn since the walk last crossed empty space
+//   controlKnown       march: the ray has drawn a comb point (its control is known)
 #define INR_RAY_STATE_FIELDS(X) \
   X(Vec3f, origin)              \
   X(Vec3f, direction)           \

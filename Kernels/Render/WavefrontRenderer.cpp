@@ -54,6 +54,14 @@ void TrackingOptions::validate() const {
     throw std::invalid_argument("roulette threshold must be in (0, 1], got " + std::to_string(rouletteThreshold));
 }
 
+TrackingOptions TrackingOptions::recommended() {
+  TrackingOptions t;
+  t.estimator = PrimaryEstimator::Ratio;
+  t.majorantScale = 8.0;
+  t.pointsPerIteration = 32;
+  return t;
+}
+
 WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {
   options_.validate();
   warn_ = [](const std::string& message) { std::fprintf(stderr, "INR Volume: warning: %s\n", message.c_str()); };
@@ -175,7 +183,9 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   fc.majorantScale = float(options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
   fc.rouletteThreshold = float(options_.rouletteThreshold);
-  fc.pointsPerIteration = options_.pointsPerIteration;
+  const long long pixels = std::max(1ll, (long long)settings_.width * settings_.height);
+  fc.pointsPerIteration =
+      int(std::max(1ll, std::min<long long>(options_.pointsPerIteration, TrackingOptions::kMaxPointSlots / pixels)));
   const QueryReductionSettings& q = queryReduction_;
   BudgetConstants& b = fc.budget;
   b.scheme = int(q.budget);

@@ -45,6 +45,10 @@ struct TrackingOptions {
   // it) and plays Russian roulette below rouletteThreshold (0 < threshold <= 1). Each point is
   // one draw of the ray's stream, so the collision cap allows it 2 * maxCollisionsPerRay points.
   static constexpr int kMaxPointsPerIteration = 64;
+  // Memory bound of the point storage: a frame holds at most this many point slots (rays x
+  // points per iteration; ~21 bytes each, plus the query batch), so large images hand the
+  // evaluator fewer points per ray per iteration instead (the image does not change).
+  static constexpr long long kMaxPointSlots = 1ll << 25;
   // March (unbiased ray marching, RatioTracking.h) puts a comb of majorantScale points per unit
   // of majorant optical depth in each macrocell and residual ratio-tracking points at
   // residualScale x the majorant (0: none: a plain jittered marcher, biased).
@@ -55,6 +59,11 @@ struct TrackingOptions {
   double rouletteThreshold = 0.05;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
+  // What `inr render`, pvpython and the ParaView GUI use: the struct's own defaults (the paper's
+  // delta tracking, which the regression fingerprints and the delta-specific tests pin) with the
+  // estimator chosen by the time-to-a-clean-image benchmark (Benchmarks/RESULTS.md, "Time to a
+  // clean image"): ratio tracking, majorant scale 8, 32 points per iteration.
+  static TrackingOptions recommended();
 };
 
 // "delta" / "ratio" / "march" (the CLI's --estimator, the plugin's InrEstimator); parse throws

@@ -155,7 +155,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
 }
 
 std::string estimatorUsage() {
-  const TrackingOptions d;
+  const TrackingOptions d = TrackingOptions::recommended();
   char text[2048];
   std::snprintf(
       text, sizeof text,
@@ -354,7 +354,7 @@ int runRender(int argc, char** argv) {
   if (args.has("converge") && method == "raymarch") throw UsageError("--converge applies to delta tracking only");
   // Checked before the model loads, so a typo fails at once.
   const QueryReductionSettings queryReduction = parseQueryReduction(args);
-  const TrackingOptions estimatorOptions = parseEstimatorOptions(args, TrackingOptions{}, method);
+  const TrackingOptions estimatorOptions = parseEstimatorOptions(args, TrackingOptions::recommended(), method);
   for (const char* option : {"budget", "budget-fraction", "budget-max-skip", "budget-alpha", "reproject",
                              "no-reproject", "prune-epsilon", "prune-falloff"}) {
     if (args.has(option) && method == "raymarch")
