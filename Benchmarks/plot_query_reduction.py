@@ -41,6 +41,23 @@ def cell(v, digits=2):
 
 
 FAMILIES = ["histogram", "stbn", "weighted-stbn", "prune", "combined"]
+# The primary estimators (inr render --estimator) share one panel, "estimators".
+ESTIMATORS = ("delta", "ratio", "march")
+
+
+def panels(summary):
+    """The families present in the summary, in FAMILIES order, then "estimators" if any is."""
+    present = {r["family"] for r in summary}
+    out = [f for f in FAMILIES if f in present]
+    if present & set(ESTIMATORS):
+        out.append("estimators")
+    return out or ["none"]
+
+
+def in_panel(family, panel):
+    if panel == "estimators":
+        return family in ESTIMATORS or family in ("none", "defaults")
+    return family in (panel, "none", "defaults")
 
 
 def tables(summary, raymarch, orbit):
@@ -54,8 +71,10 @@ def tables(summary, raymarch, orbit):
         out.append(f"\n**{m}** ({first['backend']}, {first['size']}², reference {first['reference_frames']} "
                    f"frames, volume covers {100 * num(first['covered_fraction']):.1f}% of the image)\n")
         out.append("| config | frames | fps | t→35 dB [s] | t→40 dB [s] | t35 / none | dB @400 | dB end (volume) "
-                   "| dB end (image) | MAD % | rays/frame | pruned/frame | rays/px/frame |")
-        out.append("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+                   "| dB end (image) | MAD % | rays/frame | pruned/frame | rays/px/frame | iterations/frame "
+                   "| queries/frame |")
+        out.append("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+                   "| ---: |")
         for r in rows:
             t35 = num(r["time_to_35"])
             ratio = t35 / t35_none if t35_none > 0 and not math.isnan(t35) else math.nan
@@ -63,7 +82,8 @@ def tables(summary, raymarch, orbit):
                        f"{cell(num(r['time_to_40']), 3)} | {cell(ratio)} | {cell(num(r['psnr_400_volume']))} | "
                        f"{cell(num(r['psnr_end_volume']))} | {cell(num(r['psnr_end_image']))} | "
                        f"{cell(100 * num(r['mad_end_volume']))} | {num(r['rays_per_frame']):.0f} | "
-                       f"{num(r['pruned_per_frame']):.0f} | {cell(num(r['heatmap_mean']))} |")
+                       f"{num(r['pruned_per_frame']):.0f} | {cell(num(r['heatmap_mean']))} | "
+                       f"{cell(num(r.get('iterations_per_frame', '')), 1)} | {cell(num(r['queries_per_frame']), 0)} |")
         march = [r for r in raymarch if r["model"] == m]
         if march:
             out.append("\n| ray marching (1 frame, pixel centres) | seconds | dB (volume) | dB (image) | queries |")
@@ -110,19 +130,20 @@ def plots(d, curves, summary, raymarch, orbit, title):
             by[(r["model"], r["config"])].append(r)
     for m in models:
         configs = [r for r in summary if r["model"] == m]
-        fig, ax = plt.subplots(2, len(FAMILIES), figsize=(5 * len(FAMILIES), 8), sharex=True, squeeze=False)
+        cols = panels(summary)
+        fig, ax = plt.subplots(2, len(cols), figsize=(5 * len(cols), 8), sharex=True, squeeze=False)
         march = [r for r in raymarch if r["model"] == m]
-        for col, fam in enumerate(FAMILIES):
+        for col, fam in enumerate(cols):
             for row, key in enumerate(("psnr_volume", "psnr_image")):
                 a = ax[row][col]
                 for c in configs:
-                    if c["family"] not in (fam, "none", "defaults"):
+                    if not in_panel(c["family"], fam):
                         continue
                     pts = [(num(p["seconds"]), num(p[key])) for p in by[(m, c["config"])]]
                     pts = [(t, v) for t, v in pts if t > 0 and math.isfinite(v)]
                     if not pts:
                         continue
-                    style = dict(color="k", lw=2) if c["family"] == "none" else \
+                    style = dict(color="k", lw=2) if c["family"] in ("none", "delta") else \
                         dict(color="gray", ls="--", lw=1.5) if c["family"] == "defaults" else dict(lw=1.2)
                     a.plot(*zip(*pts), label=c["config"], **style)
                 # Ray marching in black, one marker shape per step, the same on every panel.
