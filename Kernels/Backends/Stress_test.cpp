@@ -38,6 +38,7 @@
 #include <cuda_runtime.h>
 
 #include "Cuda/CudaDevice.h"
+#include "TestSupport/RequireGpu.h"
 #endif
 
 namespace inr {
@@ -62,8 +63,7 @@ class Stress : public ::testing::Test {
 protected:
   void SetUp() override {
 #ifdef INR_STRESS_CUDA
-    const CudaDeviceInfo dev = queryCudaDevice();
-    if (!dev.usable) GTEST_SKIP() << "no usable GPU: " << dev.reason;
+    REQUIRE_GPU();
 #endif
   }
 };
