@@ -3,7 +3,7 @@
 # executions; exits non-zero on any finding (crash, sanitizer report, hang, invariant violation).
 #
 #   Tools/run-fuzz.sh [EXECUTIONS] [libFuzzer options...]     (default 200000, about half a minute)
-#   nice -n 10 Tools/run-fuzz.sh 10000000                     (a long run; see README)
+#   nice -n 10 Tools/run-fuzz.sh 10000000                     (a long run; see Docs/testing.md)
 #
 # Builds with clang into ${INR_FUZZ_BUILD_DIR:-build-fuzz} (INR_FUZZ=ON: the loader and the fuzzer
 # only). Seeds: Testing/Data/malformed and Testing/Data/models/*.inr; the corpus it grows is kept in

@@ -5,7 +5,9 @@ set(INR_ENABLE_OPTIX AUTO CACHE STRING "OptiX traversal (needs CUDA and OptiX 9.
 set(INR_ENABLE_PARAVIEW AUTO CACHE STRING "ParaView plugin: AUTO, ON or OFF")
 set(OptiX_INSTALL_DIR "" CACHE PATH "Folder holding OptiX 9.0 'include/optix.h' (NVIDIA/optix-dev)")
 option(INR_BUILD_TESTS "Build the test suite" ON)
-# Checking builds (Tools/run-sanitizers.sh, Tools/run-fuzz.sh; README "Fuzzing and sanitizers").
+# The benchmark programs (Benchmarks/); the sanitizer build leaves them out (no test runs them).
+option(INR_BUILD_BENCHMARKS "Build the benchmark programs" ON)
+# Checking builds (Tools/run-sanitizers.sh, Tools/run-fuzz.sh; Docs/testing.md, "Fuzzing and sanitizers").
 set(INR_SANITIZE "" CACHE STRING "Sanitizers for the engine, the CLI and the tests, e.g. address,undefined")
 option(INR_FUZZ "Build only the model loader and its libFuzzer target (Testing/Fuzz; needs clang)" OFF)
 foreach(opt INR_ENABLE_CUDA INR_ENABLE_OPTIX INR_ENABLE_PARAVIEW)

@@ -17,9 +17,9 @@
 namespace inr {
 
 struct RefinementOptions {
-  // Accumulation stops here even when not converged. High enough for sparse scenes: with its
-  // suggested TF, siren_cylinder_vorticity_small at the first time step covers 1% of a view and
-  // needs about 840 frames for 41 dB (a 256-frame cap stopped it at 35 dB).
+  // Accumulation stops here even when not converged. High enough for sparse scenes, which
+  // cover few pixels and need several hundred frames for the default target (a 256-frame cap
+  // stopped one short of it; figures: Benchmarks/RESULTS.md, "Figures moved out of code comments").
   int maximumFrames = 2048;
   // Stop when the estimated PSNR over the volume's pixels reaches this (dB); 0 = off. The
   // default leaves a margin for the estimate's own noise: measured against 1024-frame references

@@ -130,7 +130,8 @@ struct FusedConfig {
   bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
   // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
   // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
-  // form sits on the GEMM's critical path; measured on ffn_mri_head, H100: 0.40 vs 0.28 G q/s).
+  // form sits on the GEMM's critical path; figures: Benchmarks/RESULTS.md, "Warp-specialised
+  // Hopper kernel").
   bool storedEncoding = false;
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)

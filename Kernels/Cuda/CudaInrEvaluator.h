@@ -66,8 +66,8 @@ public:
 
   CudaEvaluatorPath path() const;
   // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,
-  // e.g. "... tile 128 x K 64: 0.37 / 0.05 Gq/s; ... -> tile 128 x K 64, below 32768 queries
-  // tile 32 x K 64" (large / small batch rates; empty for the generic path).
+  // e.g. "... tile 128 x K 64: L / S Gq/s; ... -> tile 128 x K 64, below 32768 queries
+  // tile 32 x K 64" (L / S: large / small batch rates; empty for the generic path).
   std::string launchReport() const;
   // Whether the fused launches (either batch size) use the wgmma kernel.
   bool usesWgmma() const;

@@ -17,17 +17,18 @@
 // sine/SiLU, residual, fp16 store or the final dot) runs while the other consumer's MMAs keep
 // the tensor cores busy. (Overlapping within a warpgroup, with a second accumulator set in
 // flight, makes ptxas serialise every wgmma of the kernel: C7514/C7515 for non-wgmma reads or
-// writes of accumulators between a wgmma and its wait; copying them out first cost ~100 moves
-// per chunk, measured slower.) A warp's GEMM reads only its own 16 rows, all of them before its
+// writes of accumulators between a wgmma and its wait; copying them out first costs moves in
+// every chunk and measured slower: Benchmarks/RESULTS.md, "Hopper kernel in column chunks".) A warp's GEMM reads only its own 16 rows, all of them before its
 // epilogues write them: a GEMM may write over its input (MlpProgram::withGemmsInPlace(
 // kHopperKSegment): one activation buffer for SIREN and FFN), and consecutive GEMM layers need
 // no barrier between the consumer's warps.
 // Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
 // barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
 // One instruction shape and one epilogue per activation keep the kernel small: ptxas compiles
-// it in well under a minute (48 shape x activation x residual instantiations took over nine),
-// and the instruction cache holds it.
-// ptxas allocates registers for the kernel's launch bound (168 for 384 threads) whatever
+// it quickly (a variant with 48 shape x activation x residual instantiations took many times
+// longer; compile times in Benchmarks/RESULTS.md), and the instruction cache holds it.
+// ptxas allocates registers for the kernel's launch bound (65536 / 384 threads, rounded down to
+// a multiple of 8: 168) whatever
 // setmaxnreg later grants, so the consumer's working set is sized for 168: A 64, accumulators
 // 32 or 64.
 // The wgmma/mbarrier/bulk-copy instructions exist only in sm_90a code (__CUDA_ARCH_FEAT_SM90_ALL);

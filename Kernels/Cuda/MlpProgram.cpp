@@ -103,9 +103,10 @@ public:
       in.floatOffset = pushFloats(W);
       if (tensorCores && L.inWidth <= 64) {
         // The final dot product on tensor cores too (a 16-wide GEMM whose column 0 is the
-        // output, kept in fp32 and written straight to the result). Measured on an H200: +10%
-        // on the small models (K <= 64, one weight chunk); for K = 256 the four synchronised
-        // chunks with a quarter of the warps busy made SIREN 4% slower than the fp32 dot.
+        // output, kept in fp32 and written straight to the result): faster on the small models
+        // (K <= 64, one weight chunk); for K = 256 the four synchronised chunks with a quarter of
+        // the warps busy made SIREN slower than the fp32 dot (figures: Benchmarks/RESULTS.md,
+        // "Figures moved out of code comments").
         in.op = MlpOp::Gemm;
         in.finalOutput = 1;
         packHalf();

@@ -9,7 +9,7 @@ namespace inr {
 namespace {
 
 // Small batches run on the calling thread: waking an OpenMP team costs more than a few chunks of
-// GEMM on a loaded machine (measured: ~15 ms per call on a busy 2-core box).
+// GEMM on a loaded machine (measured: Benchmarks/RESULTS.md, "Figures moved out of code comments").
 constexpr std::int64_t kMinParallelChunks = 8;
 
 using Mat = Eigen::MatrixXf;  // column-major: one column per query

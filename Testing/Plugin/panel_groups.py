@@ -1,11 +1,11 @@
 """The INR Volume panel as the plugin's XML declares it, without ParaView: every property of the
 InrVolumeRepresentation proxy is exposed in exactly one of the panel's groups (Rendering,
 Macrocells, Shadows, Query reduction, Refinement, in that order), every group names only real
-properties, and every property has a tooltip (<Documentation>). With README.md: its table of
-property names for pvpython lists every property once, in its group, with the XML's default
+properties, and every property has a tooltip (<Documentation>). With Docs/paraview.md: its table
+of property names for pvpython lists every property once, in its group, with the XML's default
 (read-only for information properties). Exit status 0 = pass.
 
-  python3 panel_groups.py ServerManagerXML/InrVolumeRepresentation.xml [README.md]
+  python3 panel_groups.py ServerManagerXML/InrVolumeRepresentation.xml [Docs/paraview.md]
 """
 import re
 import sys
@@ -65,25 +65,25 @@ for n, e in properties.items():
         check(visibility == "default", f"{n} is visible by default ({visibility})")
 
 if len(sys.argv) > 2:
-    # Rows "| `Name` [⚙] | group | default | what it trades |" of the README's property table.
+    # Rows "| `Name` [⚙] | group | default | what it trades |" of the property table in Docs/paraview.md.
     rows = {}
     for line in open(sys.argv[2], encoding="utf-8"):
         m = re.match(r"\| `(\w+)`( ⚙)? \| ([^|]+) \| ([^|]+) \|", line)
         if m and m.group(1) in properties or (m and m.group(3).strip() in GROUPS):
-            check(m.group(1) not in rows, f"README: {m.group(1)} listed once")
+            check(m.group(1) not in rows, f"table: {m.group(1)} listed once")
             rows[m.group(1)] = (m.group(3).strip(), m.group(4).strip(), bool(m.group(2)))
     shown = {n for n, e in properties.items() if e.get("panel_visibility") != "never"}
     check(set(rows) == shown,
-          f"README: the table lists every panel property (missing {sorted(shown - set(rows))}, "
+          f"table: the table lists every panel property (missing {sorted(shown - set(rows))}, "
           f"unknown {sorted(set(rows) - shown)})")
     for n, (group, default, advanced) in rows.items():
         if n not in properties:
             continue
         e = properties[n]
-        check(membership.get(n) == [group], f"README: {n} in group {group!r} ({membership.get(n)})")
-        check(advanced == (e.get("panel_visibility") == "advanced"), f"README: {n} marked advanced as in the XML")
+        check(membership.get(n) == [group], f"table: {n} in group {group!r} ({membership.get(n)})")
+        check(advanced == (e.get("panel_visibility") == "advanced"), f"table: {n} marked advanced as in the XML")
         if e.get("information_only") == "1":
-            check(default == "read-only", f"README: {n} is read-only ({default!r})")
+            check(default == "read-only", f"table: {n} is read-only ({default!r})")
             continue
         value = re.search(r"\((-?[\d.]+)\)$", default)
         written = value.group(1) if value else default
@@ -92,7 +92,7 @@ if len(sys.argv) > 2:
             got = [float(v) for v in written.split()]
         except ValueError:
             got = None
-        check(got == want, f"README: {n} default {default!r} (XML {e.get('default_values')!r})")
+        check(got == want, f"table: {n} default {default!r} (XML {e.get('default_values')!r})")
 
 print("RESULT:", "PASS" if not failures else "FAIL " + "; ".join(failures), flush=True)
 sys.exit(1 if failures else 0)

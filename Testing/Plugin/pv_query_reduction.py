@@ -72,7 +72,7 @@ defaults = {"budget": display.RayBudget, "rho": display.BudgetFraction, "K": dis
 simple.Render(view)
 expect_in_use(display, defaults, "defaults reach the engine")
 
-# Every property, set by the name the README documents, reaches the engine.
+# Every property, set by the name Docs/paraview.md documents, reaches the engine.
 display.RayBudget = "stbn"
 display.BudgetFraction = 0.5
 display.BudgetMaxSkip = 5
