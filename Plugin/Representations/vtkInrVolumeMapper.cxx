@@ -208,10 +208,22 @@ struct EngineKey
 // Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
 // progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
 // ParaView's progress bar.
-inr::MacrocellProgress progressHandler(vtkInrVolumeMapper* self, const std::string& prefix)
+//
+// A view that prepares each render (vtkInrVolumeMapper::PrepareRender: ParaView's representation)
+// gets the builds done there, before the GL render; a build that still happens inside the GL
+// render reports nothing then (`*muted`): a GUI handles a progress event by repainting its
+// progress bar at once, and Qt composes the window with another OpenGL context and repaints the
+// view widget in the middle of VTK's render (the GL state VTK caches is then wrong: "Error in
+// cache state" warnings, GL errors, a blank view).
+inr::MacrocellProgress progressHandler(
+  vtkInrVolumeMapper* self, const std::string& prefix, const bool* muted)
 {
-  return [self, prefix](double fraction, const std::string& phase)
+  return [self, prefix, muted](double fraction, const std::string& phase)
   {
+    if (muted && *muted)
+    {
+      return;
+    }
     self->SetProgressText((prefix + phase).c_str());
     self->UpdateProgress(fraction);
     self->SetProgressText(nullptr);  // observers read it during the event; later events (the
@@ -295,6 +307,17 @@ struct vtkInrVolumeMapper::Internals
   {
     return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
                                                      : this->fine.session.get();
+  }
+
+  // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
+  // reported only there (quietRenders), never from inside Render (insideRender).
+  bool quietRenders = false;
+  bool insideRender = false;
+  bool muteProgress = false;  // quietRenders && insideRender: read by the progress handlers
+  void SetInsideRender(bool inside)
+  {
+    this->insideRender = inside;
+    this->muteProgress = this->quietRenders && inside;
   }
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
@@ -608,6 +631,57 @@ void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
   this->Superclass::ReleaseGraphicsResources(win);
 }
 
+// The slow, GL-free part of the next Render, done before the view's GL render starts: the engine
+// (re)built when its options changed, the macrocell slices the coming frame needs for the input's
+// time (the fine grid's, or the coarse interactive grid's for a reduced time-change frame), and
+// the coarse grid's slices built ahead once a still image is on screen. Their progress is reported
+// here; from then on Render itself reports none (see progressHandler).
+void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
+{
+  Internals& I = *this->Internal;
+  if (!ren || !vol || ren->GetSelector() || I.insideRender)
+  {
+    return;
+  }
+  I.quietRenders = true;
+  if (vtkAlgorithm* producer = this->GetInputAlgorithm())
+  {
+    producer->Update();
+  }
+  vtkDataSet* input = this->GetInput();
+  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
+  auto* bytes = vtkUnsignedCharArray::SafeDownCast(fd ? fd->GetAbstractArray("InrModel") : nullptr);
+  if (!bytes || bytes->GetNumberOfValues() == 0 || !I.UpdateModel(this, bytes) ||
+    !I.UpdateEngine(this))
+  {
+    return;  // Render reports what is wrong
+  }
+  inr::RenderScene next;
+  next.time = InrSceneTranslator::Time(
+    input, 0.5 * (I.model.domain.timeBegin + I.model.domain.timeEnd));
+  double budgetMs = 0.0;
+  bool timeChange = false;
+  const bool interactive = I.InteractiveRender(this, ren, next, &budgetMs, &timeChange);
+  const bool coarse = interactive && timeChange && I.UpdateCoarseEngine(this);
+  try
+  {
+    (coarse ? I.coarse.session : I.fine.session)->buildSlicesFor(next.time);
+  }
+  catch (const std::exception&)
+  {
+    // The render's setScene meets the same failure and reports it.
+  }
+  // The coarse slices of later time-change frames, once a still image of the fine grid is shown
+  // (the first image is not delayed by them).
+  if (!interactive && !I.lastInteractive && I.fine.session->accumulatedFrames() > 0 &&
+    this->InteractiveMacrocellsAhead &&
+    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
+    !this->Capturing)
+  {
+    I.BuildCoarseAhead(this);
+  }
+}
+
 void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 {
   Internals& I = *this->Internal;
@@ -615,6 +689,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // no picking support: hardware-selection passes skip the volume
   }
+  struct InsideRender
+  {
+    Internals& I;
+    explicit InsideRender(Internals& i)
+      : I(i)
+    {
+      I.SetInsideRender(true);
+    }
+    ~InsideRender() { I.SetInsideRender(false); }
+  } inside(I);
   // Under MPI every rank reaches this point in every render (IceT composites all of them):
   // whatever happens below, the refinement state is reduced over the ranks once on the way out
   // (also where this rank draws nothing: depth peeling depends on its own geometry, and a rank
@@ -742,7 +826,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
-  if (!interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
+  // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)
+  if (!I.quietRenders && !interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
     this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
     !this->Capturing)
   {
@@ -1038,7 +1123,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
         so.traversal.kind = inr::TraversalKind::Auto;
         f.session = inr::RenderSession::create(this->model, so);
       }
-      f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
+      f.session->setProgressHandler(progressHandler(self, "INR Volume: ", &this->muteProgress));
       this->rankInUse.clear();
       if (this->ranks.count > 1 || localRank >= 0)
       {
@@ -1159,7 +1244,8 @@ void vtkInrVolumeMapper::Internals::BuildCoarseAhead(vtkInrVolumeMapper* self)
     return;
   }
   const auto start = Clock::now();
-  engine.setProgressHandler(progressHandler(self, "INR Volume (interactive macrocells): "));
+  engine.setProgressHandler(
+    progressHandler(self, "INR Volume (interactive macrocells): ", &this->muteProgress));
   try
   {
     engine.buildAllSlices();

@@ -320,6 +320,13 @@ public:
   ///@}
 
   void Render(vtkRenderer* ren, vtkVolume* vol) override;
+  /// Called by a view before its GL render of the volume (ParaView's representation does it in
+  /// its render request): does the long, GL-free work of the next Render() here (engine rebuild,
+  /// the macrocell slices the input's time needs, the coarse slices built ahead), reporting their
+  /// progress. Once it has been called, Render() reports no progress itself: a GUI that repaints
+  /// its progress bar inside the GL render corrupts VTK's cached GL state. Without it (a plain VTK
+  /// window) Render() builds and reports as before.
+  void PrepareRender(vtkRenderer* ren, vtkVolume* vol);
   void ReleaseGraphicsResources(vtkWindow* win) override;
 
 protected:

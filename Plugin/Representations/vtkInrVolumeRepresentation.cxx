@@ -204,6 +204,16 @@ int vtkInrVolumeRepresentation::ProcessViewRequest(
   {
     this->ReportRankBrick(inInfo);
   }
+  else if (request_type == vtkPVView::REQUEST_RENDER() && this->GetVisibility())
+  {
+    // Before the view's GL render (the superclass has just connected the mapper to the delivered
+    // data): the engine and macrocell builds, with progress, while no GL render is under way.
+    auto* view = vtkPVRenderView::SafeDownCast(inInfo->Get(vtkPVView::VIEW()));
+    if (view && view->GetRenderer())
+    {
+      this->GetInrMapper()->PrepareRender(view->GetRenderer(), this->Actor);
+    }
+  }
   return 1;
 }
 
