@@ -136,6 +136,13 @@ constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.0;
 constexpr double kMaxGrowth = 1.25;
 // Aim below the budget: per-frame cost varies with the view (coverage, collisions).
 constexpr double kBudgetMargin = 0.8;
+// The level of detail is judged on the engine's time (the part that scales with the image's
+// pixels). The rest of the window's frame (depth read, upload, drawing the image over the whole
+// viewport, the view's own passes, swap: on a software OpenGL 40-110 ms at ~1280x768, varying
+// with the machine's load, whatever the image's resolution) is measured and left to the engine's
+// budget, but at most this share of the budget: counted in full it drove the scale to its minimum
+// (a 1/16 mosaic with a 2 ms engine) although no resolution could make it cheaper.
+constexpr double kMaxFixedShare = 0.5;
 
 // The depth limits (engine row order) of a width x height image, sampled at the centres of the
 // pixels of a w x h image covering the same view.
@@ -331,8 +338,10 @@ struct vtkInrVolumeMapper::Internals
   double lodScale = 1.0;
   double msPerPixelFrame = 0.0;  // engine time per pixel per frame, without macrocell updates
   double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
-  double interactiveMs = 0.0;    // render time of interactive frames at lodScale
+  double interactiveMs = 0.0;    // engine time of interactive frames at lodScale (no macrocell
+                                 // update: it depends on the time change, not on the scale)
   double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
+  int framesAtScale = 0;         // interactive frames measured at lodScale
   // The budget is for the whole window render: what the window spends outside this mapper
   // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
   double outsideMs = 0.0;
@@ -902,30 +911,38 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(vtkInrVolumeMapper* self, 
   return *timeChange;
 }
 
-// The linear scale of an interactive image. A stable resolution lets reprojection reuse the
-// accumulation during a drag, so the scale is kept while the measured render time at it stays in
-// a band around the budget; outside it the scale is re-chosen from that measurement (the engine
-// part scales with the pixel count), growing by at most kMaxGrowth per change because small
-// images cost more per pixel (each wavefront iteration has a fixed cost). Before any interactive
-// measurement: from the per-pixel cost of the frames rendered so far. Full resolution when the
-// budget allows it.
+// The linear scale of an interactive image, judged on the engine's time (which scales with the
+// pixel count) against the budget left once the window's fixed cost is taken off (capped at
+// kMaxFixedShare of the budget; see there). A stable resolution lets reprojection reuse the
+// accumulation during a drag, so the scale is kept while the engine's measured time at it stays
+// in a band around that budget; outside it the scale is re-chosen from that measurement, growing
+// by at most kMaxGrowth per change because small images cost more per pixel (each wavefront
+// iteration has a fixed cost). Before any interactive measurement: from the per-pixel cost of the
+// frames rendered so far. Full resolution when the budget allows it.
 double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, int height)
 {
   const double pixels = double(width) * double(height);
-  const double overhead = this->overheadMs + this->outsideMs;
-  const double target = std::max(kBudgetMargin * budgetMs - overhead, 0.1 * budgetMs);
-  // The measured time of an interactive frame, the window's work around the mapper included.
-  const double measured = this->interactiveMs > 0.0 ? this->interactiveMs + this->outsideMs : 0.0;
+  const double fixed = std::min(this->overheadMs + this->outsideMs, kMaxFixedShare * budgetMs);
+  const double engineBudget = budgetMs - fixed;
+  const double target = kBudgetMargin * engineBudget;
+  const double measured = this->interactiveMs;
   double s = this->lodScale;
   if (measured > 0.0)
   {
-    if (measured >= kKeepScaleAbove * budgetMs && measured <= kKeepScaleBelow * budgetMs)
+    if (measured >= kKeepScaleAbove * engineBudget && measured <= kKeepScaleBelow * engineBudget)
     {
       return this->lodScale;
     }
-    const double engine = std::max(measured - overhead, 1e-3);
-    s = std::min(this->lodScale * std::sqrt(target / engine), this->lodScale * kMaxGrowth);
-    if (measured > kKeepScaleBelow * budgetMs)
+    if (measured > kKeepScaleBelow * engineBudget && measured <= 2.0 * engineBudget &&
+      this->framesAtScale < 2)
+    {
+      // One frame somewhat over the budget may be noise (a loaded machine): a second one decides
+      // before the scale drops and is barred for the rest of the interaction.
+      return this->lodScale;
+    }
+    s = std::min(this->lodScale * std::sqrt(target / std::max(measured, 1e-3)),
+      this->lodScale * kMaxGrowth);
+    if (measured > kKeepScaleBelow * engineBudget)
     {
       this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
     }
@@ -942,7 +959,7 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
   if (s == this->lodScale && measured > 0.0)
   {
     // Out of the band but rounded back to the same scale: one step in the needed direction.
-    s = std::clamp(s + (measured > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
+    s = std::clamp(s + (measured > engineBudget ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
   }
   if (s >= this->lodCeiling)
   {
@@ -952,13 +969,14 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
   {
     this->lodScale = s;
     this->interactiveMs = 0.0;  // not measured at the new scale yet
+    this->framesAtScale = 0;
   }
   return s;
 }
 
 // Updates the cost model from a render (exponential moving averages; macrocell/majorant update
 // time is left out: it depends on the time change, not on the resolution): the engine's time per
-// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the render time
+// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the engine time
 // of interactive frames at the current scale.
 void vtkInrVolumeMapper::Internals::MeasureFrame(
   double renderMs, double refineMs, int width, int height, bool interactive)
@@ -969,17 +987,17 @@ void vtkInrVolumeMapper::Internals::MeasureFrame(
     return;
   }
   const double updateMs = this->lastStep.total.updateMs;
-  const double perPixel =
-    std::max(0.0, refineMs - updateMs) / (double(frames) * double(width) * double(height));
+  const double engineMs = std::max(0.0, refineMs - updateMs);
+  const double perPixel = engineMs / (double(frames) * double(width) * double(height));
   const double overhead = std::max(0.0, renderMs - refineMs);
-  const double render = std::max(0.0, renderMs - updateMs);
   constexpr double kWeight = 0.5;  // recent frames dominate (the view changes during a drag)
   auto ema = [](double old, double now) { return old > 0.0 ? (1.0 - kWeight) * old + kWeight * now : now; };
   this->msPerPixelFrame = ema(this->msPerPixelFrame, perPixel);
   this->overheadMs = ema(this->overheadMs, overhead);
   if (interactive)
   {
-    this->interactiveMs = ema(this->interactiveMs, render);
+    this->interactiveMs = ema(this->interactiveMs, engineMs);
+    ++this->framesAtScale;
   }
 }
 

@@ -201,10 +201,14 @@ public:
   ///@{
   /// Level of detail while interacting, so the view stays responsive when one frame at full
   /// resolution takes long (the CPU fallback at ~1280x768: about a second). An interactive render
-  /// draws one frame at a reduced resolution, chosen from the measured time of recent frames so
-  /// that the window's render (the volume and what the window does around it: the mapper observes
-  /// the window's StartEvent/EndEvent) takes about InteractiveFrameTime ms, upscaled with linear
-  /// filtering; the resolution is kept while the frames stay within the budget (a stable
+  /// draws one frame at a reduced resolution, upscaled with linear filtering. The resolution is
+  /// chosen from the engine's measured time of recent frames (the part that scales with the
+  /// pixels) so that it fits InteractiveFrameTime less the window's fixed cost around it (depth
+  /// read, drawing the image over the viewport, the window's other work: the mapper observes the
+  /// window's StartEvent/EndEvent), that fixed cost counted up to half the budget only (on a
+  /// software OpenGL it alone is 40-110 ms at ~1280x768 whatever the resolution: counted in full
+  /// it kept drags at the smallest scale); the resolution is kept while the frames stay within
+  /// the budget (a stable
   /// resolution lets reprojection keep accumulating during a drag). The next still render is at
   /// full resolution and refines exactly as without LOD (same seed, same frames: the same
   /// image). When the full resolution already fits the budget (small views, the GPU) interactive
