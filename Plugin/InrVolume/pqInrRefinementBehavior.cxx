@@ -1,6 +1,7 @@
 #include "pqInrRefinementBehavior.h"
 
 #include "pqAnimationManager.h"
+#include "pqCoreUtilities.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
 #include "pqPVApplicationCore.h"
@@ -17,6 +18,9 @@
 #include "vtkSMTransferFunctionProxy.h"
 #include "vtkClientServerStream.h"
 #include "vtkPVSession.h"
+
+#include <QMainWindow>
+#include <QStatusBar>
 
 #include <algorithm>
 #include <cstdio>
@@ -82,6 +86,9 @@ bool stillRefining(vtkSMProxy* proxy)
 constexpr int kInteractionSettleMs = 300;
 // Between refinement renders: lets the event loop breathe.
 constexpr int kRefinePauseMs = 15;
+// The panel's state is pulled from the server this long after a render (a burst of refinement
+// renders refreshes it about four times a second).
+constexpr int kStateRefreshMs = 250;
 }
 
 pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
@@ -90,6 +97,10 @@ pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
   this->Timer.setSingleShot(true);
   this->Timer.setInterval(kRefinePauseMs);
   QObject::connect(&this->Timer, &QTimer::timeout, this, &pqInrRefinementBehavior::refine);
+  this->StateTimer.setSingleShot(true);
+  this->StateTimer.setInterval(kStateRefreshMs);
+  QObject::connect(
+    &this->StateTimer, &QTimer::timeout, this, &pqInrRefinementBehavior::refreshState);
 }
 
 pqInrRefinementBehavior::~pqInrRefinementBehavior() = default;
@@ -108,6 +119,7 @@ void pqInrRefinementBehavior::onStartup()
 void pqInrRefinementBehavior::onShutdown()
 {
   this->Timer.stop();
+  this->StateTimer.stop();
   this->Pending.clear();
 }
 
@@ -125,6 +137,10 @@ void pqInrRefinementBehavior::onEndRender()
     return;
   }
   this->SinceRender.start();
+  if (!this->StateTimer.isActive())
+  {
+    this->StateTimer.start();
+  }
   for (const auto& v : this->Pending)
   {
     if (v == view)
@@ -238,5 +254,41 @@ void pqInrRefinementBehavior::refine()
       // timer is held back while test playback pauses, and we are already outside any render.
       view->forceRender();
     }
+  }
+}
+
+// Pulls the information properties of every visible INR Volume representation (the panel's
+// widgets follow them) and shows the refinement state of the first one in the status bar.
+void pqInrRefinementBehavior::refreshState()
+{
+  pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
+  QString status;
+  for (pqView* view : smm->findItems<pqView*>())
+  {
+    for (pqRepresentation* r : view->getRepresentations())
+    {
+      auto* repr = qobject_cast<pqDataRepresentation*>(r);
+      if (!repr || !repr->isVisible() || !isInrVolume(repr->getProxy()))
+      {
+        continue;
+      }
+      vtkSMProperty* prop = repr->getProxy()->GetProperty("InrRefinementState");
+      vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
+      if (!inr)
+      {
+        continue;
+      }
+      inr->UpdatePropertyInformation();
+      if (status.isEmpty())
+      {
+        const char* state = vtkSMPropertyHelper(prop).GetAsString();
+        status = QString("INR Volume: %1").arg(QString::fromUtf8(state ? state : ""));
+      }
+    }
+  }
+  auto* window = qobject_cast<QMainWindow*>(pqCoreUtilities::mainWidget());
+  if (window && !status.isEmpty())
+  {
+    window->statusBar()->showMessage(status, 4000);
   }
 }

@@ -17,6 +17,12 @@
  * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour
  * map editor is the transfer function from the start (once per representation; a later choice
  * of the user is kept).
+ *
+ * State in the panel: information properties are not refreshed by ParaView after a render, so
+ * the behaviour pulls the INR Volume representations' information properties (Refinement State,
+ * Accumulated Frames, Convergence Estimate, Backend In Use, ...) a moment after renders (at most
+ * about four times a second while refining, and once after the last render), and shows the
+ * refinement state in the main window's status bar while it refines.
  */
 #ifndef pqInrRefinementBehavior_h
 #define pqInrRefinementBehavior_h
@@ -44,9 +50,11 @@ private Q_SLOTS:
   void onViewAdded(pqView* view);
   void onEndRender();
   void refine();
+  void refreshState();
 
 private:
   QTimer Timer;
+  QTimer StateTimer;  // refreshState after renders
   QElapsedTimer SinceRender;  // since the last render of a view (interaction settling)
   QList<QPointer<pqView>> Pending;
   QSet<void*> AutoColored;

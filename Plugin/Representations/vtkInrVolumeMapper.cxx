@@ -298,6 +298,7 @@ struct vtkInrVolumeMapper::Internals
   inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
   inr::TrackingOptions trackingAsked, trackingValid, trackingRefused;
   std::string macrocellsInUse;
+  std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
 
   // Interactive frames caused by a time change render with a second session on a coarse
   // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
@@ -487,6 +488,78 @@ double vtkInrVolumeMapper::GetConvergenceEstimate()
     return this->Internal->reduced.estimate;  // the lowest of all ranks
   }
   return this->Internal->fine.refinement.estimate();
+}
+
+std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
+{
+  if (std::isnan(db) || db == -std::numeric_limits<double>::infinity())
+  {
+    return "\u2014";  // not known yet: a covered pixel has a single sample
+  }
+  if (db == std::numeric_limits<double>::infinity())
+  {
+    return "no noise left";  // no covered pixel, or no variance
+  }
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f dB", db);
+  return text;
+}
+
+const char* vtkInrVolumeMapper::GetConvergenceEstimateText()
+{
+  this->Internal->estimateText = FormatConvergenceEstimate(this->GetConvergenceEstimate());
+  return this->Internal->estimateText.c_str();
+}
+
+const char* vtkInrVolumeMapper::GetRefinementState()
+{
+  Internals& I = *this->Internal;
+  std::ostringstream s;
+  const int frames = this->GetAccumulatedFrames();
+  const double estimate = this->GetConvergenceEstimate();
+  if (!I.fine.session || frames == 0)
+  {
+    s << "\u2014 (nothing rendered yet)";
+  }
+  else if (I.lastInteractive)
+  {
+    s << "interacting: reduced " << I.imageWidth << "x" << I.imageHeight << " image";
+  }
+  else if (!this->ProgressiveRefinement)
+  {
+    s << "one frame per render (Progressive Refinement off)";
+  }
+  else if (this->GetConverged())
+  {
+    if (this->ConvergenceTarget > 0.0 && estimate >= this->ConvergenceTarget)
+    {
+      s << "converged: " << frames << " frames, " << FormatConvergenceEstimate(estimate);
+    }
+    else
+    {
+      s << "stopped at " << frames << " frames (Maximum Frames " << this->MaximumFrames << ")";
+      if (std::isfinite(estimate))
+      {
+        s << ", " << FormatConvergenceEstimate(estimate);
+      }
+    }
+  }
+  else
+  {
+    s << "refining: " << frames << " frames";
+    if (std::isfinite(estimate))
+    {
+      s << ", " << FormatConvergenceEstimate(estimate);
+      if (this->ConvergenceTarget > 0.0)
+      {
+        char target[32];
+        std::snprintf(target, sizeof(target), " of %.0f dB", this->ConvergenceTarget);
+        s << target;
+      }
+    }
+  }
+  I.refinementState = s.str();
+  return I.refinementState.c_str();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()

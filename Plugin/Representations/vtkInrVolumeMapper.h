@@ -36,6 +36,8 @@
 #include "InrVolumeRepresentationsModule.h"
 #include "vtkVolumeMapper.h"
 
+#include <string>  // for FormatConvergenceEstimate
+
 class vtkRenderer;
 class vtkVolume;
 class vtkWindow;
@@ -297,6 +299,14 @@ public:
   int GetConverged();
   int GetLocalConverged();
   double GetConvergenceEstimate();
+  /// The estimate for people: "31.2 dB", "\u2014" (not known yet: -inf above), "no noise left"
+  /// (+inf: no covered pixel or no variance).
+  const char* GetConvergenceEstimateText();
+  static std::string FormatConvergenceEstimate(double db);
+  /// One line saying whether the image is still refining, e.g. "refining: 37 frames, 31.2 dB of
+  /// 41 dB", "converged: 206 frames, 41.3 dB", "stopped at 2048 frames (Maximum Frames 2048)",
+  /// "interacting: reduced 320x192 image", "one frame per render (Progressive Refinement off)".
+  const char* GetRefinementState();
   /// e.g. "CPU (auto: this build has no CUDA renderer)".
   const char* GetBackendInUse();
   /// One line per rank (under MPI with several ranks; else one line) after the last Render: its

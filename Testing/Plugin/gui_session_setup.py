@@ -98,7 +98,9 @@ def on_end(obj, event):
     log.write(f"render block_ms={ms:.1f} inr=1 interactive={interactive} image={w}x{h} "
               f"frames={frames} mapper_ms={get(inr, 'InrLastRenderTime'):.1f} "
               f"rate={view.GetRenderWindow().GetDesiredUpdateRate():g} time={view.ViewTime:g} "
-              f"{budget} backend={backend}\n")
+              f"{budget} backend={backend} "
+              f"estimate={get(inr, 'InrConvergenceEstimateText').replace(' ', '_')} "
+              f"state={get(inr, 'InrRefinementState').replace(' ', '_')}\n")
     log.flush()
     # The still image of each step (view time, ray budget, backend) at a few frame counts: what
     # the user sees while the step settles.

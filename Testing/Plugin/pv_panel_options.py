@@ -183,7 +183,7 @@ check(C.info(display, "InrConverged") == 0, "refinement on again: still refining
 # It forwards at most one event per 0.1 s (vtkPVProgressHandler's interval in a client): each
 # step starts with a pause, so its first event (0 %) always gets through.
 def building(events):
-    return [p for text, p in events if text.startswith("INR Volume: building macrocells")]
+    return [p for text, p in events if text == "INR macrocells"]
 
 
 del progress[:]

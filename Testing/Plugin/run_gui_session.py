@@ -14,6 +14,8 @@ window pops up for) and every render. Checks:
   - every step reached the view: the model is shown as INR Volume, the view time moved twice, the
     drag gave interactive frames, the ray budget reached the engine (stbn in use), the rebuild
     happened (Backend In Use changed) and the view refined after each of them (several frames);
+  - the panel's state reads like a person would: Convergence Estimate "NN.N dB" or a dash (never
+    -inf), Refinement State "refining ..." / "interacting ..." as the session goes;
   - the last still image is not empty.
 It also prints what the user waits for: the longest render (from the view's StartEvent to its
 EndEvent: pipeline update, preparation and drawing, during which the event loop is blocked), per
@@ -121,6 +123,18 @@ for r in inr:
     if not backends or backends[-1] != r["backend"]:
         backends.append(r["backend"])
 check(len(backends) >= 2, f"the panel's Backend change rebuilt the renderer ({backends})")
+
+
+# The state a user reads in the panel: an estimate in dB or a dash, never -inf; a refinement state
+# that says what happens.
+estimates = sorted({r.get("estimate", "") for r in inr})
+print("convergence estimates seen:", estimates[:4], "...", estimates[-3:])
+check(bool(inr) and all(re.fullmatch(r"\d+\.\d_dB|\u2014|no_noise_left", r.get("estimate", "")) for r in inr),
+      "Convergence Estimate reads as 'NN.N dB' or a dash (never -inf)")
+check(any(r.get("estimate", "").endswith("_dB") for r in inr), "Convergence Estimate becomes known (dB)")
+states = {r.get("state", "").split(":")[0] for r in inr}
+print("refinement states seen:", sorted(states))
+check({"refining", "interacting"} <= states, f"Refinement State says refining and interacting ({sorted(states)})")
 
 
 def refined(segment):
