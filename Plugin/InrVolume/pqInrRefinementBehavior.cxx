@@ -15,7 +15,11 @@
 #include "vtkSMPropertyHelper.h"
 #include "vtkSMProxy.h"
 #include "vtkSMSession.h"
+#include "vtkSMTransferFunctionPresets.h"
 #include "vtkSMTransferFunctionProxy.h"
+#include "vtkSMSourceProxy.h"
+#include "vtkCommand.h"
+#include "vtk_jsoncpp.h"
 #include "vtkClientServerStream.h"
 #include "vtkPVSession.h"
 
@@ -110,6 +114,8 @@ void pqInrRefinementBehavior::onStartup()
   pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
   QObject::connect(smm, &pqServerManagerModel::viewAdded, this,
     &pqInrRefinementBehavior::onViewAdded);
+  QObject::connect(smm, &pqServerManagerModel::representationAdded, this,
+    &pqInrRefinementBehavior::onRepresentationAdded);
   for (pqView* view : smm->findItems<pqView*>())
   {
     this->onViewAdded(view);
@@ -121,6 +127,130 @@ void pqInrRefinementBehavior::onShutdown()
   this->Timer.stop();
   this->StateTimer.stop();
   this->Pending.clear();
+}
+
+void pqInrRefinementBehavior::onRepresentationAdded(pqRepresentation* added)
+{
+  auto* repr = qobject_cast<pqDataRepresentation*>(added);
+  vtkSMProxy* proxy = repr ? repr->getProxy() : nullptr;
+  vtkSMProperty* type = proxy ? proxy->GetProperty("Representation") : nullptr;
+  if (!type)
+  {
+    return;
+  }
+  // Coloured as soon as it becomes INR Volume, before its first render (the render after Apply
+  // or after the representation menu changed follows these calls): one image, no restart.
+  pqCoreUtilities::connect(type, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
+  if (vtkSMProperty* input = proxy->GetProperty("Input"))
+  {
+    pqCoreUtilities::connect(
+      input, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
+  }
+  this->colorByModel(repr);
+}
+
+void pqInrRefinementBehavior::onRepresentationTypeChanged()
+{
+  pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
+  for (pqDataRepresentation* repr : smm->findItems<pqDataRepresentation*>())
+  {
+    this->colorByModel(repr);
+  }
+}
+
+// Once per representation, when it is (or becomes) INR Volume: colour it by "value" with the
+// model's own colour and opacity map when the reader found one (InrTransferFunction: the
+// *.tf.json preset beside the model; added to ParaView's presets under its name, applied with
+// its own value range, automatic rescaling off so the preview grid's range never replaces it),
+// else with ParaView's default map rescaled to the model's value range (InrValueRange).
+bool pqInrRefinementBehavior::colorByModel(pqDataRepresentation* repr)
+{
+  vtkSMProxy* proxy = repr ? repr->getProxy() : nullptr;
+  if (!proxy || !isInrVolume(proxy) || this->AutoColored.contains(proxy))
+  {
+    return false;
+  }
+  // The reader, from the server-manager property (set before the Qt-side input link exists).
+  vtkSMProperty* inputProp = proxy->GetProperty("Input");
+  auto* reader = inputProp ? vtkSMSourceProxy::SafeDownCast(vtkSMPropertyHelper(inputProp).GetAsProxy())
+                           : nullptr;
+  if (!reader)
+  {
+    return false;  // not connected yet: the Input property's change calls again
+  }
+  this->AutoColored.insert(proxy);
+  if (!vtkSMPVRepresentationProxy::GetUsingScalarColoring(proxy) &&
+    !vtkSMPVRepresentationProxy::SetScalarColoring(proxy, "value", vtkDataObject::POINT))
+  {
+    return false;
+  }
+  vtkSMProxy* lut = vtkSMPropertyHelper(proxy, "LookupTable", true).GetAsProxy();
+  vtkSMProxy* sof = lut ? vtkSMPropertyHelper(lut, "ScalarOpacityFunction", true).GetAsProxy() : nullptr;
+  if (!lut)
+  {
+    return false;
+  }
+  bool applied = false;
+  vtkSMProperty* tfProp = reader->GetProperty("InrTransferFunction");
+  if (tfProp)
+  {
+    reader->UpdatePropertyInformation(tfProp);
+    const char* text = vtkSMPropertyHelper(tfProp).GetAsString();
+    const std::string json = text ? text : "";
+    Json::CharReaderBuilder builder;
+    std::unique_ptr<Json::CharReader> parser(builder.newCharReader());
+    Json::Value root;
+    std::string errors;
+    if (!json.empty() && parser->parse(json.data(), json.data() + json.size(), &root, &errors))
+    {
+      const Json::Value preset = root.isArray() && root.size() > 0 ? root[0] : root;
+      if (preset.isObject() && preset.isMember("RGBPoints"))
+      {
+        const std::string name =
+          preset.isMember("Name") ? preset["Name"].asString() : std::string("INR model");
+        if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
+        {
+          presets->AddPreset(name.c_str(), preset);  // a preset the user can pick again
+        }
+        applied = vtkSMTransferFunctionProxy::ApplyPreset(lut, preset, false);
+        if (sof && preset.isMember("Points"))
+        {
+          vtkSMTransferFunctionProxy::ApplyPreset(sof, preset, false);
+        }
+        if (lut->GetProperty("AutomaticRescaleRangeMode"))
+        {
+          vtkSMPropertyHelper(lut, "AutomaticRescaleRangeMode").Set(-1);  // Never
+        }
+      }
+    }
+  }
+  if (!applied)
+  {
+    vtkPVDataInformation* info = reader->GetDataInformation(
+      static_cast<unsigned int>(vtkSMPropertyHelper(inputProp).GetOutputPort()));
+    vtkPVArrayInformation* range =
+      info ? info->GetArrayInformation("InrValueRange", vtkDataObject::FIELD) : nullptr;
+    if (range)
+    {
+      double vr[2];
+      range->GetComponentRange(0, vr);
+      if (auto* tf = vtkSMTransferFunctionProxy::SafeDownCast(lut))
+      {
+        tf->RescaleTransferFunction(vr[0], vr[1], false);
+      }
+      if (auto* otf = vtkSMTransferFunctionProxy::SafeDownCast(sof))
+      {
+        otf->RescaleTransferFunction(vr[0], vr[1], false);
+      }
+    }
+  }
+  lut->UpdateVTKObjects();
+  if (sof)
+  {
+    sof->UpdateVTKObjects();
+  }
+  proxy->UpdateVTKObjects();
+  return true;
 }
 
 void pqInrRefinementBehavior::onViewAdded(pqView* view)
@@ -192,34 +322,10 @@ void pqInrRefinementBehavior::refine()
       {
         continue;
       }
-      if (!this->AutoColored.contains(proxy))
+      if (this->colorByModel(repr))
       {
-        this->AutoColored.insert(proxy);
-        if (!vtkSMPVRepresentationProxy::GetUsingScalarColoring(proxy) &&
-          vtkSMPVRepresentationProxy::SetScalarColoring(proxy, "value", vtkDataObject::POINT))
-        {
-          vtkPVDataInformation* info = repr->getInputDataInformation();
-          vtkPVArrayInformation* range =
-            info ? info->GetArrayInformation("InrValueRange", vtkDataObject::FIELD) : nullptr;
-          vtkSMProxy* lut = vtkSMPropertyHelper(proxy, "LookupTable", true).GetAsProxy();
-          if (range && lut)
-          {
-            double vr[2];
-            range->GetComponentRange(0, vr);
-            if (auto* tf = vtkSMTransferFunctionProxy::SafeDownCast(lut))
-            {
-              tf->RescaleTransferFunction(vr[0], vr[1], false);
-            }
-            vtkSMProxy* sof = vtkSMPropertyHelper(lut, "ScalarOpacityFunction", true).GetAsProxy();
-            if (auto* otf = vtkSMTransferFunctionProxy::SafeDownCast(sof))
-            {
-              otf->RescaleTransferFunction(vr[0], vr[1], false);
-            }
-          }
-          proxy->UpdateVTKObjects();
-          again = true;
-          continue;
-        }
+        again = true;
+        continue;
       }
       // Progressive refinement off: one frame per render, nothing re-rendered from here (checked
       // on the client's property, no server round trip).

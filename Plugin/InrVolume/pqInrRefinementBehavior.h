@@ -13,10 +13,13 @@
  * (reduced-resolution) frame it waits until no render came for a short while, so a camera or
  * time-slider drag keeps getting fast frames.
  *
- * It also colours a freshly shown INR Volume representation by its "value" array and rescales
- * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour
- * map editor is the transfer function from the start (once per representation; a later choice
- * of the user is kept).
+ * It also colours an INR Volume representation by its "value" array as soon as it is shown as
+ * INR Volume (before its first render: no restart of the accumulation), with the model's own
+ * colour and opacity map when one ships beside it (the reader's InrTransferFunction: the
+ * *.tf.json preset, also added to ParaView's presets), else ParaView's default map rescaled to
+ * the model's value range (field array "InrValueRange"), so ParaView's colour map editor is the
+ * transfer function from the start (once per representation; a later choice of the user is
+ * kept).
  *
  * State in the panel: information properties are not refreshed by ParaView after a render, so
  * the behaviour pulls the INR Volume representations' information properties (Refinement State,
@@ -33,6 +36,8 @@
 #include <QSet>
 #include <QTimer>
 
+class pqDataRepresentation;
+class pqRepresentation;
 class pqView;
 class pqPipelineSource;
 
@@ -48,9 +53,14 @@ public:
 
 private Q_SLOTS:
   void onViewAdded(pqView* view);
+  void onRepresentationAdded(pqRepresentation* repr);
+  void onRepresentationTypeChanged();
   void onEndRender();
   void refine();
   void refreshState();
+
+private:
+  bool colorByModel(pqDataRepresentation* repr);
 
 private:
   QTimer Timer;

@@ -75,6 +75,18 @@ def shot(name):
     writer.Write()
 
 
+def colour_map():
+    """The colour and opacity points of the view's "value" colour map, comma-separated (or -)."""
+    from paraview import servermanager
+    pxm = servermanager.ProxyManager()
+    for name, proxy in pxm.GetProxiesInGroup("lookup_tables").items():
+        if name[0].startswith("value"):
+            rgb = list(proxy.RGBPoints)
+            opacity = list(proxy.ScalarOpacityFunction.Points)
+            return ",".join(f"{v:.6g}" for v in rgb) + "/" + ",".join(f"{v:.6g}" for v in opacity)
+    return "-"
+
+
 def on_start(obj, event):
     state["start"] = time.perf_counter()
 
@@ -100,7 +112,8 @@ def on_end(obj, event):
               f"rate={view.GetRenderWindow().GetDesiredUpdateRate():g} time={view.ViewTime:g} "
               f"{budget} backend={backend} "
               f"estimate={get(inr, 'InrConvergenceEstimateText').replace(' ', '_')} "
-              f"state={get(inr, 'InrRefinementState').replace(' ', '_')}\n")
+              f"state={get(inr, 'InrRefinementState').replace(' ', '_')} "
+              f"lut={colour_map()}\n")
     log.flush()
     # The still image of each step (view time, ray budget, backend) at a few frame counts: what
     # the user sees while the step settles.

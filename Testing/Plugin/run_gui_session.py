@@ -16,6 +16,8 @@ window pops up for) and every render. Checks:
     happened (Backend In Use changed) and the view refined after each of them (several frames);
   - the panel's state reads like a person would: Convergence Estimate "NN.N dB" or a dash (never
     -inf), Refinement State "refining ..." / "interacting ..." as the session goes;
+  - the model's own colours: the *.tf.json preset beside the model is the colour and opacity
+    map from the first INR Volume render on (no restart: frames 1, 2, 3, ... after Apply);
   - the last still image is not empty.
 It also prints what the user waits for: the longest render (from the view's StartEvent to its
 EndEvent: pipeline update, preparation and drawing, during which the event loop is blocked), per
@@ -135,6 +137,26 @@ check(any(r.get("estimate", "").endswith("_dB") for r in inr), "Convergence Esti
 states = {r.get("state", "").split(":")[0] for r in inr}
 print("refinement states seen:", sorted(states))
 check({"refining", "interacting"} <= states, f"Refinement State says refining and interacting ({sorted(states)})")
+
+
+# The model's own colours: the *.tf.json beside the model is the colour and opacity map from the
+# first INR Volume render on, and applying it did not restart the image (the frames after Apply
+# grow without a reset until the first time step).
+tf_path = os.path.splitext(os.path.abspath(args.model))[0] + ".tf.json"
+if os.path.exists(tf_path):
+    import json
+    preset = json.load(open(tf_path))[0]
+    want = (",".join(f"{v:.6g}" for v in preset["RGBPoints"]) + "/" +
+            ",".join(f"{v:.6g}" for v in preset["Points"]))
+    first = inr[0].get("lut", "-") if inr else "-"
+    check(first == want, f"the first INR Volume render uses the model's {os.path.basename(tf_path)} "
+          f"(colour map {first[:60]}...)")
+    check(all(r.get("lut") == want for r in inr), "the model's colour map stays during the session")
+    apply_frames = [int(r["frames"]) for r in inr if r["time"] == inr[0]["time"] and r["interactive"] == "0"]
+    check(bool(apply_frames) and apply_frames == list(range(1, len(apply_frames) + 1)),
+          f"after Apply the image accumulates from frame 1 without a restart ({apply_frames[:8]}...)")
+else:
+    print(f"note: no {tf_path}: the model's own colours are not checked")
 
 
 def refined(segment):
