@@ -18,10 +18,16 @@
 #include "vtkSMTransferFunctionPresets.h"
 #include "vtkSMTransferFunctionProxy.h"
 #include "vtkSMSourceProxy.h"
+#include "vtkSMDoubleRangeDomain.h"
+#include "vtkSMIntRangeDomain.h"
+#include "vtkSMPropertyIterator.h"
+#include "vtkSMVectorProperty.h"
 #include "vtkCommand.h"
 #include "vtk_jsoncpp.h"
 #include "vtkClientServerStream.h"
 #include "vtkPVSession.h"
+
+#include "vtkSmartPointer.h"
 
 #include <QMainWindow>
 #include <QStatusBar>
@@ -141,12 +147,96 @@ void pqInrRefinementBehavior::onRepresentationAdded(pqRepresentation* added)
   // Coloured as soon as it becomes INR Volume, before its first render (the render after Apply
   // or after the representation menu changed follows these calls): one image, no restart.
   pqCoreUtilities::connect(type, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
+  // The INR Volume settings: a value the engine would refuse never stays in the panel.
+  if (vtkSMProperty* state = proxy->GetProperty("InrConverged"))
+  {
+    vtkSMProxy* inr = state->GetParent();
+    vtkSmartPointer<vtkSMPropertyIterator> it;
+    it.TakeReference(inr->NewPropertyIterator());
+    for (it->Begin(); !it->IsAtEnd(); it->Next())
+    {
+      vtkSMProperty* p = it->GetProperty();
+      if (p && !p->GetInformationOnly() && (p->FindDomain<vtkSMIntRangeDomain>() ||
+                                             p->FindDomain<vtkSMDoubleRangeDomain>()))
+      {
+        pqCoreUtilities::connect(
+          p, vtkCommand::ModifiedEvent, this, SLOT(onSettingModified(vtkObject*)));
+      }
+    }
+  }
   if (vtkSMProperty* input = proxy->GetProperty("Input"))
   {
     pqCoreUtilities::connect(
       input, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
   }
   this->colorByModel(repr);
+}
+
+// A setting outside its property's range (the panel's text boxes accept any number), or a Skip
+// Block that is not 0 or a power of two, is replaced at once by the nearest valid value, and the
+// status bar says so: the panel never holds a value the engine refuses (the engine would keep its
+// previous value and report an error on every rebuild).
+void pqInrRefinementBehavior::onSettingModified(vtkObject* caller)
+{
+  auto* prop = vtkSMVectorProperty::SafeDownCast(caller);
+  if (!prop || this->FixingSetting)
+  {
+    return;
+  }
+  vtkSMPropertyHelper helper(prop);
+  if (helper.GetNumberOfElements() != 1)
+  {
+    return;
+  }
+  const double asked = helper.GetAsDouble(0);
+  double value = asked;
+  int hasMin = 0, hasMax = 0;
+  double lo = 0.0, hi = 0.0;
+  if (auto* d = prop->FindDomain<vtkSMDoubleRangeDomain>())
+  {
+    lo = d->GetMinimum(0, hasMin);
+    hi = d->GetMaximum(0, hasMax);
+  }
+  else if (auto* i = prop->FindDomain<vtkSMIntRangeDomain>())
+  {
+    lo = i->GetMinimum(0, hasMin);
+    hi = i->GetMaximum(0, hasMax);
+  }
+  if (hasMin && value < lo)
+  {
+    value = lo;
+  }
+  if (hasMax && value > hi)
+  {
+    value = hi;
+  }
+  if (std::strcmp(prop->GetXMLName(), "InrSkipBlock") == 0 && value > 0.0)
+  {
+    int cells = 1;
+    while (cells * 2 <= int(value))
+    {
+      cells *= 2;  // a power of two, at most the asked value
+    }
+    value = cells;
+  }
+  if (!(value == asked))  // also NaN
+  {
+    this->FixingSetting = true;
+    helper.Set(0, value);
+    this->FixingSetting = false;
+    const char* label = prop->GetXMLLabel() ? prop->GetXMLLabel() : prop->GetXMLName();
+    QString message = QString("INR Volume: %1 = %2 is not allowed").arg(label).arg(asked);
+    message += hasMin && hasMax ? QString(" (%1 to %2").arg(lo).arg(hi) : QString(" (");
+    if (std::strcmp(prop->GetXMLName(), "InrSkipBlock") == 0)
+    {
+      message += ", 0 or a power of two";
+    }
+    message += QString("): set to %1").arg(value);
+    if (auto* window = qobject_cast<QMainWindow*>(pqCoreUtilities::mainWidget()))
+    {
+      window->statusBar()->showMessage(message, 8000);
+    }
+  }
 }
 
 void pqInrRefinementBehavior::onRepresentationTypeChanged()

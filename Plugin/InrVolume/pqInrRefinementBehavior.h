@@ -21,6 +21,10 @@
  * transfer function from the start (once per representation; a later choice of the user is
  * kept).
  *
+ * Settings: a value outside an INR Volume property's range (or a Skip Block that is not a power
+ * of two) is replaced in the property by the nearest valid one as soon as it is set, with a
+ * status-bar message: the panel never holds a value the engine refuses.
+ *
  * State in the panel: information properties are not refreshed by ParaView after a render, so
  * the behaviour pulls the INR Volume representations' information properties (Refinement State,
  * Accumulated Frames, Convergence Estimate, Backend In Use, ...) a moment after renders (at most
@@ -39,6 +43,7 @@
 class pqDataRepresentation;
 class pqRepresentation;
 class pqView;
+class vtkObject;
 class pqPipelineSource;
 
 class pqInrRefinementBehavior : public QObject
@@ -55,6 +60,7 @@ private Q_SLOTS:
   void onViewAdded(pqView* view);
   void onRepresentationAdded(pqRepresentation* repr);
   void onRepresentationTypeChanged();
+  void onSettingModified(vtkObject* caller);
   void onEndRender();
   void refine();
   void refreshState();
@@ -68,6 +74,7 @@ private:
   QElapsedTimer SinceRender;  // since the last render of a view (interaction settling)
   QList<QPointer<pqView>> Pending;
   QSet<void*> AutoColored;
+  bool FixingSetting = false;
 };
 
 #endif

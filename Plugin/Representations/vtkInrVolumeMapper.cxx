@@ -291,6 +291,8 @@ struct vtkInrVolumeMapper::Internals
   // Query reduction: what the user asked for and what the engine shown last holds.
   inr::QueryReductionSettings queryReduction;
   std::string queryReductionInUse;
+  bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
+  inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
 
   // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
   // is built or updated with; initially the engine's defaults) and the last value refused per
@@ -1448,11 +1450,18 @@ void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
     try
     {
       engine.setQueryReduction(this->queryReduction);
+      this->haveRefusedQueryReduction = false;
     }
     catch (const std::invalid_argument& e)
     {
-      vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
-                                    << describeQueryReduction(engine.queryReduction()));
+      if (!this->haveRefusedQueryReduction ||
+        !sameQueryReduction(this->queryReduction, this->refusedQueryReduction))
+      {
+        vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
+                                      << describeQueryReduction(engine.queryReduction()));
+      }
+      this->haveRefusedQueryReduction = true;
+      this->refusedQueryReduction = this->queryReduction;
     }
   }
   this->queryReductionInUse = describeQueryReduction(engine.queryReduction());

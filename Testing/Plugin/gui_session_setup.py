@@ -113,7 +113,7 @@ def on_end(obj, event):
               f"{budget} backend={backend} "
               f"estimate={get(inr, 'InrConvergenceEstimateText').replace(' ', '_')} "
               f"state={get(inr, 'InrRefinementState').replace(' ', '_')} "
-              f"lut={colour_map()}\n")
+              f"lut={colour_map()} reduction={reduction.replace(' ', '_')}\n")
     log.flush()
     # The still image of each step (view time, ray budget, backend) at a few frame counts: what
     # the user sees while the step settles.

@@ -5,7 +5,8 @@
 Starts `paraview --script=gui_session_setup.py --test-script=DIR/gui_session.xml` (the recorded
 session, written from gui_session.xml.in): File > Open, Apply, INR Volume; two time steps (Next
 Frame: new macrocell slices build); a camera drag on the view; a property change in the panel
-(Ray Budget = stbn); a renderer rebuild in the panel (Backend = CPU); a pause after each step.
+(Ray Budget = stbn); an invalid value typed in the panel (Budget Fraction 0: replaced by its
+minimum, 0.01, no error); a renderer rebuild in the panel (Backend = CPU); a pause after each step.
 The setup script records every message of VTK's output window (what ParaView's Output Messages
 window pops up for) and every render. Checks:
   - paraview ran the whole recorded session (exit status 0, every widget found);
@@ -120,6 +121,10 @@ drag = [r for r in inr if r["interactive"] == "1" and float(r["rate"]) >= 1.0]
 check(len(drag) >= 3, f"the camera drag rendered interactive frames ({len(drag)})")
 stbn = [i for i, r in enumerate(inr) if r["budget"] == "stbn"]
 check(bool(stbn), "the panel's Ray Budget = stbn reached the engine")
+# Budget Fraction 0 typed in the panel: replaced by the property's minimum (0.01) at once, so
+# the engine never refuses it (no error above) and uses rho=0.01.
+rho = [r.get("reduction", "") for r in inr[stbn[0]:]] if stbn else []
+check(any("rho=0.01_" in x for x in rho), "Budget Fraction 0 typed in the panel becomes 0.01 in the engine")
 backends = []
 for r in inr:
     if not backends or backends[-1] != r["backend"]:
