@@ -312,6 +312,15 @@ struct vtkInrVolumeMapper::Internals
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
+  // Whether a reduced interactive frame renders on the coarse session: a time change (its fine
+  // slices may not be built yet), or a camera drag with Reproject on (the fine session's image
+  // stays at full resolution, so the still render after the drag reprojects it instead of
+  // restarting: a different resolution would restart the accumulation).
+  bool RendersCoarse(vtkInrVolumeMapper* self, bool interactive, bool timeChange)
+  {
+    return interactive && (timeChange || this->queryReduction.reproject) &&
+      this->UpdateCoarseEngine(self);
+  }
   void BuildCoarseAhead(vtkInrVolumeMapper* self);
   inr::RenderSession* Shown() const
   {
@@ -746,7 +755,7 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   double budgetMs = 0.0;
   bool timeChange = false;
   const bool interactive = I.InteractiveRender(this, ren, next, &budgetMs, &timeChange);
-  const bool coarse = interactive && timeChange && I.UpdateCoarseEngine(this);
+  const bool coarse = I.RendersCoarse(this, interactive, timeChange);
   try
   {
     (coarse ? I.coarse.session : I.fine.session)->buildSlicesFor(next.time);
@@ -877,7 +886,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.lastTime = scene.time;
   const auto refineStart = Clock::now();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
-  const bool useCoarse = interactive && timeChange && I.UpdateCoarseEngine(this);
+  // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
+  // which the still render after the drag reprojects to the new camera instead of restarting.
+  const bool useCoarse = I.RendersCoarse(this, interactive, timeChange);
   if (!I.Refine(this, scene, width, height, interactive, useCoarse, interactiveFrames))
   {
     return;
@@ -1260,16 +1271,16 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   return true;
 }
 
-// The coarse session for time-change interactive frames (InteractiveMacrocellResolution), built
-// on first use with the fine session's backend, temporal slices and macrocell options; false
-// (render with the fine session) when it is off, not coarser than the fine grid, the model has
-// no time, or it cannot be created (reported once).
+// The coarse session for reduced interactive frames (InteractiveMacrocellResolution: time changes,
+// and camera drags with Reproject on), built on first use with the fine session's backend,
+// temporal slices (one for a model without time) and macrocell options; false (render with the
+// fine session) when it is off, not coarser than the fine grid, or it cannot be created
+// (reported once).
 bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
   EngineSlot& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session ||
-    !this->model.domain.usesTime())
+  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session)
   {
     return false;
   }
@@ -1290,7 +1301,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       so.cudaDevice = this->cudaDevice;
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = want.slices;
+      so.macrocells.temporalSlices = this->model.domain.usesTime() ? want.slices : 1;
       // Skip blocks larger than the grid would be a single block: cap them at the grid.
       so.macrocells.skipBlockCells = std::min(want.skipBlock, n);
       while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))

@@ -238,9 +238,12 @@ public:
   vtkGetMacro(InteractiveFrameTime, double);
   vtkSetClampMacro(InteractiveUpdateRate, double, 1e-6, 1e6);
   vtkGetMacro(InteractiveUpdateRate, double);
-  /// InteractiveMacrocellResolution (cells per axis, default 8; 0 = off): an interactive frame
-  /// caused by a time change is rendered by a second engine session whose majorant grid has
-  /// this many cells per axis (same temporal slices), so a first visit of a time builds coarse
+  /// InteractiveMacrocellResolution (cells per axis, default 8; 0 = off): a reduced interactive
+  /// frame caused by a time change, or by a camera drag while Reproject is on, is rendered by a
+  /// second engine session whose majorant grid has this many cells per axis (same temporal
+  /// slices). During a drag the fine session thus keeps its full-resolution image, which the
+  /// still render after the drag reprojects to the new camera and keeps refining (a reduced
+  /// frame on the fine session would restart it: another resolution). A first visit of a time builds coarse
   /// slices (about 1/50 of the work of 32^3 ones: the build samples (2n+1)^3 lattice points)
   /// instead of waiting for the fine ones. Coarser cells bound the field more loosely (more null
   /// collisions per ray) but are still majorants: the image is unbiased. The still render that

@@ -258,6 +258,31 @@ int main(int argc, char* argv[])
   }
   check(reducedDiff > 0.0, "the interactive image differed (it was another view, reduced)");
 
+  // A drag with Reproject on (the default) renders its reduced frames on the coarse session, so
+  // the fine session keeps its full-resolution image: the still render after the drag
+  // reprojects it to the new camera and keeps it (before: the reduced frames changed the fine
+  // session's resolution and the still render restarted from one frame).
+  {
+    const int before = mapper->GetAccumulatedFrames();
+    mapper->SetFramesPerRender(1);
+    win->SetDesiredUpdateRate(kInteractiveRate);
+    for (int step = 0; step < 3; ++step)
+    {
+      cam->Azimuth(3);
+      win->Render();
+    }
+    const bool dragCoarse = mapper->GetLastRenderCoarse() == 1;
+    win->SetDesiredUpdateRate(kStillRate);
+    win->Render();
+    std::printf("after a drag with Reproject on: drag on the coarse session %d, still frames %d "
+                "(before the drag %d)\n", int(dragCoarse), mapper->GetAccumulatedFrames(), before);
+    check(dragCoarse, "a camera drag with Reproject on renders on the coarse session");
+    check(mapper->GetLastRenderInteractive() == 0 && mapper->GetAccumulatedFrames() >= before,
+      "the still render after the drag keeps the reprojected full-resolution image");
+    cam->DeepCopy(still);
+    win->Render();
+  }
+
   // Time changes: interactive with FramesPerRender 1 (ParaView's time slider and playback),
   // full resolution when a script asks for several frames per render.
   mapper->SetFramesPerRender(1);
