@@ -1,6 +1,7 @@
 #include "pqInrRefinementBehavior.h"
 
 #include "pqAnimationManager.h"
+#include "vtkInrVolumeMapper.h"
 #include "pqCoreUtilities.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
@@ -117,6 +118,9 @@ pqInrRefinementBehavior::~pqInrRefinementBehavior() = default;
 
 void pqInrRefinementBehavior::onStartup()
 {
+  // The GUI renders again by itself: macrocell builds may run in the background (builtin
+  // session; a pvserver process keeps building in its render preparation).
+  vtkInrVolumeMapper::SetBackgroundMacrocellBuilds(true);
   pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
   QObject::connect(smm, &pqServerManagerModel::viewAdded, this,
     &pqInrRefinementBehavior::onViewAdded);

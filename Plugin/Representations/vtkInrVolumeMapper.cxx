@@ -34,6 +34,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -45,6 +46,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -328,6 +330,17 @@ struct vtkInrVolumeMapper::Internals
                                                      : this->fine.session.get();
   }
 
+  // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
+  // (PrepareRender: CPU backend, one rank, FramesPerRender 1, not capturing) while renders draw
+  // reduced frames of the coarse session, so the event loop never waits seconds for them. While
+  // fineBusy nothing touches the fine session but the worker; JoinFineBuild waits for it.
+  std::thread fineBuilder;
+  bool fineBusy = false;
+  std::atomic<bool> fineBuildDone{ false };
+  std::atomic<double> fineBuildProgress{ 0.0 };
+  void JoinFineBuild(vtkInrVolumeMapper* self);
+  bool StartFineBuild(vtkInrVolumeMapper* self, double time);
+
   // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
   // reported only there (quietRenders), never from inside Render (insideRender).
   bool quietRenders = false;
@@ -421,6 +434,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
+  this->Internal->JoinFineBuild(this);
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -433,6 +447,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
+  this->Internal->JoinFineBuild(this);
   for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
   {
     if (slot->session)
@@ -606,6 +621,7 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
+  this->Internal->JoinFineBuild(this);
   const auto& fine = this->Internal->fine.session;
   return fine ? fine->macrocellInfo().slicesBuilt : 0;
 }
@@ -737,6 +753,10 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
   I.quietRenders = true;
+  if (I.fineBusy && I.fineBuildDone)
+  {
+    I.JoinFineBuild(this);
+  }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {
     producer->Update();
@@ -749,6 +769,14 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render reports what is wrong
   }
+  if (I.fineBusy)
+  {
+    // Still building on the worker: show how far (the render draws the coarse session).
+    this->SetProgressText("INR Volume: building macrocells");
+    this->UpdateProgress(I.fineBuildProgress.load());
+    this->SetProgressText(nullptr);
+    return;
+  }
   inr::RenderScene next;
   next.time = InrSceneTranslator::Time(
     input, 0.5 * (I.model.domain.timeBegin + I.model.domain.timeEnd));
@@ -758,11 +786,22 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   const bool coarse = I.RendersCoarse(this, interactive, timeChange);
   try
   {
-    (coarse ? I.coarse.session : I.fine.session)->buildSlicesFor(next.time);
+    if (coarse)
+    {
+      I.coarse.session->buildSlicesFor(next.time);
+    }
+    else if (!I.StartFineBuild(this, next.time))
+    {
+      I.fine.session->buildSlicesFor(next.time);
+    }
   }
   catch (const std::exception&)
   {
     // The render's setScene meets the same failure and reports it.
+  }
+  if (I.fineBusy)
+  {
+    return;
   }
   // The coarse slices of later time-change frames, once a still image of the fine grid is shown
   // (the first image is not delayed by them).
@@ -857,6 +896,14 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   int interactiveFrames = 1;
   bool interactive =
     I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs, &timeChange);
+  if (I.fineBusy && !interactive && I.window.fullWidth == 0 && !this->Capturing)
+  {
+    // The fine slices of this time are still building on the worker: a reduced frame of the
+    // coarse session, as right after a time change (a fresh image).
+    interactive = true;
+    timeChange = true;
+    budgetMs = this->InteractiveFrameTime;
+  }
   int width = tile.width, height = tile.height;
   if (interactive)
   {
@@ -889,6 +936,10 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
   // which the still render after the drag reprojects to the new camera instead of restarting.
   const bool useCoarse = I.RendersCoarse(this, interactive, timeChange);
+  if (I.fineBusy && !useCoarse)
+  {
+    I.JoinFineBuild(this);  // this frame needs the fine session: wait for the worker
+  }
   if (!I.Refine(this, scene, width, height, interactive, useCoarse, interactiveFrames))
   {
     return;
@@ -928,6 +979,80 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     I.BuildCoarseAhead(this);
   }
+}
+
+void vtkInrVolumeMapper::Internals::JoinFineBuild(vtkInrVolumeMapper* self)
+{
+  if (!this->fineBusy)
+  {
+    return;
+  }
+  this->fineBuilder.join();
+  this->fineBusy = false;
+  if (this->fine.session)
+  {
+    this->fine.session->setProgressHandler(
+      progressHandler(self, "INR Volume: ", &this->muteProgress));
+  }
+}
+
+// Starts building the fine slices for `time` on a worker thread where that keeps the GUI
+// responsive (CPU backend, one rank, GUI-like refinement, a coarse session to draw meanwhile);
+// false where the caller builds them itself. Waits a few ms first: most calls find the slices
+// built and finish at once, and then no coarse frame is drawn.
+namespace
+{
+std::atomic<bool> backgroundBuilds{ false };
+}
+
+void vtkInrVolumeMapper::SetBackgroundMacrocellBuilds(bool on)
+{
+  backgroundBuilds = on;
+}
+
+bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
+{
+  return backgroundBuilds;
+}
+
+bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
+{
+  if (!backgroundBuilds || this->fineBusy || !this->fine.session || self->Capturing || self->FramesPerRender != 1 ||
+    !self->ProgressiveRefinement ||
+    self->InteractiveLevelOfDetail != LOD_INTERACTION_AND_TIME || this->ranks.count > 1 ||
+    this->fine.session->backend() != inr::RenderBackend::Cpu || !this->UpdateCoarseEngine(self))
+  {
+    return false;
+  }
+  inr::RenderSession* session = this->fine.session.get();
+  this->fineBuildProgress = 0.0;
+  this->fineBuildDone = false;
+  session->setProgressHandler([this](double fraction, const std::string&)
+    { this->fineBuildProgress = fraction; });
+  this->fineBusy = true;
+  this->fineBuilder = std::thread(
+    [this, session, time]()
+    {
+      try
+      {
+        session->buildSlicesFor(time);
+      }
+      catch (const std::exception&)
+      {
+        // The render's setScene meets the same failure and reports it.
+      }
+      this->fineBuildDone = true;
+    });
+  const auto start = Clock::now();
+  while (!this->fineBuildDone && msSince(start) < 20.0)
+  {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (this->fineBuildDone)
+  {
+    this->JoinFineBuild(self);
+  }
+  return true;
 }
 
 void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
@@ -1098,6 +1223,7 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
     const std::uint64_t h = hashBytes(bytes->GetPointer(0), n);
     if (h != this->hash || !this->modelOk)
     {
+      this->JoinFineBuild(self);
       this->hash = h;
       this->modelOk = false;
       this->fine.session.reset();
@@ -1181,6 +1307,14 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
     this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding, self->Traversal };
   EngineSlot& f = this->fine;
+  if (this->fineBusy)
+  {
+    if (f.built == want)
+    {
+      return true;  // the worker owns the session until its build is joined
+    }
+    this->JoinFineBuild(self);
+  }
   if (!f.session || f.built != want)
   {
     try

@@ -344,6 +344,15 @@ public:
   /// its progress bar inside the GL render corrupts VTK's cached GL state. Without it (a plain VTK
   /// window) Render() builds and reports as before.
   void PrepareRender(vtkRenderer* ren, vtkVolume* vol);
+  /// Process-wide, off by default; ParaView's GUI turns it on (its refinement behaviour renders
+  /// again by itself): PrepareRender then builds the fine macrocell slices of a new time on a
+  /// worker thread (CPU backend, one rank, FramesPerRender 1, InteractiveLevelOfDetail with time
+  /// changes, not capturing), and renders meanwhile draw reduced frames of the coarse interactive
+  /// macrocells, so the event loop never waits seconds for a build; the next render after the
+  /// build uses the fine macrocells. A capture or any render that needs the fine session waits
+  /// for the worker. Scripts (pvpython, pvbatch) keep building in the render's preparation.
+  static void SetBackgroundMacrocellBuilds(bool on);
+  static bool GetBackgroundMacrocellBuilds();
   void ReleaseGraphicsResources(vtkWindow* win) override;
 
 protected:
