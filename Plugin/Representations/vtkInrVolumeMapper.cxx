@@ -989,6 +989,7 @@ void vtkInrVolumeMapper::Internals::JoinFineBuild(vtkInrVolumeMapper* self)
   }
   this->fineBuilder.join();
   this->fineBusy = false;
+  this->lodCeiling = 2.0;  // frames measured while the worker shared the CPU were slower
   if (this->fine.session)
   {
     this->fine.session->setProgressHandler(
@@ -1143,6 +1144,12 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
     if (measured >= kKeepScaleAbove * engineBudget && measured <= kKeepScaleBelow * engineBudget)
     {
       return this->lodScale;
+    }
+    if (measured < kKeepScaleAbove * engineBudget && this->framesAtScale >= 4)
+    {
+      // Four frames at this scale well under the budget: the frame that barred the larger scale
+      // was an outlier (a loaded machine, a background build): allow it again.
+      this->lodCeiling = 2.0;
     }
     if (measured > kKeepScaleBelow * engineBudget && measured <= 2.0 * engineBudget &&
       this->framesAtScale < 2)
