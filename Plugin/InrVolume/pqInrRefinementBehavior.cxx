@@ -2,6 +2,8 @@
 
 #include "pqAnimationManager.h"
 #include "vtkInrVolumeMapper.h"
+#include "vtkRenderWindow.h"
+#include "vtkSMViewProxy.h"
 #include "pqCoreUtilities.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
@@ -400,6 +402,16 @@ void pqInrRefinementBehavior::refine()
   {
     if (!view)
     {
+      continue;
+    }
+    // Never a render inside another one: this timer can fire from events processed during a
+    // render or an animation tick (pqVCRController processes events in its tick).
+    vtkSMViewProxy* viewProxy = view->getViewProxy();
+    vtkRenderWindow* window = viewProxy ? viewProxy->GetRenderWindow() : nullptr;
+    if (window && window->CheckInRenderStatus())
+    {
+      this->Pending.push_back(view);
+      this->Timer.start(kInteractionSettleMs);
       continue;
     }
     bool again = false;
