@@ -53,6 +53,7 @@ public:
   }
   void setProgressHandler(MacrocellProgress handler) override { grid_.setProgressHandler(std::move(handler)); }
   void buildAllSlices() override { grid_.buildAllSlices(); }
+  void buildSlicesFor(double time) override { grid_.buildSlicesFor(time); }
   MacrocellInfo macrocellInfo() const override {
     MacrocellInfo i;
     i.dims = grid_.options().dims;

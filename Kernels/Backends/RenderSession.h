@@ -104,6 +104,10 @@ public:
   // later time changes find their slices built: for a caller that has time to spare now (the
   // mapper's coarse interactive grid, built ahead during a still render).
   virtual void buildAllSlices() = 0;
+  // Builds the macrocell slices a later setScene at `time` needs (reporting progress as above),
+  // and nothing else: the scene, the accumulation and the working grid are kept. For a caller
+  // that must not be interrupted by progress later (the ParaView mapper, outside its GL render).
+  virtual void buildSlicesFor(double time) = 0;
 };
 
 }  // namespace inr

@@ -21,6 +21,13 @@ void MacrocellGridBase::setTime(double t) {
   clearDirtyCells();
 }
 
+void MacrocellGridBase::buildSlicesFor(double t) {
+  int k0 = 0, k1 = 0;
+  float w = 0.f;
+  layout_.interpolationWeights(t, k0, k1, w);
+  buildSlices(w > 0.f ? std::vector<int>{k0, k1} : std::vector<int>{k0});
+}
+
 void MacrocellGridBase::buildAllSlices() {
   std::vector<int> all(std::size_t(layout_.temporalSlices));
   for (int k = 0; k < layout_.temporalSlices; ++k) all[std::size_t(k)] = k;

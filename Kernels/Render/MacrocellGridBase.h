@@ -36,6 +36,9 @@ public:
   // dirty-cell list (every majorant must be recomputed after a time change).
   void setTime(double t);
   void buildAllSlices();
+  // Builds the slices the working grid for time t needs (those setTime(t) would build), with
+  // progress, and changes nothing else: lets a caller do the slow part of a time change first.
+  void buildSlicesFor(double t);
   double time() const { return time_; }
   virtual bool sliceBuilt(int k) const = 0;
 

@@ -1,6 +1,10 @@
 #include "pqInrRefinementBehavior.h"
 
 #include "pqAnimationManager.h"
+#include "vtkInrVolumeMapper.h"
+#include "vtkRenderWindow.h"
+#include "vtkSMViewProxy.h"
+#include "pqCoreUtilities.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
 #include "pqPVApplicationCore.h"
@@ -14,9 +18,22 @@
 #include "vtkSMPropertyHelper.h"
 #include "vtkSMProxy.h"
 #include "vtkSMSession.h"
+#include "vtkSMTransferFunctionPresets.h"
 #include "vtkSMTransferFunctionProxy.h"
+#include "vtkSMSourceProxy.h"
+#include "vtkSMDoubleRangeDomain.h"
+#include "vtkSMIntRangeDomain.h"
+#include "vtkSMPropertyIterator.h"
+#include "vtkSMVectorProperty.h"
+#include "vtkCommand.h"
+#include "vtk_jsoncpp.h"
 #include "vtkClientServerStream.h"
 #include "vtkPVSession.h"
+
+#include "vtkSmartPointer.h"
+
+#include <QMainWindow>
+#include <QStatusBar>
 
 #include <algorithm>
 #include <cstdio>
@@ -82,6 +99,9 @@ bool stillRefining(vtkSMProxy* proxy)
 constexpr int kInteractionSettleMs = 300;
 // Between refinement renders: lets the event loop breathe.
 constexpr int kRefinePauseMs = 15;
+// The panel's state is pulled from the server this long after a render (a burst of refinement
+// renders refreshes it about four times a second).
+constexpr int kStateRefreshMs = 250;
 }
 
 pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
@@ -90,15 +110,24 @@ pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
   this->Timer.setSingleShot(true);
   this->Timer.setInterval(kRefinePauseMs);
   QObject::connect(&this->Timer, &QTimer::timeout, this, &pqInrRefinementBehavior::refine);
+  this->StateTimer.setSingleShot(true);
+  this->StateTimer.setInterval(kStateRefreshMs);
+  QObject::connect(
+    &this->StateTimer, &QTimer::timeout, this, &pqInrRefinementBehavior::refreshState);
 }
 
 pqInrRefinementBehavior::~pqInrRefinementBehavior() = default;
 
 void pqInrRefinementBehavior::onStartup()
 {
+  // The GUI renders again by itself: macrocell builds may run in the background (builtin
+  // session; a pvserver process keeps building in its render preparation).
+  vtkInrVolumeMapper::SetBackgroundMacrocellBuilds(true);
   pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
   QObject::connect(smm, &pqServerManagerModel::viewAdded, this,
     &pqInrRefinementBehavior::onViewAdded);
+  QObject::connect(smm, &pqServerManagerModel::representationAdded, this,
+    &pqInrRefinementBehavior::onRepresentationAdded);
   for (pqView* view : smm->findItems<pqView*>())
   {
     this->onViewAdded(view);
@@ -108,7 +137,216 @@ void pqInrRefinementBehavior::onStartup()
 void pqInrRefinementBehavior::onShutdown()
 {
   this->Timer.stop();
+  this->StateTimer.stop();
   this->Pending.clear();
+}
+
+void pqInrRefinementBehavior::onRepresentationAdded(pqRepresentation* added)
+{
+  auto* repr = qobject_cast<pqDataRepresentation*>(added);
+  vtkSMProxy* proxy = repr ? repr->getProxy() : nullptr;
+  vtkSMProperty* type = proxy ? proxy->GetProperty("Representation") : nullptr;
+  if (!type)
+  {
+    return;
+  }
+  // Coloured as soon as it becomes INR Volume, before its first render (the render after Apply
+  // or after the representation menu changed follows these calls): one image, no restart.
+  pqCoreUtilities::connect(type, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
+  // The INR Volume settings: a value the engine would refuse never stays in the panel.
+  if (vtkSMProperty* state = proxy->GetProperty("InrConverged"))
+  {
+    vtkSMProxy* inr = state->GetParent();
+    vtkSmartPointer<vtkSMPropertyIterator> it;
+    it.TakeReference(inr->NewPropertyIterator());
+    for (it->Begin(); !it->IsAtEnd(); it->Next())
+    {
+      vtkSMProperty* p = it->GetProperty();
+      if (p && !p->GetInformationOnly() && (p->FindDomain<vtkSMIntRangeDomain>() ||
+                                             p->FindDomain<vtkSMDoubleRangeDomain>()))
+      {
+        pqCoreUtilities::connect(
+          p, vtkCommand::ModifiedEvent, this, SLOT(onSettingModified(vtkObject*)));
+      }
+    }
+  }
+  if (vtkSMProperty* input = proxy->GetProperty("Input"))
+  {
+    pqCoreUtilities::connect(
+      input, vtkCommand::ModifiedEvent, this, SLOT(onRepresentationTypeChanged()));
+  }
+  this->colorByModel(repr);
+}
+
+// A setting outside its property's range (the panel's text boxes accept any number), or a Skip
+// Block that is not 0 or a power of two, is replaced at once by the nearest valid value, and the
+// status bar says so: the panel never holds a value the engine refuses (the engine would keep its
+// previous value and report an error on every rebuild).
+void pqInrRefinementBehavior::onSettingModified(vtkObject* caller)
+{
+  auto* prop = vtkSMVectorProperty::SafeDownCast(caller);
+  if (!prop || this->FixingSetting)
+  {
+    return;
+  }
+  vtkSMPropertyHelper helper(prop);
+  if (helper.GetNumberOfElements() != 1)
+  {
+    return;
+  }
+  const double asked = helper.GetAsDouble(0);
+  double value = asked;
+  int hasMin = 0, hasMax = 0;
+  double lo = 0.0, hi = 0.0;
+  if (auto* d = prop->FindDomain<vtkSMDoubleRangeDomain>())
+  {
+    lo = d->GetMinimum(0, hasMin);
+    hi = d->GetMaximum(0, hasMax);
+  }
+  else if (auto* i = prop->FindDomain<vtkSMIntRangeDomain>())
+  {
+    lo = i->GetMinimum(0, hasMin);
+    hi = i->GetMaximum(0, hasMax);
+  }
+  if (hasMin && value < lo)
+  {
+    value = lo;
+  }
+  if (hasMax && value > hi)
+  {
+    value = hi;
+  }
+  if (std::strcmp(prop->GetXMLName(), "InrSkipBlock") == 0 && value > 0.0)
+  {
+    int cells = 1;
+    while (cells * 2 <= int(value))
+    {
+      cells *= 2;  // a power of two, at most the asked value
+    }
+    value = cells;
+  }
+  if (!(value == asked))  // also NaN
+  {
+    this->FixingSetting = true;
+    helper.Set(0, value);
+    this->FixingSetting = false;
+    const char* label = prop->GetXMLLabel() ? prop->GetXMLLabel() : prop->GetXMLName();
+    QString message = QString("INR Volume: %1 = %2 is not allowed").arg(label).arg(asked);
+    message += hasMin && hasMax ? QString(" (%1 to %2").arg(lo).arg(hi) : QString(" (");
+    if (std::strcmp(prop->GetXMLName(), "InrSkipBlock") == 0)
+    {
+      message += ", 0 or a power of two";
+    }
+    message += QString("): set to %1").arg(value);
+    if (auto* window = qobject_cast<QMainWindow*>(pqCoreUtilities::mainWidget()))
+    {
+      window->statusBar()->showMessage(message, 8000);
+    }
+  }
+}
+
+void pqInrRefinementBehavior::onRepresentationTypeChanged()
+{
+  pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
+  for (pqDataRepresentation* repr : smm->findItems<pqDataRepresentation*>())
+  {
+    this->colorByModel(repr);
+  }
+}
+
+// Once per representation, when it is (or becomes) INR Volume: colour it by "value" with the
+// model's own colour and opacity map when the reader found one (InrTransferFunction: the
+// *.tf.json preset beside the model; added to ParaView's presets under its name, applied with
+// its own value range, automatic rescaling off so the preview grid's range never replaces it),
+// else with ParaView's default map rescaled to the model's value range (InrValueRange).
+bool pqInrRefinementBehavior::colorByModel(pqDataRepresentation* repr)
+{
+  vtkSMProxy* proxy = repr ? repr->getProxy() : nullptr;
+  if (!proxy || !isInrVolume(proxy) || this->AutoColored.contains(proxy))
+  {
+    return false;
+  }
+  // The reader, from the server-manager property (set before the Qt-side input link exists).
+  vtkSMProperty* inputProp = proxy->GetProperty("Input");
+  auto* reader = inputProp ? vtkSMSourceProxy::SafeDownCast(vtkSMPropertyHelper(inputProp).GetAsProxy())
+                           : nullptr;
+  if (!reader)
+  {
+    return false;  // not connected yet: the Input property's change calls again
+  }
+  this->AutoColored.insert(proxy);
+  if (!vtkSMPVRepresentationProxy::GetUsingScalarColoring(proxy) &&
+    !vtkSMPVRepresentationProxy::SetScalarColoring(proxy, "value", vtkDataObject::POINT))
+  {
+    return false;
+  }
+  vtkSMProxy* lut = vtkSMPropertyHelper(proxy, "LookupTable", true).GetAsProxy();
+  vtkSMProxy* sof = lut ? vtkSMPropertyHelper(lut, "ScalarOpacityFunction", true).GetAsProxy() : nullptr;
+  if (!lut)
+  {
+    return false;
+  }
+  bool applied = false;
+  vtkSMProperty* tfProp = reader->GetProperty("InrTransferFunction");
+  if (tfProp)
+  {
+    reader->UpdatePropertyInformation(tfProp);
+    const char* text = vtkSMPropertyHelper(tfProp).GetAsString();
+    const std::string json = text ? text : "";
+    Json::CharReaderBuilder builder;
+    std::unique_ptr<Json::CharReader> parser(builder.newCharReader());
+    Json::Value root;
+    std::string errors;
+    if (!json.empty() && parser->parse(json.data(), json.data() + json.size(), &root, &errors))
+    {
+      const Json::Value preset = root.isArray() && root.size() > 0 ? root[0] : root;
+      if (preset.isObject() && preset.isMember("RGBPoints"))
+      {
+        const std::string name =
+          preset.isMember("Name") ? preset["Name"].asString() : std::string("INR model");
+        if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
+        {
+          presets->AddPreset(name.c_str(), preset);  // a preset the user can pick again
+        }
+        applied = vtkSMTransferFunctionProxy::ApplyPreset(lut, preset, false);
+        if (sof && preset.isMember("Points"))
+        {
+          vtkSMTransferFunctionProxy::ApplyPreset(sof, preset, false);
+        }
+        if (lut->GetProperty("AutomaticRescaleRangeMode"))
+        {
+          vtkSMPropertyHelper(lut, "AutomaticRescaleRangeMode").Set(-1);  // Never
+        }
+      }
+    }
+  }
+  if (!applied)
+  {
+    vtkPVDataInformation* info = reader->GetDataInformation(
+      static_cast<unsigned int>(vtkSMPropertyHelper(inputProp).GetOutputPort()));
+    vtkPVArrayInformation* range =
+      info ? info->GetArrayInformation("InrValueRange", vtkDataObject::FIELD) : nullptr;
+    if (range)
+    {
+      double vr[2];
+      range->GetComponentRange(0, vr);
+      if (auto* tf = vtkSMTransferFunctionProxy::SafeDownCast(lut))
+      {
+        tf->RescaleTransferFunction(vr[0], vr[1], false);
+      }
+      if (auto* otf = vtkSMTransferFunctionProxy::SafeDownCast(sof))
+      {
+        otf->RescaleTransferFunction(vr[0], vr[1], false);
+      }
+    }
+  }
+  lut->UpdateVTKObjects();
+  if (sof)
+  {
+    sof->UpdateVTKObjects();
+  }
+  proxy->UpdateVTKObjects();
+  return true;
 }
 
 void pqInrRefinementBehavior::onViewAdded(pqView* view)
@@ -125,6 +363,10 @@ void pqInrRefinementBehavior::onEndRender()
     return;
   }
   this->SinceRender.start();
+  if (!this->StateTimer.isActive())
+  {
+    this->StateTimer.start();
+  }
   for (const auto& v : this->Pending)
   {
     if (v == view)
@@ -162,6 +404,16 @@ void pqInrRefinementBehavior::refine()
     {
       continue;
     }
+    // Never a render inside another one: this timer can fire from events processed during a
+    // render or an animation tick (pqVCRController processes events in its tick).
+    vtkSMViewProxy* viewProxy = view->getViewProxy();
+    vtkRenderWindow* window = viewProxy ? viewProxy->GetRenderWindow() : nullptr;
+    if (window && window->CheckInRenderStatus())
+    {
+      this->Pending.push_back(view);
+      this->Timer.start(kInteractionSettleMs);
+      continue;
+    }
     bool again = false;
     bool settling = false;
     for (pqRepresentation* r : view->getRepresentations())
@@ -176,34 +428,10 @@ void pqInrRefinementBehavior::refine()
       {
         continue;
       }
-      if (!this->AutoColored.contains(proxy))
+      if (this->colorByModel(repr))
       {
-        this->AutoColored.insert(proxy);
-        if (!vtkSMPVRepresentationProxy::GetUsingScalarColoring(proxy) &&
-          vtkSMPVRepresentationProxy::SetScalarColoring(proxy, "value", vtkDataObject::POINT))
-        {
-          vtkPVDataInformation* info = repr->getInputDataInformation();
-          vtkPVArrayInformation* range =
-            info ? info->GetArrayInformation("InrValueRange", vtkDataObject::FIELD) : nullptr;
-          vtkSMProxy* lut = vtkSMPropertyHelper(proxy, "LookupTable", true).GetAsProxy();
-          if (range && lut)
-          {
-            double vr[2];
-            range->GetComponentRange(0, vr);
-            if (auto* tf = vtkSMTransferFunctionProxy::SafeDownCast(lut))
-            {
-              tf->RescaleTransferFunction(vr[0], vr[1], false);
-            }
-            vtkSMProxy* sof = vtkSMPropertyHelper(lut, "ScalarOpacityFunction", true).GetAsProxy();
-            if (auto* otf = vtkSMTransferFunctionProxy::SafeDownCast(sof))
-            {
-              otf->RescaleTransferFunction(vr[0], vr[1], false);
-            }
-          }
-          proxy->UpdateVTKObjects();
-          again = true;
-          continue;
-        }
+        again = true;
+        continue;
       }
       // Progressive refinement off: one frame per render, nothing re-rendered from here (checked
       // on the client's property, no server round trip).
@@ -238,5 +466,41 @@ void pqInrRefinementBehavior::refine()
       // timer is held back while test playback pauses, and we are already outside any render.
       view->forceRender();
     }
+  }
+}
+
+// Pulls the information properties of every visible INR Volume representation (the panel's
+// widgets follow them) and shows the refinement state of the first one in the status bar.
+void pqInrRefinementBehavior::refreshState()
+{
+  pqServerManagerModel* smm = pqApplicationCore::instance()->getServerManagerModel();
+  QString status;
+  for (pqView* view : smm->findItems<pqView*>())
+  {
+    for (pqRepresentation* r : view->getRepresentations())
+    {
+      auto* repr = qobject_cast<pqDataRepresentation*>(r);
+      if (!repr || !repr->isVisible() || !isInrVolume(repr->getProxy()))
+      {
+        continue;
+      }
+      vtkSMProperty* prop = repr->getProxy()->GetProperty("InrRefinementState");
+      vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
+      if (!inr)
+      {
+        continue;
+      }
+      inr->UpdatePropertyInformation();
+      if (status.isEmpty())
+      {
+        const char* state = vtkSMPropertyHelper(prop).GetAsString();
+        status = QString("INR Volume: %1").arg(QString::fromUtf8(state ? state : ""));
+      }
+    }
+  }
+  auto* window = qobject_cast<QMainWindow*>(pqCoreUtilities::mainWidget());
+  if (window && !status.isEmpty())
+  {
+    window->statusBar()->showMessage(status, 4000);
   }
 }

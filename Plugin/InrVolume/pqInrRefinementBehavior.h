@@ -13,10 +13,23 @@
  * (reduced-resolution) frame it waits until no render came for a short while, so a camera or
  * time-slider drag keeps getting fast frames.
  *
- * It also colours a freshly shown INR Volume representation by its "value" array and rescales
- * the colour map to the model's value range (field array "InrValueRange"), so ParaView's colour
- * map editor is the transfer function from the start (once per representation; a later choice
- * of the user is kept).
+ * It also colours an INR Volume representation by its "value" array as soon as it is shown as
+ * INR Volume (before its first render: no restart of the accumulation), with the model's own
+ * colour and opacity map when one ships beside it (the reader's InrTransferFunction: the
+ * *.tf.json preset, also added to ParaView's presets), else ParaView's default map rescaled to
+ * the model's value range (field array "InrValueRange"), so ParaView's colour map editor is the
+ * transfer function from the start (once per representation; a later choice of the user is
+ * kept).
+ *
+ * Settings: a value outside an INR Volume property's range (or a Skip Block that is not a power
+ * of two) is replaced in the property by the nearest valid one as soon as it is set, with a
+ * status-bar message: the panel never holds a value the engine refuses.
+ *
+ * State in the panel: information properties are not refreshed by ParaView after a render, so
+ * the behaviour pulls the INR Volume representations' information properties (Refinement State,
+ * Accumulated Frames, Convergence Estimate, Backend In Use, ...) a moment after renders (at most
+ * about four times a second while refining, and once after the last render), and shows the
+ * refinement state in the main window's status bar while it refines.
  */
 #ifndef pqInrRefinementBehavior_h
 #define pqInrRefinementBehavior_h
@@ -27,7 +40,10 @@
 #include <QSet>
 #include <QTimer>
 
+class pqDataRepresentation;
+class pqRepresentation;
 class pqView;
+class vtkObject;
 class pqPipelineSource;
 
 class pqInrRefinementBehavior : public QObject
@@ -42,14 +58,23 @@ public:
 
 private Q_SLOTS:
   void onViewAdded(pqView* view);
+  void onRepresentationAdded(pqRepresentation* repr);
+  void onRepresentationTypeChanged();
+  void onSettingModified(vtkObject* caller);
   void onEndRender();
   void refine();
+  void refreshState();
+
+private:
+  bool colorByModel(pqDataRepresentation* repr);
 
 private:
   QTimer Timer;
+  QTimer StateTimer;  // refreshState after renders
   QElapsedTimer SinceRender;  // since the last render of a view (interaction settling)
   QList<QPointer<pqView>> Pending;
   QSet<void*> AutoColored;
+  bool FixingSetting = false;
 };
 
 #endif

@@ -61,6 +61,35 @@ vtkInrVolumeReader::~vtkInrVolumeReader()
   delete this->Internal;
 }
 
+const char* vtkInrVolumeReader::GetTransferFunctionJSON()
+{
+  this->TransferFunctionJSON.clear();
+  std::string path = this->FileName ? this->FileName : "";
+  const std::string ext = ".inr";
+  if (path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0)
+  {
+    path = path.substr(0, path.size() - ext.size()) + ".tf.json";
+    std::ifstream in(path, std::ios::binary);
+    constexpr std::streamoff kMaxBytes = 1 << 20;  // a preset is a few hundred bytes
+    if (in)
+    {
+      in.seekg(0, std::ios::end);
+      const std::streamoff size = in.tellg();
+      if (size > 0 && size <= kMaxBytes)
+      {
+        this->TransferFunctionJSON.resize(std::size_t(size));
+        in.seekg(0);
+        in.read(&this->TransferFunctionJSON[0], size);
+        if (!in)
+        {
+          this->TransferFunctionJSON.clear();
+        }
+      }
+    }
+  }
+  return this->TransferFunctionJSON.c_str();
+}
+
 void vtkInrVolumeReader::SetFileName(const char* name)
 {
   if (name && this->FileName && std::strcmp(name, this->FileName) == 0)

@@ -23,6 +23,8 @@
 #include "InrVolumeReadersModule.h"
 #include "vtkImageAlgorithm.h"
 
+#include <string>  // for TransferFunctionJSON
+
 class INRVOLUMEREADERS_EXPORT vtkInrVolumeReader : public vtkImageAlgorithm
 {
 public:
@@ -52,6 +54,12 @@ public:
   vtkGetVector2Macro(ValueRange, double);
   ///@}
 
+  /// The model's own colour and opacity map: the text of the ParaView preset file beside the
+  /// model (MODEL.tf.json for MODEL.inr: a JSON list holding one preset with RGBPoints and
+  /// Points, as Tools/ ships them), "" when there is none or it cannot be read. ParaView's GUI
+  /// applies it when the model is first shown as INR Volume.
+  const char* GetTransferFunctionJSON();
+
 protected:
   vtkInrVolumeReader();
   ~vtkInrVolumeReader() override;
@@ -68,6 +76,7 @@ private:
   int PreviewResolution = 8;
   double TimeRange[2] = { 0, 0 };
   double ValueRange[2] = { 0, 1 };
+  std::string TransferFunctionJSON;
   struct Internals;
   Internals* Internal;
 };

@@ -34,6 +34,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -45,6 +46,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -136,6 +138,13 @@ constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.0;
 constexpr double kMaxGrowth = 1.25;
 // Aim below the budget: per-frame cost varies with the view (coverage, collisions).
 constexpr double kBudgetMargin = 0.8;
+// The level of detail is judged on the engine's time (the part that scales with the image's
+// pixels). The rest of the window's frame (depth read, upload, drawing the image over the whole
+// viewport, the view's own passes, swap: on a software OpenGL 40-110 ms at ~1280x768, varying
+// with the machine's load, whatever the image's resolution) is measured and left to the engine's
+// budget, but at most this share of the budget: counted in full it drove the scale to its minimum
+// (a 1/16 mosaic with a 2 ms engine) although no resolution could make it cheaper.
+constexpr double kMaxFixedShare = 0.5;
 
 // The depth limits (engine row order) of a width x height image, sampled at the centres of the
 // pixels of a w x h image covering the same view.
@@ -208,10 +217,22 @@ struct EngineKey
 // Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
 // progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
 // ParaView's progress bar.
-inr::MacrocellProgress progressHandler(vtkInrVolumeMapper* self, const std::string& prefix)
+//
+// A view that prepares each render (vtkInrVolumeMapper::PrepareRender: ParaView's representation)
+// gets the builds done there, before the GL render; a build that still happens inside the GL
+// render reports nothing then (`*muted`): a GUI handles a progress event by repainting its
+// progress bar at once, and Qt composes the window with another OpenGL context and repaints the
+// view widget in the middle of VTK's render (the GL state VTK caches is then wrong: "Error in
+// cache state" warnings, GL errors, a blank view).
+inr::MacrocellProgress progressHandler(
+  vtkInrVolumeMapper* self, const std::string& prefix, const bool* muted)
 {
-  return [self, prefix](double fraction, const std::string& phase)
+  return [self, prefix, muted](double fraction, const std::string& phase)
   {
+    if (muted && *muted)
+    {
+      return;
+    }
     self->SetProgressText((prefix + phase).c_str());
     self->UpdateProgress(fraction);
     self->SetProgressText(nullptr);  // observers read it during the event; later events (the
@@ -272,6 +293,8 @@ struct vtkInrVolumeMapper::Internals
   // Query reduction: what the user asked for and what the engine shown last holds.
   inr::QueryReductionSettings queryReduction;
   std::string queryReductionInUse;
+  bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
+  inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
 
   // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
   // is built or updated with; initially the engine's defaults) and the last value refused per
@@ -279,6 +302,7 @@ struct vtkInrVolumeMapper::Internals
   inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
   inr::TrackingOptions trackingAsked, trackingValid, trackingRefused;
   std::string macrocellsInUse;
+  std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
 
   // Interactive frames caused by a time change render with a second session on a coarse
   // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
@@ -290,11 +314,42 @@ struct vtkInrVolumeMapper::Internals
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
+  // Whether a reduced interactive frame renders on the coarse session: a time change (its fine
+  // slices may not be built yet), or a camera drag with Reproject on (the fine session's image
+  // stays at full resolution, so the still render after the drag reprojects it instead of
+  // restarting: a different resolution would restart the accumulation).
+  bool RendersCoarse(vtkInrVolumeMapper* self, bool interactive, bool timeChange)
+  {
+    return interactive && (timeChange || this->queryReduction.reproject) &&
+      this->UpdateCoarseEngine(self);
+  }
   void BuildCoarseAhead(vtkInrVolumeMapper* self);
   inr::RenderSession* Shown() const
   {
     return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
                                                      : this->fine.session.get();
+  }
+
+  // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
+  // (PrepareRender: CPU backend, one rank, FramesPerRender 1, not capturing) while renders draw
+  // reduced frames of the coarse session, so the event loop never waits seconds for them. While
+  // fineBusy nothing touches the fine session but the worker; JoinFineBuild waits for it.
+  std::thread fineBuilder;
+  bool fineBusy = false;
+  std::atomic<bool> fineBuildDone{ false };
+  std::atomic<double> fineBuildProgress{ 0.0 };
+  void JoinFineBuild(vtkInrVolumeMapper* self);
+  bool StartFineBuild(vtkInrVolumeMapper* self, double time);
+
+  // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
+  // reported only there (quietRenders), never from inside Render (insideRender).
+  bool quietRenders = false;
+  bool insideRender = false;
+  bool muteProgress = false;  // quietRenders && insideRender: read by the progress handlers
+  void SetInsideRender(bool inside)
+  {
+    this->insideRender = inside;
+    this->muteProgress = this->quietRenders && inside;
   }
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
@@ -308,8 +363,10 @@ struct vtkInrVolumeMapper::Internals
   double lodScale = 1.0;
   double msPerPixelFrame = 0.0;  // engine time per pixel per frame, without macrocell updates
   double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
-  double interactiveMs = 0.0;    // render time of interactive frames at lodScale
+  double interactiveMs = 0.0;    // engine time of interactive frames at lodScale (no macrocell
+                                 // update: it depends on the time change, not on the scale)
   double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
+  int framesAtScale = 0;         // interactive frames measured at lodScale
   // The budget is for the whole window render: what the window spends outside this mapper
   // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
   double outsideMs = 0.0;
@@ -377,6 +434,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
+  this->Internal->JoinFineBuild(this);
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -389,6 +447,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
+  this->Internal->JoinFineBuild(this);
   for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
   {
     if (slot->session)
@@ -457,6 +516,78 @@ double vtkInrVolumeMapper::GetConvergenceEstimate()
   return this->Internal->fine.refinement.estimate();
 }
 
+std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
+{
+  if (std::isnan(db) || db == -std::numeric_limits<double>::infinity())
+  {
+    return "\u2014";  // not known yet: a covered pixel has a single sample
+  }
+  if (db == std::numeric_limits<double>::infinity())
+  {
+    return "no noise left";  // no covered pixel, or no variance
+  }
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f dB", db);
+  return text;
+}
+
+const char* vtkInrVolumeMapper::GetConvergenceEstimateText()
+{
+  this->Internal->estimateText = FormatConvergenceEstimate(this->GetConvergenceEstimate());
+  return this->Internal->estimateText.c_str();
+}
+
+const char* vtkInrVolumeMapper::GetRefinementState()
+{
+  Internals& I = *this->Internal;
+  std::ostringstream s;
+  const int frames = this->GetAccumulatedFrames();
+  const double estimate = this->GetConvergenceEstimate();
+  if (!I.fine.session || frames == 0)
+  {
+    s << "\u2014 (nothing rendered yet)";
+  }
+  else if (I.lastInteractive)
+  {
+    s << "interacting: reduced " << I.imageWidth << "x" << I.imageHeight << " image";
+  }
+  else if (!this->ProgressiveRefinement)
+  {
+    s << "one frame per render (Progressive Refinement off)";
+  }
+  else if (this->GetConverged())
+  {
+    if (this->ConvergenceTarget > 0.0 && estimate >= this->ConvergenceTarget)
+    {
+      s << "converged: " << frames << " frames, " << FormatConvergenceEstimate(estimate);
+    }
+    else
+    {
+      s << "stopped at " << frames << " frames (Maximum Frames " << this->MaximumFrames << ")";
+      if (std::isfinite(estimate))
+      {
+        s << ", " << FormatConvergenceEstimate(estimate);
+      }
+    }
+  }
+  else
+  {
+    s << "refining: " << frames << " frames";
+    if (std::isfinite(estimate))
+    {
+      s << ", " << FormatConvergenceEstimate(estimate);
+      if (this->ConvergenceTarget > 0.0)
+      {
+        char target[32];
+        std::snprintf(target, sizeof(target), " of %.0f dB", this->ConvergenceTarget);
+        s << target;
+      }
+    }
+  }
+  I.refinementState = s.str();
+  return I.refinementState.c_str();
+}
+
 const char* vtkInrVolumeMapper::GetBackendInUse()
 {
   return this->Internal->backendInUse.c_str();
@@ -490,6 +621,7 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
+  this->Internal->JoinFineBuild(this);
   const auto& fine = this->Internal->fine.session;
   return fine ? fine->macrocellInfo().slicesBuilt : 0;
 }
@@ -608,6 +740,80 @@ void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
   this->Superclass::ReleaseGraphicsResources(win);
 }
 
+// The slow, GL-free part of the next Render, done before the view's GL render starts: the engine
+// (re)built when its options changed, the macrocell slices the coming frame needs for the input's
+// time (the fine grid's, or the coarse interactive grid's for a reduced time-change frame), and
+// the coarse grid's slices built ahead once a still image is on screen. Their progress is reported
+// here; from then on Render itself reports none (see progressHandler).
+void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
+{
+  Internals& I = *this->Internal;
+  if (!ren || !vol || ren->GetSelector() || I.insideRender)
+  {
+    return;
+  }
+  I.quietRenders = true;
+  if (I.fineBusy && I.fineBuildDone)
+  {
+    I.JoinFineBuild(this);
+  }
+  if (vtkAlgorithm* producer = this->GetInputAlgorithm())
+  {
+    producer->Update();
+  }
+  vtkDataSet* input = this->GetInput();
+  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
+  auto* bytes = vtkUnsignedCharArray::SafeDownCast(fd ? fd->GetAbstractArray("InrModel") : nullptr);
+  if (!bytes || bytes->GetNumberOfValues() == 0 || !I.UpdateModel(this, bytes) ||
+    !I.UpdateEngine(this))
+  {
+    return;  // Render reports what is wrong
+  }
+  if (I.fineBusy)
+  {
+    // Still building on the worker: show how far (the render draws the coarse session).
+    this->SetProgressText("INR Volume: building macrocells");
+    this->UpdateProgress(I.fineBuildProgress.load());
+    this->SetProgressText(nullptr);
+    return;
+  }
+  inr::RenderScene next;
+  next.time = InrSceneTranslator::Time(
+    input, 0.5 * (I.model.domain.timeBegin + I.model.domain.timeEnd));
+  double budgetMs = 0.0;
+  bool timeChange = false;
+  const bool interactive = I.InteractiveRender(this, ren, next, &budgetMs, &timeChange);
+  const bool coarse = I.RendersCoarse(this, interactive, timeChange);
+  try
+  {
+    if (coarse)
+    {
+      I.coarse.session->buildSlicesFor(next.time);
+    }
+    else if (!I.StartFineBuild(this, next.time))
+    {
+      I.fine.session->buildSlicesFor(next.time);
+    }
+  }
+  catch (const std::exception&)
+  {
+    // The render's setScene meets the same failure and reports it.
+  }
+  if (I.fineBusy)
+  {
+    return;
+  }
+  // The coarse slices of later time-change frames, once a still image of the fine grid is shown
+  // (the first image is not delayed by them).
+  if (!interactive && !I.lastInteractive && I.fine.session->accumulatedFrames() > 0 &&
+    this->InteractiveMacrocellsAhead &&
+    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
+    !this->Capturing)
+  {
+    I.BuildCoarseAhead(this);
+  }
+}
+
 void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 {
   Internals& I = *this->Internal;
@@ -615,6 +821,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // no picking support: hardware-selection passes skip the volume
   }
+  struct InsideRender
+  {
+    Internals& I;
+    explicit InsideRender(Internals& i)
+      : I(i)
+    {
+      I.SetInsideRender(true);
+    }
+    ~InsideRender() { I.SetInsideRender(false); }
+  } inside(I);
   // Under MPI every rank reaches this point in every render (IceT composites all of them):
   // whatever happens below, the refinement state is reduced over the ranks once on the way out
   // (also where this rank draws nothing: depth peeling depends on its own geometry, and a rank
@@ -680,6 +896,14 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   int interactiveFrames = 1;
   bool interactive =
     I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs, &timeChange);
+  if (I.fineBusy && !interactive && I.window.fullWidth == 0 && !this->Capturing)
+  {
+    // The fine slices of this time are still building on the worker: a reduced frame of the
+    // coarse session, as right after a time change (a fresh image).
+    interactive = true;
+    timeChange = true;
+    budgetMs = this->InteractiveFrameTime;
+  }
   int width = tile.width, height = tile.height;
   if (interactive)
   {
@@ -709,7 +933,13 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.lastTime = scene.time;
   const auto refineStart = Clock::now();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
-  const bool useCoarse = interactive && timeChange && I.UpdateCoarseEngine(this);
+  // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
+  // which the still render after the drag reprojects to the new camera instead of restarting.
+  const bool useCoarse = I.RendersCoarse(this, interactive, timeChange);
+  if (I.fineBusy && !useCoarse)
+  {
+    I.JoinFineBuild(this);  // this frame needs the fine session: wait for the worker
+  }
   if (!I.Refine(this, scene, width, height, interactive, useCoarse, interactiveFrames))
   {
     return;
@@ -742,12 +972,88 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
-  if (!interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
+  // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)
+  if (!I.quietRenders && !interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
     this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
     !this->Capturing)
   {
     I.BuildCoarseAhead(this);
   }
+}
+
+void vtkInrVolumeMapper::Internals::JoinFineBuild(vtkInrVolumeMapper* self)
+{
+  if (!this->fineBusy)
+  {
+    return;
+  }
+  this->fineBuilder.join();
+  this->fineBusy = false;
+  this->lodCeiling = 2.0;  // frames measured while the worker shared the CPU were slower
+  if (this->fine.session)
+  {
+    this->fine.session->setProgressHandler(
+      progressHandler(self, "INR Volume: ", &this->muteProgress));
+  }
+}
+
+// Starts building the fine slices for `time` on a worker thread where that keeps the GUI
+// responsive (CPU backend, one rank, GUI-like refinement, a coarse session to draw meanwhile);
+// false where the caller builds them itself. Waits a few ms first: most calls find the slices
+// built and finish at once, and then no coarse frame is drawn.
+namespace
+{
+std::atomic<bool> backgroundBuilds{ false };
+}
+
+void vtkInrVolumeMapper::SetBackgroundMacrocellBuilds(bool on)
+{
+  backgroundBuilds = on;
+}
+
+bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
+{
+  return backgroundBuilds;
+}
+
+bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
+{
+  if (!backgroundBuilds || this->fineBusy || !this->fine.session || self->Capturing || self->FramesPerRender != 1 ||
+    !self->ProgressiveRefinement ||
+    self->InteractiveLevelOfDetail != LOD_INTERACTION_AND_TIME || this->ranks.count > 1 ||
+    this->fine.session->backend() != inr::RenderBackend::Cpu || !this->UpdateCoarseEngine(self))
+  {
+    return false;
+  }
+  inr::RenderSession* session = this->fine.session.get();
+  this->fineBuildProgress = 0.0;
+  this->fineBuildDone = false;
+  session->setProgressHandler([this](double fraction, const std::string&)
+    { this->fineBuildProgress = fraction; });
+  this->fineBusy = true;
+  this->fineBuilder = std::thread(
+    [this, session, time]()
+    {
+      try
+      {
+        session->buildSlicesFor(time);
+      }
+      catch (const std::exception&)
+      {
+        // The render's setScene meets the same failure and reports it.
+      }
+      this->fineBuildDone = true;
+    });
+  const auto start = Clock::now();
+  while (!this->fineBuildDone && msSince(start) < 20.0)
+  {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (this->fineBuildDone)
+  {
+    this->JoinFineBuild(self);
+  }
+  return true;
 }
 
 void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
@@ -817,30 +1123,44 @@ bool vtkInrVolumeMapper::Internals::InteractiveRender(vtkInrVolumeMapper* self, 
   return *timeChange;
 }
 
-// The linear scale of an interactive image. A stable resolution lets reprojection reuse the
-// accumulation during a drag, so the scale is kept while the measured render time at it stays in
-// a band around the budget; outside it the scale is re-chosen from that measurement (the engine
-// part scales with the pixel count), growing by at most kMaxGrowth per change because small
-// images cost more per pixel (each wavefront iteration has a fixed cost). Before any interactive
-// measurement: from the per-pixel cost of the frames rendered so far. Full resolution when the
-// budget allows it.
+// The linear scale of an interactive image, judged on the engine's time (which scales with the
+// pixel count) against the budget left once the window's fixed cost is taken off (capped at
+// kMaxFixedShare of the budget; see there). A stable resolution lets reprojection reuse the
+// accumulation during a drag, so the scale is kept while the engine's measured time at it stays
+// in a band around that budget; outside it the scale is re-chosen from that measurement, growing
+// by at most kMaxGrowth per change because small images cost more per pixel (each wavefront
+// iteration has a fixed cost). Before any interactive measurement: from the per-pixel cost of the
+// frames rendered so far. Full resolution when the budget allows it.
 double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, int height)
 {
   const double pixels = double(width) * double(height);
-  const double overhead = this->overheadMs + this->outsideMs;
-  const double target = std::max(kBudgetMargin * budgetMs - overhead, 0.1 * budgetMs);
-  // The measured time of an interactive frame, the window's work around the mapper included.
-  const double measured = this->interactiveMs > 0.0 ? this->interactiveMs + this->outsideMs : 0.0;
+  const double fixed = std::min(this->overheadMs + this->outsideMs, kMaxFixedShare * budgetMs);
+  const double engineBudget = budgetMs - fixed;
+  const double target = kBudgetMargin * engineBudget;
+  const double measured = this->interactiveMs;
   double s = this->lodScale;
   if (measured > 0.0)
   {
-    if (measured >= kKeepScaleAbove * budgetMs && measured <= kKeepScaleBelow * budgetMs)
+    if (measured >= kKeepScaleAbove * engineBudget && measured <= kKeepScaleBelow * engineBudget)
     {
       return this->lodScale;
     }
-    const double engine = std::max(measured - overhead, 1e-3);
-    s = std::min(this->lodScale * std::sqrt(target / engine), this->lodScale * kMaxGrowth);
-    if (measured > kKeepScaleBelow * budgetMs)
+    if (measured < kKeepScaleAbove * engineBudget && this->framesAtScale >= 4)
+    {
+      // Four frames at this scale well under the budget: the frame that barred the larger scale
+      // was an outlier (a loaded machine, a background build): allow it again.
+      this->lodCeiling = 2.0;
+    }
+    if (measured > kKeepScaleBelow * engineBudget && measured <= 2.0 * engineBudget &&
+      this->framesAtScale < 2)
+    {
+      // One frame somewhat over the budget may be noise (a loaded machine): a second one decides
+      // before the scale drops and is barred for the rest of the interaction.
+      return this->lodScale;
+    }
+    s = std::min(this->lodScale * std::sqrt(target / std::max(measured, 1e-3)),
+      this->lodScale * kMaxGrowth);
+    if (measured > kKeepScaleBelow * engineBudget)
     {
       this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
     }
@@ -857,7 +1177,7 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
   if (s == this->lodScale && measured > 0.0)
   {
     // Out of the band but rounded back to the same scale: one step in the needed direction.
-    s = std::clamp(s + (measured > budgetMs ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
+    s = std::clamp(s + (measured > engineBudget ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
   }
   if (s >= this->lodCeiling)
   {
@@ -867,13 +1187,14 @@ double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, in
   {
     this->lodScale = s;
     this->interactiveMs = 0.0;  // not measured at the new scale yet
+    this->framesAtScale = 0;
   }
   return s;
 }
 
 // Updates the cost model from a render (exponential moving averages; macrocell/majorant update
 // time is left out: it depends on the time change, not on the resolution): the engine's time per
-// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the render time
+// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the engine time
 // of interactive frames at the current scale.
 void vtkInrVolumeMapper::Internals::MeasureFrame(
   double renderMs, double refineMs, int width, int height, bool interactive)
@@ -884,17 +1205,17 @@ void vtkInrVolumeMapper::Internals::MeasureFrame(
     return;
   }
   const double updateMs = this->lastStep.total.updateMs;
-  const double perPixel =
-    std::max(0.0, refineMs - updateMs) / (double(frames) * double(width) * double(height));
+  const double engineMs = std::max(0.0, refineMs - updateMs);
+  const double perPixel = engineMs / (double(frames) * double(width) * double(height));
   const double overhead = std::max(0.0, renderMs - refineMs);
-  const double render = std::max(0.0, renderMs - updateMs);
   constexpr double kWeight = 0.5;  // recent frames dominate (the view changes during a drag)
   auto ema = [](double old, double now) { return old > 0.0 ? (1.0 - kWeight) * old + kWeight * now : now; };
   this->msPerPixelFrame = ema(this->msPerPixelFrame, perPixel);
   this->overheadMs = ema(this->overheadMs, overhead);
   if (interactive)
   {
-    this->interactiveMs = ema(this->interactiveMs, render);
+    this->interactiveMs = ema(this->interactiveMs, engineMs);
+    ++this->framesAtScale;
   }
 }
 
@@ -909,6 +1230,7 @@ bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUns
     const std::uint64_t h = hashBytes(bytes->GetPointer(0), n);
     if (h != this->hash || !this->modelOk)
     {
+      this->JoinFineBuild(self);
       this->hash = h;
       this->modelOk = false;
       this->fine.session.reset();
@@ -992,6 +1314,14 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
     this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding, self->Traversal };
   EngineSlot& f = this->fine;
+  if (this->fineBusy)
+  {
+    if (f.built == want)
+    {
+      return true;  // the worker owns the session until its build is joined
+    }
+    this->JoinFineBuild(self);
+  }
   if (!f.session || f.built != want)
   {
     try
@@ -1038,7 +1368,7 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
         so.traversal.kind = inr::TraversalKind::Auto;
         f.session = inr::RenderSession::create(this->model, so);
       }
-      f.session->setProgressHandler(progressHandler(self, "INR Volume: "));
+      f.session->setProgressHandler(progressHandler(self, "INR Volume: ", &this->muteProgress));
       this->rankInUse.clear();
       if (this->ranks.count > 1 || localRank >= 0)
       {
@@ -1082,16 +1412,16 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   return true;
 }
 
-// The coarse session for time-change interactive frames (InteractiveMacrocellResolution), built
-// on first use with the fine session's backend, temporal slices and macrocell options; false
-// (render with the fine session) when it is off, not coarser than the fine grid, the model has
-// no time, or it cannot be created (reported once).
+// The coarse session for reduced interactive frames (InteractiveMacrocellResolution: time changes,
+// and camera drags with Reproject on), built on first use with the fine session's backend,
+// temporal slices (one for a model without time) and macrocell options; false (render with the
+// fine session) when it is off, not coarser than the fine grid, or it cannot be created
+// (reported once).
 bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
   EngineSlot& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session ||
-    !this->model.domain.usesTime())
+  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session)
   {
     return false;
   }
@@ -1112,7 +1442,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       so.cudaDevice = this->cudaDevice;
       so.allowFallback = true;
       so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = want.slices;
+      so.macrocells.temporalSlices = this->model.domain.usesTime() ? want.slices : 1;
       // Skip blocks larger than the grid would be a single block: cap them at the grid.
       so.macrocells.skipBlockCells = std::min(want.skipBlock, n);
       while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))
@@ -1159,7 +1489,8 @@ void vtkInrVolumeMapper::Internals::BuildCoarseAhead(vtkInrVolumeMapper* self)
     return;
   }
   const auto start = Clock::now();
-  engine.setProgressHandler(progressHandler(self, "INR Volume (interactive macrocells): "));
+  engine.setProgressHandler(
+    progressHandler(self, "INR Volume (interactive macrocells): ", &this->muteProgress));
   try
   {
     engine.buildAllSlices();
@@ -1271,11 +1602,18 @@ void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
     try
     {
       engine.setQueryReduction(this->queryReduction);
+      this->haveRefusedQueryReduction = false;
     }
     catch (const std::invalid_argument& e)
     {
-      vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
-                                    << describeQueryReduction(engine.queryReduction()));
+      if (!this->haveRefusedQueryReduction ||
+        !sameQueryReduction(this->queryReduction, this->refusedQueryReduction))
+      {
+        vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
+                                      << describeQueryReduction(engine.queryReduction()));
+      }
+      this->haveRefusedQueryReduction = true;
+      this->refusedQueryReduction = this->queryReduction;
     }
   }
   this->queryReductionInUse = describeQueryReduction(engine.queryReduction());

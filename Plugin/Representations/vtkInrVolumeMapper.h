@@ -36,6 +36,8 @@
 #include "InrVolumeRepresentationsModule.h"
 #include "vtkVolumeMapper.h"
 
+#include <string>  // for FormatConvergenceEstimate
+
 class vtkRenderer;
 class vtkVolume;
 class vtkWindow;
@@ -201,10 +203,14 @@ public:
   ///@{
   /// Level of detail while interacting, so the view stays responsive when one frame at full
   /// resolution takes long (the CPU fallback at ~1280x768: about a second). An interactive render
-  /// draws one frame at a reduced resolution, chosen from the measured time of recent frames so
-  /// that the window's render (the volume and what the window does around it: the mapper observes
-  /// the window's StartEvent/EndEvent) takes about InteractiveFrameTime ms, upscaled with linear
-  /// filtering; the resolution is kept while the frames stay within the budget (a stable
+  /// draws one frame at a reduced resolution, upscaled with linear filtering. The resolution is
+  /// chosen from the engine's measured time of recent frames (the part that scales with the
+  /// pixels) so that it fits InteractiveFrameTime less the window's fixed cost around it (depth
+  /// read, drawing the image over the viewport, the window's other work: the mapper observes the
+  /// window's StartEvent/EndEvent), that fixed cost counted up to half the budget only (on a
+  /// software OpenGL it alone is 40-110 ms at ~1280x768 whatever the resolution: counted in full
+  /// it kept drags at the smallest scale); the resolution is kept while the frames stay within
+  /// the budget (a stable
   /// resolution lets reprojection keep accumulating during a drag). The next still render is at
   /// full resolution and refines exactly as without LOD (same seed, same frames: the same
   /// image). When the full resolution already fits the budget (small views, the GPU) interactive
@@ -232,9 +238,12 @@ public:
   vtkGetMacro(InteractiveFrameTime, double);
   vtkSetClampMacro(InteractiveUpdateRate, double, 1e-6, 1e6);
   vtkGetMacro(InteractiveUpdateRate, double);
-  /// InteractiveMacrocellResolution (cells per axis, default 8; 0 = off): an interactive frame
-  /// caused by a time change is rendered by a second engine session whose majorant grid has
-  /// this many cells per axis (same temporal slices), so a first visit of a time builds coarse
+  /// InteractiveMacrocellResolution (cells per axis, default 8; 0 = off): a reduced interactive
+  /// frame caused by a time change, or by a camera drag while Reproject is on, is rendered by a
+  /// second engine session whose majorant grid has this many cells per axis (same temporal
+  /// slices). During a drag the fine session thus keeps its full-resolution image, which the
+  /// still render after the drag reprojects to the new camera and keeps refining (a reduced
+  /// frame on the fine session would restart it: another resolution). A first visit of a time builds coarse
   /// slices (about 1/50 of the work of 32^3 ones: the build samples (2n+1)^3 lattice points)
   /// instead of waiting for the fine ones. Coarser cells bound the field more loosely (more null
   /// collisions per ray) but are still majorants: the image is unbiased. The still render that
@@ -293,6 +302,14 @@ public:
   int GetConverged();
   int GetLocalConverged();
   double GetConvergenceEstimate();
+  /// The estimate for people: "31.2 dB", "\u2014" (not known yet: -inf above), "no noise left"
+  /// (+inf: no covered pixel or no variance).
+  const char* GetConvergenceEstimateText();
+  static std::string FormatConvergenceEstimate(double db);
+  /// One line saying whether the image is still refining, e.g. "refining: 37 frames, 31.2 dB of
+  /// 41 dB", "converged: 206 frames, 41.3 dB", "stopped at 2048 frames (Maximum Frames 2048)",
+  /// "interacting: reduced 320x192 image", "one frame per render (Progressive Refinement off)".
+  const char* GetRefinementState();
   /// e.g. "CPU (auto: this build has no CUDA renderer)".
   const char* GetBackendInUse();
   /// One line per rank (under MPI with several ranks; else one line) after the last Render: its
@@ -320,6 +337,22 @@ public:
   ///@}
 
   void Render(vtkRenderer* ren, vtkVolume* vol) override;
+  /// Called by a view before its GL render of the volume (ParaView's representation does it in
+  /// its render request): does the long, GL-free work of the next Render() here (engine rebuild,
+  /// the macrocell slices the input's time needs, the coarse slices built ahead), reporting their
+  /// progress. Once it has been called, Render() reports no progress itself: a GUI that repaints
+  /// its progress bar inside the GL render corrupts VTK's cached GL state. Without it (a plain VTK
+  /// window) Render() builds and reports as before.
+  void PrepareRender(vtkRenderer* ren, vtkVolume* vol);
+  /// Process-wide, off by default; ParaView's GUI turns it on (its refinement behaviour renders
+  /// again by itself): PrepareRender then builds the fine macrocell slices of a new time on a
+  /// worker thread (CPU backend, one rank, FramesPerRender 1, InteractiveLevelOfDetail with time
+  /// changes, not capturing), and renders meanwhile draw reduced frames of the coarse interactive
+  /// macrocells, so the event loop never waits seconds for a build; the next render after the
+  /// build uses the fine macrocells. A capture or any render that needs the fine session waits
+  /// for the worker. Scripts (pvpython, pvbatch) keep building in the render's preparation.
+  static void SetBackgroundMacrocellBuilds(bool on);
+  static bool GetBackgroundMacrocellBuilds();
   void ReleaseGraphicsResources(vtkWindow* win) override;
 
 protected:

@@ -14,6 +14,8 @@
 #include "vtkSmartPointer.h"
 #include "vtkVolumeMapper.h"
 
+#include <string>
+
 vtkStandardNewMacro(vtkInrVolumeRepresentation);
 
 namespace
@@ -31,6 +33,25 @@ public:
 };
 }
 
+// ParaView's progress bar shows "<text>: <percent>" in the status bar's narrow box (~200 px): the
+// mapper's text ("INR Volume (interactive macrocells): building macrocells: 16 of 16 time slices,
+// 8x8x8 cells") wrapped there and was cut off. The representation (what ParaView observes) says
+// what is built in a few words; the mapper's full text stays on the mapper.
+const char* vtkInrVolumeRepresentation::ShortProgressText(const char* text)
+{
+  if (!text)
+  {
+    return nullptr;
+  }
+  const std::string t = text;
+  if (t.find("building macrocells") == std::string::npos)
+  {
+    return text;
+  }
+  return t.find("interactive macrocells") != std::string::npos ? "INR coarse macrocells"
+                                                                 : "INR macrocells";
+}
+
 vtkInrVolumeRepresentation::vtkInrVolumeRepresentation()
 {
   this->VolumeMapper = vtkSmartPointer<vtkInrVolumeMapper>::New();
@@ -41,7 +62,7 @@ vtkInrVolumeRepresentation::vtkInrVolumeRepresentation()
 void vtkInrVolumeRepresentation::ForwardMapperProgress(vtkObject* mapper, unsigned long, void* progress)
 {
   auto* algorithm = vtkAlgorithm::SafeDownCast(mapper);
-  this->SetProgressText(algorithm ? algorithm->GetProgressText() : nullptr);
+  this->SetProgressText(ShortProgressText(algorithm ? algorithm->GetProgressText() : nullptr));
   this->UpdateProgress(*static_cast<double*>(progress));
   this->SetProgressText(nullptr);  // only for this event: the executive's own events carry none
 }
@@ -133,6 +154,16 @@ double vtkInrVolumeRepresentation::GetInrConvergenceEstimate()
   return this->GetInrMapper()->GetConvergenceEstimate();
 }
 
+const char* vtkInrVolumeRepresentation::GetInrConvergenceEstimateText()
+{
+  return this->GetInrMapper()->GetConvergenceEstimateText();
+}
+
+const char* vtkInrVolumeRepresentation::GetInrRefinementState()
+{
+  return this->GetInrMapper()->GetRefinementState();
+}
+
 const char* vtkInrVolumeRepresentation::GetInrBackendInUse()
 {
   return this->GetInrMapper()->GetBackendInUse();
@@ -203,6 +234,16 @@ int vtkInrVolumeRepresentation::ProcessViewRequest(
   if (request_type == vtkPVView::REQUEST_UPDATE())
   {
     this->ReportRankBrick(inInfo);
+  }
+  else if (request_type == vtkPVView::REQUEST_RENDER() && this->GetVisibility())
+  {
+    // Before the view's GL render (the superclass has just connected the mapper to the delivered
+    // data): the engine and macrocell builds, with progress, while no GL render is under way.
+    auto* view = vtkPVRenderView::SafeDownCast(inInfo->Get(vtkPVView::VIEW()));
+    if (view && view->GetRenderer())
+    {
+      this->GetInrMapper()->PrepareRender(view->GetRenderer(), this->Actor);
+    }
   }
   return 1;
 }

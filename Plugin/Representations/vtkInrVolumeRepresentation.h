@@ -10,7 +10,9 @@
  *
  * Progress: ParaView's progress handler observes the objects its proxies create (this
  * representation), not the mapper inside it, so the representation re-issues the mapper's
- * ProgressEvents (macrocell builds during a render) as its own, with the mapper's progress text.
+ * ProgressEvents (macrocell builds, done in the render request before the GL render: see
+ * vtkInrVolumeMapper::PrepareRender) as its own, with a short text ("INR macrocells", "INR coarse
+ * macrocells") that fits ParaView's progress bar.
  */
 #ifndef vtkInrVolumeRepresentation_h
 #define vtkInrVolumeRepresentation_h
@@ -68,6 +70,10 @@ public:
   int GetInrAccumulatedFrames();
   int GetInrConverged();
   double GetInrConvergenceEstimate();
+  /// For the panel: the estimate as "31.2 dB" or "\u2014" until known; one line of refinement
+  /// state (vtkInrVolumeMapper::GetRefinementState).
+  const char* GetInrConvergenceEstimateText();
+  const char* GetInrRefinementState();
   const char* GetInrBackendInUse();
   const char* GetInrRanksInUse();
   const char* GetInrQueryReductionInUse();
@@ -118,6 +124,8 @@ protected:
   bool RemoveFromView(vtkView* view) override;
   void RestoreDepthPeelingForVolumes();
   void ForwardMapperProgress(vtkObject* mapper, unsigned long event, void* progress);
+  /// The progress text ParaView's progress bar shows for the mapper's text (a few words).
+  static const char* ShortProgressText(const char* text);
 
 private:
   // The renderer whose UseDepthPeelingForVolumes this representation turned off (null: none).

@@ -189,22 +189,26 @@ int main(int argc, char* argv[])
   win->SetDesiredUpdateRate(kInteractiveRate);
   int dragWidth = -1;
   bool stable = true;
-  for (int step = 1; step <= 5; ++step)
+  // The scale is judged on the engine's time, whose budget here (1 ms less the window's fixed
+  // cost, at most half of it) the first guess may undershoot: the scale grows by at most 1.25x
+  // per change, so allow a few adjustments, then the resolution must hold.
+  constexpr int kDragSteps = 10, kSettleSteps = 7;
+  for (int step = 1; step <= kDragSteps; ++step)
   {
     cam->Azimuth(4);
     win->Render();
     std::printf("drag step %d: image %dx%d, %.1f ms, %d frames\n", step, mapper->GetLastImageWidth(),
       mapper->GetLastImageHeight(), mapper->GetLastRenderMilliseconds(),
       mapper->GetAccumulatedFrames());
-    // The first step may adjust the first guess once; then the resolution must hold.
-    stable = stable && (step <= 2 || mapper->GetLastImageWidth() == dragWidth);
+    stable = stable && (step <= kSettleSteps || mapper->GetLastImageWidth() == dragWidth);
     dragWidth = mapper->GetLastImageWidth();
     check(mapper->GetLastRenderInteractive() == 1 && mapper->GetLastImageWidth() < kWidth &&
         mapper->GetLastImageHeight() < kHeight,
       "drag step " + std::to_string(step) + ": an interactive, reduced frame");
     check(mapper->GetConverged() == 0, "an interactive frame never counts as converged");
   }
-  check(stable, "the reduced resolution stays the same during the drag (after one adjustment)");
+  check(stable, "the reduced resolution stays the same during the drag (after the first "
+                "adjustments)");
   check(mapper->GetAccumulatedFrames() >= 2, "reprojection keeps accumulating at that resolution");
   const std::vector<unsigned char> reduced = grab(win);
 
@@ -254,6 +258,31 @@ int main(int argc, char* argv[])
   }
   check(reducedDiff > 0.0, "the interactive image differed (it was another view, reduced)");
 
+  // A drag with Reproject on (the default) renders its reduced frames on the coarse session, so
+  // the fine session keeps its full-resolution image: the still render after the drag
+  // reprojects it to the new camera and keeps it (before: the reduced frames changed the fine
+  // session's resolution and the still render restarted from one frame).
+  {
+    const int before = mapper->GetAccumulatedFrames();
+    mapper->SetFramesPerRender(1);
+    win->SetDesiredUpdateRate(kInteractiveRate);
+    for (int step = 0; step < 3; ++step)
+    {
+      cam->Azimuth(3);
+      win->Render();
+    }
+    const bool dragCoarse = mapper->GetLastRenderCoarse() == 1;
+    win->SetDesiredUpdateRate(kStillRate);
+    win->Render();
+    std::printf("after a drag with Reproject on: drag on the coarse session %d, still frames %d "
+                "(before the drag %d)\n", int(dragCoarse), mapper->GetAccumulatedFrames(), before);
+    check(dragCoarse, "a camera drag with Reproject on renders on the coarse session");
+    check(mapper->GetLastRenderInteractive() == 0 && mapper->GetAccumulatedFrames() >= before,
+      "the still render after the drag keeps the reprojected full-resolution image");
+    cam->DeepCopy(still);
+    win->Render();
+  }
+
   // Time changes: interactive with FramesPerRender 1 (ParaView's time slider and playback),
   // full resolution when a script asks for several frames per render.
   mapper->SetFramesPerRender(1);
@@ -293,8 +322,11 @@ int main(int argc, char* argv[])
   check(mapper->GetSlicesBuilt() == fineBefore, "it builds no fine slices");
   check(mapper->GetInteractiveSlicesBuilt() == coarseBefore,
     "it builds no coarse slices either: they were built ahead");
-  // The 1 ms budget holds only the smallest scale: no room for more frames.
-  check(mapper->GetAccumulatedFrames() == 1, "the coarse image at the smallest scale holds one frame");
+  // A fresh image: at most InteractiveFreshFrames frames of a reduced image.
+  check(mapper->GetAccumulatedFrames() >= 1 &&
+      mapper->GetAccumulatedFrames() <= mapper->GetInteractiveFreshFrames() &&
+      mapper->GetLastImageWidth() < kWidth,
+    "the coarse image is reduced and holds 1 to InteractiveFreshFrames frames");
   win->Render();
   check(mapper->GetLastRenderInteractive() == 0 && mapper->GetLastRenderCoarse() == 0 &&
       mapper->GetSlicesBuilt() > fineBefore,

@@ -6,7 +6,8 @@
 //    non-decreasing, ending at 1, the progress text naming the build; nothing when no slice is
 //    built;
 //  - vtkInrVolumeRepresentation (the object ParaView's progress handler observes) re-issues the
-//    mapper's events as its own, same values and text.
+//    mapper's events as its own, same values, with a short text ("INR macrocells") that fits
+//    ParaView's progress bar.
 // Usage: TestInrMapperProgress MODEL.inr
 #include "vtkColorTransferFunction.h"
 #include "vtkCommand.h"
@@ -163,7 +164,7 @@ int main(int argc, char* argv[])
   win->AddRenderer(ren);
 
   ProgressRecorder fromMapper{ "INR Volume: building macrocells" };
-  ProgressRecorder fromRepresentation{ "INR Volume: building macrocells" };
+  ProgressRecorder fromRepresentation{ "INR macrocells" };
   fromMapper.Observe(mapper);
   fromRepresentation.Observe(representation);
 
@@ -185,8 +186,11 @@ int main(int argc, char* argv[])
   check(!fromMapper.texts.empty() &&
       fromMapper.texts.back() == "INR Volume: building macrocells: 2 of 16 time slices, 32x32x32 cells",
     "mapper: progress text names the build");
-  check(fromRepresentation.values == fromMapper.values && fromRepresentation.texts == fromMapper.texts,
-    "representation: re-issues the mapper's events (" + fromRepresentation.Describe() + ")");
+  check(fromRepresentation.values == fromMapper.values &&
+      std::all_of(fromRepresentation.texts.begin(), fromRepresentation.texts.end(),
+        [](const std::string& t) { return t == "INR macrocells"; }),
+    "representation: re-issues the mapper's events with a short text for the progress bar (" +
+      fromRepresentation.Describe() + ")");
 
   fromMapper.Clear();
   reader->UpdateTimeStep(7.3);  // the same two slices: nothing to build

@@ -1,0 +1,213 @@
+"""A new user's GUI session in a real window (issue 28): no warning, no GL error.
+
+    pvpython run_gui_session.py --paraview PARAVIEW --model MODEL.inr --out DIR [--view-size WxH]
+
+Starts `paraview --script=gui_session_setup.py --test-script=DIR/gui_session.xml` (the recorded
+session, written from gui_session.xml.in): File > Open, Apply, INR Volume; two time steps (Next
+Frame: new macrocell slices build); a camera drag on the view; a property change in the panel
+(Ray Budget = stbn); an invalid value typed in the panel (Budget Fraction 0: replaced by its
+minimum, 0.01, no error); a renderer rebuild in the panel (Backend = CPU); a pause after each step.
+The setup script records every message of VTK's output window (what ParaView's Output Messages
+window pops up for) and every render. Checks:
+  - paraview ran the whole recorded session (exit status 0, every widget found);
+  - NO warning and NO error reached the output window: no "Error in cache state", no OpenGL error
+    (the plugin's or VTK's), nothing else (each message is printed);
+  - every step reached the view: the model is shown as INR Volume, the view time moved twice, the
+    drag gave interactive frames, the ray budget reached the engine (stbn in use), the rebuild
+    happened (Backend In Use changed) and the view refined after each of them (several frames);
+  - the panel's state reads like a person would: Convergence Estimate "NN.N dB" or a dash (never
+    -inf), Refinement State "refining ..." / "interacting ..." as the session goes;
+  - the model's own colours: the *.tf.json preset beside the model is the colour and opacity
+    map from the first INR Volume render on (no restart: frames 1, 2, 3, ... after Apply);
+  - the last still image is not empty.
+It also prints what the user waits for: the longest render (from the view's StartEvent to its
+EndEvent: pipeline update, preparation and drawing, during which the event loop is blocked), per
+step. Those durations are reported, not judged (they depend on the machine and its load).
+"""
+import argparse
+import os
+import re
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import inr_pv_common as C  # noqa: E402
+
+VIEWPORT = ("pqClientMainWindow/centralwidget/MultiViewWidget/CoreWidget/qt_tabwidget_stackedwidget/"
+            "MultiViewWidget1/Container/Frame.0/CentralWidgetFrame/Viewport")
+PANEL = ("pqClientMainWindow/propertiesDock/propertiesPanel/scrollArea/qt_scrollarea_viewport/"
+         "scrollAreaWidgetContents/DisplayFrame/ProxyPanel")
+
+ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+ap.add_argument("--paraview", required=True)
+ap.add_argument("--model", required=True)
+ap.add_argument("--out", required=True)
+ap.add_argument("--view-size", default="960x600")
+ap.add_argument("--settle-ms", type=int, default=9000, help="pause after each step")
+ap.add_argument("--drag-steps", type=int, default=10)
+ap.add_argument("--timeout", type=float, default=400, help="seconds paraview may run")
+args = ap.parse_args()
+if not os.environ.get("DISPLAY"):
+    print("plugin_gui_session skipped: no X display (DISPLAY unset; Tools/xvfb.sh starts Xvfb)")
+    sys.exit(77)
+here = os.path.dirname(os.path.abspath(__file__))
+os.makedirs(args.out, exist_ok=True)
+for f in os.listdir(args.out):
+    if f.startswith("gui_session"):
+        os.remove(os.path.join(args.out, f))
+
+drag = []
+for i in range(1, args.drag_steps + 1):
+    x = 0.50 + 0.20 * i / args.drag_steps
+    y = 0.50 + 0.05 * i / args.drag_steps
+    drag.append(f'  <pqevent object="{VIEWPORT}" command="mouseMove" arguments="({x:.3f},{y:.3f},0,1,0)" />')
+    drag.append('  <pqevent object="pqClientMainWindow" command="process_events" arguments="120" />')
+xml = open(os.path.join(here, "gui_session.xml.in")).read()
+xml = (xml.replace("@MODEL@", os.path.abspath(args.model)).replace("@VIEWPORT@", VIEWPORT)
+       .replace("@PANEL@", PANEL).replace("@DRAG@", "\n".join(drag))
+       .replace("@SETTLE_MS@", str(args.settle_ms)))
+xml_path = os.path.join(args.out, "gui_session.xml")
+with open(xml_path, "w") as f:
+    f.write(xml)
+
+env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size)
+cmd = [args.paraview, "--dr", f"--script={os.path.join(here, 'gui_session_setup.py')}",
+       f"--test-script={xml_path}", "--exit"]
+p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                   timeout=args.timeout)
+with open(os.path.join(args.out, "gui_session_paraview.log"), "w") as f:
+    f.write(p.stdout)
+
+check = C.Checks()
+check(p.returncode == 0, f"paraview exit status {p.returncode}")
+check("Success =  true" in p.stdout or "Success = true" in p.stdout,
+      "the recorded session played to the end (every widget found)")
+
+# --- Messages of VTK's output window: there must be none.
+path = os.path.join(args.out, "gui_session_messages.txt")
+text = open(path).read() if os.path.exists(path) else None
+check(text is not None, "the output window was observed")
+blocks = [b.strip() for b in (text or "").split("--- ") if b.strip()]
+kinds = {}
+for b in blocks:
+    first = b.splitlines()[0]
+    body = " ".join(b.splitlines()[1:])
+    key = ("Error in cache state" if "Error in cache state" in body else
+           "OpenGL error" if re.search(r"OpenGL errors?|GL error|glGetError|1282", body) else first)
+    kinds[key] = kinds.get(key, 0) + 1
+for b in blocks[:6]:
+    print("message:", b[:600].replace("\n", " | "))
+print(f"{len(blocks)} message(s) in the output window: {kinds}")
+check(not any(k == "Error in cache state" for k in kinds), f"no 'Error in cache state' ({kinds.get('Error in cache state', 0)})")
+check(not any(k == "OpenGL error" for k in kinds), f"no OpenGL error ({kinds.get('OpenGL error', 0)})")
+check(not blocks, f"no warning or error at all in the output window ({len(blocks)})")
+
+# --- The steps reached the view.
+renders = []
+path = os.path.join(args.out, "gui_session_renders.txt")
+for line in open(path) if os.path.exists(path) else []:
+    kv = dict(item.split("=", 1) for item in line.split()[1:] if "=" in item)
+    kv["budget"] = next((item.split("=", 1)[1] for item in line.split() if item.startswith("budget=")), "-")
+    renders.append(kv)
+inr = [r for r in renders if r.get("inr") == "1"]
+print(f"{len(renders)} renders, {len(inr)} with INR Volume shown")
+check(len(inr) >= 5, "the model was shown as INR Volume")
+times = []
+for r in inr:
+    if not times or times[-1] != r["time"]:
+        times.append(r["time"])
+check(len(times) >= 3, f"the view time moved twice ({times})")
+drag = [r for r in inr if r["interactive"] == "1" and float(r["rate"]) >= 1.0]
+check(len(drag) >= 3, f"the camera drag rendered interactive frames ({len(drag)})")
+stbn = [i for i, r in enumerate(inr) if r["budget"] == "stbn"]
+check(bool(stbn), "the panel's Ray Budget = stbn reached the engine")
+# Budget Fraction 0 typed in the panel: replaced by the property's minimum (0.01) at once, so
+# the engine never refuses it (no error above) and uses rho=0.01.
+rho = [r.get("reduction", "") for r in inr[stbn[0]:]] if stbn else []
+check(any("rho=0.01_" in x for x in rho), "Budget Fraction 0 typed in the panel becomes 0.01 in the engine")
+backends = []
+for r in inr:
+    if not backends or backends[-1] != r["backend"]:
+        backends.append(r["backend"])
+check(len(backends) >= 2, f"the panel's Backend change rebuilt the renderer ({backends})")
+
+
+# The state a user reads in the panel: an estimate in dB or a dash, never -inf; a refinement state
+# that says what happens.
+estimates = sorted({r.get("estimate", "") for r in inr})
+print("convergence estimates seen:", estimates[:4], "...", estimates[-3:])
+check(bool(inr) and all(re.fullmatch(r"\d+\.\d_dB|\u2014|no_noise_left", r.get("estimate", "")) for r in inr),
+      "Convergence Estimate reads as 'NN.N dB' or a dash (never -inf)")
+check(any(r.get("estimate", "").endswith("_dB") for r in inr), "Convergence Estimate becomes known (dB)")
+states = {r.get("state", "").split(":")[0] for r in inr}
+print("refinement states seen:", sorted(states))
+check({"refining", "interacting"} <= states, f"Refinement State says refining and interacting ({sorted(states)})")
+
+
+# The model's own colours: the *.tf.json beside the model is the colour and opacity map from the
+# first INR Volume render on, and applying it did not restart the image (the frames after Apply
+# grow without a reset until the first time step).
+tf_path = os.path.splitext(os.path.abspath(args.model))[0] + ".tf.json"
+if os.path.exists(tf_path):
+    import json
+    preset = json.load(open(tf_path))[0]
+    want = (",".join(f"{v:.6g}" for v in preset["RGBPoints"]) + "/" +
+            ",".join(f"{v:.6g}" for v in preset["Points"]))
+    first = inr[0].get("lut", "-") if inr else "-"
+    check(first == want, f"the first INR Volume render uses the model's {os.path.basename(tf_path)} "
+          f"(colour map {first[:60]}...)")
+    check(all(r.get("lut") == want for r in inr), "the model's colour map stays during the session")
+    apply_frames = [int(r["frames"]) for r in inr if r["time"] == inr[0]["time"] and r["interactive"] == "0"]
+    check(bool(apply_frames) and apply_frames == list(range(1, len(apply_frames) + 1)),
+          f"after Apply the image accumulates from frame 1 without a restart ({apply_frames[:8]}...)")
+else:
+    print(f"note: no {tf_path}: the model's own colours are not checked")
+
+
+def refined(segment):
+    # Frames of what the view shows: the full-resolution image, or (while the fine macrocells of
+    # a new time build in the background) the reduced image of the coarse ones.
+    return max((int(r["frames"]) for r in segment), default=0)
+
+
+# After each step the view refines by itself (frames accumulate): the time steps, the drag, the
+# property change and the rebuild.
+marks = [("apply", 0)]
+for t in times[1:]:
+    marks.append((f"time {t}", next(i for i, r in enumerate(inr) if r["time"] == t)))
+if drag:
+    marks.append(("drag", inr.index(drag[-1]) + 1))
+if stbn:
+    marks.append(("ray budget", stbn[0]))
+if len(backends) >= 2:
+    marks.append(("rebuild", next(i for i, r in enumerate(inr) if r["backend"] == backends[-1])))
+marks.sort(key=lambda m: m[1])
+for (name, start), (_, end) in zip(marks, marks[1:] + [("end", len(inr))]):
+    segment = inr[start:end]
+    blocks_ms = [float(r["block_ms"]) for r in segment]
+    print(f"step {name}: {len(segment)} renders, longest render {max(blocks_ms, default=0):.0f} ms, "
+          f"frames reached {refined(segment)}")
+    check(refined(segment) >= 3, f"the view refined after '{name}' (frames {refined(segment)})")
+# The fine macrocells of the last time were built (in the background in the GUI) and the view
+# shows the full-resolution image at that time.
+last_still = [r for r in inr if r["time"] == times[-1] and r["interactive"] == "0" and
+              r["image"] == args.view_size]
+check(bool(last_still), f"full-resolution still renders at the last time ({len(last_still)})")
+all_ms = [float(r["block_ms"]) for r in renders if float(r["block_ms"]) >= 0]
+print(f"longest render of the session (event loop blocked): {max(all_ms, default=0):.0f} ms "
+      f"(not judged; {sum(ms > 250 for ms in all_ms)} of {len(all_ms)} renders over 250 ms)")
+
+shots = sorted(f for f in os.listdir(args.out) if f.startswith("gui_session_step") and f.endswith(".png"))
+print("screenshots:", shots)
+if shots:
+    import numpy as np
+    last = max(shots, key=lambda f: os.path.getmtime(os.path.join(args.out, f)))
+    a = C.read_png(os.path.join(args.out, last))
+    differs = float(np.mean(np.any(np.abs(a - a[0, 0]) > 8, axis=2)))
+    check(differs >= 0.01, f"{last} is not empty ({100 * differs:.1f}% of pixels differ from the background)")
+else:
+    check(False, "still screenshots saved")
+if check.failures:
+    print(p.stdout[-3000:])
+sys.stdout.flush()
+os._exit(check.report())
