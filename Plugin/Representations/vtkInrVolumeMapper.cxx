@@ -179,6 +179,12 @@ bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryRe
 }
 
 // What the engine holds of the macrocell and tracking options (GetMacrocellsInUse).
+// For the refusal messages of CheckOptions.
+std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
+{
+  return os << inr::primaryEstimatorName(e) << " (" << static_cast<int>(e) << ")";
+}
+
 std::string describeMacrocells(const inr::RenderSession& session)
 {
   const inr::MacrocellInfo m = session.macrocellInfo();
@@ -186,7 +192,9 @@ std::string describeMacrocells(const inr::RenderSession& session)
   std::ostringstream s;
   s << "dims=" << m.dims.x << "x" << m.dims.y << "x" << m.dims.z << " slices=" << m.temporalSlices
     << " skip_block=" << m.skipBlockCells << " bounds_padding=" << m.boundsPadding
-    << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells);
+    << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells)
+    << " estimator=" << inr::primaryEstimatorName(t.estimator) << " majorant_scale=" << t.majorantScale
+    << " residual_scale=" << t.residualScale << " points_per_iteration=" << t.pointsPerIteration;
   return s.str();
 }
 
@@ -263,12 +271,15 @@ struct EngineSlot
   }
 };
 
-// Ghost passes and macrocell refinement change on a live session, without a rebuild.
+// Ghost passes, macrocell refinement and the estimator change on a live session, without a
+// rebuild (none of them changes the image the accumulation converges to).
 void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
 {
   const inr::TrackingOptions& held = session.trackingOptions();
   if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
-    held.refineMacrocells != want.refineMacrocells)
+    held.refineMacrocells != want.refineMacrocells || held.estimator != want.estimator ||
+    held.majorantScale != want.majorantScale || held.residualScale != want.residualScale ||
+    held.pointsPerIteration != want.pointsPerIteration)
   {
     session.setTrackingOptions(want);
   }
@@ -300,7 +311,10 @@ struct vtkInrVolumeMapper::Internals
   // is built or updated with; initially the engine's defaults) and the last value refused per
   // option (each refusal is reported once).
   inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
-  inr::TrackingOptions trackingAsked, trackingValid, trackingRefused;
+  // The estimator starts as inr render's (TrackingOptions::recommended()); the XML declares the
+  // same defaults (test cli.estimator_xml_defaults).
+  inr::TrackingOptions trackingAsked = inr::TrackingOptions::recommended();
+  inr::TrackingOptions trackingValid = trackingAsked, trackingRefused = trackingAsked;
   std::string macrocellsInUse;
   std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
 
@@ -727,6 +741,14 @@ INR_STORED_OPTION(GhostPasses, int, trackingAsked.ghostPassesOnUpdate, v,
   this->Internal->trackingAsked.ghostPassesOnUpdate)
 INR_STORED_OPTION(RefineMacrocells, int, trackingAsked.refineMacrocells, v != 0,
   this->Internal->trackingAsked.refineMacrocells ? 1 : 0)
+INR_STORED_OPTION(Estimator, int, trackingAsked.estimator, static_cast<inr::PrimaryEstimator>(v),
+  static_cast<int>(this->Internal->trackingAsked.estimator))
+INR_STORED_OPTION(MajorantScale, double, trackingAsked.majorantScale, v,
+  this->Internal->trackingAsked.majorantScale)
+INR_STORED_OPTION(ResidualScale, double, trackingAsked.residualScale, v,
+  this->Internal->trackingAsked.residualScale)
+INR_STORED_OPTION(PointsPerIteration, int, trackingAsked.pointsPerIteration, v,
+  this->Internal->trackingAsked.pointsPerIteration)
 #undef INR_STORED_OPTION
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()
@@ -1302,6 +1324,22 @@ void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
       t.ghostPassesOnUpdate = passes;
       t.validate();
     });
+  // The estimator's options, each checked by TrackingOptions::validate on the valid set.
+  auto trackingField = [&](const char* property, auto member)
+  {
+    accept(property, this->trackingAsked.*member, this->trackingValid.*member,
+      this->trackingRefused.*member,
+      [this, member](auto asked)
+      {
+        inr::TrackingOptions t = this->trackingValid;
+        t.*member = asked;
+        t.validate();
+      });
+  };
+  trackingField("Estimator (InrEstimator)", &inr::TrackingOptions::estimator);
+  trackingField("Majorant Scale (InrMajorantScale)", &inr::TrackingOptions::majorantScale);
+  trackingField("Residual Scale (InrResidualScale)", &inr::TrackingOptions::residualScale);
+  trackingField("Points Per Iteration (InrPointsPerIteration)", &inr::TrackingOptions::pointsPerIteration);
   this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
 }
 

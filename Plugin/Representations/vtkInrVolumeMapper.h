@@ -109,6 +109,19 @@ public:
   int GetGhostPasses();
   void SetRefineMacrocells(int on);
   int GetRefineMacrocells();
+  ///  - Estimator (--estimator; 0 delta, 1 ratio, 2 march), MajorantScale (--majorant-scale,
+  ///    [1, 1024]), ResidualScale (--residual-scale, [0, 1024]), PointsPerIteration
+  ///    (--points-per-iteration, 1..64): how primary rays turn tentative collisions into an image
+  ///    (Docs/cli.md, "Estimators"); defaults inr::TrackingOptions::recommended(). Apply from the
+  ///    next frame and keep the accumulation: every estimator converges to the same image.
+  void SetEstimator(int estimator);
+  int GetEstimator();
+  void SetMajorantScale(double scale);
+  double GetMajorantScale();
+  void SetResidualScale(double scale);
+  double GetResidualScale();
+  void SetPointsPerIteration(int points);
+  int GetPointsPerIteration();
   /// The macrocell options the engine holds (read back from it after the last Render), e.g.
   /// "dims=32x32x32 slices=16 skip_block=4 bounds_padding=0 ghost_passes=0 refine=1"; "" before.
   const char* GetMacrocellsInUse();

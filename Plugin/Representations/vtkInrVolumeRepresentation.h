@@ -50,6 +50,10 @@ public:
   void SetInrBoundsPadding(double);
   void SetInrGhostPasses(int);
   void SetInrRefineMacrocells(int);
+  void SetInrEstimator(int);
+  void SetInrMajorantScale(double);
+  void SetInrResidualScale(double);
+  void SetInrPointsPerIteration(int);
   void SetInrProgressiveRefinement(int);
   ///@}
 

@@ -314,6 +314,32 @@ def check_query_reduction_xml_defaults(inr, data):
         expect(got == q[key], "%s: XML default %r, QueryReductionSettings default %r" % (prop, got, q[key]))
 
 
+def check_estimator_xml_defaults(inr, data):
+    """The estimator the CLI uses by default (inr::TrackingOptions::recommended(), read back into
+    --stats-json) is the one the plugin's XML declares, entry names included; a bad value is
+    refused naming the option."""
+    import xml.etree.ElementTree as ET
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    with tempfile.TemporaryDirectory() as d:
+        e = render_stats(inr, model, d, (8, 8), 1)["estimator"]
+    xml = os.path.join(data, os.pardir, os.pardir, "ServerManagerXML", "InrVolumeRepresentation.xml")
+    props = {el.get("name"): el for el in ET.parse(xml).getroot().iter() if el.get("default_values") is not None}
+    est = props["InrEstimator"]
+    entries = {el.get("value"): el.get("text") for el in est.iter("Entry")}
+    expect(entries == {"0": "delta", "1": "ratio", "2": "march"}, "InrEstimator entries %r" % entries)
+    expect(entries[est.get("default_values")] == e["name"],
+           "InrEstimator default %r, CLI default %r" % (entries[est.get("default_values")], e["name"]))
+    for prop, key, cast in (("InrMajorantScale", "majorant_scale", float), ("InrResidualScale", "residual_scale", float),
+                            ("InrPointsPerIteration", "points_per_iteration", int)):
+        got = cast(props[prop].get("default_values"))
+        expect(got == e[key], "%s: XML default %r, CLI default %r" % (prop, got, e[key]))
+    for args, what in ((["--estimator", "ratios"], "--estimator"), (["--majorant-scale", "0.5"], "majorant scale"),
+                       (["--points-per-iteration", "65"], "points per iteration"),
+                       (["--estimator", "delta", "--method", "raymarch"], "--estimator")):
+        p = run(inr, "render", model, "--size", "8x8", *args, "-o", "/nonexistent/x.png")
+        expect(p.returncode != 0 and what in p.stderr, "%s: %s" % (" ".join(args), p.stderr))
+
+
 def check_panel_xml_defaults(inr, data):
     """The INR Volume panel's macrocell options start from the engine's defaults
     (inr::MacrocellOptions, inr::TrackingOptions): the CLI runs with them when no option is given

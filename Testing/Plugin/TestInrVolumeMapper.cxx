@@ -192,6 +192,7 @@ int main(int argc, char* argv[])
   mapper->SetInputConnection(reader->GetOutputPort());
   mapper->SetBackend(vtkInrVolumeMapper::BACKEND_CPU);
   mapper->SetSeed(seed);
+  mapper->SetEstimator(0);  // the baselines are delta-tracking images (the paper's estimator)
   mapper->SetMacrocellResolution(16);
   mapper->SetTemporalSlices(16);
   mapper->SetConvergenceTarget(0.0);
