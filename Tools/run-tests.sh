@@ -2,9 +2,10 @@
 # The whole test suite: installs dependencies, builds, starts ONE Xvfb for everything that
 # renders, runs ctest; then the checking builds: the model loader fuzzed for 200000 executions
 # (Tools/run-fuzz.sh, clang) and the engine's CPU tests under ASan+UBSan (Tools/run-sanitizers.sh).
-# The sanitizer build compiles at the lowest priority while ctest runs (ctest leaves cores idle:
-# the tests that share the one X display run one at a time); its log is build-asan.log in the
-# build folder. Exits non-zero on any failure. GPU tests (label `cuda`) report as skipped on
+# The sanitizer build starts at the lowest priority while ctest runs (ctest leaves cores idle:
+# the tests that share the one X display run one at a time; log: build-asan.log in the build
+# folder); after ctest it is stopped and resumed in the foreground at the command's own priority
+# (ninja keeps what it finished). Exits non-zero on any failure. GPU tests (label `cuda`) report as skipped on
 # machines without a usable GPU. INR_SKIP_FUZZ=1 / INR_SKIP_SANITIZERS=1 leave out the checking
 # builds.
 set -euo pipefail
@@ -14,19 +15,27 @@ bash Tools/build.sh "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
 source Tools/xvfb.sh
 SAN_PID=""
+stop_background_build() {  # the build's own process group (setsid): bash, cmake, ninja, compilers
+  if [ -n "$SAN_PID" ]; then
+    kill -TERM -- "-$SAN_PID" 2>/dev/null || true
+    wait "$SAN_PID" 2>/dev/null || true
+    SAN_PID=""
+  fi
+}
 cleanup() {
   stop_xvfb
-  if [ -n "$SAN_PID" ]; then kill "$SAN_PID" 2>/dev/null || true; fi
+  stop_background_build
 }
 trap cleanup EXIT
 if [ "${INR_SKIP_SANITIZERS:-0}" != 1 ]; then
-  nice -n 19 bash Tools/run-sanitizers.sh --build-only > "$BUILD_DIR/build-asan.log" 2>&1 &
+  nice -n 19 setsid bash Tools/run-sanitizers.sh --build-only > "$BUILD_DIR/build-asan.log" 2>&1 &
   SAN_PID=$!
 fi
 start_xvfb
 failed=()
 ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" --timeout 900 || failed+=(ctest)
 stop_xvfb
+stop_background_build
 step() {  # name, command...: runs it, timed; a failure is recorded, not fatal
   local name=$1 t0
   shift
@@ -36,16 +45,8 @@ step() {  # name, command...: runs it, timed; a failure is recorded, not fatal
   echo "run-tests: $name took $(( $(date +%s) - t0 )) s"
 }
 [ "${INR_SKIP_FUZZ:-0}" = 1 ] || step fuzz bash Tools/run-fuzz.sh 200000
-sanitizer_build() {  # waits for the background build started before ctest
-  local rc=0
-  wait "$SAN_PID" || rc=$?
-  SAN_PID=""
-  tail -n 1 "$BUILD_DIR/build-asan.log"
-  if [ "$rc" -ne 0 ]; then tail -n 40 "$BUILD_DIR/build-asan.log" >&2; fi
-  return "$rc"
-}
-if [ -n "$SAN_PID" ]; then
-  step sanitizer-build sanitizer_build
+if [ "${INR_SKIP_SANITIZERS:-0}" != 1 ]; then
+  step sanitizer-build bash Tools/run-sanitizers.sh --build-only
   case " ${failed[*]} " in
     *" sanitizer-build "*) ;;
     *) step sanitizers bash Tools/run-sanitizers.sh --no-build ;;
