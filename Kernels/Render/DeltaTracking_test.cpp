@@ -12,6 +12,8 @@
 namespace inr {
 namespace {
 
+using test::meanCoverage;
+
 const Box3f kBox = test::kCubeBox;
 
 MacrocellOptions cells(int n) {
@@ -52,12 +54,6 @@ struct TopDownRender {
   RenderSettings settings;
   RenderScene scene;
 };
-
-double meanCoverage(const ImageRGBA& premultiplied) {
-  double s = 0;
-  for (int i = 0; i < premultiplied.width * premultiplied.height; ++i) s += premultiplied.data[4 * i + 3];
-  return s / (premultiplied.width * premultiplied.height);
-}
 
 TEST(DeltaTracking, HomogeneousMediumTransmittance) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });

@@ -15,6 +15,7 @@
 namespace inr {
 namespace {
 
+using test::meanCoverage;
 using test::SceneSetup;
 
 TrackingOptions ratio(double scale, int points = 16) {
@@ -73,12 +74,6 @@ Rendered render(const FieldEvaluator& f, const SceneSetup& setup, TrackingOption
   out.image = r.image();
   out.premultiplied = r.premultipliedImage();
   return out;
-}
-
-double meanCoverage(const ImageRGBA& premultiplied) {
-  double s = 0;
-  for (int i = 0; i < premultiplied.width * premultiplied.height; ++i) s += premultiplied.data[4 * i + 3];
-  return s / (premultiplied.width * premultiplied.height);
 }
 
 TEST(RatioTracking, HomogeneousSlabIsUnbiasedWithLessNoise) {

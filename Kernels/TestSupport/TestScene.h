@@ -123,6 +123,13 @@ inline double psnrOverCoverage(const ImageRGBA& a, const ImageRGBA& reference, c
   return mse > 0.0 ? -10.0 * std::log10(mse) : INFINITY;
 }
 
+// Mean alpha (coverage) of a premultiplied image: the opacity the analytic-medium tests predict.
+inline double meanCoverage(const ImageRGBA& premultiplied) {
+  double s = 0;
+  for (int i = 0; i < premultiplied.width * premultiplied.height; ++i) s += premultiplied.data[4 * i + 3];
+  return s / (premultiplied.width * premultiplied.height);
+}
+
 inline std::size_t nonFinitePixels(const ImageRGBA& img) {
   std::size_t bad = 0;
   for (float v : img.data) bad += std::isfinite(v) ? 0 : 1;

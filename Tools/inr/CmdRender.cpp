@@ -655,9 +655,13 @@ int runRender(int argc, char** argv) {
   if (brickMode) writeNpyRgba(out, image);
   else writeImage(out, image);
   const double n = double(renderedFrames);
+  // The wavefront tracker's line names its estimator (ratio, delta, march), not the method.
+  const std::string summaryMethod =
+      method == "delta" ? primaryEstimatorName(session->trackingOptions().estimator) : method;
   std::printf("%s: %s %dx%d, %ld frame(s), t=%g: %.0f rays, %.0f queries (+%.0f shadow), %.1f iterations per "
               "frame; %.1f ms per frame (traverse %.1f, evaluate %.1f, shadows %.1f, finalize %.1f) -> %s\n",
-              args.positional()[0].c_str(), method.c_str(), settings.width, settings.height, renderedFrames, scene.time,
+              args.positional()[0].c_str(), summaryMethod.c_str(), settings.width, settings.height, renderedFrames,
+              scene.time,
               total.rays / n, total.queries / n, total.shadowQueries / n, total.iterations / n, total.totalMs / n,
               total.traverseMs / n, total.evaluateMs / n, (total.shadowTraverseMs + total.shadowEvaluateMs) / n,
               total.finalizeMs / n, out.c_str());
