@@ -192,14 +192,14 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.initMs = msSince(t0);
 
   bool truncated = false;
-  const PointStateView* points = nullptr;
-  if (fc.estimator != PrimaryEstimator::Delta) {  // ratio tracking, march: points per ray
+  PointStateView pointsView{};
+  const bool withPoints = fc.estimator != PrimaryEstimator::Delta;  // ratio tracking, march
+  if (withPoints) {
     const std::size_t slots = std::size_t(n) * std::size_t(fc.pointsPerIteration);
     if (points_.count != slots) points_.resize(slots);
-    pointsView_ = points_.view();
-    points = &pointsView_;
+    pointsView = points_.view();
   }
-  runTrackingLoop(fc, medium, points, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
+  runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
                   truncated);
 
   if (fc.shadows) {

@@ -67,7 +67,6 @@ private:
   MajorantArrays majorants_;
   RayStateArrays<HostArray> rays_;
   PointStateArrays<HostArray> points_;  // ratio tracking: rays x pointsPerIteration (sized on use)
-  PointStateView pointsView_;
   PixelStateArrays<HostArray> pixels_;
   PixelStateArrays<HostArray> history_;       // reprojection's copy of the old accumulation
   std::vector<std::uint64_t> reprojectKeys_;  // reprojection's per-pixel minimum offer

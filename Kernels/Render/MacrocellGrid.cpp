@@ -161,7 +161,7 @@ void MacrocellGrid::updateMajorants(const TransferFunctionView& tf, const std::v
   std::vector<int> blocks;
   blocks.reserve(cells.size());
   for (int c : cells) {
-    const Int3 cc{c % d.x, (c / d.x) % d.y, c / (d.x * d.y)};
+    const Int3 cc = cellCoordinates(d, c);
     blocks.push_back(blockIndexOfCell(bd, shift, cc));
   }
   std::sort(blocks.begin(), blocks.end());

@@ -31,6 +31,11 @@ struct MajorantGridView {
 INR_HD int linearCellIndex(const Int3& dims, const Int3& c) {
   return (c.z * dims.y + c.y) * dims.x + c.x;
 }
+// The inverse of linearCellIndex: a cell's (x, y, z) from its linear index.
+INR_HD Int3 cellCoordinates(const Int3& dims, int cell) {
+  const int yz = cell / dims.x;
+  return Int3{cell % dims.x, yz % dims.y, yz / dims.y};
+}
 
 // Blocks per axis for B = 2^shift cells per block edge (partial blocks at the far faces).
 INR_HD Int3 blockGridDims(const Int3& dims, int shift) {

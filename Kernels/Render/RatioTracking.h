@@ -147,8 +147,9 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
     const float pick = pointRng.next();
     float w = 0.f;  // this point's emission weight
     if (march) {
-      // Until the ray's first comb point the control is half the macrocell majorant (`gap` then holds the majorant optical depth since the last point);
-      // from then on the extinction at the last comb point (`gap` a length).
+      // Until the ray's first comb point the control is half the macrocell majorant (`gap` then
+      // holds the majorant optical depth since the last point); from then on the extinction at
+      // the last comb point (`gap` a length).
       const bool known = control == control;
       T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
       if (kind & kPointComb) {
@@ -227,6 +228,15 @@ INR_HD float combOffset(const FrameConstants& fc, RngStream& rng) {
   return u - floorf(u);
 }
 
+// The per-frame work cap (FrameConstants::maxRngDraws): true when ray i may draw no more; then
+// it is flagged capped and leaves its walk.
+INR_HD bool drawCapReached(const FrameConstants& fc, const RngStream& rng, std::uint8_t& flags, bool& left) {
+  if (rng.counter < fc.maxRngDraws) return false;
+  flags |= kRayCapped;
+  left = true;
+  return true;
+}
+
 // Draws ray i's next tentative points from rs.t on (at most fc.pointsPerIteration), resuming the
 // walker. Points pruning answers get their sample at once; the others call emitQuery(slot) and
 // are counted in `queries`. Sets `left` when the ray reached its segment's end or its draw cap
@@ -261,11 +271,7 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
       const float muKnown = m * fc.residualScale, muUnknown = m * maxf(fc.residualScale, fc.majorantScale);
       bool& known = controlKnown;
       if (combNext != combNext) {  // a segment's start: its first comb and residual points
-        if (rng.counter >= fc.maxRngDraws) {
-          flags |= kRayCapped;
-          left = true;
-          break;
-        }
+        if (drawCapReached(fc, rng, flags, left)) break;
         if (combPhase != combPhase) combPhase = combOffset(fc, rng);  // the ray's first comb point
         combNext = t + combPhase * spacing;
         const float mu = known ? muKnown : muUnknown;
@@ -275,11 +281,7 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
         const bool comb = combNext <= residualNext;
         const float next = comb ? combNext : residualNext;
         if (!(next < segmentEnd)) break;
-        if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame
-          flags |= kRayCapped;
-          left = true;
-          break;
-        }
+        if (drawCapReached(fc, rng, flags, left)) break;  // bounded work per frame
         gap += (next - t) * (known ? 1.f : m);
         t = next;
         const float muNow = known ? muKnown : muUnknown;
@@ -313,11 +315,7 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
     } else if (m > 0.f) {
       const float mu = m * fc.majorantScale;
       for (;;) {
-        if (rng.counter >= fc.maxRngDraws) {  // bounded work per frame
-          flags |= kRayCapped;
-          left = true;
-          break;
-        }
+        if (drawCapReached(fc, rng, flags, left)) break;  // bounded work per frame
         const float tc = candidateDistance(rng, mu, t);
         if (!(tc < segmentEnd)) break;
         t = tc;
@@ -398,8 +396,7 @@ INR_HD bool expectedAfterPoint(const TrackingMedium& medium, const RayStateView&
                                int i, int slot, float value, int& cell, float& estimate) {
   if (!isFiniteValue(value)) return false;
   cell = pts.cell[slot];
-  const Int3& d = medium.grid.dims;
-  const Int3 c{cell % d.x, (cell / d.x) % d.y, cell / (d.x * d.y)};
+  const Int3 c = cellCoordinates(medium.grid.dims, cell);
   const Vec3f p = rs.origin[i] + rs.direction[i] * pts.t[slot];
   estimate = emaExpected(medium.prune.expected[cell], value, cellCentreWeight(medium.grid, c, p));
   return true;

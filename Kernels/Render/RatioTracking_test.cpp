@@ -18,22 +18,6 @@ namespace {
 using test::meanCoverage;
 using test::SceneSetup;
 
-TrackingOptions ratio(double scale, int points = 16) {
-  TrackingOptions t;
-  t.estimator = PrimaryEstimator::Ratio;
-  t.majorantScale = scale;
-  t.pointsPerIteration = points;
-  return t;
-}
-
-// Unbiased ray marching: comb density `scale`, residual points at `residual` x the majorant.
-TrackingOptions march(double scale, double residual = 1.0, int points = 16) {
-  TrackingOptions t = ratio(scale, points);
-  t.estimator = PrimaryEstimator::March;
-  t.residualScale = residual;
-  return t;
-}
-
 // Orthographic view down -z through [-1, 1]^3 (every ray crosses 2 units of medium), 48 x 48.
 SceneSetup slabScene(double alpha, double unitDistance) {
   SceneSetup s;
@@ -83,7 +67,7 @@ TEST(RatioTracking, HomogeneousSlabIsUnbiasedWithLessNoise) {
   const double p = 1.0 - std::exp(-sigma * 2.0);  // the slab's opacity
   const int frames = 20;
   const Rendered delta = render(f, setup, TrackingOptions{}, frames);
-  const Rendered r4 = render(f, setup, ratio(4.0), frames);
+  const Rendered r4 = render(f, setup, test::ratioTracking(4.0), frames);
   // Delta tracking's coverage is a mean of Bernoulli(p) draws; ratio tracking's has a smaller
   // variance, so delta's 4-sigma bound is a loose bound for it.
   const double n = 48.0 * 48.0 * frames;
@@ -98,7 +82,7 @@ TEST(RatioTracking, HomogeneousSlabIsUnbiasedWithLessNoise) {
   EXPECT_GT(r4.total.queries, 2 * delta.total.queries);
   // With an exact majorant and k = 1 every point is a real collision: ratio tracking's weights
   // are 1, it is the collision estimator again.
-  const Rendered r1 = render(f, setup, ratio(1.0), frames);
+  const Rendered r1 = render(f, setup, test::ratioTracking(1.0), frames);
   EXPECT_NEAR(meanCoverage(r1.premultiplied), p, bound);
 }
 
@@ -111,7 +95,7 @@ double psnrAgainstDelta(bool shadows, int frames, const TrackingOptions& options
   const Rendered r = render(f, setup, options, frames);
   return test::psnrOverCoverage(r.image, reference.image, reference.premultiplied);
 }
-double psnrAgainstDelta(bool shadows, int frames, double scale) { return psnrAgainstDelta(shadows, frames, ratio(scale)); }
+double psnrAgainstDelta(bool shadows, int frames, double scale) { return psnrAgainstDelta(shadows, frames, test::ratioTracking(scale)); }
 
 TEST(RatioTracking, ConvergesToDeltaTracking) {
   const double psnr = psnrAgainstDelta(false, 400, 4.0);
@@ -139,7 +123,7 @@ TEST(RatioTracking, ImageDoesNotDependOnPointsPerIteration) {
   SceneSetup setup = smoothScene(40, false);
   setup.settings.pixelJitter = true;
   auto run = [&](int points) {
-    TrackingOptions t = ratio(3.0, points);
+    TrackingOptions t = test::ratioTracking(3.0, points);
     t.refineMacrocells = false;
     return render(f, setup, t, 3);
   };
@@ -157,7 +141,7 @@ TEST(RatioTracking, IdenticalImagesForOneAndManyThreads) {
     test::FunctionField f(test::smoothField);
     SceneSetup setup = smoothScene(96, true);  // above kParallelMinItems
     setup.settings.pixelJitter = true;
-    const Rendered r = render(f, setup, ratio(2.0, 8), 2);
+    const Rendered r = render(f, setup, test::ratioTracking(2.0, 8), 2);
     omp_set_num_threads(saved);
     return r.image.data;
   };
@@ -167,15 +151,15 @@ TEST(RatioTracking, IdenticalImagesForOneAndManyThreads) {
 TEST(RatioTracking, PruningAnswersPointsWithoutQueries) {
   test::FunctionField f(test::smoothField);
   const SceneSetup setup = smoothScene(40, false);
-  const Rendered plain = render(f, setup, ratio(4.0), 4);
-  const Rendered pruned = render(f, setup, ratio(4.0), 4, test::pruningAt(0.5, 0.1));
+  const Rendered plain = render(f, setup, test::ratioTracking(4.0), 4);
+  const Rendered pruned = render(f, setup, test::ratioTracking(4.0), 4, test::pruningAt(0.5, 0.1));
   EXPECT_GT(pruned.total.pruned, 0u);
   EXPECT_LT(pruned.total.queries, plain.total.queries);
   EXPECT_EQ(test::nonFinitePixels(pruned.image), 0u);
   // K-independence holds with pruning too (pruned points are folded in at once); one frame, so
   // refinement has not changed any majorant yet.
-  const Rendered prunedOne = render(f, setup, ratio(4.0, 1), 1, test::pruningAt(0.5, 0.1));
-  const Rendered prunedMany = render(f, setup, ratio(4.0, 16), 1, test::pruningAt(0.5, 0.1));
+  const Rendered prunedOne = render(f, setup, test::ratioTracking(4.0, 1), 1, test::pruningAt(0.5, 0.1));
+  const Rendered prunedMany = render(f, setup, test::ratioTracking(4.0, 16), 1, test::pruningAt(0.5, 0.1));
   EXPECT_TRUE(prunedOne.image.data == prunedMany.image.data);
 }
 
@@ -187,7 +171,7 @@ TEST(RatioTracking, WorkIsBoundedInOpaqueMedia) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   const SceneSetup setup = slabScene(0.9, 1e-5);
   auto run = [&](double scale, std::string& warning) {
-    TrackingOptions t = ratio(scale, 64);
+    TrackingOptions t = test::ratioTracking(scale, 64);
     t.maxCollisionsPerRay = 64;
     MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
     DeltaTrackingRenderer r(f, grid, t);
@@ -218,7 +202,7 @@ TEST(RatioTracking, MarchHomogeneousSlabIsUnbiasedWithLittleNoise) {
   const double p = 1.0 - std::exp(-sigma * 2.0);
   const int frames = 20;
   const Rendered delta = render(f, setup, TrackingOptions{}, frames);
-  const Rendered m = render(f, setup, march(4.0), frames);
+  const Rendered m = render(f, setup, test::unbiasedMarch(4.0), frames);
   const double n = 48.0 * 48.0 * frames;
   EXPECT_NEAR(meanCoverage(m.premultiplied), p, 0.25 * 4.0 * std::sqrt(p * (1 - p) / n));
   EXPECT_NEAR(m.premultiplied.data[4 * 100 + 2] / m.premultiplied.data[4 * 100 + 3], 1.0f, 1e-4);
@@ -228,13 +212,13 @@ TEST(RatioTracking, MarchHomogeneousSlabIsUnbiasedWithLittleNoise) {
 }
 
 TEST(RatioTracking, MarchConvergesToDeltaTracking) {
-  const double psnr = psnrAgainstDelta(false, 100, march(2.0, 1.0));
+  const double psnr = psnrAgainstDelta(false, 100, test::unbiasedMarch(2.0, 1.0));
   std::printf("march (100 frames, k = 2, kr = 1) vs delta tracking (3000 frames): %.2f dB over the volume\n", psnr);
   EXPECT_GE(psnr, 40.0);
 }
 
 TEST(RatioTracking, MarchConvergesToDeltaTrackingWithShadows) {
-  const double psnr = psnrAgainstDelta(true, 400, march(2.0, 1.0));
+  const double psnr = psnrAgainstDelta(true, 400, test::unbiasedMarch(2.0, 1.0));
   std::printf("march with shadows (400 frames, k = 2, kr = 1) vs delta tracking (3000 frames): %.2f dB\n", psnr);
   EXPECT_GE(psnr, 38.0);
 }
@@ -244,7 +228,7 @@ TEST(RatioTracking, MarchImageDoesNotDependOnPointsPerIteration) {
   SceneSetup setup = smoothScene(40, false);
   setup.settings.pixelJitter = true;
   auto run = [&](int points) {
-    TrackingOptions t = march(2.0, 0.5, points);
+    TrackingOptions t = test::unbiasedMarch(2.0, 0.5, points);
     t.refineMacrocells = false;
     return render(f, setup, t, 2);
   };
@@ -256,7 +240,7 @@ TEST(RatioTracking, MarchImageDoesNotDependOnPointsPerIteration) {
 TEST(RatioTracking, MarchWorkIsBoundedInOpaqueMedia) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   const SceneSetup setup = slabScene(0.9, 1e-5);
-  TrackingOptions t = march(4.0, 1.0, 64);
+  TrackingOptions t = test::unbiasedMarch(4.0, 1.0, 64);
   t.maxCollisionsPerRay = 64;
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
   DeltaTrackingRenderer r(f, grid, t);
@@ -270,28 +254,28 @@ TEST(RatioTracking, MarchWorkIsBoundedInOpaqueMedia) {
 }
 
 TEST(RatioTracking, OptionsAreValidated) {
-  TrackingOptions t = ratio(4.0);
+  TrackingOptions t = test::ratioTracking(4.0);
   EXPECT_NO_THROW(t.validate());
   t.majorantScale = 0.5;
   EXPECT_THROW(t.validate(), std::invalid_argument);
-  t = ratio(4.0, 0);
+  t = test::ratioTracking(4.0, 0);
   EXPECT_THROW(t.validate(), std::invalid_argument);
-  t = ratio(4.0, TrackingOptions::kMaxPointsPerIteration + 1);
+  t = test::ratioTracking(4.0, TrackingOptions::kMaxPointsPerIteration + 1);
   EXPECT_THROW(t.validate(), std::invalid_argument);
-  t = ratio(4.0);
+  t = test::ratioTracking(4.0);
   t.rouletteThreshold = 0.0;
   EXPECT_THROW(t.validate(), std::invalid_argument);
-  t = march(2.0, -1.0);
+  t = test::unbiasedMarch(2.0, -1.0);
   EXPECT_THROW(t.validate(), std::invalid_argument);
-  EXPECT_NO_THROW(march(2.0, 0.0).validate());  // a plain marcher (biased), for comparisons
+  EXPECT_NO_THROW(test::unbiasedMarch(2.0, 0.0).validate());  // a plain marcher (biased), for comparisons
   EXPECT_EQ(parsePrimaryEstimator("march"), PrimaryEstimator::March);
   EXPECT_EQ(parsePrimaryEstimator("ratio"), PrimaryEstimator::Ratio);
   EXPECT_THROW(parsePrimaryEstimator("ratio-tracking"), std::invalid_argument);
   // A renderer refuses them and keeps its options.
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(4, 1));
-  DeltaTrackingRenderer r(f, grid, ratio(2.0));
-  TrackingOptions bad = ratio(2.0);
+  DeltaTrackingRenderer r(f, grid, test::ratioTracking(2.0));
+  TrackingOptions bad = test::ratioTracking(2.0);
   bad.majorantScale = NAN;
   EXPECT_THROW(r.setTrackingOptions(bad), std::invalid_argument);
   EXPECT_EQ(r.trackingOptions().majorantScale, 2.0);

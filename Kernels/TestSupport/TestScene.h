@@ -14,6 +14,7 @@
 #include "Render/QueryReduction.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneInputs.h"
+#include "Render/WavefrontRenderer.h"
 
 namespace inr::test {
 
@@ -83,6 +84,23 @@ inline MacrocellOptions cubeMacrocells(int n, int temporalSlices) {
   o.dims = Int3{n, n, n};
   o.temporalSlices = temporalSlices;
   return o;
+}
+
+// Ratio tracking (RatioTracking.h) at `scale` x the majorant, `points` points per iteration.
+inline TrackingOptions ratioTracking(double scale, int points = 16) {
+  TrackingOptions t;
+  t.estimator = PrimaryEstimator::Ratio;
+  t.majorantScale = scale;
+  t.pointsPerIteration = points;
+  return t;
+}
+
+// Unbiased ray marching: comb density `scale`, residual points at `residual` x the majorant.
+inline TrackingOptions unbiasedMarch(double scale, double residual = 1.0, int points = 16) {
+  TrackingOptions t = ratioTracking(scale, points);
+  t.estimator = PrimaryEstimator::March;
+  t.residualScale = residual;
+  return t;
 }
 
 // Query reduction with pruning at (epsilon, falloff) and everything else at its defaults.

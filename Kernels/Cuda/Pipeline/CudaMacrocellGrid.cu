@@ -89,7 +89,7 @@ __global__ void dirtyMajorantKernel(TransferFunctionView tf, const float* mn, co
     majorant[c] = m;
     mask[c] = 0u;
     if (blocks && m > 0.f) {
-      const Int3 cc{c % dims.x, (c / dims.x) % dims.y, c / (dims.x * dims.y)};
+      const Int3 cc = cellCoordinates(dims, c);
       cuda::atomicMaxFloat(&blocks[blockIndexOfCell(blockDims, shift, cc)], m);
     }
   }

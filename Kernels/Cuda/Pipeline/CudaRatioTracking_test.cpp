@@ -27,23 +27,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-TrackingOptions ratio(double scale, int points) {
-  TrackingOptions t;
-  t.estimator = PrimaryEstimator::Ratio;
-  t.majorantScale = scale;
-  t.pointsPerIteration = points;
-  return t;
-}
-
-TrackingOptions march(double scale, double residual, int points) {
-  TrackingOptions t = ratio(scale, points);
-  t.estimator = PrimaryEstimator::March;
-  t.residualScale = residual;
-  return t;
-}
-
 // The estimators under test: ratio tracking (k = 4) and unbiased ray marching (k = 2, kr = 1).
-std::vector<TrackingOptions> estimators(int points) { return {ratio(4.0, points), march(2.0, 1.0, points)}; }
+std::vector<TrackingOptions> estimators(int points) { return {test::ratioTracking(4.0, points), test::unbiasedMarch(2.0, 1.0, points)}; }
 
 int envInt(const char* name, int fallback) {
   const char* v = std::getenv(name);

@@ -37,13 +37,12 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 // the box) to hundreds of DDA steps, and with one thread per ray and blocks handed out once, the
 // SMs that drew heavy blocks ran on while the others idled. Warp-sized fetches balance to the
 // last 32 rays; the list length is read here, so a launch sized by a stale upper bound costs
-// nothing extra. Measured on the H100 (Benchmarks/RESULTS.md, "GPU DDA traversal"): with the
-// tiles and the spill-free bound below, the first pass of siren_cylinder_vorticity at 1024² went
-// from 791 to 617 us; what is left is the slowest rays' own walks (SMs still idle 45% of it).
+// nothing extra (Benchmarks/RESULTS.md, "GPU DDA traversal", has the before and after; what is
+// left is the slowest rays' own walks).
 // tilesX > 0: the pass over all rays, in 8 x 4 pixel tiles (tilesX tiles per image row).
-// Occupancy: 56 registers (ptxas -v, sm_90, no spills), 9 blocks of 128 = 36 warps per SM. At
-// 48 registers (5 blocks of 256, the bound before the persistent loop) it spilled 30 bytes per
-// thread; sm_75 holds 8 blocks of 128 at its 1024 threads per SM.
+// Occupancy: the bound below is the largest block count per SM at which ptxas (sm_90) keeps the
+// delta pass free of spills; the bound of the pass before the persistent loop spilled. sm_75
+// holds 8 blocks of 128 at its 1024 threads per SM.
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
 #define INR_TRAVERSE_MIN_BLOCKS 8
 #else
@@ -84,16 +83,16 @@ __device__ __forceinline__ void traversePass(const TraversalLaunch& p, int tiles
 }
 
 // Delta tracking's pass (one candidate per ray) at the occupancy above.
-template <bool kPruning, bool kRatio>
+template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
-  traversePass<kPruning, kRatio>(p, tilesX);
+  traversePass<kPruning, false>(p, tilesX);
 }
 // Ratio tracking's pass (RatioTracking.h) carries the ray's estimate and a transfer-function
-// lookup per point: at the delta kernel's 56-register bound it spilled (up to 160 bytes of
-// loads per thread; with march at 6 blocks, 20), so it gets a bound of its own.
-template <bool kPruning, bool kRatio>
+// lookup per point: at the delta kernel's bound it spilled, so it gets a lower bound of its own
+// (the largest without spills for ratio and march, ptxas sm_90).
+template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, 5) ddaRatioTraverseKernel(TraversalLaunch p, int tilesX) {
-  traversePass<kPruning, kRatio>(p, tilesX);
+  traversePass<kPruning, true>(p, tilesX);
 }
 
 class DdaTraversal final : public DeviceTraversal {
@@ -102,8 +101,8 @@ public:
     int device = 0, sms = 0, perSm = 0;
     INR_CUDA_CHECK(cudaGetDevice(&device));
     INR_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-    const void* kernels[4] = {(const void*)ddaTraverseKernel<false, false>, (const void*)ddaTraverseKernel<true, false>,
-                              (const void*)ddaRatioTraverseKernel<false, true>, (const void*)ddaRatioTraverseKernel<true, true>};
+    const void* kernels[4] = {(const void*)ddaTraverseKernel<false>, (const void*)ddaTraverseKernel<true>,
+                              (const void*)ddaRatioTraverseKernel<false>, (const void*)ddaRatioTraverseKernel<true>};
     for (int k = 0; k < 4; ++k) {
       INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernels[k], kThreads, 0));
       residentBlocks_[k] = std::max(1, sms * std::max(1, perSm));
@@ -125,10 +124,10 @@ public:
                        (long long)cam.width * cam.height == (long long)launch.n;
     const int tilesX = tiled ? (cam.width + kTileWidth - 1) / kTileWidth : 0;
     switch (variant) {
-      case 0: ddaTraverseKernel<false, false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
-      case 1: ddaTraverseKernel<true, false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
-      case 2: ddaRatioTraverseKernel<false, true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
-      default: ddaRatioTraverseKernel<true, true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 0: ddaTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 1: ddaTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 2: ddaRatioTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      default: ddaRatioTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
     }
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }

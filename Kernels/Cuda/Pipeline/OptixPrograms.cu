@@ -53,11 +53,6 @@ __device__ __forceinline__ void debugCount(OptixDebugCount c) {
   if (launchParams().debugCounts) atomicAdd(&launchParams().debugCounts[c], 1ull);
 }
 
-__device__ __forceinline__ Int3 cellCoords(const Int3& dims, int cell) {
-  const int x = cell % dims.x, yz = cell / dims.x;
-  return Int3{x, yz % dims.y, yz / dims.y};
-}
-
 }  // namespace
 
 // traverseRayWith<GasWalker>'s tracking step (found by argument-dependent lookup instead of the
@@ -86,7 +81,7 @@ __device__ bool trackSegments(const FrameConstants& fc, const RayStateView& rs, 
   if (p2 == ~0u) return false;  // no candidate before tEnd
   debugCount(kDbgHit);
   walker.cell = int(p0);
-  rs.cell[i] = cellCoords(launchParams().launch.medium.grid.dims, walker.cell);  // refinement's and pruning's cell
+  rs.cell[i] = cellCoordinates(launchParams().launch.medium.grid.dims, walker.cell);  // refinement's and pruning's cell
   emitCandidate(fc, rs, i, flags, rng, __uint_as_float(p1), __uint_as_float(p2));
   return true;
 }
@@ -122,7 +117,7 @@ extern "C" __global__ void __intersection__macrocell() {
   debugCount(kDbgIntersect);
   const int cell = launchParams().cellOfPrimitive[optixGetPrimitiveIndex()];
   const MajorantGridView& g = launchParams().launch.medium.grid;
-  const Int3 c = cellCoords(g.dims, cell);
+  const Int3 c = cellCoordinates(g.dims, cell);
   const float3 o = optixGetObjectRayOrigin(), d = optixGetObjectRayDirection();
   const Vec3f origin{o.x, o.y, o.z}, dir{d.x, d.y, d.z};
   // The ray's interval in the cell, from its face planes exactly as the DDA computes crossings
