@@ -104,6 +104,10 @@ public:
   std::string description() const override {
     return "cuda: " + evaluator_.name() + "; traversal " + renderer_.traversalChoice();
   }
+  bool copyPremultipliedImage(cudaArray* target) const override {
+    renderer_.copyAccumulation(target);
+    return true;
+  }
   FrameStats renderFrameNaive() override {
     if (!perThread_) perThread_ = std::make_unique<CudaPerThreadMlp>(model_);
     return renderer_.renderFrameNaive(*perThread_);

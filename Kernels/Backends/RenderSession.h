@@ -21,6 +21,10 @@
 #include "Render/SceneInputs.h"
 #include "Render/TraversalOptions.h"
 
+// The CUDA runtime's array type (cudaArray_t is a pointer to it), declared here so that callers
+// need no CUDA headers.
+struct cudaArray;
+
 namespace inr {
 
 enum class RenderBackend { Auto, Cpu, Cuda };
@@ -90,6 +94,15 @@ public:
   virtual int accumulatedFrames() const = 0;
   virtual ImageRGBA image() const = 0;               // composited over the background
   virtual ImageRGBA premultipliedImage() const = 0;  // volume only
+  // The CUDA backend's premultiplied image without a trip through host memory: copied device to
+  // device into `target`, a CUDA array of the image's size with four 32-bit float channels (for
+  // instance an OpenGL texture mapped through CUDA-OpenGL interop), in premultipliedImage()'s
+  // layout (row 0 at the top); returns once the copy is done. False, with nothing copied, where
+  // the image is not on a GPU (the CPU backend): read premultipliedImage() then.
+  virtual bool copyPremultipliedImage(cudaArray* target) const {
+    (void)target;
+    return false;
+  }
   virtual std::vector<float> residual() const = 0;
   virtual MacrocellInfo macrocellInfo() const = 0;
   virtual const RendererCounters& counters() const = 0;  // scene-change work, capped rays, truncated frames

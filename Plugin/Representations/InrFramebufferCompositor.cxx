@@ -54,8 +54,11 @@ void InrFramebufferCompositor::Upload(vtkOpenGLRenderWindow* window, int width, 
   this->Texture->SetContext(window);
   if (this->TextureValid && this->Width == width && this->Height == height)
   {
-    this->Texture->Bind();
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RGBA, GL_FLOAT, rgba);
+    if (rgba)
+    {
+      this->Texture->Bind();
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RGBA, GL_FLOAT, rgba);
+    }
   }
   else
   {
@@ -70,6 +73,11 @@ void InrFramebufferCompositor::Upload(vtkOpenGLRenderWindow* window, int width, 
   this->Texture->SetMinificationFilter(filter);
   this->Texture->SetMagnificationFilter(filter);
   this->UploadedFrames = frames;
+}
+
+unsigned InrFramebufferCompositor::TextureHandle() const
+{
+  return this->Texture && this->TextureValid ? this->Texture->GetHandle() : 0u;
 }
 
 bool InrFramebufferCompositor::Blend(vtkOpenGLRenderWindow* window, std::string* error)

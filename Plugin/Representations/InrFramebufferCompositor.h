@@ -41,9 +41,20 @@ public:
     bool imageChanged) const;
   /// Loads width * height premultiplied RGBA floats (row 0 at the top) holding `frames` frames.
   /// `linear`: the image is smaller than the viewport (a level-of-detail frame) and is magnified
-  /// with linear filtering; otherwise each pixel maps to one texel (nearest).
+  /// with linear filtering; otherwise each pixel maps to one texel (nearest). `rgba` null: only
+  /// makes the texture (RGBA 32-bit float, that size) for a device copy into TextureHandle().
   void Upload(vtkOpenGLRenderWindow* window, int width, int height, int frames, const float* rgba,
     bool linear = false);
+  /// Whether the texture exists for `window` at this size (an Upload then keeps its storage).
+  bool Fits(vtkOpenGLRenderWindow* window, int width, int height) const
+  {
+    return this->TextureValid && this->Context == window && this->Width == width &&
+      this->Height == height;
+  }
+  /// The GL name of the image texture (0 before the first Upload).
+  unsigned TextureHandle() const;
+  /// Forgets the upload (the next NeedsUpload is true), e.g. after a device copy failed.
+  void Invalidate() { this->UploadedFrames = -1; }
   /// Draws the texture over the framebuffer. False (with `error` set) when the shader cannot be
   /// built or nothing was uploaded.
   bool Blend(vtkOpenGLRenderWindow* window, std::string* error = nullptr);

@@ -19,6 +19,7 @@
 #include "vtkVolume.h"
 #include "vtk_glew.h"
 
+#include "InrCudaGlInterop.h"
 #include "InrFramebufferCompositor.h"
 #include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
@@ -371,6 +372,11 @@ struct vtkInrVolumeMapper::Internals
   std::vector<float> depth;
   inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
+  // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
+  // says why) the image goes through host memory for the rest of the mapper's life.
+  InrCudaGlInterop interop;
+  bool interopFailed = false;
+  std::string imageTransfer;
 
   // Level of detail: the current scale, the measured cost of recent frames (exponential moving
   // averages; 0 = not measured yet), what the last render did.
@@ -758,6 +764,7 @@ const char* vtkInrVolumeMapper::GetMacrocellsInUse()
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
 {
+  this->Internal->interop.Release();  // before its texture goes
   this->Internal->compositor.ReleaseGraphicsResources(win);
   this->Superclass::ReleaseGraphicsResources(win);
 }
@@ -1445,7 +1452,8 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
     }
   }
   syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
-  this->backendInUse = f.session->description() + this->rankInUse;
+  this->backendInUse = f.session->description() +
+    (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
   this->macrocellsInUse = describeMacrocells(*f.session);
   return true;
 }
@@ -1807,12 +1815,37 @@ void vtkInrVolumeMapper::Internals::Composite(
         this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch ||
           this->shownCoarse != this->uploadedCoarse))
   {
-    const inr::ImageRGBA image = shown.premultipliedImage();
     // A reduced (interactive) image is stretched over the viewport: filter it linearly.
     int viewport[2] = { width, height };
     ren->GetTiledSize(&viewport[0], &viewport[1]);
     const bool upscaled = viewport[0] != width || viewport[1] != height;
-    this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
+    if (!this->compositor.Fits(window, width, height))
+    {
+      // GL cannot give a texture new storage while CUDA holds it registered.
+      this->interop.Release();
+    }
+    bool onDevice = false;
+    if (shown.backend() == inr::RenderBackend::Cuda && !this->interopFailed)
+    {
+      std::string why;
+      this->compositor.Upload(window, width, height, frames, nullptr, upscaled);
+      onDevice = this->interop.Copy(shown, this->compositor.TextureHandle(), width, height, &why);
+      if (!onDevice)
+      {
+        this->interopFailed = true;
+        this->imageTransfer = "image through host memory: " + why;
+        this->compositor.Invalidate();
+      }
+      else
+      {
+        this->imageTransfer = "image to OpenGL on the GPU (CUDA-OpenGL interop)";
+      }
+    }
+    if (!onDevice)
+    {
+      const inr::ImageRGBA image = shown.premultipliedImage();
+      this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
+    }
     this->uploadedEpoch = epoch;
     this->uploadedCoarse = this->shownCoarse;
   }

@@ -287,6 +287,17 @@ void CudaDeltaTrackingRenderer::clearAccumulation() {
 
 std::vector<Vec4f> CudaDeltaTrackingRenderer::accumulation() const { return impl_->pixels.accum.download(impl_->stream); }
 
+void CudaDeltaTrackingRenderer::copyAccumulation(cudaArray* target) const {
+  const std::size_t w = std::size_t(settings().width), h = std::size_t(settings().height);
+  if (!target) throw std::invalid_argument("CudaDeltaTrackingRenderer::copyAccumulation: no target array");
+  if (impl_->pixels.accum.size() < w * h)
+    throw std::logic_error("CudaDeltaTrackingRenderer::copyAccumulation: no image of the current size yet");
+  const std::size_t row = w * sizeof(Vec4f);
+  INR_CUDA_CHECK(cudaMemcpy2DToArrayAsync(target, 0, 0, impl_->pixels.accum.get(), row, row, h,
+                                          cudaMemcpyDeviceToDevice, impl_->stream));
+  INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream));
+}
+
 void CudaDeltaTrackingRenderer::transferFunctionChanged() { impl_->tf.upload(*tfTable_, impl_->stream); }
 
 void CudaDeltaTrackingRenderer::recomputeMajorants() {

@@ -69,6 +69,10 @@ public:
 
   struct Impl;  // device state (CudaDeltaTrackingRendererImpl.cuh)
 
+  // The accumulated image (accumulation()'s layout: width x height float RGBA) into a CUDA array
+  // of that size, device to device; returns when the copy is done.
+  void copyAccumulation(cudaArray* target) const;
+
 private:
   void resizePixels(std::size_t pixels) override;
   void clearAccumulation() override;
