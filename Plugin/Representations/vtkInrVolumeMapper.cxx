@@ -19,6 +19,7 @@
 #include "vtkVolume.h"
 #include "vtk_glew.h"
 
+#include "InrEngineSlots.h"
 #include "InrFramebufferCompositor.h"
 #include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
@@ -168,59 +169,11 @@ std::vector<float> resampleDepthLimit(
   return out;
 }
 
-bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryReductionSettings& b)
-{
-  auto key = [](const inr::QueryReductionSettings& q)
-  {
-    return std::make_tuple(q.budget, q.budgetFraction, q.budgetMaxSkip, q.budgetAlpha, q.reproject,
-      q.pruneEpsilon, q.pruneFalloff);
-  };
-  return key(a) == key(b);
-}
-
-// What the engine holds of the macrocell and tracking options (GetMacrocellsInUse).
 // For the refusal messages of CheckOptions.
 std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
 {
   return os << inr::primaryEstimatorName(e) << " (" << static_cast<int>(e) << ")";
 }
-
-std::string describeMacrocells(const inr::RenderSession& session)
-{
-  const inr::MacrocellInfo m = session.macrocellInfo();
-  const inr::TrackingOptions& t = session.trackingOptions();
-  std::ostringstream s;
-  s << "dims=" << m.dims.x << "x" << m.dims.y << "x" << m.dims.z << " slices=" << m.temporalSlices
-    << " skip_block=" << m.skipBlockCells << " bounds_padding=" << m.boundsPadding
-    << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells)
-    << " estimator=" << inr::primaryEstimatorName(t.estimator) << " majorant_scale=" << t.majorantScale
-    << " residual_scale=" << t.residualScale << " points_per_iteration=" << t.pointsPerIteration;
-  return s.str();
-}
-
-std::string describeQueryReduction(const inr::QueryReductionSettings& q)
-{
-  std::ostringstream s;
-  s << "budget=" << inr::budgetSchemeName(q.budget) << " rho=" << q.budgetFraction
-    << " K=" << q.budgetMaxSkip << " alpha=" << q.budgetAlpha << " reproject=" << int(q.reproject)
-    << " epsilon=" << q.pruneEpsilon << " delta=" << q.pruneFalloff;
-  return s.str();
-}
-
-// What an engine session is built from: any difference rebuilds it (the fine session from the
-// properties, the coarse one from the fine one's with its own resolution).
-struct EngineKey
-{
-  int resolution = 0, slices = 0, backend = -1, skipBlock = -1;
-  double boundsPadding = -1.0;
-  int traversal = -1;
-  bool operator==(const EngineKey& o) const
-  {
-    return std::tie(resolution, slices, backend, skipBlock, boundsPadding, traversal) ==
-      std::tie(o.resolution, o.slices, o.backend, o.skipBlock, o.boundsPadding, o.traversal);
-  }
-  bool operator!=(const EngineKey& o) const { return !(*this == o); }
-};
 
 // Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
 // progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
@@ -248,42 +201,6 @@ inr::MacrocellProgress progressHandler(
   };
 }
 
-// One engine session and what the mapper keeps about it: what it was built from, the render
-// settings and query reduction last handed to it (handed again only when they differ, so a
-// rejected setting is reported once) and its refinement driver. The fine session
-// (MacrocellResolution) and the coarse one of time-change interactive frames
-// (InteractiveMacrocellResolution) are two of these.
-struct EngineSlot
-{
-  std::unique_ptr<inr::RenderSession> session;
-  EngineKey built;
-  bool haveSettings = false;
-  inr::RenderSettings settings;
-  bool haveQueryReduction = false;
-  inr::QueryReductionSettings queryReductionTried;
-  inr::RefinementDriver refinement;
-  // A new session starts from the engine's defaults: hand it everything again.
-  void Started()
-  {
-    this->haveSettings = false;
-    this->haveQueryReduction = false;
-    this->refinement.restart();
-  }
-};
-
-// Ghost passes, macrocell refinement and the estimator change on a live session, without a
-// rebuild (none of them changes the image the accumulation converges to).
-void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
-{
-  const inr::TrackingOptions& held = session.trackingOptions();
-  if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
-    held.refineMacrocells != want.refineMacrocells || held.estimator != want.estimator ||
-    held.majorantScale != want.majorantScale || held.residualScale != want.residualScale ||
-    held.pointsPerIteration != want.pointsPerIteration)
-  {
-    session.setTrackingOptions(want);
-  }
-}
 }
 
 struct vtkInrVolumeMapper::Internals
@@ -297,7 +214,7 @@ struct vtkInrVolumeMapper::Internals
   inr::InrModel model;
 
   // The engine session: evaluator + macrocells + renderer on the chosen backend.
-  EngineSlot fine;
+  InrEngineSlot fine;
   int engineBuilds = 0;
   std::string backendInUse = "none (no model rendered yet)";
   bool warnedCuda = false;
@@ -323,7 +240,7 @@ struct vtkInrVolumeMapper::Internals
   // fine grid's, so the first visit of a time stays interactive; the fine session builds its
   // slices in the still render that follows. Built with the fine session's other options,
   // lazily or ahead (InteractiveMacrocellsAhead).
-  EngineSlot coarse;
+  InrEngineSlot coarse;
   bool coarseFailed = false;  // creation failed once for coarse.built: reported, not retried
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
@@ -411,7 +328,11 @@ struct vtkInrVolumeMapper::Internals
   InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
   InrParallelRendering::Refinement reduced;
   std::string rankInUse;  // appended to the backend description
-  int cudaDevice = 0;     // the fine session's device (the coarse one follows it)
+  int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
+  std::string localRankSource;
+  int cudaDevices = 0;    // CUDA devices this process sees
+  bool haveDevice = false;
+  std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
   std::string ranksInUse;  // one line per rank after each render (several ranks only)
   // With several ranks: this rank's pixel share (image-space split).
   void RankSettings(inr::RenderSettings& settings) const;
@@ -426,10 +347,11 @@ struct vtkInrVolumeMapper::Internals
 
   bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
   void CheckOptions(vtkInrVolumeMapper* self);
+  InrEngineRequest Request(vtkInrVolumeMapper* self);
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  void PushQueryReduction(vtkInrVolumeMapper* self, EngineSlot& slot);
+  void PushQueryReduction(vtkInrVolumeMapper* self, InrEngineSlot& slot);
   bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
     double* budgetMs, bool* timeChange) const;
   double ChooseScale(double budgetMs, int width, int height);
@@ -462,7 +384,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 void vtkInrVolumeMapper::ResetAccumulation()
 {
   this->Internal->JoinFineBuild(this);
-  for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
+  for (InrEngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
   {
     if (slot->session)
     {
@@ -644,6 +566,28 @@ int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
 {
   const auto& coarse = this->Internal->coarse.session;
   return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
+}
+
+const char* vtkInrVolumeMapper::GetEngineOptionsInUse()
+{
+  this->Internal->JoinFineBuild(this);
+  const auto& fine = this->Internal->fine.session;
+  this->Internal->engineOptionsText = fine ? InrDescribeSession(*fine) : "";
+  return this->Internal->engineOptionsText.c_str();
+}
+
+const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
+{
+  const auto& coarse = this->Internal->coarse.session;
+  this->Internal->interactiveOptionsText = coarse ? InrDescribeSession(*coarse) : "";
+  return this->Internal->interactiveOptionsText.c_str();
+}
+
+int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
+{
+  const auto& fine = this->Internal->fine.session;
+  const auto& coarse = this->Internal->coarse.session;
+  return fine && coarse && &fine->evaluator() == &coarse->evaluator() ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderCoarse()
@@ -1343,58 +1287,69 @@ void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
   this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
 }
 
+// What the user asked of the engine (the properties, checked by CheckOptions), with the device
+// of this rank: what both sessions are built from (InrSessionOptions).
+InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self)
+{
+  this->CheckOptions(self);
+  InrEngineRequest r;
+  r.backend = self->Backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
+    : self->Backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
+                                            : inr::RenderBackend::Auto;
+  r.traversal = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
+    : self->Traversal == TRAVERSAL_OPTIX         ? inr::TraversalKind::Optix
+                                                 : inr::TraversalKind::Auto;
+  r.resolution = self->MacrocellResolution;
+  r.temporalSlices = self->TemporalSlices;
+  r.modelUsesTime = this->model.domain.usesTime();
+  r.skipBlockCells = this->macrocellsValid.skipBlockCells;
+  r.boundsPadding = this->macrocellsValid.boundsPadding;
+  r.tracking = this->trackingValid;
+  // One GPU per rank: the rank's index on its node picks the device (looked up once: neither
+  // changes while the process runs).
+  if (!this->haveDevice)
+  {
+    this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
+    this->cudaDevices = inr::cudaDeviceCount();
+    this->haveDevice = true;
+  }
+  if (this->localRank >= 0 && this->cudaDevices > 0)
+  {
+    r.cudaDevice = this->localRank % this->cudaDevices;
+  }
+  return r;
+}
+
 // The engine (evaluator, macrocells, renderer): rebuilt when the model, the macrocell grid or the
 // backend change. Its macrocell builds report progress through the mapper's ProgressEvent.
 bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 {
-  const int backend = self->Backend;
-  this->CheckOptions(self);
-  const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
-    this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding, self->Traversal };
-  EngineSlot& f = this->fine;
+  const InrEngineRequest want = this->Request(self);
+  InrEngineSlot& f = this->fine;
   if (this->fineBusy)
   {
-    if (f.built == want)
+    if (f.asked.SameBuild(want))
     {
       return true;  // the worker owns the session until its build is joined
     }
     this->JoinFineBuild(self);
   }
-  if (!f.session || f.built != want)
+  if (!f.session || !f.asked.SameBuild(want))
   {
     try
     {
+      // The coarse session runs the fine session's evaluator: it goes with it.
+      this->coarse.session.reset();
+      this->coarseFailed = false;
       f.session.reset();
-      inr::RenderSessionOptions so;
-      so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
-        : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
-                                          : inr::RenderBackend::Auto;
-      so.allowFallback = true;
-      const int n = self->MacrocellResolution;
-      so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = this->model.domain.usesTime() ? self->TemporalSlices : 1;
-      so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
-      so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
-      so.tracking = this->trackingValid;
-      so.traversal.kind = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
-        : self->Traversal == TRAVERSAL_OPTIX              ? inr::TraversalKind::Optix
-                                                          : inr::TraversalKind::Auto;
-      // One GPU per rank: the rank's index on its node picks the device.
-      std::string localSource;
-      const int localRank = InrParallelRendering::LocalRank(&localSource);
-      const int devices = inr::cudaDeviceCount();
-      if (localRank >= 0 && devices > 0)
-      {
-        so.cudaDevice = localRank % devices;
-      }
-      this->cudaDevice = so.cudaDevice;
+      InrEngineRequest built = want;
       try
       {
-        f.session = inr::RenderSession::create(this->model, so);
+        f.session = inr::RenderSession::create(this->model, InrSessionOptions(built, InrSessionLevel::Fine()));
       }
       catch (const std::exception& e)
       {
-        if (so.traversal.kind != inr::TraversalKind::Optix)
+        if (built.traversal != inr::TraversalKind::Optix)
         {
           throw;
         }
@@ -1403,37 +1358,38 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
         vtkWarningWithObjectMacro(self,
           "INR Volume: the OptiX traversal is not available here (" << e.what()
                                                                      << "); using Traversal Auto.");
-        so.traversal.kind = inr::TraversalKind::Auto;
-        f.session = inr::RenderSession::create(this->model, so);
+        built.traversal = inr::TraversalKind::Auto;
+        f.session = inr::RenderSession::create(this->model, InrSessionOptions(built, InrSessionLevel::Fine()));
       }
       f.session->setProgressHandler(progressHandler(self, "INR Volume: ", &this->muteProgress));
       this->rankInUse.clear();
-      if (this->ranks.count > 1 || localRank >= 0)
+      if (this->ranks.count > 1 || this->localRank >= 0)
       {
         std::ostringstream note;
         note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
-        if (localRank >= 0)
+        if (this->localRank >= 0)
         {
-          note << " (local rank " << localRank << " from " << localSource << ")";
+          note << " (local rank " << this->localRank << " from " << this->localRankSource << ")";
         }
         if (f.session->backend() == inr::RenderBackend::Cuda)
         {
-          note << ", CUDA device " << so.cudaDevice << " of " << devices;
+          note << ", CUDA device " << built.cudaDevice << " of " << this->cudaDevices;
         }
         this->rankInUse = note.str();
       }
       // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
       f.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
-      if (backend == BACKEND_CUDA && f.session->backend() != inr::RenderBackend::Cuda &&
-        !this->warnedCuda)
+      if (want.backend == inr::RenderBackend::Cuda &&
+        f.session->backend() != inr::RenderBackend::Cuda && !this->warnedCuda)
       {
         vtkWarningWithObjectMacro(self,
           "INR Volume: the CUDA backend was requested but is not usable here; "
           "rendering on the CPU (" << f.session->description() << ").");
         this->warnedCuda = true;
       }
-      f.built = want;
+      f.asked = want;
+      f.built = built;
       f.Started();
       ++this->engineBuilds;
     }
@@ -1444,54 +1400,43 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
       return false;
     }
   }
-  syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
+  InrSyncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
+  f.built.tracking = this->trackingValid;
   this->backendInUse = f.session->description() + this->rankInUse;
-  this->macrocellsInUse = describeMacrocells(*f.session);
+  this->macrocellsInUse = InrDescribeMacrocells(*f.session);
   return true;
 }
 
 // The coarse session for reduced interactive frames (InteractiveMacrocellResolution: time changes,
-// and camera drags with Reproject on), built on first use with the fine session's backend,
-// temporal slices (one for a model without time) and macrocell options; false (render with the
-// fine session) when it is off, not coarser than the fine grid, or it cannot be created
-// (reported once).
+// and camera drags with Reproject on), built on first use from what the fine session was built
+// with (InrSessionOptions, coarse level: every user setting, on the fine session's evaluator);
+// false (render with the fine session) when it is off, not coarser than the fine grid, or it
+// cannot be created (reported once).
 bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
 {
-  EngineSlot& c = this->coarse;
+  InrEngineSlot& c = this->coarse;
   const int n = self->InteractiveMacrocellResolution;
   if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session)
   {
     return false;
   }
-  EngineKey want = this->fine.built;
+  InrEngineRequest want = this->fine.built;  // the fine session's request, as it was built
   want.resolution = n;
-  if (!c.session || c.built != want)
+  if (!c.session || !c.asked.SameBuild(want))
   {
-    if (this->coarseFailed && c.built == want)
+    if (this->coarseFailed && c.asked.SameBuild(want))
     {
       return false;
     }
     c.session.reset();
+    c.asked = want;
     c.built = want;
     try
     {
-      inr::RenderSessionOptions so;
-      so.backend = this->fine.session->backend();  // what it runs on (after fallback)
-      so.cudaDevice = this->cudaDevice;
-      so.allowFallback = true;
-      so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = this->model.domain.usesTime() ? want.slices : 1;
-      // Skip blocks larger than the grid would be a single block: cap them at the grid.
-      so.macrocells.skipBlockCells = std::min(want.skipBlock, n);
-      while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))
-      {
-        so.macrocells.skipBlockCells &= so.macrocells.skipBlockCells - 1;  // a power of two
-      }
-      so.macrocells.boundsPadding = want.boundsPadding;
-      so.tracking = this->trackingValid;
       // No progress handler for its lazy builds (inside interactive frames, short); the build
       // ahead reports progress (BuildCoarseAhead).
-      c.session = inr::RenderSession::create(this->model, so);
+      c.session = inr::RenderSession::create(
+        this->model, InrSessionOptions(this->fine.built, InrSessionLevel::Coarse(n, *this->fine.session)));
       c.session->setWarningHandler([self](const std::string& message)
         { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
       c.Started();
@@ -1508,7 +1453,7 @@ bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
       return false;
     }
   }
-  syncTrackingOptions(*c.session, this->trackingValid);
+  InrSyncTrackingOptions(*c.session, this->trackingValid);
   return true;
 }
 
@@ -1630,10 +1575,10 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 // once and the engine keeps what it had; a pruning change restarts its accumulation, which the
 // refinement driver notices (accumulated frames drop to 0).
 void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
-  EngineSlot& slot)
+  InrEngineSlot& slot)
 {
   inr::RenderSession& engine = *slot.session;
-  if (!slot.haveQueryReduction || !sameQueryReduction(this->queryReduction, slot.queryReductionTried))
+  if (!slot.haveQueryReduction || !InrSameQueryReduction(this->queryReduction, slot.queryReductionTried))
   {
     slot.haveQueryReduction = true;
     slot.queryReductionTried = this->queryReduction;
@@ -1645,16 +1590,16 @@ void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
     catch (const std::invalid_argument& e)
     {
       if (!this->haveRefusedQueryReduction ||
-        !sameQueryReduction(this->queryReduction, this->refusedQueryReduction))
+        !InrSameQueryReduction(this->queryReduction, this->refusedQueryReduction))
       {
         vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
-                                      << describeQueryReduction(engine.queryReduction()));
+                                      << InrDescribeQueryReduction(engine.queryReduction()));
       }
       this->haveRefusedQueryReduction = true;
       this->refusedQueryReduction = this->queryReduction;
     }
   }
-  this->queryReductionInUse = describeQueryReduction(engine.queryReduction());
+  this->queryReductionInUse = InrDescribeQueryReduction(engine.queryReduction());
 }
 
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
@@ -1665,7 +1610,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
 {
   // The session drawing this render: the fine one, or the coarse one for a time-change
   // interactive frame.
-  EngineSlot& slot = useCoarse ? this->coarse : this->fine;
+  InrEngineSlot& slot = useCoarse ? this->coarse : this->fine;
   inr::RenderSession& engine = *slot.session;
   inr::RefinementDriver& refinement = slot.refinement;
   this->shownCoarse = useCoarse;
@@ -1677,15 +1622,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
     this->RankSettings(settings);
-    const inr::RenderSettings& held = slot.settings;
-    if (!slot.haveSettings || settings.width != held.width || settings.height != held.height ||
-      settings.seed != held.seed || settings.window != held.window ||
-      settings.pixelShare != held.pixelShare)
-    {
-      engine.setSettings(settings);
-      slot.settings = settings;
-      slot.haveSettings = true;
-    }
+    slot.SetSettings(settings);
     const bool debug = debugReport();
     if (debug)
     {
@@ -1844,6 +1781,6 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
      << "\n";
   os << indent << "InteractiveMacrocellsAhead: " << this->InteractiveMacrocellsAhead << "\n";
   os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
-  os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
+  os << indent << "QueryReduction: " << InrDescribeQueryReduction(this->Internal->queryReduction)
      << " (in use: " << this->Internal->queryReductionInUse << ")\n";
 }

@@ -286,6 +286,15 @@ public:
   static int InteractiveFreshFrameCount(double scale, int fresh);
   /// Macrocell slices built by that coarse session (0 before it is first used).
   int GetInteractiveSlicesBuilt();
+  /// What the fine session (the still image) and the coarse session (InteractiveMacrocell-
+  /// Resolution) run, read back from each (backend, traversal, device, macrocell and tracking
+  /// options, query reduction; "" before it exists), one line each; they differ in the majorant
+  /// grid's dims (and a skip block capped to it) only: the coarse one honours every user setting.
+  const char* GetEngineOptionsInUse();
+  const char* GetInteractiveEngineOptionsInUse();
+  /// 1 when both sessions exist and run one evaluator (weights uploaded, and on CUDA autotuned,
+  /// once).
+  int GetInteractiveSharesEvaluator();
   /// 1 when the last Render drew a frame of the coarse session.
   int GetLastRenderCoarse();
   /// Capturing (set by the representation while ParaView captures a screenshot or an animation
