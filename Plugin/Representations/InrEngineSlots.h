@@ -12,10 +12,15 @@
 #ifndef InrEngineSlots_h
 #define InrEngineSlots_h
 
+#include <atomic>
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "Backends/Refinement.h"
+#include "Model/InrModel.h"
 #include "Backends/RenderSession.h"
 #include "Render/QueryReduction.h"
 #include "Render/SceneInputs.h"
@@ -97,5 +102,93 @@ struct InrEngineSlot
 /// Ghost passes, macrocell refinement and the estimator changed on a live session, without a
 /// rebuild (none of them changes the image the accumulation converges to).
 void InrSyncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want);
+
+/// The engine options the properties ask for, kept three times: as asked, the last valid value
+/// (what the engine is built or updated with; initially the engine's defaults) and the last value
+/// refused per option (each refusal is reported once). Check() validates each asked value as
+/// `inr render` does and reports a refusal through `error`, naming the property.
+struct InrEngineOptions
+{
+  inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
+  // The estimator starts as inr render's (TrackingOptions::recommended()); the XML declares the
+  // same defaults (test cli.estimator_xml_defaults).
+  inr::TrackingOptions trackingAsked = inr::TrackingOptions::recommended();
+  inr::TrackingOptions trackingValid = trackingAsked, trackingRefused = trackingAsked;
+  // Query reduction: what the user asked for (validated by the engine when pushed).
+  inr::QueryReductionSettings queryReduction;
+  void Check(const std::function<void(const std::string&)>& error);
+};
+
+/// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
+/// one of reduced interactive frames, built from one request (InrSessionOptions), the fine
+/// session's slices optionally built on a worker thread, the coarse ones ahead, query reduction
+/// and frames pushed into whichever session draws. No VTK: messages and progress go through the
+/// callbacks below.
+class InrEngines
+{
+public:
+  InrEngines() = default;
+  ~InrEngines();
+  InrEngines(const InrEngines&) = delete;
+  InrEngines& operator=(const InrEngines&) = delete;
+
+  /// Where messages go (the mapper: vtkErrorMacro / vtkWarningMacro) and a progress handler for
+  /// macrocell builds, given the text that prefixes the engine's phase.
+  std::function<void(const std::string&)> error, warning;
+  std::function<inr::MacrocellProgress(const std::string& prefix)> progress;
+  /// Called after the worker's fine build was joined (frames measured meanwhile were slower).
+  std::function<void()> joined;
+
+  /// The model, loaded from its bytes when their hash changed (both sessions are dropped then);
+  /// false (reported once per content) when it cannot be loaded.
+  bool SetModel(const unsigned char* bytes, std::size_t n);
+  bool HasModel() const { return this->modelOk; }
+  const inr::InrModel& Model() const { return this->model; }
+
+  /// The fine session for `request`: rebuilt when a build option differs (the coarse one is
+  /// dropped with it: it runs its evaluator), tracking options synchronised otherwise. False when
+  /// it cannot be created (reported). Rebuilt() tells whether this call built it.
+  bool UpdateFine(const InrEngineRequest& request);
+  bool Rebuilt() const { return this->rebuilt; }
+  /// The coarse session at `resolution` cells per axis, built on first use from the fine
+  /// session's request as built; false (render with the fine one) when off (0), not coarser
+  /// than the fine grid, or it cannot be created (reported once).
+  bool UpdateCoarse(int resolution);
+  /// Builds every coarse slice not built yet, with progress; the milliseconds it took.
+  double BuildCoarseAhead(int resolution, bool report);
+
+  /// The fine slices for `time`, on a worker thread (true) while reduced coarse frames are drawn;
+  /// waits a few ms first, as most calls find them built. JoinFineBuild waits for the worker;
+  /// FineBusy: it has not been joined (nothing but the worker touches the fine session then).
+  bool StartFineBuild(double time);
+  void JoinFineBuild();
+  bool FineBusy() const { return this->fineBusy; }
+  bool FineBuildDone() const { return this->fineBuildDone; }
+  double FineBuildProgress() const { return this->fineBuildProgress; }
+
+  /// Hands the query reduction to `slot`'s session when it changed (a refused set is reported
+  /// once and the session keeps what it had).
+  void PushQueryReduction(InrEngineSlot& slot, const inr::QueryReductionSettings& asked);
+
+  InrEngineSlot fine, coarse;
+  int engineBuilds = 0;
+  bool muteProgress = false;  // read by the progress handlers the mapper hands out
+  std::string queryReductionInUse;
+
+private:
+  std::uint64_t hash = 0;
+  bool modelOk = false;
+  std::uint64_t reportedBadHash = 0;
+  inr::InrModel model;
+  bool rebuilt = false;
+  bool warnedCuda = false;
+  bool coarseFailed = false;  // creation failed once for coarse.asked: reported, not retried
+  bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
+  inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
+  std::thread fineBuilder;
+  bool fineBusy = false;
+  std::atomic<bool> fineBuildDone{ false };
+  std::atomic<double> fineBuildProgress{ 0.0 };
+};
 
 #endif
