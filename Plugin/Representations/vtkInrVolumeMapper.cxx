@@ -1125,6 +1125,13 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     options.convergenceTarget = self->ConvergenceTarget;
     options.framesPerRender =
       interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
+    // Refinement by time: a still render of the GUI's one-frame-per-render refinement adds the
+    // frames that fit in the budget.
+    if (!interactive && self->ProgressiveRefinement && self->FramesPerRender == 1 &&
+      this->window.fullWidth == 0)
+    {
+      options.timeBudgetMs = self->RefinementTimeBudget;
+    }
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {
       // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
@@ -1254,6 +1261,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "MaximumFrames: " << this->MaximumFrames << "\n";
   os << indent << "ConvergenceTarget: " << this->ConvergenceTarget << "\n";
   os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
+  os << indent << "RefinementTimeBudget: " << this->RefinementTimeBudget << " ms\n";
   os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
   os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
