@@ -1,6 +1,7 @@
 #include "Backends/Refinement.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -14,7 +15,19 @@ double convergenceEstimate(const FrameStats& last) {
   return -10.0 * std::log10(mse);
 }
 
-RefinementDriver::RefinementDriver(const RefinementOptions& options) { setOptions(options); }
+RefinementDriver::RefinementDriver(const RefinementOptions& options) {
+  setOptions(options);
+  setClock({});
+}
+
+void RefinementDriver::setClock(std::function<double()> nowMs) {
+  if (!nowMs) {
+    nowMs = [] {
+      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    };
+  }
+  nowMs_ = std::move(nowMs);
+}
 
 void RefinementDriver::setOptions(const RefinementOptions& o) {
   if (o.maximumFrames < 1) throw std::invalid_argument("refinement: maximum frames must be >= 1");
@@ -22,6 +35,8 @@ void RefinementDriver::setOptions(const RefinementOptions& o) {
   if (!(o.convergenceTarget >= 0.0 && o.convergenceTarget <= 200.0))
     throw std::invalid_argument("refinement: convergence target must be a PSNR in [0, 200] dB (0 = off)");
   if (o.minimumFrames < 1) throw std::invalid_argument("refinement: minimum frames must be >= 1");
+  if (!(o.timeBudgetMs >= 0.0 && o.timeBudgetMs <= 3.6e6))
+    throw std::invalid_argument("refinement: time budget must be in [0, 3600000] ms (0 = off)");
   options_ = o;
 }
 
@@ -47,13 +62,28 @@ RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool na
   lastEpoch_ = epoch;
   converged_ = converged(frames);
   const int goal = std::min(options_.maximumFrames, std::max(frames + 1, options_.framesPerRender));
-  while (!converged_ && frames < goal) {
+  const bool timed = options_.timeBudgetMs > 0.0;
+  const double start = timed ? nowMs_() : 0.0;
+  double before = start, slowest = 0.0;
+  // The frames asked for by count, then more while the next one (expected to take as long as the
+  // slowest so far) ends within the budget.
+  auto wanted = [&] {
+    if (frames < goal) return true;
+    if (!timed || frames >= options_.maximumFrames) return false;
+    return before - start + slowest <= options_.timeBudgetMs;
+  };
+  while (!converged_ && wanted()) {
     const FrameStats st = naive ? session.renderFrameNaive() : session.renderFrame();
     step.total += st;
     ++step.framesRendered;
     frames = session.accumulatedFrames();
     estimate_ = convergenceEstimate(st);
     converged_ = converged(frames);
+    if (timed) {
+      const double now = nowMs_();
+      slowest = std::max(slowest, now - before);
+      before = now;
+    }
   }
   lastFrames_ = frames;
   return step;

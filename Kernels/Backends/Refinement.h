@@ -10,6 +10,7 @@
 // the PSNR is -10 log10(MSE). The renderers reduce the sums where the pixels live
 // (FrameStats::varianceSum, coveredPixels), so nothing per pixel leaves the GPU for this.
 // 40 dB means an RMS error of 1% of full scale per channel.
+#include <functional>
 #include <limits>
 
 #include "Backends/RenderSession.h"
@@ -27,6 +28,13 @@ struct RefinementOptions {
   double convergenceTarget = 41.0;
   int minimumFrames = 8;           // never converged on fewer frames (the variance is unknown)
   int framesPerRender = 1;         // one request accumulates until the image holds this many
+  // Refinement by time: after the frames framesPerRender asks for (at least one), a request keeps
+  // adding frames while the next one is expected to end within this many milliseconds of the
+  // request's start (expected: the request's slowest frame so far), never beyond maximumFrames
+  // or past convergence. 0 = off (frame count only). The time is wall time around
+  // RenderSession::renderFrame, which returns the frame's statistics read back from the device
+  // (on CUDA a synchronising copy): the GPU's work is inside it.
+  double timeBudgetMs = 0.0;
 };
 
 // The estimated PSNR (dB) after a frame whose statistics are `last`: +inf when no pixel is
@@ -46,7 +54,8 @@ public:
     FrameStats total;  // the rendered frames' statistics, summed
   };
   // One request: after the host's setScene, adds at least one frame while not converged, until
-  // the image holds framesPerRender frames, never beyond maximumFrames or past convergence.
+  // the image holds framesPerRender frames, then more while timeBudgetMs allows, never beyond
+  // maximumFrames or past convergence.
   // Notices when the session's accumulation was reset since the last request (the estimate then
   // starts over). `naive` renders with the session's naive baseline.
   Step advance(RenderSession& session, bool naive = false);
@@ -57,6 +66,9 @@ public:
   double estimate() const { return estimate_; }
   // Forget the estimate (the host reset the accumulation).
   void restart();
+  // The clock the time budget reads (milliseconds, any origin); default: std::chrono's steady
+  // clock. Tests pass a fake one.
+  void setClock(std::function<double()> nowMs);
 
 private:
   RefinementOptions options_;
@@ -64,6 +76,7 @@ private:
   bool converged_ = false;
   int lastFrames_ = 0;
   int lastEpoch_ = -1;  // accumulation resets + reprojections the session had at the last request
+  std::function<double()> nowMs_;
 };
 
 }  // namespace inr

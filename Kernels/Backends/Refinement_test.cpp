@@ -75,6 +75,45 @@ TEST(Refinement, FramesPerRequestAndFrameLimit) {
   EXPECT_EQ(f.session->accumulatedFrames(), 7);
 }
 
+// Refinement by time (a fake clock: each frame takes 10 ms of it): a request adds frames while the
+// next one is expected to end within the budget, the first (and framesPerRender) always, never
+// beyond maximumFrames; budget 0 keeps the frame count alone.
+TEST(Refinement, TimeBudgetAddsTheFramesThatFit) {
+  Fixture f;
+  double clock = 0.0;
+  RefinementOptions o;
+  o.convergenceTarget = 0.0;
+  o.maximumFrames = 100;
+  o.timeBudgetMs = 35.0;
+  RefinementDriver d(o);
+  d.setClock([&clock] {
+    const double now = clock;
+    clock += 10.0;  // one reading per frame (and one at the request's start): 10 ms per frame
+    return now;
+  });
+  // 10 ms frames in 35 ms: the third ends at 30 ms, a fourth would end at 40.
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 3);
+  // A budget below one frame: the first frame all the same.
+  o.timeBudgetMs = 4.0;
+  d.setOptions(o);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 1);
+  // framesPerRender first, then the budget: 5 frames (50 ms) already exceed 35 ms.
+  o.timeBudgetMs = 35.0;
+  o.framesPerRender = f.session->accumulatedFrames() + 5;
+  d.setOptions(o);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 5);
+  // Never beyond maximumFrames.
+  o.framesPerRender = 1;
+  o.maximumFrames = f.session->accumulatedFrames() + 2;
+  d.setOptions(o);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 2);
+  // Off: one frame per request, as before the budget existed.
+  o.maximumFrames = 100;
+  o.timeBudgetMs = 0.0;
+  d.setOptions(o);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 1);
+}
+
 // The estimate is honest: the PSNR it predicts is what the image has against a converged
 // reference (a 2048-frame render with another seed), over the volume's pixels.
 TEST(Refinement, EstimatedPsnrMatchesTheErrorOverTheVolume) {
@@ -152,6 +191,15 @@ TEST(Refinement, ConvergesBeforeTheLimitAndRestartsAfterAReset) {
   EXPECT_EQ(d.advance(*f.session).framesRendered, 1);
   EXPECT_FALSE(d.converged());
   EXPECT_EQ(f.session->accumulatedFrames(), 1);
+}
+
+TEST(Refinement, RejectsABadTimeBudget) {
+  RefinementDriver d;
+  RefinementOptions o;
+  o.timeBudgetMs = -1.0;
+  EXPECT_THROW(d.setOptions(o), std::invalid_argument);
+  o.timeBudgetMs = NAN;
+  EXPECT_THROW(d.setOptions(o), std::invalid_argument);
 }
 
 TEST(Refinement, RejectsBadOptions) {

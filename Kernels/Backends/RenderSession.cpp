@@ -18,22 +18,25 @@
 namespace inr {
 namespace {
 
-// The parts every backend shares: it owns evaluator -> macrocell grid -> renderer (in that
-// construction order) and forwards the session interface to the renderer.
+// The parts every backend shares: it holds evaluator -> macrocell grid -> renderer (in that
+// construction order; the evaluator with shared ownership, possibly another session's) and
+// forwards the session interface to the renderer.
 template <typename Evaluator, typename Grid, typename Renderer>
 class BackendSession : public RenderSession {
 public:
-  template <typename EvaluatorOptions>
-  BackendSession(const InrModel& model, const EvaluatorOptions& eo, const RenderSessionOptions& o)
-      : evaluator_(model, eo),
-        grid_(evaluator_, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, lazy(o.macrocells)),
-        renderer_(evaluator_, grid_, o.tracking) {
+  BackendSession(const InrModel& model, std::shared_ptr<const Evaluator> evaluator, const RenderSessionOptions& o)
+      : options_(o),
+        evaluator_(std::move(evaluator)),
+        grid_(*evaluator_, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, lazy(o.macrocells)),
+        renderer_(*evaluator_, grid_, o.tracking) {
+    options_.evaluator = SharedEvaluator{};  // sharedEvaluator() says what this session runs
     // The grid is created lazy so that an eager build happens here, once the progress handler
     // is in place (a grid builds eager slices in its constructor).
     grid_.setProgressHandler(o.progress);
     if (!o.macrocells.lazySlices) grid_.buildAllSlices();
   }
-  const FieldEvaluator& evaluator() const override { return evaluator_; }
+  const FieldEvaluator& evaluator() const override { return *evaluator_; }
+  const RenderSessionOptions& options() const override { return options_; }
   void setSettings(const RenderSettings& s) override { renderer_.setSettings(s); }
   void setScene(const RenderScene& s) override { renderer_.setScene(s); }
   void setQueryReduction(const QueryReductionSettings& q) override { renderer_.setQueryReduction(q); }
@@ -72,19 +75,22 @@ protected:
     o.lazySlices = true;
     return o;
   }
-  Evaluator evaluator_;
+  RenderSessionOptions options_;
+  std::shared_ptr<const Evaluator> evaluator_;
   Grid grid_;
   Renderer renderer_;
 };
 
 class CpuRenderSession final : public BackendSession<CpuInrEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
 public:
-  CpuRenderSession(const InrModel& model, const RenderSessionOptions& o, std::string note)
-      : BackendSession(model, CpuEvaluatorOptions{256, o.cpuThreads}, o), note_(std::move(note)) {}
+  CpuRenderSession(const InrModel& model, std::shared_ptr<const CpuInrEvaluator> evaluator,
+                   const RenderSessionOptions& o, std::string note)
+      : BackendSession(model, std::move(evaluator), o), note_(std::move(note)) {}
   RenderBackend backend() const override { return RenderBackend::Cpu; }
   std::string description() const override {
-    return "cpu: " + evaluator_.name() + (note_.empty() ? "" : " (" + note_ + ")");
+    return "cpu: " + evaluator_->name() + (note_.empty() ? "" : " (" + note_ + ")");
   }
+  SharedEvaluator sharedEvaluator() const override { return SharedEvaluator{evaluator_, RenderBackend::Cpu, 0}; }
   FrameStats renderFrameNaive() override { return renderer_.renderFrameNaive(); }
 
 private:
@@ -96,13 +102,17 @@ private:
 class CudaRenderSession final
     : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaDeltaTrackingRenderer> {
 public:
-  CudaRenderSession(const InrModel& model, const RenderSessionOptions& o)
-      : BackendSession(model, CudaEvaluatorOptions{o.cudaDevice}, o), model_(model) {
+  CudaRenderSession(const InrModel& model, std::shared_ptr<const CudaInrEvaluator> evaluator,
+                    const RenderSessionOptions& o)
+      : BackendSession(model, std::move(evaluator), o), model_(model), device_(o.cudaDevice) {
     renderer_.setTraversal(o.traversal);
   }
   RenderBackend backend() const override { return RenderBackend::Cuda; }
   std::string description() const override {
-    return "cuda: " + evaluator_.name() + "; traversal " + renderer_.traversalChoice();
+    return "cuda: " + evaluator_->name() + "; traversal " + renderer_.traversalChoice();
+  }
+  SharedEvaluator sharedEvaluator() const override {
+    return SharedEvaluator{evaluator_, RenderBackend::Cuda, device_};
   }
   bool copyPremultipliedImage(cudaArray* target) const override {
     renderer_.copyAccumulation(target);
@@ -116,6 +126,7 @@ public:
 private:
   InrModel model_;  // for the naive baseline's per-thread network, built on first use
   std::unique_ptr<CudaPerThreadMlp> perThread_;
+  int device_ = 0;
 };
 #endif
 
@@ -158,19 +169,51 @@ int cudaDeviceCount() {
 #endif
 }
 
+namespace {
+// A session on another session's evaluator (RenderSessionOptions::evaluator): its backend and
+// device are the evaluator's.
+std::unique_ptr<RenderSession> createOnShared(const InrModel& model, const RenderSessionOptions& options) {
+  const SharedEvaluator& shared = options.evaluator;
+  if (options.backend != RenderBackend::Auto && options.backend != shared.backend)
+    throw std::invalid_argument(std::string("a shared evaluator of the ") + renderBackendName(shared.backend) +
+                                " backend cannot run a " + renderBackendName(options.backend) + " session");
+  if (shared.backend == RenderBackend::Cpu) {
+    auto cpu = std::dynamic_pointer_cast<const CpuInrEvaluator>(shared.evaluator);
+    if (!cpu) throw std::invalid_argument("the shared evaluator is not a CPU INR evaluator");
+    return std::make_unique<CpuRenderSession>(model, std::move(cpu), options, "");
+  }
+#ifdef INR_HAVE_CUDA
+  if (options.cudaDevice != shared.cudaDevice)
+    throw std::invalid_argument("the shared evaluator runs on CUDA device " + std::to_string(shared.cudaDevice) +
+                                ", not on device " + std::to_string(options.cudaDevice));
+  auto cuda = std::dynamic_pointer_cast<const CudaInrEvaluator>(shared.evaluator);
+  if (!cuda) throw std::invalid_argument("the shared evaluator is not a CUDA INR evaluator");
+  return std::make_unique<CudaRenderSession>(model, std::move(cuda), options);
+#else
+  throw std::invalid_argument("a shared CUDA evaluator in a build without the CUDA backend");
+#endif
+}
+}  // namespace
+
 std::unique_ptr<RenderSession> RenderSession::create(const InrModel& model, const RenderSessionOptions& options) {
+  if (options.evaluator) return createOnShared(model, options);
+  auto cpuEvaluator = [&] {
+    return std::make_shared<const CpuInrEvaluator>(model, CpuEvaluatorOptions{256, options.cpuThreads});
+  };
   std::string why;
-  if (options.backend == RenderBackend::Cpu) return std::make_unique<CpuRenderSession>(model, options, "");
+  if (options.backend == RenderBackend::Cpu) return std::make_unique<CpuRenderSession>(model, cpuEvaluator(), options, "");
   const bool cuda = cudaBackendAvailable(&why);
   if (cuda) {
 #ifdef INR_HAVE_CUDA
-    return std::make_unique<CudaRenderSession>(model, options);
+    return std::make_unique<CudaRenderSession>(
+        model, std::make_shared<const CudaInrEvaluator>(model, CudaEvaluatorOptions{options.cudaDevice}), options);
 #endif
   }
   if (options.backend == RenderBackend::Cuda && !options.allowFallback)
     throw std::runtime_error("CUDA backend requested but unavailable: " + why);
   return std::make_unique<CpuRenderSession>(
-      model, options, (options.backend == RenderBackend::Cuda ? "CUDA requested but unavailable: " : "CUDA unavailable: ") + why);
+      model, cpuEvaluator(), options,
+      (options.backend == RenderBackend::Cuda ? "CUDA requested but unavailable: " : "CUDA unavailable: ") + why);
 }
 
 }  // namespace inr

@@ -6,6 +6,12 @@
 // Backend choice: Auto takes CUDA when this build has it and a usable GPU is present, else the
 // CPU; Cuda without a usable GPU either throws or, with allowFallback, runs on the CPU and says so
 // in description().
+//
+// Several sessions of one model on one backend and device can share one evaluator (the network's
+// weights uploaded and, on CUDA, the fused kernel autotuned once): pass one session's
+// sharedEvaluator() as RenderSessionOptions::evaluator when creating another (the ParaView
+// mapper's fine and coarse level-of-detail sessions do). Ownership is shared: the evaluator lives
+// as long as the last session holding it.
 #include <functional>
 #include <memory>
 #include <string>
@@ -39,6 +45,15 @@ bool cudaBackendAvailable(std::string* reason = nullptr);
 // one process per GPU picks RenderSessionOptions::cudaDevice = local rank modulo this.
 int cudaDeviceCount();
 
+// An evaluator as sessions hold it: shared ownership plus what it was built for (a session of
+// another backend or CUDA device cannot run it). Empty = none.
+struct SharedEvaluator {
+  std::shared_ptr<const FieldEvaluator> evaluator;  // CpuInrEvaluator or CudaInrEvaluator
+  RenderBackend backend = RenderBackend::Cpu;       // Cpu or Cuda
+  int cudaDevice = 0;                               // its device (Cuda)
+  explicit operator bool() const { return evaluator != nullptr; }
+};
+
 struct RenderSessionOptions {
   RenderBackend backend = RenderBackend::Auto;
   bool allowFallback = true;  // Cuda requested but unusable: run on the CPU instead of throwing
@@ -52,6 +67,12 @@ struct RenderSessionOptions {
   // Progress of macrocell builds from the start (with !macrocells.lazySlices every slice is built
   // while the session is created); RenderSession::setProgressHandler replaces it later.
   MacrocellProgress progress;
+  // Run this evaluator instead of building one (another session's sharedEvaluator(), built from
+  // the same model). The session then runs on the evaluator's backend and device: create()
+  // throws std::invalid_argument when `backend` (unless Auto) or, on CUDA, `cudaDevice` differ.
+  // The CPU evaluator may be used from several threads at once (it keeps no state between
+  // calls); a CUDA one from one thread at a time.
+  SharedEvaluator evaluator;
 };
 
 struct MacrocellInfo {
@@ -74,6 +95,11 @@ public:
   virtual RenderBackend backend() const = 0;  // what actually runs (Cpu or Cuda)
   virtual std::string description() const = 0;  // backend, evaluator, device; fallback reason
   virtual const FieldEvaluator& evaluator() const = 0;
+  // The same evaluator with shared ownership, for RenderSessionOptions::evaluator of another
+  // session of this model.
+  virtual SharedEvaluator sharedEvaluator() const = 0;
+  // The options this session was created with (backend as asked; backend() says what runs).
+  virtual const RenderSessionOptions& options() const = 0;
 
   virtual void setSettings(const RenderSettings& settings) = 0;
   virtual void setScene(const RenderScene& scene) = 0;  // does only the work the changes need

@@ -214,5 +214,51 @@ TEST(RenderSessionOptions, TrackingOptionsChangeOnALiveSession) {
   }
 }
 
+// Two sessions of one model at different macrocell resolutions (the mapper's fine and coarse
+// level-of-detail sessions) run one evaluator: the second is created with the first's
+// sharedEvaluator(), owns it jointly (it outlives the first), and renders what a session with an
+// evaluator of its own renders.
+TEST(RenderSessionSharedEvaluator, ASecondSessionRunsTheFirstsEvaluator) {
+  SessionFixture f;
+  auto fine = f.open(f.options(16, 2));
+  const SharedEvaluator shared = fine->sharedEvaluator();
+  ASSERT_TRUE(shared);
+  EXPECT_EQ(shared.backend, RenderBackend::Cpu);
+  EXPECT_EQ(shared.evaluator.get(), &fine->evaluator());
+
+  RenderSessionOptions o = f.options(4, 2);
+  o.evaluator = shared;
+  auto coarse = f.open(o);
+  EXPECT_EQ(&coarse->evaluator(), &fine->evaluator()) << "the coarse session built an evaluator of its own";
+  EXPECT_EQ(coarse->backend(), RenderBackend::Cpu);
+  EXPECT_EQ(coarse->macrocellInfo().dims.x, 4);
+  EXPECT_FALSE(coarse->options().evaluator) << "options() keeps no second reference to the evaluator";
+
+  auto own = f.open(f.options(4, 2));  // the same session with its own evaluator
+  EXPECT_NE(&own->evaluator(), &fine->evaluator());
+  fine.reset();  // the shared evaluator lives on in the coarse session
+  for (auto* s : {coarse.get(), own.get()}) {
+    s->setScene(f.scene);
+    s->renderFrame();
+    s->renderFrame();
+  }
+  EXPECT_GT(coarse->accumulatedFrames(), 0);
+  EXPECT_EQ(coarse->image().data, own->image().data);
+}
+
+TEST(RenderSessionSharedEvaluator, RefusesAnotherBackend) {
+  SessionFixture f;
+  auto cpu = f.open(f.options(8, 2));
+  RenderSessionOptions o = f.options(8, 2);
+  o.backend = RenderBackend::Cuda;
+  o.evaluator = cpu->sharedEvaluator();
+  try {
+    RenderSession::create(f.model, o);
+    ADD_FAILURE() << "a CUDA session accepted a CPU evaluator";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("shared evaluator of the cpu backend"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace inr

@@ -20,7 +20,9 @@
 #include "vtk_glew.h"
 
 #include "InrCudaGlInterop.h"
+#include "InrEngineSlots.h"
 #include "InrFramebufferCompositor.h"
+#include "InrLevelOfDetail.h"
 #include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
 
@@ -53,16 +55,6 @@
 
 namespace
 {
-std::uint64_t hashBytes(const unsigned char* p, std::size_t n)
-{
-  std::uint64_t h = 1469598103934665603ull;  // FNV-1a
-  for (std::size_t i = 0; i < n; ++i)
-  {
-    h = (h ^ p[i]) * 1099511628211ull;
-  }
-  return h ^ n;
-}
-
 // The renderer's tile in the window (the image the engine renders).
 struct Viewport
 {
@@ -128,25 +120,6 @@ double msSince(Clock::time_point t0)
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// Level of detail: the linear scale of the reduced image is a multiple of 1/kScaleSteps (so small
-// cost fluctuations do not change the resolution, which would restart the accumulation and lose
-// the reprojected history during a drag), never below kMinScale (bounded blur).
-constexpr int kScaleSteps = 16;
-constexpr double kMinScale = 1.0 / kScaleSteps;
-// Re-choose the scale only when the measured render time leaves this band around the budget, and
-// grow it by at most this factor at a time.
-constexpr double kKeepScaleAbove = 0.5, kKeepScaleBelow = 1.0;
-constexpr double kMaxGrowth = 1.25;
-// Aim below the budget: per-frame cost varies with the view (coverage, collisions).
-constexpr double kBudgetMargin = 0.8;
-// The level of detail is judged on the engine's time (the part that scales with the image's
-// pixels). The rest of the window's frame (depth read, upload, drawing the image over the whole
-// viewport, the view's own passes, swap: on a software OpenGL 40-110 ms at ~1280x768, varying
-// with the machine's load, whatever the image's resolution) is measured and left to the engine's
-// budget, but at most this share of the budget: counted in full it drove the scale to its minimum
-// (a 1/16 mosaic with a 2 ms engine) although no resolution could make it cheaper.
-constexpr double kMaxFixedShare = 0.5;
-
 // The depth limits (engine row order) of a width x height image, sampled at the centres of the
 // pixels of a w x h image covering the same view.
 std::vector<float> resampleDepthLimit(
@@ -168,60 +141,6 @@ std::vector<float> resampleDepthLimit(
   }
   return out;
 }
-
-bool sameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryReductionSettings& b)
-{
-  auto key = [](const inr::QueryReductionSettings& q)
-  {
-    return std::make_tuple(q.budget, q.budgetFraction, q.budgetMaxSkip, q.budgetAlpha, q.reproject,
-      q.pruneEpsilon, q.pruneFalloff);
-  };
-  return key(a) == key(b);
-}
-
-// What the engine holds of the macrocell and tracking options (GetMacrocellsInUse).
-// For the refusal messages of CheckOptions.
-std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
-{
-  return os << inr::primaryEstimatorName(e) << " (" << static_cast<int>(e) << ")";
-}
-
-std::string describeMacrocells(const inr::RenderSession& session)
-{
-  const inr::MacrocellInfo m = session.macrocellInfo();
-  const inr::TrackingOptions& t = session.trackingOptions();
-  std::ostringstream s;
-  s << "dims=" << m.dims.x << "x" << m.dims.y << "x" << m.dims.z << " slices=" << m.temporalSlices
-    << " skip_block=" << m.skipBlockCells << " bounds_padding=" << m.boundsPadding
-    << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells)
-    << " estimator=" << inr::primaryEstimatorName(t.estimator) << " majorant_scale=" << t.majorantScale
-    << " residual_scale=" << t.residualScale << " points_per_iteration=" << t.pointsPerIteration;
-  return s.str();
-}
-
-std::string describeQueryReduction(const inr::QueryReductionSettings& q)
-{
-  std::ostringstream s;
-  s << "budget=" << inr::budgetSchemeName(q.budget) << " rho=" << q.budgetFraction
-    << " K=" << q.budgetMaxSkip << " alpha=" << q.budgetAlpha << " reproject=" << int(q.reproject)
-    << " epsilon=" << q.pruneEpsilon << " delta=" << q.pruneFalloff;
-  return s.str();
-}
-
-// What an engine session is built from: any difference rebuilds it (the fine session from the
-// properties, the coarse one from the fine one's with its own resolution).
-struct EngineKey
-{
-  int resolution = 0, slices = 0, backend = -1, skipBlock = -1;
-  double boundsPadding = -1.0;
-  int traversal = -1;
-  bool operator==(const EngineKey& o) const
-  {
-    return std::tie(resolution, slices, backend, skipBlock, boundsPadding, traversal) ==
-      std::tie(o.resolution, o.slices, o.backend, o.skipBlock, o.boundsPadding, o.traversal);
-  }
-  bool operator!=(const EngineKey& o) const { return !(*this == o); }
-};
 
 // Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
 // progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
@@ -249,122 +168,58 @@ inr::MacrocellProgress progressHandler(
   };
 }
 
-// One engine session and what the mapper keeps about it: what it was built from, the render
-// settings and query reduction last handed to it (handed again only when they differ, so a
-// rejected setting is reported once) and its refinement driver. The fine session
-// (MacrocellResolution) and the coarse one of time-change interactive frames
-// (InteractiveMacrocellResolution) are two of these.
-struct EngineSlot
-{
-  std::unique_ptr<inr::RenderSession> session;
-  EngineKey built;
-  bool haveSettings = false;
-  inr::RenderSettings settings;
-  bool haveQueryReduction = false;
-  inr::QueryReductionSettings queryReductionTried;
-  inr::RefinementDriver refinement;
-  // A new session starts from the engine's defaults: hand it everything again.
-  void Started()
-  {
-    this->haveSettings = false;
-    this->haveQueryReduction = false;
-    this->refinement.restart();
-  }
-};
-
-// Ghost passes, macrocell refinement and the estimator change on a live session, without a
-// rebuild (none of them changes the image the accumulation converges to).
-void syncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want)
-{
-  const inr::TrackingOptions& held = session.trackingOptions();
-  if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
-    held.refineMacrocells != want.refineMacrocells || held.estimator != want.estimator ||
-    held.majorantScale != want.majorantScale || held.residualScale != want.residualScale ||
-    held.pointsPerIteration != want.pointsPerIteration)
-  {
-    session.setTrackingOptions(want);
-  }
-}
 }
 
 struct vtkInrVolumeMapper::Internals
 {
-  // Model identity (bytes array pointer / mtime, then content hash).
+  // Model identity: the bytes array and its modification time (then the engines' content hash).
   vtkUnsignedCharArray* bytesPtr = nullptr;
   vtkMTimeType bytesMTime = 0;
-  std::uint64_t hash = 0;
-  bool modelOk = false;
-  std::uint64_t reportedBadHash = 0;
-  inr::InrModel model;
 
-  // The engine session: evaluator + macrocells + renderer on the chosen backend.
-  EngineSlot fine;
-  int engineBuilds = 0;
+  // The engine sessions (fine: the still image; coarse: reduced interactive frames of time changes
+  // and drags with Reproject on), built from one request (InrEngineSlots.h); the options as asked,
+  // valid and refused.
+  InrEngines engines;
+  InrEngineOptions options;
   std::string backendInUse = "none (no model rendered yet)";
-  bool warnedCuda = false;
-  // Query reduction: what the user asked for and what the engine shown last holds.
-  inr::QueryReductionSettings queryReduction;
-  std::string queryReductionInUse;
-  bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
-  inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
-
-  // Macrocell and tracking options: as asked (the setters), the last valid values (what the engine
-  // is built or updated with; initially the engine's defaults) and the last value refused per
-  // option (each refusal is reported once).
-  inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
-  // The estimator starts as inr render's (TrackingOptions::recommended()); the XML declares the
-  // same defaults (test cli.estimator_xml_defaults).
-  inr::TrackingOptions trackingAsked = inr::TrackingOptions::recommended();
-  inr::TrackingOptions trackingValid = trackingAsked, trackingRefused = trackingAsked;
   std::string macrocellsInUse;
   std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
-
-  // Interactive frames caused by a time change render with a second session on a coarse
-  // majorant grid (InteractiveMacrocellResolution): its slices build about 50x faster than the
-  // fine grid's, so the first visit of a time stays interactive; the fine session builds its
-  // slices in the still render that follows. Built with the fine session's other options,
-  // lazily or ahead (InteractiveMacrocellsAhead).
-  EngineSlot coarse;
-  bool coarseFailed = false;  // creation failed once for coarse.built: reported, not retried
+  std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
   bool shownCoarse = false;     // the last Render drew the coarse session's image
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
-  bool UpdateCoarseEngine(vtkInrVolumeMapper* self);
-  // Whether a reduced interactive frame renders on the coarse session: a time change (its fine
-  // slices may not be built yet), or a camera drag with Reproject on (the fine session's image
-  // stays at full resolution, so the still render after the drag reprojects it instead of
-  // restarting: a different resolution would restart the accumulation).
-  bool RendersCoarse(vtkInrVolumeMapper* self, bool interactive, bool timeChange)
-  {
-    return interactive && (timeChange || this->queryReduction.reproject) &&
-      this->UpdateCoarseEngine(self);
-  }
-  void BuildCoarseAhead(vtkInrVolumeMapper* self);
   inr::RenderSession* Shown() const
   {
-    return this->shownCoarse && this->coarse.session ? this->coarse.session.get()
-                                                     : this->fine.session.get();
+    return this->shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()
+                                                             : this->engines.fine.session.get();
   }
 
+  // Level of detail (InrLevelOfDetail.h): the policy and its cost model; the mapper's options
+  // as the policy reads them.
+  InrLevelOfDetail lod;
+  InrLevelOfDetail::Settings LodSettings(vtkInrVolumeMapper* self) const;
+  // Whether a reduced interactive frame renders on the coarse session (creating it if needed).
+  bool RendersCoarse(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d)
+  {
+    return InrLevelOfDetail::RendersCoarse(d, this->options.queryReduction.reproject, true) &&
+      this->engines.UpdateCoarse(self->InteractiveMacrocellResolution);
+  }
+  void BuildCoarseAhead(vtkInrVolumeMapper* self)
+  {
+    this->aheadMs += this->engines.BuildCoarseAhead(self->InteractiveMacrocellResolution, lodReport());
+  }
   // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
-  // (PrepareRender: CPU backend, one rank, FramesPerRender 1, not capturing) while renders draw
-  // reduced frames of the coarse session, so the event loop never waits seconds for them. While
-  // fineBusy nothing touches the fine session but the worker; JoinFineBuild waits for it.
-  std::thread fineBuilder;
-  bool fineBusy = false;
-  std::atomic<bool> fineBuildDone{ false };
-  std::atomic<double> fineBuildProgress{ 0.0 };
-  void JoinFineBuild(vtkInrVolumeMapper* self);
+  // (PrepareRender, background builds on) while renders draw reduced frames of the coarse
+  // session, so the event loop never waits seconds for them.
   bool StartFineBuild(vtkInrVolumeMapper* self, double time);
 
   // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
   // reported only there (quietRenders), never from inside Render (insideRender).
   bool quietRenders = false;
   bool insideRender = false;
-  bool muteProgress = false;  // quietRenders && insideRender: read by the progress handlers
   void SetInsideRender(bool inside)
   {
     this->insideRender = inside;
-    this->muteProgress = this->quietRenders && inside;
+    this->engines.muteProgress = this->quietRenders && inside;
   }
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
@@ -378,33 +233,19 @@ struct vtkInrVolumeMapper::Internals
   bool interopFailed = false;
   std::string imageTransfer;
 
-  // Level of detail: the current scale, the measured cost of recent frames (exponential moving
-  // averages; 0 = not measured yet), what the last render did.
-  double lodScale = 1.0;
-  double msPerPixelFrame = 0.0;  // engine time per pixel per frame, without macrocell updates
-  double overheadMs = 0.0;       // the rest of a render: depth read, scene, upload, blend
-  double interactiveMs = 0.0;    // engine time of interactive frames at lodScale (no macrocell
-                                 // update: it depends on the time change, not on the scale)
-  double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
-  int framesAtScale = 0;         // interactive frames measured at lodScale
   // The budget is for the whole window render: what the window spends outside this mapper
   // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
-  double outsideMs = 0.0;
   vtkWeakPointer<vtkRenderWindow> observedWindow;
   vtkNew<vtkCallbackCommand> windowObserver;
   Clock::time_point windowStart;
   double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
-                         // of the window's frames: left out of outsideMs)
+                         // of the window's frames: left out of the window's fixed cost)
   bool renderedInWindow = false;
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
   static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
-  bool lastInteractive = false;
-  bool haveLastTime = false;
-  double lastTime = 0.0;
   int imageWidth = 0, imageHeight = 0;
   double lastRenderMs = 0.0;
-  int interactiveFrames = 0;
 
   // For the INR_VOLUME_DEBUG report of what changed.
   bool haveLastScene = false;
@@ -417,7 +258,10 @@ struct vtkInrVolumeMapper::Internals
   InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
   InrParallelRendering::Refinement reduced;
   std::string rankInUse;  // appended to the backend description
-  int cudaDevice = 0;     // the fine session's device (the coarse one follows it)
+  int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
+  std::string localRankSource;
+  int cudaDevices = 0;    // CUDA devices this process sees
+  bool haveDevice = false;
   std::string ranksInUse;  // one line per rank after each render (several ranks only)
   // With several ranks: this rank's pixel share (image-space split).
   void RankSettings(inr::RenderSettings& settings) const;
@@ -430,16 +274,11 @@ struct vtkInrVolumeMapper::Internals
   std::string warnedCamera;
   void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
 
-  bool UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes);
-  void CheckOptions(vtkInrVolumeMapper* self);
+  bool UpdateModel(vtkUnsignedCharArray* bytes);
+  InrEngineRequest Request(vtkInrVolumeMapper* self);
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  void PushQueryReduction(vtkInrVolumeMapper* self, EngineSlot& slot);
-  bool InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren, const inr::RenderScene& scene,
-    double* budgetMs, bool* timeChange) const;
-  double ChooseScale(double budgetMs, int width, int height);
-  void MeasureFrame(double renderMs, double refineMs, int width, int height, bool interactive);
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
     bool interactive = false, bool useCoarse = false, int interactiveFrames = 1);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
@@ -450,11 +289,20 @@ vtkStandardNewMacro(vtkInrVolumeMapper);
 vtkInrVolumeMapper::vtkInrVolumeMapper()
   : Internal(new Internals)
 {
+  InrEngines& engines = this->Internal->engines;
+  engines.error = [this](const std::string& message) { vtkErrorMacro(<< message); };
+  engines.warning = [this](const std::string& message) { vtkWarningMacro(<< message); };
+  const bool* muted = &engines.muteProgress;
+  engines.progress = [this, muted](const std::string& prefix)
+  { return progressHandler(this, prefix, muted); };
+  // Frames measured while the worker shared the CPU were slower: a scale barred by them may be
+  // tried again.
+  engines.joined = [this]() { this->Internal->lod.ForgetCeiling(); };
 }
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
-  this->Internal->JoinFineBuild(this);
+  this->Internal->engines.JoinFineBuild();
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -467,8 +315,8 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  this->Internal->JoinFineBuild(this);
-  for (EngineSlot* slot : { &this->Internal->fine, &this->Internal->coarse })
+  this->Internal->engines.JoinFineBuild();
+  for (InrEngineSlot* slot : { &this->Internal->engines.fine, &this->Internal->engines.coarse })
   {
     if (slot->session)
     {
@@ -502,14 +350,14 @@ int vtkInrVolumeMapper::GetLocalConverged()
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
   // A reduced interactive image is never the final one: a still render must follow.
   return !this->ProgressiveRefinement ||
-      (!this->Internal->lastInteractive && this->Internal->fine.refinement.converged())
+      (!this->Internal->lod.LastInteractive() && this->Internal->engines.fine.refinement.converged())
     ? 1
     : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderInteractive()
 {
-  return this->Internal->lastInteractive ? 1 : 0;
+  return this->Internal->lod.LastInteractive() ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastImageWidth()
@@ -533,7 +381,7 @@ double vtkInrVolumeMapper::GetConvergenceEstimate()
   {
     return this->Internal->reduced.estimate;  // the lowest of all ranks
   }
-  return this->Internal->fine.refinement.estimate();
+  return this->Internal->engines.fine.refinement.estimate();
 }
 
 std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
@@ -563,11 +411,11 @@ const char* vtkInrVolumeMapper::GetRefinementState()
   std::ostringstream s;
   const int frames = this->GetAccumulatedFrames();
   const double estimate = this->GetConvergenceEstimate();
-  if (!I.fine.session || frames == 0)
+  if (!I.engines.fine.session || frames == 0)
   {
     s << "\u2014 (nothing rendered yet)";
   }
-  else if (I.lastInteractive)
+  else if (I.lod.LastInteractive())
   {
     s << "interacting: reduced " << I.imageWidth << "x" << I.imageHeight << " image";
   }
@@ -641,15 +489,37 @@ double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  this->Internal->JoinFineBuild(this);
-  const auto& fine = this->Internal->fine.session;
+  this->Internal->engines.JoinFineBuild();
+  const auto& fine = this->Internal->engines.fine.session;
   return fine ? fine->macrocellInfo().slicesBuilt : 0;
 }
 
 int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
 {
-  const auto& coarse = this->Internal->coarse.session;
+  const auto& coarse = this->Internal->engines.coarse.session;
   return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
+}
+
+const char* vtkInrVolumeMapper::GetEngineOptionsInUse()
+{
+  this->Internal->engines.JoinFineBuild();
+  const auto& fine = this->Internal->engines.fine.session;
+  this->Internal->engineOptionsText = fine ? InrDescribeSession(*fine) : "";
+  return this->Internal->engineOptionsText.c_str();
+}
+
+const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
+{
+  const auto& coarse = this->Internal->engines.coarse.session;
+  this->Internal->interactiveOptionsText = coarse ? InrDescribeSession(*coarse) : "";
+  return this->Internal->interactiveOptionsText.c_str();
+}
+
+int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
+{
+  const auto& fine = this->Internal->engines.fine.session;
+  const auto& coarse = this->Internal->engines.coarse.session;
+  return fine && coarse && &fine->evaluator() == &coarse->evaluator() ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderCoarse()
@@ -657,30 +527,19 @@ int vtkInrVolumeMapper::GetLastRenderCoarse()
   return this->Internal->shownCoarse ? 1 : 0;
 }
 
-// A time-change frame starts its image afresh (one frame of a thin medium is sparse speckle):
-// up to `fresh` frames at a scale that keeps pixels x frames at most what one frame at `scale`
-// costs, so the scale controller's measurement (taken as the render time of one frame at its
-// scale) still holds. The scale is a step of 1/kScaleSteps, never below kMinScale.
 double vtkInrVolumeMapper::InteractiveFreshFrameScale(double scale, int fresh)
 {
-  if (fresh <= 1)
-  {
-    return scale;
-  }
-  const double s = std::max(kMinScale,
-    std::floor(scale / std::sqrt(double(fresh)) * kScaleSteps + 1e-9) / kScaleSteps);
-  return std::floor(scale * scale / (s * s) + 1e-9) >= 2.0 ? s : scale;
+  return InrLevelOfDetail::FreshFrameScale(scale, fresh);
 }
 
 int vtkInrVolumeMapper::InteractiveFreshFrameCount(double scale, int fresh)
 {
-  const double s = InteractiveFreshFrameScale(scale, fresh);
-  return s == scale ? 1 : std::clamp(int(std::floor(scale * scale / (s * s) + 1e-9)), 1, fresh);
+  return InrLevelOfDetail::FreshFrameCount(scale, fresh);
 }
 
 int vtkInrVolumeMapper::GetEngineBuilds()
 {
-  return this->Internal->engineBuilds;
+  return this->Internal->engines.engineBuilds;
 }
 
 double vtkInrVolumeMapper::GetLastQueries()
@@ -719,42 +578,42 @@ double vtkInrVolumeMapper::GetLastPruned()
   {                                                                                                \
     return fromField;                                                                              \
   }
-INR_STORED_OPTION(RayBudget, int, queryReduction.budget, static_cast<inr::BudgetScheme>(v),
-  static_cast<int>(this->Internal->queryReduction.budget))
-INR_STORED_OPTION(BudgetFraction, double, queryReduction.budgetFraction, v,
-  this->Internal->queryReduction.budgetFraction)
-INR_STORED_OPTION(BudgetMaxSkip, int, queryReduction.budgetMaxSkip, v,
-  this->Internal->queryReduction.budgetMaxSkip)
-INR_STORED_OPTION(BudgetAlpha, double, queryReduction.budgetAlpha, v,
-  this->Internal->queryReduction.budgetAlpha)
-INR_STORED_OPTION(Reproject, int, queryReduction.reproject, v != 0,
-  this->Internal->queryReduction.reproject ? 1 : 0)
-INR_STORED_OPTION(PruneEpsilon, double, queryReduction.pruneEpsilon, v,
-  this->Internal->queryReduction.pruneEpsilon)
-INR_STORED_OPTION(PruneFalloff, double, queryReduction.pruneFalloff, v,
-  this->Internal->queryReduction.pruneFalloff)
+INR_STORED_OPTION(RayBudget, int, options.queryReduction.budget, static_cast<inr::BudgetScheme>(v),
+  static_cast<int>(this->Internal->options.queryReduction.budget))
+INR_STORED_OPTION(BudgetFraction, double, options.queryReduction.budgetFraction, v,
+  this->Internal->options.queryReduction.budgetFraction)
+INR_STORED_OPTION(BudgetMaxSkip, int, options.queryReduction.budgetMaxSkip, v,
+  this->Internal->options.queryReduction.budgetMaxSkip)
+INR_STORED_OPTION(BudgetAlpha, double, options.queryReduction.budgetAlpha, v,
+  this->Internal->options.queryReduction.budgetAlpha)
+INR_STORED_OPTION(Reproject, int, options.queryReduction.reproject, v != 0,
+  this->Internal->options.queryReduction.reproject ? 1 : 0)
+INR_STORED_OPTION(PruneEpsilon, double, options.queryReduction.pruneEpsilon, v,
+  this->Internal->options.queryReduction.pruneEpsilon)
+INR_STORED_OPTION(PruneFalloff, double, options.queryReduction.pruneFalloff, v,
+  this->Internal->options.queryReduction.pruneFalloff)
 
 const char* vtkInrVolumeMapper::GetQueryReductionInUse()
 {
-  return this->Internal->queryReductionInUse.c_str();
+  return this->Internal->engines.queryReductionInUse.c_str();
 }
 
-INR_STORED_OPTION(SkipBlock, int, macrocellsAsked.skipBlockCells, v,
-  this->Internal->macrocellsAsked.skipBlockCells)
-INR_STORED_OPTION(BoundsPadding, double, macrocellsAsked.boundsPadding, v,
-  this->Internal->macrocellsAsked.boundsPadding)
-INR_STORED_OPTION(GhostPasses, int, trackingAsked.ghostPassesOnUpdate, v,
-  this->Internal->trackingAsked.ghostPassesOnUpdate)
-INR_STORED_OPTION(RefineMacrocells, int, trackingAsked.refineMacrocells, v != 0,
-  this->Internal->trackingAsked.refineMacrocells ? 1 : 0)
-INR_STORED_OPTION(Estimator, int, trackingAsked.estimator, static_cast<inr::PrimaryEstimator>(v),
-  static_cast<int>(this->Internal->trackingAsked.estimator))
-INR_STORED_OPTION(MajorantScale, double, trackingAsked.majorantScale, v,
-  this->Internal->trackingAsked.majorantScale)
-INR_STORED_OPTION(ResidualScale, double, trackingAsked.residualScale, v,
-  this->Internal->trackingAsked.residualScale)
-INR_STORED_OPTION(PointsPerIteration, int, trackingAsked.pointsPerIteration, v,
-  this->Internal->trackingAsked.pointsPerIteration)
+INR_STORED_OPTION(SkipBlock, int, options.macrocellsAsked.skipBlockCells, v,
+  this->Internal->options.macrocellsAsked.skipBlockCells)
+INR_STORED_OPTION(BoundsPadding, double, options.macrocellsAsked.boundsPadding, v,
+  this->Internal->options.macrocellsAsked.boundsPadding)
+INR_STORED_OPTION(GhostPasses, int, options.trackingAsked.ghostPassesOnUpdate, v,
+  this->Internal->options.trackingAsked.ghostPassesOnUpdate)
+INR_STORED_OPTION(RefineMacrocells, int, options.trackingAsked.refineMacrocells, v != 0,
+  this->Internal->options.trackingAsked.refineMacrocells ? 1 : 0)
+INR_STORED_OPTION(Estimator, int, options.trackingAsked.estimator, static_cast<inr::PrimaryEstimator>(v),
+  static_cast<int>(this->Internal->options.trackingAsked.estimator))
+INR_STORED_OPTION(MajorantScale, double, options.trackingAsked.majorantScale, v,
+  this->Internal->options.trackingAsked.majorantScale)
+INR_STORED_OPTION(ResidualScale, double, options.trackingAsked.residualScale, v,
+  this->Internal->options.trackingAsked.residualScale)
+INR_STORED_OPTION(PointsPerIteration, int, options.trackingAsked.pointsPerIteration, v,
+  this->Internal->options.trackingAsked.pointsPerIteration)
 #undef INR_STORED_OPTION
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()
@@ -782,9 +641,9 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
   I.quietRenders = true;
-  if (I.fineBusy && I.fineBuildDone)
+  if (I.engines.FineBusy() && I.engines.FineBuildDone())
   {
-    I.JoinFineBuild(this);
+    I.engines.JoinFineBuild();
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {
@@ -793,51 +652,48 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   vtkDataSet* input = this->GetInput();
   vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
   auto* bytes = vtkUnsignedCharArray::SafeDownCast(fd ? fd->GetAbstractArray("InrModel") : nullptr);
-  if (!bytes || bytes->GetNumberOfValues() == 0 || !I.UpdateModel(this, bytes) ||
-    !I.UpdateEngine(this))
+  if (!bytes || bytes->GetNumberOfValues() == 0 || !I.UpdateModel(bytes) || !I.UpdateEngine(this))
   {
     return;  // Render reports what is wrong
   }
-  if (I.fineBusy)
+  if (I.engines.FineBusy())
   {
     // Still building on the worker: show how far (the render draws the coarse session).
     this->SetProgressText("INR Volume: building macrocells");
-    this->UpdateProgress(I.fineBuildProgress.load());
+    this->UpdateProgress(I.engines.FineBuildProgress());
     this->SetProgressText(nullptr);
     return;
   }
-  inr::RenderScene next;
-  next.time = InrSceneTranslator::Time(
-    input, 0.5 * (I.model.domain.timeBegin + I.model.domain.timeEnd));
-  double budgetMs = 0.0;
-  bool timeChange = false;
-  const bool interactive = I.InteractiveRender(this, ren, next, &budgetMs, &timeChange);
-  const bool coarse = I.RendersCoarse(this, interactive, timeChange);
+  const inr::InrModel& model = I.engines.Model();
+  const double time =
+    InrSceneTranslator::Time(input, 0.5 * (model.domain.timeBegin + model.domain.timeEnd));
+  const InrLevelOfDetail::Settings lod = I.LodSettings(this);
+  const InrLevelOfDetail::Decision d = I.lod.Classify(lod,
+    ren->GetRenderWindow() ? ren->GetRenderWindow()->GetDesiredUpdateRate() : 0.0, time);
+  const bool coarse = I.RendersCoarse(this, d);
   try
   {
     if (coarse)
     {
-      I.coarse.session->buildSlicesFor(next.time);
+      I.engines.coarse.session->buildSlicesFor(time);
     }
-    else if (!I.StartFineBuild(this, next.time))
+    else if (!I.StartFineBuild(this, time))
     {
-      I.fine.session->buildSlicesFor(next.time);
+      I.engines.fine.session->buildSlicesFor(time);
     }
   }
   catch (const std::exception&)
   {
     // The render's setScene meets the same failure and reports it.
   }
-  if (I.fineBusy)
+  if (I.engines.FineBusy())
   {
     return;
   }
   // The coarse slices of later time-change frames, once a still image of the fine grid is shown
   // (the first image is not delayed by them).
-  if (!interactive && !I.lastInteractive && I.fine.session->accumulatedFrames() > 0 &&
-    this->InteractiveMacrocellsAhead &&
-    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
-    !this->Capturing)
+  if (!d.interactive && !I.lod.LastInteractive() &&
+    I.engines.fine.session->accumulatedFrames() > 0 && InrLevelOfDetail::BuildsCoarseAhead(lod))
   {
     I.BuildCoarseAhead(this);
   }
@@ -895,7 +751,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // e.g. an empty piece in a parallel run: nothing to draw here
   }
-  if (!I.UpdateModel(this, bytes) || !I.UpdateEngine(this))
+  if (!I.UpdateModel(bytes) || !I.UpdateEngine(this))
   {
     return;
   }
@@ -920,56 +776,37 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
   // Level of detail: an interactive render draws one frame of a reduced image, upscaled. Tiles of
   // a larger picture are captures (still renders) and always render at full resolution.
-  double budgetMs = 0.0;
-  bool timeChange = false;
-  int interactiveFrames = 1;
-  bool interactive =
-    I.window.fullWidth == 0 && I.InteractiveRender(this, ren, scene, &budgetMs, &timeChange);
-  if (I.fineBusy && !interactive && I.window.fullWidth == 0 && !this->Capturing)
+  const InrLevelOfDetail::Settings lod = I.LodSettings(this);
+  InrLevelOfDetail::Decision d;
+  if (I.window.fullWidth == 0)
   {
-    // The fine slices of this time are still building on the worker: a reduced frame of the
-    // coarse session, as right after a time change (a fresh image).
-    interactive = true;
-    timeChange = true;
-    budgetMs = this->InteractiveFrameTime;
+    d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
+    if (I.engines.FineBusy() && !d.interactive && !this->Capturing)
+    {
+      // The fine slices of this time are still building on the worker: a reduced frame of the
+      // coarse session, as right after a time change (a fresh image).
+      d = InrLevelOfDetail::WhileFineBuilds(lod);
+    }
   }
-  int width = tile.width, height = tile.height;
+  const InrLevelOfDetail::Frame frame = I.lod.Plan(lod, d, tile.width, tile.height);
+  d.interactive = frame.interactive;
+  const bool interactive = frame.interactive;
+  const int width = frame.width, height = frame.height;
   if (interactive)
   {
-    if (!I.lastInteractive)
-    {
-      I.lodCeiling = 2.0;  // a new interaction: the view may have become cheaper or dearer
-    }
-    double s = I.ChooseScale(budgetMs, tile.width, tile.height);
-    if (timeChange && s < 1.0)
-    {
-      interactiveFrames = InteractiveFreshFrameCount(s, this->InteractiveFreshFrames);
-      s = InteractiveFreshFrameScale(s, this->InteractiveFreshFrames);
-    }
-    width = std::max(1, int(std::lround(tile.width * s)));
-    height = std::max(1, int(std::lround(tile.height * s)));
-    if (width != tile.width || height != tile.height)
-    {
-      scene.depthLimit =
-        resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
-    }
-    else
-    {
-      interactive = false;  // full resolution fits the budget: an ordinary (still) render
-    }
+    scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
-  I.haveLastTime = true;
-  I.lastTime = scene.time;
+  I.lod.SawTime(scene.time);
   const auto refineStart = Clock::now();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
   // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
   // which the still render after the drag reprojects to the new camera instead of restarting.
-  const bool useCoarse = I.RendersCoarse(this, interactive, timeChange);
-  if (I.fineBusy && !useCoarse)
+  const bool useCoarse = I.RendersCoarse(this, d);
+  if (I.engines.FineBusy() && !useCoarse)
   {
-    I.JoinFineBuild(this);  // this frame needs the fine session: wait for the worker
+    I.engines.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
-  if (!I.Refine(this, scene, width, height, interactive, useCoarse, interactiveFrames))
+  if (!I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames))
   {
     return;
   }
@@ -984,52 +821,35 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   const double compositeMs = msSince(compositeStart);
   I.lastRenderMs = msSince(renderStart);
-  I.lastInteractive = interactive;
+  I.lod.Drew(interactive);
   I.renderedInWindow = true;
   I.imageWidth = width;
   I.imageHeight = height;
-  I.MeasureFrame(I.lastRenderMs, refineMs, width, height, interactive);
+  I.lod.MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
+    I.lastStep.framesRendered, width, height, interactive);
   if (lodReport())
   {
     std::fprintf(stderr,
       "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
       "update %.1f ms; scene %.1f ms, engine %.1f ms, composite %.1f ms), frames %d%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
-      double(width) / tile.width, I.lastRenderMs, budgetMs, I.lastStep.total.updateMs,
+      double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
   // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)
-  if (!I.quietRenders && !interactive && I.window.fullWidth == 0 && this->InteractiveMacrocellsAhead &&
-    this->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME && this->FramesPerRender == 1 &&
-    !this->Capturing)
+  if (!I.quietRenders && !interactive && I.window.fullWidth == 0 &&
+    InrLevelOfDetail::BuildsCoarseAhead(lod))
   {
     I.BuildCoarseAhead(this);
   }
 }
 
-void vtkInrVolumeMapper::Internals::JoinFineBuild(vtkInrVolumeMapper* self)
-{
-  if (!this->fineBusy)
-  {
-    return;
-  }
-  this->fineBuilder.join();
-  this->fineBusy = false;
-  this->lodCeiling = 2.0;  // frames measured while the worker shared the CPU were slower
-  if (this->fine.session)
-  {
-    this->fine.session->setProgressHandler(
-      progressHandler(self, "INR Volume: ", &this->muteProgress));
-  }
-}
-
 // Starts building the fine slices for `time` on a worker thread where that keeps the GUI
-// responsive (CPU backend, one rank, GUI-like refinement, a coarse session to draw meanwhile);
-// false where the caller builds them itself. Waits a few ms first: most calls find the slices
-// built and finish at once, and then no coarse frame is drawn.
+// responsive (background builds on, InrLevelOfDetail::BuildsFineInBackground, a coarse session to
+// draw meanwhile); false where the caller builds them itself.
 namespace
 {
 std::atomic<bool> backgroundBuilds{ false };
@@ -1047,42 +867,29 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
 
 bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
 {
-  if (!backgroundBuilds || this->fineBusy || !this->fine.session || self->Capturing || self->FramesPerRender != 1 ||
-    !self->ProgressiveRefinement ||
-    self->InteractiveLevelOfDetail != LOD_INTERACTION_AND_TIME || this->ranks.count > 1 ||
-    this->fine.session->backend() != inr::RenderBackend::Cpu || !this->UpdateCoarseEngine(self))
+  if (!backgroundBuilds || this->engines.FineBusy() || !this->engines.fine.session ||
+    !InrLevelOfDetail::BuildsFineInBackground(this->LodSettings(self),
+      this->engines.fine.session->backend() == inr::RenderBackend::Cpu) ||
+    !this->engines.UpdateCoarse(self->InteractiveMacrocellResolution))
   {
     return false;
   }
-  inr::RenderSession* session = this->fine.session.get();
-  this->fineBuildProgress = 0.0;
-  this->fineBuildDone = false;
-  session->setProgressHandler([this](double fraction, const std::string&)
-    { this->fineBuildProgress = fraction; });
-  this->fineBusy = true;
-  this->fineBuilder = std::thread(
-    [this, session, time]()
-    {
-      try
-      {
-        session->buildSlicesFor(time);
-      }
-      catch (const std::exception&)
-      {
-        // The render's setScene meets the same failure and reports it.
-      }
-      this->fineBuildDone = true;
-    });
-  const auto start = Clock::now();
-  while (!this->fineBuildDone && msSince(start) < 20.0)
-  {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  if (this->fineBuildDone)
-  {
-    this->JoinFineBuild(self);
-  }
-  return true;
+  return this->engines.StartFineBuild(time);
+}
+
+InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
+{
+  InrLevelOfDetail::Settings s;
+  s.mode = self->InteractiveLevelOfDetail;
+  s.frameTimeMs = self->InteractiveFrameTime;
+  s.updateRate = self->InteractiveUpdateRate;
+  s.freshFrames = self->InteractiveFreshFrames;
+  s.framesPerRender = self->FramesPerRender;
+  s.progressiveRefinement = self->ProgressiveRefinement != 0;
+  s.capturing = self->Capturing;
+  s.coarseAhead = self->InteractiveMacrocellsAhead != 0;
+  s.ranks = this->ranks.count;
+  return s;
 }
 
 void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
@@ -1122,441 +929,92 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   }
   else if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
-    const double outside =
-      std::max(0.0, msSince(self->windowStart) - self->lastRenderMs - self->aheadMs);
-    self->outsideMs = self->outsideMs > 0.0 ? 0.5 * (self->outsideMs + outside) : outside;
+    self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
     self->renderedInWindow = false;
   }
 }
 
-// Whether this render is interactive (see InteractiveLevelOfDetail) and its budget in ms.
-bool vtkInrVolumeMapper::Internals::InteractiveRender(vtkInrVolumeMapper* self, vtkRenderer* ren,
-  const inr::RenderScene& scene, double* budgetMs, bool* timeChange) const
-{
-  *budgetMs = self->InteractiveFrameTime;
-  *timeChange = false;
-  // Under MPI with several ranks every frame is a full-resolution one: each rank would choose its
-  // own reduced scale from its own timings, and images of different sizes do not composite.
-  if (self->InteractiveLevelOfDetail == LOD_OFF || self->Capturing || this->ranks.count > 1)
-  {
-    return false;
-  }
-  const double rate = ren->GetRenderWindow() ? ren->GetRenderWindow()->GetDesiredUpdateRate() : 0;
-  if (rate >= self->InteractiveUpdateRate)
-  {
-    *budgetMs = std::min(*budgetMs, 1000.0 / rate);
-    return true;
-  }
-  *timeChange = self->InteractiveLevelOfDetail == LOD_INTERACTION_AND_TIME &&
-    self->FramesPerRender == 1 && this->haveLastTime && scene.time != this->lastTime;
-  return *timeChange;
-}
-
-// The linear scale of an interactive image, judged on the engine's time (which scales with the
-// pixel count) against the budget left once the window's fixed cost is taken off (capped at
-// kMaxFixedShare of the budget; see there). A stable resolution lets reprojection reuse the
-// accumulation during a drag, so the scale is kept while the engine's measured time at it stays
-// in a band around that budget; outside it the scale is re-chosen from that measurement, growing
-// by at most kMaxGrowth per change because small images cost more per pixel (each wavefront
-// iteration has a fixed cost). Before any interactive measurement: from the per-pixel cost of the
-// frames rendered so far. Full resolution when the budget allows it.
-double vtkInrVolumeMapper::Internals::ChooseScale(double budgetMs, int width, int height)
-{
-  const double pixels = double(width) * double(height);
-  const double fixed = std::min(this->overheadMs + this->outsideMs, kMaxFixedShare * budgetMs);
-  const double engineBudget = budgetMs - fixed;
-  const double target = kBudgetMargin * engineBudget;
-  const double measured = this->interactiveMs;
-  double s = this->lodScale;
-  if (measured > 0.0)
-  {
-    if (measured >= kKeepScaleAbove * engineBudget && measured <= kKeepScaleBelow * engineBudget)
-    {
-      return this->lodScale;
-    }
-    if (measured < kKeepScaleAbove * engineBudget && this->framesAtScale >= 4)
-    {
-      // Four frames at this scale well under the budget: the frame that barred the larger scale
-      // was an outlier (a loaded machine, a background build): allow it again.
-      this->lodCeiling = 2.0;
-    }
-    if (measured > kKeepScaleBelow * engineBudget && measured <= 2.0 * engineBudget &&
-      this->framesAtScale < 2)
-    {
-      // One frame somewhat over the budget may be noise (a loaded machine): a second one decides
-      // before the scale drops and is barred for the rest of the interaction.
-      return this->lodScale;
-    }
-    s = std::min(this->lodScale * std::sqrt(target / std::max(measured, 1e-3)),
-      this->lodScale * kMaxGrowth);
-    if (measured > kKeepScaleBelow * engineBudget)
-    {
-      this->lodCeiling = std::min(this->lodCeiling, this->lodScale);  // measured too slow
-    }
-  }
-  else if (this->msPerPixelFrame > 0.0)
-  {
-    s = std::sqrt(target / (this->msPerPixelFrame * pixels));
-  }
-  else
-  {
-    s = 0.25;  // nothing measured yet: a cautious first guess
-  }
-  s = std::clamp(std::floor(s * kScaleSteps) / kScaleSteps, kMinScale, 1.0);
-  if (s == this->lodScale && measured > 0.0)
-  {
-    // Out of the band but rounded back to the same scale: one step in the needed direction.
-    s = std::clamp(s + (measured > engineBudget ? -1.0 : 1.0) / kScaleSteps, kMinScale, 1.0);
-  }
-  if (s >= this->lodCeiling)
-  {
-    s = this->lodScale;  // never back up to a scale this interaction found too slow: no oscillation
-  }
-  if (s != this->lodScale)
-  {
-    this->lodScale = s;
-    this->interactiveMs = 0.0;  // not measured at the new scale yet
-    this->framesAtScale = 0;
-  }
-  return s;
-}
-
-// Updates the cost model from a render (exponential moving averages; macrocell/majorant update
-// time is left out: it depends on the time change, not on the resolution): the engine's time per
-// pixel per frame, the rest of the render (scene, depth read, upload, blend), and the engine time
-// of interactive frames at the current scale.
-void vtkInrVolumeMapper::Internals::MeasureFrame(
-  double renderMs, double refineMs, int width, int height, bool interactive)
-{
-  const int frames = this->lastStep.framesRendered;
-  if (frames <= 0)
-  {
-    return;
-  }
-  const double updateMs = this->lastStep.total.updateMs;
-  const double engineMs = std::max(0.0, refineMs - updateMs);
-  const double perPixel = engineMs / (double(frames) * double(width) * double(height));
-  const double overhead = std::max(0.0, renderMs - refineMs);
-  constexpr double kWeight = 0.5;  // recent frames dominate (the view changes during a drag)
-  auto ema = [](double old, double now) { return old > 0.0 ? (1.0 - kWeight) * old + kWeight * now : now; };
-  this->msPerPixelFrame = ema(this->msPerPixelFrame, perPixel);
-  this->overheadMs = ema(this->overheadMs, overhead);
-  if (interactive)
-  {
-    this->interactiveMs = ema(this->interactiveMs, engineMs);
-    ++this->framesAtScale;
-  }
-}
-
-// The model: loaded again only when its bytes changed (array, modification time, then hash).
-bool vtkInrVolumeMapper::Internals::UpdateModel(vtkInrVolumeMapper* self, vtkUnsignedCharArray* bytes)
+// The model: loaded again only when its bytes changed (array, modification time, then the
+// engines' content hash).
+bool vtkInrVolumeMapper::Internals::UpdateModel(vtkUnsignedCharArray* bytes)
 {
   if (bytes != this->bytesPtr || bytes->GetMTime() != this->bytesMTime)
   {
     this->bytesPtr = bytes;
     this->bytesMTime = bytes->GetMTime();
-    const std::size_t n = static_cast<std::size_t>(bytes->GetNumberOfValues());
-    const std::uint64_t h = hashBytes(bytes->GetPointer(0), n);
-    if (h != this->hash || !this->modelOk)
-    {
-      this->JoinFineBuild(self);
-      this->hash = h;
-      this->modelOk = false;
-      this->fine.session.reset();
-      this->coarse.session.reset();
-      this->coarseFailed = false;
-      try
-      {
-        this->model = inr::InrModel::loadBytes(bytes->GetPointer(0), n, "INR model (field data)");
-        this->modelOk = true;
-      }
-      catch (const std::exception& e)
-      {
-        if (this->reportedBadHash != h)
-        {
-          vtkErrorWithObjectMacro(self, << e.what());
-          this->reportedBadHash = h;
-        }
-      }
-    }
+    this->engines.SetModel(bytes->GetPointer(0), static_cast<std::size_t>(bytes->GetNumberOfValues()));
   }
-  return this->modelOk;
+  return this->engines.HasModel();
 }
 
-// The options the engine is built or updated with: each asked value is checked as `inr render`
-// checks it (the engine's validation and message: skipBlockShift, TrackingOptions::validate, the
-// layout's padding rule); a refused one is reported once, naming the property, and the last valid
-// value (at first the engine's default) stays in use.
-void vtkInrVolumeMapper::Internals::CheckOptions(vtkInrVolumeMapper* self)
+// What the user asked of the engine (the properties, checked by InrEngineOptions::Check), with
+// the device of this rank: what both sessions are built from (InrSessionOptions).
+InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self)
 {
-  auto accept = [self](const char* property, auto asked, auto& valid, auto& refused, auto check)
+  this->options.Check(this->engines.error);
+  InrEngineRequest r;
+  r.backend = self->Backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
+    : self->Backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
+                                            : inr::RenderBackend::Auto;
+  r.traversal = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
+    : self->Traversal == TRAVERSAL_OPTIX         ? inr::TraversalKind::Optix
+                                                 : inr::TraversalKind::Auto;
+  r.resolution = self->MacrocellResolution;
+  r.temporalSlices = self->TemporalSlices;
+  r.modelUsesTime = this->engines.Model().domain.usesTime();
+  r.skipBlockCells = this->options.macrocellsValid.skipBlockCells;
+  r.boundsPadding = this->options.macrocellsValid.boundsPadding;
+  r.tracking = this->options.trackingValid;
+  // One GPU per rank: the rank's index on its node picks the device (looked up once: neither
+  // changes while the process runs).
+  if (!this->haveDevice)
   {
-    if (asked == valid)
-    {
-      return;
-    }
-    try
-    {
-      check(asked);
-      valid = asked;
-      refused = asked;  // a value refused before is reported again when asked again later
-    }
-    catch (const std::invalid_argument& e)
-    {
-      if (refused != asked)
-      {
-        refused = asked;
-        vtkErrorWithObjectMacro(self, << "INR Volume: " << property << " = " << asked
-                                      << " refused: " << e.what() << "; keeping " << valid);
-      }
-    }
-  };
-  accept("Skip Block (InrSkipBlock)", this->macrocellsAsked.skipBlockCells,
-    this->macrocellsValid.skipBlockCells, this->macrocellsRefused.skipBlockCells,
-    [](int cells) { inr::skipBlockShift(cells); });
-  accept("Bounds Padding (InrBoundsPadding)", this->macrocellsAsked.boundsPadding,
-    this->macrocellsValid.boundsPadding, this->macrocellsRefused.boundsPadding,
-    [](double padding)
-    {
-      if (!(padding >= 0.0))
-      {
-        throw std::invalid_argument("bounds padding must be >= 0");
-      }
-    });
-  accept("Ghost Passes (InrGhostPasses)", this->trackingAsked.ghostPassesOnUpdate,
-    this->trackingValid.ghostPassesOnUpdate, this->trackingRefused.ghostPassesOnUpdate,
-    [this](int passes)
-    {
-      inr::TrackingOptions t = this->trackingValid;
-      t.ghostPassesOnUpdate = passes;
-      t.validate();
-    });
-  // The estimator's options, each checked by TrackingOptions::validate on the valid set.
-  auto trackingField = [&](const char* property, auto member)
+    this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
+    this->cudaDevices = inr::cudaDeviceCount();
+    this->haveDevice = true;
+  }
+  if (this->localRank >= 0 && this->cudaDevices > 0)
   {
-    accept(property, this->trackingAsked.*member, this->trackingValid.*member,
-      this->trackingRefused.*member,
-      [this, member](auto asked)
-      {
-        inr::TrackingOptions t = this->trackingValid;
-        t.*member = asked;
-        t.validate();
-      });
-  };
-  trackingField("Estimator (InrEstimator)", &inr::TrackingOptions::estimator);
-  trackingField("Majorant Scale (InrMajorantScale)", &inr::TrackingOptions::majorantScale);
-  trackingField("Residual Scale (InrResidualScale)", &inr::TrackingOptions::residualScale);
-  trackingField("Points Per Iteration (InrPointsPerIteration)", &inr::TrackingOptions::pointsPerIteration);
-  this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
+    r.cudaDevice = this->localRank % this->cudaDevices;
+  }
+  return r;
 }
 
-// The engine (evaluator, macrocells, renderer): rebuilt when the model, the macrocell grid or the
-// backend change. Its macrocell builds report progress through the mapper's ProgressEvent.
+// The engine sessions for the properties (InrEngines::UpdateFine: rebuilt when a build option
+// changed, with progress through the mapper's ProgressEvent), and what runs, for the panel.
 bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
 {
-  const int backend = self->Backend;
-  this->CheckOptions(self);
-  const EngineKey want{ self->MacrocellResolution, self->TemporalSlices, backend,
-    this->macrocellsValid.skipBlockCells, this->macrocellsValid.boundsPadding, self->Traversal };
-  EngineSlot& f = this->fine;
-  if (this->fineBusy)
-  {
-    if (f.built == want)
-    {
-      return true;  // the worker owns the session until its build is joined
-    }
-    this->JoinFineBuild(self);
-  }
-  if (!f.session || f.built != want)
-  {
-    try
-    {
-      f.session.reset();
-      inr::RenderSessionOptions so;
-      so.backend = backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
-        : backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
-                                          : inr::RenderBackend::Auto;
-      so.allowFallback = true;
-      const int n = self->MacrocellResolution;
-      so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = this->model.domain.usesTime() ? self->TemporalSlices : 1;
-      so.macrocells.skipBlockCells = this->macrocellsValid.skipBlockCells;
-      so.macrocells.boundsPadding = this->macrocellsValid.boundsPadding;
-      so.tracking = this->trackingValid;
-      so.traversal.kind = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
-        : self->Traversal == TRAVERSAL_OPTIX              ? inr::TraversalKind::Optix
-                                                          : inr::TraversalKind::Auto;
-      // One GPU per rank: the rank's index on its node picks the device.
-      std::string localSource;
-      const int localRank = InrParallelRendering::LocalRank(&localSource);
-      const int devices = inr::cudaDeviceCount();
-      if (localRank >= 0 && devices > 0)
-      {
-        so.cudaDevice = localRank % devices;
-      }
-      this->cudaDevice = so.cudaDevice;
-      try
-      {
-        f.session = inr::RenderSession::create(this->model, so);
-      }
-      catch (const std::exception& e)
-      {
-        if (so.traversal.kind != inr::TraversalKind::Optix)
-        {
-          throw;
-        }
-        // OptiX asked for where it cannot run (no OptiX in this build, or the driver's): say why
-        // and let auto choose, rather than leaving the view empty.
-        vtkWarningWithObjectMacro(self,
-          "INR Volume: the OptiX traversal is not available here (" << e.what()
-                                                                     << "); using Traversal Auto.");
-        so.traversal.kind = inr::TraversalKind::Auto;
-        f.session = inr::RenderSession::create(this->model, so);
-      }
-      f.session->setProgressHandler(progressHandler(self, "INR Volume: ", &this->muteProgress));
-      this->rankInUse.clear();
-      if (this->ranks.count > 1 || localRank >= 0)
-      {
-        std::ostringstream note;
-        note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
-        if (localRank >= 0)
-        {
-          note << " (local rank " << localRank << " from " << localSource << ")";
-        }
-        if (f.session->backend() == inr::RenderBackend::Cuda)
-        {
-          note << ", CUDA device " << so.cudaDevice << " of " << devices;
-        }
-        this->rankInUse = note.str();
-      }
-      // The engine's once-per-cause warnings (work caps hit) go to ParaView's output window.
-      f.session->setWarningHandler([self](const std::string& message)
-        { vtkWarningWithObjectMacro(self, "INR Volume: " << message); });
-      if (backend == BACKEND_CUDA && f.session->backend() != inr::RenderBackend::Cuda &&
-        !this->warnedCuda)
-      {
-        vtkWarningWithObjectMacro(self,
-          "INR Volume: the CUDA backend was requested but is not usable here; "
-          "rendering on the CPU (" << f.session->description() << ").");
-        this->warnedCuda = true;
-      }
-      f.built = want;
-      f.Started();
-      ++this->engineBuilds;
-    }
-    catch (const std::exception& e)
-    {
-      vtkErrorWithObjectMacro(self, << "INR Volume: cannot set up the renderer: " << e.what());
-      f.session.reset();
-      return false;
-    }
-  }
-  syncTrackingOptions(*f.session, this->trackingValid);  // valid: checked above
-  this->backendInUse = f.session->description() +
-    (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
-  this->macrocellsInUse = describeMacrocells(*f.session);
-  return true;
-}
-
-// The coarse session for reduced interactive frames (InteractiveMacrocellResolution: time changes,
-// and camera drags with Reproject on), built on first use with the fine session's backend,
-// temporal slices (one for a model without time) and macrocell options; false (render with the
-// fine session) when it is off, not coarser than the fine grid, or it cannot be created
-// (reported once).
-bool vtkInrVolumeMapper::Internals::UpdateCoarseEngine(vtkInrVolumeMapper* self)
-{
-  EngineSlot& c = this->coarse;
-  const int n = self->InteractiveMacrocellResolution;
-  if (n <= 0 || n >= this->fine.built.resolution || !this->fine.session)
+  const InrEngineRequest want = this->Request(self);
+  if (!this->engines.UpdateFine(want))
   {
     return false;
   }
-  EngineKey want = this->fine.built;
-  want.resolution = n;
-  if (!c.session || c.built != want)
+  const InrEngineSlot& f = this->engines.fine;
+  if (this->engines.Rebuilt())
   {
-    if (this->coarseFailed && c.built == want)
+    this->rankInUse.clear();
+    if (this->ranks.count > 1 || this->localRank >= 0)
     {
-      return false;
-    }
-    c.session.reset();
-    c.built = want;
-    try
-    {
-      inr::RenderSessionOptions so;
-      so.backend = this->fine.session->backend();  // what it runs on (after fallback)
-      so.cudaDevice = this->cudaDevice;
-      so.allowFallback = true;
-      so.macrocells.dims = inr::Int3{ n, n, n };
-      so.macrocells.temporalSlices = this->model.domain.usesTime() ? want.slices : 1;
-      // Skip blocks larger than the grid would be a single block: cap them at the grid.
-      so.macrocells.skipBlockCells = std::min(want.skipBlock, n);
-      while (so.macrocells.skipBlockCells & (so.macrocells.skipBlockCells - 1))
+      std::ostringstream note;
+      note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
+      if (this->localRank >= 0)
       {
-        so.macrocells.skipBlockCells &= so.macrocells.skipBlockCells - 1;  // a power of two
+        note << " (local rank " << this->localRank << " from " << this->localRankSource << ")";
       }
-      so.macrocells.boundsPadding = want.boundsPadding;
-      so.tracking = this->trackingValid;
-      // No progress handler for its lazy builds (inside interactive frames, short); the build
-      // ahead reports progress (BuildCoarseAhead).
-      c.session = inr::RenderSession::create(this->model, so);
-      c.session->setWarningHandler([self](const std::string& message)
-        { vtkWarningWithObjectMacro(self, "INR Volume (interactive macrocells): " << message); });
-      c.Started();
-      this->coarseFailed = false;
-    }
-    catch (const std::exception& e)
-    {
-      vtkErrorWithObjectMacro(self, << "INR Volume: Interactive Macrocell Resolution "
-                                       "(InrInteractiveMacrocellResolution) = "
-                                    << n << ": cannot set up the coarse renderer: " << e.what()
-                                    << "; time changes render with the fine macrocells");
-      c.session.reset();
-      this->coarseFailed = true;
-      return false;
+      if (f.session->backend() == inr::RenderBackend::Cuda)
+      {
+        note << ", CUDA device " << f.built.cudaDevice << " of " << this->cudaDevices;
+      }
+      this->rankInUse = note.str();
     }
   }
-  syncTrackingOptions(*c.session, this->trackingValid);
+  if (!this->engines.FineBusy())
+  {
+    this->backendInUse = f.session->description() +
+      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
+    this->macrocellsInUse = InrDescribeMacrocells(*f.session);
+  }
   return true;
-}
-
-// Builds every coarse slice not built yet (InteractiveMacrocellsAhead), reporting progress; the
-// coarse session reports none otherwise (its lazy builds happen inside interactive frames).
-void vtkInrVolumeMapper::Internals::BuildCoarseAhead(vtkInrVolumeMapper* self)
-{
-  if (!this->UpdateCoarseEngine(self))
-  {
-    return;
-  }
-  inr::RenderSession& engine = *this->coarse.session;
-  const inr::MacrocellInfo before = engine.macrocellInfo();
-  if (before.slicesBuilt >= before.temporalSlices)
-  {
-    return;
-  }
-  const auto start = Clock::now();
-  engine.setProgressHandler(
-    progressHandler(self, "INR Volume (interactive macrocells): ", &this->muteProgress));
-  try
-  {
-    engine.buildAllSlices();
-  }
-  catch (const std::exception& e)
-  {
-    vtkErrorWithObjectMacro(self, << "INR Volume: building the interactive macrocells ahead "
-                                     "failed: " << e.what()
-                                  << "; time changes build them when needed");
-  }
-  engine.setProgressHandler({});
-  const double ms = msSince(start);
-  this->aheadMs += ms;
-  if (lodReport())
-  {
-    std::fprintf(stderr, "INR Volume LOD: built %d interactive macrocell slices ahead (%dx%dx%d "
-                         "cells), %.1f ms\n",
-      engine.macrocellInfo().slicesBuilt - before.slicesBuilt, before.dims.x, before.dims.y,
-      before.dims.z, ms);
-  }
 }
 
 // Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
@@ -1581,8 +1039,9 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   InrSceneTranslator::ValueRange(input->GetFieldData(), valueRange);
   scene.transferFunction = this->translator.UpdateTransferFunction(
     vol->GetProperty(), self->UseDefaultTransferFunction != 0, valueRange);
-  scene.time = InrSceneTranslator::Time(
-    input, 0.5 * (this->model.domain.timeBegin + this->model.domain.timeEnd));
+  const inr::InrModel& model = this->engines.Model();
+  scene.time =
+    InrSceneTranslator::Time(input, 0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   scene.background = { 0.f, 0.f, 0.f };
   scene.shadows = self->Shadows != 0;
   const double* l = self->LightDirection;
@@ -1634,37 +1093,6 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
   this->warnedCamera = ignored;
 }
 
-// Hands the query-reduction settings to the engine when they changed. A rejected set is reported
-// once and the engine keeps what it had; a pruning change restarts its accumulation, which the
-// refinement driver notices (accumulated frames drop to 0).
-void vtkInrVolumeMapper::Internals::PushQueryReduction(vtkInrVolumeMapper* self,
-  EngineSlot& slot)
-{
-  inr::RenderSession& engine = *slot.session;
-  if (!slot.haveQueryReduction || !sameQueryReduction(this->queryReduction, slot.queryReductionTried))
-  {
-    slot.haveQueryReduction = true;
-    slot.queryReductionTried = this->queryReduction;
-    try
-    {
-      engine.setQueryReduction(this->queryReduction);
-      this->haveRefusedQueryReduction = false;
-    }
-    catch (const std::invalid_argument& e)
-    {
-      if (!this->haveRefusedQueryReduction ||
-        !sameQueryReduction(this->queryReduction, this->refusedQueryReduction))
-      {
-        vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what() << "; keeping "
-                                      << describeQueryReduction(engine.queryReduction()));
-      }
-      this->haveRefusedQueryReduction = true;
-      this->refusedQueryReduction = this->queryReduction;
-    }
-  }
-  this->queryReductionInUse = describeQueryReduction(engine.queryReduction());
-}
-
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
@@ -1673,7 +1101,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
 {
   // The session drawing this render: the fine one, or the coarse one for a time-change
   // interactive frame.
-  EngineSlot& slot = useCoarse ? this->coarse : this->fine;
+  InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
   inr::RenderSession& engine = *slot.session;
   inr::RefinementDriver& refinement = slot.refinement;
   this->shownCoarse = useCoarse;
@@ -1685,15 +1113,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = this->window;
     this->RankSettings(settings);
-    const inr::RenderSettings& held = slot.settings;
-    if (!slot.haveSettings || settings.width != held.width || settings.height != held.height ||
-      settings.seed != held.seed || settings.window != held.window ||
-      settings.pixelShare != held.pixelShare)
-    {
-      engine.setSettings(settings);
-      slot.settings = settings;
-      slot.haveSettings = true;
-    }
+    slot.SetSettings(settings);
     const bool debug = debugReport();
     if (debug)
     {
@@ -1705,7 +1125,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       this->lastScene = scene;
       this->haveLastScene = true;
     }
-    this->PushQueryReduction(self, slot);
+    this->engines.PushQueryReduction(slot, this->options.queryReduction);
     engine.setScene(scene);
 
     inr::RefinementOptions options;
@@ -1713,6 +1133,13 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     options.convergenceTarget = self->ConvergenceTarget;
     options.framesPerRender =
       interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
+    // Refinement by time: a still render of the GUI's one-frame-per-render refinement adds the
+    // frames that fit in the budget.
+    if (!interactive && self->ProgressiveRefinement && self->FramesPerRender == 1 &&
+      this->window.fullWidth == 0)
+    {
+      options.timeBudgetMs = self->RefinementTimeBudget;
+    }
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {
       // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
@@ -1729,7 +1156,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
         "%.0f pixels skipped, %.0f pruned\n",
         engine.accumulatedFrames(), double(this->lastStep.total.totalQueries()),
         this->lastStep.total.updateMs, int(refinement.converged()),
-        this->queryReductionInUse.c_str(), double(this->lastStep.total.rays),
+        this->engines.queryReductionInUse.c_str(), double(this->lastStep.total.rays),
         double(this->lastStep.total.budgetSkipped), double(this->lastStep.total.pruned));
     }
     return true;
@@ -1781,7 +1208,7 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   local.frames = rendered && this->Shown() ? this->Shown()->accumulatedFrames()
                                            : std::numeric_limits<int>::max();
   local.estimate =
-    rendered ? this->fine.refinement.estimate() : std::numeric_limits<double>::infinity();
+    rendered ? this->engines.fine.refinement.estimate() : std::numeric_limits<double>::infinity();
   InrParallelRendering::Refinement all = InrParallelRendering::ReduceRefinement(local);
   if (all.frames == std::numeric_limits<int>::max())
   {
@@ -1867,6 +1294,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "MaximumFrames: " << this->MaximumFrames << "\n";
   os << indent << "ConvergenceTarget: " << this->ConvergenceTarget << "\n";
   os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
+  os << indent << "RefinementTimeBudget: " << this->RefinementTimeBudget << " ms\n";
   os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
   os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
@@ -1877,6 +1305,6 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
      << "\n";
   os << indent << "InteractiveMacrocellsAhead: " << this->InteractiveMacrocellsAhead << "\n";
   os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
-  os << indent << "QueryReduction: " << describeQueryReduction(this->Internal->queryReduction)
-     << " (in use: " << this->Internal->queryReductionInUse << ")\n";
+  os << indent << "QueryReduction: " << InrDescribeQueryReduction(this->Internal->options.queryReduction)
+     << " (in use: " << this->Internal->engines.queryReductionInUse << ")\n";
 }

@@ -153,6 +153,15 @@ public:
   vtkGetMacro(ConvergenceTarget, double);
   vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
   vtkGetMacro(FramesPerRender, int);
+  /// RefinementTimeBudget (ms, default 33; 0 = off): while FramesPerRender is 1 (the GUI's
+  /// refinement, which renders again by itself), one still Render() adds as many frames as fit in
+  /// this time (the first frame always; inr::RefinementOptions::timeBudgetMs): a fast backend
+  /// cleans the image in a few renders instead of one render per frame, and the view still
+  /// repaints about 30 times a second. Frame count only when FramesPerRender > 1 (scripts asking
+  /// for an N-frame image get exactly that), for interactive (reduced) frames, tiles of a capture
+  /// and with ProgressiveRefinement off.
+  vtkSetClampMacro(RefinementTimeBudget, double, 0.0, 10000.0);
+  vtkGetMacro(RefinementTimeBudget, double);
   /// ProgressiveRefinement (default on). Off: each Render() adds exactly one frame (whatever
   /// FramesPerRender says) and GetConverged() reports 1, so nothing renders again by itself
   /// (ParaView's GUI then shows one frame per render and stays idle).
@@ -286,6 +295,15 @@ public:
   static int InteractiveFreshFrameCount(double scale, int fresh);
   /// Macrocell slices built by that coarse session (0 before it is first used).
   int GetInteractiveSlicesBuilt();
+  /// What the fine session (the still image) and the coarse session (InteractiveMacrocell-
+  /// Resolution) run, read back from each (backend, traversal, device, macrocell and tracking
+  /// options, query reduction; "" before it exists), one line each; they differ in the majorant
+  /// grid's dims (and a skip block capped to it) only: the coarse one honours every user setting.
+  const char* GetEngineOptionsInUse();
+  const char* GetInteractiveEngineOptionsInUse();
+  /// 1 when both sessions exist and run one evaluator (weights uploaded, and on CUDA autotuned,
+  /// once).
+  int GetInteractiveSharesEvaluator();
   /// 1 when the last Render drew a frame of the coarse session.
   int GetLastRenderCoarse();
   /// Capturing (set by the representation while ParaView captures a screenshot or an animation
@@ -388,6 +406,7 @@ private:
   int MaximumFrames = 2048;
   double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
+  double RefinementTimeBudget = 33.0;
   int ProgressiveRefinement = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;

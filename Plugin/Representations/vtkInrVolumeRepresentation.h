@@ -45,6 +45,7 @@ public:
   void SetInrMaximumFrames(int);
   void SetInrConvergenceTarget(double);
   void SetInrFramesPerRender(int);
+  void SetInrRefinementTimeBudget(double);
   void SetInrSeed(int);
   void SetInrSkipBlock(int);
   void SetInrBoundsPadding(double);

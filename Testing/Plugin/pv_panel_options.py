@@ -74,6 +74,8 @@ SIZE = [64, 48]
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(SIZE)
 display = C.show_inr(reader, view, seed=3, maximum_frames=64, frames_per_render=1, macrocells=8)
+# One frame per render (the checks below count frames render by render): no time budget.
+display.InrRefinementTimeBudget = 0.0
 
 # --- The panel ParaView loaded: five groups in order, the new options in theirs.
 proxy = display.SMProxy

@@ -85,7 +85,9 @@ simple.Render(view)
 frames = C.info(display, "InrAccumulatedFrames")
 check(frames >= 2, f"accumulating with the budget on ({frames} frames after 3 renders)")
 
-# Pruning thresholds change the estimator: the engine restarts the accumulation.
+# Pruning thresholds change the estimator: the engine restarts the accumulation (one frame per
+# render from here: no time budget, so the restarted image holds exactly the render's one frame).
+display.InrRefinementTimeBudget = 0.0
 display.PruneEpsilon = 0.02
 display.PruneFalloff = 0.01
 simple.Render(view)

@@ -1,0 +1,194 @@
+// The mapper's engine sessions, without VTK: what the user asked of the engine (InrEngineRequest,
+// the mapper's properties already checked), the ONE function that turns it into the options of
+// the fine session and of the coarse level-of-detail session (InrSessionOptions), and what the
+// mapper keeps per session (InrEngineSlot).
+//
+// The coarse session (reduced interactive frames: time changes, drags with Reproject on) must
+// render what the fine one renders, only on a coarser majorant grid: it honours every user
+// setting (backend, GPU traversal, estimator and tracking options, macrocell options, CPU threads,
+// query reduction, shadows and seeds through the scene and settings it is handed) and differs only
+// where level of detail deliberately differs (InrSessionLevel). It runs the fine session's
+// evaluator (weights uploaded and, on CUDA, autotuned once).
+#ifndef InrEngineSlots_h
+#define InrEngineSlots_h
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "Backends/Refinement.h"
+#include "Model/InrModel.h"
+#include "Backends/RenderSession.h"
+#include "Render/QueryReduction.h"
+#include "Render/SceneInputs.h"
+
+/// What the user asked of the engine, checked (invalid values already refused by the mapper).
+struct InrEngineRequest
+{
+  inr::RenderBackend backend = inr::RenderBackend::Auto;
+  inr::TraversalKind traversal = inr::TraversalKind::Auto;
+  int resolution = 32;      // fine macrocells per axis
+  int temporalSlices = 16;  // for a model with time (one slice without)
+  bool modelUsesTime = true;
+  int skipBlockCells = inr::MacrocellOptions{}.skipBlockCells;
+  double boundsPadding = inr::MacrocellOptions{}.boundsPadding;
+  inr::TrackingOptions tracking = inr::TrackingOptions::recommended();
+  int cudaDevice = 0;
+  int cpuThreads = 0;
+
+  /// What a session is built from: a difference in any of these rebuilds it (tracking options
+  /// change on a live session: inr::RenderSession::setTrackingOptions).
+  bool SameBuild(const InrEngineRequest& o) const;
+};
+
+/// Where a session's options deliberately differ from the request: the majorant grid's
+/// resolution, and for the coarse session the fine session's evaluator (and so its backend and
+/// device: the backend that actually runs, after any fallback).
+struct InrSessionLevel
+{
+  int resolution = 0;          // macrocells per axis; 0 = the request's
+  inr::SharedEvaluator evaluator;  // empty: the session builds its own
+
+  static InrSessionLevel Fine() { return {}; }
+  static InrSessionLevel Coarse(int resolution, const inr::RenderSession& fine)
+  {
+    return InrSessionLevel{ resolution, fine.sharedEvaluator() };
+  }
+};
+
+/// The one place session options are built, for the fine and the coarse session alike. A skip
+/// block larger than the grid is capped to the largest power of two that fits it.
+inr::RenderSessionOptions InrSessionOptions(const InrEngineRequest& request, const InrSessionLevel& level);
+
+/// What a live session runs, read back from it (options it was created with, tracking options
+/// and query reduction it holds), one line, e.g. "backend=cpu traversal=dda cuda_device=0
+/// cpu_threads=0 dims=8x8x8 slices=16 skip_block=4 bounds_padding=0.1 ghost_passes=0 refine=1
+/// estimator=ratio majorant_scale=1 residual_scale=1 points_per_iteration=4 budget=stbn rho=0.5
+/// K=8 alpha=0.5 reproject=1 epsilon=0 delta=0". Fine and coarse lines differ in dims (and
+/// skip_block where it was capped) only.
+std::string InrDescribeSession(const inr::RenderSession& session);
+/// The parts of it about macrocells and tracking (Macrocells In Use) and query reduction.
+std::string InrDescribeMacrocells(const inr::RenderSession& session);
+std::string InrDescribeQueryReduction(const inr::QueryReductionSettings& q);
+bool InrSameQueryReduction(const inr::QueryReductionSettings& a, const inr::QueryReductionSettings& b);
+
+/// One engine session and what the mapper keeps about it: the request it was built from, the
+/// render settings and query reduction last handed to it (handed again only when they differ, so
+/// a rejected setting is reported once) and its refinement driver.
+struct InrEngineSlot
+{
+  std::unique_ptr<inr::RenderSession> session;
+  InrEngineRequest asked;  // the request it was built for (a different one rebuilds it)
+  InrEngineRequest built;  // what it was built with (after an OptiX fallback: traversal Auto)
+  bool haveSettings = false;
+  inr::RenderSettings settings;
+  bool haveQueryReduction = false;
+  inr::QueryReductionSettings queryReductionTried;
+  inr::RefinementDriver refinement;
+  /// A new session starts from the engine's defaults: hand it everything again.
+  void Started()
+  {
+    this->haveSettings = false;
+    this->haveQueryReduction = false;
+    this->refinement.restart();
+  }
+  /// Hands `settings` to the session when they differ from what it holds.
+  void SetSettings(const inr::RenderSettings& settings);
+};
+
+/// Ghost passes, macrocell refinement and the estimator changed on a live session, without a
+/// rebuild (none of them changes the image the accumulation converges to).
+void InrSyncTrackingOptions(inr::RenderSession& session, const inr::TrackingOptions& want);
+
+/// The engine options the properties ask for, kept three times: as asked, the last valid value
+/// (what the engine is built or updated with; initially the engine's defaults) and the last value
+/// refused per option (each refusal is reported once). Check() validates each asked value as
+/// `inr render` does and reports a refusal through `error`, naming the property.
+struct InrEngineOptions
+{
+  inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
+  // The estimator starts as inr render's (TrackingOptions::recommended()); the XML declares the
+  // same defaults (test cli.estimator_xml_defaults).
+  inr::TrackingOptions trackingAsked = inr::TrackingOptions::recommended();
+  inr::TrackingOptions trackingValid = trackingAsked, trackingRefused = trackingAsked;
+  // Query reduction: what the user asked for (validated by the engine when pushed).
+  inr::QueryReductionSettings queryReduction;
+  void Check(const std::function<void(const std::string&)>& error);
+};
+
+/// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
+/// one of reduced interactive frames, built from one request (InrSessionOptions), the fine
+/// session's slices optionally built on a worker thread, the coarse ones ahead, query reduction
+/// and frames pushed into whichever session draws. No VTK: messages and progress go through the
+/// callbacks below.
+class InrEngines
+{
+public:
+  InrEngines() = default;
+  ~InrEngines();
+  InrEngines(const InrEngines&) = delete;
+  InrEngines& operator=(const InrEngines&) = delete;
+
+  /// Where messages go (the mapper: vtkErrorMacro / vtkWarningMacro) and a progress handler for
+  /// macrocell builds, given the text that prefixes the engine's phase.
+  std::function<void(const std::string&)> error, warning;
+  std::function<inr::MacrocellProgress(const std::string& prefix)> progress;
+  /// Called after the worker's fine build was joined (frames measured meanwhile were slower).
+  std::function<void()> joined;
+
+  /// The model, loaded from its bytes when their hash changed (both sessions are dropped then);
+  /// false (reported once per content) when it cannot be loaded.
+  bool SetModel(const unsigned char* bytes, std::size_t n);
+  bool HasModel() const { return this->modelOk; }
+  const inr::InrModel& Model() const { return this->model; }
+
+  /// The fine session for `request`: rebuilt when a build option differs (the coarse one is
+  /// dropped with it: it runs its evaluator), tracking options synchronised otherwise. False when
+  /// it cannot be created (reported). Rebuilt() tells whether this call built it.
+  bool UpdateFine(const InrEngineRequest& request);
+  bool Rebuilt() const { return this->rebuilt; }
+  /// The coarse session at `resolution` cells per axis, built on first use from the fine
+  /// session's request as built; false (render with the fine one) when off (0), not coarser
+  /// than the fine grid, or it cannot be created (reported once).
+  bool UpdateCoarse(int resolution);
+  /// Builds every coarse slice not built yet, with progress; the milliseconds it took.
+  double BuildCoarseAhead(int resolution, bool report);
+
+  /// The fine slices for `time`, on a worker thread (true) while reduced coarse frames are drawn;
+  /// waits a few ms first, as most calls find them built. JoinFineBuild waits for the worker;
+  /// FineBusy: it has not been joined (nothing but the worker touches the fine session then).
+  bool StartFineBuild(double time);
+  void JoinFineBuild();
+  bool FineBusy() const { return this->fineBusy; }
+  bool FineBuildDone() const { return this->fineBuildDone; }
+  double FineBuildProgress() const { return this->fineBuildProgress; }
+
+  /// Hands the query reduction to `slot`'s session when it changed (a refused set is reported
+  /// once and the session keeps what it had).
+  void PushQueryReduction(InrEngineSlot& slot, const inr::QueryReductionSettings& asked);
+
+  InrEngineSlot fine, coarse;
+  int engineBuilds = 0;
+  bool muteProgress = false;  // read by the progress handlers the mapper hands out
+  std::string queryReductionInUse;
+
+private:
+  std::uint64_t hash = 0;
+  bool modelOk = false;
+  std::uint64_t reportedBadHash = 0;
+  inr::InrModel model;
+  bool rebuilt = false;
+  bool warnedCuda = false;
+  bool coarseFailed = false;  // creation failed once for coarse.asked: reported, not retried
+  bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
+  inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
+  std::thread fineBuilder;
+  bool fineBusy = false;
+  std::atomic<bool> fineBuildDone{ false };
+  std::atomic<double> fineBuildProgress{ 0.0 };
+};
+
+#endif

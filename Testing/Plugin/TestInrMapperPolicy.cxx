@@ -1,0 +1,236 @@
+// The mapper's VTK-free parts (issue 27, item 5): the level-of-detail policy (InrLevelOfDetail:
+// which renders are interactive, their resolution and frames, which session draws, when slices
+// are built ahead or in the background) and the one builder of the fine and coarse session
+// options (InrSessionOptions). No VTK, no window: the rules are checked on their own.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "Backends/RenderSession.h"
+#include "Evaluator/FieldEvaluator.h"
+#include "InrEngineSlots.h"
+#include "InrLevelOfDetail.h"
+
+namespace
+{
+using Lod = InrLevelOfDetail;
+
+Lod::Settings guiSettings()
+{
+  Lod::Settings s;  // the defaults: ParaView's GUI
+  s.mode = Lod::InteractionAndTime;
+  s.frameTimeMs = 100.0;
+  s.updateRate = 1.0;
+  return s;
+}
+
+TEST(InrLevelOfDetail, InteractiveRendersAreThoseThatAskForARateOrChangeTheTime)
+{
+  Lod lod;
+  Lod::Settings s = guiSettings();
+  // A render asking for 5 fps (ParaView's drag): interactive, budget min(100 ms, 200 ms).
+  Lod::Decision d = lod.Classify(s, 5.0, 1.0);
+  EXPECT_TRUE(d.interactive);
+  EXPECT_FALSE(d.timeChange);
+  EXPECT_DOUBLE_EQ(d.budgetMs, 100.0);
+  // 15 fps (VTK's interactor): the window's frame time is the tighter budget.
+  EXPECT_DOUBLE_EQ(lod.Classify(s, 15.0, 1.0).budgetMs, 1000.0 / 15.0);
+  // A still render: interactive only when its time differs from the last render's.
+  EXPECT_FALSE(lod.Classify(s, 0.0001, 1.0).interactive) << "no time seen yet: nothing changed";
+  lod.SawTime(1.0);
+  EXPECT_FALSE(lod.Classify(s, 0.0001, 1.0).interactive);
+  d = lod.Classify(s, 0.0001, 2.0);
+  EXPECT_TRUE(d.interactive && d.timeChange);
+  // Not with several frames per render (a script asking for N-frame images), nor with LOD for
+  // interaction only.
+  Lod::Settings scripts = s;
+  scripts.framesPerRender = 4;
+  EXPECT_FALSE(lod.Classify(scripts, 0.0001, 2.0).interactive);
+  Lod::Settings interaction = s;
+  interaction.mode = Lod::Interaction;
+  EXPECT_FALSE(lod.Classify(interaction, 0.0001, 2.0).interactive);
+  EXPECT_TRUE(lod.Classify(interaction, 5.0, 2.0).interactive);
+  // Never: LOD off, a capture, several MPI ranks.
+  for (int k = 0; k < 3; ++k)
+  {
+    Lod::Settings never = s;
+    never.mode = k == 0 ? Lod::Off : never.mode;
+    never.capturing = k == 1;
+    never.ranks = k == 2 ? 2 : 1;
+    EXPECT_FALSE(lod.Classify(never, 5.0, 2.0).interactive) << "case " << k;
+    EXPECT_FALSE(lod.Classify(never, 0.0001, 2.0).interactive) << "case " << k;
+  }
+}
+
+TEST(InrLevelOfDetail, PlanScalesTheImageAndFreshImagesGetMoreFrames)
+{
+  Lod::Settings s = guiSettings();
+  {
+    Lod lod;
+    const Lod::Frame still = lod.Plan(s, Lod::Decision{}, 400, 300);
+    EXPECT_FALSE(still.interactive);
+    EXPECT_EQ(still.width, 400);
+    EXPECT_EQ(still.frames, 1);
+    // Nothing measured yet: a cautious quarter resolution, one frame for a drag.
+    Lod::Decision drag{ true, false, 100.0 };
+    const Lod::Frame f = lod.Plan(s, drag, 400, 300);
+    EXPECT_TRUE(f.interactive);
+    EXPECT_EQ(f.width, 100);
+    EXPECT_EQ(f.height, 75);
+    EXPECT_EQ(f.frames, 1);
+  }
+  {
+    Lod lod;
+    // A time change: the fresh image renders 4 frames at half that scale (same pixels x frames).
+    const Lod::Frame f = lod.Plan(s, Lod::Decision{ true, true, 100.0 }, 400, 300);
+    EXPECT_TRUE(f.interactive);
+    EXPECT_EQ(f.width, 50);
+    EXPECT_EQ(f.frames, 4);
+  }
+  {
+    Lod lod;
+    // Measured: 1e-6 ms per pixel-frame, a full-resolution frame costs 0.12 ms: it fits the
+    // budget, so the "interactive" render is an ordinary still one.
+    lod.MeasureFrame(1.0, 0.12, 0.0, 1, 400, 300, false);
+    const Lod::Frame f = lod.Plan(s, Lod::Decision{ true, false, 100.0 }, 400, 300);
+    EXPECT_FALSE(f.interactive);
+    EXPECT_EQ(f.width, 400);
+  }
+}
+
+TEST(InrLevelOfDetail, ScaleHoldsWhileFramesStayInTheBudgetAndDropsWhenTooSlow)
+{
+  Lod lod;
+  const double first = lod.ChooseScale(100.0, 400, 300);
+  EXPECT_DOUBLE_EQ(first, 0.25);
+  // Engine time 60 ms of a 100 ms budget (no fixed cost measured): inside the band, kept.
+  for (int k = 0; k < 5; ++k)
+  {
+    lod.MeasureFrame(60.0, 60.0, 0.0, 1, 100, 75, true);
+    EXPECT_DOUBLE_EQ(lod.ChooseScale(100.0, 400, 300), first) << "frame " << k;
+  }
+  // Twice over the budget, twice: the scale drops, and does not come back in this interaction.
+  lod.MeasureFrame(250.0, 250.0, 0.0, 1, 100, 75, true);
+  lod.MeasureFrame(250.0, 250.0, 0.0, 1, 100, 75, true);
+  const double lower = lod.ChooseScale(100.0, 400, 300);
+  EXPECT_LT(lower, first);
+  EXPECT_GE(lower, Lod::kMinScale);
+  EXPECT_DOUBLE_EQ(std::fmod(lower * Lod::kScaleSteps, 1.0), 0.0) << "a step of 1/16";
+}
+
+TEST(InrLevelOfDetail, FreshFrames)
+{
+  struct Case
+  {
+    double scale;
+    int fresh;
+    double wantScale;
+    int wantFrames;
+  };
+  for (const Case& c : { Case{ 0.5, 4, 0.25, 4 }, Case{ 2.0 / 16, 4, 1.0 / 16, 4 },
+         Case{ 3.0 / 16, 4, 1.0 / 16, 4 }, Case{ 1.0 / 16, 4, 1.0 / 16, 1 },
+         Case{ 0.5, 1, 0.5, 1 }, Case{ 5.0 / 16, 2, 3.0 / 16, 2 } })
+  {
+    const double s = Lod::FreshFrameScale(c.scale, c.fresh);
+    const int n = Lod::FreshFrameCount(c.scale, c.fresh);
+    EXPECT_DOUBLE_EQ(s, c.wantScale) << c.scale << " x " << c.fresh;
+    EXPECT_EQ(n, c.wantFrames) << c.scale << " x " << c.fresh;
+    EXPECT_LE(n * s * s, c.scale * c.scale + 1e-12) << "pixels x frames within one frame";
+  }
+}
+
+TEST(InrLevelOfDetail, WhichSessionAndWhichBuilds)
+{
+  const Lod::Decision still{}, drag{ true, false, 100.0 }, time{ true, true, 100.0 };
+  EXPECT_FALSE(Lod::RendersCoarse(still, true, true));
+  EXPECT_TRUE(Lod::RendersCoarse(time, false, true));
+  EXPECT_TRUE(Lod::RendersCoarse(drag, true, true)) << "drag with Reproject: coarse";
+  EXPECT_FALSE(Lod::RendersCoarse(drag, false, true)) << "drag without Reproject: fine";
+  EXPECT_FALSE(Lod::RendersCoarse(time, false, false)) << "no coarse session";
+
+  Lod::Settings s = guiSettings();
+  EXPECT_TRUE(Lod::BuildsCoarseAhead(s));
+  EXPECT_TRUE(Lod::BuildsFineInBackground(s, true));
+  EXPECT_FALSE(Lod::BuildsFineInBackground(s, false)) << "only on the CPU backend";
+  for (int k = 0; k < 4; ++k)
+  {
+    Lod::Settings t = s;
+    t.framesPerRender = k == 0 ? 2 : 1;
+    t.capturing = k == 1;
+    t.mode = k == 2 ? Lod::Interaction : t.mode;
+    t.coarseAhead = k != 3;
+    EXPECT_FALSE(Lod::BuildsCoarseAhead(t)) << "case " << k;
+    if (k < 3)
+    {
+      EXPECT_FALSE(Lod::BuildsFineInBackground(t, true)) << "case " << k;
+    }
+  }
+  Lod::Settings ranks = s;
+  ranks.ranks = 2;
+  EXPECT_FALSE(Lod::BuildsFineInBackground(ranks, true));
+  Lod::Settings off = s;
+  off.progressiveRefinement = false;
+  EXPECT_FALSE(Lod::BuildsFineInBackground(off, true));
+}
+
+// Stands for a backend's evaluator: InrSessionOptions only passes it on.
+struct NoField : inr::FieldEvaluator
+{
+  void evaluate(const inr::QueryPoint*, std::size_t n, float* out) const override
+  {
+    std::fill(out, out + n, 0.f);
+  }
+  std::string name() const override { return "none"; }
+};
+
+TEST(InrSessionOptions, TheCoarseSessionDiffersInItsGridAndEvaluatorOnly)
+{
+  InrEngineRequest r;
+  r.backend = inr::RenderBackend::Cuda;
+  r.traversal = inr::TraversalKind::Dda;
+  r.resolution = 32;
+  r.temporalSlices = 8;
+  r.skipBlockCells = 8;
+  r.boundsPadding = 0.05;
+  r.tracking.estimator = inr::PrimaryEstimator::Delta;
+  r.tracking.majorantScale = 2.0;
+  r.tracking.ghostPassesOnUpdate = 3;
+  r.cudaDevice = 1;
+  r.cpuThreads = 3;
+  const inr::RenderSessionOptions fine = InrSessionOptions(r, InrSessionLevel::Fine());
+  EXPECT_EQ(fine.backend, inr::RenderBackend::Cuda);
+  EXPECT_EQ(fine.traversal.kind, inr::TraversalKind::Dda);
+  EXPECT_EQ(fine.macrocells.dims.x, 32);
+  EXPECT_EQ(fine.macrocells.temporalSlices, 8);
+  EXPECT_EQ(fine.macrocells.skipBlockCells, 8);
+  EXPECT_FALSE(fine.evaluator);
+
+  // The fine session fell back to the CPU: the coarse one runs its (CPU) evaluator.
+  const inr::SharedEvaluator cpu{ std::make_shared<NoField>(), inr::RenderBackend::Cpu, 0 };
+  const inr::RenderSessionOptions coarse = InrSessionOptions(r, InrSessionLevel{ 12, cpu });
+  EXPECT_EQ(coarse.evaluator.evaluator, cpu.evaluator);
+  EXPECT_EQ(coarse.backend, inr::RenderBackend::Cpu);
+  EXPECT_EQ(coarse.cudaDevice, 0);
+  EXPECT_EQ(coarse.macrocells.dims.x, 12);
+  EXPECT_EQ(coarse.macrocells.skipBlockCells, 8) << "8 fits a 12^3 grid";
+  EXPECT_EQ(InrSessionOptions(r, InrSessionLevel{ 6, cpu }).macrocells.skipBlockCells, 4)
+    << "capped to the largest power of two in the grid";
+  // Everything else as the fine session's.
+  EXPECT_EQ(coarse.traversal.kind, fine.traversal.kind);
+  EXPECT_EQ(coarse.cpuThreads, fine.cpuThreads);
+  EXPECT_EQ(coarse.allowFallback, fine.allowFallback);
+  EXPECT_EQ(coarse.macrocells.temporalSlices, fine.macrocells.temporalSlices);
+  EXPECT_EQ(coarse.macrocells.boundsPadding, fine.macrocells.boundsPadding);
+  EXPECT_EQ(coarse.macrocells.lazySlices, fine.macrocells.lazySlices);
+  EXPECT_EQ(coarse.tracking.estimator, fine.tracking.estimator);
+  EXPECT_EQ(coarse.tracking.majorantScale, fine.tracking.majorantScale);
+  EXPECT_EQ(coarse.tracking.ghostPassesOnUpdate, fine.tracking.ghostPassesOnUpdate);
+  EXPECT_EQ(coarse.tracking.pointsPerIteration, fine.tracking.pointsPerIteration);
+
+  // A model without time: one slice, whatever was asked.
+  InrEngineRequest still = r;
+  still.modelUsesTime = false;
+  EXPECT_EQ(InrSessionOptions(still, InrSessionLevel::Fine()).macrocells.temporalSlices, 1);
+}
+}
