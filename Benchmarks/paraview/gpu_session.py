@@ -19,6 +19,9 @@ refines, interactive renders while the camera is dragged):
      time's converged image (PSNR over the volume's pixels, 8-bit screenshots).
   4. the CUDA image against the CPU image of the same scene, both converged to 44 dB at
      --cpu-compare-size (PSNR over the volume's pixels; both carry their own noise).
+  5. --single-frames renders of exactly one frame each (time budget 0, no stop rule): the view's
+     and the mapper's time per render, i.e. the frame plus the image's way to the screen (run
+     with INR_CUDA_GL_INTEROP=0 for the host round trip).
 Prints tables, writes every render to DIR/gpu_session.csv and a summary to DIR/gpu_session.json,
 and screenshots of the converged images to DIR.
 """
@@ -52,6 +55,7 @@ ap.add_argument("--time-changes", type=int, default=3)
 ap.add_argument("--converge-seconds", type=float, default=60.0)
 ap.add_argument("--animation-steps", type=int, default=24)
 ap.add_argument("--animation-checks", type=int, default=4)
+ap.add_argument("--single-frames", type=int, default=24, help="phase 5: renders of one frame each")
 ap.add_argument("--cpu-compare-size", type=int, default=384, help="0: skip phase 4")
 ap.add_argument("--out", default=".")
 args = ap.parse_args()
@@ -252,6 +256,23 @@ for model_path in args.models:
     print(f"  animation: {len(steps)} steps in {anim_s:.2f} s = {m['animation_steps_per_s']:.1f} steps/s; "
           f"shown vs converged {psnrs} dB", flush=True)
 
+    # 5 (before 4, which changes the size). Renders of exactly one frame each (no time budget, no
+    # stop): the render's fixed cost beside the frame, i.e. what the image's way to the screen
+    # costs (compare runs with INR_CUDA_GL_INTEROP=0).
+    view.ViewSize = args.size
+    saved = (display.InrRefinementTimeBudget, display.InrConvergenceTarget, display.InrMaximumFrames)
+    display.InrRefinementTimeBudget = 0
+    display.InrConvergenceTarget = 0
+    display.InrMaximumFrames = 65536
+    view.ViewTime = steps[1]
+    view.SMProxy.StillRender()
+    single = [render("still", name, "single-frame", i, state) for i in range(args.single_frames)]
+    m["single_frame_view_ms_median"] = round(statistics.median(r["view_ms"] for r in single[2:]), 2)
+    m["single_frame_mapper_ms_median"] = round(statistics.median(r["mapper_ms"] for r in single[2:]), 2)
+    print(f"  one-frame renders at {args.size[0]}x{args.size[1]}: view {m['single_frame_view_ms_median']:.2f} ms, "
+          f"mapper {m['single_frame_mapper_ms_median']:.2f} ms (median of {len(single) - 2})", flush=True)
+    (display.InrRefinementTimeBudget, display.InrConvergenceTarget, display.InrMaximumFrames) = saved
+
     # 4. The CUDA image against the CPU image of the same scene.
     if args.cpu_compare_size > 0 and args.backend != "cpu":
         view.ViewSize = [args.cpu_compare_size, args.cpu_compare_size]
@@ -286,13 +307,13 @@ print()
 print(f"INR Volume in pvpython, backend {args.backend}, {args.size[0]}x{args.size[1]} "
       f"(drag {args.drag_size[0]}x{args.drag_size[1]})")
 print(f"{'model':26s} {'to converged s':>14s} {'engine s':>9s} {'ratio':>6s} {'render ms med/max':>18s} "
-      f"{'drag ms':>8s} {'anim steps/s':>12s} {'anim dB (min)':>13s} {'cuda-cpu dB':>11s}")
+      f"{'drag ms':>8s} {'anim steps/s':>12s} {'anim dB (min)':>13s} {'cuda-cpu dB':>11s} {'1-frame ms':>10s}")
 for name, m in summary["models"].items():
     for tc in m["time_changes"]:
         ratio = tc["seconds"] / tc["engine_seconds"] if tc["engine_seconds"] else float("nan")
         print(f"{name:26s} {tc['seconds']:14.2f} {tc['engine_seconds'] or float('nan'):9.2f} {ratio:6.2f} "
               f"{tc['render_ms_median']:8.1f}/{tc['render_ms_max']:<9.1f} {m['drag_ms_median']:8.1f} "
               f"{m['animation_steps_per_s']:12.1f} {min(m['animation_psnr_db'] or [float('nan')]):13.1f} "
-              f"{m.get('cuda_vs_cpu_psnr_db', float('nan')):11.2f}")
+              f"{m.get('cuda_vs_cpu_psnr_db', float('nan')):11.2f} {m['single_frame_view_ms_median']:10.2f}")
 print(f"CSV: {os.path.join(args.out, 'gpu_session.csv')}")
 sys.stdout.flush()
