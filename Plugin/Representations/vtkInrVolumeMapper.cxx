@@ -230,6 +230,7 @@ struct vtkInrVolumeMapper::Internals
   // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
   // says why) the image goes through host memory for the rest of the mapper's life.
   InrCudaGlInterop interop;
+  bool cameraInteraction = false;  // this render was asked for by a camera interaction
   bool interopFailed = false;
   std::string imageTransfer;
 
@@ -789,6 +790,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     }
   }
   const InrLevelOfDetail::Frame frame = I.lod.Plan(lod, d, tile.width, tile.height);
+  // A camera interaction that fits at full resolution renders as a still frame, but one frame:
+  // the refinement time budget is for a view at rest (a drag frame would otherwise take it all).
+  I.cameraInteraction = d.interactive && !d.timeChange;
   d.interactive = frame.interactive;
   const bool interactive = frame.interactive;
   const int width = frame.width, height = frame.height;
@@ -1135,8 +1139,8 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
     // Refinement by time: a still render of the GUI's one-frame-per-render refinement adds the
     // frames that fit in the budget.
-    if (!interactive && self->ProgressiveRefinement && self->FramesPerRender == 1 &&
-      this->window.fullWidth == 0)
+    if (!interactive && !this->cameraInteraction && self->ProgressiveRefinement &&
+      self->FramesPerRender == 1 && this->window.fullWidth == 0)
     {
       options.timeBudgetMs = self->RefinementTimeBudget;
     }
