@@ -17,7 +17,6 @@ Prints a table (median PSNR, median render ms, image sizes) and writes every fra
 """
 import argparse
 import csv
-import json
 import math
 import os
 import statistics
@@ -40,8 +39,9 @@ ap.add_argument("--csv", default="fresh_frames.csv")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
-from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
-from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
+
+sys.path.insert(0, HERE)
+import pv_bench_common  # noqa: E402
 
 if args.plugin:
     simple.LoadPlugin(args.plugin, remote=False, ns=globals())
@@ -49,50 +49,12 @@ if args.plugin:
 view = simple.GetActiveViewOrCreate("RenderView")
 view.ViewSize = args.size
 view.OrientationAxesVisibility = 0
-reader = simple.OpenDataFile(args.model)
-if reader is None or reader.GetXMLName() != "InrVolumeReader":
-    sys.exit(f"{args.model}: not opened by the INR Volume reader (is the plugin loaded?)")
-reader.UpdatePipelineInformation()
-t0, t1 = list(reader.GetProperty("TimeRange"))
-display = simple.Show(reader, view)
-display.SetRepresentationType("INR Volume")
-simple.ColorBy(display, ("POINTS", "value"))
-tf_path = os.path.splitext(args.model)[0] + ".tf.json"
-if os.path.exists(tf_path):
-    with open(tf_path) as f:
-        preset = json.load(f)
-    preset = preset[0] if isinstance(preset, list) else preset
-    lut = simple.GetColorTransferFunction("value")
-    lut.AutomaticRescaleRangeMode = "Never"
-    lut.RGBPoints = preset["RGBPoints"]
-    if "Points" in preset:
-        simple.GetOpacityTransferFunction("value").Points = preset["Points"]
-display.SetScalarBarVisibility(view, False)
-display.InrBackend = 1
-b = reader.GetDataInformation().GetBounds()
-display.ScalarOpacityUnitDistance = 0.05 * max(b[1] - b[0], b[3] - b[2], b[5] - b[4])
-simple.ResetCamera(view)
-view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
-view.CameraViewUp = [0.0, 1.0, 0.0]
-simple.ResetCamera(view)
-state = display.SMProxy.GetProperty("InrConverged").GetParent()
-
-
-def get(name):
-    prop = state.GetProperty(name)
-    state.UpdatePropertyInformation(prop)
-    return prop.GetElement(0)
+reader, display, (t0, t1) = pv_bench_common.show_model(view, args.model, 1)
+get = pv_bench_common.RepresentationState(display).get
 
 
 def grab():
-    g = vtkWindowToImageFilter()
-    g.SetInput(view.GetRenderWindow())
-    g.ShouldRerenderOff()
-    g.ReadFrontBufferOff()
-    g.Update()
-    image = g.GetOutput()
-    w, h, _ = image.GetDimensions()
-    return vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)[:, :, :3].astype(float)
+    return pv_bench_common.grab(view)
 
 
 time_t = t0 + 0.55 * (t1 - t0)

@@ -63,8 +63,10 @@ ap.add_argument("--out", default=".")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
-from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
-from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter  # noqa: E402
+
+sys.path.insert(0, HERE)
+from pv_bench_common import RepresentationState as State, show_model  # noqa: E402
+import pv_bench_common  # noqa: E402
 
 if args.plugin:
     simple.LoadPlugin(args.plugin, remote=False, ns=globals())
@@ -84,15 +86,7 @@ summary = {"size": args.size, "drag_size": args.drag_size, "backend": args.backe
 
 
 def grab():
-    """The window as last drawn (no render), RGB floats, row 0 at the bottom."""
-    g = vtkWindowToImageFilter()
-    g.SetInput(view.GetRenderWindow())
-    g.ShouldRerenderOff()
-    g.ReadFrontBufferOff()
-    g.Update()
-    image = g.GetOutput()
-    w, h, _ = image.GetDimensions()
-    return vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)[:, :, :3].astype(float)
+    return pv_bench_common.grab(view)
 
 
 def psnr_over(a, b, mask):
@@ -102,16 +96,6 @@ def psnr_over(a, b, mask):
 
 def volume_pixels(image):
     return np.any(np.abs(image - image[0, 0]) > 2, axis=2)
-
-
-class State:
-    def __init__(self, display):
-        self.proxy = display.SMProxy.GetProperty("InrConverged").GetParent()
-
-    def get(self, name):
-        prop = self.proxy.GetProperty(name)
-        self.proxy.UpdatePropertyInformation(prop)
-        return prop.GetElement(0)
 
 
 def render(kind, model, phase, step, state, still=True):
@@ -134,17 +118,6 @@ def refine(model, phase, step, state):
         done.append(render("still", model, phase, step, state))
         if done[-1]["converged"] or time.perf_counter() - start > args.converge_seconds:
             return time.perf_counter() - start, done
-
-
-def apply_tf(tf_path):
-    lut = simple.GetColorTransferFunction("value")
-    lut.AutomaticRescaleRangeMode = "Never"
-    with open(tf_path) as f:
-        preset = json.load(f)
-    preset = preset[0] if isinstance(preset, list) else preset
-    lut.RGBPoints = preset["RGBPoints"]
-    if "Points" in preset:
-        simple.GetOpacityTransferFunction("value").Points = preset["Points"]
 
 
 def engine_seconds(model_path, t, tf_path, unit_distance, target):
@@ -171,26 +144,8 @@ for model_path in args.models:
     name = os.path.splitext(os.path.basename(model_path))[0]
     tf_path = os.path.splitext(model_path)[0] + ".tf.json"
     view.ViewSize = args.size
-    reader = simple.OpenDataFile(model_path)
-    if reader is None or reader.GetXMLName() != "InrVolumeReader":
-        sys.exit(f"{model_path}: not opened by the INR Volume reader (is the plugin loaded?)")
-    reader.UpdatePipelineInformation()
-    trange = list(reader.GetProperty("TimeRange"))
-    t0, t1 = trange if len(trange) == 2 else (0.0, 0.0)
     open_start = time.perf_counter()
-    display = simple.Show(reader, view)
-    display.SetRepresentationType("INR Volume")
-    simple.ColorBy(display, ("POINTS", "value"))
-    if os.path.exists(tf_path):
-        apply_tf(tf_path)
-    display.SetScalarBarVisibility(view, False)
-    display.InrBackend = BACKENDS[args.backend]
-    b = reader.GetDataInformation().GetBounds()
-    display.ScalarOpacityUnitDistance = 0.05 * max(b[1] - b[0], b[3] - b[2], b[5] - b[4])
-    simple.ResetCamera(view)
-    view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
-    view.CameraViewUp = [0.0, 1.0, 0.0]
-    simple.ResetCamera(view)
+    reader, display, (t0, t1) = show_model(view, model_path, BACKENDS[args.backend])
     state = State(display)
     view.ViewTime = t0
     open_s, _ = refine(name, "open", 0, state)

@@ -30,7 +30,6 @@ Prints a table (median, p90, max per model/phase/mode) and writes every frame to
 """
 import argparse
 import csv
-import json
 import os
 import statistics
 import sys
@@ -59,6 +58,9 @@ args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
 
+sys.path.insert(0, HERE)
+from pv_bench_common import RepresentationState, show_model  # noqa: E402
+
 if args.plugin:
     simple.LoadPlugin(args.plugin, remote=False, ns=globals())
 
@@ -74,34 +76,7 @@ def percentile(values, q):
     return s[k]
 
 
-def apply_tf(display, tf_path):
-    lut = simple.GetColorTransferFunction("value")
-    pwf = simple.GetOpacityTransferFunction("value")
-    lut.AutomaticRescaleRangeMode = "Never"
-    with open(tf_path) as f:
-        preset = json.load(f)
-    preset = preset[0] if isinstance(preset, list) else preset
-    lut.RGBPoints = preset["RGBPoints"]
-    if "ColorSpace" in preset:
-        lut.ColorSpace = preset["ColorSpace"]
-    if "Points" in preset:
-        pwf.Points = preset["Points"]
-
-
 rows = []
-
-
-class RepresentationState:
-    """Information properties of the INR Volume representation, pulled after a render."""
-
-    def __init__(self, display):
-        # The "INR Volume" sub-proxy (the display proxy exposes only the panel's properties).
-        self.proxy = display.SMProxy.GetProperty("InrConverged").GetParent()
-
-    def get(self, name):
-        prop = self.proxy.GetProperty(name)
-        self.proxy.UpdatePropertyInformation(prop)
-        return prop.GetElement(0)
 
 
 def timed(model, phase, lod, step, render, state):
@@ -123,35 +98,18 @@ view.ViewSize = args.size
 view.OrientationAxesVisibility = 0
 for model_path in args.models:
     name = os.path.splitext(os.path.basename(model_path))[0]
-    reader = simple.OpenDataFile(model_path)
-    if reader is None or reader.GetXMLName() != "InrVolumeReader":
-        sys.exit(f"{model_path}: not opened by the INR Volume reader (is the plugin loaded?)")
-    reader.UpdatePipelineInformation()
-    trange = list(reader.GetProperty("TimeRange"))
-    t0, t1 = trange if len(trange) == 2 else (0.0, 0.0)
     open_start = time.perf_counter()
-    display = simple.Show(reader, view)
-    display.SetRepresentationType("INR Volume")
-    # Before anything renders (the camera set-up below already renders once): the first still
-    # render builds the coarse interactive slices ahead or not.
-    display.InrInteractiveLevelOfDetail = 2
-    display.InrInteractiveMacrocellResolution = args.interactive_macrocells
-    display.InrInteractiveMacrocellsAhead = args.interactive_macrocells_ahead
-    display.InrFramesPerRender = 1
-    simple.ColorBy(display, ("POINTS", "value"))
-    tf_path = os.path.splitext(model_path)[0] + ".tf.json"
-    if os.path.exists(tf_path):
-        apply_tf(display, tf_path)
-    display.SetScalarBarVisibility(view, False)
-    display.InrBackend = BACKENDS[args.backend]
+
+    def before_colouring(display):
+        # Before anything renders (the camera set-up renders once): the first still render
+        # builds the coarse interactive slices ahead or not.
+        display.InrInteractiveLevelOfDetail = 2
+        display.InrInteractiveMacrocellResolution = args.interactive_macrocells
+        display.InrInteractiveMacrocellsAhead = args.interactive_macrocells_ahead
+        display.InrFramesPerRender = 1
+
+    reader, display, (t0, t1) = show_model(view, model_path, BACKENDS[args.backend], before_colouring)
     display.InrInteractiveFrameTime = args.frame_time
-    bounds = reader.GetDataInformation().GetBounds()
-    display.ScalarOpacityUnitDistance = 0.05 * max(bounds[1] - bounds[0], bounds[3] - bounds[2],
-                                                   bounds[5] - bounds[4])
-    simple.ResetCamera(view)
-    view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
-    view.CameraViewUp = [0.0, 1.0, 0.0]
-    simple.ResetCamera(view)
     proxy = view.SMProxy
     mapper = RepresentationState(display)
     times = [t0 + (t1 - t0) * i / max(1, args.scrub_steps - 1) for i in range(args.scrub_steps)]
