@@ -45,6 +45,32 @@ struct Refinement
 };
 Refinement ReduceRefinement(const Refinement& local);
 
+/// A rectangle of pixels [x0, x1) x [y0, y1) of a render tile; empty when x1 <= x0 or y1 <= y0.
+struct PixelRect
+{
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool Empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+/// What all ranks agree on before the depth composite: whether any rank drew geometry before its
+/// volumes (then every rank takes part in MinOverRanks, also one without geometry of its own),
+/// whether every rank's tile has the same size (a composite needs that), and the union of the
+/// ranks' volume rectangles (pixels outside every volume's box never need a depth limit).
+/// Collective: every rank calls it once per render, whatever it draws. Without MPI it returns
+/// its arguments.
+struct DepthPlan
+{
+  bool anyGeometry = false;
+  bool sameSize = true;
+  PixelRect rect;
+};
+DepthPlan PlanDepthComposite(bool localGeometry, int width, int height, const PixelRect& localRect);
+
+/// The per-element minimum of `values` over the ranks, in place (the composite of the ranks'
+/// depth buffers: the nearest geometry of any rank). Collective; every rank passes as many
+/// values. Without MPI it leaves them.
+void MinOverRanks(std::vector<float>& values);
+
 /// Every rank's `local` text, in rank order. Collective like ReduceRefinement.
 std::vector<std::string> GatherText(const std::string& local);
 }
