@@ -2,6 +2,10 @@
 
 #include "vtkCommunicator.h"
 #include "vtkMultiProcessController.h"
+#ifdef INR_HAVE_VTK_MPI
+#include "vtkMPI.h"
+#include "vtkMPICommunicator.h"
+#endif
 
 #include <algorithm>
 #include <cstdlib>
@@ -45,6 +49,41 @@ int LocalRank(std::string* source)
     }
   }
   return -1;
+}
+
+int NodeLocalRank(std::string* source)
+{
+#ifdef INR_HAVE_VTK_MPI
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  auto* comm = vtkMPICommunicator::SafeDownCast(c ? c->GetCommunicator() : nullptr);
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (comm && comm->GetMPIComm() && comm->GetMPIComm()->GetHandle() && initialized &&
+    !finalized && c->GetNumberOfProcesses() > 1)
+  {
+    // The ranks that share this node's memory, in the order of their ranks in the communicator:
+    // the same numbering as the launchers' local ranks, from MPI itself.
+    MPI_Comm node = MPI_COMM_NULL;
+    if (MPI_Comm_split_type(*comm->GetMPIComm()->GetHandle(), MPI_COMM_TYPE_SHARED,
+          c->GetLocalProcessId(), MPI_INFO_NULL, &node) == MPI_SUCCESS &&
+      node != MPI_COMM_NULL)
+    {
+      int local = -1;
+      MPI_Comm_rank(node, &local);
+      MPI_Comm_free(&node);
+      if (local >= 0)
+      {
+        if (source)
+        {
+          *source = "MPI_Comm_split_type";
+        }
+        return local;
+      }
+    }
+  }
+#endif
+  return LocalRank(source);
 }
 
 inr::Brick RankBrick(const double bounds[6], int resolution, int rank, int count)

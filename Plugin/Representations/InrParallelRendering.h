@@ -29,6 +29,20 @@ Ranks GlobalRanks();
 /// under srun), or -1 when none is set. `source` names the variable it came from.
 int LocalRank(std::string* source = nullptr);
 
+/// The rank's index among the ranks of its node: with several ranks and MPI initialised, its rank
+/// in MPI_Comm_split_type(MPI_COMM_TYPE_SHARED) of the global controller's communicator (any
+/// launcher: mpirun of Open MPI or MPICH, srun); otherwise LocalRank(). -1 when unknown. `source`
+/// names where it came from. Collective over the controller's ranks when it asks MPI: call it
+/// where every rank passes (the mapper: at the start of its first Render).
+int NodeLocalRank(std::string* source = nullptr);
+
+/// The GPU of a node-local rank: the ranks of a node take its `devices` GPUs round-robin; -1
+/// (the engine's default device) when the local rank is unknown or there is no GPU.
+inline int DeviceForLocalRank(int localRank, int devices)
+{
+  return localRank >= 0 && devices > 0 ? localRank % devices : -1;
+}
+
 /// The box rank `rank` reports to ParaView's ordered compositing: the brick of rank `rank` of `count` for a model box (xmin, xmax, ymin, ymax, zmin, zmax) and
 /// a macrocell grid of `resolution`^3 cells (refined to at least `count` cells per axis, so any
 /// rank count splits); the same on every rank (the decomposition is deterministic).

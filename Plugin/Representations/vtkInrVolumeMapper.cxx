@@ -302,8 +302,19 @@ struct vtkInrVolumeMapper::Internals
   std::string rankInUse;  // appended to the backend description
   int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
   std::string localRankSource;
-  int cudaDevices = 0;    // CUDA devices this process sees
-  bool haveDevice = false;
+  int cudaDevices = -1;   // CUDA devices this process sees (-1: not counted yet)
+  bool haveLocalRank = false;
+  std::string rankNoteKey;  // the local rank and source rankInUse was written for
+  // Once per process life of the mapper: neither the node nor the rank changes. Asking MPI is
+  // collective, so Render calls it first thing, where every rank passes.
+  void LookUpLocalRank()
+  {
+    if (!this->haveLocalRank)
+    {
+      this->localRank = InrParallelRendering::NodeLocalRank(&this->localRankSource);
+      this->haveLocalRank = true;
+    }
+  }
   std::string ranksInUse;  // one line per rank after each render (several ranks only)
   // With several ranks: this rank's pixel share (image-space split).
   void RankSettings(inr::RenderSettings& settings) const;
@@ -772,6 +783,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // The depth limit before anything can return: under MPI its composite is collective, and a
   // rank that draws nothing must still bring its geometry to the others' rays.
   I.CompositeDepth(ren, vol);
+  I.LookUpLocalRank();
   if (insideDepthPeeling(vol))
   {
     // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
@@ -1010,17 +1022,21 @@ InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self
   r.skipBlockCells = this->options.macrocellsValid.skipBlockCells;
   r.boundsPadding = this->options.macrocellsValid.boundsPadding;
   r.tracking = this->options.trackingValid;
-  // One GPU per rank: the rank's index on its node picks the device (looked up once: neither
-  // changes while the process runs).
-  if (!this->haveDevice)
+  // One GPU per rank: the rank's index on its node (LookUpLocalRank, at the start of the first
+  // Render) picks the device. Not looked up yet (PrepareRender before the first Render, which
+  // not every rank may reach): the launcher's environment, without the collective.
+  if (!this->haveLocalRank)
   {
     this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
-    this->cudaDevices = inr::cudaDeviceCount();
-    this->haveDevice = true;
   }
-  if (this->localRank >= 0 && this->cudaDevices > 0)
+  if (this->cudaDevices < 0)
   {
-    r.cudaDevice = this->localRank % this->cudaDevices;
+    this->cudaDevices = inr::cudaDeviceCount();
+  }
+  const int device = InrParallelRendering::DeviceForLocalRank(this->localRank, this->cudaDevices);
+  if (device >= 0)
+  {
+    r.cudaDevice = device;
   }
   return r;
 }
@@ -1035,8 +1051,13 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
     return false;
   }
   const InrEngineSlot& f = this->engines.fine;
-  if (this->engines.Rebuilt())
+  // Also when the local rank's source changed: the first Render asks MPI (LookUpLocalRank) after
+  // a PrepareRender may have built the sessions from the environment (same device under Open
+  // MPI, so no rebuild).
+  const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
+  if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
   {
+    this->rankNoteKey = rankKey;
     this->rankInUse.clear();
     if (this->ranks.count > 1 || this->localRank >= 0)
     {
