@@ -2,9 +2,14 @@
 
 #include "vtkCommunicator.h"
 #include "vtkMultiProcessController.h"
+#ifdef INR_HAVE_VTK_MPI
+#include "vtkMPI.h"
+#include "vtkMPICommunicator.h"
+#endif
 
 #include <algorithm>
 #include <cstdlib>
+#include <limits>
 
 namespace InrParallelRendering
 {
@@ -46,6 +51,41 @@ int LocalRank(std::string* source)
   return -1;
 }
 
+int NodeLocalRank(std::string* source)
+{
+#ifdef INR_HAVE_VTK_MPI
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  auto* comm = vtkMPICommunicator::SafeDownCast(c ? c->GetCommunicator() : nullptr);
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (comm && comm->GetMPIComm() && comm->GetMPIComm()->GetHandle() && initialized &&
+    !finalized && c->GetNumberOfProcesses() > 1)
+  {
+    // The ranks that share this node's memory, in the order of their ranks in the communicator:
+    // the same numbering as the launchers' local ranks, from MPI itself.
+    MPI_Comm node = MPI_COMM_NULL;
+    if (MPI_Comm_split_type(*comm->GetMPIComm()->GetHandle(), MPI_COMM_TYPE_SHARED,
+          c->GetLocalProcessId(), MPI_INFO_NULL, &node) == MPI_SUCCESS &&
+      node != MPI_COMM_NULL)
+    {
+      int local = -1;
+      MPI_Comm_rank(node, &local);
+      MPI_Comm_free(&node);
+      if (local >= 0)
+      {
+        if (source)
+        {
+          *source = "MPI_Comm_split_type";
+        }
+        return local;
+      }
+    }
+  }
+#endif
+  return LocalRank(source);
+}
+
 inr::Brick RankBrick(const double bounds[6], int resolution, int rank, int count)
 {
   const inr::Box3f box{ { float(bounds[0]), float(bounds[2]), float(bounds[4]) },
@@ -70,6 +110,43 @@ Refinement ReduceRefinement(const Refinement& local)
   double estimateMin = local.estimate;
   c->AllReduce(&local.estimate, &estimateMin, 1, vtkCommunicator::MIN_OP);
   return Refinement{ intsMin[0], intsMin[1], estimateMin };
+}
+
+DepthPlan PlanDepthComposite(bool localGeometry, int width, int height, const PixelRect& localRect)
+{
+  DepthPlan plan{ localGeometry, true, localRect };
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  if (!c || c->GetNumberOfProcesses() < 2)
+  {
+    return plan;
+  }
+  // One MAX reduction answers everything: a size's maximum and its negated minimum agree only
+  // when every rank has that size; the union's corners are the extreme corners of the non-empty
+  // rectangles (an empty one takes no part).
+  const int lowest = std::numeric_limits<int>::min() / 2;
+  const bool empty = localRect.Empty();
+  const int local[9] = { localGeometry ? 1 : 0, width, -width, height, -height,
+    empty ? lowest : -localRect.x0, empty ? lowest : -localRect.y0,
+    empty ? lowest : localRect.x1, empty ? lowest : localRect.y1 };
+  int all[9];
+  c->AllReduce(local, all, 9, vtkCommunicator::MAX_OP);
+  plan.anyGeometry = all[0] != 0;
+  plan.sameSize = all[1] == -all[2] && all[3] == -all[4];
+  plan.rect = all[5] == lowest ? PixelRect{} : PixelRect{ -all[5], -all[6], all[7], all[8] };
+  return plan;
+}
+
+void MinOverRanks(std::vector<float>& values)
+{
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  if (!c || c->GetNumberOfProcesses() < 2 || values.empty())
+  {
+    return;
+  }
+  std::vector<float> all(values.size());
+  c->AllReduce(values.data(), all.data(), static_cast<vtkIdType>(values.size()),
+    vtkCommunicator::MIN_OP);
+  values.swap(all);
 }
 
 std::vector<std::string> GatherText(const std::string& local)

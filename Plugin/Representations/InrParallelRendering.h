@@ -29,6 +29,20 @@ Ranks GlobalRanks();
 /// under srun), or -1 when none is set. `source` names the variable it came from.
 int LocalRank(std::string* source = nullptr);
 
+/// The rank's index among the ranks of its node: with several ranks and MPI initialised, its rank
+/// in MPI_Comm_split_type(MPI_COMM_TYPE_SHARED) of the global controller's communicator (any
+/// launcher: mpirun of Open MPI or MPICH, srun); otherwise LocalRank(). -1 when unknown. `source`
+/// names where it came from. Collective over the controller's ranks when it asks MPI: call it
+/// where every rank passes (the mapper: at the start of its first Render).
+int NodeLocalRank(std::string* source = nullptr);
+
+/// The GPU of a node-local rank: the ranks of a node take its `devices` GPUs round-robin; -1
+/// (the engine's default device) when the local rank is unknown or there is no GPU.
+inline int DeviceForLocalRank(int localRank, int devices)
+{
+  return localRank >= 0 && devices > 0 ? localRank % devices : -1;
+}
+
 /// The box rank `rank` reports to ParaView's ordered compositing: the brick of rank `rank` of `count` for a model box (xmin, xmax, ymin, ymax, zmin, zmax) and
 /// a macrocell grid of `resolution`^3 cells (refined to at least `count` cells per axis, so any
 /// rank count splits); the same on every rank (the decomposition is deterministic).
@@ -44,6 +58,32 @@ struct Refinement
   double estimate = 0.0;
 };
 Refinement ReduceRefinement(const Refinement& local);
+
+/// A rectangle of pixels [x0, x1) x [y0, y1) of a render tile; empty when x1 <= x0 or y1 <= y0.
+struct PixelRect
+{
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool Empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+/// What all ranks agree on before the depth composite: whether any rank drew geometry before its
+/// volumes (then every rank takes part in MinOverRanks, also one without geometry of its own),
+/// whether every rank's tile has the same size (a composite needs that), and the union of the
+/// ranks' volume rectangles (pixels outside every volume's box never need a depth limit).
+/// Collective: every rank calls it once per render, whatever it draws. Without MPI it returns
+/// its arguments.
+struct DepthPlan
+{
+  bool anyGeometry = false;
+  bool sameSize = true;
+  PixelRect rect;
+};
+DepthPlan PlanDepthComposite(bool localGeometry, int width, int height, const PixelRect& localRect);
+
+/// The per-element minimum of `values` over the ranks, in place (the composite of the ranks'
+/// depth buffers: the nearest geometry of any rank). Collective; every rank passes as many
+/// values. Without MPI it leaves them.
+void MinOverRanks(std::vector<float>& values);
 
 /// Every rank's `local` text, in rank order. Collective like ReduceRefinement.
 std::vector<std::string> GatherText(const std::string& local);

@@ -3,6 +3,7 @@
 #include "vtkActor.h"
 #include "vtkActor2D.h"
 #include "vtkCallbackCommand.h"
+#include "vtkCamera.h"
 #include "vtkDataSet.h"
 #include "vtkDualDepthPeelingPass.h"
 #include "vtkMath.h"
@@ -10,6 +11,7 @@
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
 #include "vtkInformationObjectBaseVectorKey.h"
+#include "vtkMatrix4x4.h"
 #include "vtkObjectFactory.h"
 #include "vtkOpenGLRenderPass.h"
 #include "vtkOpenGLRenderWindow.h"
@@ -44,6 +46,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <limits>
 #include <memory>
 #include <sstream>
@@ -106,6 +109,40 @@ bool geometryDrawnBeforeVolumes(vtkRenderer* ren)
     }
   }
   return false;
+}
+
+// The pixels of a width x height tile that the volume's box can cover (its corners projected,
+// two pixels wider for rounding); the whole tile when a corner lies at or behind the eye (its
+// projection says nothing), nothing when the volume has no bounds (no data on this rank).
+InrParallelRendering::PixelRect volumeRect(vtkRenderer* ren, vtkVolume* vol, int width, int height)
+{
+  const double* b = vol->GetBounds();
+  if (width <= 0 || height <= 0 || !b || !vtkMath::AreBoundsInitialized(b))
+  {
+    return {};
+  }
+  vtkMatrix4x4* m = ren->GetActiveCamera()->GetCompositeProjectionTransformMatrix(
+    double(width) / double(height), -1, 1);
+  double lo[2] = { std::numeric_limits<double>::max(), std::numeric_limits<double>::max() };
+  double hi[2] = { std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest() };
+  for (int k = 0; k < 8; ++k)
+  {
+    const double p[4] = { b[k & 1], b[2 + ((k >> 1) & 1)], b[4 + ((k >> 2) & 1)], 1.0 };
+    double q[4];
+    m->MultiplyPoint(p, q);
+    if (!(q[3] > 1e-9))
+    {
+      return { 0, 0, width, height };
+    }
+    const double x = (q[0] / q[3] + 1.0) * 0.5 * width, y = (q[1] / q[3] + 1.0) * 0.5 * height;
+    lo[0] = std::min(lo[0], x);
+    hi[0] = std::max(hi[0], x);
+    lo[1] = std::min(lo[1], y);
+    hi[1] = std::max(hi[1], y);
+  }
+  const auto clampTo = [](double v, int n) { return int(std::max(0.0, std::min(double(n), v))); };
+  return { clampTo(std::floor(lo[0]) - 2, width), clampTo(std::floor(lo[1]) - 2, height),
+    clampTo(std::ceil(hi[0]) + 2, width), clampTo(std::ceil(hi[1]) + 2, height) };
 }
 
 bool lodReport()
@@ -224,7 +261,12 @@ struct vtkInrVolumeMapper::Internals
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;
+  // The window's depth over the render tile (GL rows) where `depthValid`: the nearest opaque
+  // geometry drawn before the volume, under MPI of every rank (CompositeDepth).
   std::vector<float> depth;
+  bool depthValid = false;
+  bool warnedDepthSize = false;
+  void CompositeDepth(vtkRenderer* ren, vtkVolume* vol);
   inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
   // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
@@ -261,8 +303,19 @@ struct vtkInrVolumeMapper::Internals
   std::string rankInUse;  // appended to the backend description
   int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
   std::string localRankSource;
-  int cudaDevices = 0;    // CUDA devices this process sees
-  bool haveDevice = false;
+  int cudaDevices = -1;   // CUDA devices this process sees (-1: not counted yet)
+  bool haveLocalRank = false;
+  std::string rankNoteKey;  // the local rank and source rankInUse was written for
+  // Once per process life of the mapper: neither the node nor the rank changes. Asking MPI is
+  // collective, so Render calls it first thing, where every rank passes.
+  void LookUpLocalRank()
+  {
+    if (!this->haveLocalRank)
+    {
+      this->localRank = InrParallelRendering::NodeLocalRank(&this->localRankSource);
+      this->haveLocalRank = true;
+    }
+  }
   std::string ranksInUse;  // one line per rank after each render (several ranks only)
   // With several ranks: this rank's pixel share (image-space split).
   void RankSettings(inr::RenderSettings& settings) const;
@@ -728,6 +781,10 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     bool rendered = false;
     ~RankReduction() { I.ReduceOverRanks(self, rendered); }
   } reduction{ I, this };
+  // The depth limit before anything can return: under MPI its composite is collective, and a
+  // rank that draws nothing must still bring its geometry to the others' rays.
+  I.CompositeDepth(ren, vol);
+  I.LookUpLocalRank();
   if (insideDepthPeeling(vol))
   {
     // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
@@ -969,17 +1026,21 @@ InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self
   r.skipBlockCells = this->options.macrocellsValid.skipBlockCells;
   r.boundsPadding = this->options.macrocellsValid.boundsPadding;
   r.tracking = this->options.trackingValid;
-  // One GPU per rank: the rank's index on its node picks the device (looked up once: neither
-  // changes while the process runs).
-  if (!this->haveDevice)
+  // One GPU per rank: the rank's index on its node (LookUpLocalRank, at the start of the first
+  // Render) picks the device. Not looked up yet (PrepareRender before the first Render, which
+  // not every rank may reach): the launcher's environment, without the collective.
+  if (!this->haveLocalRank)
   {
     this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
-    this->cudaDevices = inr::cudaDeviceCount();
-    this->haveDevice = true;
   }
-  if (this->localRank >= 0 && this->cudaDevices > 0)
+  if (this->cudaDevices < 0)
   {
-    r.cudaDevice = this->localRank % this->cudaDevices;
+    this->cudaDevices = inr::cudaDeviceCount();
+  }
+  const int device = InrParallelRendering::DeviceForLocalRank(this->localRank, this->cudaDevices);
+  if (device >= 0)
+  {
+    r.cudaDevice = device;
   }
   return r;
 }
@@ -994,8 +1055,13 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
     return false;
   }
   const InrEngineSlot& f = this->engines.fine;
-  if (this->engines.Rebuilt())
+  // Also when the local rank's source changed: the first Render asks MPI (LookUpLocalRank) after
+  // a PrepareRender may have built the sessions from the environment (same device under Open
+  // MPI, so no rebuild).
+  const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
+  if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
   {
+    this->rankNoteKey = rankKey;
     this->rankInUse.clear();
     if (this->ranks.count > 1 || this->localRank >= 0)
     {
@@ -1030,13 +1096,10 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   inr::RenderScene scene;
   scene.camera = InrSceneTranslator::TranslateCamera(cam, width, height);
   scene.camera.modelToWorld = InrSceneTranslator::ModelToWorld(vol);
-  // Depth limit: world distance to the opaque geometry rendered before the volume. Without any
-  // such geometry the depth buffer holds only the clear value (no limit): skip the read, which
-  // costs tens of ms per render on a software OpenGL.
-  if (geometryDrawnBeforeVolumes(ren))
+  // Depth limit: world distance to the opaque geometry rendered before the volume (of every rank:
+  // CompositeDepth, called for this tile at the start of the render).
+  if (this->depthValid)
   {
-    InrFramebufferCompositor::ReadDepth(
-      ren->GetRenderWindow(), tile.x0, tile.y0, width, height, this->depth);
     scene.depthLimit = InrSceneTranslator::DepthToRayDistances(this->depth, width, height, cam);
   }
   double valueRange[2];
@@ -1056,6 +1119,81 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   scene.shadowEstimator =
     self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
   return scene;
+}
+
+// The depth that clips the rays, over the render tile. One process: the window's depth buffer
+// where geometry was drawn before the volume; without any the buffer holds only the clear value
+// (no limit) and the read, tens of ms per render on a software OpenGL, is skipped. Several ranks
+// (ParaView's distributed rendering): each rank's buffer holds only its own geometry, which IceT
+// composites after the volumes, so a rank's rays would pass another rank's surfaces; the limit is
+// the per-pixel minimum over all ranks' buffers (over the union of the volumes' rectangles: no
+// ray outside it meets the box). Whether to read is decided by all ranks together
+// (PlanDepthComposite) since the reduction is collective: a rank without geometry contributes
+// the clear value.
+void vtkInrVolumeMapper::Internals::CompositeDepth(vtkRenderer* ren, vtkVolume* vol)
+{
+  this->depthValid = false;
+  Viewport tile;
+  ren->GetTiledSizeAndOrigin(&tile.width, &tile.height, &tile.x0, &tile.y0);
+  const bool localGeometry = geometryDrawnBeforeVolumes(ren);
+  if (this->ranks.count < 2)
+  {
+    if (localGeometry && tile.width > 0 && tile.height > 0)
+    {
+      InrFramebufferCompositor::ReadDepth(
+        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
+      this->depthValid = true;
+    }
+    return;
+  }
+  const InrParallelRendering::DepthPlan plan = InrParallelRendering::PlanDepthComposite(
+    localGeometry, tile.width, tile.height, volumeRect(ren, vol, tile.width, tile.height));
+  if (!plan.anyGeometry || tile.width <= 0 || tile.height <= 0)
+  {
+    return;
+  }
+  if (!plan.sameSize)
+  {
+    // Not seen with ParaView (every rank renders the same view); each rank keeps its own depth.
+    if (!this->warnedDepthSize)
+    {
+      std::cerr << "INR Volume: the ranks' render sizes differ: each rank clips its rays by its "
+                   "own geometry only\n";
+      this->warnedDepthSize = true;
+    }
+    if (localGeometry)
+    {
+      InrFramebufferCompositor::ReadDepth(
+        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
+      this->depthValid = true;
+    }
+    return;
+  }
+  const InrParallelRendering::PixelRect r = plan.rect;
+  const int rw = std::max(0, r.x1 - r.x0), rh = std::max(0, r.y1 - r.y0);
+  std::vector<float> part;
+  if (localGeometry && rw > 0 && rh > 0)
+  {
+    InrFramebufferCompositor::ReadDepth(
+      ren->GetRenderWindow(), tile.x0 + r.x0, tile.y0 + r.y0, rw, rh, part);
+  }
+  else
+  {
+    part.assign(std::size_t(rw) * std::size_t(rh), 1.0f);  // the clear value: no geometry here
+  }
+  InrParallelRendering::MinOverRanks(part);
+  this->depth.assign(std::size_t(tile.width) * std::size_t(tile.height), 1.0f);
+  for (int j = 0; j < rh; ++j)
+  {
+    std::copy_n(part.begin() + std::ptrdiff_t(j) * rw, rw,
+      this->depth.begin() + std::ptrdiff_t(r.y0 + j) * tile.width + r.x0);
+  }
+  this->depthValid = true;
+  if (debugReport())
+  {
+    std::cerr << "INR Volume: rank " << this->ranks.rank << " depth composite over " << rw << "x"
+              << rh << " pixels (own geometry " << (localGeometry ? "yes" : "no") << ")\n";
+  }
 }
 
 // Once per mapper: translucent polygonal geometry in the renderer (VTK draws it before volumes

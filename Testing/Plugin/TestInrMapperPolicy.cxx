@@ -11,6 +11,7 @@
 #include "Evaluator/FieldEvaluator.h"
 #include "InrEngineSlots.h"
 #include "InrLevelOfDetail.h"
+#include "InrParallelRendering.h"
 
 namespace
 {
@@ -232,5 +233,18 @@ TEST(InrSessionOptions, TheCoarseSessionDiffersInItsGridAndEvaluatorOnly)
   InrEngineRequest still = r;
   still.modelUsesTime = false;
   EXPECT_EQ(InrSessionOptions(still, InrSessionLevel::Fine()).macrocells.temporalSlices, 1);
+}
+
+// Under MPI each rank takes a GPU of its node by its node-local rank (NodeLocalRank): the ranks
+// of a node share its GPUs round-robin; unknown rank or no GPU: the engine's default (-1).
+TEST(MapperPolicy, DeviceForLocalRank)
+{
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(0, 4), 0);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(3, 4), 3);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(5, 4), 1);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(7, 2), 1);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(2, 1), 0);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(-1, 4), -1);
+  EXPECT_EQ(InrParallelRendering::DeviceForLocalRank(2, 0), -1);
 }
 }

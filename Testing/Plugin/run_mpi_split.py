@@ -12,6 +12,7 @@ given, then checks against the single-rank run:
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -79,6 +80,14 @@ for n, rep in reports.items():
               f"np {n}, shadows {s}: every rank reported ({len(ranks)} lines)")
         check(all(x["state"] == "converged" and x["frames"] == args.frames for x in ranks),
               f"np {n}, shadows {s}: every rank converged with {args.frames} frames")
+        if n > 1:
+            # One node, Open MPI: the node-local rank comes from MPI_Comm_split_type and equals
+            # the world rank (and OMPI_COMM_WORLD_LOCAL_RANK, which it replaces as the source).
+            local = [re.search(r"local rank (\d+) from (\w+)", x["backend"]) for x in ranks]
+            check(all(m and int(m.group(1)) == x["rank"] and m.group(2) == "MPI_Comm_split_type"
+                      for m, x in zip(local, ranks)),
+                  f"np {n}, shadows {s}: each rank's local rank from MPI_Comm_split_type equals its "
+                  f"rank on this node: " + ", ".join(m.group(0) if m else "none" for m in local))
         total0 = sum(x["queries"] for x in r0["ranks"])
         total = sum(x["queries"] for x in ranks)
         if n != base_n and total0 > 0:
