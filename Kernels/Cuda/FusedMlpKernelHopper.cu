@@ -2,6 +2,8 @@
 // (Kernels/Cuda/CMakeLists.txt), so on an H100/H200 the driver can only load the wgmma code, and
 // on any other GPU the kernel reports no image and the evaluator keeps the mma.sync kernel.
 #include "Cuda/FusedMlpKernelHopper.cuh"
+#include "Cuda/FusedMlpKernels.h"
+#include "Cuda/FusedMlpRowInstructions.cuh"
 
 namespace inr::cuda {
 
