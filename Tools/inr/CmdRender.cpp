@@ -23,6 +23,7 @@
 #include "Model/InrModel.h"
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
+#include "Backends/SessionRayMarcher.h"
 #include "Render/BrickDecomposition.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
@@ -143,24 +144,26 @@ void printFrameLine(const RenderJob& job, const FrameStats& st, long k) {
   std::fflush(stdout);
 }
 
-// --method raymarch: the fixed-step marcher on the session's evaluator, job.frames frames (no
-// split: parseRenderJob refuses one, so job.settings are the run's).
-RenderOutcome renderRayMarch(const RenderJob& job, const FieldEvaluator& evaluator, const Box3f& box,
+// --method raymarch: the fixed-step marcher on the session's backend (the GPU marcher on CUDA),
+// job.frames frames (no split: parseRenderJob refuses one, so job.settings are the run's).
+RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session, const Box3f& box,
                              const RenderScene& scene, nlohmann::json& report) {
-  RayMarchRenderer renderer(evaluator, box, job.rayMarch);
-  renderer.setSettings(job.settings);
-  renderer.setScene(scene);
-  report["step"] = renderer.step();
-  report["shadow_step"] = renderer.shadowStep();
+  const std::unique_ptr<SessionRayMarcher> renderer = SessionRayMarcher::create(session, box, job.rayMarch, scene.shadows);
+  if (!job.quiet) std::printf("ray marcher: %s\n", renderer->description().c_str());
+  renderer->setSettings(job.settings);
+  renderer->setScene(scene);
+  report["marcher"] = renderer->description();
+  report["step"] = renderer->step();
+  report["shadow_step"] = renderer->shadowStep();  // 0: shadows not marched
   RenderOutcome r;
   for (long k = 0; k < job.frames; ++k) {
-    const FrameStats st = renderer.renderFrame();
+    const FrameStats st = renderer->renderFrame();
     printFrameLine(job, st, k);
     r.total += st;
     r.perFrame.push_back(statsJson(st));
   }
   r.frames = job.frames;
-  r.image = renderer.image();
+  r.image = renderer->image();
   return r;
 }
 
@@ -331,7 +334,7 @@ int runRenderJob(const RenderJob& job) {
   if (job.method != RenderMethod::RayMarch) report["query_reduction"] = queryReductionJson(session->queryReduction());
 
   const RenderOutcome r = job.method == RenderMethod::RayMarch
-                              ? renderRayMarch(job, evaluator, box, scene, report)
+                              ? renderRayMarch(job, *session, box, scene, report)
                               : renderTracking(job, settings, *session, scene, brick, report);
 
   if (job.writesNpy()) writeNpyRgba(job.output, r.image);
