@@ -12,9 +12,12 @@
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
 #include "Cuda/DeviceBuffer.h"
-#include "Cuda/FusedMlpKernel.cuh"
+#include "Cuda/FusedLaunchAutotuner.h"
+#include "Cuda/FusedMlpDevice.cuh"
 #include "Cuda/FusedMlpKernelHopper.cuh"
-#include "Cuda/MlpProgram.h"
+#include "Cuda/FusedMlpKernels.h"
+#include "Cuda/FusedMlpParams.cuh"
+#include "Evaluator/MlpProgram.h"
 
 namespace inr {
 namespace {
@@ -97,23 +100,10 @@ __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, co
   cuda::writeOutput(map, points[q].w, net, offset + q, out, scatter);
 }
 
+using cuda::FusedConfig;
 using cuda::FusedKernel;
-
-// Tile of 32*WR queries, 4*WR warps; weight chunks of KC columns.
-FusedKernel fusedKernelFor(int tile, int kc) {
-  if (kc == 32) {
-    switch (tile) {
-      case 128: return cuda::fusedMlpKernel<4, 32>;
-      case 64: return cuda::fusedMlpKernel<2, 32>;
-      default: return cuda::fusedMlpKernel<1, 32>;
-    }
-  }
-  switch (tile) {
-    case 128: return cuda::fusedMlpKernel<4, 64>;
-    case 64: return cuda::fusedMlpKernel<2, 64>;
-    default: return cuda::fusedMlpKernel<1, 64>;
-  }
-}
+using cuda::FusedLaunchAutotuner;
+using cuda::configName;
 
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
@@ -123,26 +113,25 @@ FusedKernel hopperKernel(int) { return nullptr; }  // not built: no Hopper archi
 namespace {
 #endif
 
-struct FusedConfig {
-  bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
-  int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
-  int stages = 0;         // wgmma: weight ring slots
-  bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
-  // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
-  // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
-  // form sits on the GEMM's critical path; figures: Benchmarks/RESULTS.md, "Warp-specialised
-  // Hopper kernel").
-  bool storedEncoding = false;
-  std::size_t sharedBytes = 0;
-  int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
-  double measuredQps = 0.0;
-};
+// Why the wgmma kernel cannot run here ("" when it can): it is built for sm_90a, so it loads
+// only on a compute capability 9.0 device.
+std::string whyNoWgmmaKernel(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options) {
+  if (options.mma == FusedMma::MmaSync) return "not requested";
+  if (!cuda::hopperKernel(64)) return "not built (no CUDA architecture 90)";
+  if (device.major != 9 || device.minor != 0) return "needs compute capability 9.0";
+  cudaFuncAttributes attr{};
+  const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64));
+  if (e != cudaSuccess) {
+    cudaGetLastError();
+    return std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
+  }
+  return "";
+}
 
-// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong".
-std::string configName(const FusedConfig& c) {
-  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
-  return "wgmma " + std::to_string(cuda::kHopperConsumers) + "x" + std::to_string(cuda::kHopperRows) + " x N " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
+  std::vector<__half> h(bits.size());
+  for (std::size_t i = 0; i < h.size(); ++i) h[i] = __ushort_as_half(bits[i]);
+  return h;
 }
 
 }  // namespace
@@ -153,10 +142,8 @@ struct CudaInrEvaluator::Impl {
   CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
   FusedConfig config;       // launches of kSmallBatchThreshold queries or more
   FusedConfig smallConfig;  // smaller launches
-  FusedConfig bestLarge, bestSmall;
   std::string launchReport;
-  static constexpr int kSmallBatch = 1 << 13;
-  static constexpr int kSmallBatchThreshold = 1 << 15;
+  static constexpr int kSmallBatchThreshold = FusedLaunchAutotuner::kSmallBatchThreshold;
   cuda::FusedParams params;
   cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
   cuda::DeviceBuffer<MlpInstr> storedInstrs;
@@ -175,19 +162,19 @@ struct CudaInrEvaluator::Impl {
   cublasHandle_t cublas = nullptr;
   mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
   static constexpr int kGenericChunk = 1 << 16;
+
+  void prepareParams(const InrModel& model);
+  // Runs one fused configuration on n points (at most, with a device-side count).
+  void launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float* out,
+                   const int* scatter, cudaStream_t stream) const;
 };
 
-CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
-    : impl_(std::make_unique<Impl>()) {
-  Impl& I = *impl_;
-  I.device = queryCudaDevice(options.device);
-  if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);
-  INR_CUDA_CHECK(cudaSetDevice(options.device));
-  I.program = MlpProgram::compile(model.architecture);
-  const MlpProgram& prog = I.program;
-
+// The program's parameters for the fused kernels (params, and paramsStored with any Fourier
+// encoding stored), with the weights packed and uploaded for each kernel and chunk width.
+void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
+  const MlpProgram& prog = program;
   // Input mapping in network input order; output mapping as a (t, a, b) table.
-  auto& P = I.params;
+  auto& P = params;
   P.inputDim = model.architecture.inputDim;
   for (int i = 0; i < P.inputDim; ++i) {
     const int w = model.domain.inputOrder[i];
@@ -202,75 +189,85 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       model.output.affineAt(t, a, b);
       table.insert(table.end(), {float(t), a, b});
     }
-    I.outputTable.upload(table, nullptr);
+    outputTable.upload(table, nullptr);
     P.output.count = int(model.output.perTime->times.size());
-    P.output.table = I.outputTable.get();
+    P.output.table = outputTable.get();
   } else {
     P.output.a = model.output.scale;
     P.output.b = model.output.offset;
   }
 
-  I.instrs.upload(prog.instrs, nullptr);
+  instrs.upload(prog.instrs, nullptr);
   for (int kc : {64, 32}) {
-    const std::vector<std::uint16_t> packed = cuda::packStagedWeights(prog, kc, P.stagedOffset[cuda::kcIndex(kc)]);
-    std::vector<__half> hw(packed.size());
-    for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
-    I.stagedW[cuda::kcIndex(kc)].upload(hw, nullptr);
-    P.stagedWeights[cuda::kcIndex(kc)] = I.stagedW[cuda::kcIndex(kc)].get();
-  }
-  // The wgmma kernel: built for sm_90a, so it loads only on a compute capability 9.0 device.
-  if (options.mma == FusedMma::MmaSync) I.whyNoWgmma = "not requested";
-  else if (!cuda::hopperKernel(64)) I.whyNoWgmma = "not built (no CUDA architecture 90)";
-  else if (I.device.major != 9 || I.device.minor != 0) I.whyNoWgmma = "needs compute capability 9.0";
-  else {
-    cudaFuncAttributes attr{};
-    const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64));
-    if (e != cudaSuccess) {
-      cudaGetLastError();
-      I.whyNoWgmma = std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
-    }
+    stagedW[cuda::kcIndex(kc)].upload(asHalves(cuda::packStagedWeights(prog, kc, P.stagedOffset[cuda::kcIndex(kc)])), nullptr);
+    P.stagedWeights[cuda::kcIndex(kc)] = stagedW[cuda::kcIndex(kc)].get();
   }
   // Each warp of the wgmma kernel holds a layer's A (K <= 256) in registers before its
   // epilogues write the rows: in place up to that K.
-  I.hopperProgram = prog.withGemmsInPlace(cuda::kHopperKSegment);
-  if (I.whyNoWgmma.empty()) {
+  hopperProgram = prog.withGemmsInPlace(cuda::kHopperKSegment);
+  if (whyNoWgmma.empty()) {
     for (const int nc : cuda::kHopperChunkWidths) {
       const int w = cuda::chunkIndex(nc);
-      const std::vector<std::uint16_t> packed = cuda::packHopperWeights(prog, nc, P.hopperOffset[w], cuda::kMaxFusedInstrs);
-      std::vector<__half> hw(packed.size());
-      for (std::size_t i = 0; i < hw.size(); ++i) hw[i] = __ushort_as_half(packed[i]);
-      I.hopperW[w].upload(hw, nullptr);
-      P.hopperWeights[w] = I.hopperW[w].get();
+      hopperW[w].upload(asHalves(cuda::packHopperWeights(prog, nc, P.hopperOffset[w], cuda::kMaxFusedInstrs)), nullptr);
+      P.hopperWeights[w] = hopperW[w].get();
       P.hopperStageHalves[w] = cuda::hopperStageHalves(prog, nc);
     }
-    I.hopperInstrs.upload(I.hopperProgram.instrs, nullptr);
-    P.hopperInstrs = I.hopperInstrs.get();
+    hopperInstrs.upload(hopperProgram.instrs, nullptr);
+    P.hopperInstrs = hopperInstrs.get();
   }
   P.hopperBiasFloats = cuda::hopperBiasLayout(prog, P.hopperBiasStart, cuda::kMaxFusedInstrs);
-  P.hopperNumBuffers = std::max(1, I.hopperProgram.numBuffers);
+  P.hopperNumBuffers = std::max(1, hopperProgram.numBuffers);
   for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
-    P.hopperBufferLd[b] = I.hopperProgram.bufferWidthPad[b] + 8;
+    P.hopperBufferLd[b] = hopperProgram.bufferWidthPad[b] + 8;
   for (const MlpInstr& in : prog.instrs) P.fusedFourier |= in.fourierInput >= 0 ? 1 : 0;
   const MlpProgram storedProgram = prog.withEncodingsStored();
-  if (P.fusedFourier) I.storedInstrs.upload(storedProgram.instrs, nullptr);
-  I.floatW.upload(prog.floatWeights, nullptr);
+  if (P.fusedFourier) storedInstrs.upload(storedProgram.instrs, nullptr);
+  floatW.upload(prog.floatWeights, nullptr);
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
-  P.instrs = I.instrs.get();
+  P.instrs = instrs.get();
   P.numInstrs = int(prog.instrs.size());
-  P.floatWeights = I.floatW.get();
+  P.floatWeights = floatW.get();
   P.numBuffers = std::max(1, prog.numBuffers);
   for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
   P.maxGemmOutPad = std::max(16, prog.maxGemmOutPad);
   // The same program with any Fourier encoding stored in its buffer (not fused into the GEMM).
-  I.paramsStored = P;
+  paramsStored = P;
   if (P.fusedFourier) {
-    I.paramsStored.instrs = I.storedInstrs.get();
-    I.paramsStored.fusedFourier = 0;
+    paramsStored.instrs = storedInstrs.get();
+    paramsStored.fusedFourier = 0;
     for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b)
-      I.paramsStored.bufferLd[b] = storedProgram.bufferWidthPad[std::size_t(b)] + 8;
+      paramsStored.bufferLd[b] = storedProgram.bufferWidthPad[std::size_t(b)] + 8;
   }
+}
 
-  // Path and tile size.
+void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount,
+                                         float* out, const int* scatter, cudaStream_t stream) const {
+  // With a device-side count, the grid follows the bound (the kernel's tile loop is
+  // grid-strided, so extra blocks just exit).
+  const int tiles = (n + c.tile - 1) / c.tile;
+  const int grid = std::min(tiles, c.gridBlocks);
+  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc) : cuda::mmaSyncKernel(c.tile, c.kc);
+  cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  if (c.wgmma) {
+    P.hopperStages = c.stages;
+    P.hopperPingPong = c.pingPong ? 1 : 0;
+  }
+  kernel<<<grid, c.wgmma ? cuda::kHopperThreads : c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, out, scatter);
+  INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
+}
+
+CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.device = queryCudaDevice(options.device);
+  if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);
+  INR_CUDA_CHECK(cudaSetDevice(options.device));
+  I.program = MlpProgram::compile(model.architecture);
+  I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
+  I.prepareParams(model);
+
+  // The path: fused where the program and a configuration fit, else generic.
+  const MlpProgram& prog = I.program;
   bool fused = prog.fusable && options.path != CudaEvaluatorPath::Generic;
   std::string why = prog.whyNotFused;
   if (fused && int(prog.instrs.size()) > cuda::kMaxFusedInstrs) {
@@ -278,60 +275,14 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     why = "the program has " + std::to_string(prog.instrs.size()) + " instructions (fused kernel: up to " +
           std::to_string(cuda::kMaxFusedInstrs) + ")";
   }
-  std::vector<FusedConfig> candidates;
   if (fused && options.mma == FusedMma::Wgmma && !I.whyNoWgmma.empty()) {
     fused = false;
     why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
   }
+  const FusedLaunchAutotuner tuner(I.device, options);
+  std::vector<FusedConfig> candidates;
   if (fused) {
-    // Dynamic shared memory a kernel may have beside its static shared memory.
-    auto sharedLimit = [&](FusedKernel kernel) {
-      cudaFuncAttributes attr{};
-      INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
-      return I.device.sharedMemPerBlockOptin - std::min(I.device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
-    };
-    // mma.sync candidates first: without autotuning the first that fits runs, and that stays
-    // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
-    if (options.mma != FusedMma::Wgmma)
-      for (int t : {128, 64, 32})
-        for (int kc : {64, 32}) {
-          if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc)) continue;
-          const FusedKernel kernel = fusedKernelFor(t, kc);
-          // the fused and the stored encoding (where the program has one), each if it fits (one
-          // kernel, two shared-memory sizes: its limit allows either at launch)
-          const std::size_t limit = sharedLimit(kernel);
-          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
-          for (const bool stored : {true, false}) {  // stored first: the kernel of earlier versions
-            if (stored && !P.fusedFourier) continue;
-            const std::size_t b = cuda::fusedSharedBytes(t, kc, stored ? I.paramsStored : P);
-            if (b > limit) continue;
-            int perSm = 0;
-            INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
-            if (perSm < 1) continue;
-            candidates.push_back({false, t, kc, 0, false, stored, b, perSm * I.device.multiprocessors, 0.0});
-          }
-        }
-    // wgmma (2 x 64 queries per round): per chunk width (widest first), as many ring slots as
-    // fit (2 at least), with and without turns
-    if (I.whyNoWgmma.empty())
-      for (const int nc : {128, 64}) {
-        if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
-        const FusedKernel kernel = cuda::hopperKernel(nc);
-        const std::size_t limit = sharedLimit(kernel);
-        int stages = 0;
-        for (int s = cuda::kHopperMaxStages; s >= 2 && !stages; --s)
-          if (cuda::hopperSharedBytes(nc, s, P) <= limit) stages = s;
-        if (!stages) continue;
-        const std::size_t bytes = cuda::hopperSharedBytes(nc, stages, P);
-        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
-        int perSm = 0;
-        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, cuda::kHopperThreads, bytes));
-        if (perSm < 1) continue;
-        for (const bool pingPong : {true, false})
-          if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
-            candidates.push_back({true, cuda::kHopperQueriesPerRound, nc, stages, pingPong, false, bytes,
-                                  perSm * I.device.multiprocessors, 0.0});
-      }
+    candidates = tuner.candidates(I.params, I.paramsStored, I.whyNoWgmma.empty());
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
@@ -344,65 +295,13 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
     return;
   }
-  I.config = I.smallConfig = candidates.front();
-  if (candidates.size() > 1 && options.autotuneBatch > 0) {
-    // Time every candidate on the same random points in the model's domain, once on a large
-    // batch (throughput) and once on a small one (latency: the pipeline's late traverse-evaluate
-    // iterations hold a few thousand queries, where a 128-query tile leaves most SMs idle).
-    const int batch = options.autotuneBatch;
-    const int smallBatch = std::min(batch, Impl::kSmallBatch);
-    std::vector<float4> pts(static_cast<std::size_t>(batch));
-    std::uint32_t state = 12345u;
-    auto uniform = [&](double lo, double hi) {
-      state = state * 1664525u + 1013904223u;
-      return float(lo + (hi - lo) * ((state >> 8) * (1.0 / 16777216.0)));
-    };
-    const auto& b = model.domain.bounds;
-    for (auto& p : pts)
-      p = make_float4(uniform(b[0], b[1]), uniform(b[2], b[3]), uniform(b[4], b[5]),
-                      uniform(model.domain.timeBegin, model.domain.timeEnd));
-    I.stagePoints.growTo(pts.size());
-    I.stageOut.growTo(pts.size());
-    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), pts.data(), pts.size() * sizeof(float4), cudaMemcpyHostToDevice));
-    cudaEvent_t e0, e1;
-    INR_CUDA_CHECK(cudaEventCreate(&e0));
-    INR_CUDA_CHECK(cudaEventCreate(&e1));
-    auto rate = [&](int n) {  // best of 3 after a warm-up, queries per second
-      float best = 0.f;
-      for (int r = -1; r < 3; ++r) {
-        INR_CUDA_CHECK(cudaEventRecord(e0));
-        evaluateDevice(I.stagePoints.get(), n, I.stageOut.get(), nullptr, nullptr);
-        INR_CUDA_CHECK(cudaEventRecord(e1));
-        INR_CUDA_CHECK(cudaEventSynchronize(e1));
-        float ms = 0.f;
-        INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
-        if (r == 0 || (r > 0 && ms < best)) best = ms;
-      }
-      return n / (double(best) * 1e-3);
-    };
-    std::string report;
-    double bestLarge = 0.0, bestSmall = 0.0;
-    for (const FusedConfig& c : candidates) {
-      I.config = I.smallConfig = c;
-      const double large = rate(batch), small = rate(smallBatch);
-      if (large > bestLarge) bestLarge = large, I.bestLarge = c;
-      if (small > bestSmall) bestSmall = small, I.bestSmall = c;
-      char line[128];
-      std::snprintf(line, sizeof line, "%s%s: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", configName(c).c_str(),
-                    large * 1e-9, small * 1e-9);
-      report += line;
-    }
-    cudaEventDestroy(e0);
-    cudaEventDestroy(e1);
-    I.config = I.bestLarge;
-    I.smallConfig = I.bestSmall;
-    I.launchReport = "batch " + std::to_string(batch) + " / " + std::to_string(smallBatch) + ": " + report + " -> " +
-                     configName(I.config) + ", below " + std::to_string(Impl::kSmallBatchThreshold) + " queries " +
-                     configName(I.smallConfig);
-  } else {
-    I.launchReport = configName(I.config) +
-                     (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
-  }
+  const FusedLaunchAutotuner::Choice choice =
+      tuner.choose(candidates, model.domain, [&](const FusedConfig& c, const float4* points, int n, float* out) {
+        I.launchFused(c, points, n, nullptr, out, nullptr, nullptr);
+      });
+  I.config = choice.large;
+  I.smallConfig = choice.small;
+  I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
 }
 
@@ -438,19 +337,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
   int n = maxN;
   if (n <= 0) return;
   if (I.path == CudaEvaluatorPath::Fused) {
-    // With a device-side count, the configuration and grid follow the bound (the kernel's tile
-    // loop is grid-strided, so extra blocks just exit).
-    const FusedConfig& c = n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config;
-    const int tiles = (n + c.tile - 1) / c.tile;
-    const int grid = std::min(tiles, c.gridBlocks);
-    const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc) : fusedKernelFor(c.tile, c.kc);
-    cuda::FusedParams P = c.storedEncoding ? I.paramsStored : I.params;
-    if (c.wgmma) {
-      P.hopperStages = c.stages;
-      P.hopperPingPong = c.pingPong ? 1 : 0;
-    }
-    kernel<<<grid, c.wgmma ? cuda::kHopperThreads : c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, out, scatter);
-    INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
+    I.launchFused(n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config, points, n, deviceCount, out, scatter, stream);
     return;
   }
   if (deviceCount) {  // the generic path sizes its cuBLAS calls on the host: read the count

@@ -14,7 +14,7 @@
 #include "Cuda/CudaCheck.h"
 #include "Cuda/CudaDevice.h"
 #include "Cuda/DeviceBuffer.h"
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "TestSupport/PaperArchitectures.h"
 #include "TestSupport/RequireGpu.h"

@@ -1,7 +1,12 @@
 // The Hopper (wgmma) kernel (the design: FusedMlpKernelHopper.cuh). This file is compiled for sm_90a only
 // (Kernels/Cuda/CMakeLists.txt), so on an H100/H200 the driver can only load the wgmma code, and
 // on any other GPU the kernel reports no image and the evaluator keeps the mma.sync kernel.
+// The kernel sets up the block's shared memory (HopperBlock), then its warpgroups take their
+// roles: the producer (hopperProducer) streams the weights, the consumers (hopperConsumer) run
+// the program on their tiles.
 #include "Cuda/FusedMlpKernelHopper.cuh"
+#include "Cuda/FusedMlpKernels.h"
+#include "Cuda/FusedMlpRowInstructions.cuh"
 
 namespace inr::cuda {
 
@@ -9,75 +14,84 @@ namespace inr::cuda {
 // GEMM (256 threads: c waits, the other consumer arrives). 0 is __syncthreads.
 constexpr int kConsumerBarrier = 1, kTurnBarrier = 3;
 
-template <int NC>
-__global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
-                                                                   const unsigned* __restrict__ deviceCount,
-                                                                   float* __restrict__ out, const int* __restrict__ scatter) {
 #if INR_HAVE_WGMMA
-  if (deviceCount) n = min(n, int(*deviceCount));
+// What the kernel lays out in shared memory for its roles: the program and buffer layout, the
+// ring of weight slots with their full / empty barriers, the consumers' regions (activation
+// buffers and coordinates), the final dot's weights and the biases.
+struct HopperBlock {
+  const MlpInstr* program;
+  const int* bufferStart;
+  const int* bufferLd;
+  std::uint64_t* fullBar;
+  std::uint64_t* emptyBar;
+  __half* ring;
+  int stages, stageHalves;
+  int actHalves;
+  unsigned char* consumerBase;
+  std::size_t consumerBytes;
+  const float* dotWeights;
+  const float* biases;
+};
+
+// Calls f(IntTag<K>{}) for the runtime k in [FIRST, LAST), and f(IntTag<LAST>{}) for any other:
+// one straight run of wgmma per K length (a wgmma under a condition makes ptxas serialise them
+// all: C7520), written once instead of a case per length.
+template <int FIRST, int LAST, typename F>
+__device__ __forceinline__ void dispatchKSteps(int k, F&& f) {
+  if constexpr (FIRST >= LAST) {
+    f(IntTag<LAST>{});
+  } else {
+    if (k == FIRST) f(IntTag<FIRST>{});
+    else dispatchKSteps<FIRST + 1, LAST>(k, f);
+  }
+}
+
+// The producer (one thread of warpgroup 0): every GEMM's weight chunks, in program order, round
+// after round, into the ring's slots as the consumers release them.
+template <int NC>
+__device__ __forceinline__ void hopperProducer(const FusedParams& P, const HopperBlock& B, int numRounds) {
+  const MlpInstr* const program = B.program;
+  std::uint64_t* const fullBar = B.fullBar;
+  std::uint64_t* const emptyBar = B.emptyBar;
+  __half* const ring = B.ring;
+  const int stages = B.stages, stageHalves = B.stageHalves;
+  int slot = 0;
+  unsigned phase = 0;
+  for (int round = blockIdx.x; round < numRounds; round += gridDim.x)
+    for (int ip = 0; ip < P.numInstrs; ++ip) {
+      const MlpInstr& in = program[ip];
+      if (!isStreamedGemm(in)) continue;
+      const __half* from = P.hopperWeights[chunkIndex(NC)] + P.hopperOffset[chunkIndex(NC)][ip];
+      forEachHopperChunk(NC, in.nPad, in.kPad, [&](int rows, int, int kLen) {
+        const unsigned halves = unsigned(rows * kLen);
+        mbarrierWait(&emptyBar[slot], phase ^ 1u);  // a fresh barrier counts as released
+        mbarrierArriveExpectTx(&fullBar[slot], halves * 2);
+        bulkCopyToShared(ring + std::size_t(slot) * stageHalves, from, halves * 2, &fullBar[slot]);
+        from += halves;
+        if (++slot == stages) slot = 0, phase ^= 1u;
+      });
+    }
+}
+
+// Consumer c = warpgroup - 1 (warpgroups 1 and 2): per round its tile of 64 queries through the whole program,
+// the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
+template <int NC>
+__device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
+                                               const float4* __restrict__ points, int n, float* __restrict__ out,
+                                               const int* __restrict__ scatter) {
   constexpr int KSTEPS = kHopperKSegment / 16;
-  extern __shared__ __align__(1024) unsigned char smem[];
-  __shared__ MlpInstr program[kMaxFusedInstrs];
-  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
-  __shared__ alignas(8) std::uint64_t fullBar[kHopperMaxStages], emptyBar[kHopperMaxStages];
-  const int stages = P.hopperStages;
-  const int stageHalves = P.hopperStageHalves[chunkIndex(NC)];
-  __half* const ring = reinterpret_cast<__half*>(smem);
-  const int actHalves = hopperActHalves(P);
-  unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
-  const std::size_t consumerBytes = std::size_t(actHalves) * 2 + kHopperRows * 4 * 4;
-  float* const dotWeights = reinterpret_cast<float*>(consumerBase + kHopperConsumers * consumerBytes);
-  float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
-  for (int i = threadIdx.x; i < P.numInstrs; i += kHopperThreads) program[i] = P.hopperInstrs[i];
-  for (int ip = 0; ip < P.numInstrs; ++ip) {
-    const MlpInstr& in = P.hopperInstrs[ip];
-    if (in.dotNext)
-      for (int c = threadIdx.x; c < in.nPad; c += kHopperThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
-    if (isStreamedGemm(in))
-      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kHopperThreads)
-        biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
-  }
-  if (threadIdx.x == 0) {
-    int at = 0;
-    for (int b = 0; b < kMaxBuffers; ++b) {
-      bufferStart[b] = at;
-      bufferLd[b] = P.hopperBufferLd[b];
-      if (b < P.hopperNumBuffers) at += kHopperRows * P.hopperBufferLd[b];
-    }
-    for (int s = 0; s < stages; ++s) {
-      mbarrierInit(&fullBar[s], 1);                      // the producer's arrive (+ the copy's bytes)
-      mbarrierInit(&emptyBar[s], 4 * kHopperConsumers);  // one arrive per consumer warp
-    }
-    fenceBarrierInit();
-  }
-  __syncthreads();  // the last block-wide barrier: the producer leaves early
-
-  const int numTiles = (n + kHopperRows - 1) / kHopperRows;
-  const int numRounds = (numTiles + kHopperConsumers - 1) / kHopperConsumers;
+  const MlpInstr* const program = B.program;
+  const int* const bufferStart = B.bufferStart;
+  const int* const bufferLd = B.bufferLd;
+  std::uint64_t* const fullBar = B.fullBar;
+  std::uint64_t* const emptyBar = B.emptyBar;
+  __half* const ring = B.ring;
+  const int stages = B.stages, stageHalves = B.stageHalves, actHalves = B.actHalves;
+  unsigned char* const consumerBase = B.consumerBase;
+  const std::size_t consumerBytes = B.consumerBytes;
+  const float* const dotWeights = B.dotWeights;
+  const float* const biases = B.biases;
   const int wg = threadIdx.x / 128;
-  if (wg == 0) {
-    setMaxRegistersDec<kHopperProducerRegisters>();
-    if (threadIdx.x != 0) return;
-    int slot = 0;
-    unsigned phase = 0;
-    for (int round = blockIdx.x; round < numRounds; round += gridDim.x)
-      for (int ip = 0; ip < P.numInstrs; ++ip) {
-        const MlpInstr& in = program[ip];
-        if (!isStreamedGemm(in)) continue;
-        const __half* from = P.hopperWeights[chunkIndex(NC)] + P.hopperOffset[chunkIndex(NC)][ip];
-        forEachHopperChunk(NC, in.nPad, in.kPad, [&](int rows, int, int kLen) {
-          const unsigned halves = unsigned(rows * kLen);
-          mbarrierWait(&emptyBar[slot], phase ^ 1u);  // a fresh barrier counts as released
-          mbarrierArriveExpectTx(&fullBar[slot], halves * 2);
-          bulkCopyToShared(ring + std::size_t(slot) * stageHalves, from, halves * 2, &fullBar[slot]);
-          from += halves;
-          if (++slot == stages) slot = 0, phase ^= 1u;
-        });
-      }
-    return;
-  }
-  setMaxRegistersInc<kHopperConsumerRegisters>();
-
   const int c = wg - 1;
   const int tid = threadIdx.x - 128 * wg;
   const int warp = tid >> 5, lane = tid & 31;
@@ -184,24 +198,7 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
             wgmmaCommit();
           };
           if (kLen == kHopperKSegment) mma(IntTag<KSTEPS>{});  // the common case first
-          else switch (kLen / 16) {
-            case 1: mma(IntTag<1>{}); break;
-            case 2: mma(IntTag<2>{}); break;
-            case 3: mma(IntTag<3>{}); break;
-            case 4: mma(IntTag<4>{}); break;
-            case 5: mma(IntTag<5>{}); break;
-            case 6: mma(IntTag<6>{}); break;
-            case 7: mma(IntTag<7>{}); break;
-            case 8: mma(IntTag<8>{}); break;
-            case 9: mma(IntTag<9>{}); break;
-            case 10: mma(IntTag<10>{}); break;
-            case 11: mma(IntTag<11>{}); break;
-            case 12: mma(IntTag<12>{}); break;
-            case 13: mma(IntTag<13>{}); break;
-            case 14: mma(IntTag<14>{}); break;
-            case 15: mma(IntTag<15>{}); break;
-            default: mma(IntTag<16>{}); break;
-          }
+          else dispatchKSteps<1, KSTEPS>(kLen / 16, mma);
           if (s + 1 == kSegments && turns && !(c == 1 && lastRound && ip == lastGemm && j + 1 == numChunks))
             namedBarrierArrive(kTurnBarrier + (1 - c), 256);
           wgmmaWait<0>();
@@ -302,6 +299,64 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
       if (next < P.numInstrs && program[next].op != MlpOp::Gemm) consumerSync();
     }
   }
+}
+#endif  // INR_HAVE_WGMMA
+
+template <int NC>
+__global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+                                                                   const unsigned* __restrict__ deviceCount,
+                                                                   float* __restrict__ out, const int* __restrict__ scatter) {
+#if INR_HAVE_WGMMA
+  if (deviceCount) n = min(n, int(*deviceCount));
+  extern __shared__ __align__(1024) unsigned char smem[];
+  __shared__ MlpInstr program[kMaxFusedInstrs];
+  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
+  __shared__ alignas(8) std::uint64_t fullBar[kHopperMaxStages], emptyBar[kHopperMaxStages];
+  const int stages = P.hopperStages;
+  const int stageHalves = P.hopperStageHalves[chunkIndex(NC)];
+  __half* const ring = reinterpret_cast<__half*>(smem);
+  const int actHalves = hopperActHalves(P);
+  unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
+  const std::size_t consumerBytes = std::size_t(actHalves) * 2 + kHopperRows * 4 * 4;
+  float* const dotWeights = reinterpret_cast<float*>(consumerBase + kHopperConsumers * consumerBytes);
+  float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
+  for (int i = threadIdx.x; i < P.numInstrs; i += kHopperThreads) program[i] = P.hopperInstrs[i];
+  for (int ip = 0; ip < P.numInstrs; ++ip) {
+    const MlpInstr& in = P.hopperInstrs[ip];
+    if (in.dotNext)
+      for (int c = threadIdx.x; c < in.nPad; c += kHopperThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
+    if (isStreamedGemm(in))
+      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kHopperThreads)
+        biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
+  }
+  if (threadIdx.x == 0) {
+    int at = 0;
+    for (int b = 0; b < kMaxBuffers; ++b) {
+      bufferStart[b] = at;
+      bufferLd[b] = P.hopperBufferLd[b];
+      if (b < P.hopperNumBuffers) at += kHopperRows * P.hopperBufferLd[b];
+    }
+    for (int s = 0; s < stages; ++s) {
+      mbarrierInit(&fullBar[s], 1);                      // the producer's arrive (+ the copy's bytes)
+      mbarrierInit(&emptyBar[s], 4 * kHopperConsumers);  // one arrive per consumer warp
+    }
+    fenceBarrierInit();
+  }
+  __syncthreads();  // the last block-wide barrier: the producer leaves early
+
+  const int numTiles = (n + kHopperRows - 1) / kHopperRows;
+  const int numRounds = (numTiles + kHopperConsumers - 1) / kHopperConsumers;
+  const int wg = threadIdx.x / 128;
+  const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
+                          actHalves, consumerBase, consumerBytes, dotWeights, biases};
+  if (wg == 0) {
+    setMaxRegistersDec<kHopperProducerRegisters>();
+    if (threadIdx.x != 0) return;
+    hopperProducer<NC>(P, block, numRounds);
+    return;
+  }
+  setMaxRegistersInc<kHopperConsumerRegisters>();
+  hopperConsumer<NC>(P, block, numRounds, points, n, out, scatter);
 #else
   (void)P, (void)points, (void)n, (void)deviceCount, (void)out, (void)scatter;
 #endif

@@ -42,8 +42,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "Cuda/FusedMlpKernel.cuh"
-#include "Cuda/MlpProgram.h"
+#include "Cuda/FusedMlpDevice.cuh"
+#include "Cuda/FusedMlpParams.cuh"
+#include "Evaluator/MlpProgram.h"
 
 namespace inr::cuda {
 

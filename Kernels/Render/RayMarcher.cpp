@@ -7,6 +7,7 @@
 
 #include "Render/CpuParallel.h"
 #include "Render/CounterRng.h"
+#include "Render/RayMarch.h"
 #include "Render/Finalize.h"
 #include "Render/AccumulationImage.h"
 
@@ -71,14 +72,10 @@ FrameStats RayMarchRenderer::renderFrame() {
   const float ambient = scene_.ambient;
   st.pixels = std::size_t(n);
 
-  struct RaySeg {
-    Vec3f o, d;
-    float t0, ds;
-    int first, count;  // sample range in the chunk's batch
-  };
-  std::vector<RaySeg> segs;
+  std::vector<MarchRay> segs;
   std::vector<QueryPoint> points;
   std::vector<float> values;
+  std::vector<int> firstSample;  // each ray's first sample in the chunk's batch
   std::vector<QueryPoint> shadowPoints;
   std::vector<float> shadowValues;
   struct ShadowJob {
@@ -89,45 +86,30 @@ FrameStats RayMarchRenderer::renderFrame() {
   std::vector<ShadowJob> jobs;
   std::vector<float> lightT;  // transmittance to the light per primary sample
 
+  const ImageWindow& win = settings_.window;  // keyed like the delta tracker's pixels
   for (int chunk0 = 0; chunk0 < n; chunk0 += options_.chunkPixels) {
     const int chunkN = std::min(options_.chunkPixels, n - chunk0);
-    segs.assign(chunkN, RaySeg{});
+    segs.resize(std::size_t(chunkN));
+    firstSample.resize(std::size_t(chunkN));
     auto t0 = Clock::now();
     int total = 0;
     for (int k = 0; k < chunkN; ++k) {
       const int i = chunk0 + k;
-      const ImageWindow& win = settings_.window;  // keyed like the delta tracker's pixels
-      const std::uint32_t key = win.fullWidth == 0 ? std::uint32_t(i)
-                                                   : std::uint32_t(i / W + win.y) * std::uint32_t(win.fullWidth) +
-                                                         std::uint32_t(i % W + win.x);
-      RngStream rng{key, frame, settings_.seed, 0u};
-      const float u0 = rng.next(), u1 = rng.next();  // same draws as the delta tracker's jitter
-      const float shift = settings_.pixelJitter ? rng.next() : 0.5f;
-      RaySeg& s = segs[k];
-      cameraRayWorld(cam, i % W, i / W, settings_.pixelJitter ? u0 : 0.5f,
-                     settings_.pixelJitter ? u1 : 0.5f, s.o, s.d);
-      const float modelPerWorld = worldRayToModel(cam, s.o, s.d);  // model space from here on
-      float tEnter, tExit;
-      s.first = total;
-      s.count = 0;
-      if (!intersectBox(box_, s.o, s.d, tEnter, tExit)) continue;
-      if (!scene_.depthLimit.empty()) tExit = std::min(tExit, scene_.depthLimit[i] * modelPerWorld);
-      if (!(tEnter < tExit)) continue;
-      const float len = tExit - tEnter;
-      s.count = std::max(1, int(std::ceil(len / step_)));
-      s.ds = len / float(s.count);
-      s.t0 = tEnter + shift * s.ds;
-      total += s.count;
-      ++st.rays;
+      const float depth = scene_.depthLimit.empty() ? INFINITY : scene_.depthLimit[i];
+      segs[k] = marchCameraRay(cam, box_, i, marchPixelKey(i, W, win.x, win.y, win.fullWidth), frame, settings_.seed,
+                               settings_.pixelJitter, depth, step_);
+      firstSample[k] = total;
+      total += segs[k].count;
+      if (segs[k].count > 0) ++st.rays;
     }
     points.resize(total);
     values.resize(total);
 #pragma omp parallel for schedule(static) if (total >= kParallelMinItems)
     for (int k = 0; k < chunkN; ++k) {
-      const RaySeg& s = segs[k];
+      const MarchRay& s = segs[k];
       for (int j = 0; j < s.count; ++j) {
-        const Vec3f p = s.o + s.d * (s.t0 + float(j) * s.ds);
-        points[s.first + j] = QueryPoint{p.x, p.y, p.z, float(scene_.time)};
+        const Vec3f p = marchSample(s, j);
+        points[firstSample[k] + j] = QueryPoint{p.x, p.y, p.z, float(scene_.time)};
       }
     }
     st.initMs += msSince(t0);
@@ -164,22 +146,20 @@ FrameStats RayMarchRenderer::renderFrame() {
       };
       shadowPoints.resize(options_.maxShadowBatch);
       for (int k = 0; k < chunkN; ++k) {
-        const RaySeg& s = segs[k];
-        for (int j = 0; j < s.count; ++j) {
-          const float v = values[s.first + j];
-          if (!isFiniteValue(v) || !(extinctionAt(tf, v) > 0.f)) continue;
-          const QueryPoint& q0 = points[s.first + j];
+        for (int j = 0; j < segs[k].count; ++j) {
+          const int sample = firstSample[k] + j;
+          if (!marchSampleEmits(tf, values[sample])) continue;
+          const QueryPoint& q0 = points[sample];
           const Vec3f p{q0.x, q0.y, q0.z};
-          float te, tx;
-          if (!intersectBox(box_, p, toLight, te, tx) || !(tx > 0.f)) continue;
-          const int m = std::max(1, int(std::ceil(tx / shadowStep_)));
+          const MarchShadowRay ray = marchShadowRay(box_, p, toLight, shadowStep_);
+          if (ray.count == 0) continue;
+          const int m = ray.count;
           if (pending + std::size_t(m) > options_.maxShadowBatch) flush();
           if (std::size_t(m) > options_.maxShadowBatch) shadowPoints.resize(m);
-          const float ds = tx / float(m);
           ++st.shadowRays;
-          jobs.push_back(ShadowJob{s.first + j, int(pending), m, ds});
+          jobs.push_back(ShadowJob{sample, int(pending), m, ray.ds});
           for (int q = 0; q < m; ++q) {
-            const Vec3f sp = p + toLight * ((float(q) + 0.5f) * ds);
+            const Vec3f sp = marchShadowSample(p, toLight, ray, q);
             shadowPoints[pending++] = QueryPoint{sp.x, sp.y, sp.z, float(scene_.time)};
           }
         }
@@ -191,27 +171,14 @@ FrameStats RayMarchRenderer::renderFrame() {
     t0 = Clock::now();
 #pragma omp parallel for schedule(static) if (total >= kParallelMinItems)
     for (int k = 0; k < chunkN; ++k) {
-      const RaySeg& s = segs[k];
-      double T = 1.0, r = 0.0, g = 0.0, b = 0.0;
+      const MarchRay& s = segs[k];
+      MarchCompositor<double> ray;
       for (int j = 0; j < s.count; ++j) {
-        const float v = values[s.first + j];
-        if (!isFiniteValue(v)) continue;  // NaN output: empty space, as in the delta tracker
-        const Vec4f c = lookupTransferFunction(tf, v);
-        const double sigma = opacityToExtinction(c.w, tf.invUnitDistance);
-        const double alpha = -std::expm1(-sigma * s.ds);
-        double w = T * alpha;
-        if (shadows) w *= ambient + (1.0 - ambient) * lightT[s.first + j];
-        r += w * c.x;
-        g += w * c.y;
-        b += w * c.z;
-        T *= 1.0 - alpha;
+        const int sample = firstSample[k] + j;
+        ray.add(tf, values[sample], s.ds, shadows ? marchLightFactor<double>(ambient, lightT[sample]) : 1.0);
       }
-      const Vec4f est{float(r), float(g), float(b), float(1.0 - T)};
       const int i = chunk0 + k;
-      const Vec4f prev = accum_[i];
-      const float wgt = 1.f / float(frameIndex_ + 1);
-      accum_[i] = Vec4f{prev.x + (est.x - prev.x) * wgt, prev.y + (est.y - prev.y) * wgt,
-                        prev.z + (est.z - prev.z) * wgt, prev.w + (est.w - prev.w) * wgt};
+      accum_[i] = accumulateMean(accum_[i], ray.estimate(), frameIndex_);
     }
     st.finalizeMs += msSince(t0);
   }

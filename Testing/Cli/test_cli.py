@@ -521,6 +521,37 @@ def check_pixel_share_two_gpus(inr, data):
         expect(p.returncode == 0, "two GPUs composited differ from one GPU:\n" + p.stdout + p.stderr)
 
 
+def check_raymarch_backend(inr, data):
+    """--method raymarch marches on the session's backend: the CPU marcher with --backend cpu;
+    with --backend cuda the GPU marcher, and the CPU marcher on the GPU evaluator with --shadows
+    (ray-marched shadows are CPU only). The stats' "marcher" and the "ray marcher:" line say
+    which. The CUDA half is skipped (said in the output) where --backend cuda cannot run."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    common = ["--method", "raymarch", "--size", "16x12", "--frames", "1"]
+    with tempfile.TemporaryDirectory() as d:
+        out, stats = os.path.join(d, "m.png"), os.path.join(d, "s.json")
+
+        def marcher(*extra):
+            p = run(inr, "render", model, "-o", out, "--stats-json", stats, *common, *extra)
+            if p.returncode != 0:
+                return p, None
+            report = json.load(open(stats))
+            expect("ray marcher: " + report["marcher"] in p.stdout, "no 'ray marcher:' line: " + p.stdout)
+            return p, report["marcher"]
+
+        p, m = marcher("--backend", "cpu")
+        expect(m == "CPU ray marcher", "--backend cpu: %s %s" % (m, p.stderr))
+        p, m = marcher("--backend", "cuda")
+        if m is None:
+            expect("unavailable" in p.stderr or "CUDA" in p.stderr, "--backend cuda failed: " + p.stderr)
+            print("CUDA half skipped: " + p.stderr.strip())
+            return
+        expect(m == "GPU ray marcher", "--backend cuda runs %s" % m)
+        p, m = marcher("--backend", "cuda", "--shadows")
+        expect(m is not None and m.startswith("CPU ray marcher on the GPU evaluator"), "--backend cuda --shadows: %s %s"
+               % (m, p.stderr))
+
+
 # Composites the bricks in the reverse of their visibility order and prints the PSNR against the
 # whole render: argv = script, whole, bricks...
 REVERSED_ORDER = """

@@ -6,7 +6,12 @@
 
 namespace inr::cli {
 
-Args::Args(int argc, char** argv, std::set<std::string> valued, std::set<std::string> flags) {
+Args::Args(int argc, char** argv, std::set<std::string> valued, std::set<std::string> flags)
+    : Args(std::vector<std::string>(argv, argv + argc), valued, flags) {}
+
+Args::Args(const std::vector<std::string>& argv, const std::set<std::string>& valued,
+           const std::set<std::string>& flags) {
+  const int argc = int(argv.size());
   for (int i = 0; i < argc; ++i) {
     std::string a = argv[i];
     if (a.size() > 2 && a.compare(0, 2, "--") == 0) {

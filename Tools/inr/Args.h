@@ -17,6 +17,7 @@ class Args {
 public:
   // `valued`: options that take a value; `flags`: switches.
   Args(int argc, char** argv, std::set<std::string> valued, std::set<std::string> flags);
+  Args(const std::vector<std::string>& args, const std::set<std::string>& valued, const std::set<std::string>& flags);
   const std::vector<std::string>& positional() const { return positional_; }
   bool has(const std::string& name) const { return values_.count(name) || flagsSet_.count(name); }
   std::string get(const std::string& name, const std::string& dflt = "") const;

@@ -30,9 +30,7 @@ int main(int argc, char** argv) {
     if (command == "info") return inr::cli::runInfo(argc - 2, argv + 2);
     if (command == "eval") return inr::cli::runEval(argc - 2, argv + 2);
     if (command == "slice") return inr::cli::runSlice(argc - 2, argv + 2);
-#ifdef INR_HAVE_RENDER
     if (command == "render") return inr::cli::runRender(argc - 2, argv + 2);
-#endif
     std::fprintf(stderr, "inr: unknown command '%s'\n%s", command.c_str(), kUsage);
     return 2;
   } catch (const inr::cli::UsageError& e) {

@@ -5,7 +5,7 @@
 
 #include "Cuda/CudaDevice.h"
 #include "Cuda/DeviceBuffer.h"
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 #include "Cuda/Pipeline/PerThreadMlp.cuh"
 
 namespace inr {

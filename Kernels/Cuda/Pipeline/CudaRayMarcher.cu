@@ -10,8 +10,8 @@
 #include "Cuda/CudaInrEvaluator.h"
 #include "Cuda/DeviceBuffer.h"
 #include "Cuda/Pipeline/DeviceTransferFunction.h"
-#include "Render/CounterRng.h"
 #include "Render/Finalize.h"
+#include "Render/RayMarch.h"
 
 namespace inr {
 
@@ -23,85 +23,51 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 struct MarchParams {
   CameraView cam;
   Box3f box;
-  const float* depth;
+  const float* depth;  // world distance per pixel, or null
   float step, time;
   std::uint32_t frame, seed;
   int jitter;
+  int windowX, windowY, fullWidth;  // the image as a window of a larger one (fullWidth 0: none)
   int chunk0, chunkN;
 };
 
-struct Segments {
-  Vec3f* o;
-  Vec3f* d;
-  float* t0;
-  float* ds;
-  int* count;  // chunkN + 1 entries (last = 0, so the exclusive scan's last entry is the total)
-};
-
-// RayMarchRenderer's per-pixel set-up: same draws (jitter u0, u1, then the shift).
-__global__ void segmentKernel(MarchParams p, Segments s) {
+// Each ray of the chunk (Render/RayMarch.h) and its sample count; count has chunkN + 1 entries
+// (the last 0, so the exclusive scan's last entry is the total). hitRays counts the rays with
+// samples (FrameStats::rays, as the CPU marcher counts them).
+__global__ void marchRaysKernel(MarchParams p, MarchRay* rays, int* count, int* hitRays) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k > p.chunkN) return;
   if (k == p.chunkN) {
-    s.count[k] = 0;
+    count[k] = 0;
     return;
   }
   const int i = p.chunk0 + k;
-  RngStream rng{std::uint32_t(i), p.frame, p.seed, 0u};
-  const float u0 = rng.next(), u1 = rng.next();
-  const float shift = p.jitter ? rng.next() : 0.5f;
-  Vec3f o, d;
-  cameraRay(p.cam, i % p.cam.width, i / p.cam.width, p.jitter ? u0 : 0.5f, p.jitter ? u1 : 0.5f, o, d);
-  s.o[k] = o;
-  s.d[k] = d;
-  s.count[k] = 0;
-  float tEnter, tExit;
-  if (!intersectBox(p.box, o, d, tEnter, tExit)) return;
-  if (p.depth) tExit = minf(tExit, p.depth[i]);
-  if (!(tEnter < tExit)) return;
-  const float len = tExit - tEnter;
-  const int count = max(1, int(ceilf(len / p.step)));
-  s.count[k] = count;
-  s.ds[k] = len / float(count);
-  s.t0[k] = tEnter + shift * s.ds[k];
+  const MarchRay r = marchCameraRay(p.cam, p.box, i, marchPixelKey(i, p.cam.width, p.windowX, p.windowY, p.fullWidth),
+                                    p.frame, p.seed, p.jitter != 0, p.depth ? p.depth[i] : INFINITY, p.step);
+  rays[k] = r;
+  count[k] = r.count;
+  if (r.count > 0) atomicAdd(hitRays, 1);
 }
 
-__global__ void pointsKernel(MarchParams p, Segments s, const int* offsets, float4* points) {
+__global__ void pointsKernel(MarchParams p, const MarchRay* rays, const int* offsets, float4* points) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= p.chunkN) return;
-  const int n = s.count[k], first = offsets[k];
-  const Vec3f o = s.o[k], d = s.d[k];
-  const float t0 = s.t0[k], ds = s.ds[k];
-  for (int j = 0; j < n; ++j) {
-    const Vec3f q = o + d * (t0 + float(j) * ds);
-    points[first + j] = make_float4(q.x, q.y, q.z, p.time);
+  const MarchRay r = rays[k];
+  for (int j = 0; j < r.count; ++j) {
+    const Vec3f q = marchSample(r, j);
+    points[offsets[k] + j] = make_float4(q.x, q.y, q.z, p.time);
   }
 }
 
-__global__ void compositeKernel(MarchParams p, Segments s, const int* offsets, const float* values,
+__global__ void compositeKernel(MarchParams p, const MarchRay* rays, const int* offsets, const float* values,
                                 TransferFunctionView tf, Vec4f* accum, int frameIndex) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= p.chunkN) return;
-  const int n = s.count[k], first = offsets[k];
-  const float ds = n > 0 ? s.ds[k] : 0.f;
-  float T = 1.f, r = 0.f, g = 0.f, b = 0.f;
-  for (int j = 0; j < n; ++j) {
-    const float v = values[first + j];
-    if (!isFiniteValue(v)) continue;  // NaN output: empty space, as in the delta tracker
-    const Vec4f c = lookupTransferFunction(tf, v);
-    const float sigma = opacityToExtinction(c.w, tf.invUnitDistance);
-    const float alpha = -expm1f(-sigma * ds);
-    const float w = T * alpha;
-    r += w * c.x;
-    g += w * c.y;
-    b += w * c.z;
-    T *= 1.f - alpha;
-  }
+  const MarchRay r = rays[k];
+  MarchCompositor<float> ray;
+  for (int j = 0; j < r.count; ++j) ray.add(tf, values[offsets[k] + j], r.ds, 1.f);
   const int i = p.chunk0 + k;
-  const Vec4f prev = accum[i];
-  const float wgt = 1.f / float(frameIndex + 1);
-  accum[i] = Vec4f{prev.x + (r - prev.x) * wgt, prev.y + (g - prev.y) * wgt, prev.z + (b - prev.z) * wgt,
-                   prev.w + ((1.f - T) - prev.w) * wgt};
+  accum[i] = accumulateMean(accum[i], ray.estimate(), frameIndex);
 }
 
 }  // namespace
@@ -112,13 +78,14 @@ struct CudaRayMarcher::Impl {
   cuda::DeviceTransferFunction tf;
   cuda::DeviceBuffer<float> depth;
   cuda::DeviceBuffer<Vec4f> accum;
-  cuda::DeviceBuffer<Vec3f> o, d;
-  cuda::DeviceBuffer<float> t0, ds;
+  cuda::DeviceBuffer<MarchRay> rays;
   cuda::DeviceBuffer<int> count, offsets;
   cuda::DeviceBuffer<unsigned char> scanTemp;
   cuda::DeviceBuffer<float4> points;
   cuda::DeviceBuffer<float> values;
+  cuda::DeviceBuffer<int> hitRays;
   cuda::PinnedHost<int> total{1};
+  cuda::PinnedHost<int> hitRaysHost{1};
 };
 
 CudaRayMarcher::CudaRayMarcher(const CudaInrEvaluator& evaluator, const Box3f& box, RayMarchOptions options)
@@ -133,6 +100,7 @@ CudaRayMarcher::~CudaRayMarcher() = default;
 
 void CudaRayMarcher::setSettings(const RenderSettings& settings) {
   if (settings.width <= 0 || settings.height <= 0) throw std::invalid_argument("image size must be positive");
+  validateImageWindow(settings.window, settings.width, settings.height);
   settings_ = settings;
   impl_->accum.resize(std::size_t(settings_.width) * settings_.height);
   resetAccumulation();
@@ -180,28 +148,29 @@ FrameStats CudaRayMarcher::renderFrame() {
   p.frame = std::uint32_t(frameIndex_);
   p.seed = settings_.seed;
   p.jitter = settings_.pixelJitter ? 1 : 0;
+  p.windowX = settings_.window.x;
+  p.windowY = settings_.window.y;
+  p.fullWidth = settings_.window.fullWidth;
   // Pixels per chunk: at most 2^24 samples (the longest ray has ceil(diagonal / step) + 1).
   const long long maxPerRay = (long long)std::ceil(length(box_.hi - box_.lo) / step_) + 2;
   const int chunk = int(std::max<long long>(1, std::min<long long>(n, (1ll << 24) / maxPerRay)));
   if (I.count.size() < std::size_t(chunk + 1)) {
-    I.o.resize(chunk);
-    I.d.resize(chunk);
-    I.t0.resize(chunk);
-    I.ds.resize(chunk);
+    I.rays.resize(chunk);
     I.count.resize(chunk + 1);
     I.offsets.resize(chunk + 1);
     std::size_t bytes = 0;
     INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, I.count.get(), I.offsets.get(), chunk + 1, s));
     I.scanTemp.resize(bytes);
   }
-  const Segments seg{I.o.get(), I.d.get(), I.t0.get(), I.ds.get(), I.count.get()};
   const TransferFunctionView tf = I.tf.view();
+  I.hitRays.resize(1);
+  I.hitRays.zero(s);
   for (int c0 = 0; c0 < n; c0 += chunk) {
     p.chunk0 = c0;
     p.chunkN = std::min(chunk, n - c0);
     const int blocks = (p.chunkN + 1 + 127) / 128;
-    segmentKernel<<<blocks, 128, 0, s>>>(p, seg);
-    INR_CUDA_CHECK_LAUNCH("segmentKernel");
+    marchRaysKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.count.get(), I.hitRays.get());
+    INR_CUDA_CHECK_LAUNCH("marchRaysKernel");
     std::size_t bytes = I.scanTemp.size();
     INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.scanTemp.get(), bytes, I.count.get(), I.offsets.get(),
                                                  p.chunkN + 1, s));
@@ -213,16 +182,18 @@ FrameStats CudaRayMarcher::renderFrame() {
         I.points.resize(std::size_t(total));
         I.values.resize(std::size_t(total));
       }
-      pointsKernel<<<blocks, 128, 0, s>>>(p, seg, I.offsets.get(), I.points.get());
+      pointsKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.points.get());
       INR_CUDA_CHECK_LAUNCH("pointsKernel");
       evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
       st.queries += std::size_t(total);
       st.iterations += 1;
     }
-    compositeKernel<<<blocks, 128, 0, s>>>(p, seg, I.offsets.get(), I.values.get(), tf, I.accum.get(), frameIndex_);
+    compositeKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.values.get(), tf, I.accum.get(), frameIndex_);
     INR_CUDA_CHECK_LAUNCH("compositeKernel");
   }
+  INR_CUDA_CHECK(cudaMemcpyAsync(I.hitRaysHost.get(), I.hitRays.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
+  st.rays = std::size_t(I.hitRaysHost[0]);
   ++frameIndex_;
   st.totalMs = msSince(tFrame);
   return st;

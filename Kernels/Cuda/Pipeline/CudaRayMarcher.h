@@ -1,10 +1,9 @@
 #pragma once
-// GPU port of the ray-marching baseline (RayMarchRenderer): the same camera rays and jitter
-// draws, equal segments of at most `step` sampled at their (per-frame shifted) midpoints,
-// front-to-back compositing with alpha = 1 - exp(-sigma ds). Dense sampling evaluated in large
-// batches through CudaInrEvaluator::evaluateDevice: per chunk of pixels a kernel counts each
-// ray's samples, a device prefix sum (CUB) places them, a kernel writes the points, the
-// evaluator fills the values, a kernel composites and accumulates.
+// The ray-marching baseline on the GPU: the per-ray logic of RayMarchRenderer (Render/RayMarch.h:
+// the same camera rays and jitter draws, segments, samples and compositing, here in float), the
+// samples evaluated in large batches through CudaInrEvaluator::evaluateDevice: per chunk of
+// pixels a kernel cuts each ray and counts its samples, a device prefix sum (CUB) places them, a
+// kernel writes the points, the evaluator fills the values, a kernel composites and accumulates.
 // Shadows are not implemented on the GPU (setScene throws when they are requested).
 #include <memory>
 #include <vector>

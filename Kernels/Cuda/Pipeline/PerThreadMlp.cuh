@@ -3,7 +3,7 @@
 // each instruction as in the generic fp32 path of CudaInrEvaluator (MlpProgram.h); activations
 // in their exact form (Common/Activation.h).
 #include "Common/Activation.h"
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 #include "Cuda/Pipeline/CudaPerThreadMlp.h"
 
 namespace inr::cuda {

@@ -5,7 +5,7 @@
 
 #include "Common/Activation.h"
 #include "Common/Half.h"
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 
 namespace inr {
 

@@ -1,7 +1,7 @@
 // The program compiler, checked on every architecture family through the CPU emulation of the
 // fused kernel's arithmetic (fp16 weights/activations, fp32 accumulation) against the fp32
 // reference evaluator. Runs without a GPU.
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "Cuda/MlpProgram.h"
+#include "Evaluator/MlpProgram.h"
 
 #include <algorithm>
 #include <sstream>

@@ -1,0 +1,104 @@
+#pragma once
+// The fused kernels' parameters as the host prepares them: FusedParams (the program, the packed
+// weights and their offsets, the input and output mappings, the buffer layout of both kernels),
+// the mma.sync kernel's weight packing and its shared-memory size. Host and device code read
+// these; the kernels themselves are FusedMlpKernel.cu (mma.sync) and FusedMlpKernelHopper.cu
+// (wgmma), their entry points FusedMlpKernels.h.
+#include <cuda_fp16.h>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "Evaluator/MlpProgram.h"
+
+namespace inr::cuda {
+
+constexpr int kMaxBuffers = MlpProgram::kMaxFusedBuffers;
+constexpr int kMaxFusedInstrs = 64;
+constexpr int kStageRowAlign = 64;  // weight stage rows: GEMM outputs rounded up to 4 warps x 16
+
+struct OutputMap {
+  // value = a(t) * net + b(t); a, b piecewise linear over `count` (t, a, b) entries (clamped),
+  // or constant when count == 0.
+  float a = 1.f, b = 0.f;
+  int count = 0;
+  const float* table = nullptr;  // count * 3 floats: t, a, b
+};
+
+struct FusedParams {
+  const MlpInstr* instrs = nullptr;
+  int numInstrs = 0;
+  // fp16 GEMM weights in the stage's layout (packStagedWeights), per weight chunk width
+  // (index kcIndex(KC)), and each instruction's offset into them (halves).
+  const __half* stagedWeights[2] = {nullptr, nullptr};
+  int stagedOffset[2][kMaxFusedInstrs] = {};
+  const float* floatWeights = nullptr;
+  int inputDim = 4;
+  int inputCoord[4] = {0, 1, 2, 3};  // world coordinate feeding each network input
+  float inScale[4] = {1, 1, 1, 1}, inOffset[4] = {0, 0, 0, 0};
+  int numBuffers = 1;
+  int bufferLd[kMaxBuffers] = {};  // halves per row (width + 8)
+  int maxGemmOutPad = 16;          // rows of the weight stage
+  // The program has a Fourier encoding fused into a GEMM: the mma.sync kernel computes it chunk
+  // by chunk into a stage of M x (KC + 8) halves.
+  int fusedFourier = 0;
+  // The Hopper kernel (FusedMlpKernelHopper.cuh): its program (MlpProgram::withGemmsInPlace, the
+  // same instructions over fewer buffers) and buffers, its weights (packHopperWeights) with each
+  // instruction's offset (per chunk width), each GEMM's bias offset in shared memory
+  // (hopperBiasLayout) and their total, the size and number of ring slots, and whether the
+  // consumers take turns.
+  const MlpInstr* hopperInstrs = nullptr;
+  int hopperNumBuffers = 1;
+  int hopperBufferLd[kMaxBuffers] = {};
+  const __half* hopperWeights[2] = {nullptr, nullptr};  // per chunk width (chunkIndex)
+  int hopperOffset[2][kMaxFusedInstrs] = {};
+  int hopperBiasStart[kMaxFusedInstrs] = {};
+  int hopperBiasFloats = 0;
+  int hopperStageHalves[2] = {1024, 2048};
+  int hopperStages = 2;
+  int hopperPingPong = 1;
+  OutputMap output;
+};
+
+__host__ __device__ constexpr int kcIndex(int kc) { return kc == 64 ? 0 : 1; }
+
+// The GEMM weights ([nPad][kPad] fp16 in MlpProgram::halfWeights) repacked chunk by chunk exactly
+// as the kernel's stage holds them: per K-chunk of KC, nPad rows of KC + 8 halves (zeros past
+// kPad and in the 8 padding columns). Staging a chunk is then one contiguous copy.
+inline std::vector<std::uint16_t> packStagedWeights(const MlpProgram& prog, int KC, int* offsets) {
+  std::vector<std::uint16_t> packed;
+  for (std::size_t i = 0; i < prog.instrs.size() && i < std::size_t(kMaxFusedInstrs); ++i) {
+    const MlpInstr& in = prog.instrs[i];
+    offsets[i] = 0;
+    if (in.op != MlpOp::Gemm || in.fusedIntoPrevious) continue;
+    offsets[i] = int(packed.size());
+    const int chunks = (in.kPad + KC - 1) / KC;
+    for (int c = 0; c < chunks; ++c)
+      for (int r = 0; r < in.nPad; ++r)
+        for (int k = 0; k < KC + 8; ++k) {
+          const int col = c * KC + k;
+          packed.push_back(k < KC && col < in.kPad ? prog.halfWeights[in.halfOffset + std::int64_t(r) * in.kPad + col] : 0);
+        }
+  }
+  return packed;
+}
+
+__host__ __device__ inline int stageRows(const FusedParams& P) {
+  return (P.maxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
+}
+
+// Shared memory for a tile of M queries and weight chunks of KC: activation buffers, the
+// weight double buffer, a fused Fourier encoding's chunk, coordinates (M x 4 floats), the final
+// dot's partial sums (4 x M) and weights.
+__host__ __device__ inline int encodingStageHalves(int M, int KC, const FusedParams& P) {
+  return P.fusedFourier ? M * (KC + 8) : 0;
+}
+
+inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
+  std::size_t halves = 0;
+  for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
+  halves += std::size_t(2) * stageRows(P) * (KC + 8) + encodingStageHalves(M, KC, P);
+  return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
+}
+
+}  // namespace inr::cuda

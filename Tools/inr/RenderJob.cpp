@@ -1,0 +1,424 @@
+#include "RenderJob.h"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "Args.h"
+
+namespace inr::cli {
+
+namespace {
+
+const char* kRenderUsageHead =
+    "usage: inr render MODEL -o OUT.png|.pfm [options]\n"
+    "scene:\n"
+    "  --time T                 world time (default: start of the model's time range)\n"
+    "  --size WxH               image size (default 512x512)\n"
+    "  --camera PX,PY,PZ,FX,FY,FZ,UX,UY,UZ,ANGLE\n"
+    "                           VTK camera: position, focal point, view-up, vertical view angle\n"
+    "                           in degrees (default: ParaView's reset-camera view of the box)\n"
+    "  --parallel-scale S       parallel projection showing 2*S world units vertically\n"
+    "  --tf FILE                ParaView colour-map JSON (RGBPoints, Points); default: cool-to-warm\n"
+    "                           with a linear opacity ramp over the model's value range\n"
+    "  --tf-range LO,HI         rescale the transfer function to this scalar range\n"
+    "  --opacity-unit-distance U  scalar opacity unit distance (default: box diagonal / 64)\n"
+    "  --background R,G,B       background colour (default 0,0,0)\n"
+    "  --shadows                ray-traced shadows from a directional light\n"
+    "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"
+    "  --ambient A              unshadowed fraction of the emission with --shadows (default 0.2)\n"
+    "  --shadow-estimator delta|ratio  shadow transmittance estimator (default delta)\n"
+    "rendering:\n"
+    "  --method delta|raymarch|naive  wavefront delta tracking (default), fixed-step ray marching,\n"
+    "                           or the naive per-ray delta tracker (one query per network call)\n"
+    "  --frames N               frames accumulated (default 64; ray marching: 1 unless jittered);\n"
+    "                           with --converge: the most frames\n"
+    "  --converge DB            stop once the estimated PSNR of the image over the pixels the\n"
+    "                           volume covers reaches DB (e.g. 40; from each pixel's sample\n"
+    "                           variance, as the ParaView plugin's Convergence Target), after at\n"
+    "                           least 8 frames; prints the frames and time it took\n"
+    "  --seed S                 random seed (default 1)\n"
+    "  --no-jitter              sample pixel centres (no antialiasing)\n"
+    "  --macrocells N|NX,NY,NZ  macrocell grid resolution (default 32)\n"
+    "  --time-slices T          temporal macrocell slices over the time range (default 16)\n"
+    "  --eager-slices           build every temporal slice at start-up (default: only those needed)\n"
+    "  --bounds-padding F       widen macrocell bounds by F x value range (default 0)\n"
+    "  --skip-block B           empty-space skipping: rays jump over empty blocks of B^3 macrocells\n"
+    "                           (power of two, default 4; 0 = off); the image does not change\n"
+    "  --ghost-passes G         ghost passes after building the working grid (default 0)\n"
+    "  --no-refine              do not refine under-estimated macrocells from samples\n"
+    "  --step S                 ray-march step in world units (default: box diagonal / 512)\n"
+    "  --shadow-step S          ray-march shadow step (default: 2 x step)\n"
+    "  --threads N              CPU threads (default: all)\n"
+    "  --backend B              auto (default: CUDA when a usable GPU is present, else CPU), cpu or cuda;\n"
+    "                           --method raymarch runs on it too (on CUDA: the GPU marcher; with\n"
+    "                           --shadows the CPU marcher on the GPU evaluator)\n"
+    "  --traversal T            GPU macrocell traversal: auto (default: OptiX on GPUs with RT cores, else\n"
+    "                           the DDA; the choice and its reason are printed), dda or optix (a GAS over\n"
+    "                           the non-empty macrocells; needs a build with OptiX). The CPU runs the DDA\n"
+    "  --gas-min-majorant M     OptiX: leave macrocells with majorant <= M out of the GAS (default 0:\n"
+    "                           exact; > 0 ignores nearly transparent cells, biased)\n"
+    "  --brick I/N              sub-domain rendering (delta tracking): split the box into N bricks on\n"
+    "                           macrocell boundaries and render brick I only (primary rays clipped to it,\n"
+    "                           shadow rays through the whole box, seed varied per brick); -o must be\n"
+    "                           .npy: premultiplied RGBA float32, shape (height, width, 4), row 0 at the\n"
+    "                           top; OUT.brick.json beside it gives the brick's box and the camera, for\n"
+    "                           Benchmarks/composite_bricks.py (front-to-back over in visibility order)\n"
+    "  --pixel-share I/N        sub-domain rendering, image-space split (what the ParaView plugin does under\n"
+    "                           MPI): trace only the pixels (x + y) mod N = I at full depth, same seed as the\n"
+    "                           whole image; output as for --brick (split \"pixels\" in the .brick.json;\n"
+    "                           composite_bricks.py adds the shares)\n";
+
+// The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
+// place they are defined (the plugin's XML defaults are checked against the same struct).
+std::string queryReductionUsage() {
+  const QueryReductionSettings d;
+  char text[4096];
+  std::snprintf(
+      text, sizeof text,
+      "query reduction (paper sec. 4.2; delta tracking only; each trades accuracy per frame for speed):\n"
+      "  --budget S               ray budgeting: none, histogram, stbn or weighted-stbn (default %s);\n"
+      "                           fewer rays per frame, the skipped pixels keep their previous estimate\n"
+      "  --budget-fraction RHO    rho: fraction of pixels traced per frame, in (0, 1] (default %g; the\n"
+      "                           histogram scheme thresholds at 1 - rho); lower = cheaper frames, more of them\n"
+      "  --budget-max-skip K      K: histogram scheme's longest skip in frames, S_max = min(K, n/4), 0..1024\n"
+      "                           (default %d); higher = fewer rays on converged pixels, staler ones\n"
+      "  --budget-alpha A         alpha: how strongly weighted-stbn steers rays to high-residual pixels,\n"
+      "                           in [0, 1] (default %g; 0 = plain stbn)\n"
+      "  --reproject              keep the accumulation across camera moves by reprojecting it (default %s);\n"
+      "  --no-reproject           restart it instead; a still camera is unaffected either way\n"
+      "  --prune-epsilon E        epsilon: macrocells whose value range is below E x the field's range are\n"
+      "                           answered without a network query, in [0, 1] (default %g; 0 = off);\n"
+      "                           higher = fewer queries, a biased image in near-uniform regions\n"
+      "  --prune-falloff D        delta: band above epsilon pruned with falling probability, in [0, 1]\n"
+      "                           (default %g); softens the epsilon edge. --budget none --prune-epsilon 0\n"
+      "                           --prune-falloff 0 --no-reproject renders every pixel exactly, every frame\n",
+      budgetSchemeName(d.budget), d.budgetFraction, d.budgetMaxSkip, d.budgetAlpha, d.reproject ? "on" : "off",
+      d.pruneEpsilon, d.pruneFalloff);
+  return text;
+}
+
+const char* kRenderUsageTail =
+    "output:\n"
+    "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float);\n"
+    "                           .npy with --brick (premultiplied RGBA, see --brick)\n"
+    "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells; per\n"
+    "                           frame also budget_skipped (pixels left out) and pruned (queries saved)\n"
+    "  --quiet                  only the summary line\n";
+
+// The primary estimator's options (TrackingOptions; Render/RatioTracking.h), checked before the
+// model loads; the help prints TrackingOptions' defaults.
+TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
+  for (const char* option :
+       {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold"}) {
+    if (args.has(option) && method != "delta")
+      throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
+  }
+  try {
+    t.estimator = parsePrimaryEstimator(args.get("estimator", primaryEstimatorName(t.estimator)));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--estimator: ") + e.what());
+  }
+  t.majorantScale = args.getDouble("majorant-scale", t.majorantScale);
+  t.residualScale = args.getDouble("residual-scale", t.residualScale);
+  t.pointsPerIteration = int(args.getInt("points-per-iteration", t.pointsPerIteration));
+  t.rouletteThreshold = args.getDouble("roulette-threshold", t.rouletteThreshold);
+  try {
+    t.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
+                                 "--roulette-threshold: ") +
+                     e.what());
+  }
+  return t;
+}
+
+std::string estimatorUsage() {
+  const TrackingOptions d = TrackingOptions::recommended();
+  char text[2048];
+  std::snprintf(
+      text, sizeof text,
+      "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
+      "  --estimator E            delta: the paper's delta tracking, one collision event per ray; ratio:\n"
+      "                           ratio-tracking emission weights at every tentative collision; march:\n"
+      "                           unbiased ray marching (a jittered comb per macrocell, transmittance\n"
+      "                           corrected by residual ratio tracking). All three converge to the same\n"
+      "                           image; ratio and march spend cheap queries for far less noise (default %s)\n"
+      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; march: comb\n"
+      "                           points per unit of majorant optical depth; in [1, 1024] (default %g);\n"
+      "                           higher = more queries per frame, less noise\n"
+      "  --residual-scale KR      march: residual points at KR x the majorant, in [0, 1024] (default %g;\n"
+      "                           0 = no correction: a plain jittered marcher, biased)\n"
+      "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
+      "                           (default %d); the image does not depend on it, only the frame time\n"
+      "  --roulette-threshold R   ratio: Russian roulette below this transmittance, in (0, 1] (default %g)\n",
+      primaryEstimatorName(d.estimator), d.majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
+      d.pointsPerIteration, d.rouletteThreshold);
+  return text;
+}
+
+// Reads the query-reduction options onto the struct's defaults. Each option is checked as it is
+// applied (the defaults are valid), so an error names the option the user typed.
+QueryReductionSettings parseQueryReduction(const Args& args) {
+  QueryReductionSettings q;
+  auto apply = [&](const char* option, auto&& set) {
+    if (!args.has(option)) return;
+    set();
+    try {
+      q.validate();
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--") + option + ": " + e.what());
+    }
+  };
+  apply("budget", [&] {
+    try {
+      q.budget = parseBudgetScheme(args.get("budget"));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--budget: ") + e.what());
+    }
+  });
+  apply("budget-fraction", [&] { q.budgetFraction = args.getDouble("budget-fraction", q.budgetFraction); });
+  apply("budget-max-skip", [&] {
+    const long k = args.getInt("budget-max-skip", q.budgetMaxSkip);
+    // Beyond int: said here (converting first would show validate() a different number).
+    if (k < 0 || k > (1L << 20))
+      throw UsageError("--budget-max-skip: " + std::to_string(k) + " is out of range (0..1024 frames)");
+    q.budgetMaxSkip = int(k);
+  });
+  apply("budget-alpha", [&] { q.budgetAlpha = args.getDouble("budget-alpha", q.budgetAlpha); });
+  apply("reproject", [&] { q.reproject = true; });
+  apply("no-reproject", [&] { q.reproject = false; });
+  if (args.has("reproject") && args.has("no-reproject")) throw UsageError("--reproject and --no-reproject contradict");
+  apply("prune-epsilon", [&] { q.pruneEpsilon = args.getDouble("prune-epsilon", q.pruneEpsilon); });
+  apply("prune-falloff", [&] { q.pruneFalloff = args.getDouble("prune-falloff", q.pruneFalloff); });
+  return q;
+}
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::array<double, 3> list3(const Args& args, const std::string& name) {
+  const auto v = args.getList(name, 3);
+  return {v[0], v[1], v[2]};
+}
+
+// Output file and sub-domain split (--brick / --pixel-share).
+void parseOutputAndSplit(const Args& args, RenderJob& job) {
+  if (args.positional().size() != 1) throw UsageError("expects exactly one MODEL file (see --help)");
+  job.model = args.positional()[0];
+  if (!args.has("output")) throw UsageError("-o OUT.png|.pfm is required");
+  job.output = args.get("output");
+  const bool pixelShare = args.has("pixel-share");
+  if (pixelShare && args.has("brick")) throw UsageError("--brick and --pixel-share are two splits: give one");
+  if (pixelShare) job.split = SplitKind::PixelShare;
+  else if (args.has("brick")) job.split = SplitKind::Brick;
+  if (job.split != SplitKind::None) {
+    try {
+      job.splitIndex = parseBrickIndex(args.get(pixelShare ? "pixel-share" : "brick"));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string(job.splitOption()) + ": " + e.what());
+    }
+    if (!endsWith(job.output, ".npy"))
+      throw UsageError(std::string("-o: with ") + job.splitOption() + " the output must end in .npy, got '" +
+                       job.output + "'");
+  } else if (!endsWith(job.output, ".png") && !endsWith(job.output, ".pfm")) {
+    throw UsageError("-o: output must end in .png or .pfm, got '" + job.output + "'");
+  }
+}
+
+// Image size, seed, jitter, frames and the convergence target.
+void parseImageAndFrames(const Args& args, RenderJob& job) {
+  RenderSettings& settings = job.settings;
+  const std::string size = args.get("size", "512x512");
+  const auto x = size.find('x');
+  if (x == std::string::npos) throw UsageError("--size must be WxH, e.g. 512x512");
+  const long w = parseInt(size.substr(0, x), "--size width"), h = parseInt(size.substr(x + 1), "--size height");
+  if (w < 1 || h < 1 || w > 16384 || h > 16384) throw UsageError("--size: each side must be in [1, 16384]");
+  settings.width = int(w);
+  settings.height = int(h);
+  const long seed = args.getInt("seed", 1);
+  if (seed < 0 || seed > 0xffffffffL) throw UsageError("--seed must be in [0, 2^32)");
+  // Bricks vary the seed (rays of two bricks must not share noise); pixel shares keep it, so the
+  // shares add up to the whole image's pixels.
+  settings.seed = job.splitIntoBricks() ? brickSeed(std::uint32_t(seed), job.splitIndex.index) : std::uint32_t(seed);
+  settings.pixelJitter = !args.has("no-jitter");
+  if (job.split == SplitKind::PixelShare) settings.pixelShare = PixelShare{job.splitIndex.index, job.splitIndex.count};
+  job.frames = args.getInt("frames", job.method == RenderMethod::RayMarch && !settings.pixelJitter ? 1 : 64);
+  if (job.frames < 1 || job.frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
+  job.convergeTarget = args.getDouble("converge", 0.0);
+  if (args.has("converge") && !(job.convergeTarget > 0.0 && job.convergeTarget <= 200.0)) {
+    throw UsageError("--converge must be a PSNR in (0, 200] dB, e.g. 40");
+  }
+  if (args.has("converge") && job.method == RenderMethod::RayMarch)
+    throw UsageError("--converge applies to delta tracking only");
+}
+
+// Macrocells, backend, traversal and CPU threads: the session's options.
+void parseSessionOptions(const Args& args, RenderJob& job) {
+  MacrocellOptions& mopts = job.session.macrocells;
+  if (args.has("macrocells")) {
+    const auto m = args.getList("macrocells", 0);
+    if (m.size() != 1 && m.size() != 3) throw UsageError("--macrocells takes N or NX,NY,NZ");
+    for (double v : m)
+      if (v < 1 || v > 1024 || v != std::floor(v)) throw UsageError("--macrocells: each must be an integer in [1, 1024]");
+    mopts.dims = m.size() == 1 ? Int3{int(m[0]), int(m[0]), int(m[0])} : Int3{int(m[0]), int(m[1]), int(m[2])};
+  }
+  if (args.has("time-slices")) {
+    const long slices = args.getInt("time-slices", mopts.temporalSlices);
+    if (slices < 1 || slices > 4096) throw UsageError("--time-slices must be in [1, 4096]");
+    job.timeSlices = int(slices);
+  }
+  mopts.lazySlices = !args.has("eager-slices");
+  mopts.boundsPadding = args.getDouble("bounds-padding", mopts.boundsPadding);
+  if (mopts.boundsPadding < 0) throw UsageError("--bounds-padding must be >= 0");
+  const long skipBlock = args.getInt("skip-block", mopts.skipBlockCells);
+  if (skipBlock < 0 || skipBlock > 1024 || (skipBlock & (skipBlock - 1)) != 0) {
+    throw UsageError("--skip-block must be 0 (off) or a power of two up to 1024");
+  }
+  mopts.skipBlockCells = int(skipBlock);
+  const long ghost = args.getInt("ghost-passes", TrackingOptions{}.ghostPassesOnUpdate);
+  if (ghost < 0 || ghost > TrackingOptions::kMaxGhostPasses) {
+    throw UsageError("--ghost-passes must be in [0, " + std::to_string(TrackingOptions::kMaxGhostPasses) + "]");
+  }
+  job.ghostPasses = int(ghost);
+
+  RenderSessionOptions& sopts = job.session;
+  try {
+    sopts.backend = parseRenderBackend(args.get("backend", "auto"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--backend: ") + e.what());
+  }
+  sopts.allowFallback = false;  // an explicit --backend cuda that cannot run is an error
+  try {
+    sopts.traversal.kind = parseTraversalKind(args.get("traversal", "auto"));
+    sopts.traversal.gasMinMajorant = float(args.getDouble("gas-min-majorant", 0.0));
+    sopts.traversal.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--traversal / --gas-min-majorant: ") + e.what());
+  }
+  if (args.has("no-refine")) sopts.tracking.refineMacrocells = false;
+  if (args.has("threads")) {
+    const long t = args.getInt("threads", 0);
+    if (t < 1 || t > 4096) throw UsageError("--threads must be >= 1");
+    job.threads = int(t);
+  }
+  sopts.cpuThreads = job.threads;
+}
+
+// Time, camera, transfer function, background, shadows and the ray marcher's steps.
+void parseScene(const Args& args, RenderJob& job) {
+  if (args.has("time")) job.time = args.getDouble("time", 0.0);
+  if (args.has("camera")) {
+    const auto c = args.getList("camera", 10);
+    Camera camera;
+    camera.position = {c[0], c[1], c[2]};
+    camera.focalPoint = {c[3], c[4], c[5]};
+    camera.viewUp = {c[6], c[7], c[8]};
+    camera.viewAngle = c[9];
+    job.camera = camera;
+  }
+  if (args.has("parallel-scale")) job.parallelScale = args.getDouble("parallel-scale", 1.0);
+  if (job.camera || job.parallelScale) {
+    // Checked on the camera given (or a default one for --parallel-scale alone: the model's
+    // framing camera differs only in where it stands).
+    Camera check = job.camera.value_or(Camera{});
+    if (job.parallelScale) {
+      check.parallelProjection = true;
+      check.parallelScale = *job.parallelScale;
+    }
+    try {
+      check.view(job.settings.width, job.settings.height);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string(job.camera ? "--camera: " : "--parallel-scale: ") + e.what());
+    }
+  }
+  job.transferFunctionFile = args.get("tf");
+  if (args.has("tf") && job.transferFunctionFile.empty()) throw UsageError("--tf needs a file name");
+  if (args.has("tf-range")) {
+    const auto r = args.getList("tf-range", 2);
+    if (!(r[1] > r[0])) throw UsageError("--tf-range LO,HI needs LO < HI");
+    job.transferFunctionRange = std::array<double, 2>{r[0], r[1]};
+  }
+  if (args.has("opacity-unit-distance")) {
+    job.opacityUnitDistance = args.getDouble("opacity-unit-distance", 1.0);
+    if (!(*job.opacityUnitDistance > 0)) throw UsageError("--opacity-unit-distance must be > 0");
+  }
+  if (args.has("background")) {
+    const auto bg = list3(args, "background");
+    job.background = {float(bg[0]), float(bg[1]), float(bg[2])};
+  }
+  job.shadows = args.has("shadows");
+  if (args.has("light")) {
+    job.toLight = list3(args, "light");
+    const auto& l = *job.toLight;
+    if (!(std::hypot(l[0], l[1], l[2]) > 0)) throw UsageError("--light must be a non-zero direction");
+  }
+  job.ambient = float(args.getDouble("ambient", 0.2));
+  if (job.ambient < 0.f || job.ambient > 1.f) throw UsageError("--ambient must be in [0, 1]");
+  const std::string estimator = args.get("shadow-estimator", "delta");
+  if (estimator != "delta" && estimator != "ratio") throw UsageError("--shadow-estimator must be delta or ratio");
+  job.shadowEstimator = estimator == "ratio" ? ShadowEstimator::Ratio : ShadowEstimator::Delta;
+
+  job.rayMarch.step = float(args.getDouble("step", 0.0));
+  job.rayMarch.shadowStep = float(args.getDouble("shadow-step", 0.0));
+  if (args.has("step") && !(job.rayMarch.step > 0)) throw UsageError("--step must be > 0");
+  if (args.has("shadow-step") && !(job.rayMarch.shadowStep > 0)) throw UsageError("--shadow-step must be > 0");
+}
+
+}  // namespace
+
+const char* renderMethodName(RenderMethod method) {
+  switch (method) {
+    case RenderMethod::Delta: return "delta";
+    case RenderMethod::RayMarch: return "raymarch";
+    case RenderMethod::Naive: return "naive";
+  }
+  return "?";
+}
+
+std::string renderUsage() {
+  return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + kRenderUsageTail;
+}
+
+RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
+  const Args args(arguments,
+                  {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
+                   "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
+                   "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes", "step",
+                   "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
+                   "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
+                   "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
+                   "roulette-threshold"},
+                  {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
+  RenderJob job;
+  if (args.has("help")) {
+    job.help = true;
+    return job;
+  }
+  parseOutputAndSplit(args, job);
+  const std::string method = args.get("method", "delta");
+  if (method == "delta") job.method = RenderMethod::Delta;
+  else if (method == "raymarch") job.method = RenderMethod::RayMarch;
+  else if (method == "naive") job.method = RenderMethod::Naive;
+  else throw UsageError("--method must be delta, raymarch or naive, got '" + method + "'");
+  if (job.split != SplitKind::None && job.method != RenderMethod::Delta)
+    throw UsageError(std::string(job.splitOption()) + " applies to --method delta only");
+  job.quiet = args.has("quiet");
+  job.statsJson = args.get("stats-json");
+  if (args.has("stats-json") && job.statsJson.empty()) throw UsageError("--stats-json needs a file name");
+
+  parseImageAndFrames(args, job);
+  job.queryReduction = parseQueryReduction(args);
+  job.session.tracking = parseEstimatorOptions(args, TrackingOptions::recommended(), method);
+  for (const char* option : {"budget", "budget-fraction", "budget-max-skip", "budget-alpha", "reproject",
+                             "no-reproject", "prune-epsilon", "prune-falloff"}) {
+    if (args.has(option) && job.method == RenderMethod::RayMarch)
+      throw UsageError(std::string("--") + option + " applies to delta tracking only, not --method raymarch");
+  }
+  parseSessionOptions(args, job);
+  parseScene(args, job);
+  return job;
+}
+
+}  // namespace inr::cli

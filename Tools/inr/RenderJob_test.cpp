@@ -1,0 +1,211 @@
+// parseRenderJob: what `inr render`'s options turn into, and the usage errors, each of which must
+// name the option at fault. No model is loaded: the parser never opens a file.
+#include "RenderJob.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "Args.h"
+
+namespace inr::cli {
+namespace {
+
+std::vector<std::string> withModel(std::vector<std::string> extra, const std::string& output = "out.png") {
+  std::vector<std::string> args{"model.inr", "-o", output};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return args;
+}
+
+// The message of the UsageError that parsing `args` throws ("" when it throws none).
+std::string usageError(const std::vector<std::string>& args) {
+  try {
+    parseRenderJob(args);
+  } catch (const UsageError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RenderJob, DefaultsAreTheDocumentedOnes) {
+  const RenderJob job = parseRenderJob(withModel({}));
+  EXPECT_FALSE(job.help);
+  EXPECT_EQ(job.model, "model.inr");
+  EXPECT_EQ(job.output, "out.png");
+  EXPECT_EQ(job.method, RenderMethod::Delta);
+  EXPECT_EQ(job.settings.width, 512);
+  EXPECT_EQ(job.settings.height, 512);
+  EXPECT_EQ(job.settings.seed, 1u);
+  EXPECT_TRUE(job.settings.pixelJitter);
+  EXPECT_EQ(job.frames, 64);
+  EXPECT_EQ(job.convergeTarget, 0.0);
+  EXPECT_EQ(job.split, SplitKind::None);
+  EXPECT_EQ(job.session.backend, RenderBackend::Auto);
+  EXPECT_FALSE(job.session.allowFallback);  // an explicit backend that cannot run is an error
+  const TrackingOptions recommended = TrackingOptions::recommended();
+  EXPECT_EQ(job.session.tracking.estimator, recommended.estimator);
+  EXPECT_EQ(job.session.tracking.majorantScale, recommended.majorantScale);
+  EXPECT_TRUE(job.session.macrocells.lazySlices);
+  EXPECT_FALSE(job.timeSlices.has_value());
+  // Model-dependent defaults are left to the runner.
+  EXPECT_FALSE(job.time.has_value());
+  EXPECT_FALSE(job.camera.has_value());
+  EXPECT_FALSE(job.opacityUnitDistance.has_value());
+  EXPECT_FALSE(job.toLight.has_value());
+  EXPECT_TRUE(job.transferFunctionFile.empty());
+  EXPECT_FALSE(job.shadows);
+  EXPECT_EQ(job.shadowEstimator, ShadowEstimator::Delta);
+}
+
+TEST(RenderJob, OptionsReachTheirFields) {
+  const RenderJob job = parseRenderJob(withModel(
+      {"--size", "40x30", "--seed", "7", "--frames", "5", "--time", "0.25", "--camera", "1,2,3,0,0,0,0,0,1,40",
+       "--tf", "tf.json", "--tf-range", "-1,2", "--opacity-unit-distance", "0.5", "--background", "0.1,0.2,0.3",
+       "--shadows", "--light", "0,1,0", "--ambient", "0.4", "--shadow-estimator", "ratio", "--macrocells", "8,16,32",
+       "--time-slices", "3", "--eager-slices", "--skip-block", "2", "--ghost-passes", "1", "--no-refine",
+       "--backend", "cpu", "--threads", "2", "--estimator", "delta", "--budget", "stbn", "--budget-fraction", "0.5",
+       "--converge", "35", "--stats-json", "s.json", "--quiet", "--no-jitter"}));
+  EXPECT_EQ(job.settings.width, 40);
+  EXPECT_EQ(job.settings.height, 30);
+  EXPECT_EQ(job.settings.seed, 7u);
+  EXPECT_FALSE(job.settings.pixelJitter);
+  EXPECT_EQ(job.frames, 5);
+  EXPECT_EQ(job.convergeTarget, 35.0);
+  ASSERT_TRUE(job.time.has_value());
+  EXPECT_EQ(*job.time, 0.25);
+  ASSERT_TRUE(job.camera.has_value());
+  EXPECT_EQ(job.camera->position, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(job.camera->viewUp, (std::array<double, 3>{0, 0, 1}));
+  EXPECT_EQ(job.camera->viewAngle, 40.0);
+  EXPECT_EQ(job.transferFunctionFile, "tf.json");
+  ASSERT_TRUE(job.transferFunctionRange.has_value());
+  EXPECT_EQ((*job.transferFunctionRange)[0], -1.0);
+  EXPECT_EQ(*job.opacityUnitDistance, 0.5);
+  EXPECT_EQ(job.background[2], 0.3f);
+  EXPECT_TRUE(job.shadows);
+  EXPECT_EQ(*job.toLight, (std::array<double, 3>{0, 1, 0}));
+  EXPECT_EQ(job.ambient, 0.4f);
+  EXPECT_EQ(job.shadowEstimator, ShadowEstimator::Ratio);
+  EXPECT_EQ(job.session.macrocells.dims.x, 8);
+  EXPECT_EQ(job.session.macrocells.dims.z, 32);
+  EXPECT_EQ(job.timeSlices.value_or(0), 3);
+  EXPECT_FALSE(job.session.macrocells.lazySlices);
+  EXPECT_EQ(job.session.macrocells.skipBlockCells, 2);
+  EXPECT_EQ(job.ghostPasses, 1);
+  EXPECT_FALSE(job.session.tracking.refineMacrocells);
+  EXPECT_EQ(job.session.backend, RenderBackend::Cpu);
+  EXPECT_EQ(job.threads, 2);
+  EXPECT_EQ(job.session.cpuThreads, 2);
+  EXPECT_EQ(job.session.tracking.estimator, PrimaryEstimator::Delta);
+  EXPECT_EQ(job.queryReduction.budget, BudgetScheme::Stbn);
+  EXPECT_EQ(job.queryReduction.budgetFraction, 0.5);
+  EXPECT_EQ(job.statsJson, "s.json");
+  EXPECT_TRUE(job.quiet);
+}
+
+TEST(RenderJob, RayMarchWithoutJitterTakesOneFrame) {
+  const RenderJob job = parseRenderJob(withModel({"--method", "raymarch", "--no-jitter", "--step", "0.01"}));
+  EXPECT_EQ(job.method, RenderMethod::RayMarch);
+  EXPECT_EQ(job.frames, 1);
+  EXPECT_EQ(job.rayMarch.step, 0.01f);
+  EXPECT_EQ(parseRenderJob(withModel({"--method", "raymarch"})).frames, 64);
+}
+
+TEST(RenderJob, SplitsSetSeedAndPixelShare) {
+  const RenderJob brick = parseRenderJob(withModel({"--brick", "1/4", "--seed", "9"}, "b.npy"));
+  EXPECT_EQ(brick.split, SplitKind::Brick);
+  EXPECT_EQ(brick.splitIndex.index, 1);
+  EXPECT_EQ(brick.splitIndex.count, 4);
+  EXPECT_EQ(brick.settings.seed, brickSeed(9u, 1));  // bricks vary the seed
+  EXPECT_NE(brick.settings.seed, 9u);
+  EXPECT_EQ(brick.settings.pixelShare.count, 1);
+
+  const RenderJob share = parseRenderJob(withModel({"--pixel-share", "1/2", "--seed", "9"}, "s.npy"));
+  EXPECT_EQ(share.split, SplitKind::PixelShare);
+  EXPECT_EQ(share.settings.seed, 9u);  // shares keep it: they add up to the whole image
+  EXPECT_EQ(share.settings.pixelShare.index, 1);
+  EXPECT_EQ(share.settings.pixelShare.count, 2);
+  EXPECT_TRUE(share.writesNpy());
+}
+
+TEST(RenderJob, HelpNeedsNothingElse) {
+  EXPECT_TRUE(parseRenderJob({"--help"}).help);
+  const std::string usage = renderUsage();
+  for (const char* option : {"--method", "--estimator", "--budget", "--brick", "--stats-json"})
+    EXPECT_NE(usage.find(option), std::string::npos) << option;
+}
+
+// Each bad command line is a UsageError whose message names the option (or the argument) at fault.
+TEST(RenderJob, BadValuesAreUsageErrorsNamingTheOption) {
+  struct Case {
+    std::vector<std::string> extra;
+    std::string output;
+    std::string named;
+  };
+  const std::vector<Case> cases = {
+      {{"--size", "40"}, "out.png", "--size"},
+      {{"--size", "40x"}, "out.png", "--size"},
+      {{"--size", "0x5"}, "out.png", "--size"},
+      {{"--seed", "-1"}, "out.png", "--seed"},
+      {{"--frames", "0"}, "out.png", "--frames"},
+      {{"--frames", "two"}, "out.png", "--frames"},
+      {{"--time", "abc"}, "out.png", "--time"},
+      {{"--method", "march"}, "out.png", "--method"},
+      {{"--converge", "0"}, "out.png", "--converge"},
+      {{"--converge", "40", "--method", "raymarch"}, "out.png", "--converge"},
+      {{"--macrocells", "2,3"}, "out.png", "--macrocells"},
+      {{"--macrocells", "0"}, "out.png", "--macrocells"},
+      {{"--time-slices", "0"}, "out.png", "--time-slices"},
+      {{"--bounds-padding", "-1"}, "out.png", "--bounds-padding"},
+      {{"--skip-block", "3"}, "out.png", "--skip-block"},
+      {{"--ghost-passes", "-1"}, "out.png", "--ghost-passes"},
+      {{"--backend", "metal"}, "out.png", "--backend"},
+      {{"--traversal", "bvh"}, "out.png", "--traversal"},
+      {{"--gas-min-majorant", "-1"}, "out.png", "--gas-min-majorant"},
+      {{"--threads", "0"}, "out.png", "--threads"},
+      {{"--camera", "1,2,3"}, "out.png", "--camera"},
+      {{"--camera", "0,0,0,0,0,0,0,1,0,30"}, "out.png", "--camera"},  // position equals focal point
+      {{"--parallel-scale", "-1"}, "out.png", "--parallel-scale"},
+      {{"--tf-range", "1,0"}, "out.png", "--tf-range"},
+      {{"--opacity-unit-distance", "0"}, "out.png", "--opacity-unit-distance"},
+      {{"--background", "1,1"}, "out.png", "--background"},
+      {{"--light", "0,0,0"}, "out.png", "--light"},
+      {{"--ambient", "2"}, "out.png", "--ambient"},
+      {{"--shadow-estimator", "exact"}, "out.png", "--shadow-estimator"},
+      {{"--step", "0"}, "out.png", "--step"},
+      {{"--shadow-step", "-1"}, "out.png", "--shadow-step"},
+      {{"--budget", "everything"}, "out.png", "--budget"},
+      {{"--budget-fraction", "0"}, "out.png", "--budget-fraction"},
+      {{"--budget-max-skip", "-2"}, "out.png", "--budget-max-skip"},
+      {{"--budget", "stbn", "--method", "raymarch"}, "out.png", "--budget"},
+      {{"--reproject", "--no-reproject"}, "out.png", "--reproject"},
+      {{"--estimator", "exact"}, "out.png", "--estimator"},
+      {{"--majorant-scale", "0"}, "out.png", "--majorant-scale"},
+      {{"--estimator", "ratio", "--method", "raymarch"}, "out.png", "--estimator"},
+      {{"--brick", "2/2"}, "b.npy", "--brick"},
+      {{"--brick", "0/2"}, "out.png", ".npy"},
+      {{"--brick", "0/2", "--method", "naive"}, "b.npy", "--brick"},
+      {{"--pixel-share", "0/0"}, "s.npy", "--pixel-share"},
+      {{"--pixel-share", "0/2", "--brick", "0/2"}, "s.npy", "give one"},
+      {{"--bogus"}, "out.png", "--bogus"},
+      {{"--frames"}, "out.png", "--frames"},
+      {{}, "out.jpg", "-o"},
+  };
+  for (const Case& c : cases) {
+    const std::vector<std::string> args = withModel(c.extra, c.output);
+    std::string line;
+    for (const std::string& a : args) line += a + " ";
+    const std::string message = usageError(args);
+    EXPECT_NE(message.find(c.named), std::string::npos) << "inr render " << line << "-> '" << message << "'";
+  }
+}
+
+TEST(RenderJob, ModelAndOutputAreRequired) {
+  EXPECT_NE(usageError({"-o", "out.png"}).find("MODEL"), std::string::npos);
+  EXPECT_NE(usageError({"a.inr", "b.inr", "-o", "out.png"}).find("MODEL"), std::string::npos);
+  EXPECT_NE(usageError({"a.inr"}).find("-o"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace inr::cli
