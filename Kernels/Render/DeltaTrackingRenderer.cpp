@@ -13,15 +13,12 @@
 #include "Render/Shadows.h"
 #include "Render/RatioTracking.h"
 #include "Render/Traverse.h"
+#include "Common/Stopwatch.h"
 
 namespace inr {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 // Candidates pruned this frame, over all rays (RayStateView::pruned, both legs).
 std::size_t sumPruned(const RayStateView& rs) {

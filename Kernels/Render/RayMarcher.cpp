@@ -10,15 +10,9 @@
 #include "Render/RayMarch.h"
 #include "Render/Finalize.h"
 #include "Render/AccumulationImage.h"
+#include "Common/Stopwatch.h"
 
 namespace inr {
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-}  // namespace
 
 RayMarchRenderer::RayMarchRenderer(const FieldEvaluator& evaluator, const Box3f& box,
                                    RayMarchOptions options)

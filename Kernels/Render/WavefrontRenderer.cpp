@@ -8,13 +8,9 @@
 #include <string>
 
 #include "Render/AccumulationImage.h"
+#include "Common/Stopwatch.h"
 
 namespace inr {
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-}  // namespace
 
 const char* primaryEstimatorName(PrimaryEstimator e) {
   return e == PrimaryEstimator::Ratio ? "ratio" : e == PrimaryEstimator::March ? "march" : "delta";

@@ -9,6 +9,7 @@
 
 #include "Render/MacrocellLayout.h"
 #include "Render/WavefrontRenderer.h"
+#include "Common/Stopwatch.h"
 
 bool InrEngineRequest::SameBuild(const InrEngineRequest& o) const
 {
@@ -134,10 +135,7 @@ std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
   return os << inr::primaryEstimatorName(e) << " (" << static_cast<int>(e) << ")";
 }
 
-double msSince(std::chrono::steady_clock::time_point t0)
-{
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
+using inr::msSince;
 }
 
 // Each asked value is checked as `inr render` checks it (the engine's validation and message:
@@ -395,7 +393,7 @@ double InrEngines::BuildCoarseAhead(int n, bool report)
   {
     return 0.0;
   }
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = inr::Clock::now();
   if (this->progress)
   {
     engine.setProgressHandler(this->progress("INR Volume (interactive macrocells): "));
@@ -449,7 +447,7 @@ bool InrEngines::StartFineBuild(double time)
       }
       this->fineBuildDone = true;
     });
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = inr::Clock::now();
   while (!this->fineBuildDone && msSince(start) < 20.0)
   {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));

@@ -55,6 +55,7 @@
 #include <thread>
 #include <tuple>
 #include <vector>
+#include "Common/Stopwatch.h"
 
 namespace
 {
@@ -151,11 +152,8 @@ bool lodReport()
   return v && v[0] && std::string(v) != "0";
 }
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0)
-{
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using inr::Clock;
+using inr::msSince;
 
 // The depth limits (engine row order) of a width x height image, sampled at the centres of the
 // pixels of a w x h image covering the same view.

@@ -14,6 +14,7 @@
 #include "Render/RayInit.h"
 #include "Render/Reproject.h"
 #include "Render/Shadows.h"
+#include "Common/Stopwatch.h"
 
 namespace inr {
 
@@ -21,8 +22,6 @@ using namespace pipeline;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // ---- kernels: thin wrappers around the shared INR_HD per-ray functions ----
 

@@ -12,13 +12,12 @@
 #include "Cuda/Pipeline/DeviceTransferFunction.h"
 #include "Render/Finalize.h"
 #include "Render/RayMarch.h"
+#include "Common/Stopwatch.h"
 
 namespace inr {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 struct MarchParams {
   CameraView cam;
