@@ -4,7 +4,7 @@
 #include <stdexcept>
 
 // The shipped mask's bytes, compiled in from Data/stbn_128x128x64.u8 (Data/README.md says how it
-// was generated) by Data/EmbedBytes.cmake.
+// was generated) by cmake/EmbedBytes.cmake.
 namespace inr::detail {
 extern const unsigned char kShippedStbnTexels[];
 extern const std::size_t kShippedStbnTexelsSize;

@@ -21,7 +21,7 @@
 #include "Cuda/DeviceBuffer.h"
 #include "Cuda/Pipeline/OptixLaunchParams.h"
 
-// OptixProgramsIr.cpp, generated at build time from OptixPrograms.cu (cmake/EmbedFile.cmake).
+// OptixProgramsIr.cpp, generated at build time from OptixPrograms.cu (cmake/EmbedBytes.cmake).
 extern const unsigned char kInrOptixProgramsIr[];
 extern const std::size_t kInrOptixProgramsIrSize;
 
