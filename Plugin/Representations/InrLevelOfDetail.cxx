@@ -105,11 +105,18 @@ double InrLevelOfDetail::ChooseScale(double budgetMs, int width, int height)
     {
       return this->lodScale;
     }
-    if (measured < kKeepScaleAbove * engineBudget && this->framesAtScale >= 4)
+    if (measured < kKeepScaleAbove * engineBudget && this->framesAtScale >= 4 &&
+      this->lodCeiling <= 1.0)
     {
       // Four frames at this scale well under the budget: the frame that barred the larger scale
-      // was an outlier (a loaded machine, a background build): allow it again.
-      this->lodCeiling = 2.0;
+      // may have been an outlier (a loaded machine, a background build). Allow it again only if
+      // this scale's time, grown by the pixel ratio, says it fits: otherwise trying it again
+      // restarts the accumulation, is too slow again, and the drag flips between two sizes.
+      const double ratio = this->lodCeiling / this->lodScale;
+      if (measured * ratio * ratio <= kKeepScaleBelow * engineBudget)
+      {
+        this->lodCeiling = 2.0;
+      }
     }
     if (measured > kKeepScaleBelow * engineBudget && measured <= 2.0 * engineBudget &&
       this->framesAtScale < 2)

@@ -4,8 +4,10 @@
 // options (InrSessionOptions). No VTK, no window: the rules are checked on their own.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <vector>
 
 #include "Backends/RenderSession.h"
 #include "Evaluator/FieldEvaluator.h"
@@ -118,6 +120,38 @@ TEST(InrLevelOfDetail, ScaleHoldsWhileFramesStayInTheBudgetAndDropsWhenTooSlow)
   EXPECT_LT(lower, first);
   EXPECT_GE(lower, Lod::kMinScale);
   EXPECT_DOUBLE_EQ(std::fmod(lower * Lod::kScaleSteps, 1.0), 0.0) << "a step of 1/16";
+}
+
+TEST(InrLevelOfDetail, ABarredScaleComesBackOnlyWhenTheMeasuredTimeSaysItFits)
+{
+  // Budget 10 ms, nothing fixed measured; the engine's time follows the pixel count: `atMin` ms
+  // at the smallest scale (1/16), 4x that at 2/16 (seen in plugin_mapper_lod: 0.5 ms at 13x9,
+  // over the budget at 25x19). A drag of 40 frames from the first guess.
+  auto drag = [](double atMin) {
+    Lod lod;
+    double s = lod.ChooseScale(10.0, 400, 300);
+    std::vector<double> scales;
+    for (int k = 0; k < 40; ++k)
+    {
+      const double ms = atMin * (s * Lod::kScaleSteps) * (s * Lod::kScaleSteps);
+      lod.MeasureFrame(ms, ms, 0.0, 1, int(std::lround(400 * s)), int(std::lround(300 * s)), true);
+      s = lod.ChooseScale(10.0, 400, 300);
+      scales.push_back(s);
+    }
+    return scales;
+  };
+  // 3 ms at 1/16 (12 ms at 2/16, over the budget): after the first adjustments the scale holds.
+  // It used to try 2/16 again after every four frames at 1/16 well under the budget, restarting
+  // the accumulation each time, and flip between the two sizes for the whole drag.
+  const std::vector<double> slow = drag(3.0);
+  for (std::size_t k = 20; k < slow.size(); ++k)
+  {
+    EXPECT_DOUBLE_EQ(slow[k], slow[19]) << "frame " << k;
+  }
+  EXPECT_DOUBLE_EQ(slow.back(), Lod::kMinScale);
+  // 0.5 ms at 1/16 (2 ms at 2/16 fits): the scale grows past 2/16.
+  const std::vector<double> fast = drag(0.5);
+  EXPECT_GT(fast.back(), 2.0 / Lod::kScaleSteps);
 }
 
 TEST(InrLevelOfDetail, FreshFrames)
