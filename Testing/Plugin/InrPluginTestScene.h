@@ -3,7 +3,9 @@
 #define InrPluginTestScene_h
 
 #include "vtkActor.h"
+#include "vtkColorTransferFunction.h"
 #include "vtkNew.h"
+#include "vtkPiecewiseFunction.h"
 #include "vtkPolyDataMapper.h"
 #include "vtkProperty.h"
 #include "vtkRenderer.h"
@@ -24,6 +26,16 @@ inline void AddOpaqueSphere(vtkRenderer* ren)
   actor->SetMapper(mapper);
   actor->GetProperty()->SetColor(0.9, 0.75, 0.2);
   ren->AddActor(actor);
+}
+
+// The two-point colour and opacity ramps over the test volume's values [-0.14, 1.17] that the
+// mapper-level tests without an image baseline use (blue to red, opaque from 0.55 up).
+inline void SetTestRamps(vtkColorTransferFunction* ctf, vtkPiecewiseFunction* otf)
+{
+  ctf->AddRGBPoint(-0.14, 0.23, 0.30, 0.75);
+  ctf->AddRGBPoint(1.17, 0.71, 0.02, 0.15);
+  otf->AddPoint(0.55, 0.0);
+  otf->AddPoint(1.17, 1.0);
 }
 
 #endif

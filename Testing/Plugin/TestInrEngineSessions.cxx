@@ -12,6 +12,7 @@
 // Before the fix the coarse session's options were built by hand in a second place and took the
 // traversal from nowhere (Auto whatever the user chose), and it built an evaluator of its own.
 // Usage: TestInrEngineSessions MODEL.inr
+#include "InrPluginTestScene.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkInrVolumeMapper.h"
@@ -62,11 +63,8 @@ int main(int argc, char* argv[])
   reader->SetFileName(argv[1]);
   reader->SetPreviewResolution(2);
   vtkNew<vtkColorTransferFunction> ctf;
-  ctf->AddRGBPoint(-0.14, 0.23, 0.30, 0.75);
-  ctf->AddRGBPoint(1.17, 0.71, 0.02, 0.15);
   vtkNew<vtkPiecewiseFunction> otf;
-  otf->AddPoint(0.55, 0.0);
-  otf->AddPoint(1.17, 1.0);
+  SetTestRamps(ctf, otf);
 
   vtkNew<vtkInrVolumeMapper> mapper;
   mapper->SetInputConnection(reader->GetOutputPort());

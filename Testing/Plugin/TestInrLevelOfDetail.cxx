@@ -20,6 +20,7 @@
 //    8^3 and 32^3 macrocells (half-size view), same seed, agree to >= 40 dB over the pixels the volume covers
 //    (looser majorants are still majorants: unbiased).
 // Usage: TestInrLevelOfDetail MODEL.inr
+#include "InrPluginTestScene.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkImageData.h"
@@ -123,11 +124,8 @@ int main(int argc, char* argv[])
   reader->SetFileName(argv[1]);
   reader->SetPreviewResolution(2);
   vtkNew<vtkColorTransferFunction> ctf;
-  ctf->AddRGBPoint(-0.14, 0.23, 0.30, 0.75);
-  ctf->AddRGBPoint(1.17, 0.71, 0.02, 0.15);
   vtkNew<vtkPiecewiseFunction> otf;
-  otf->AddPoint(0.55, 0.0);
-  otf->AddPoint(1.17, 1.0);
+  SetTestRamps(ctf, otf);
 
   auto makeMapper = [&](vtkVolume* volume)
   {

@@ -9,6 +9,7 @@
 //    mapper's events as its own, same values, with a short text ("INR macrocells") that fits
 //    ParaView's progress bar.
 // Usage: TestInrMapperProgress MODEL.inr
+#include "InrPluginTestScene.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkCommand.h"
 #include "vtkFloatArray.h"
@@ -94,11 +95,8 @@ struct ProgressRecorder
 void setTransferFunction(vtkVolumeProperty* prop)
 {
   vtkNew<vtkColorTransferFunction> ctf;
-  ctf->AddRGBPoint(-0.14, 0.23, 0.30, 0.75);
-  ctf->AddRGBPoint(1.17, 0.71, 0.02, 0.15);
   vtkNew<vtkPiecewiseFunction> otf;
-  otf->AddPoint(0.55, 0.0);
-  otf->AddPoint(1.17, 1.0);
+  SetTestRamps(ctf, otf);
   prop->SetColor(ctf);
   prop->SetScalarOpacity(otf);
   prop->SetScalarOpacityUnitDistance(0.1);
