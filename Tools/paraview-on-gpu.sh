@@ -102,20 +102,20 @@ pvgpu_unpack() {
   mkdir -p "$PVGPU_ROOT"
   cat "$PVGPU_PARTS"/part-* | xz -d -T0 | tar -x -C "$PVGPU_ROOT"
   if [ -f .pvgpu/plugin/libs.tar.xz ]; then xz -d -c .pvgpu/plugin/libs.tar.xz | tar -x -C "$PVGPU_ROOT"; fi
-  du -sh "$PVGPU_ROOT"
-}
-
-pvgpu_env() {
-  local r=$PVGPU_ROOT
   # pvpython and pvbatch find Debian's Python 3.11 through wrappers, so that PYTHONHOME does not
   # reach other programs (the machine's own python3).
+  local r=$PVGPU_ROOT p
   mkdir -p "$r/bin"
-  local p
   for p in pvpython pvbatch; do
     printf '#!/bin/sh\nPYTHONHOME=%s/usr PYTHONPATH=%s/usr/lib/python3/dist-packages exec %s/usr/bin/%s "$@"\n' \
       "$r" "$r" "$r" "$p" > "$r/bin/$p"
     chmod +x "$r/bin/$p"
   done
+  du -sh "$PVGPU_ROOT"
+}
+
+pvgpu_env() {
+  local r=$PVGPU_ROOT
   export PATH="$r/bin:$PATH"
   export PV_PLUGIN_PATH="${PV_PLUGIN_PATH:-$PWD/.pvgpu/plugin}"
   export LD_LIBRARY_PATH="$PV_PLUGIN_PATH:$r/usr/lib/x86_64-linux-gnu:$r/lib/x86_64-linux-gnu:$r/lib:/usr/local/cuda/lib64${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"

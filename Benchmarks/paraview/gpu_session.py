@@ -148,7 +148,7 @@ for model_path in args.models:
     reader, display, (t0, t1) = show_model(view, model_path, BACKENDS[args.backend])
     state = State(display)
     view.ViewTime = t0
-    open_s, _ = refine(name, "open", 0, state)
+    refine(name, "open", 0, state)
     open_s = time.perf_counter() - open_start
     target = display.InrConvergenceTarget
     print(f"{name}: {state.get('InrBackendInUse')}; open to converged {open_s:.2f} s", flush=True)

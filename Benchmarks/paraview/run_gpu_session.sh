@@ -26,8 +26,6 @@ for step in "$@"; do
       for f in .gl/*.deb; do dpkg -x "$f" /; done
       ldconfig
       bash Tools/paraview-on-gpu.sh unpack || exit 1
-      # shellcheck disable=SC1091
-      source Tools/paraview-on-gpu.sh env && stop_xvfb  # (makes the wrappers)
       for p in pvpython pvbatch; do [ -e /usr/bin/$p ] || ln -s /tmp/pvroot/bin/$p /usr/bin/$p; done
       ;;
     tests)

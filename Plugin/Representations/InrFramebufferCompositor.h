@@ -53,8 +53,6 @@ public:
   }
   /// The GL name of the image texture (0 before the first Upload).
   unsigned TextureHandle() const;
-  /// Forgets the upload (the next NeedsUpload is true), e.g. after a device copy failed.
-  void Invalidate() { this->UploadedFrames = -1; }
   /// Draws the texture over the framebuffer. False (with `error` set) when the shader cannot be
   /// built or nothing was uploaded.
   bool Blend(vtkOpenGLRenderWindow* window, std::string* error = nullptr);

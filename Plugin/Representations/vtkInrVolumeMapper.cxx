@@ -1401,7 +1401,6 @@ void vtkInrVolumeMapper::Internals::Composite(
       {
         this->interopFailed = true;
         this->imageTransfer = "image through host memory: " + why;
-        this->compositor.Invalidate();
       }
       else
       {
