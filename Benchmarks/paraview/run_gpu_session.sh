@@ -13,6 +13,8 @@
 #     session        Benchmarks/paraview/gpu_session.py on the shipped real models (GPU_SESSION_ARGS)
 #     session-host   the same with INR_CUDA_GL_INTEROP=0 (image through host memory), for the
 #                    per-render overhead before/after
+#     timesteps      Benchmarks/paraview/time_step_cost.py (TIME_STEP_ARGS): where a time step's
+#                    wall time goes (reader, view update, render), what Play pays per step
 # Results under $OUT (or ./gpu-session-out): logs, CSV/JSON and screenshots in one tarball.
 set -uo pipefail
 BUILD=${BUILD:-build-pvcuda}
@@ -45,6 +47,13 @@ for step in "$@"; do
       PYTHONUNBUFFERED=1 pvpython Benchmarks/paraview/gpu_session.py --inr "$BUILD/bin/inr" --out "$dir" \
         ${GPU_SESSION_ARGS:-} 2>&1 | tee "$dir.log" | grep -v "^\s*$" | tail -40
       unset INR_CUDA_GL_INTEROP
+      stop_xvfb
+      ;;
+    timesteps)
+      # shellcheck disable=SC1091
+      source Tools/paraview-on-gpu.sh env
+      PYTHONUNBUFFERED=1 pvpython Benchmarks/paraview/time_step_cost.py ${TIME_STEP_ARGS:-} 2>&1 |
+        tee "$OUT/res/time_step_cost.log" | grep -v "^\s*$" | tail -20
       stop_xvfb
       ;;
     *) echo "unknown step $step" >&2; exit 2 ;;

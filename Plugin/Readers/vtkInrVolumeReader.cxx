@@ -22,15 +22,29 @@
 #include <fstream>
 #include <memory>
 #include <sys/stat.h>
+#include <thread>
 #include <vector>
 
 namespace
 {
-// Points per progress step of the preview: about 1/32 of them, at least 64 Ki (small previews
-// report once), a multiple of the CPU evaluator's chunk.
-std::size_t previewChunkPoints(std::size_t n)
+// The preview is evaluated in chunks of this many points, halved from the evaluator's own chunk
+// while there are fewer than two chunks per core: a default 8^3 preview is two 256-point chunks,
+// which the evaluator runs on one core, and every time step of an animation evaluates it.
+std::size_t previewEvaluatorChunk(std::size_t n)
 {
-  const std::size_t evaluatorChunk = static_cast<std::size_t>(inr::CpuEvaluatorOptions{}.chunkSize);
+  const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
+  std::size_t chunk = static_cast<std::size_t>(inr::CpuEvaluatorOptions{}.chunkSize);
+  while (chunk > 16 && n / chunk < 2 * cores)
+  {
+    chunk /= 2;
+  }
+  return chunk;
+}
+
+// Points per progress step of the preview: about 1/32 of them, at least 64 Ki (small previews
+// report once), a multiple of the evaluator's chunk.
+std::size_t previewChunkPoints(std::size_t n, std::size_t evaluatorChunk)
+{
   const std::size_t wanted = std::max<std::size_t>(std::size_t(1) << 16, (n + 31) / 32);
   return (wanted + evaluatorChunk - 1) / evaluatorChunk * evaluatorChunk;
 }
@@ -44,6 +58,9 @@ struct vtkInrVolumeReader::Internals
   bool ok = false;
   inr::InrModel model;
   std::unique_ptr<inr::CpuInrEvaluator> evaluator;
+  // The preview's evaluator: the model's, with a chunk small enough to use every core.
+  std::unique_ptr<inr::CpuInrEvaluator> previewEvaluator;
+  std::size_t previewChunk = 0;
   vtkSmartPointer<vtkUnsignedCharArray> bytes;  // shared by every output (same pointer over time)
 };
 
@@ -134,6 +151,7 @@ bool vtkInrVolumeReader::LoadModel()
   I.loadedSize = size;
   I.ok = false;
   I.evaluator.reset();
+  I.previewEvaluator.reset();
   I.bytes = nullptr;
   try
   {
@@ -294,7 +312,15 @@ int vtkInrVolumeReader::RequestData(
   // Evaluated in chunks so that a large preview reports progress (ParaView's progress bar) and can
   // be aborted between chunks. Chunks are whole multiples of the evaluator's own chunk, so every
   // point is evaluated exactly as by one call over all of them.
-  const std::size_t chunk = previewChunkPoints(n);
+  const std::size_t evaluatorChunk = previewEvaluatorChunk(n);
+  if (!I.previewEvaluator || I.previewChunk != evaluatorChunk)
+  {
+    inr::CpuEvaluatorOptions options;
+    options.chunkSize = static_cast<int>(evaluatorChunk);
+    I.previewEvaluator = std::make_unique<inr::CpuInrEvaluator>(I.model, options);
+    I.previewChunk = evaluatorChunk;
+  }
+  const std::size_t chunk = previewChunkPoints(n, evaluatorChunk);
   this->SetProgressText("INR Volume reader: sampling the preview grid");
   this->UpdateProgress(0.0);
   try
@@ -307,7 +333,7 @@ int vtkInrVolumeReader::RequestData(
         return 1;
       }
       const std::size_t count = std::min(chunk, n - first);
-      I.evaluator->evaluate(pts.data() + first, count, values->GetPointer(0) + first);
+      I.previewEvaluator->evaluate(pts.data() + first, count, values->GetPointer(0) + first);
       this->UpdateProgress(static_cast<double>(first + count) / static_cast<double>(n));
     }
     this->SetProgressText(nullptr);  // the executive's own events are not the sampling's

@@ -137,6 +137,20 @@ int main(int argc, char* argv[])
       same = big->GetValue(x + 64 * (y + 64 * z)) == small->GetValue(c);
     }
     check(same, "reader: chunked preview values equal the corners of an unchunked one");
+    // The default 8^3 preview is evaluated in chunks small enough to use every core: the same
+    // values again.
+    vtkNew<vtkInrVolumeReader> preview;
+    preview->SetFileName(argv[1]);
+    preview->UpdateTimeStep(2.5);
+    auto* eight = vtkFloatArray::SafeDownCast(preview->GetOutput()->GetPointData()->GetArray("value"));
+    same = big && eight && eight->GetNumberOfTuples() == 8 * 8 * 8;
+    for (int c = 0; same && c < 8; ++c)
+    {
+      const int x = (c & 1) ? 63 : 0, y = (c & 2) ? 63 : 0, z = (c & 4) ? 63 : 0;
+      const int u = (c & 1) ? 7 : 0, v = (c & 2) ? 7 : 0, w = (c & 4) ? 7 : 0;
+      same = big->GetValue(x + 64 * (y + 64 * z)) == eight->GetValue(u + 8 * (v + 8 * w));
+    }
+    check(same, "reader: the default preview, in small chunks over every core, gives the same values");
   }
 
   // --- The mapper, inside the representation ParaView would create.
