@@ -282,6 +282,14 @@ struct vtkInrVolumeMapper::Internals
   double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
                          // of the window's frames: left out of the window's fixed cost)
   bool renderedInWindow = false;
+  // The refinement budget is for the view's whole render: where it began (the view's update, when
+  // MarkViewUpdate came after the last render, else the window's render) and what the window
+  // spends after this mapper's Render (measured: drawing, swap).
+  Clock::time_point viewUpdateStart;
+  bool viewUpdatePending = false;
+  Clock::time_point renderEnd;
+  double afterMs = 0.0;
+  double EngineTimeBudget(double viewBudgetMs) const;
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
   static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
@@ -879,6 +887,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     glFinish();
   }
   const double compositeMs = msSince(compositeStart);
+  I.renderEnd = Clock::now();
+  I.viewUpdatePending = false;
   I.lastRenderMs = msSince(renderStart);
   I.lod.Drew(interactive);
   I.renderedInWindow = true;
@@ -904,6 +914,28 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     I.BuildCoarseAhead(this);
   }
+}
+
+void vtkInrVolumeMapper::MarkViewUpdate()
+{
+  this->Internal->viewUpdateStart = Clock::now();
+  this->Internal->viewUpdatePending = true;
+}
+
+// What the frames of this render may take: the view's budget less the time this render has
+// already spent (since the view's update began, or the window's render) and the window's measured
+// time after this mapper. Never below 0, which adds one frame.
+double vtkInrVolumeMapper::Internals::EngineTimeBudget(double viewBudgetMs) const
+{
+  if (viewBudgetMs <= 0.0)
+  {
+    return 0.0;
+  }
+  const Clock::time_point began = this->viewUpdatePending && this->viewUpdateStart < this->windowStart
+    ? this->viewUpdateStart
+    : this->windowStart;
+  const double spent = std::chrono::duration<double, std::milli>(Clock::now() - began).count();
+  return std::max(0.0, viewBudgetMs - spent - this->afterMs);
 }
 
 // Starts building the fine slices for `time` on a worker thread where that keeps the GUI
@@ -989,6 +1021,8 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   else if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
     self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
+    const double after = msSince(self->renderEnd);
+    self->afterMs = self->afterMs > 0.0 ? 0.5 * (self->afterMs + after) : after;
     self->renderedInWindow = false;
   }
 }
@@ -1278,7 +1312,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     if (!interactive && !this->cameraInteraction && self->ProgressiveRefinement &&
       self->FramesPerRender == 1 && this->window.fullWidth == 0)
     {
-      options.timeBudgetMs = self->RefinementTimeBudget;
+      options.timeBudgetMs = this->EngineTimeBudget(self->RefinementTimeBudget);
     }
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {

@@ -153,13 +153,16 @@ public:
   vtkGetMacro(ConvergenceTarget, double);
   vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
   vtkGetMacro(FramesPerRender, int);
-  /// RefinementTimeBudget (ms, default 33; 0 = off): while FramesPerRender is 1 (the GUI's
-  /// refinement, which renders again by itself), one still Render() adds as many frames as fit in
-  /// this time (the first frame always; inr::RefinementOptions::timeBudgetMs): a fast backend
-  /// cleans the image in a few renders instead of one render per frame, and the view still
-  /// repaints about 30 times a second. Frame count only when FramesPerRender > 1 (scripts asking
-  /// for an N-frame image get exactly that), for interactive (reduced) frames, tiles of a capture
-  /// and with ProgressiveRefinement off.
+  /// RefinementTimeBudget (ms, default 50; 0 = off): while FramesPerRender is 1 (the GUI's
+  /// refinement, which renders again by itself), one still render of the view takes about this
+  /// long: the frames get what is left of it after the work the render does around them (the
+  /// view's update at a new time, reported by MarkViewUpdate: the reader, data delivery; the
+  /// window's own passes before this mapper and, as measured in earlier renders, after it), the
+  /// first frame always (inr::RefinementOptions::timeBudgetMs). A fast backend cleans the image
+  /// in a few renders instead of one render per frame, and the view still repaints about 20
+  /// times a second, animations included. Frame count only when FramesPerRender > 1 (scripts
+  /// asking for an N-frame image get exactly that), for interactive (reduced) frames, tiles of a
+  /// capture and with ProgressiveRefinement off.
   vtkSetClampMacro(RefinementTimeBudget, double, 0.0, 10000.0);
   vtkGetMacro(RefinementTimeBudget, double);
   /// ProgressiveRefinement (default on). Off: each Render() adds exactly one frame (whatever
@@ -375,6 +378,12 @@ public:
   /// its progress bar inside the GL render corrupts VTK's cached GL state. Without it (a plain VTK
   /// window) Render() builds and reports as before.
   void PrepareRender(vtkRenderer* ren, vtkVolume* vol);
+
+  /// Called by a view when it starts updating its data for a render (ParaView's representation
+  /// does it in its update request): the time from here to this mapper's frames (the reader's
+  /// execution at a new time, data delivery) is part of the render, and counts against the
+  /// RefinementTimeBudget.
+  void MarkViewUpdate();
   /// Process-wide, off by default; ParaView's GUI turns it on (its refinement behaviour renders
   /// again by itself): PrepareRender then builds the fine macrocell slices of a new time on a
   /// worker thread (CPU backend, one rank, FramesPerRender 1, InteractiveLevelOfDetail with time
@@ -406,7 +415,7 @@ private:
   int MaximumFrames = 2048;
   double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
-  double RefinementTimeBudget = 33.0;
+  double RefinementTimeBudget = 50.0;
   int ProgressiveRefinement = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;

@@ -232,6 +232,12 @@ int vtkInrVolumeRepresentation::ProcessViewRequest(
       this->PeelingRenderer = ren;
     }
   }
+  if (request_type == vtkPVView::REQUEST_UPDATE() && this->GetVisibility())
+  {
+    // Before the superclass updates the input (the reader runs here at a new time): that time is
+    // part of the render the refinement budget is for.
+    this->GetInrMapper()->MarkViewUpdate();
+  }
   if (!this->Superclass::ProcessViewRequest(request_type, inInfo, outInfo))
   {
     return 0;
