@@ -918,8 +918,11 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 
 void vtkInrVolumeMapper::MarkViewUpdate()
 {
-  this->Internal->viewUpdateStart = Clock::now();
-  this->Internal->viewUpdatePending = true;
+  if (!this->Internal->viewUpdatePending)  // the earliest mark since the last render
+  {
+    this->Internal->viewUpdateStart = Clock::now();
+    this->Internal->viewUpdatePending = true;
+  }
 }
 
 // What the frames of this render may take: the view's budget less the time this render has
@@ -931,9 +934,12 @@ double vtkInrVolumeMapper::Internals::EngineTimeBudget(double viewBudgetMs) cons
   {
     return 0.0;
   }
-  const Clock::time_point began = this->viewUpdatePending && this->viewUpdateStart < this->windowStart
-    ? this->viewUpdateStart
-    : this->windowStart;
+  // A mark long before the window's render is not this render's own update (a script's
+  // UpdatePipeline, then a pause): only the window's render counts then.
+  constexpr std::chrono::milliseconds kStaleMark(1000);
+  const bool marked = this->viewUpdatePending && this->viewUpdateStart < this->windowStart &&
+    this->windowStart - this->viewUpdateStart < kStaleMark;
+  const Clock::time_point began = marked ? this->viewUpdateStart : this->windowStart;
   const double spent = std::chrono::duration<double, std::milli>(Clock::now() - began).count();
   return std::max(0.0, viewBudgetMs - spent - this->afterMs);
 }

@@ -380,8 +380,9 @@ public:
   void PrepareRender(vtkRenderer* ren, vtkVolume* vol);
 
   /// Called by a view when it starts updating its data for a render (ParaView's representation
-  /// does it in its update request): the time from here to this mapper's frames (the reader's
-  /// execution at a new time, data delivery) is part of the render, and counts against the
+  /// does it in its update request and when an algorithm upstream starts executing): the time
+  /// from the earliest call since the last render to this mapper's frames (the reader's execution
+  /// at a new time, data delivery) is part of the render, and counts against the
   /// RefinementTimeBudget.
   void MarkViewUpdate();
   /// Process-wide, off by default; ParaView's GUI turns it on (its refinement behaviour renders

@@ -14,6 +14,7 @@
 #include "vtkSmartPointer.h"
 #include "vtkVolumeMapper.h"
 
+#include <algorithm>
 #include <string>
 
 vtkStandardNewMacro(vtkInrVolumeRepresentation);
@@ -67,7 +68,75 @@ void vtkInrVolumeRepresentation::ForwardMapperProgress(vtkObject* mapper, unsign
   this->SetProgressText(nullptr);  // only for this event: the executive's own events carry none
 }
 
-vtkInrVolumeRepresentation::~vtkInrVolumeRepresentation() = default;
+vtkInrVolumeRepresentation::~vtkInrVolumeRepresentation()
+{
+  this->StopWatchingUpstream();
+}
+
+void vtkInrVolumeRepresentation::WatchUpstream()
+{
+  std::vector<vtkAlgorithm*> chain;
+  std::vector<vtkAlgorithm*> pending;
+  if (this->GetNumberOfInputConnections(0) > 0)
+  {
+    pending.push_back(this->GetInputAlgorithm(0, 0));
+  }
+  constexpr std::size_t kMaxAlgorithms = 64;  // bounded whatever the pipeline
+  while (!pending.empty() && chain.size() < kMaxAlgorithms)
+  {
+    vtkAlgorithm* a = pending.back();
+    pending.pop_back();
+    if (!a || std::find(chain.begin(), chain.end(), a) != chain.end())
+    {
+      continue;
+    }
+    chain.push_back(a);
+    for (int port = 0; port < a->GetNumberOfInputPorts(); ++port)
+    {
+      for (int c = 0; c < a->GetNumberOfInputConnections(port); ++c)
+      {
+        pending.push_back(a->GetInputAlgorithm(port, c));
+      }
+    }
+  }
+  bool same = chain.size() == this->WatchedUpstream.size();
+  for (std::size_t k = 0; same && k < chain.size(); ++k)
+  {
+    same = this->WatchedUpstream[k] == chain[k];
+  }
+  if (same)
+  {
+    return;
+  }
+  this->StopWatchingUpstream();
+  for (vtkAlgorithm* a : chain)
+  {
+    this->WatchedUpstream.emplace_back(a);
+    this->WatchTags.push_back(
+      a->AddObserver(vtkCommand::StartEvent, this, &vtkInrVolumeRepresentation::OnUpstreamStart));
+  }
+}
+
+void vtkInrVolumeRepresentation::StopWatchingUpstream()
+{
+  for (std::size_t k = 0; k < this->WatchedUpstream.size(); ++k)
+  {
+    if (vtkAlgorithm* a = this->WatchedUpstream[k])
+    {
+      a->RemoveObserver(this->WatchTags[k]);
+    }
+  }
+  this->WatchedUpstream.clear();
+  this->WatchTags.clear();
+}
+
+void vtkInrVolumeRepresentation::OnUpstreamStart(vtkObject*, unsigned long, void*)
+{
+  if (this->GetVisibility())
+  {
+    this->GetInrMapper()->MarkViewUpdate();
+  }
+}
 
 vtkInrVolumeMapper* vtkInrVolumeRepresentation::GetInrMapper()
 {
@@ -234,9 +303,11 @@ int vtkInrVolumeRepresentation::ProcessViewRequest(
   }
   if (request_type == vtkPVView::REQUEST_UPDATE() && this->GetVisibility())
   {
-    // Before the superclass updates the input (the reader runs here at a new time): that time is
-    // part of the render the refinement budget is for.
+    // Before the superclass updates the input (the reader may run here at a new time): that time
+    // is part of the render the refinement budget is for. Another representation of the same
+    // data may have run the reader already: the upstream observers caught that.
     this->GetInrMapper()->MarkViewUpdate();
+    this->WatchUpstream();
   }
   if (!this->Superclass::ProcessViewRequest(request_type, inInfo, outInfo))
   {

@@ -22,6 +22,8 @@
 #include "vtkRenderer.h"    // for vtkWeakPointer<vtkRenderer>
 #include "vtkWeakPointer.h" // for PeelingRenderer
 
+#include <vector> // for WatchedUpstream
+
 class vtkInrVolumeMapper;
 
 class INRVOLUMEREPRESENTATIONS_EXPORT vtkInrVolumeRepresentation
@@ -132,7 +134,16 @@ protected:
   /// The progress text ParaView's progress bar shows for the mapper's text (a few words).
   static const char* ShortProgressText(const char* text);
 
+  /// Observes the start of every algorithm upstream of the input (the reader, ParaView's post
+  /// filter): the first to execute after a render marks when the next render's work began
+  /// (vtkInrVolumeMapper::MarkViewUpdate), whichever representation's update ran it.
+  void WatchUpstream();
+  void StopWatchingUpstream();
+  void OnUpstreamStart(vtkObject*, unsigned long, void*);
+
 private:
+  std::vector<vtkWeakPointer<vtkAlgorithm>> WatchedUpstream;
+  std::vector<unsigned long> WatchTags;
   // The renderer whose UseDepthPeelingForVolumes this representation turned off (null: none).
   vtkWeakPointer<vtkRenderer> PeelingRenderer;
   vtkInrVolumeRepresentation(const vtkInrVolumeRepresentation&) = delete;
