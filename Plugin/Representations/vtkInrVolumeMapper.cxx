@@ -287,8 +287,9 @@ struct vtkInrVolumeMapper::Internals
   // spends after this mapper's Render (measured: drawing, swap).
   Clock::time_point viewUpdateStart;
   bool viewUpdatePending = false;
-  Clock::time_point renderEnd;
+  Clock::time_point framesEnd;  // this render's last frame (compositing and the window follow)
   double afterMs = 0.0;
+  double lastEngineBudgetMs = -1.0;  // the frames' share of the last still render (for the log)
   double EngineTimeBudget(double viewBudgetMs) const;
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
@@ -864,6 +865,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
   I.lod.SawTime(scene.time);
+  I.lastEngineBudgetMs = -1.0;
   const auto refineStart = Clock::now();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
   // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
@@ -879,6 +881,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
+  I.framesEnd = Clock::now();
   const auto compositeStart = Clock::now();
   I.Composite(this, ren, width, height);
   if (interactive)
@@ -887,7 +890,6 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     glFinish();
   }
   const double compositeMs = msSince(compositeStart);
-  I.renderEnd = Clock::now();
   I.viewUpdatePending = false;
   I.lastRenderMs = msSince(renderStart);
   I.lod.Drew(interactive);
@@ -900,11 +902,11 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     std::fprintf(stderr,
       "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms, composite %.1f ms), frames %d%s\n",
+      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f, composite %.1f ms), frames %d%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
       double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
+      I.lastEngineBudgetMs, compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
@@ -926,8 +928,9 @@ void vtkInrVolumeMapper::MarkViewUpdate()
 }
 
 // What the frames of this render may take: the view's budget less the time this render has
-// already spent (since the view's update began, or the window's render) and the window's measured
-// time after this mapper. Never below 0, which adds one frame.
+// already spent (since the view's update began, or the window's render) and the measured time
+// after the frames (compositing the image, the rest of the window's render). Never below 0,
+// which adds one frame.
 double vtkInrVolumeMapper::Internals::EngineTimeBudget(double viewBudgetMs) const
 {
   if (viewBudgetMs <= 0.0)
@@ -1024,10 +1027,15 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
     self->renderedInWindow = false;
     self->aheadMs = 0.0;
   }
-  else if (event == vtkCommand::EndEvent && self->renderedInWindow)
+  else if (event == vtkCommand::EndEvent)
+  {
+    // Whatever this window render drew, the next render's work starts after it.
+    self->viewUpdatePending = false;
+  }
+  if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
     self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
-    const double after = msSince(self->renderEnd);
+    const double after = msSince(self->framesEnd);
     self->afterMs = self->afterMs > 0.0 ? 0.5 * (self->afterMs + after) : after;
     self->renderedInWindow = false;
   }
@@ -1319,6 +1327,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       self->FramesPerRender == 1 && this->window.fullWidth == 0)
     {
       options.timeBudgetMs = this->EngineTimeBudget(self->RefinementTimeBudget);
+      this->lastEngineBudgetMs = options.timeBudgetMs;
     }
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
     {
