@@ -120,6 +120,7 @@ int main(int argc, char* argv[])
 
   const auto t0 = std::chrono::steady_clock::now();
   double warmTime = 0, maxTime = 0, warmTf = 0, maxTf = 0;
+  std::string curve;  // where growth happens, if it does (a step or a slope)
   int noFrame = 0;
   // 1000 time changes, cycling through 50 times over the range (every slice gets built early).
   for (int k = 0; k < changes; ++k)
@@ -136,7 +137,12 @@ int main(int argc, char* argv[])
     {
       maxTime = std::max(maxTime, residentMiB());
     }
+    if ((k + 1) % 100 == 0)
+    {
+      curve += " " + std::to_string(int(residentMiB() * 10.0 + 0.5) / 10.0).substr(0, 5);
+    }
   }
+  std::printf("resident every 100 time changes (MiB):%s\n", curve.c_str());
   maxTime = std::max(maxTime, residentMiB());
   // 1000 transfer-function edits.
   for (int k = 0; k < changes; ++k)
