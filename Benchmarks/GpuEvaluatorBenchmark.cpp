@@ -21,9 +21,9 @@
 #include <utility>
 #include <vector>
 
-#include "Cuda/CudaDevice.h"
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/DeviceBuffer.h"
+#include "Common/Cuda/CudaDevice.h"
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "GpuBenchmarkSupport.h"
 #include "TestSupport/DevicePoints.h"
 #include "TestSupport/PaperArchitectures.h"
