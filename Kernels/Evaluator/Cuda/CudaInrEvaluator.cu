@@ -17,6 +17,7 @@
 #include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
 #include "Evaluator/Cuda/FusedMlpKernels.h"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Encodings.h"
 #include "Evaluator/MlpProgram.h"
 
 namespace inr {
@@ -65,23 +66,13 @@ __global__ void genericElementwise(MlpInstr in, const float* coords, float* dst,
   dst[q * ld + c] = v;
 }
 
-__global__ void genericFourier(MlpInstr in, const float* B, const float* src, int srcLd, float* dst, int ld, int n) {
+// Every encoding (Evaluator/Encodings.h), one thread per output element.
+__global__ void genericEncoding(MlpInstr in, const float* weights, const float* src, int srcLd, float* dst, int ld, int n) {
   const int q = blockIdx.y * blockDim.y + threadIdx.y;
   const int c = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n || c >= in.nPad) return;
-  const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
-  const int sinBase = in.includeInput == 1 ? in.inWidth : 0;
-  const int at = in.includeInput == 1 ? 0 : 2 * m;
-  float v = 0.f;
-  if (in.includeInput && c >= at && c < at + in.inWidth) {
-    v = src[q * srcLd + c - at];
-  } else if (c >= sinBase && c < sinBase + 2 * m) {
-    const int j = (c - sinBase) % m;
-    float proj = 0.f;
-    for (int k = 0; k < in.inWidth; ++k) proj += B[j * in.inWidth + k] * src[q * srcLd + k];
-    v = c < sinBase + m ? sinf(proj) : cosf(proj);
-  }
-  dst[q * ld + c] = v;
+  const float* x = src + q * srcLd;
+  dst[q * ld + c] = c < in.outWidth ? encodingElement(in, weights, [x](int k) { return x[k]; }, c) : 0.f;
 }
 
 __global__ void genericOutput(MlpInstr in, const float* W, const float* bias, const float* src, int srcLd,
@@ -383,9 +374,9 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
                                                       in.other >= 0 ? buf(in.other) : nullptr, ld, m);
           INR_CUDA_CHECK_LAUNCH("genericEpilogue");
           break;
-        case MlpOp::Fourier:
-          genericFourier<<<grid2, block, 0, stream>>>(in, I.floatW.get() + in.floatOffset, src, srcLd, buf(in.dst), ld, m);
-          INR_CUDA_CHECK_LAUNCH("genericFourier");
+        case MlpOp::Fourier:  // every encoding
+          genericEncoding<<<grid2, block, 0, stream>>>(in, I.floatW.get(), src, srcLd, buf(in.dst), ld, m);
+          INR_CUDA_CHECK_LAUNCH("genericEncoding");
           break;
         case MlpOp::LoadInput:
         case MlpOp::Activation:

@@ -1,13 +1,14 @@
 #pragma once
 // The row-wise instructions of a fused program (everything but a GEMM: inputs, fp32 layers, the
 // Fourier encoding, activations, residual sums, the output), run by a group of threads on a
-// tile's rows in shared memory; both fused kernels call runRowInstr between their GEMMs. And the
-// Fourier encoding's element function, which both kernels use where the encoding is fused into
-// a GEMM's operand load.
+// tile's rows in shared memory; both fused kernels call runRowInstr between their GEMMs. Where an
+// encoding is fused into a GEMM's operand load instead, the kernels compute its elements with
+// Evaluator/Encodings.h (fourierElement<ActMath::FastDevice>), the same arithmetic as stored here.
 #include <cuda_fp16.h>
 
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Encodings.h"
 
 namespace inr::cuda {
 
@@ -60,10 +61,14 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
     case MlpOp::DenseFp32:
     case MlpOp::Fourier: {
       // One thread per output column (its weights in registers), looping over the rows.
+      // A Fourier encoding's columns as Evaluator/Encodings.h lays them out; its projection is
+      // the dense dot below with a zero bias: of the coordinates, the arithmetic of
+      // fourierProjection<ActMath::FastDevice>, so a GEMM fusing the encoding changes no bit.
       const bool fourier = in.op == MlpOp::Fourier;
-      const int inc = fourier && in.includeInput ? in.inWidth : 0;
-      const int m = fourier ? (in.outWidth - inc) / 2 : in.outWidth;  // computed columns
-      const int sinBase = fourier && in.includeInput == 1 ? in.inWidth : 0;
+      const FourierColumns cols(in);
+      const int inc = fourier && cols.inputAt >= 0 ? in.inWidth : 0;
+      const int m = fourier ? cols.features : in.outWidth;  // computed columns
+      const int sinBase = cols.sinAt;
       const float* W = P.floatWeights + in.floatOffset;
       const int colsPerPass = min(m, THREADS), rowsPerPass = THREADS / colsPerPass;
       for (int c0 = 0; c0 < m; c0 += colsPerPass) {
@@ -106,9 +111,8 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
         }
       }
       // Included inputs and zero padding: only those columns.
-      const int at = fourier && in.includeInput == 1 ? 0 : 2 * m;
       for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < inc; c += 32) dst[r * ldDst + at + c] = __float2half(input(r, c));
+        for (int c = lane; c < inc; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
         for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
       }
       break;
@@ -145,26 +149,6 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
     }
     default: break;  // Gemm: the kernels' own code
   }
-}
-
-// Column k of Fourier instruction f's encoding of the coordinates x (4 floats), before fp16
-// rounding: what runRowInstr stores there (the same fp32 arithmetic, so fusing the encoding into
-// a GEMM's operand changes no bit): sin / cos of the projection, the inputs first or last, zero
-// past the encoding's width.
-__device__ inline float fourierElement(const FusedParams& P, const MlpInstr& f, const float* x, int k) {
-  const int inc = f.includeInput ? f.inWidth : 0;
-  const int m = (f.outWidth - inc) / 2;
-  if (inc) {
-    const int at = f.includeInput == 1 ? 0 : 2 * m;
-    if (k >= at && k < at + inc) return x[k - at];
-  }
-  const int j = k - (f.includeInput == 1 ? f.inWidth : 0);
-  if (j < 0 || j >= 2 * m) return 0.f;
-  const float* w = P.floatWeights + f.floatOffset + (j < m ? j : j - m) * f.inWidth;
-  const float w0 = __ldg(w), w1 = f.inWidth > 1 ? __ldg(w + 1) : 0.f, w2 = f.inWidth > 2 ? __ldg(w + 2) : 0.f,
-              w3 = f.inWidth > 3 ? __ldg(w + 3) : 0.f;
-  const float d = fmaf(w0, x[0], fmaf(w1, x[1], fmaf(w2, x[2], fmaf(w3, x[3], 0.f))));
-  return j < m ? __sinf(d) : __cosf(d);
 }
 
 }  // namespace inr::cuda

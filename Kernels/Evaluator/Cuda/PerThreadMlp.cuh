@@ -1,9 +1,10 @@
 #pragma once
 // Device code of the naive per-thread network evaluation (see CudaPerThreadMlp.h). Semantics of
 // each instruction as in the generic fp32 path of CudaInrEvaluator (MlpProgram.h); activations
-// in their exact form (Common/Activation.h).
+// and encodings in their exact form (Common/Activation.h, Evaluator/Encodings.h).
 #include "Common/Activation.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
+#include "Evaluator/Encodings.h"
 #include "Evaluator/MlpProgram.h"
 
 namespace inr::cuda {
@@ -57,19 +58,9 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
         }
         break;
       }
-      case MlpOp::Fourier: {
-        const float* Bm = N.weights + in.floatOffset;
-        const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
-        const int sinBase = in.includeInput == 1 ? in.inWidth : 0;
-        const int inputAt = in.includeInput == 1 ? 0 : 2 * m;
-        if (in.includeInput)
-          for (int k = 0; k < in.inWidth; ++k) at(in.dst, inputAt + k) = load(in.src, k);
-        for (int j = 0; j < m; ++j) {
-          float proj = 0.f;
-          for (int k = 0; k < in.inWidth; ++k) proj += Bm[j * in.inWidth + k] * load(in.src, k);
-          at(in.dst, sinBase + j) = sinf(proj);
-          at(in.dst, sinBase + m + j) = cosf(proj);
-        }
+      case MlpOp::Fourier: {  // every encoding (Evaluator/Encodings.h)
+        auto input = [&](int k) { return load(in.src, k); };
+        for (int c = 0; c < in.outWidth; ++c) at(in.dst, c) = encodingElement(in, N.weights, input, c);
         break;
       }
       case MlpOp::Activation:
