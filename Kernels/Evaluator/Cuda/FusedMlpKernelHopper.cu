@@ -73,6 +73,99 @@ __device__ __forceinline__ void hopperProducer(const FusedParams& P, const Hoppe
     }
 }
 
+// Where a consumer's GEMM sends chunk results: the instruction's bias, destination buffer,
+// residual input and final-dot weights, and the rows of this thread's fragments (this warp's
+// rows from rowBase, fragment row g, column pair t4) in the tile (rows queries from base).
+struct HopperGemmOutput {
+  const float* bias;
+  __half* dst;
+  int ldDst;
+  const __half* other;
+  int ldOther;
+  const float* dotWeights;
+  int rowBase, g, t4, rows, base;
+};
+
+// Chunk j's epilogue: act(acc + bias) [+ residual] to fp16 in dst, or into the final dot (part:
+// rows g, g+8), or (finalOutput) column 0 straight to the output. Fragment i of acc is row
+// g + 8*((i>>1)&1), column j*NC + 8*(i>>2) + 2*t4 + (i&1); chunkBias holds this thread's bias
+// pairs of the chunk. One body per activation, residual and dot for whole chunks: runtime tests
+// inside the unrolled loop cost a branch per pair.
+template <int NC>
+__device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpInstr& in, const HopperGemmOutput& O, int j,
+                                               const float (&acc)[NC / 2], const float2 (&chunkBias)[NC / 8],
+                                               float (&part)[2], const float4* __restrict__ points,
+                                               float* __restrict__ out, const int* __restrict__ scatter) {
+  const float* const bias = O.bias;
+  __half* const dst = O.dst;
+  const int ldDst = O.ldDst;
+  const __half* const other = O.other;
+  const int ldOther = O.ldOther;
+  const float* const dotWeights = O.dotWeights;
+  const int rowBase = O.rowBase, g = O.g, t4 = O.t4, rows = O.rows, base = O.base;
+  if (in.finalOutput) {  // column 0 (t4 0, chunk 0): fragments 0 (row g) and 2 (row g+8)
+    if (t4 == 0 && j == 0)
+#pragma unroll
+      for (int half = 0; half < 2; ++half) {
+        const int row = rowBase + g + half * 8;
+        if (row < rows)
+          writeOutput(P.output, points[base + row].w, applyActivation(in.act, acc[2 * half] + bias[0]), base + row, out, scatter);
+      }
+    return;
+  }
+  const int width = min(NC, in.nPad - j * NC);  // a multiple of 16
+  dispatchActivation(in.act, [&](auto A) {
+    constexpr MlpAct kAct = decltype(A)::value;
+    // The pair of columns (col, col + 1) of row g + 8*half from fragments 4*jj + 2*half, +1.
+    auto pair = [&](int jj, int half, bool residual, bool dot) __attribute__((always_inline)) {
+      const int col = j * NC + 8 * jj + 2 * t4;
+      const float2 b = chunkBias[jj];
+      float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
+      float v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
+      if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
+        if (col >= in.outWidth) v0 = 0.f;
+        if (col + 1 >= in.outWidth) v1 = 0.f;
+      }
+      const int row = rowBase + g + 8 * half;
+      if (residual) {
+        const float2 o = ldsHalf2AsFloat2InPlace(other + row * ldOther + col);
+        v0 = in.combineScale * (v0 + o.x);
+        v1 = in.combineScale * (v1 + o.y);
+      }
+      if (dot) {
+        const float2 w = ldsFloat2InPlace(dotWeights + col);
+        part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
+      } else {
+        *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
+      }
+    };
+    // A whole chunk: no test inside the unrolled loop, so ptxas interleaves all its pairs
+    // (a branch per 8 columns left 4 sines in flight; MUFU latency showed as stalls).
+    auto whole = [&](auto residual, auto dot) __attribute__((always_inline)) {
+#pragma unroll
+      for (int jj = 0; jj < NC / 8; ++jj)
+#pragma unroll
+        for (int half = 0; half < 2; ++half) pair(jj, half, decltype(residual)::value, decltype(dot)::value);
+    };
+    if (width == NC) {
+      if (other) {
+        if (in.dotNext) whole(BoolTag<true>{}, BoolTag<true>{});
+        else whole(BoolTag<true>{}, BoolTag<false>{});
+      } else {
+        if (in.dotNext) whole(BoolTag<false>{}, BoolTag<true>{});
+        else whole(BoolTag<false>{}, BoolTag<false>{});
+      }
+      return;
+    }
+#pragma unroll
+    for (int jj = 0; jj < NC / 8; ++jj) {  // the last chunk of a layer narrower than NC
+      if (8 * jj >= width) break;           // the same for the whole warpgroup
+#pragma unroll
+      for (int half = 0; half < 2; ++half) pair(jj, half, other != nullptr, in.dotNext != 0);
+    }
+  });
+}
+
 // Consumer c = warpgroup - 1 (warpgroups 1 and 2): per round its tile of 64 queries through the whole program,
 // the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
 template <int NC>
@@ -210,78 +303,11 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
         }
         fenceAccumulators(acc);
       };
-      // Chunk j's epilogue: act(acc + bias) [+ residual] to fp16 in dst, or into the final dot,
-      // or (finalOutput) column 0 straight to the output. Fragment i of acc is row
-      // g + 8*((i>>1)&1), column j*NC + 8*(i>>2) + 2*t4 + (i&1). One body per activation,
-      // residual and dot for whole chunks: runtime tests inside the unrolled loop cost a branch
-      // per pair.
-      auto epilogue = [&](int j) __attribute__((always_inline)) {
-        if (in.finalOutput) {  // column 0 (t4 0, chunk 0): fragments 0 (row g) and 2 (row g+8)
-          if (t4 == 0 && j == 0)
-#pragma unroll
-            for (int half = 0; half < 2; ++half) {
-              const int row = rowBase + g + half * 8;
-              if (row < rows)
-                writeOutput(P.output, points[base + row].w, applyActivation(in.act, acc[2 * half] + bias[0]), base + row, out, scatter);
-            }
-          return;
-        }
-        const int width = min(NC, in.nPad - j * NC);  // a multiple of 16
-        dispatchActivation(in.act, [&](auto A) {
-          constexpr MlpAct kAct = decltype(A)::value;
-          // The pair of columns (col, col + 1) of row g + 8*half from fragments 4*jj + 2*half, +1.
-          auto pair = [&](int jj, int half, bool residual, bool dot) __attribute__((always_inline)) {
-            const int col = j * NC + 8 * jj + 2 * t4;
-            const float2 b = chunkBias[jj];
-            float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
-            float v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
-            if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
-              if (col >= in.outWidth) v0 = 0.f;
-              if (col + 1 >= in.outWidth) v1 = 0.f;
-            }
-            const int row = rowBase + g + 8 * half;
-            if (residual) {
-              const float2 o = ldsHalf2AsFloat2InPlace(other + row * ldOther + col);
-              v0 = in.combineScale * (v0 + o.x);
-              v1 = in.combineScale * (v1 + o.y);
-            }
-            if (dot) {
-              const float2 w = ldsFloat2InPlace(dotWeights + col);
-              part[half] = fmaf(v0, w.x, fmaf(v1, w.y, part[half]));
-            } else {
-              *reinterpret_cast<__half2*>(dst + row * ldDst + col) = __floats2half2_rn(v0, v1);
-            }
-          };
-          // A whole chunk: no test inside the unrolled loop, so ptxas interleaves all its pairs
-          // (a branch per 8 columns left 4 sines in flight; MUFU latency showed as stalls).
-          auto whole = [&](auto residual, auto dot) __attribute__((always_inline)) {
-#pragma unroll
-            for (int jj = 0; jj < NC / 8; ++jj)
-#pragma unroll
-              for (int half = 0; half < 2; ++half) pair(jj, half, decltype(residual)::value, decltype(dot)::value);
-          };
-          if (width == NC) {
-            if (other) {
-              if (in.dotNext) whole(BoolTag<true>{}, BoolTag<true>{});
-              else whole(BoolTag<true>{}, BoolTag<false>{});
-            } else {
-              if (in.dotNext) whole(BoolTag<false>{}, BoolTag<true>{});
-              else whole(BoolTag<false>{}, BoolTag<false>{});
-            }
-            return;
-          }
-#pragma unroll
-          for (int jj = 0; jj < NC / 8; ++jj) {  // the last chunk of a layer narrower than NC
-            if (8 * jj >= width) break;           // the same for the whole warpgroup
-#pragma unroll
-            for (int half = 0; half < 2; ++half) pair(jj, half, other != nullptr, in.dotNext != 0);
-          }
-        });
-      };
+      const HopperGemmOutput gemmOut{bias, dst, ldDst, other, ldOther, dotWeights, rowBase, g, t4, rows, base};
       for (int j = 0; j < numChunks; ++j) {
         if (turns) namedBarrierSync(kTurnBarrier + c, 256);
         step(j);
-        epilogue(j);
+        hopperEpilogue<NC>(P, in, gemmOut, j, acc, chunkBias, part, points, out, scatter);
       }
       if (in.dotNext) {  // this warp holds every column of its 16 rows: reduce over the quad
         const MlpInstr& fin = program[ip + 1];
