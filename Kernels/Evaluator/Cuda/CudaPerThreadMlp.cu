@@ -5,7 +5,7 @@
 
 #include "Common/Cuda/CudaDevice.h"
 #include "Common/Cuda/DeviceBuffer.h"
-#include "Evaluator/Cuda/PerThreadMlp.cuh"
+#include "Evaluator/Cuda/CudaPerThreadMlp.cuh"
 #include "Evaluator/MlpProgram.h"
 
 namespace inr {

@@ -8,7 +8,7 @@
 #include <cstdio>
 
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
-#include "Evaluator/Cuda/PerThreadMlp.cuh"
+#include "Evaluator/Cuda/CudaPerThreadMlp.cuh"
 #include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Evaluate.h"
