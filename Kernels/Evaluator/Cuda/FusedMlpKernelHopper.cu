@@ -1,9 +1,10 @@
-// The Hopper (wgmma) kernel (the design: FusedMlpKernelHopper.cuh). This file is compiled for sm_90a only
-// (Kernels/Evaluator/Cuda/CMakeLists.txt), so on an H100/H200 the driver can only load the wgmma code, and
-// on any other GPU the kernel reports no image and the evaluator keeps the mma.sync kernel.
-// The kernel sets up the block's shared memory (HopperBlock), then its warpgroups take their
-// roles: the producer (hopperProducer) streams the weights, the consumers (hopperConsumer) run
-// the program on their tiles.
+// The Hopper (wgmma) kernel (the design: FusedMlpKernelHopper.cuh). This file is compiled for
+// sm_90a only (Kernels/Evaluator/Cuda/CMakeLists.txt), so on an H100/H200 the driver can only
+// load the wgmma code, and on any other GPU the kernel reports no image and the evaluator keeps
+// the mma.sync kernel. The kernel sets up the block's shared memory (HopperBlock), then its
+// warpgroups take their roles: the producer (hopperProducer) streams the weights, the consumers
+// (hopperConsumer) run the program on their tiles, each GEMM chunk's results written by
+// hopperEpilogue.
 #include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
 #include "Evaluator/Cuda/FusedMlpKernels.h"
 #include "Evaluator/Cuda/FusedMlpRowInstructions.cuh"
