@@ -26,16 +26,18 @@ namespace inr {
 INR_HD bool isEncoding(MlpOp op) { return op == MlpOp::Fourier; }
 
 // Where the columns of a Fourier instruction f come from: sin(B_j x) in column sinAt + j,
-// cos(B_j x) in column sinAt + features + j, the inputs x_i (includeInput) in column inputAt + i
-// before (includeInput 1) or after (2) them, zeros past f.outWidth.
+// cos(B_j x) in column sinAt + features + j, the `inputs` included inputs x_i in column
+// inputAt + i before (includeInput 1) or after (2) them, zeros past f.outWidth.
 struct FourierColumns {
+  int inputs;    // 0 or f.inWidth
   int features;  // rows of B
   int sinAt;
-  int inputAt;  // -1: the inputs are not included
+  int inputAt;   // meaningful where inputs > 0
   INR_HD explicit FourierColumns(const MlpInstr& f)
-      : features((f.outWidth - (f.includeInput ? f.inWidth : 0)) / 2),
+      : inputs(f.includeInput ? f.inWidth : 0),
+        features((f.outWidth - inputs) / 2),
         sinAt(f.includeInput == 1 ? f.inWidth : 0),
-        inputAt(f.includeInput == 0 ? -1 : f.includeInput == 1 ? 0 : 2 * features) {}
+        inputAt(f.includeInput == 1 ? 0 : 2 * features) {}
 };
 
 // B_j x for Bj, row j of B (inWidth floats, pre-scaled); x(i) is input i.
@@ -57,7 +59,7 @@ INR_HD float fourierProjection(const float* Bj, int inWidth, const Input& x) {
 template <ActMath M, class Input>
 INR_HD float fourierElement(const MlpInstr& f, const float* B, const Input& x, int k) {
   const FourierColumns cols(f);
-  if (cols.inputAt >= 0 && k >= cols.inputAt && k < cols.inputAt + f.inWidth) return x(k - cols.inputAt);
+  if (cols.inputs && k >= cols.inputAt && k < cols.inputAt + cols.inputs) return x(k - cols.inputAt);
   const int j = k - cols.sinAt;
   if (j < 0 || j >= 2 * cols.features) return 0.f;
   const bool sine = j < cols.features;

@@ -175,14 +175,13 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
               }
               if (encoded) {  // this chunk's columns of the encoding, two per thread and step
                 const MlpInstr& f = program[in.fourierInput];
-                const float* const B = P.floatWeights + f.floatOffset;
                 for (int idx = tid; idx < M * (KC / 2); idx += THREADS) {
                   const int r = idx / (KC / 2), k = 2 * (idx % (KC / 2)), col = chunk * KC + k;
                   const float* x = coords + r * 4;
                   auto input = [x](int i) { return x[i]; };
                   *reinterpret_cast<__half2*>(encStage + r * (KC + 8) + k) =
-                      __floats2half2_rn(fourierElement<ActMath::FastDevice>(f, B, input, col),
-                                        fourierElement<ActMath::FastDevice>(f, B, input, col + 1));
+                      __floats2half2_rn(fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, col),
+                                        fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, col + 1));
                 }
               }
               __syncthreads();

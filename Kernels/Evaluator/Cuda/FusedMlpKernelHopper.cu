@@ -249,7 +249,6 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
           return;
         }
         const MlpInstr& f = program[fourier];
-        const float* const B = P.floatWeights + f.floatOffset;
 #pragma unroll
         for (int ks = 0; ks < KSTEPS; ++ks) {
           if (ks * 16 >= kLen) continue;
@@ -259,8 +258,8 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
             const float* x = coords + (rowBase + g + 8 * (q & 1)) * 4;
             auto input = [x](int i) { return x[i]; };
             const int k = kb + 8 * (q >> 1);
-            const __half2 h = __floats2half2_rn(fourierElement<ActMath::FastDevice>(f, B, input, k),
-                                                fourierElement<ActMath::FastDevice>(f, B, input, k + 1));
+            const __half2 h = __floats2half2_rn(fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, k),
+                                                fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, k + 1));
             a[ks][q] = *reinterpret_cast<const unsigned*>(&h);
           }
         }

@@ -66,7 +66,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       // fourierProjection<ActMath::FastDevice>, so a GEMM fusing the encoding changes no bit.
       const bool fourier = in.op == MlpOp::Fourier;
       const FourierColumns cols(in);
-      const int inc = fourier && cols.inputAt >= 0 ? in.inWidth : 0;
+      const int inc = fourier ? cols.inputs : 0;
       const int m = fourier ? cols.features : in.outWidth;  // computed columns
       const int sinBase = cols.sinAt;
       const float* W = P.floatWeights + in.floatOffset;
