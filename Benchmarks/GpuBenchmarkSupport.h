@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "BenchmarkSupport.h"
-#include "Cuda/CudaCheck.h"
-#include "Cuda/CudaInrEvaluator.h"
+#include "Common/Cuda/CudaCheck.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 
 namespace inr::bench {
 

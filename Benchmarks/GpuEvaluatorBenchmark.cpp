@@ -4,26 +4,30 @@
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
 //                           [--wgmma-columns 64|128]
-//                           [--no-autotune] [MODEL.inr ...]
+//                           [--no-autotune] [--checksum] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
 // the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel.
+// --checksum prints a hash of each row's output bits (the last launch over the batch, seed 1):
+// with a fixed configuration, the same on two builds when a change keeps the arithmetic.
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "Cuda/CudaDevice.h"
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/DeviceBuffer.h"
+#include "Common/Cuda/CudaDevice.h"
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "GpuBenchmarkSupport.h"
 #include "TestSupport/DevicePoints.h"
 #include "TestSupport/PaperArchitectures.h"
@@ -38,6 +42,7 @@ struct Row {
   std::string model, path, launch;
   std::size_t params;
   Spread qps;  // queries per second over the launches
+  std::uint64_t outputHash;  // FNV-1a over the output floats' bits
 };
 
 // mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
@@ -49,9 +54,17 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
   const CudaInrEvaluator eval(model, o);
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1));
   cuda::DeviceBuffer<float> dOut(batch);
-  return {name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
-          eval.launchReport(),
-          model.architecture.parameterCount(), spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps))};
+  Row r{name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
+        eval.launchReport(), model.architecture.parameterCount(),
+        spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps)), 0};
+  std::uint64_t h = 1469598103934665603ull;
+  for (const float v : dOut.download(nullptr)) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    h = (h ^ bits) * 1099511628211ull;
+  }
+  r.outputHash = h;
+  return r;
 }
 
 }  // namespace
@@ -59,6 +72,7 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
 int main(int argc, char** argv) {
   int batch = 1 << 21, reps = 20;
   std::string csv, writeDir, only;
+  bool checksum = false;
   std::vector<std::string> files;
   CudaEvaluatorOptions fixed;
   for (CommandLine cl(argc, argv); !cl.done();) {
@@ -73,6 +87,7 @@ int main(int argc, char** argv) {
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--no-autotune") fixed.autotuneBatch = 0;
+    else if (a == "--checksum") checksum = true;
     else if (a == "--mma") {
       const std::string m = cl.value();
       if (m != "wgmma" && m != "mma.sync") {
@@ -129,6 +144,7 @@ int main(int argc, char** argv) {
       std::printf("%-28s %-14s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params,
                   r.qps.median / 1e9, r.qps.lo / 1e9, r.qps.hi / 1e9);
       if (!r.launch.empty()) std::printf("    fused launch autotuning: %s\n", r.launch.c_str());
+      if (checksum) std::printf("    output checksum: %016llx\n", (unsigned long long)r.outputHash);
       std::fflush(stdout);
       rows.push_back(r);
     }

@@ -39,8 +39,8 @@
 #include "TestSupport/TestScene.h"
 
 #ifdef INR_HAVE_CUDA
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/Pipeline/CudaRayMarcher.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
+#include "Render/Cuda/CudaRayMarcher.h"
 #endif
 
 using namespace inr;

@@ -23,12 +23,12 @@
 #include <vector>
 
 #include "BenchmarkSupport.h"
-#include "Cuda/CudaDevice.h"
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
-#include "Cuda/Pipeline/CudaMacrocellGrid.h"
-#include "Cuda/Pipeline/DeviceTraversal.h"
+#include "Common/Cuda/CudaDevice.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
+#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaMacrocellGrid.h"
+#include "Render/Cuda/DeviceTraversal.h"
 #include "Render/ModelBox.h"
 #include "TestSupport/TestScene.h"
 

@@ -11,7 +11,7 @@ cmake --build "$BUILD" -j "$(nproc)" --target cuda_pipeline_tests cuda_evaluator
   > "$OUT/build.log" 2>&1 || { grep -E "error" -A3 "$OUT/build.log" | head -40; exit 1; }
 gpu_ctest --timeout 900
 # The pipeline tests' printed PSNRs and errors (ctest keeps them only on failure).
-"$BUILD/Kernels/Cuda/Pipeline/cuda_pipeline_tests" > "$OUT/cuda_pipeline_tests.txt" 2>&1
+"$BUILD/Kernels/Render/Cuda/cuda_pipeline_tests" > "$OUT/cuda_pipeline_tests.txt" 2>&1
 echo "== render benchmark"
 models=$(ls Testing/Data/real/*.inr Testing/Data/models/*.inr 2>/dev/null)
 "$BUILD/Benchmarks/gpu_render_benchmark" --csv "$OUT/render.csv" "$@" $models 2>&1 | tee "$OUT/render.txt"

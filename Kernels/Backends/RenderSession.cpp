@@ -8,11 +8,11 @@
 #include "Render/ModelBox.h"
 
 #ifdef INR_HAVE_CUDA
-#include "Cuda/CudaDevice.h"
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/Pipeline/CudaDeltaTrackingRenderer.h"
-#include "Cuda/Pipeline/CudaMacrocellGrid.h"
-#include "Cuda/Pipeline/CudaPerThreadMlp.h"
+#include "Common/Cuda/CudaDevice.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
+#include "Evaluator/Cuda/CudaPerThreadMlp.h"
+#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaMacrocellGrid.h"
 #endif
 
 namespace inr {

@@ -4,8 +4,8 @@
 #include <utility>
 
 #ifdef INR_HAVE_CUDA
-#include "Cuda/CudaInrEvaluator.h"
-#include "Cuda/Pipeline/CudaRayMarcher.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
+#include "Render/Cuda/CudaRayMarcher.h"
 #endif
 
 namespace inr {

@@ -30,14 +30,14 @@
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Model/InrModel.h"
 #include "Render/ModelBox.h"
+#include "Render/WavefrontRenderer.h"
 #include "TestSupport/TestModelBuilder.h"
 #include "TestSupport/TestScene.h"
-#include "Render/WavefrontRenderer.h"
 
 #ifdef INR_STRESS_CUDA
 #include <cuda_runtime.h>
 
-#include "Cuda/CudaDevice.h"
+#include "Common/Cuda/CudaDevice.h"
 #include "TestSupport/RequireGpu.h"
 #endif
 

@@ -388,7 +388,7 @@ MlpProgram MlpProgram::compile(const Architecture& arch) {
     }
   }
   // A Fourier encoding of the coordinates read only by the next instruction, a Gemm, is computed
-  // inside that Gemm's operand load (no 2m-wide buffer; FusedMlpKernel.cuh fourierElement).
+  // inside that Gemm's operand load (no 2m-wide buffer; Evaluator/Encodings.h fourierElement).
   for (std::size_t i = 0; i + 1 < p.instrs.size(); ++i) {
     MlpInstr& f = p.instrs[i];
     MlpInstr& g = p.instrs[i + 1];

@@ -5,6 +5,7 @@
 
 #include "Common/Activation.h"
 #include "Common/Half.h"
+#include "Evaluator/Encodings.h"
 #include "Evaluator/MlpProgram.h"
 
 namespace inr {
@@ -70,20 +71,9 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
           }
           for (int o = 0; o < W; ++o) buf[in.dst][o] = o < in.nPad ? tmp[o] : 0.f;
           break;
-        case MlpOp::Fourier: {
-          const int m = (in.outWidth - (in.includeInput ? in.inWidth : 0)) / 2;
-          const int base = in.includeInput == 1 ? in.inWidth : 0;
-          std::fill(tmp.begin(), tmp.end(), 0.f);
-          for (int j = 0; j < m; ++j) {
-            float proj = 0.f;
-            for (int k = 0; k < in.inWidth; ++k) proj += p.floatWeights[in.floatOffset + j * in.inWidth + k] * srcAt(in.src, k);
-            tmp[base + j] = h(std::sin(proj));
-            tmp[base + m + j] = h(std::cos(proj));
-          }
-          if (in.includeInput) {
-            const int at = in.includeInput == 1 ? 0 : 2 * m;
-            for (int k = 0; k < in.inWidth; ++k) tmp[at + k] = h(srcAt(in.src, k));
-          }
+        case MlpOp::Fourier: {  // every encoding (Evaluator/Encodings.h)
+          auto input = [&](int k) { return srcAt(in.src, k); };
+          for (int c = 0; c < W; ++c) tmp[c] = c < in.outWidth ? h(encodingElement(in, p.floatWeights.data(), input, c)) : 0.f;
           buf[in.dst] = tmp;
           break;
         }

@@ -73,7 +73,7 @@ enum class SegmentOutcome { Passed, Candidate, Capped };
 
 // Delta tracking inside one segment [t, segmentEnd) of constant majorant m: the per-segment step
 // every traversal runs, the DDA (trackSegments below) and the OptiX intersection program
-// (Cuda/Pipeline/OptixPrograms.cu) alike. Empty segments (m <= 0, NaN) draw nothing; the
+// (Render/Cuda/OptixPrograms.cu) alike. Empty segments (m <= 0, NaN) draw nothing; the
 // per-frame draw budget is checked before the draw (bounded work); a free flight that ends
 // before segmentEnd is a candidate collision at tCandidate. No collision in the segment:
 // exponential flights are memoryless, so the next segment restarts from its own entry.
@@ -170,7 +170,7 @@ INR_HD bool answerPruned(const PruneView& prune, int cell, const RayStateView& r
 // through the DDA's inner loop and push ddaTraverseKernel past its register bound (ptxas -v,
 // sm_90: 28 / 104 bytes of spill stores / loads hoisted, 10 / 20 with the barrier, 10 / 16
 // before pruning existed). Emits no instruction. Left out where INR_NO_REGISTER_BARRIERS is
-// defined: the OptiX programs (Cuda/Pipeline/OptixPrograms.cu), whose OptiX-IR OptiX compiles
+// defined: the OptiX programs (Render/Cuda/OptixPrograms.cu), whose OptiX-IR OptiX compiles
 // itself and whose register allocation this trick was never measured for.
 INR_HD void opaqueRayIndex(int& i) {
 #if defined(__CUDA_ARCH__) && !defined(INR_NO_REGISTER_BARRIERS)

@@ -5,8 +5,8 @@
 
 #include <vector>
 
-#include "Cuda/CudaCheck.h"
-#include "Cuda/DeviceBuffer.h"
+#include "Common/Cuda/CudaCheck.h"
+#include "Common/Cuda/DeviceBuffer.h"
 #include "Evaluator/FieldEvaluator.h"
 
 namespace inr::test {

@@ -1,6 +1,6 @@
 #pragma once
 // Fixed scenes for the bit-for-bit regression tests of the CPU (Render/RenderRegression_test.cpp)
-// and GPU (Cuda/Pipeline/CudaRenderRegression_test.cpp) pipelines: images and counts that must
+// and GPU (Render/Cuda/CudaRenderRegression_test.cpp) pipelines: images and counts that must
 // not change when code is restructured. Each case's fingerprint folds the per-frame counts, the
 // final image, residual and majorants into one FNV-1a hash; the tests hold the values recorded at
 // a reference commit (INR_RECORD_FINGERPRINTS=1 prints them). A change meant to alter images (a

@@ -3,7 +3,7 @@
 // usable CUDA device is present.
 #include <gtest/gtest.h>
 
-#include "Cuda/CudaDevice.h"
+#include "Common/Cuda/CudaDevice.h"
 
 #define REQUIRE_GPU()                                                            \
   do {                                                                           \

@@ -1,0 +1,413 @@
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
+
+#include <cublas_v2.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdint>
+#include <vector>
+
+#include "Common/Activation.h"
+#include "Common/Cuda/CudaCheck.h"
+#include "Common/Cuda/CudaDevice.h"
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Evaluator/Cuda/FusedLaunchAutotuner.h"
+#include "Evaluator/Cuda/FusedMlpDevice.cuh"
+#include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
+#include "Evaluator/Cuda/FusedMlpKernels.h"
+#include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Encodings.h"
+#include "Evaluator/MlpProgram.h"
+
+namespace inr {
+namespace {
+
+void cublasCheck(cublasStatus_t s, const char* what) {
+  if (s != CUBLAS_STATUS_SUCCESS)
+    throw std::runtime_error(std::string("cuBLAS error in ") + what + ": status " + std::to_string(int(s)));
+}
+
+// ---- generic fp32 path: one kernel (or cuBLAS call) per instruction over a chunk of queries.
+// Activations: column per query, `ld` floats per column; activation functions from
+// Common/Activation.h (exact forms; --use_fast_math maps sinf/expf to intrinsics).
+
+__global__ void genericCoords(cuda::FusedParams P, const float4* points, int n, float* coords) {
+  const int q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  cuda::networkInputs(P, points[q], coords + q * 4);
+}
+
+__global__ void genericEpilogue(MlpInstr in, const float* bias, float* y, const float* other, int ld, int n) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int o = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || o >= in.nPad) return;
+  float v = 0.f;
+  if (o < in.outWidth) {
+    v = activate(in.act, y[q * ld + o] + bias[o]);
+    if (other) v = in.combineScale * (v + other[q * ld + o]);
+  }
+  y[q * ld + o] = v;
+}
+
+__global__ void genericElementwise(MlpInstr in, const float* coords, float* dst, const float* a, const float* other,
+                                   int ld, int n, int inputDim) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int c = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || c >= in.nPad) return;
+  float v = 0.f;
+  if (in.op == MlpOp::LoadInput) {
+    v = c < inputDim ? coords[q * 4 + c] : 0.f;
+  } else if (in.op == MlpOp::Activation) {
+    v = c < in.outWidth ? activate(in.act, in.actScale * dst[q * ld + c]) : dst[q * ld + c];
+  } else {  // Combine
+    v = in.combineScale * (a[q * ld + c] + (other ? other[q * ld + c] : 0.f));
+  }
+  dst[q * ld + c] = v;
+}
+
+// Every encoding (Evaluator/Encodings.h), one thread per output element.
+__global__ void genericEncoding(MlpInstr in, const float* weights, const float* src, int srcLd, float* dst, int ld, int n) {
+  const int q = blockIdx.y * blockDim.y + threadIdx.y;
+  const int c = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n || c >= in.nPad) return;
+  const float* x = src + q * srcLd;
+  dst[q * ld + c] = c < in.outWidth ? encodingElement(in, weights, [x](int k) { return x[k]; }, c) : 0.f;
+}
+
+__global__ void genericOutput(MlpInstr in, const float* W, const float* bias, const float* src, int srcLd,
+                              cuda::OutputMap map, const float4* points, int n, int offset, float* out,
+                              const int* scatter) {
+  const int q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  float net;
+  if (W) {
+    float acc = 0.f;
+    for (int k = 0; k < in.inWidth; ++k) acc += W[k] * src[q * srcLd + k];
+    net = activate(in.act, acc + bias[0]);
+  } else {
+    net = src[q * srcLd];
+  }
+  cuda::writeOutput(map, points[q].w, net, offset + q, out, scatter);
+}
+
+using cuda::FusedConfig;
+using cuda::FusedKernel;
+using cuda::FusedLaunchAutotuner;
+using cuda::configName;
+
+#if !defined(INR_HAVE_HOPPER_KERNEL)
+}  // namespace
+namespace cuda {
+FusedKernel hopperKernel(int) { return nullptr; }  // not built: no Hopper architecture
+}  // namespace cuda
+namespace {
+#endif
+
+// Why the wgmma kernel cannot run here ("" when it can): it is built for sm_90a, so it loads
+// only on a compute capability 9.0 device.
+std::string whyNoWgmmaKernel(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options) {
+  if (options.mma == FusedMma::MmaSync) return "not requested";
+  if (!cuda::hopperKernel(64)) return "not built (no CUDA architecture 90)";
+  if (device.major != 9 || device.minor != 0) return "needs compute capability 9.0";
+  cudaFuncAttributes attr{};
+  const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64));
+  if (e != cudaSuccess) {
+    cudaGetLastError();
+    return std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
+  }
+  return "";
+}
+
+std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
+  std::vector<__half> h(bits.size());
+  for (std::size_t i = 0; i < h.size(); ++i) h[i] = __ushort_as_half(bits[i]);
+  return h;
+}
+
+}  // namespace
+
+struct CudaInrEvaluator::Impl {
+  CudaDeviceInfo device;
+  MlpProgram program;
+  CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
+  FusedConfig config;       // launches of kSmallBatchThreshold queries or more
+  FusedConfig smallConfig;  // smaller launches
+  std::string launchReport;
+  static constexpr int kSmallBatchThreshold = FusedLaunchAutotuner::kSmallBatchThreshold;
+  cuda::FusedParams params;
+  cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
+  cuda::DeviceBuffer<MlpInstr> storedInstrs;
+  cuda::DeviceBuffer<MlpInstr> instrs;
+  MlpProgram hopperProgram;  // program.withGemmsInPlace(kHopperKSegment)
+  cuda::DeviceBuffer<MlpInstr> hopperInstrs;
+  cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
+  cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma chunks' core-matrix layout, chunks of 64 / 128 columns
+  std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
+  cuda::DeviceBuffer<float> floatW;
+  cuda::DeviceBuffer<float> outputTable;
+  // host-interface staging
+  mutable cuda::DeviceBuffer<float4> stagePoints;
+  mutable cuda::DeviceBuffer<float> stageOut;
+  // generic path
+  cublasHandle_t cublas = nullptr;
+  mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
+  static constexpr int kGenericChunk = 1 << 16;
+
+  void prepareParams(const InrModel& model);
+  // Runs one fused configuration on n points (at most, with a device-side count).
+  void launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float* out,
+                   const int* scatter, cudaStream_t stream) const;
+};
+
+// The program's parameters for the fused kernels (params, and paramsStored with any Fourier
+// encoding stored), with the weights packed and uploaded for each kernel and chunk width.
+void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
+  const MlpProgram& prog = program;
+  // Input mapping in network input order; output mapping as a (t, a, b) table.
+  auto& P = params;
+  P.inputDim = model.architecture.inputDim;
+  for (int i = 0; i < P.inputDim; ++i) {
+    const int w = model.domain.inputOrder[i];
+    P.inputCoord[i] = w;
+    P.inScale[i] = float(model.domain.toNetwork[w].scale);
+    P.inOffset[i] = float(model.domain.toNetwork[w].offset);
+  }
+  std::vector<float> table;
+  if (model.output.perTime) {
+    for (double t : model.output.perTime->times) {
+      float a, b;
+      model.output.affineAt(t, a, b);
+      table.insert(table.end(), {float(t), a, b});
+    }
+    outputTable.upload(table, nullptr);
+    P.output.count = int(model.output.perTime->times.size());
+    P.output.table = outputTable.get();
+  } else {
+    P.output.a = model.output.scale;
+    P.output.b = model.output.offset;
+  }
+
+  instrs.upload(prog.instrs, nullptr);
+  for (int kc : {64, 32}) {
+    stagedW[cuda::kcIndex(kc)].upload(asHalves(cuda::packStagedWeights(prog, kc, P.stagedOffset[cuda::kcIndex(kc)])), nullptr);
+    P.stagedWeights[cuda::kcIndex(kc)] = stagedW[cuda::kcIndex(kc)].get();
+  }
+  // Each warp of the wgmma kernel holds a layer's A (K <= 256) in registers before its
+  // epilogues write the rows: in place up to that K.
+  hopperProgram = prog.withGemmsInPlace(cuda::kHopperKSegment);
+  if (whyNoWgmma.empty()) {
+    for (const int nc : cuda::kHopperChunkWidths) {
+      const int w = cuda::chunkIndex(nc);
+      hopperW[w].upload(asHalves(cuda::packHopperWeights(prog, nc, P.hopperOffset[w], cuda::kMaxFusedInstrs)), nullptr);
+      P.hopperWeights[w] = hopperW[w].get();
+      P.hopperStageHalves[w] = cuda::hopperStageHalves(prog, nc);
+    }
+    hopperInstrs.upload(hopperProgram.instrs, nullptr);
+    P.hopperInstrs = hopperInstrs.get();
+  }
+  P.hopperBiasFloats = cuda::hopperBiasLayout(prog, P.hopperBiasStart, cuda::kMaxFusedInstrs);
+  P.hopperNumBuffers = std::max(1, hopperProgram.numBuffers);
+  for (int b = 0; b < P.hopperNumBuffers && b < cuda::kMaxBuffers; ++b)
+    P.hopperBufferLd[b] = hopperProgram.bufferWidthPad[b] + 8;
+  for (const MlpInstr& in : prog.instrs) P.fusedFourier |= in.fourierInput >= 0 ? 1 : 0;
+  const MlpProgram storedProgram = prog.withEncodingsStored();
+  if (P.fusedFourier) storedInstrs.upload(storedProgram.instrs, nullptr);
+  floatW.upload(prog.floatWeights, nullptr);
+  INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
+  P.instrs = instrs.get();
+  P.numInstrs = int(prog.instrs.size());
+  P.floatWeights = floatW.get();
+  P.numBuffers = std::max(1, prog.numBuffers);
+  for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b) P.bufferLd[b] = prog.bufferWidthPad[b] + 8;
+  P.maxGemmOutPad = std::max(16, prog.maxGemmOutPad);
+  // The same program with any Fourier encoding stored in its buffer (not fused into the GEMM).
+  paramsStored = P;
+  if (P.fusedFourier) {
+    paramsStored.instrs = storedInstrs.get();
+    paramsStored.fusedFourier = 0;
+    for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b)
+      paramsStored.bufferLd[b] = storedProgram.bufferWidthPad[std::size_t(b)] + 8;
+  }
+}
+
+void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount,
+                                         float* out, const int* scatter, cudaStream_t stream) const {
+  // With a device-side count, the grid follows the bound (the kernel's tile loop is
+  // grid-strided, so extra blocks just exit).
+  const int tiles = (n + c.tile - 1) / c.tile;
+  const int grid = std::min(tiles, c.gridBlocks);
+  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc) : cuda::mmaSyncKernel(c.tile, c.kc);
+  cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  if (c.wgmma) {
+    P.hopperStages = c.stages;
+    P.hopperPingPong = c.pingPong ? 1 : 0;
+  }
+  kernel<<<grid, c.wgmma ? cuda::kHopperThreads : c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, out, scatter);
+  INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
+}
+
+CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.device = queryCudaDevice(options.device);
+  if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);
+  INR_CUDA_CHECK(cudaSetDevice(options.device));
+  I.program = MlpProgram::compile(model.architecture);
+  I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
+  I.prepareParams(model);
+
+  // The path: fused where the program and a configuration fit, else generic.
+  const MlpProgram& prog = I.program;
+  bool fused = prog.fusable && options.path != CudaEvaluatorPath::Generic;
+  std::string why = prog.whyNotFused;
+  if (fused && int(prog.instrs.size()) > cuda::kMaxFusedInstrs) {
+    fused = false;
+    why = "the program has " + std::to_string(prog.instrs.size()) + " instructions (fused kernel: up to " +
+          std::to_string(cuda::kMaxFusedInstrs) + ")";
+  }
+  if (fused && options.mma == FusedMma::Wgmma && !I.whyNoWgmma.empty()) {
+    fused = false;
+    why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
+  }
+  const FusedLaunchAutotuner tuner(I.device, options);
+  std::vector<FusedConfig> candidates;
+  if (fused) {
+    candidates = tuner.candidates(I.params, I.paramsStored, I.whyNoWgmma.empty());
+    if (candidates.empty()) {
+      fused = false;
+      why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
+    }
+  }
+  if (options.path == CudaEvaluatorPath::Fused && !fused)
+    throw std::runtime_error("fused CUDA evaluator requested but impossible for this model: " + why);
+  I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
+  if (!fused) {
+    cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
+    return;
+  }
+  const FusedLaunchAutotuner::Choice choice =
+      tuner.choose(candidates, model.domain, [&](const FusedConfig& c, const float4* points, int n, float* out) {
+        I.launchFused(c, points, n, nullptr, out, nullptr, nullptr);
+      });
+  I.config = choice.large;
+  I.smallConfig = choice.small;
+  I.launchReport = choice.report;
+  if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
+}
+
+CudaInrEvaluator::~CudaInrEvaluator() {
+  if (impl_ && impl_->cublas) cublasDestroy(impl_->cublas);
+}
+
+CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
+
+std::string CudaInrEvaluator::name() const {
+  const Impl& I = *impl_;
+  return I.path == CudaEvaluatorPath::Fused
+             ? "cuda-fused-fp16 (" + configName(I.config) + ", " +
+                   std::to_string(I.config.sharedBytes / 1024) + " KB smem, " +
+                   std::to_string(I.config.gridBlocks / std::max(1, I.device.multiprocessors)) + " blocks/SM; under " +
+                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallConfig) + ") on " +
+                   I.device.name
+             : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
+                   I.device.name;
+}
+
+std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport; }
+
+bool CudaInrEvaluator::usesWgmma() const {
+  return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.wgmma || impl_->smallConfig.wgmma);
+}
+
+std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
+
+void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
+                                      const int* scatter, cudaStream_t stream) const {
+  const Impl& I = *impl_;
+  int n = maxN;
+  if (n <= 0) return;
+  if (I.path == CudaEvaluatorPath::Fused) {
+    I.launchFused(n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config, points, n, deviceCount, out, scatter, stream);
+    return;
+  }
+  if (deviceCount) {  // the generic path sizes its cuBLAS calls on the host: read the count
+    unsigned k = 0;
+    INR_CUDA_CHECK(cudaMemcpyAsync(&k, deviceCount, sizeof k, cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    n = std::min(n, int(k));
+    if (n <= 0) return;
+  }
+  // Generic fp32 path, chunk by chunk.
+  const MlpProgram& prog = I.program;
+  const int ld = prog.maxWidthPad;
+  const int chunk = Impl::kGenericChunk;
+  I.genericBuffers.growTo(std::size_t(std::max(1, prog.numBuffers)) * ld * chunk);
+  I.genericCoords.growTo(std::size_t(4) * chunk);
+  cublasCheck(cublasSetStream(I.cublas, stream), "cublasSetStream");
+  const float one = 1.f, zero = 0.f;
+  for (int begin = 0; begin < n; begin += chunk) {
+    const int m = std::min(chunk, n - begin);
+    auto buf = [&](int b) { return I.genericBuffers.get() + std::size_t(b) * ld * chunk; };
+    genericCoords<<<(m + 255) / 256, 256, 0, stream>>>(I.params, points + begin, m, I.genericCoords.get());
+    INR_CUDA_CHECK_LAUNCH("genericCoords");
+    for (const MlpInstr& in : prog.instrs) {
+      // coordInput: a first layer whose fused form reads split coordinates; fp32 reads them raw.
+      const bool fromCoords = in.src < 0 || in.coordInput;
+      const float* src = fromCoords ? I.genericCoords.get() : buf(in.src);
+      const int srcLd = fromCoords ? 4 : ld;
+      const dim3 block(32, 8), grid2((std::max(in.nPad, 1) + 31) / 32, (m + 7) / 8);
+      switch (in.op) {
+        case MlpOp::DenseFp32:
+        case MlpOp::Gemm:
+          if (in.finalOutput) {  // the final width-1 layer: an fp32 dot per query
+            genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(in, I.floatW.get() + in.floatOffset,
+                                                               I.floatW.get() + in.biasOffset, src, srcLd, I.params.output,
+                                                               points + begin, m, begin, out, scatter);
+            INR_CUDA_CHECK_LAUNCH("genericOutput");
+            break;
+          }
+          cublasCheck(cublasSgemm(I.cublas, CUBLAS_OP_T, CUBLAS_OP_N, in.outWidth, m, in.inWidth, &one,
+                                  I.floatW.get() + in.floatOffset, in.inWidth, src, srcLd, &zero, buf(in.dst), ld),
+                      "cublasSgemm");
+          genericEpilogue<<<grid2, block, 0, stream>>>(in, I.floatW.get() + in.biasOffset, buf(in.dst),
+                                                      in.other >= 0 ? buf(in.other) : nullptr, ld, m);
+          INR_CUDA_CHECK_LAUNCH("genericEpilogue");
+          break;
+        case MlpOp::Fourier:  // every encoding
+          genericEncoding<<<grid2, block, 0, stream>>>(in, I.floatW.get(), src, srcLd, buf(in.dst), ld, m);
+          INR_CUDA_CHECK_LAUNCH("genericEncoding");
+          break;
+        case MlpOp::LoadInput:
+        case MlpOp::Activation:
+        case MlpOp::Combine:
+          genericElementwise<<<grid2, block, 0, stream>>>(in, I.genericCoords.get(), buf(in.dst),
+                                                         in.src >= 0 ? buf(in.src) : nullptr,
+                                                         in.other >= 0 ? buf(in.other) : nullptr, ld, m, prog.inputDim);
+          INR_CUDA_CHECK_LAUNCH("genericElementwise");
+          break;
+        case MlpOp::OutputDot:
+        case MlpOp::Output:
+          genericOutput<<<(m + 255) / 256, 256, 0, stream>>>(
+              in, in.op == MlpOp::OutputDot ? I.floatW.get() + in.floatOffset : nullptr, I.floatW.get() + in.biasOffset, src,
+              srcLd, I.params.output, points + begin, m, begin, out, scatter);
+          INR_CUDA_CHECK_LAUNCH("genericOutput");
+          break;
+      }
+    }
+  }
+}
+
+void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* out) const {
+  const Impl& I = *impl_;
+  if (n == 0) return;
+  if (n > std::size_t(1) << 30) throw std::runtime_error("CudaInrEvaluator::evaluate: batch larger than 2^30 queries");
+  static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
+  I.stagePoints.growTo(n);
+  I.stageOut.growTo(n);
+  INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points, n * sizeof(float4), cudaMemcpyHostToDevice));
+  evaluateDevice(I.stagePoints.get(), int(n), I.stageOut.get(), nullptr, nullptr);
+  INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.get(), n * sizeof(float), cudaMemcpyDeviceToHost));
+}
+
+}  // namespace inr

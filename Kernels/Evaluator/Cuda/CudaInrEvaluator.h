@@ -1,0 +1,81 @@
+#pragma once
+// The GPU evaluator: the model compiled to an MlpProgram and run either by the fused
+// tensor-core kernel (one kernel through the whole network, fp16 weights and activations, fp32
+// accumulation, first layer / encoding and final dot in fp32) or, for graphs it cannot hold
+// (wider than 256, too many live buffers), by a generic fp32 layer-by-layer path on cuBLAS.
+// The choice is automatic and reported by path().
+//
+// Host interface: FieldEvaluator (host arrays in and out). Device interface: DeviceFieldEvaluator
+// (evaluateDevice(), which reads float4 world points from device memory and writes, optionally
+// scattered through an index array, straight into device memory — how the GPU pipeline writes
+// into its rays' state).
+#include <cuda_runtime.h>
+
+#include <memory>
+
+#include "Evaluator/Cuda/DeviceFieldEvaluator.h"
+#include "Evaluator/FieldEvaluator.h"
+#include "Model/InrModel.h"
+
+namespace inr {
+
+enum class CudaEvaluatorPath { Auto, Fused, Generic };
+// The fused kernel's tensor-core instructions: mma.sync (every GPU from Turing on) or warpgroup
+// MMA (wgmma, Hopper only, code built for sm_90a). Auto times both where both run.
+enum class FusedMma { Auto, MmaSync, Wgmma };
+
+struct CudaEvaluatorOptions {
+  int device = 0;
+  CudaEvaluatorPath path = CudaEvaluatorPath::Auto;
+  // Fused kernel launch configuration: queries per block tile (128, 64 or 32) and weight K-chunk
+  // (64 or 32 columns staged per step); 0 = any. Of the configurations whose shared memory fits,
+  // the fastest on `autotuneBatch` random queries in the model's domain runs large launches and
+  // the fastest on 8192 queries runs launches under 32768 queries (the timing takes a few
+  // milliseconds at construction); autotuneBatch = 0 takes the first that fits (largest tile,
+  // then largest chunk) for all launches.
+  int tileQueries = 0;
+  int weightChunk = 0;
+  int autotuneBatch = 1 << 18;
+  // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
+  // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
+  // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
+  // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of
+  // wgmmaChunkColumns output columns: 64 or 128, 0 = both autotuned).
+  FusedMma mma = FusedMma::Auto;
+  // wgmma kernel: its two consumer warpgroups take turns issuing each weight chunk's MMAs (1),
+  // never (0), or both are autotuned (-1).
+  int wgmmaPingPong = -1;
+  int wgmmaChunkColumns = 0;
+};
+
+class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
+public:
+  // Throws std::runtime_error when no usable device (message says why) or the path is impossible.
+  explicit CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options = {});
+  ~CudaInrEvaluator() override;
+
+  void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
+  std::string name() const override;
+
+  // DeviceFieldEvaluator: evaluateDevice(points, n, out, scatter, stream), and the same for
+  // *deviceCount points (device memory, written by an earlier kernel on `stream`), at most maxN:
+  // no host round trip on the fused path (the generic path reads the count).
+  using DeviceFieldEvaluator::evaluateDevice;
+  void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
+                      cudaStream_t stream) const override;
+
+  CudaEvaluatorPath path() const;
+  // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,
+  // e.g. "... tile 128 x K 64: L / S Gq/s; ... -> tile 128 x K 64, below 32768 queries
+  // tile 32 x K 64" (L / S: large / small batch rates; empty for the generic path).
+  std::string launchReport() const;
+  // Whether the fused launches (either batch size) use the wgmma kernel.
+  bool usesWgmma() const;
+  std::string describeProgram() const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace inr

@@ -1,0 +1,140 @@
+#include "Evaluator/Cuda/FusedLaunchAutotuner.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+
+#include "Common/Cuda/CudaCheck.h"
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
+#include "Evaluator/Cuda/FusedMlpKernels.h"
+
+namespace inr::cuda {
+
+std::string configName(const FusedConfig& c) {
+  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
+  return "wgmma " + std::to_string(kHopperConsumers) + "x" + std::to_string(kHopperRows) + " x N " +
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+}
+
+FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
+    : device_(device), options_(options) {}
+
+std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
+                                                          bool wgmmaRuns) const {
+  const CudaEvaluatorOptions& options = options_;
+  std::vector<FusedConfig> candidates;
+  // Dynamic shared memory a kernel may have beside its static shared memory.
+  auto sharedLimit = [&](FusedKernel kernel) {
+    cudaFuncAttributes attr{};
+    INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
+    return device_.sharedMemPerBlockOptin - std::min(device_.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
+  };
+  // mma.sync candidates first: without autotuning the first that fits runs, and that stays
+  // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
+  if (options.mma != FusedMma::Wgmma)
+    for (int t : {128, 64, 32})
+      for (int kc : {64, 32}) {
+        if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc)) continue;
+        const FusedKernel kernel = mmaSyncKernel(t, kc);
+        // the fused and the stored encoding (where the program has one), each if it fits (one
+        // kernel, two shared-memory sizes: its limit allows either at launch)
+        const std::size_t limit = sharedLimit(kernel);
+        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+        for (const bool storedEncoding : {true, false}) {  // stored first: the kernel of earlier versions
+          if (storedEncoding && !P.fusedFourier) continue;
+          const std::size_t b = fusedSharedBytes(t, kc, storedEncoding ? stored : P);
+          if (b > limit) continue;
+          int perSm = 0;
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
+          if (perSm < 1) continue;
+          candidates.push_back({false, t, kc, 0, false, storedEncoding, b, perSm * device_.multiprocessors, 0.0});
+        }
+      }
+  // wgmma (2 x 64 queries per round): per chunk width (widest first), as many ring slots as
+  // fit (2 at least), with and without turns
+  if (wgmmaRuns)
+    for (const int nc : {128, 64}) {
+      if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
+      const FusedKernel kernel = hopperKernel(nc);
+      const std::size_t limit = sharedLimit(kernel);
+      int stages = 0;
+      for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
+        if (hopperSharedBytes(nc, s, P) <= limit) stages = s;
+      if (!stages) continue;
+      const std::size_t bytes = hopperSharedBytes(nc, stages, P);
+      INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+      int perSm = 0;
+      INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, kHopperThreads, bytes));
+      if (perSm < 1) continue;
+      for (const bool pingPong : {true, false})
+        if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
+          candidates.push_back({true, kHopperQueriesPerRound, nc, stages, pingPong, false, bytes,
+                                perSm * device_.multiprocessors, 0.0});
+    }
+  return candidates;
+}
+
+FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<FusedConfig>& candidates,
+                                                          const Domain& domain, const Launch& launch) const {
+  Choice choice;
+  choice.large = choice.small = candidates.front();
+  if (candidates.size() < 2 || options_.autotuneBatch <= 0) {
+    choice.report = configName(choice.large) +
+                    (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
+    return choice;
+  }
+  // Every candidate runs on the same random points in the model's domain.
+  const int batch = options_.autotuneBatch;
+  const int smallBatch = std::min(batch, kSmallBatch);
+  std::vector<float4> pts(static_cast<std::size_t>(batch));
+  std::uint32_t state = 12345u;
+  auto uniform = [&](double lo, double hi) {
+    state = state * 1664525u + 1013904223u;
+    return float(lo + (hi - lo) * ((state >> 8) * (1.0 / 16777216.0)));
+  };
+  const auto& b = domain.bounds;
+  for (auto& p : pts)
+    p = make_float4(uniform(b[0], b[1]), uniform(b[2], b[3]), uniform(b[4], b[5]),
+                    uniform(domain.timeBegin, domain.timeEnd));
+  DeviceBuffer<float4> points;
+  DeviceBuffer<float> values;
+  points.growTo(pts.size());
+  values.growTo(pts.size());
+  INR_CUDA_CHECK(cudaMemcpy(points.get(), pts.data(), pts.size() * sizeof(float4), cudaMemcpyHostToDevice));
+  cudaEvent_t e0, e1;
+  INR_CUDA_CHECK(cudaEventCreate(&e0));
+  INR_CUDA_CHECK(cudaEventCreate(&e1));
+  auto rate = [&](const FusedConfig& config, int n) {  // best of 3 after a warm-up, queries per second
+    float best = 0.f;
+    for (int r = -1; r < 3; ++r) {
+      INR_CUDA_CHECK(cudaEventRecord(e0));
+      launch(config, points.get(), n, values.get());
+      INR_CUDA_CHECK(cudaEventRecord(e1));
+      INR_CUDA_CHECK(cudaEventSynchronize(e1));
+      float ms = 0.f;
+      INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
+      if (r == 0 || (r > 0 && ms < best)) best = ms;
+    }
+    return n / (double(best) * 1e-3);
+  };
+  std::string report;
+  double bestLarge = 0.0, bestSmall = 0.0;
+  for (const FusedConfig& c : candidates) {
+    const double large = rate(c, batch), small = rate(c, smallBatch);
+    if (large > bestLarge) bestLarge = large, choice.large = c;
+    if (small > bestSmall) bestSmall = small, choice.small = c;
+    char line[128];
+    std::snprintf(line, sizeof line, "%s%s: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", configName(c).c_str(),
+                  large * 1e-9, small * 1e-9);
+    report += line;
+  }
+  cudaEventDestroy(e0);
+  cudaEventDestroy(e1);
+  choice.report = "batch " + std::to_string(batch) + " / " + std::to_string(smallBatch) + ": " + report + " -> " +
+                  configName(choice.large) + ", below " + std::to_string(kSmallBatchThreshold) + " queries " +
+                  configName(choice.small);
+  return choice;
+}
+
+}  // namespace inr::cuda

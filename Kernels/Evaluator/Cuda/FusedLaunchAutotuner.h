@@ -1,0 +1,75 @@
+#pragma once
+// Which fused-kernel configuration runs a model's launches. The candidates are every mma.sync
+// configuration (tile x weight chunk, a Fourier encoding fused into the GEMM or stored in a
+// buffer) whose shared memory fits the device, then on Hopper every wgmma configuration (chunk
+// width, as many ring slots as fit, with and without ping-pong turns). Each is timed on the same
+// random queries in the model's domain, on a large batch (throughput) and on a small one
+// (latency: the pipeline's late traverse-evaluate iterations hold a few thousand queries, where a
+// 128-query tile leaves most SMs idle); the fastest of each runs launches of its size.
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "Common/Cuda/CudaDevice.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
+#include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Model/InrModel.h"
+
+namespace inr::cuda {
+
+struct FusedConfig {
+  bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
+  int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
+  int stages = 0;         // wgmma: weight ring slots
+  bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
+  // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
+  // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
+  // form sits on the GEMM's critical path; figures: Benchmarks/RESULTS.md, "Warp-specialised
+  // Hopper kernel").
+  bool storedEncoding = false;
+  std::size_t sharedBytes = 0;
+  int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
+  double measuredQps = 0.0;
+};
+
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong".
+std::string configName(const FusedConfig& config);
+
+class FusedLaunchAutotuner {
+public:
+  // Launches under this many queries run the small-batch choice.
+  static constexpr int kSmallBatchThreshold = 1 << 15;
+  // The small batch the candidates are timed on.
+  static constexpr int kSmallBatch = 1 << 13;
+
+  // Runs `config` on n points into out (device memory), on the default stream.
+  using Launch = std::function<void(const FusedConfig& config, const float4* points, int n, float* out)>;
+
+  FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options);
+
+  // The configurations options allow whose shared memory fits, in the order that runs without
+  // timing: mma.sync first (the stored encoding before the fused one: the kernel of earlier
+  // versions), then wgmma when `wgmmaRuns`. `params`: the program as compiled; `storedParams`:
+  // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
+  std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
+                                      bool wgmmaRuns) const;
+
+  struct Choice {
+    FusedConfig large;  // launches of kSmallBatchThreshold queries or more
+    FusedConfig small;  // smaller launches
+    std::string report;  // what launchReport() says
+  };
+  // Times every candidate (best of 3 after a warm-up, CUDA events) on options.autotuneBatch and
+  // on kSmallBatch random queries in `domain` and keeps the fastest of each; with one candidate
+  // or autotuneBatch = 0 the first runs every launch.
+  Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch) const;
+
+private:
+  CudaDeviceInfo device_;
+  CudaEvaluatorOptions options_;
+};
+
+}  // namespace inr::cuda

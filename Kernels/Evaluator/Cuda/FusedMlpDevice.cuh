@@ -1,0 +1,153 @@
+#pragma once
+// Device code both fused kernels share: activations, the output mapping, network inputs, a
+// tile's coordinates, shared-memory loads that stay where they stand, ldmatrix and mma.sync
+// (the Hopper kernel loads its A operand with ldmatrix too), and compile-time tags.
+#include <cuda_fp16.h>
+#include <cstdint>
+#include <type_traits>
+
+#include "Common/Activation.h"
+#include "Evaluator/Cuda/FusedMlpParams.cuh"
+
+namespace inr::cuda {
+
+// The fused kernel's activations: the special-function forms of Common/Activation.h.
+__device__ inline float applyActivation(MlpAct a, float v) { return activate<ActMath::FastDevice>(a, v); }
+
+template <MlpAct A>
+struct ActTag {
+  static constexpr MlpAct value = A;
+};
+
+// Calls f(ActTag<A>{}) for the runtime activation, so loops inside f see it as a constant.
+template <typename F>
+__device__ inline void dispatchActivation(MlpAct a, F&& f) {
+  switch (a) {
+    case MlpAct::None: f(ActTag<MlpAct::None>{}); break;
+    case MlpAct::Sine: f(ActTag<MlpAct::Sine>{}); break;
+    case MlpAct::SiLU: f(ActTag<MlpAct::SiLU>{}); break;
+    case MlpAct::ReLU: f(ActTag<MlpAct::ReLU>{}); break;
+    case MlpAct::Sigmoid: f(ActTag<MlpAct::Sigmoid>{}); break;
+    case MlpAct::Tanh: f(ActTag<MlpAct::Tanh>{}); break;
+  }
+}
+
+__device__ inline void outputAffine(const OutputMap& m, float t, float& a, float& b) {
+  if (m.count == 0) {
+    a = m.a;
+    b = m.b;
+    return;
+  }
+  const float* T = m.table;
+  if (t <= T[0]) {
+    a = T[1];
+    b = T[2];
+    return;
+  }
+  for (int i = 1; i < m.count; ++i) {
+    if (t <= T[3 * i]) {
+      const float f = (t - T[3 * (i - 1)]) / (T[3 * i] - T[3 * (i - 1)]);
+      a = T[3 * (i - 1) + 1] + f * (T[3 * i + 1] - T[3 * (i - 1) + 1]);
+      b = T[3 * (i - 1) + 2] + f * (T[3 * i + 2] - T[3 * (i - 1) + 2]);
+      return;
+    }
+  }
+  a = T[3 * (m.count - 1) + 1];
+  b = T[3 * (m.count - 1) + 2];
+}
+
+// The value query q gets from the network output `net` at time t (the output map), stored at
+// q or, with a scatter array, at scatter[q].
+__device__ inline void writeOutput(const OutputMap& m, float t, float net, int q, float* __restrict__ out,
+                                   const int* __restrict__ scatter) {
+  float a, b;
+  outputAffine(m, t, a, b);
+  out[scatter ? scatter[q] : q] = a * net + b;
+}
+
+// The network inputs of a query at world point p (x, y, z, t): the model's input order and
+// domain mapping, zero past inputDim.
+__device__ inline void networkInputs(const FusedParams& P, float4 p, float* x) {
+  const float w[4] = {p.x, p.y, p.z, p.w};
+#pragma unroll
+  for (int i = 0; i < 4; ++i) x[i] = i < P.inputDim ? P.inScale[i] * w[P.inputCoord[i]] + P.inOffset[i] : 0.f;
+}
+
+// Coordinates of a tile's M rows (network inputs, 4 floats per row; zero rows past `rows`),
+// THREADS threads, tid this thread's index among them; the caller synchronises.
+template <int M, int THREADS>
+__device__ inline void loadTileCoords(const FusedParams& P, const float4* __restrict__ points, int base, int rows,
+                                      float* coords, int tid) {
+  for (int r = tid; r < M; r += THREADS)
+    networkInputs(P, r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f), coords + r * 4);
+}
+
+__device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
+
+// Reads a half2 from shared memory where it stands (see ldsFloat2InPlace): the residual operand
+// of an epilogue, which the compiler would otherwise hoist as 32 loads ahead of the arithmetic.
+__device__ inline float2 ldsHalf2AsFloat2InPlace(const __half* p) {
+  unsigned bits;
+  asm volatile("ld.shared.b32 %0, [%1];\n" : "=r"(bits) : "r"(smemAddress(p)));
+  __half2 h;
+  memcpy(&h, &bits, sizeof h);
+  return __half22float2(h);
+}
+
+// Reads two floats from shared memory where it stands: the final dot's weights are loaded in
+// the epilogue one pair at a time, not hoisted (64 live accumulators leave no room for them).
+__device__ inline float2 ldsFloat2InPlace(const float* p) {
+  float2 v;
+  asm volatile("ld.shared.v2.f32 {%0, %1}, [%2];\n" : "=f"(v.x), "=f"(v.y) : "r"(smemAddress(p)));
+  return v;
+}
+
+// Loads four 8x8 b16 matrices; `addr` is this lane's shared-memory byte address (its row).
+__device__ inline void ldmatrixX4(unsigned (&r)[4], unsigned addr) {
+  asm volatile("ldmatrix.sync.aligned.m8n8.x4.shared.b16 {%0,%1,%2,%3}, [%4];\n"
+               : "=r"(r[0]), "=r"(r[1]), "=r"(r[2]), "=r"(r[3])
+               : "r"(addr));
+}
+
+// D += A(16x16) * B(16x8), fp16 operands, fp32 accumulators. Turing (sm_75) has no m16n8k16
+// for f16: it runs as two m16n8k8 halves over k with the same register fragments.
+__device__ inline void mma16816(float (&d)[4], const unsigned (&a)[4], unsigned b0, unsigned b1) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  asm(
+      "mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+      "{%0,%1,%2,%3};\n"
+      : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+      : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b0), "r"(b1));
+#else
+  asm("mma.sync.aligned.m16n8k8.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5}, {%6}, {%0,%1,%2,%3};\n"
+               : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+               : "r"(a[0]), "r"(a[1]), "r"(b0));
+  asm("mma.sync.aligned.m16n8k8.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5}, {%6}, {%0,%1,%2,%3};\n"
+               : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+               : "r"(a[2]), "r"(a[3]), "r"(b1));
+#endif
+}
+
+// D = A(16x16) * B(16x8) + C with C = the bias pair of this lane's columns in both rows: the
+// first k step of a GEMM, so accumulators start at the bias without separate moves.
+__device__ inline void mma16816Bias(float (&d)[4], const unsigned (&a)[4], unsigned b0, unsigned b1, float2 c) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  asm("mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+      "{%10,%11,%10,%11};\n"
+      : "=f"(d[0]), "=f"(d[1]), "=f"(d[2]), "=f"(d[3])
+      : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b0), "r"(b1), "f"(c.x), "f"(c.y));
+#else
+  d[0] = d[2] = c.x;
+  d[1] = d[3] = c.y;
+  mma16816(d, a, b0, b1);
+#endif
+}
+
+// Compile-time tags for the kernels' generic lambdas (warp column blocks, k steps, first k step,
+// residual).
+template <int N>
+using IntTag = std::integral_constant<int, N>;
+template <bool B>
+using BoolTag = std::bool_constant<B>;
+
+}  // namespace inr::cuda

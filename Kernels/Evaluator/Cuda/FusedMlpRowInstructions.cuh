@@ -1,0 +1,154 @@
+#pragma once
+// The row-wise instructions of a fused program (everything but a GEMM: inputs, fp32 layers, the
+// Fourier encoding, activations, residual sums, the output), run by a group of threads on a
+// tile's rows in shared memory; both fused kernels call runRowInstr between their GEMMs. Where an
+// encoding is fused into a GEMM's operand load instead, the kernels compute its elements with
+// Evaluator/Encodings.h (fourierElement<ActMath::FastDevice>), the same arithmetic as stored here.
+#include <cuda_fp16.h>
+
+#include "Evaluator/Cuda/FusedMlpDevice.cuh"
+#include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Encodings.h"
+
+namespace inr::cuda {
+
+// The rows of a tile that a group of threads runs the row-wise instructions on (everything but
+// a GEMM): the activation buffers, the network inputs, how many rows are queries, and the query
+// index of row 0.
+struct RowTile {
+  __half* act;
+  const int* bufferStart;  // per buffer, halves from act
+  const int* bufferLd;
+  const float* coords;  // 4 floats per row
+  int rows, base;
+};
+
+// LoadInput, DenseFp32, Fourier, Activation, Combine, OutputDot and Output on M rows with THREADS
+// threads (tid: this thread's index among them); the caller synchronises afterwards.
+template <int M, int THREADS>
+__device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+                                   const float4* __restrict__ points, float* __restrict__ out,
+                                   const int* __restrict__ scatter) {
+  constexpr int WARPS = THREADS / 32;
+  const int warp = tid >> 5, lane = tid & 31;
+  const int rows = t.rows, base = t.base;
+  const float* const coords = t.coords;
+  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
+  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
+  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
+  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
+  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
+  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
+  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]); };
+  switch (in.op) {
+    case MlpOp::LoadInput:
+      if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
+        for (int idx = tid; idx < M * 4; idx += THREADS) {
+          const int r = idx >> 2, c = idx & 3;
+          const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
+          const __half hi = __float2half(x);
+          __half* d = dst + r * ldDst + c;
+          d[0] = hi;
+          d[4] = __float2half(x - __half2float(hi));
+          d[8] = hi;
+          d[12] = __float2half(0.f);
+        }
+      } else {
+        for (int r = warp; r < M; r += WARPS)
+          for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+      }
+      break;
+    case MlpOp::DenseFp32:
+    case MlpOp::Fourier: {
+      // One thread per output column (its weights in registers), looping over the rows.
+      // A Fourier encoding's columns as Evaluator/Encodings.h lays them out; its projection is
+      // the dense dot below with a zero bias: of the coordinates, the arithmetic of
+      // fourierProjection<ActMath::FastDevice>, so a GEMM fusing the encoding changes no bit.
+      const bool fourier = in.op == MlpOp::Fourier;
+      const FourierColumns cols(in);
+      const int inc = fourier ? cols.inputs : 0;
+      const int m = fourier ? cols.features : in.outWidth;  // computed columns
+      const int sinBase = cols.sinAt;
+      const float* W = P.floatWeights + in.floatOffset;
+      const int colsPerPass = min(m, THREADS), rowsPerPass = THREADS / colsPerPass;
+      for (int c0 = 0; c0 < m; c0 += colsPerPass) {
+        const int o = c0 + tid % colsPerPass;
+        if (tid >= rowsPerPass * colsPerPass || o >= m) continue;
+        float w[16];
+#pragma unroll
+        for (int k = 0; k < 16; ++k) w[k] = k < in.inWidth ? __ldg(W + o * in.inWidth + k) : 0.f;
+        const float bias = fourier ? 0.f : __ldg(P.floatWeights + in.biasOffset + o);
+        const int rStart = tid / colsPerPass;
+        auto dot = [&](int r) {
+          float acc = bias;
+          if (in.src < 0) {  // coordinates: one 16-byte load; weights past inputDim are zero
+            const float4 c = reinterpret_cast<const float4*>(coords)[r];
+            acc = fmaf(w[0], c.x, fmaf(w[1], c.y, fmaf(w[2], c.z, fmaf(w[3], c.w, acc))));
+          } else if (in.inWidth <= 16) {
+#pragma unroll
+            for (int k = 0; k < 16; ++k)
+              if (k < in.inWidth) acc = fmaf(w[k], input(r, k), acc);
+          } else {
+            for (int k = 0; k < in.inWidth; ++k) acc = fmaf(__ldg(W + o * in.inWidth + k), input(r, k), acc);
+          }
+          return acc;
+        };
+        if (fourier) {
+          for (int r = rStart; r < M; r += rowsPerPass) {
+            float sn, cs;
+            __sincosf(dot(r), &sn, &cs);
+            dst[r * ldDst + sinBase + o] = __float2half(sn);
+            dst[r * ldDst + sinBase + m + o] = __float2half(cs);
+          }
+        } else {
+          dispatchActivation(in.act, [&](auto A) {
+            for (int r = rStart; r < M; r += rowsPerPass) {
+              float v = applyActivation(decltype(A)::value, dot(r));
+              if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
+              dst[r * ldDst + o] = __float2half(v);
+            }
+          });
+        }
+      }
+      // Included inputs and zero padding: only those columns.
+      for (int r = warp; r < M; r += WARPS) {
+        for (int c = lane; c < inc; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+      }
+      break;
+    }
+    case MlpOp::Activation:
+      for (int r = warp; r < M; r += WARPS)
+        for (int c = lane; c < in.outWidth; c += 32)
+          dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
+      break;
+    case MlpOp::Combine: {
+      for (int r = warp; r < M; r += WARPS)
+        for (int c = lane; c < in.nPad; c += 32) {
+          const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
+          dst[r * ldDst + c] = __float2half(in.combineScale * v);
+        }
+      break;
+    }
+    case MlpOp::OutputDot:
+    case MlpOp::Output: {
+      const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
+      for (int r = warp; r < rows; r += WARPS) {
+        float acc = 0.f;
+        if (W) {
+          for (int k = lane; k < in.inWidth; k += 32) acc = fmaf(__ldg(W + k), input(r, k), acc);
+#pragma unroll
+          for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
+        }
+        if (lane == 0) {
+          const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
+          writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
+        }
+      }
+      break;
+    }
+    default: break;  // Gemm: the kernels' own code
+  }
+}
+
+}  // namespace inr::cuda

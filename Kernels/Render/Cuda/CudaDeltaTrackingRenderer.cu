@@ -1,0 +1,486 @@
+#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+
+#include <cub/block/block_reduce.cuh>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "Common/Stopwatch.h"
+#include "Evaluator/Cuda/DeviceFieldEvaluator.h"
+#include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
+#include "Render/Cuda/DeviceRefine.cuh"
+#include "Render/Finalize.h"
+#include "Render/RayInit.h"
+#include "Render/Reproject.h"
+#include "Render/Shadows.h"
+
+namespace inr {
+
+using namespace pipeline;
+
+namespace {
+
+
+// ---- kernels: thin wrappers around the shared INR_HD per-ray functions ----
+
+__global__ void initKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, AccumulationView acc,
+                           unsigned long long* stats) {
+  using Count = cub::BlockReduce<int, kThreads>;
+  __shared__ typename Count::TempStorage scratch;
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  int active = 0, skipped = 0;
+  if (i < rs.count) {
+    initBudgetedRay(fc, grid, rs, acc, i);
+    active = (rs.flags[i] & kRayActive) ? 1 : 0;
+    skipped = (rs.flags[i] & kRayBudgetSkipped) ? 1 : 0;
+  }
+  active = Count(scratch).Sum(active);
+  __syncthreads();
+  skipped = Count(scratch).Sum(skipped);
+  if (threadIdx.x == 0) {
+    if (active) atomicAdd(&stats[kStatRays], (unsigned long long)active);
+    if (skipped) atomicAdd(&stats[kStatBudgetSkipped], (unsigned long long)skipped);
+  }
+}
+
+// Reprojection pass 1: old pixel j offers itself to the new pixels around its hit point.
+__global__ void reprojectScatterKernel(CameraView oldView, CameraView newView, Box3f box, AccumulationView history,
+                                       unsigned long long* keys) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j >= history.count) return;
+  reprojectionOffers(oldView, newView, box, history, j,
+                     [&](int i, std::uint64_t key) { atomicMin(&keys[i], (unsigned long long)key); });
+}
+
+__global__ void reprojectGatherKernel(CameraView oldView, CameraView newView, Box3f box, AccumulationView history,
+                                      AccumulationView acc, const unsigned long long* keys,
+                                      std::uint32_t maxHistory) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < acc.count) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory);
+}
+
+__global__ void ghostInitKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, int stride) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < rs.count) initGhostRay(fc, grid, rs, i, stride);
+}
+
+__global__ void spawnShadowKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, unsigned long long* stats) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= rs.count) return;
+  spawnShadowRay(fc, grid, rs, i);
+  if (rs.flags[i] & kRayActive) atomicAdd(&stats[kStatShadowRays], 1ull);
+}
+
+// Iteration cap reached: the listed rays stop where they are (no real collision recorded); the
+// list holds min(n, *count) rays (count null: n).
+__global__ void cutoffKernel(RayStateView rs, const int* list, const unsigned* count, int n) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= (count ? min(n, int(*count)) : n)) return;
+  const int i = list[k];
+  rs.flags[i] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
+  rs.sample[i] = NAN;
+  rs.pointCount[i] = 0;
+}
+
+// Stage IV, the convergence sums (block reductions, one atomic each per block) and the count of
+// rays the collision cap cut off.
+// With the residual histogram of the histogram scheme (block-local bins in shared memory, one
+// global atomic per non-empty bin and block); `histogram` is null for the other schemes.
+__global__ void finalizeKernel(FrameConstants fc, RayStateView rs, AccumulationView acc, double* sums,
+                               unsigned long long* stats, unsigned* histogram) {
+  using Reduce = cub::BlockReduce<float, kThreads>;
+  using Count = cub::BlockReduce<int, kThreads>;
+  __shared__ union {
+    typename Reduce::TempStorage sum;
+    typename Count::TempStorage count;
+  } scratch;
+  __shared__ unsigned bins[kResidualBins];
+  if (histogram) {
+    for (int b = threadIdx.x; b < kResidualBins; b += blockDim.x) bins[b] = 0u;
+    __syncthreads();
+  }
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  PixelConvergence pc{0.f, 0.f, 0, -1};
+  if (i < rs.count) {
+    if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
+    pc = finalizePixel(fc, rs, acc, i);
+    if (histogram && pc.residualBin >= 0) atomicAdd(&bins[pc.residualBin], 1u);
+  }
+  const float residual = Reduce(scratch.sum).Sum(pc.residual);
+  __syncthreads();
+  const float variance = Reduce(scratch.sum).Sum(pc.meanVariance);
+  __syncthreads();
+  const int covered = Count(scratch.count).Sum(pc.covered);
+  if (threadIdx.x == 0) {
+    atomicAdd(&sums[kSumResidual], double(residual));
+    atomicAdd(&sums[kSumVariance], double(variance));
+    if (covered) atomicAdd(&stats[kStatCovered], (unsigned long long)covered);
+  }
+  if (histogram) {
+    __syncthreads();
+    for (int b = threadIdx.x; b < kResidualBins; b += blockDim.x)
+      if (bins[b]) atomicAdd(&histogram[b], bins[b]);
+  }
+}
+
+// Candidates pruned this frame (RayStateView::pruned, both legs): one atomic per block.
+__global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
+  using Reduce = cub::BlockReduce<unsigned, kThreads>;
+  __shared__ typename Reduce::TempStorage scratch;
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  const unsigned sum = Reduce(scratch).Sum(i < rs.count ? rs.pruned[i] : 0u);
+  if (threadIdx.x == 0 && sum) atomicAdd(&stats[kStatPruned], (unsigned long long)sum);
+}
+
+__global__ void resetPixelsKernel(AccumulationView acc) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < acc.count) resetPixel(acc, i);
+}
+
+}  // namespace
+
+// The traverse-evaluate loop: returns when no query is pending (or at the iteration cap).
+// The host never waits on the GPU mid-loop: iteration i + 1's traversal and evaluation read
+// iteration i's query count on the device, with grids sized by the last count the host knows
+// (an upper bound: the rays a pass lists never outnumber the previous pass's queries, and a ray
+// has at most pointsPerIteration queries), while the host reads count i from pinned memory. When
+// count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
+void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
+                                            const TrackingMedium& medium, bool refine,
+                                            const DeviceRefineView& refineView, int maxIterations,
+                                            cuda::Stage traverseStage, cuda::Stage evaluateStage, int& iterations,
+                                            std::size_t& queries, bool ratio) {
+  const RayStateView rs = rays.view();
+  const int perRay = ratio ? fc.pointsPerIteration : 1;
+  const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
+  if (ratio) {
+    if (pointState.count != slots) pointState.resize(slots);
+    for (int b = 0; b < 2; ++b) {
+      points[b].growTo(slots);
+      queryRays[b].growTo(slots);
+      rayList[b].growTo(std::size_t(rs.count));
+    }
+    if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
+  }
+  const DeviceTraversal& walker = ratio && !traversal->supportsRatioTracking() ? *ratioTraversal : *traversal;
+  TraversalLaunch launch;
+  launch.fc = fc;
+  launch.medium = medium;
+  launch.rs = rs;
+  launch.refine = refine;
+  launch.refineView = refineView;
+  launch.ratio = ratio;
+  if (ratio) launch.points = pointState.view();
+  launch.n = rs.count;  // upper bound of the rays the next traversal lists
+  auto enqueueTraverse = [&](int it) {
+    const int cur = it & 1, prev = cur ^ 1;
+    // The parity's counts and the traversal's work counter, zeroed together.
+    INR_CUDA_CHECK(cudaMemsetAsync(queryCount(cur), 0, 3 * sizeof(unsigned), stream));
+    launch.list = it ? (ratio ? rayList[prev].get() : queryRays[prev].get()) : nullptr;
+    launch.listCount = it ? (ratio ? rayCount(prev) : queryCount(prev)) : nullptr;
+    launch.resolvePrevious = it != 0;
+    launch.outPoints = points[cur].get();
+    launch.outRays = queryRays[cur].get();
+    launch.outCount = queryCount(cur);
+    launch.outRayList = ratio ? rayList[cur].get() : nullptr;
+    launch.outRayCount = ratio ? rayCount(cur) : nullptr;
+    launch.workCounter = queryCount(cur) + 1;
+    timer.begin(traverseStage, stream);
+    walker.traverse(launch, stream);
+    timer.end(stream);
+    INR_CUDA_CHECK(
+        cudaMemcpyAsync(hostCounter.get() + cur, queryCount(cur), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
+  };
+  float* sampleOut = ratio ? launch.points.sample : rs.sample;
+  enqueueTraverse(0);
+  for (int it = 0;; ++it) {
+    const int cur = it & 1;
+    if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
+      const long long bound = std::min<long long>((long long)slots, (long long)launch.n * perRay);
+      timer.begin(evaluateStage, stream);
+      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(), stream);
+      timer.end(stream);
+      enqueueTraverse(it + 1);
+    }
+    INR_CUDA_CHECK(cudaEventSynchronize(countReady[cur]));
+    const int k = int(hostCounter[cur]);
+    if (k == 0) break;
+    if (it >= maxIterations) {
+      // Delta: the listed queries' rays; ratio: the listed rays.
+      cutoffKernel<<<blocksFor(k), kThreads, 0, stream>>>(rs, ratio ? rayList[cur].get() : queryRays[cur].get(),
+                                                            ratio ? rayCount(cur) : nullptr, k);
+      INR_CUDA_CHECK_LAUNCH("cutoffKernel");
+      truncated = true;
+      break;
+    }
+    ++iterations;
+    queries += std::size_t(k);
+    launch.n = k;
+  }
+}
+
+CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
+                                                     TrackingOptions options, CudaPipelineOptions pipeline)
+    : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells), pipeline_(pipeline),
+      impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.stream = macrocells.stream();
+  I.traversal = makeDdaTraversal();
+  I.counter.resize(6);
+  for (cudaEvent_t& e : I.countReady) INR_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
+  I.stats.resize(kStatCount);
+  I.sums.resize(kSumCount);
+  I.histogram.resize(kResidualBins);
+  I.majorants.resize(std::size_t(macrocells.cellCount()));
+  I.majorants.zero(I.stream);
+  if (macrocells.blockCount() > 0) {
+    I.blockMajorants.resize(std::size_t(macrocells.blockCount()));
+    I.blockMajorants.zero(I.stream);
+  }
+  allocatePixels();
+}
+
+CudaDeltaTrackingRenderer::~CudaDeltaTrackingRenderer() = default;
+
+const DeviceTraversal& CudaDeltaTrackingRenderer::traversal() const { return *impl_->traversal; }
+
+void CudaDeltaTrackingRenderer::setTraversal(const TraversalOptions& options) {
+  std::string reason;
+  std::unique_ptr<DeviceTraversal> t = makeDeviceTraversal(options, reason);
+  if (!t->supportsRatioTracking()) reason += "; ratio-tracked primary rays run through the DDA";
+  impl_->traversal = std::move(t);
+  impl_->traversalStale = true;
+  traversalChoice_ = reason;
+}
+
+void CudaDeltaTrackingRenderer::rebuildTraversal() {
+  Impl& I = *impl_;
+  I.traversal->majorantsChanged(macrocells_.view(I.majorants.get(), I.blocks()), I.stream);
+  I.pendingBuildMs += I.traversal->buildInfo().lastBuildMs;
+  I.traversalStale = false;
+}
+
+void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+  if (n > (std::size_t(1) << 30))
+    throw std::invalid_argument("image too large for the GPU pipeline (more than 2^30 pixels)");
+  Impl& I = *impl_;
+  I.rays.resize(n);
+  I.rays.flags.zero(I.stream);
+  I.pixels.resize(n);
+  for (int b = 0; b < 2; ++b) {
+    I.points[b].resize(n);
+    I.queryRays[b].resize(n);
+  }
+}
+
+void CudaDeltaTrackingRenderer::clearAccumulation() {
+  Impl& I = *impl_;
+  const AccumulationView acc = I.pixels.view();
+  resetPixelsKernel<<<blocksFor(acc.count), kThreads, 0, I.stream>>>(acc);
+  INR_CUDA_CHECK_LAUNCH("resetPixelsKernel");
+  INR_CUDA_CHECK(cudaStreamSynchronize(I.stream));
+}
+
+std::vector<Vec4f> CudaDeltaTrackingRenderer::accumulation() const { return impl_->pixels.accum.download(impl_->stream); }
+
+void CudaDeltaTrackingRenderer::copyAccumulation(cudaArray* target) const {
+  const std::size_t w = std::size_t(settings().width), h = std::size_t(settings().height);
+  if (!target) throw std::invalid_argument("CudaDeltaTrackingRenderer::copyAccumulation: no target array");
+  if (impl_->pixels.accum.size() < w * h)
+    throw std::logic_error("CudaDeltaTrackingRenderer::copyAccumulation: no image of the current size yet");
+  const std::size_t row = w * sizeof(Vec4f);
+  INR_CUDA_CHECK(cudaMemcpy2DToArrayAsync(target, 0, 0, impl_->pixels.accum.get(), row, row, h,
+                                          cudaMemcpyDeviceToDevice, impl_->stream));
+  INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream));
+}
+
+void CudaDeltaTrackingRenderer::transferFunctionChanged() { impl_->tf.upload(*tfTable_, impl_->stream); }
+
+void CudaDeltaTrackingRenderer::recomputeMajorants() {
+  macrocells_.computeMajorants(impl_->tf.view(), impl_->majorants.get(), impl_->blocks());
+  rebuildTraversal();  // part of the scene update (time step, transfer-function edit)
+}
+
+void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
+  if (depthLimit.empty())
+    impl_->depth.resize(0);
+  else
+    impl_->depth.upload(depthLimit, impl_->stream);
+}
+
+void CudaDeltaTrackingRenderer::sceneUpdateDone() { INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
+
+CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int frame) {
+  Impl& I = *impl_;
+  FrameSetup f;
+  f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
+  const PruneView prune = queryReduction_.pruning() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
+  f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view(), prune};
+  f.refine = macrocells_.refineView();
+  f.refine.frameRefinements = I.stats.get() + kStatRefinements;
+  f.rs = I.rays.view();
+  return f;
+}
+
+void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
+  Impl& I = *impl_;
+  I.downloadStats();
+  st.rays = std::size_t(I.hostStats[kStatRays]);
+  st.shadowRays = std::size_t(I.hostStats[kStatShadowRays]);
+  st.refinements = std::size_t(I.hostStats[kStatRefinements]);
+  st.residualSum = I.hostSums[kSumResidual];
+  st.varianceSum = I.hostSums[kSumVariance];
+  st.coveredPixels = std::size_t(I.hostStats[kStatCovered]);
+  st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
+  st.budgetSkipped = std::size_t(I.hostStats[kStatBudgetSkipped]);
+  st.pruned = std::size_t(I.hostStats[kStatPruned]);
+  // Refinement raised majorants: the next frame's updateDirtyMajorants applies them, and the
+  // traversal's structure is rebuilt over them.
+  if (st.refinements > 0) I.traversalStale = true;
+}
+
+FrameStats CudaDeltaTrackingRenderer::renderFrame() {
+  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const auto tFrame = Clock::now();
+  I.timer.reset(pipeline_.stageTiming);
+  I.truncated = false;
+  I.clearStats();
+
+  I.timer.begin(cuda::kUpdate, s);
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  if (I.traversalStale) rebuildTraversal();
+  I.timer.end(s);
+
+  const FrameSetup f = frameSetup(frameKey());
+  const FrameConstants& fc = f.fc;
+  const TrackingMedium& medium = f.medium;
+  const DeviceRefineView& refine = f.refine;
+  const RayStateView& rs = f.rs;
+  const int n = rs.count;
+
+  I.timer.begin(cuda::kInit, s);
+  initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.pixels.view(), I.stats.get());
+  INR_CUDA_CHECK_LAUNCH("initKernel");
+  I.timer.end(s);
+
+  I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
+          cuda::kEvaluate, st.iterations, st.queries, fc.estimator != PrimaryEstimator::Delta);
+
+  if (fc.shadows) {
+    I.timer.begin(cuda::kShadowTraverse, s);
+    spawnShadowKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.stats.get());
+    INR_CUDA_CHECK_LAUNCH("spawnShadowKernel");
+    I.timer.end(s);
+    I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations,
+            cuda::kShadowTraverse, cuda::kShadowEvaluate, st.shadowIterations, st.shadowQueries);
+  }
+  if (medium.prune.expected) {
+    sumPrunedKernel<<<blocksFor(n), kThreads, 0, s>>>(rs, I.stats.get());
+    INR_CUDA_CHECK_LAUNCH("sumPrunedKernel");
+  }
+
+  I.timer.begin(cuda::kFinalize, s);
+  const bool histogram = queryReduction_.budget == BudgetScheme::Histogram;
+  if (histogram) INR_CUDA_CHECK(cudaMemsetAsync(I.histogram.get(), 0, kResidualBins * sizeof(unsigned), s));
+  finalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.pixels.view(), I.sums.get(), I.stats.get(),
+                                                    histogram ? I.histogram.get() : nullptr);
+  INR_CUDA_CHECK_LAUNCH("finalizeKernel");
+  I.timer.end(s);
+  if (histogram)
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.hostHistogram.get(), I.histogram.get(), kResidualBins * sizeof(unsigned),
+                                   cudaMemcpyDeviceToHost, s));
+  readFrameStats(st);  // synchronises
+  double ms[cuda::kStages];
+  I.timer.collect(ms);
+  st.updateMs += ms[cuda::kUpdate];
+  st.initMs = ms[cuda::kInit];
+  st.traverseMs = ms[cuda::kTraverse];
+  st.evaluateMs = ms[cuda::kEvaluate];
+  st.shadowTraverseMs = ms[cuda::kShadowTraverse];
+  st.shadowEvaluateMs = ms[cuda::kShadowEvaluate];
+  st.finalizeMs = ms[cuda::kFinalize];
+  const TraversalBuildInfo built = I.traversal->buildInfo();
+  st.traversalBuildMs = I.pendingBuildMs;
+  st.traversalPrimitives = built.primitives;
+  st.traversalBytes = built.bytes;
+  I.pendingBuildMs = 0;
+  endFrame(st, I.truncated, histogram ? I.hostHistogram.get() : nullptr);
+  st.totalMs = msSince(tFrame);
+  return st;
+}
+
+BlueNoiseMaskView CudaDeltaTrackingRenderer::blueNoiseMask() {
+  Impl& I = *impl_;
+  const BlueNoiseMask& mask = shippedBlueNoiseMask();
+  if (I.blueNoise.empty()) I.blueNoise.upload(mask.texels, I.stream);
+  return BlueNoiseMaskView{I.blueNoise.get(), mask.width, mask.height, mask.depth};
+}
+
+void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+                                                      std::uint32_t maxHistory) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const std::size_t n = I.pixels.count;
+  std::swap(I.history, I.pixels);  // the old accumulation becomes the history
+  I.pixels.resize(n);
+  I.reprojectKeys.resize(n);
+  INR_CUDA_CHECK(cudaMemsetAsync(I.reprojectKeys.get(), 0xff, n * sizeof(unsigned long long), s));
+  const AccumulationView history = I.history.view(), acc = I.pixels.view();
+  reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history,
+                                                                        I.reprojectKeys.get());
+  INR_CUDA_CHECK_LAUNCH("reprojectScatterKernel");
+  reprojectGatherKernel<<<blocksFor(acc.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history, acc,
+                                                                  I.reprojectKeys.get(), maxHistory);
+  INR_CUDA_CHECK_LAUNCH("reprojectGatherKernel");
+  INR_CUDA_CHECK(cudaStreamSynchronize(s));
+}
+
+void CudaDeltaTrackingRenderer::beginGhostPasses() {
+  Impl& I = *impl_;
+  I.timer.reset(false);
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  I.ghostMajorants.resize(std::size_t(macrocells_.cellCount()));
+  if (macrocells_.blockCount() > 0) I.ghostBlockMajorants.resize(std::size_t(macrocells_.blockCount()));
+  I.clearStats();
+}
+
+void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
+                                               FrameStats& total) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  I.ghostTf.upload(table, s);
+  macrocells_.computeMajorants(I.ghostTf.view(), I.ghostMajorants.get(), I.ghostBlocks());
+  const TrackingMedium medium{macrocells_.view(I.ghostMajorants.get(), I.ghostBlocks()), I.ghostTf.view(), PruneView{}};
+  DeviceRefineView refine = macrocells_.refineView();
+  refine.frameRefinements = I.stats.get() + kStatRefinements;
+  const RayStateView rs = I.rays.view();
+  ghostInitKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, medium.grid, rs, stride);
+  INR_CUDA_CHECK_LAUNCH("ghostInitKernel");
+  I.track(evaluator_, fc, medium, true, refine, options_.maxIterations, cuda::kTraverse, cuda::kEvaluate,
+          total.iterations, total.queries);
+}
+
+void CudaDeltaTrackingRenderer::endGhostPasses(FrameStats& total) {
+  Impl& I = *impl_;
+  const auto tUpdate = Clock::now();
+  macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  I.downloadStats();
+  total.refinements = std::size_t(I.hostStats[kStatRefinements]);
+  if (total.refinements > 0) rebuildTraversal();
+  total.updateMs = msSince(tUpdate);
+}
+
+std::vector<float> CudaDeltaTrackingRenderer::residual() const { return impl_->pixels.residual.download(impl_->stream); }
+
+std::vector<float> CudaDeltaTrackingRenderer::majorants() const { return impl_->majorants.download(impl_->stream); }
+
+std::vector<float> CudaDeltaTrackingRenderer::blockMajorants() const {
+  return impl_->blockMajorants.download(impl_->stream);
+}
+
+}  // namespace inr

@@ -1,0 +1,112 @@
+#pragma once
+// Private to the CUDA backend's translation units (CudaDeltaTrackingRenderer.cu, the naive
+// baseline in CudaNaiveTracker.cu): the renderer's device state and the small launch helpers.
+#include <algorithm>
+#include <memory>
+
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/DeviceTransferFunction.h"
+#include "Render/Cuda/DeviceTraversal.h"
+#include "Render/Cuda/StageTimer.h"
+#include "Render/RayStateArrays.h"
+
+namespace inr {
+
+namespace cuda {
+// RayStateArrays / PixelStateArrays storage hooks for device arrays (found by argument-dependent
+// lookup).
+template <typename T>
+void resizeArray(DeviceBuffer<T>& a, std::size_t n) {
+  a.resize(n);
+}
+template <typename T>
+T* arrayData(DeviceBuffer<T>& a) {
+  return a.get();
+}
+}  // namespace cuda
+
+namespace pipeline {
+constexpr int kThreads = 256;
+inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThreads - 1) / kThreads)); }
+
+// Per-frame device counters (one read-back at the end of the frame).
+enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
+                kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCovered = 7, kStatPruned = 8, kStatBudgetSkipped = 9,
+                kStatCount = 10 };
+// Per-frame device sums of the convergence estimate (doubles).
+enum SumSlot { kSumResidual = 0, kSumVariance = 1, kSumCount = 2 };
+}  // namespace pipeline
+
+struct CudaDeltaTrackingRenderer::Impl {
+  ~Impl() {
+    for (cudaEvent_t e : countReady)
+      if (e) cudaEventDestroy(e);
+  }
+  cudaStream_t stream = nullptr;
+  std::unique_ptr<DeviceTraversal> traversal;
+  // The traversal's structure no longer matches the displayed majorants (refinements of the last
+  // frame, a new traversal); build time not yet reported in a frame's statistics.
+  bool traversalStale = false;
+  double pendingBuildMs = 0;
+  cuda::DeviceTransferFunction tf, ghostTf;
+  cuda::DeviceBuffer<float> majorants, ghostMajorants, depth;
+  // Coarse levels of the two majorant grids (empty-space skipping); null when skipping is off.
+  cuda::DeviceBuffer<float> blockMajorants, ghostBlockMajorants;
+  float* blocks() const { return blockMajorants.empty() ? nullptr : blockMajorants.get(); }
+  float* ghostBlocks() const { return ghostBlockMajorants.empty() ? nullptr : ghostBlockMajorants.get(); }
+  RayStateArrays<cuda::DeviceBuffer> rays;
+  PixelStateArrays<cuda::DeviceBuffer> pixels;
+  // Reprojection: the old accumulation and the per-pixel minimum offers (allocated on first use).
+  PixelStateArrays<cuda::DeviceBuffer> history;
+  cuda::DeviceBuffer<unsigned long long> reprojectKeys;
+  cuda::DeviceBuffer<std::uint8_t> blueNoise;  // the shipped STBN mask (uploaded on first use)
+  // The histogram scheme's residual histogram of the last frame (device, and its pinned copy).
+  cuda::DeviceBuffer<unsigned> histogram;
+  cuda::PinnedHost<unsigned> hostHistogram{kResidualBins};
+  // Query buffers (double-buffered: a pass reads the previous pass's ray list and appends to the
+  // other). Delta tracking: one query per listed ray, queryRays doubling as the next list;
+  // ratio tracking: up to pointsPerIteration queries per ray (queryRays hold point slots, grown
+  // on first use) and a list of rays of its own (rayList).
+  cuda::DeviceBuffer<float4> points[2];
+  cuda::DeviceBuffer<int> queryRays[2];
+  cuda::DeviceBuffer<int> rayList[2];
+  PointStateArrays<cuda::DeviceBuffer> pointState;  // ratio tracking's pending points
+  // The DDA for ratio-tracked legs when `traversal` cannot run them (OptiX).
+  std::unique_ptr<DeviceTraversal> ratioTraversal;
+  // [6]: per parity p, [3p] the queries appended, [3p + 1] the traversal's work counter,
+  // [3p + 2] the rays listed for the next pass (ratio tracking).
+  cuda::DeviceBuffer<unsigned> counter;
+  unsigned* queryCount(int parity) const { return counter.get() + 3 * parity; }
+  unsigned* rayCount(int parity) const { return counter.get() + 3 * parity + 2; }
+  cuda::PinnedHost<unsigned> hostCounter{2};
+  cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
+  // Frame statistics: counters and the convergence sums.
+  cuda::DeviceBuffer<unsigned long long> stats;
+  cuda::PinnedHost<unsigned long long> hostStats{pipeline::kStatCount};
+  cuda::DeviceBuffer<double> sums;
+  cuda::PinnedHost<double> hostSums{pipeline::kSumCount};
+  cuda::StageTimer timer;
+  bool truncated = false;
+
+  // Zeroes the frame statistics (asynchronous).
+  void clearStats() {
+    INR_CUDA_CHECK(cudaMemsetAsync(stats.get(), 0, pipeline::kStatCount * sizeof(unsigned long long), stream));
+    INR_CUDA_CHECK(cudaMemsetAsync(sums.get(), 0, pipeline::kSumCount * sizeof(double), stream));
+  }
+  // Copies the frame statistics to the host and waits for the stream.
+  void downloadStats() {
+    INR_CUDA_CHECK(cudaMemcpyAsync(hostStats.get(), stats.get(), pipeline::kStatCount * sizeof(unsigned long long),
+                                   cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaMemcpyAsync(hostSums.get(), sums.get(), pipeline::kSumCount * sizeof(double),
+                                   cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaStreamSynchronize(stream));
+  }
+
+  // `ratio`: the leg is a ratio-tracked primary leg (fc.pointsPerIteration points per ray).
+  void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
+             const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
+             cuda::Stage evaluateStage, int& iterations, std::size_t& queries, bool ratio = false);
+};
+
+}  // namespace inr

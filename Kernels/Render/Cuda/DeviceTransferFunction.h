@@ -1,0 +1,36 @@
+#pragma once
+// A TransferFunctionTable in device memory, for the GPU pipeline's per-ray code.
+#include <cuda_runtime.h>
+
+#include <cstddef>
+
+#include "Common/Cuda/CudaCheck.h"
+#include "Common/Cuda/DeviceBuffer.h"
+#include "Render/SceneInputs.h"
+
+namespace inr::cuda {
+
+// Its arrays in device memory, and the view the per-ray code reads.
+class DeviceTransferFunction {
+public:
+  void upload(const TransferFunctionTable& table, cudaStream_t s) {
+    const TransferFunctionView h = table.view();
+    rgba_.upload(h.rgba, std::size_t(h.size), s);
+    opacityMax_.upload(h.opacityMax, std::size_t(h.size) * std::size_t(h.levels), s);
+    view_ = h;
+    view_.rgba = rgba_.get();
+    view_.opacityMax = opacityMax_.get();
+    // The host table must stay alive until the copies ran (they are asynchronous from pageable
+    // memory only in name: the runtime stages them before returning). Synchronise anyway.
+    INR_CUDA_CHECK(cudaStreamSynchronize(s));
+  }
+  const TransferFunctionView& view() const { return view_; }
+  bool valid() const { return view_.size > 0; }
+
+private:
+  DeviceBuffer<Vec4f> rgba_;
+  DeviceBuffer<float> opacityMax_;
+  TransferFunctionView view_{};
+};
+
+}  // namespace inr::cuda
