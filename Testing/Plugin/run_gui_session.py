@@ -38,6 +38,10 @@ VIEWPORT = ("pqClientMainWindow/centralwidget/MultiViewWidget/CoreWidget/qt_tabw
 PANEL = ("pqClientMainWindow/propertiesDock/propertiesPanel/scrollArea/qt_scrollarea_viewport/"
          "scrollAreaWidgetContents/DisplayFrame/ProxyPanel")
 
+# Issue 28's targets for what a user waits for (see the step checks below).
+BLOCK_BOUND_MS = 250.0
+FIRST_IMAGE_MS = 1000.0
+
 ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 ap.add_argument("--paraview", required=True)
 ap.add_argument("--model", required=True)
@@ -70,9 +74,12 @@ xml_path = os.path.join(args.out, "gui_session.xml")
 with open(xml_path, "w") as f:
     f.write(xml)
 
-env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size)
+event_loop_log = os.path.join(args.out, "gui_session_event_loop.txt")
+env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size,
+           INR_VOLUME_EVENT_LOOP_LOG=event_loop_log, INR_VOLUME_LOD_LOG="1")
 cmd = [args.paraview, "--dr", f"--script={os.path.join(here, 'gui_session_setup.py')}",
        f"--test-script={xml_path}", "--exit"]
+load_before = os.getloadavg()[0]
 p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                    timeout=args.timeout)
 with open(os.path.join(args.out, "gui_session_paraview.log"), "w") as f:
@@ -105,8 +112,12 @@ check(not blocks, f"no warning or error at all in the output window ({len(blocks
 # --- The steps reached the view.
 renders = []
 path = os.path.join(args.out, "gui_session_renders.txt")
+observer = []  # (end, ms): what the test's own render observer cost (taken out of the stalls)
 for line in open(path) if os.path.exists(path) else []:
     kv = dict(item.split("=", 1) for item in line.split()[1:] if "=" in item)
+    if line.startswith("observer"):
+        observer.append((float(kv["end"]), float(kv["log_ms"])))
+        continue
     kv["budget"] = next((item.split("=", 1)[1] for item in line.split() if item.startswith("budget=")), "-")
     renders.append(kv)
 inr = [r for r in renders if r.get("inr") == "1"]
@@ -157,7 +168,13 @@ if os.path.exists(tf_path):
     check(first == want, f"the first INR Volume render uses the model's {os.path.basename(tf_path)} "
           f"(colour map {first[:60]}...)")
     check(all(r.get("lut") == want for r in inr), "the model's colour map stays during the session")
-    apply_frames = [int(r["frames"]) for r in inr if r["time"] == inr[0]["time"] and r["interactive"] == "0"]
+    # (Renders that find the worker's refinement step still running show the image they have:
+    # the same count again, or 0 before the first full-resolution frame.)
+    apply_frames = []
+    for r in inr:
+        if r["time"] == inr[0]["time"] and r["interactive"] == "0" and int(r["frames"]) > 0:
+            if not apply_frames or apply_frames[-1] != int(r["frames"]):
+                apply_frames.append(int(r["frames"]))
     check(bool(apply_frames) and apply_frames == list(range(1, len(apply_frames) + 1)),
           f"after Apply the image accumulates from frame 1 without a restart ({apply_frames[:8]}...)")
 else:
@@ -182,12 +199,67 @@ if stbn:
 if len(backends) >= 2:
     marks.append(("rebuild", next(i for i, r in enumerate(inr) if r["backend"] == backends[-1])))
 marks.sort(key=lambda m: m[1])
-for (name, start), (_, end) in zip(marks, marks[1:] + [("end", len(inr))]):
+# Stalls of the event loop (the plugin's watch, INR_VOLUME_EVENT_LOOP_LOG): each belongs to the
+# step in whose time it ended (a stall that began in Apply's pipeline update and ended after the
+# first render is Apply's).
+stalls, raw_stalls = [], []
+for line in open(event_loop_log) if os.path.exists(event_loop_log) else []:
+    kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
+    end, ms = float(kv["end"]), float(kv["block_ms"])
+    raw_stalls.append((end - ms / 1000.0, end))
+    # Less what the test's own render observer spent inside this stall.
+    ms -= sum(cost for t, cost in observer if end - ms / 1000.0 <= t <= end)
+    stalls.append((end, ms))
+check(os.path.exists(event_loop_log), "the plugin's event-loop watch ran (INR_VOLUME_EVENT_LOOP_LOG)")
+first_start = min((float(r["start"]) for r in renders if float(r.get("start", 0)) > 0), default=0.0)
+longest = {}
+for k, ((name, start), (_, end)) in enumerate(zip(marks, marks[1:] + [("end", len(inr))])):
     segment = inr[start:end]
     blocks_ms = [float(r["block_ms"]) for r in segment]
+    t0 = first_start if k == 0 else float(segment[0]["start"]) if segment else 0.0
+    t1 = float(inr[end]["start"]) if end < len(inr) else float("inf")
+    stall_ms = [ms for t, ms in stalls if t0 <= t < t1]
+    longest[name] = max(blocks_ms + stall_ms, default=0.0)
     print(f"step {name}: {len(segment)} renders, longest render {max(blocks_ms, default=0):.0f} ms, "
+          f"longest event-loop stall {max(stall_ms, default=0):.0f} ms "
+          f"({sum(ms > BLOCK_BOUND_MS for ms in blocks_ms + stall_ms)} over {BLOCK_BOUND_MS:.0f} ms), "
           f"frames reached {refined(segment)}")
     check(refined(segment) >= 3, f"the view refined after '{name}' (frames {refined(segment)})")
+# What a user waits for (issue 28): no render and no other stall of the event loop longer than
+# the bound while Apply, a time step or a renderer rebuild settles (the long macrocell builds run
+# on a worker thread; the view keeps an image meanwhile).
+# Judged on a machine not loaded beyond twice its cores (ctest runs two tests at a time on CI's
+# two cores); above that every thread of the GUI gets a fraction of a core and the bound is
+# printed, not judged.
+cores = os.cpu_count() or 1
+load = max(load_before, os.getloadavg()[0])
+quiet = load <= 2.0 * cores
+
+
+def timed(ok, what):
+    if quiet:
+        check(ok, what)
+    else:
+        print(f"not judged (load average {load:.1f} on {cores} cores, above {2 * cores}): {what}: "
+              f"{'met' if ok else 'missed'}")
+
+
+print(f"load average {load:.1f} on {cores} cores")
+for name, ms in longest.items():
+    if name == "apply" or name.startswith("time") or name == "rebuild":
+        timed(ms <= BLOCK_BOUND_MS, f"the event loop never waits more than {BLOCK_BOUND_MS:.0f} ms "
+              f"after '{name}' (longest {ms:.0f} ms)")
+# The first image once INR Volume is chosen (coarse is fine): from the moment the GUI took the
+# representation change (the start of the event-loop stall the first INR Volume render ends,
+# else that render's start) to the end of the first render that drew frames.
+first_image = next((r for r in inr if int(r["frames"]) > 0), None)
+if first_image and inr:
+    chosen = float(inr[0]["start"])
+    chosen = min([b for b, e in raw_stalls if b <= chosen <= e] + [chosen])
+    first_ms = 1000.0 * (float(first_image["start"]) - chosen) + float(first_image["block_ms"])
+    print(f"first INR Volume image {first_ms:.0f} ms after the representation change was taken")
+    timed(first_ms <= FIRST_IMAGE_MS,
+          f"first image after choosing INR Volume within {FIRST_IMAGE_MS:.0f} ms ({first_ms:.0f} ms)")
 # The fine macrocells of the last time were built (in the background in the GUI) and the view
 # shows the full-resolution image at that time.
 last_still = [r for r in inr if r["time"] == times[-1] and r["interactive"] == "0" and
