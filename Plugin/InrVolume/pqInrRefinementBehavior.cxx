@@ -2,6 +2,7 @@
 
 #include "pqAnimationManager.h"
 #include "vtkInrVolumeMapper.h"
+#include "vtkInrVolumeRepresentation.h"
 #include "vtkRenderWindow.h"
 #include "vtkSMViewProxy.h"
 #include "vtkSMRenderViewProxy.h"
@@ -102,6 +103,19 @@ bool stillRefining(vtkSMProxy* proxy)
   return askRenderServer(proxy, "GetInrConverged", 1) == 0;
 }
 
+// Whether the mapper's worker thread is refining (or building ahead) and has not finished: a
+// render now would draw nothing new. Known in the builtin session only (the process that renders
+// is this one; a render server does not refine in the background).
+bool workerBusy(vtkSMProxy* proxy)
+{
+  vtkSMProperty* prop = proxy->GetProperty("InrConverged");
+  vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
+  auto* representation =
+    inr ? vtkInrVolumeRepresentation::SafeDownCast(inr->GetClientSideObject()) : nullptr;
+  vtkInrVolumeMapper* mapper = representation ? representation->GetInrMapper() : nullptr;
+  return mapper && mapper->GetBackgroundWorkRunning() != 0;
+}
+
 // After an interactive (reduced) frame the user is probably still dragging the camera or the
 // time slider: the full-resolution refinement waits this long without a new render, so the next
 // drag step gets another fast frame instead of waiting for a full-resolution one. (A camera drag
@@ -110,6 +124,8 @@ constexpr int kInteractionSettleMs = 300;
 // While a camera drag pauses with the button down, the reduced image is refined up to this many
 // frames (later renders would only polish an image the release replaces).
 constexpr int kHeldDragFrames = 16;
+// While the mapper's worker prepares the next image, how often the loop looks whether it is done.
+constexpr int kWorkerPollMs = 10;
 // Between refinement renders: lets the event loop breathe.
 constexpr int kRefinePauseMs = 15;
 // The panel's state is pulled from the server this long after a render (a burst of refinement
@@ -371,10 +387,16 @@ bool pqInrRefinementBehavior::colorByModel(pqDataRepresentation* repr)
       {
         const std::string name =
           preset.isMember("Name") ? preset["Name"].asString() : std::string("INR model");
-        if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
-        {
-          presets->AddPreset(name.c_str(), preset);  // a preset the user can pick again
-        }
+        // A preset the user can pick again: added once the view has drawn (ParaView's preset
+        // list loads and parses all its presets on first use, which would delay the first
+        // image).
+        QTimer::singleShot(0, [name, preset]()
+          {
+            if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
+            {
+              presets->AddPreset(name.c_str(), preset);
+            }
+          });
         applied = vtkSMTransferFunctionProxy::ApplyPreset(lut, preset, false);
         if (sof && preset.isMember("Points"))
         {
@@ -504,6 +526,7 @@ void pqInrRefinementBehavior::refine()
     }
     bool again = false;
     bool settling = false;
+    bool waiting = false;   // a worker thread prepares the next image: nothing to render yet
     bool reduced = false;   // the last render drew a reduced (level-of-detail) image
     int reducedFrames = 0;  // frames that reduced image holds
     auto* renderView = vtkSMRenderViewProxy::SafeDownCast(viewProxy);
@@ -542,6 +565,7 @@ void pqInrRefinementBehavior::refine()
         settling = settling ||
           (interactive && this->SinceRender.isValid() &&
             this->SinceRender.elapsed() < kInteractionSettleMs);
+        waiting = waiting || workerBusy(proxy);
         if (interactive)
         {
           reduced = true;
@@ -562,6 +586,13 @@ void pqInrRefinementBehavior::refine()
         }
         renderView->InteractiveRender();
       }
+      continue;
+    }
+    if (again && !settling && waiting && !dragging)
+    {
+      // Look again shortly; render once the worker's step is done.
+      this->Pending.push_back(view);
+      this->Timer.start(kWorkerPollMs);
       continue;
     }
     if (again && settling)

@@ -8,6 +8,12 @@
 #include <tuple>
 #include <vector>
 
+#ifdef __linux__
+#include <sched.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include "Render/MacrocellLayout.h"
 #include "Render/WavefrontRenderer.h"
 #include "Common/Stopwatch.h"
@@ -137,6 +143,20 @@ std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
 }
 
 using inr::msSince;
+
+// The worker's jobs (slice builds, refinement steps) should not delay what the view's thread
+// draws meanwhile (reduced frames, the image): the worker is a batch thread for the scheduler,
+// which then never preempts a woken interactive thread for it, and so are the evaluator threads
+// it starts (Linux threads inherit their creator's policy). Its share of the CPU is unchanged (a
+// lower nice value starved it on a machine busy with other work).
+void MarkThisThreadBatch()
+{
+#ifdef __linux__
+  sched_param none{};
+  none.sched_priority = 0;
+  ::sched_setscheduler(static_cast<pid_t>(::syscall(SYS_gettid)), SCHED_BATCH, &none);
+#endif
+}
 }
 
 // Each asked value is checked as `inr render` checks it (the engine's validation and message:
@@ -253,9 +273,11 @@ bool InrEngines::UpdateFine(const InrEngineRequest& want)
   InrEngineSlot& f = this->fine;
   if (this->FineBusy())
   {
-    if (f.asked.SameBuild(want))
+    if (f.asked.SameBuild(want) || !this->buildDone)
     {
-      return true;  // the worker owns the session until its build is joined
+      // The worker owns the session until its job is joined; a rebuild waits for that (the
+      // view keeps drawing what it has meanwhile) rather than the render waiting for the job.
+      return true;
     }
     this->JoinFineBuild();
   }
@@ -445,6 +467,7 @@ void InrEngines::Launch(Job what, inr::RenderSession* session, std::function<voi
   this->builder = std::thread(
     [this, work]()
     {
+      MarkThisThreadBatch();
       try
       {
         work();

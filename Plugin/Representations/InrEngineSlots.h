@@ -147,7 +147,8 @@ public:
 
   /// The fine session for `request`: rebuilt when a build option differs (the coarse one is
   /// dropped with it: it runs its evaluator), tracking options synchronised otherwise. False when
-  /// it cannot be created (reported). Rebuilt() tells whether this call built it.
+  /// it cannot be created (reported). Rebuilt() tells whether this call built it. While a job of
+  /// the worker on the fine session runs, the session is kept as it is (rebuilt by a later call).
   bool UpdateFine(const InrEngineRequest& request);
   bool Rebuilt() const { return this->rebuilt; }
   /// The coarse session at `resolution` cells per axis, built on first use from the fine

@@ -46,6 +46,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <iostream>
 #include <limits>
 #include <memory>
@@ -147,9 +148,18 @@ InrParallelRendering::PixelRect volumeRect(vtkRenderer* ren, vtkVolume* vol, int
 }
 
 // A still render of the GUI waits this long for the worker's refinement step before it draws
-// the image it has: the view then shows each step soon after it ends, and the render loop does
-// not take the CPU from the worker, while no render holds the event loop for a whole frame.
-constexpr double kRefineWaitMs = 100.0;
+// the image it has (the GUI's own refinement loop renders once the step is done:
+// GetBackgroundWorkRunning; other renders, e.g. a property change, find it running).
+constexpr double kRefineWaitMs = 30.0;
+
+// CPU time of the whole process (all its threads), ms: logged beside the engine's wall time
+// (INR_VOLUME_LOD_LOG) to see how much of a frame's time a loaded machine adds.
+double processCpuMs()
+{
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return 1e3 * double(t.tv_sec) + 1e-6 * double(t.tv_nsec);
+}
 
 bool lodReport()
 {
@@ -250,7 +260,12 @@ struct vtkInrVolumeMapper::Internals
   // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
   // (PrepareRender, background builds on) while renders draw reduced frames of the coarse
   // session, so the event loop never waits seconds for them.
+  // In the GUI the build is only marked here (fineBuildPending) and starts on the worker once
+  // the render has drawn its reduced coarse frame: that frame does not share the CPU with it.
   bool StartFineBuild(vtkInrVolumeMapper* self, double time);
+  bool fineBuildPending = false;
+  bool haveDeferredFineBuild = false;
+  double fineBuildTime = 0.0;  // the time of the last deferred build
   // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
   // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
   bool BuildsInBackground(vtkInrVolumeMapper* self) const;
@@ -804,7 +819,7 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     // The render's setScene meets the same failure and reports it.
   }
-  if (I.engines.FineBusy())
+  if (I.engines.FineBusy() || I.fineBuildPending)
   {
     return;
   }
@@ -919,7 +934,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
     const bool fineTimeOnWorker =
       I.engines.FineRefining() && I.haveFineScene && scene.time != I.fineScene.time;
-    if ((I.engines.FineBuilding() || fineTimeOnWorker) && !d.interactive && !this->Capturing)
+    if ((I.engines.FineBuilding() || I.fineBuildPending || fineTimeOnWorker) && !d.interactive &&
+      !this->Capturing)
     {
       // The fine slices of this time are still building on the worker (or will, once its
       // refinement step is done): a reduced frame of the coarse session, as right after a time
@@ -941,6 +957,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.lod.SawTime(scene.time);
   I.lastEngineBudgetMs = -1.0;
   const auto refineStart = Clock::now();
+  const double refineCpuStart = processCpuMs();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
   // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
   // which the still render after the drag reprojects to the new camera instead of restarting.
@@ -960,6 +977,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
   I.framesEnd = Clock::now();
+  const double refineCpuMs = processCpuMs() - refineCpuStart;
   const auto compositeStart = Clock::now();
   I.Composite(this, ren, width, height);
   if (interactive)
@@ -989,14 +1007,23 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   if (lodReport())
   {
+    std::string worker;
+    if (background)
+    {
+      char step[160];
+      std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
+        I.keepImage ? "image kept" : "image drawn", I.lastStep.framesRendered, I.lastStep.total.totalMs);
+      worker = step;
+    }
     std::fprintf(stderr,
       "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f, composite %.1f ms), frames %d%s%s\n",
+      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
+      "%.1f ms), frames %d%s%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
       double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      I.lastEngineBudgetMs, compositeMs, I.ShownFrames(), useCoarse ? ", coarse macrocells" : "",
-      !background ? "" : I.keepImage ? ", refining on the worker (image kept)" : ", refining on the worker");
+      I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
+      useCoarse ? ", coarse macrocells" : "", worker.c_str());
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
@@ -1005,6 +1032,17 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     InrLevelOfDetail::BuildsCoarseAhead(lod))
   {
     I.BuildCoarseAhead(this);
+  }
+  if (I.fineBuildPending)
+  {
+    // The reduced coarse frame is drawn: the fine slices of this time build on the worker now
+    // (InrEngines::StartFineBuild returns at once where they were built before).
+    I.fineBuildPending = false;
+    I.startRefine = false;
+    if (I.engines.fine.session && !I.engines.FineBusy())
+    {
+      I.engines.StartFineBuild(I.fineBuildTime);
+    }
   }
   if (I.startRefine)
   {
@@ -1064,6 +1102,12 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
   return backgroundBuilds;
 }
 
+int vtkInrVolumeMapper::GetBackgroundWorkRunning()
+{
+  const InrEngines& e = this->Internal->engines;
+  return (e.FineRefining() || e.CoarseBusy()) && !e.BuildDone() ? 1 : 0;
+}
+
 bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self) const
 {
   return backgroundBuilds && this->engines.fine.session &&
@@ -1078,7 +1122,16 @@ bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, dou
   {
     return false;
   }
-  return this->engines.StartFineBuild(time);
+  if (this->haveDeferredFineBuild && this->fineBuildTime == time)
+  {
+    // Deferred once for this time already: the build ran (or returns at once): go on as without
+    // deferral, the render uses the fine session when it is done within a few ms.
+    return this->engines.StartFineBuild(time);
+  }
+  this->fineBuildPending = true;
+  this->haveDeferredFineBuild = true;
+  this->fineBuildTime = time;
+  return true;
 }
 
 InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
@@ -1209,6 +1262,11 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   // a PrepareRender may have built the sessions from the environment (same device under Open
   // MPI, so no rebuild).
   const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
+  if (this->engines.Rebuilt())
+  {
+    this->haveDeferredFineBuild = false;  // a new session: its first build is deferred again
+    this->haveFineScene = false;
+  }
   if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
   {
     this->rankNoteKey = rankKey;
