@@ -289,6 +289,7 @@ struct vtkInrVolumeMapper::Internals
   vtkOpenGLRenderWindow* uploadedWindow = nullptr;  // the window the texture was loaded for
   bool RefineInBackground(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
     const inr::RenderSettings& settings);
+  void LaunchRefine();
   int ShownFrames() const
   {
     return !this->shownCoarse && this->engines.FineRefining()
@@ -1044,15 +1045,22 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       I.engines.StartFineBuild(I.fineBuildTime);
     }
   }
-  if (I.startRefine)
+  I.LaunchRefine();
+}
+
+// Starts the refinement step this render prepared (startRefine), once its image has been read
+// (Composite) or nothing of the session is read any more: keeps what the getters read while the
+// worker holds the fine session.
+void vtkInrVolumeMapper::Internals::LaunchRefine()
+{
+  if (!this->startRefine)
   {
-    // After the image was drawn (the worker now holds the fine session): keep what the getters
-    // read meanwhile, and start the next refinement step.
-    I.fineKept.frames = I.engines.fine.session->accumulatedFrames();
-    I.fineKept.estimate = I.engines.fine.refinement.estimate();
-    I.engines.StartFineRefine();
-    I.startRefine = false;
+    return;
   }
+  this->startRefine = false;
+  this->fineKept.frames = this->engines.fine.session->accumulatedFrames();
+  this->fineKept.estimate = this->engines.fine.refinement.estimate();
+  this->engines.StartFineRefine();
 }
 
 void vtkInrVolumeMapper::MarkViewUpdate()
@@ -1697,6 +1705,9 @@ void vtkInrVolumeMapper::Internals::Composite(
     if (!onDevice)
     {
       const inr::ImageRGBA image = shown.premultipliedImage();
+      // The image is copied: the worker may take the session for the next step while this
+      // render uploads and draws it.
+      this->LaunchRefine();
       this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     }
     this->uploadedEpoch = epoch;
