@@ -285,7 +285,6 @@ struct vtkInrVolumeMapper::Internals
     int frames = 0;
     double estimate = -std::numeric_limits<double>::infinity();
   } fineKept;
-  double refineWaitMs = 0.0;  // of this render, spent waiting for the worker's step
   vtkOpenGLRenderWindow* uploadedWindow = nullptr;  // the window the texture was loaded for
   bool RefineInBackground(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
     const inr::RenderSettings& settings);
@@ -995,8 +994,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.imageHeight = height;
   if (background)
   {
-    // The step's frames were rendered on the worker: its own time is the engine's part; the
-    // rest of this render, less the wait for it, is the render's fixed cost.
+    // The step's frames were rendered on the worker: its own time is the engine's part; this
+    // render's time outside its refinement part (which holds the wait for the step) is the
+    // render's fixed cost.
     const double engineMs = I.lastStep.total.totalMs;
     I.lod.MeasureFrame(std::max(0.0, I.lastRenderMs - refineMs) + engineMs,
       engineMs, I.lastStep.total.updateMs, I.lastStep.framesRendered, width, height, false);
@@ -1467,7 +1467,6 @@ bool vtkInrVolumeMapper::Internals::RefineInBackground(
     {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    this->refineWaitMs = msSince(start);
     const InrEngineSlot& fine = this->engines.fine;
     const inr::RenderSettings& held = fine.settings;
     const bool changed = !this->haveFineScene || inr::diffScenes(&this->fineScene, scene).any() ||
@@ -1497,7 +1496,6 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   this->shownCoarse = useCoarse;
   this->keepImage = false;
   this->startRefine = false;
-  this->refineWaitMs = 0.0;
   inr::RenderSettings settings;
   settings.width = width;
   settings.height = height;
