@@ -2,8 +2,11 @@
 
 #include "pqAnimationManager.h"
 #include "vtkInrVolumeMapper.h"
+#include "vtkInrVolumeRepresentation.h"
 #include "vtkRenderWindow.h"
 #include "vtkSMViewProxy.h"
+#include "vtkSMRenderViewProxy.h"
+#include "vtkRenderWindowInteractor.h"
 #include "pqCoreUtilities.h"
 #include "pqApplicationCore.h"
 #include "pqDataRepresentation.h"
@@ -39,6 +42,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 
 namespace
 {
@@ -87,9 +91,29 @@ bool animationPlaying()
   return animation && animation->animationPlaying();
 }
 
+// INR_VOLUME_LOD_LOG=1 (the mapper's per-render log) also logs what this behaviour does.
+bool lodLogOn()
+{
+  const char* log = std::getenv("INR_VOLUME_LOD_LOG");
+  return log && log[0] && std::strcmp(log, "0") != 0;
+}
+
 bool stillRefining(vtkSMProxy* proxy)
 {
   return askRenderServer(proxy, "GetInrConverged", 1) == 0;
+}
+
+// Whether the mapper's worker thread is refining (or building ahead) and has not finished: a
+// render now would draw nothing new. Known in the builtin session only (the process that renders
+// is this one; a render server does not refine in the background).
+bool workerBusy(vtkSMProxy* proxy)
+{
+  vtkSMProperty* prop = proxy->GetProperty("InrConverged");
+  vtkSMProxy* inr = prop ? prop->GetParent() : nullptr;
+  auto* representation =
+    inr ? vtkInrVolumeRepresentation::SafeDownCast(inr->GetClientSideObject()) : nullptr;
+  vtkInrVolumeMapper* mapper = representation ? representation->GetInrMapper() : nullptr;
+  return mapper && mapper->GetBackgroundWorkRunning() != 0;
 }
 
 // After an interactive (reduced) frame the user is probably still dragging the camera or the
@@ -97,11 +121,19 @@ bool stillRefining(vtkSMProxy* proxy)
 // drag step gets another fast frame instead of waiting for a full-resolution one. (A camera drag
 // ends with ParaView's own still render, which starts the refinement at once.)
 constexpr int kInteractionSettleMs = 300;
+// While a camera drag pauses with the button down, the reduced image is refined up to this many
+// frames (later renders would only polish an image the release replaces).
+constexpr int kHeldDragFrames = 16;
+// While the mapper's worker prepares the next image, how often the loop looks whether it is done.
+constexpr int kWorkerPollMs = 10;
 // Between refinement renders: lets the event loop breathe.
 constexpr int kRefinePauseMs = 15;
 // The panel's state is pulled from the server this long after a render (a burst of refinement
 // renders refreshes it about four times a second).
 constexpr int kStateRefreshMs = 250;
+// The event-loop watch (INR_VOLUME_EVENT_LOOP_LOG): its tick, and the stalls it logs.
+constexpr int kEventLoopWatchMs = 5;
+constexpr double kEventLoopStallMs = 40.0;
 }
 
 pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
@@ -114,9 +146,46 @@ pqInrRefinementBehavior::pqInrRefinementBehavior(QObject* parent)
   this->StateTimer.setInterval(kStateRefreshMs);
   QObject::connect(
     &this->StateTimer, &QTimer::timeout, this, &pqInrRefinementBehavior::refreshState);
+  const char* watchLog = std::getenv("INR_VOLUME_EVENT_LOOP_LOG");
+  if (watchLog && watchLog[0])
+  {
+    this->EventLoopLog = std::fopen(watchLog, "w");
+    if (this->EventLoopLog)
+    {
+      this->EventLoopWatch.setTimerType(Qt::PreciseTimer);
+      this->EventLoopWatch.setInterval(kEventLoopWatchMs);
+      QObject::connect(
+        &this->EventLoopWatch, &QTimer::timeout, this, &pqInrRefinementBehavior::watchEventLoop);
+      this->SinceWatch.start();
+      this->EventLoopWatch.start();
+    }
+  }
 }
 
-pqInrRefinementBehavior::~pqInrRefinementBehavior() = default;
+// A tick of the event-loop watch: the time since the previous tick, beyond the timer's interval,
+// is how long the loop could not run (the timer fires as soon as the loop runs again).
+void pqInrRefinementBehavior::watchEventLoop()
+{
+  const qint64 ns = this->SinceWatch.nsecsElapsed();
+  this->SinceWatch.start();
+  const double ms = 1e-6 * double(ns);
+  if (ms > kEventLoopStallMs && this->EventLoopLog)
+  {
+    timespec now{};
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    std::fprintf(this->EventLoopLog, "block_ms=%.1f end=%.6f\n", ms,
+      double(now.tv_sec) + 1e-9 * double(now.tv_nsec));
+    std::fflush(this->EventLoopLog);
+  }
+}
+
+pqInrRefinementBehavior::~pqInrRefinementBehavior()
+{
+  if (this->EventLoopLog)
+  {
+    std::fclose(this->EventLoopLog);
+  }
+}
 
 void pqInrRefinementBehavior::onStartup()
 {
@@ -275,6 +344,20 @@ bool pqInrRefinementBehavior::colorByModel(pqDataRepresentation* repr)
     return false;  // not connected yet: the Input property's change calls again
   }
   this->AutoColored.insert(proxy);
+  QElapsedTimer took;
+  took.start();
+  struct Report
+  {
+    QElapsedTimer& took;
+    ~Report()
+    {
+      if (lodLogOn())
+      {
+        std::fprintf(stderr, "INR Volume refinement: colour map set up in %lld ms\n",
+          static_cast<long long>(this->took.elapsed()));
+      }
+    }
+  } report{ took };
   if (!vtkSMPVRepresentationProxy::GetUsingScalarColoring(proxy) &&
     !vtkSMPVRepresentationProxy::SetScalarColoring(proxy, "value", vtkDataObject::POINT))
   {
@@ -304,10 +387,16 @@ bool pqInrRefinementBehavior::colorByModel(pqDataRepresentation* repr)
       {
         const std::string name =
           preset.isMember("Name") ? preset["Name"].asString() : std::string("INR model");
-        if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
-        {
-          presets->AddPreset(name.c_str(), preset);  // a preset the user can pick again
-        }
+        // A preset the user can pick again: added once the view has drawn (ParaView's preset
+        // list loads and parses all its presets on first use, which would delay the first
+        // image).
+        QTimer::singleShot(0, [name, preset]()
+          {
+            if (auto* presets = vtkSMTransferFunctionPresets::GetInstance())
+            {
+              presets->AddPreset(name.c_str(), preset);
+            }
+          });
         applied = vtkSMTransferFunctionProxy::ApplyPreset(lut, preset, false);
         if (sof && preset.isMember("Points"))
         {
@@ -353,6 +442,29 @@ void pqInrRefinementBehavior::onViewAdded(pqView* view)
 {
   QObject::connect(view, &pqView::endRender, this, &pqInrRefinementBehavior::onEndRender,
     Qt::UniqueConnection);
+  // A camera drag in progress (button down): the interactor's Start/EndInteractionEvent, which
+  // ParaView's own interactor helper also follows to pick interactive or still renders.
+  auto* renderView = vtkSMRenderViewProxy::SafeDownCast(view->getViewProxy());
+  if (vtkRenderWindowInteractor* interactor = renderView ? renderView->GetInteractor() : nullptr)
+  {
+    for (unsigned long event : { vtkCommand::StartInteractionEvent, vtkCommand::EndInteractionEvent })
+    {
+      pqCoreUtilities::connect(
+        interactor, event, this, SLOT(onInteraction(vtkObject*, unsigned long)));
+    }
+  }
+}
+
+void pqInrRefinementBehavior::onInteraction(vtkObject* interactor, unsigned long event)
+{
+  if (event == vtkCommand::StartInteractionEvent)
+  {
+    this->Interacting.insert(interactor);
+  }
+  else
+  {
+    this->Interacting.remove(interactor);
+  }
 }
 
 void pqInrRefinementBehavior::onEndRender()
@@ -395,9 +507,7 @@ void pqInrRefinementBehavior::refine()
   }
   const auto views = this->Pending;
   this->Pending.clear();
-  // INR_VOLUME_LOD_LOG=1 (the mapper's per-render log) also logs the renders issued from here.
-  const char* log = std::getenv("INR_VOLUME_LOD_LOG");
-  const bool lodLog = log && log[0] && std::strcmp(log, "0") != 0;
+  const bool lodLog = lodLogOn();
   for (const auto& view : views)
   {
     if (!view)
@@ -416,6 +526,12 @@ void pqInrRefinementBehavior::refine()
     }
     bool again = false;
     bool settling = false;
+    bool waiting = false;   // a worker thread prepares the next image: nothing to render yet
+    bool reduced = false;   // the last render drew a reduced (level-of-detail) image
+    int reducedFrames = 0;  // frames that reduced image holds
+    auto* renderView = vtkSMRenderViewProxy::SafeDownCast(viewProxy);
+    const bool dragging =
+      renderView && renderView->GetInteractor() && this->Interacting.contains(renderView->GetInteractor());
     for (pqRepresentation* r : view->getRepresentations())
     {
       auto* repr = qobject_cast<pqDataRepresentation*>(r);
@@ -445,10 +561,39 @@ void pqInrRefinementBehavior::refine()
       if (stillRefining(proxy))
       {
         again = true;
+        const bool interactive = askRenderServer(proxy, "GetInrLastRenderInteractive", 0) != 0;
         settling = settling ||
-          (askRenderServer(proxy, "GetInrLastRenderInteractive", 0) != 0 &&
-            this->SinceRender.isValid() && this->SinceRender.elapsed() < kInteractionSettleMs);
+          (interactive && this->SinceRender.isValid() &&
+            this->SinceRender.elapsed() < kInteractionSettleMs);
+        waiting = waiting || workerBusy(proxy);
+        if (interactive)
+        {
+          reduced = true;
+          reducedFrames = std::max(reducedFrames, askRenderServer(proxy, "GetInrAccumulatedFrames", 0));
+        }
       }
+    }
+    if (again && !settling && dragging && reduced)
+    {
+      // The mouse button is still down: the drag may resume at any moment. Refine the reduced
+      // image (each render within the level-of-detail budget) a few frames, then wait for the
+      // release, whose still render starts the full-resolution refinement.
+      if (reducedFrames < kHeldDragFrames && renderView)
+      {
+        if (lodLog)
+        {
+          std::fprintf(stderr, "INR Volume refinement: drag paused, refining the reduced image\n");
+        }
+        renderView->InteractiveRender();
+      }
+      continue;
+    }
+    if (again && !settling && waiting && !dragging)
+    {
+      // Look again shortly; render once the worker's step is done.
+      this->Pending.push_back(view);
+      this->Timer.start(kWorkerPollMs);
+      continue;
     }
     if (again && settling)
     {

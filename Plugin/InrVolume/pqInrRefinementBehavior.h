@@ -11,7 +11,11 @@
  * stops by itself at convergence or at the representation's Maximum Frames, and never starts for a
  * representation whose Progressive Refinement is off (one frame per render). After an interactive
  * (reduced-resolution) frame it waits until no render came for a short while, so a camera or
- * time-slider drag keeps getting fast frames.
+ * time-slider drag keeps getting fast frames. While a camera drag holds the mouse button down
+ * without moving, it refines the reduced image with further reduced (interactive) renders, each
+ * within the level-of-detail budget, up to a few frames, instead of a full-resolution render
+ * that would hold the event loop for a whole frame when the drag resumes; the full-resolution
+ * refinement starts with ParaView's still render at the button's release.
  *
  * It also colours an INR Volume representation by its "value" array as soon as it is shown as
  * INR Volume (before its first render: no restart of the accumulation), with the model's own
@@ -30,11 +34,17 @@
  * Accumulated Frames, Convergence Estimate, Backend In Use, ...) a moment after renders (at most
  * about four times a second while refining, and once after the last render), and shows the
  * refinement state in the main window's status bar while it refines.
+ *
+ * Measurement: with the environment variable INR_VOLUME_EVENT_LOOP_LOG set to a file name, a
+ * precise 5 ms timer watches the Qt event loop and appends one line per stall longer than 40 ms
+ * ("block_ms=<ms> end=<seconds of CLOCK_MONOTONIC>"): how long the GUI could not answer the user,
+ * whatever held it (a render, Apply's pipeline update, a panel rebuild). The GUI tests read it.
  */
 #ifndef pqInrRefinementBehavior_h
 #define pqInrRefinementBehavior_h
 
 #include <QElapsedTimer>
+#include <cstdio>
 #include <QObject>
 #include <QPointer>
 #include <QSet>
@@ -62,8 +72,10 @@ private Q_SLOTS:
   void onRepresentationTypeChanged();
   void onSettingModified(vtkObject* caller);
   void onEndRender();
+  void onInteraction(vtkObject* interactor, unsigned long event);
   void refine();
   void refreshState();
+  void watchEventLoop();
 
 private:
   bool colorByModel(pqDataRepresentation* repr);
@@ -74,7 +86,11 @@ private:
   QElapsedTimer SinceRender;  // since the last render of a view (interaction settling)
   QList<QPointer<pqView>> Pending;
   QSet<void*> AutoColored;
+  QSet<vtkObject*> Interacting;  // view interactors between Start- and EndInteractionEvent
   bool FixingSetting = false;
+  QTimer EventLoopWatch;       // INR_VOLUME_EVENT_LOOP_LOG
+  QElapsedTimer SinceWatch;    // since the watch's last tick
+  FILE* EventLoopLog = nullptr;
 };
 
 #endif

@@ -120,10 +120,10 @@ struct InrEngineOptions
 };
 
 /// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
-/// one of reduced interactive frames, built from one request (InrSessionOptions), the fine
-/// session's slices optionally built on a worker thread, the coarse ones ahead, query reduction
-/// and frames pushed into whichever session draws. No VTK: messages and progress go through the
-/// callbacks below.
+/// one of reduced interactive frames, built from one request (InrSessionOptions), the long
+/// macrocell builds optionally on one worker thread (the fine slices of a new time, the coarse
+/// slices built ahead), query reduction and frames pushed into whichever session draws. No VTK:
+/// messages and progress go through the callbacks below.
 class InrEngines
 {
 public:
@@ -136,7 +136,7 @@ public:
   /// macrocell builds, given the text that prefixes the engine's phase.
   std::function<void(const std::string&)> error, warning;
   std::function<inr::MacrocellProgress(const std::string& prefix)> progress;
-  /// Called after the worker's fine build was joined (frames measured meanwhile were slower).
+  /// Called after a worker's build was joined (frames measured meanwhile were slower).
   std::function<void()> joined;
 
   /// The model, loaded from its bytes when their hash changed (both sessions are dropped then);
@@ -147,24 +147,50 @@ public:
 
   /// The fine session for `request`: rebuilt when a build option differs (the coarse one is
   /// dropped with it: it runs its evaluator), tracking options synchronised otherwise. False when
-  /// it cannot be created (reported). Rebuilt() tells whether this call built it.
+  /// it cannot be created (reported). Rebuilt() tells whether this call built it. While a job of
+  /// the worker on the fine session runs, the session is kept as it is (rebuilt by a later call).
   bool UpdateFine(const InrEngineRequest& request);
   bool Rebuilt() const { return this->rebuilt; }
   /// The coarse session at `resolution` cells per axis, built on first use from the fine
   /// session's request as built; false (render with the fine one) when off (0), not coarser
-  /// than the fine grid, or it cannot be created (reported once).
+  /// than the fine grid, or it cannot be created (reported once). Stops a build ahead of its
+  /// slices on the worker first (within one slice): the caller is about to draw with it.
   bool UpdateCoarse(int resolution);
   /// Builds every coarse slice not built yet, with progress; the milliseconds it took.
   double BuildCoarseAhead(int resolution, bool report);
 
-  /// The fine slices for `time`, on a worker thread (true) while reduced coarse frames are drawn;
-  /// waits a few ms first, as most calls find them built. JoinFineBuild waits for the worker;
-  /// FineBusy: it has not been joined (nothing but the worker touches the fine session then).
+  /// The long builds on the worker thread, one at a time; the session being built belongs to the
+  /// worker until the build is joined (nothing else touches it meanwhile).
+  ///  - StartFineBuild: the fine slices for `time` (true) while reduced coarse frames are drawn;
+  ///    waits a few ms first, as most calls find them built. FineBusy: not joined yet.
+  ///  - StartCoarseAhead: every coarse slice not built yet, slice by slice, so that a render that
+  ///    needs the coarse session (UpdateCoarse) stops it within one slice; the slices built so far
+  ///    stay, a later call builds the rest. True while it runs (or was already running).
+  ///  - StartFineRefine: one refinement step of the fine session (fine.refinement.advance, under
+  ///    the options set on it, after the caller's setScene), so that a still render of the GUI
+  ///    draws the image of the steps finished so far instead of waiting for a whole frame.
+  ///    TakeRefineStep: what the last joined step rendered (once; empty after).
+  /// JoinFineBuild waits for a job on the fine session; JoinBackgroundBuild stops a build ahead
+  /// and waits for whichever runs; FinishBackgroundBuild lets either finish. BuildDone /
+  /// BuildProgress: of the running job.
   bool StartFineBuild(double time);
+  bool StartCoarseAhead(int resolution);
+  bool StartFineRefine();
+  inr::RefinementDriver::Step TakeRefineStep();
   void JoinFineBuild();
-  bool FineBusy() const { return this->fineBusy; }
-  bool FineBuildDone() const { return this->fineBuildDone; }
-  double FineBuildProgress() const { return this->fineBuildProgress; }
+  void JoinBackgroundBuild();
+  void FinishBackgroundBuild();
+  /// The fine session belongs to the worker (a slice build or a refinement step).
+  bool FineBusy() const { return this->job == Job::FineSlices || this->job == Job::FineRefine; }
+  bool FineBuilding() const { return this->job == Job::FineSlices; }
+  bool FineRefining() const { return this->job == Job::FineRefine; }
+  bool CoarseBusy() const { return this->job == Job::CoarseAhead; }
+  bool BuildDone() const { return this->buildDone; }
+  double BuildProgress() const { return this->buildProgress; }
+  bool FineBuildDone() const { return this->FineBusy() && this->buildDone; }
+  double FineBuildProgress() const { return this->buildProgress; }
+  /// Milliseconds the last joined build ahead ran on the worker (0 before).
+  double LastCoarseAheadMs() const { return this->coarseAheadMs; }
 
   /// Hands the query reduction to `slot`'s session when it changed (a refused set is reported
   /// once and the session keeps what it had).
@@ -185,10 +211,23 @@ private:
   bool coarseFailed = false;  // creation failed once for coarse.asked: reported, not retried
   bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
   inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
-  std::thread fineBuilder;
-  bool fineBusy = false;
-  std::atomic<bool> fineBuildDone{ false };
-  std::atomic<double> fineBuildProgress{ 0.0 };
+  enum class Job
+  {
+    None,
+    FineSlices,
+    CoarseAhead,
+    FineRefine
+  };
+  std::thread builder;
+  Job job = Job::None;
+  std::atomic<bool> buildDone{ false };
+  std::atomic<bool> stopBuild{ false };  // asks a build ahead to stop after its current slice
+  std::atomic<double> buildProgress{ 0.0 };
+  std::atomic<double> coarseAheadRunMs{ 0.0 };
+  double coarseAheadMs = 0.0;
+  inr::RefinementDriver::Step refineRun, refineStep;  // on the worker; joined, not taken yet
+  void Launch(Job what, inr::RenderSession* session, std::function<void()> work);
+  void Join();
 };
 
 #endif

@@ -71,6 +71,14 @@ InrLevelOfDetail::Frame InrLevelOfDetail::Plan(
   {
     f.frames = FreshFrameCount(scale, s.freshFrames);
     scale = FreshFrameScale(scale, s.freshFrames);
+    // Small images cost more per pixel (each frame has a fixed cost: wavefront iterations,
+    // threads): no more frames than the last fresh image's time per frame lets fit.
+    if (this->freshFrameMs > 0.0 && f.frames > 1)
+    {
+      const double fixed = std::min(this->overheadMs + this->outsideMs, kMaxFixedShare * d.budgetMs);
+      const double target = kBudgetMargin * (d.budgetMs - fixed);
+      f.frames = std::clamp(int(target / this->freshFrameMs), 1, f.frames);
+    }
   }
   f.width = std::max(1, int(std::lround(width * scale)));
   f.height = std::max(1, int(std::lround(height * scale)));
@@ -201,6 +209,10 @@ void InrLevelOfDetail::MeasureFrame(double renderMs, double refineMs, double upd
   {
     this->interactiveMs = ema(this->interactiveMs, engineMs);
     ++this->framesAtScale;
+    if (framesRendered > 1)
+    {
+      this->freshFrameMs = ema(this->freshFrameMs, engineMs / framesRendered);
+    }
   }
 }
 

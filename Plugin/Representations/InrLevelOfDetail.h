@@ -61,7 +61,8 @@ public:
     bool interactive = false;
   };
   /// Chooses the scale of an interactive render of a `width` x `height` view (see ChooseScale);
-  /// a time-change frame renders up to Settings::freshFrames frames at a lower scale.
+  /// a time-change frame renders up to Settings::freshFrames frames at a lower scale, no more
+  /// than the measured time per frame of earlier fresh images lets fit in the budget.
   Frame Plan(const Settings& s, const Decision& d, int width, int height);
 
   /// Which session draws an interactive frame: the coarse one for a time change (its fine slices
@@ -124,6 +125,7 @@ private:
   double interactiveMs = 0.0;    // engine time of interactive frames at lodScale
   double lodCeiling = 2.0;       // smallest scale found too slow in this interaction
   int framesAtScale = 0;         // interactive frames measured at lodScale
+  double freshFrameMs = 0.0;     // engine time per frame of fresh (several-frame) images
   double outsideMs = 0.0;        // the window's render outside this mapper
   bool lastInteractive = false;
   bool haveLastTime = false;

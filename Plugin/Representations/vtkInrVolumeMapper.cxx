@@ -46,6 +46,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <iostream>
 #include <limits>
 #include <memory>
@@ -144,6 +145,20 @@ InrParallelRendering::PixelRect volumeRect(vtkRenderer* ren, vtkVolume* vol, int
   const auto clampTo = [](double v, int n) { return int(std::max(0.0, std::min(double(n), v))); };
   return { clampTo(std::floor(lo[0]) - 2, width), clampTo(std::floor(lo[1]) - 2, height),
     clampTo(std::ceil(hi[0]) + 2, width), clampTo(std::ceil(hi[1]) + 2, height) };
+}
+
+// A still render of the GUI waits this long for the worker's refinement step before it draws
+// the image it has (the GUI's own refinement loop renders once the step is done:
+// GetBackgroundWorkRunning; other renders, e.g. a property change, find it running).
+constexpr double kRefineWaitMs = 30.0;
+
+// CPU time of the whole process (all its threads), ms: logged beside the engine's wall time
+// (INR_VOLUME_LOD_LOG) to see how much of a frame's time a loaded machine adds.
+double processCpuMs()
+{
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return 1e3 * double(t.tv_sec) + 1e-6 * double(t.tv_nsec);
 }
 
 bool lodReport()
@@ -245,7 +260,41 @@ struct vtkInrVolumeMapper::Internals
   // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
   // (PrepareRender, background builds on) while renders draw reduced frames of the coarse
   // session, so the event loop never waits seconds for them.
+  // In the GUI the build is only marked here (fineBuildPending) and starts on the worker once
+  // the render has drawn its reduced coarse frame: that frame does not share the CPU with it.
   bool StartFineBuild(vtkInrVolumeMapper* self, double time);
+  bool fineBuildPending = false;
+  bool haveDeferredFineBuild = false;
+  double fineBuildTime = 0.0;  // the time of the last deferred build
+  // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
+  // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
+  bool BuildsInBackground(vtkInrVolumeMapper* self) const;
+  // The GUI's still renders of the fine session refine it on that worker too, one refinement
+  // step at a time (InrEngines::StartFineRefine): a render joins a finished step, hands the
+  // scene over, draws the image so far and starts the next step, so no render waits for a whole
+  // full-resolution frame (on a CPU at ~1280x768 longer than the GUI may stall). A render that
+  // finds the step still running waits a little for it, then draws the image it has (keepImage).
+  // While the worker holds the fine session its state is read from what was kept (fineKept).
+  bool startRefine = false;  // this render starts a refinement step once it has drawn
+  bool keepImage = false;    // this render draws the texture as it is
+  bool haveFineScene = false;
+  int refinedEpoch = -1;  // the fine session's resets + reprojections when its step was started
+  inr::RenderScene fineScene;  // the scene last handed to the fine session
+  struct FineState
+  {
+    int frames = 0;
+    double estimate = -std::numeric_limits<double>::infinity();
+  } fineKept;
+  vtkOpenGLRenderWindow* uploadedWindow = nullptr;  // the window the texture was loaded for
+  bool RefineInBackground(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
+    const inr::RenderSettings& settings);
+  void LaunchRefine();
+  int ShownFrames() const
+  {
+    return !this->shownCoarse && this->engines.FineRefining()
+      ? this->fineKept.frames
+      : this->Shown() ? this->Shown()->accumulatedFrames() : 0;
+  }
 
   // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
   // reported only there (quietRenders), never from inside Render (insideRender).
@@ -341,7 +390,8 @@ struct vtkInrVolumeMapper::Internals
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
-    bool interactive = false, bool useCoarse = false, int interactiveFrames = 1);
+    bool interactive = false, bool useCoarse = false, int interactiveFrames = 1,
+    bool background = false);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
@@ -363,7 +413,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
-  this->Internal->engines.JoinFineBuild();
+  this->Internal->engines.JoinBackgroundBuild();
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -376,7 +426,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  this->Internal->engines.JoinFineBuild();
+  this->Internal->engines.JoinBackgroundBuild();
   for (InrEngineSlot* slot : { &this->Internal->engines.fine, &this->Internal->engines.coarse })
   {
     if (slot->session)
@@ -393,8 +443,7 @@ int vtkInrVolumeMapper::GetAccumulatedFrames()
   {
     return this->Internal->reduced.frames;  // the fewest of all ranks
   }
-  const inr::RenderSession* shown = this->Internal->Shown();
-  return shown ? shown->accumulatedFrames() : 0;
+  return this->Internal->ShownFrames();
 }
 
 int vtkInrVolumeMapper::GetConverged()
@@ -410,8 +459,10 @@ int vtkInrVolumeMapper::GetLocalConverged()
 {
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
   // A reduced interactive image is never the final one: a still render must follow.
+  // A refinement step running on the worker: not converged yet.
+  const Internals& I = *this->Internal;
   return !this->ProgressiveRefinement ||
-      (!this->Internal->lod.LastInteractive() && this->Internal->engines.fine.refinement.converged())
+      (!I.lod.LastInteractive() && !I.engines.FineRefining() && I.engines.fine.refinement.converged())
     ? 1
     : 0;
 }
@@ -442,7 +493,8 @@ double vtkInrVolumeMapper::GetConvergenceEstimate()
   {
     return this->Internal->reduced.estimate;  // the lowest of all ranks
   }
-  return this->Internal->engines.fine.refinement.estimate();
+  return this->Internal->engines.FineRefining() ? this->Internal->fineKept.estimate
+                                                : this->Internal->engines.fine.refinement.estimate();
 }
 
 std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
@@ -557,6 +609,7 @@ int vtkInrVolumeMapper::GetSlicesBuilt()
 
 int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
 {
+  this->Internal->engines.FinishBackgroundBuild();
   const auto& coarse = this->Internal->engines.coarse.session;
   return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
 }
@@ -571,6 +624,7 @@ const char* vtkInrVolumeMapper::GetEngineOptionsInUse()
 
 const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
 {
+  this->Internal->engines.FinishBackgroundBuild();
   const auto& coarse = this->Internal->engines.coarse.session;
   this->Internal->interactiveOptionsText = coarse ? InrDescribeSession(*coarse) : "";
   return this->Internal->interactiveOptionsText.c_str();
@@ -578,6 +632,7 @@ const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
 
 int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
 {
+  this->Internal->engines.FinishBackgroundBuild();
   const auto& fine = this->Internal->engines.fine.session;
   const auto& coarse = this->Internal->engines.coarse.session;
   return fine && coarse && &fine->evaluator() == &coarse->evaluator() ? 1 : 0;
@@ -686,6 +741,7 @@ void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
 {
   this->Internal->interop.Release();  // before its texture goes
   this->Internal->compositor.ReleaseGraphicsResources(win);
+  this->Internal->uploadedWindow = nullptr;
   this->Superclass::ReleaseGraphicsResources(win);
 }
 
@@ -702,9 +758,14 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
   I.quietRenders = true;
-  if (I.engines.FineBusy() && I.engines.FineBuildDone())
+  if (I.engines.BuildDone())
   {
-    I.engines.JoinFineBuild();
+    I.engines.FinishBackgroundBuild();  // finished on the worker: join it
+    if (lodReport() && I.engines.LastCoarseAheadMs() > 0.0)
+    {
+      std::fprintf(stderr, "INR Volume LOD: interactive macrocell slices built ahead on a worker "
+                           "thread, %.1f ms\n", I.engines.LastCoarseAheadMs());
+    }
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
   {
@@ -717,7 +778,7 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render reports what is wrong
   }
-  if (I.engines.FineBusy())
+  if (I.engines.FineBuilding())
   {
     // Still building on the worker: show how far (the render draws the coarse session).
     this->SetProgressText("INR Volume: building macrocells");
@@ -738,6 +799,17 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     {
       I.engines.coarse.session->buildSlicesFor(time);
     }
+    else if (I.engines.FineRefining())
+    {
+      // The worker holds the fine session for a refinement step: this render draws its image, or
+      // a reduced coarse frame when the time moved (Render); the fine slices of the new time
+      // build once the step is done.
+      if (I.haveFineScene && time != I.fineScene.time &&
+        I.engines.UpdateCoarse(this->InteractiveMacrocellResolution))
+      {
+        I.engines.coarse.session->buildSlicesFor(time);
+      }
+    }
     else if (!I.StartFineBuild(this, time))
     {
       I.engines.fine.session->buildSlicesFor(time);
@@ -747,16 +819,30 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     // The render's setScene meets the same failure and reports it.
   }
-  if (I.engines.FineBusy())
+  if (I.engines.FineBusy() || I.fineBuildPending)
   {
     return;
   }
   // The coarse slices of later time-change frames, once a still image of the fine grid is shown
-  // (the first image is not delayed by them).
+  // (the first image is not delayed by them): on the worker where the fine slices may build
+  // there (the GUI: the event loop is not held for the whole build; a render that needs the
+  // coarse session stops it within a slice, and a later still render builds the rest), else here.
   if (!d.interactive && !I.lod.LastInteractive() &&
     I.engines.fine.session->accumulatedFrames() > 0 && InrLevelOfDetail::BuildsCoarseAhead(lod))
   {
-    I.BuildCoarseAhead(this);
+    if (I.BuildsInBackground(this))
+    {
+      if (I.engines.StartCoarseAhead(this->InteractiveMacrocellResolution))
+      {
+        this->SetProgressText("INR Volume (interactive macrocells): building macrocells");
+        this->UpdateProgress(I.engines.BuildProgress());
+        this->SetProgressText(nullptr);
+      }
+    }
+    else
+    {
+      I.BuildCoarseAhead(this);
+    }
   }
 }
 
@@ -846,10 +932,14 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   if (I.window.fullWidth == 0)
   {
     d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
-    if (I.engines.FineBusy() && !d.interactive && !this->Capturing)
+    const bool fineTimeOnWorker =
+      I.engines.FineRefining() && I.haveFineScene && scene.time != I.fineScene.time;
+    if ((I.engines.FineBuilding() || I.fineBuildPending || fineTimeOnWorker) && !d.interactive &&
+      !this->Capturing)
     {
-      // The fine slices of this time are still building on the worker: a reduced frame of the
-      // coarse session, as right after a time change (a fresh image).
+      // The fine slices of this time are still building on the worker (or will, once its
+      // refinement step is done): a reduced frame of the coarse session, as right after a time
+      // change (a fresh image).
       d = InrLevelOfDetail::WhileFineBuilds(lod);
     }
   }
@@ -867,21 +957,27 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.lod.SawTime(scene.time);
   I.lastEngineBudgetMs = -1.0;
   const auto refineStart = Clock::now();
+  const double refineCpuStart = processCpuMs();
   // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
   // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
   // which the still render after the drag reprojects to the new camera instead of restarting.
   const bool useCoarse = I.RendersCoarse(this, d);
-  if (I.engines.FineBusy() && !useCoarse)
+  // A still render of the fine session in the GUI refines it on the worker; a camera drag that
+  // fits at full resolution renders its one frame here (it must show the new camera at once).
+  const bool background = !interactive && !useCoarse && !I.cameraInteraction &&
+    I.window.fullWidth == 0 && I.BuildsInBackground(this);
+  if (I.engines.FineBusy() && !useCoarse && !(background && I.engines.FineRefining()))
   {
     I.engines.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
-  if (!I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames))
+  if (!I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background))
   {
     return;
   }
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
   I.framesEnd = Clock::now();
+  const double refineCpuMs = processCpuMs() - refineCpuStart;
   const auto compositeStart = Clock::now();
   I.Composite(this, ren, width, height);
   if (interactive)
@@ -896,17 +992,39 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.renderedInWindow = true;
   I.imageWidth = width;
   I.imageHeight = height;
-  I.lod.MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
-    I.lastStep.framesRendered, width, height, interactive);
+  if (background)
+  {
+    // The step's frames were rendered on the worker: its own time is the engine's part; this
+    // render's time outside its refinement part (which holds the wait for the step) is the
+    // render's fixed cost.
+    const double engineMs = I.lastStep.total.totalMs;
+    I.lod.MeasureFrame(std::max(0.0, I.lastRenderMs - refineMs) + engineMs,
+      engineMs, I.lastStep.total.updateMs, I.lastStep.framesRendered, width, height, false);
+  }
+  else
+  {
+    I.lod.MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
+      I.lastStep.framesRendered, width, height, interactive);
+  }
   if (lodReport())
   {
+    std::string worker;
+    if (background)
+    {
+      char step[160];
+      std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
+        I.keepImage ? "image kept" : "image drawn", I.lastStep.framesRendered, I.lastStep.total.totalMs);
+      worker = step;
+    }
     std::fprintf(stderr,
       "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f, composite %.1f ms), frames %d%s\n",
+      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
+      "%.1f ms), frames %d%s%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
       double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      I.lastEngineBudgetMs, compositeMs, I.Shown()->accumulatedFrames(), useCoarse ? ", coarse macrocells" : "");
+      I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
+      useCoarse ? ", coarse macrocells" : "", worker.c_str());
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
@@ -916,6 +1034,33 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     I.BuildCoarseAhead(this);
   }
+  if (I.fineBuildPending)
+  {
+    // The reduced coarse frame is drawn: the fine slices of this time build on the worker now
+    // (InrEngines::StartFineBuild returns at once where they were built before).
+    I.fineBuildPending = false;
+    I.startRefine = false;
+    if (I.engines.fine.session && !I.engines.FineBusy())
+    {
+      I.engines.StartFineBuild(I.fineBuildTime);
+    }
+  }
+  I.LaunchRefine();
+}
+
+// Starts the refinement step this render prepared (startRefine), once its image has been read
+// (Composite) or nothing of the session is read any more: keeps what the getters read while the
+// worker holds the fine session.
+void vtkInrVolumeMapper::Internals::LaunchRefine()
+{
+  if (!this->startRefine)
+  {
+    return;
+  }
+  this->startRefine = false;
+  this->fineKept.frames = this->engines.fine.session->accumulatedFrames();
+  this->fineKept.estimate = this->engines.fine.refinement.estimate();
+  this->engines.StartFineRefine();
 }
 
 void vtkInrVolumeMapper::MarkViewUpdate()
@@ -965,16 +1110,36 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
   return backgroundBuilds;
 }
 
+int vtkInrVolumeMapper::GetBackgroundWorkRunning()
+{
+  const InrEngines& e = this->Internal->engines;
+  return (e.FineRefining() || e.CoarseBusy()) && !e.BuildDone() ? 1 : 0;
+}
+
+bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self) const
+{
+  return backgroundBuilds && this->engines.fine.session &&
+    InrLevelOfDetail::BuildsFineInBackground(
+      this->LodSettings(self), this->engines.fine.session->backend() == inr::RenderBackend::Cpu);
+}
+
 bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
 {
-  if (!backgroundBuilds || this->engines.FineBusy() || !this->engines.fine.session ||
-    !InrLevelOfDetail::BuildsFineInBackground(this->LodSettings(self),
-      this->engines.fine.session->backend() == inr::RenderBackend::Cpu) ||
+  if (this->engines.FineBusy() || !this->BuildsInBackground(self) ||
     !this->engines.UpdateCoarse(self->InteractiveMacrocellResolution))
   {
     return false;
   }
-  return this->engines.StartFineBuild(time);
+  if (this->haveDeferredFineBuild && this->fineBuildTime == time)
+  {
+    // Deferred once for this time already: the build ran (or returns at once): go on as without
+    // deferral, the render uses the fine session when it is done within a few ms.
+    return this->engines.StartFineBuild(time);
+  }
+  this->fineBuildPending = true;
+  this->haveDeferredFineBuild = true;
+  this->fineBuildTime = time;
+  return true;
 }
 
 InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
@@ -1105,6 +1270,11 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   // a PrepareRender may have built the sessions from the environment (same device under Open
   // MPI, so no rebuild).
   const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
+  if (this->engines.Rebuilt())
+  {
+    this->haveDeferredFineBuild = false;  // a new session: its first build is deferred again
+    this->haveFineScene = false;
+  }
   if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
   {
     this->rankNoteKey = rankKey;
@@ -1281,26 +1451,74 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
   this->warnedCamera = ignored;
 }
 
+// A still render of the GUI, refining the fine session on the worker: waits a little for a
+// running job (a refinement step, or the coarse slices built ahead), joins it when it is done
+// (its frames become this render's image); false when it is still running and this render
+// changes nothing the fine session renders (the render then draws the image it has: keepImage).
+// A changed scene stops a build ahead (within a slice) or waits for the refinement step.
+bool vtkInrVolumeMapper::Internals::RefineInBackground(
+  vtkInrVolumeMapper*, const inr::RenderScene& scene, const inr::RenderSettings& settings)
+{
+  this->lastStep = inr::RefinementDriver::Step{};
+  if (this->engines.FineRefining() || this->engines.CoarseBusy())
+  {
+    const auto start = Clock::now();
+    while (!this->engines.BuildDone() && msSince(start) < kRefineWaitMs)
+    {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    const InrEngineSlot& fine = this->engines.fine;
+    const inr::RenderSettings& held = fine.settings;
+    const bool changed = !this->haveFineScene || inr::diffScenes(&this->fineScene, scene).any() ||
+      !fine.haveSettings || settings.width != held.width || settings.height != held.height ||
+      settings.seed != held.seed || settings.window != held.window ||
+      settings.pixelShare != held.pixelShare;
+    if (!this->engines.BuildDone() && !changed)
+    {
+      this->keepImage = true;
+      return false;
+    }
+    this->engines.JoinBackgroundBuild();
+  }
+  this->lastStep = this->engines.TakeRefineStep();
+  return true;
+}
+
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
-  int interactiveFrames)
+  int interactiveFrames, bool background)
 {
   // The session drawing this render: the fine one, or the coarse one for a time-change
   // interactive frame.
   InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
+  this->shownCoarse = useCoarse;
+  this->keepImage = false;
+  this->startRefine = false;
+  inr::RenderSettings settings;
+  settings.width = width;
+  settings.height = height;
+  settings.seed = static_cast<std::uint32_t>(self->Seed);
+  settings.window = this->window;
+  this->RankSettings(settings);
+  if (background && !this->RefineInBackground(self, scene, settings))
+  {
+    return true;  // the worker is busy: this render draws the image it has
+  }
+  if (!background)
+  {
+    this->engines.TakeRefineStep();  // a step joined for this render: its frames are in the image
+  }
   inr::RenderSession& engine = *slot.session;
   inr::RefinementDriver& refinement = slot.refinement;
-  this->shownCoarse = useCoarse;
+  if (!useCoarse)
+  {
+    this->fineScene = scene;
+    this->haveFineScene = true;
+  }
   try
   {
-    inr::RenderSettings settings;
-    settings.width = width;
-    settings.height = height;
-    settings.seed = static_cast<std::uint32_t>(self->Seed);
-    settings.window = this->window;
-    this->RankSettings(settings);
     slot.SetSettings(settings);
     const bool debug = debugReport();
     if (debug)
@@ -1326,7 +1544,9 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     if (!interactive && !this->cameraInteraction && self->ProgressiveRefinement &&
       self->FramesPerRender == 1 && this->window.fullWidth == 0)
     {
-      options.timeBudgetMs = this->EngineTimeBudget(self->RefinementTimeBudget);
+      // A step on the worker does not hold the view: it gets the whole budget.
+      options.timeBudgetMs = background ? self->RefinementTimeBudget
+                                        : this->EngineTimeBudget(self->RefinementTimeBudget);
       this->lastEngineBudgetMs = options.timeBudgetMs;
     }
     if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
@@ -1336,6 +1556,15 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       options.framesPerRender = options.maximumFrames;
     }
     refinement.setOptions(options);
+    if (background)
+    {
+      // The frames go to the worker once this render has drawn (Render: startRefine); this
+      // render shows the steps joined so far (lastStep, from RefineInBackground).
+      const int epoch = engine.counters().accumulationResets + engine.counters().reprojections;
+      this->startRefine = epoch != this->refinedEpoch || !refinement.converged(engine.accumulatedFrames());
+      this->refinedEpoch = epoch;
+      return true;
+    }
     this->lastStep = inr::RefinementDriver::Step{};
     this->lastStep = refinement.advance(engine);
     if (debug && this->lastStep.framesRendered > 0)
@@ -1377,7 +1606,7 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   if (rendered)
   {
     line << this->lastStep.total.totalQueries() << " queries in the last render, "
-         << (this->Shown() ? this->Shown()->accumulatedFrames() : 0) << " frames, "
+         << this->ShownFrames() << " frames, "
          << (self->GetLocalConverged() ? "converged" : "refining") << "; "
          << this->backendInUse;
   }
@@ -1418,9 +1647,24 @@ void vtkInrVolumeMapper::Internals::Composite(
   vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height)
 {
   auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
+  if (!window)
+  {
+    return;
+  }
+  // The worker holds the fine session (keepImage), or its first frame of a new image is still to
+  // come: the image on screen stays (the previous one, or the coarse one) rather than a blank view.
+  if (this->keepImage || (this->startRefine && this->engines.fine.session->accumulatedFrames() == 0))
+  {
+    std::string error;
+    if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
+    {
+      vtkErrorWithObjectMacro(self, << error);
+    }
+    return;
+  }
   inr::RenderSession& shown = *this->Shown();
   const int frames = shown.accumulatedFrames();
-  if (!window || frames == 0)
+  if (frames == 0)
   {
     return;
   }
@@ -1459,10 +1703,14 @@ void vtkInrVolumeMapper::Internals::Composite(
     if (!onDevice)
     {
       const inr::ImageRGBA image = shown.premultipliedImage();
+      // The image is copied: the worker may take the session for the next step while this
+      // render uploads and draws it.
+      this->LaunchRefine();
       this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     }
     this->uploadedEpoch = epoch;
     this->uploadedCoarse = this->shownCoarse;
+    this->uploadedWindow = window;
   }
   std::string error;
   if (!this->compositor.Blend(window, &error))

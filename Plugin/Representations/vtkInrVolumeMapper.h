@@ -394,6 +394,13 @@ public:
   /// for the worker. Scripts (pvpython, pvbatch) keep building in the render's preparation.
   static void SetBackgroundMacrocellBuilds(bool on);
   static bool GetBackgroundMacrocellBuilds();
+  /// With background builds on, still renders of the fine session also refine it on that worker
+  /// thread, one refinement step at a time: a render joins a finished step, draws its image and
+  /// starts the next one (a render that finds the step running draws the image it has). 1 while
+  /// the worker runs such a step, or builds the coarse slices ahead, and has not finished: a
+  /// render now would draw nothing new (the GUI's refinement loop waits for it instead of
+  /// rendering: on a software OpenGL a render costs the worker a large share of the CPU).
+  int GetBackgroundWorkRunning();
   void ReleaseGraphicsResources(vtkWindow* win) override;
 
 protected:

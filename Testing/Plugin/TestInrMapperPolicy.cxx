@@ -154,6 +154,29 @@ TEST(InrLevelOfDetail, ABarredScaleComesBackOnlyWhenTheMeasuredTimeSaysItFits)
   EXPECT_GT(fast.back(), 2.0 / Lod::kScaleSteps);
 }
 
+TEST(InrLevelOfDetail, FreshImagesGetNoMoreFramesThanTheirMeasuredTimeFits)
+{
+  // A loaded CPU: the 4 frames of a fresh 50x38 image took 320 ms of engine time (80 ms each,
+  // whatever the pixel count: each frame's fixed cost dominates small images). The next time
+  // change renders one frame (80 ms of the 100 ms budget), not four.
+  Lod::Settings s = guiSettings();
+  Lod lod;
+  const Lod::Decision timeChange{ true, true, 100.0 };
+  const Lod::Frame first = lod.Plan(s, timeChange, 400, 300);
+  ASSERT_EQ(first.frames, 4);
+  lod.MeasureFrame(330.0, 320.0, 0.0, 4, first.width, first.height, true);
+  lod.Drew(true);
+  const Lod::Frame next = lod.Plan(s, timeChange, 400, 300);
+  EXPECT_TRUE(next.interactive);
+  EXPECT_EQ(next.frames, 1);
+  // Cheap frames keep their count: 4 frames of 5 ms each fit.
+  Lod cheap;
+  ASSERT_EQ(cheap.Plan(s, timeChange, 400, 300).frames, 4);
+  cheap.MeasureFrame(25.0, 20.0, 0.0, 4, first.width, first.height, true);
+  cheap.Drew(true);
+  EXPECT_EQ(cheap.Plan(s, timeChange, 400, 300).frames, 4);
+}
+
 TEST(InrLevelOfDetail, FreshFrames)
 {
   struct Case

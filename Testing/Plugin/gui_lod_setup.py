@@ -8,6 +8,7 @@
 # latest full-resolution still frame (gui_lod_still.png). It opens nothing: the recorded test
 # opens the model through File > Open and Apply, as a person would.
 import os
+import time
 from paraview import simple
 from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
 from vtkmodules.vtkIOImage import vtkPNGWriter
@@ -55,7 +56,14 @@ def shot(name):
     writer.Write()
 
 
+def on_start(obj, event):
+    state["start"] = time.perf_counter()
+
+
 def on_end(obj, event):
+    # The window's whole render (the event loop waits that long during a drag).
+    block_ms = 1000.0 * (time.perf_counter() - state["start"]) if state.get("start") else -1.0
+    state["start"] = None
     inr = inr_state()
     if inr is None:
         return
@@ -65,7 +73,7 @@ def on_end(obj, event):
     frames = get(inr, "InrAccumulatedFrames")
     log.write(f"render interactive={interactive} image={w}x{h} frames={frames} "
               f"ms={get(inr, 'InrLastRenderTime'):.1f} update_ms={get(inr, 'InrLastUpdateTime'):.1f} "
-              f"rate={rate:g} time={view.ViewTime:g}\n")
+              f"rate={rate:g} time={view.ViewTime:g} block_ms={block_ms:.1f}\n")
     log.flush()
     if interactive and rate >= 1.0:
         state["drag_seen"] = True
@@ -81,4 +89,5 @@ def on_end(obj, event):
             shot("gui_lod_still.png")
 
 
+view.GetRenderWindow().AddObserver("StartEvent", on_start)
 view.GetRenderWindow().AddObserver("EndEvent", on_end)

@@ -20,9 +20,13 @@ window pops up for) and every render. Checks:
   - the model's own colours: the *.tf.json preset beside the model is the colour and opacity
     map from the first INR Volume render on (no restart: frames 1, 2, 3, ... after Apply);
   - the last still image is not empty.
-It also prints what the user waits for: the longest render (from the view's StartEvent to its
-EndEvent: pipeline update, preparation and drawing, during which the event loop is blocked), per
-step. Those durations are reported, not judged (they depend on the machine and its load).
+  - what the user waits for (issue 28): per step, the longest render (from the view's StartEvent
+    to its EndEvent: pipeline update, preparation and drawing, during which the event loop is
+    blocked) after Apply, each time step and the renderer rebuild is at most 250 ms on a machine
+    loaded up to its cores, 500 ms up to twice its cores (not judged above); the first image
+    after choosing INR Volume within 1 s (2 s). The longest stall of the Qt event loop (the
+    plugin's watch, INR_VOLUME_EVENT_LOOP_LOG, less this test's own observer) is printed beside
+    it.
 """
 import argparse
 import os
@@ -37,6 +41,10 @@ VIEWPORT = ("pqClientMainWindow/centralwidget/MultiViewWidget/CoreWidget/qt_tabw
             "MultiViewWidget1/Container/Frame.0/CentralWidgetFrame/Viewport")
 PANEL = ("pqClientMainWindow/propertiesDock/propertiesPanel/scrollArea/qt_scrollarea_viewport/"
          "scrollAreaWidgetContents/DisplayFrame/ProxyPanel")
+
+# Issue 28's targets for what a user waits for (see the step checks below).
+BLOCK_BOUND_MS = 250.0
+FIRST_IMAGE_MS = 1000.0
 
 ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 ap.add_argument("--paraview", required=True)
@@ -70,9 +78,12 @@ xml_path = os.path.join(args.out, "gui_session.xml")
 with open(xml_path, "w") as f:
     f.write(xml)
 
-env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size)
+event_loop_log = os.path.join(args.out, "gui_session_event_loop.txt")
+env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size,
+           INR_VOLUME_EVENT_LOOP_LOG=event_loop_log, INR_VOLUME_LOD_LOG="1")
 cmd = [args.paraview, "--dr", f"--script={os.path.join(here, 'gui_session_setup.py')}",
        f"--test-script={xml_path}", "--exit"]
+load_before = os.getloadavg()[0]
 p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                    timeout=args.timeout)
 with open(os.path.join(args.out, "gui_session_paraview.log"), "w") as f:
@@ -105,8 +116,12 @@ check(not blocks, f"no warning or error at all in the output window ({len(blocks
 # --- The steps reached the view.
 renders = []
 path = os.path.join(args.out, "gui_session_renders.txt")
+observer = []  # (end, ms): what the test's own render observer cost (taken out of the stalls)
 for line in open(path) if os.path.exists(path) else []:
     kv = dict(item.split("=", 1) for item in line.split()[1:] if "=" in item)
+    if line.startswith("observer"):
+        observer.append((float(kv["end"]), float(kv["log_ms"])))
+        continue
     kv["budget"] = next((item.split("=", 1)[1] for item in line.split() if item.startswith("budget=")), "-")
     renders.append(kv)
 inr = [r for r in renders if r.get("inr") == "1"]
@@ -157,7 +172,13 @@ if os.path.exists(tf_path):
     check(first == want, f"the first INR Volume render uses the model's {os.path.basename(tf_path)} "
           f"(colour map {first[:60]}...)")
     check(all(r.get("lut") == want for r in inr), "the model's colour map stays during the session")
-    apply_frames = [int(r["frames"]) for r in inr if r["time"] == inr[0]["time"] and r["interactive"] == "0"]
+    # (Renders that find the worker's refinement step still running show the image they have:
+    # the same count again, or 0 before the first full-resolution frame.)
+    apply_frames = []
+    for r in inr:
+        if r["time"] == inr[0]["time"] and r["interactive"] == "0" and int(r["frames"]) > 0:
+            if not apply_frames or apply_frames[-1] != int(r["frames"]):
+                apply_frames.append(int(r["frames"]))
     check(bool(apply_frames) and apply_frames == list(range(1, len(apply_frames) + 1)),
           f"after Apply the image accumulates from frame 1 without a restart ({apply_frames[:8]}...)")
 else:
@@ -182,12 +203,74 @@ if stbn:
 if len(backends) >= 2:
     marks.append(("rebuild", next(i for i, r in enumerate(inr) if r["backend"] == backends[-1])))
 marks.sort(key=lambda m: m[1])
-for (name, start), (_, end) in zip(marks, marks[1:] + [("end", len(inr))]):
+# Stalls of the event loop (the plugin's watch, INR_VOLUME_EVENT_LOOP_LOG): each belongs to the
+# step in whose time it ended (a stall that began in Apply's pipeline update and ended after the
+# first render is Apply's).
+stalls, raw_stalls = [], []
+for line in open(event_loop_log) if os.path.exists(event_loop_log) else []:
+    kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
+    end, ms = float(kv["end"]), float(kv["block_ms"])
+    raw_stalls.append((end - ms / 1000.0, end))
+    # Less what the test's own render observer spent inside this stall.
+    ms -= sum(cost for t, cost in observer if end - ms / 1000.0 <= t <= end)
+    stalls.append((end, ms))
+check(os.path.exists(event_loop_log), "the plugin's event-loop watch ran (INR_VOLUME_EVENT_LOOP_LOG)")
+first_start = min((float(r["start"]) for r in renders if float(r.get("start", 0)) > 0), default=0.0)
+longest = {}
+for k, ((name, start), (_, end)) in enumerate(zip(marks, marks[1:] + [("end", len(inr))])):
     segment = inr[start:end]
     blocks_ms = [float(r["block_ms"]) for r in segment]
+    t0 = first_start if k == 0 else float(segment[0]["start"]) if segment else 0.0
+    t1 = float(inr[end]["start"]) if end < len(inr) else float("inf")
+    stall_ms = [ms for t, ms in stalls if t0 <= t < t1]
+    longest[name] = (max(blocks_ms, default=0.0), max(stall_ms, default=0.0))
     print(f"step {name}: {len(segment)} renders, longest render {max(blocks_ms, default=0):.0f} ms, "
+          f"longest event-loop stall {max(stall_ms, default=0):.0f} ms "
+          f"({sum(ms > BLOCK_BOUND_MS for ms in blocks_ms + stall_ms)} over {BLOCK_BOUND_MS:.0f} ms), "
           f"frames reached {refined(segment)}")
     check(refined(segment) >= 3, f"the view refined after '{name}' (frames {refined(segment)})")
+# What a user waits for (issue 28): no render and no other stall of the event loop longer than
+# the bound while Apply, a time step or a renderer rebuild settles (the long macrocell builds run
+# on a worker thread; the view keeps an image meanwhile).
+# The renders are judged by the machine's load (the test's own paraview keeps about two threads
+# busy): on a machine doing little else (load <= its cores) no render after Apply, a time step or
+# a rebuild may exceed the bound; up to twice its cores (CI: ctest runs two tests at a time on
+# two cores) none may exceed twice the bound (a render that waits for a whole full-resolution
+# frame, or builds slices, does: 0.7-1.4 s before the worker thread took them); above that the
+# checks are printed, not judged. The event loop's stalls are printed: they also hold ParaView's
+# own work (the representation switch after Apply: 0.6 s at load 4, before the first INR render).
+cores = os.cpu_count() or 1
+load = max(load_before, os.getloadavg()[0])
+bound = BLOCK_BOUND_MS if load <= cores else 2 * BLOCK_BOUND_MS if load <= 2 * cores else None
+print(f"load average {load:.1f} on {cores} cores: renders judged against "
+      f"{'nothing' if bound is None else f'{bound:.0f} ms'}")
+
+
+def timed(ok, what):
+    if bound is not None:
+        check(ok, what)
+    else:
+        print(f"not judged (load average {load:.1f} on {cores} cores, above {2 * cores}): {what}: "
+              f"{'met' if ok else 'missed'}")
+
+
+for name, (render_ms, stall_ms) in longest.items():
+    if name == "apply" or name.startswith("time") or name == "rebuild":
+        timed(render_ms <= (bound or BLOCK_BOUND_MS),
+              f"no render after '{name}' holds the event loop over {bound or BLOCK_BOUND_MS:.0f} ms "
+              f"(longest {render_ms:.0f} ms; longest stall of the event loop {stall_ms:.0f} ms, not judged)")
+# The first image once INR Volume is chosen (coarse is fine): from the moment the GUI took the
+# representation change (the start of the event-loop stall the first INR Volume render ends,
+# else that render's start) to the end of the first render that drew frames.
+first_image = next((r for r in inr if int(r["frames"]) > 0), None)
+if first_image and inr:
+    chosen = float(inr[0]["start"])
+    chosen = min([b for b, e in raw_stalls if b <= chosen <= e] + [chosen])
+    first_ms = 1000.0 * (float(first_image["start"]) - chosen) + float(first_image["block_ms"])
+    print(f"first INR Volume image {first_ms:.0f} ms after the representation change was taken")
+    timed(first_ms <= FIRST_IMAGE_MS * (bound or BLOCK_BOUND_MS) / BLOCK_BOUND_MS,
+          f"first image after choosing INR Volume within "
+          f"{FIRST_IMAGE_MS * (bound or BLOCK_BOUND_MS) / BLOCK_BOUND_MS:.0f} ms ({first_ms:.0f} ms)")
 # The fine macrocells of the last time were built (in the background in the GUI) and the view
 # shows the full-resolution image at that time.
 last_still = [r for r in inr if r["time"] == times[-1] and r["interactive"] == "0" and

@@ -1,0 +1,62 @@
+/**
+ * @class pqInrPanelDecorators
+ * @brief Hides, while a representation is shown as "INR Volume", the panel rows of the image
+ * representation's other kinds (Surface, Points, Slice, ParaView's Volume, ...) that do nothing
+ * for INR Volume.
+ *
+ * ParaView's image representation (UniformGridRepresentation) is one proxy that exposes the
+ * properties of all its kinds; its XML hides few of them per kind, so the INR Volume groups came
+ * after about 40 rows of surface styling, lighting, textures and LIC settings. ParaView 5.11
+ * asks every plugin's pqPropertyWidgetInterface for default decorators of each property widget it
+ * creates (createDefaultWidgetDecorators), which lets this plugin decorate the rows of proxies it
+ * did not define, without touching ParaView's XML. A row is hidden when the representation is INR
+ * Volume and its property belongs to another kind's sub-proxy, unless INR Volume honours it
+ * (InrVolumeHonours: colouring, the colour and opacity maps, the opacity unit distance, the
+ * transform). Rows of the representation itself (Representation, axes grids) and INR Volume's
+ * own stay; every row comes back when another representation type is chosen, and the panel's
+ * search box still finds a hidden one only after switching type (as for ParaView's own hidden
+ * rows).
+ */
+#ifndef pqInrPanelDecorators_h
+#define pqInrPanelDecorators_h
+
+#include "pqPropertyWidgetDecorator.h"
+#include "pqPropertyWidgetInterface.h"
+
+#include "vtkWeakPointer.h"
+
+#include <QObject>
+
+class vtkSMProperty;
+class vtkSMProxy;
+
+class pqInrPanelDecorators : public QObject, public pqPropertyWidgetInterface
+{
+  Q_OBJECT
+  Q_INTERFACES(pqPropertyWidgetInterface)
+public:
+  pqInrPanelDecorators(QObject* parent = nullptr);
+  ~pqInrPanelDecorators() override;
+
+  void createDefaultWidgetDecorators(pqPropertyWidget* widget) override;
+
+  /// Whether INR Volume uses the property `name` of another representation kind's sub-proxy.
+  static bool InrVolumeHonours(const char* name);
+};
+
+/// The decorator itself: hides its row while the representation is INR Volume.
+class pqInrHideForInrVolumeDecorator : public pqPropertyWidgetDecorator
+{
+  Q_OBJECT
+public:
+  pqInrHideForInrVolumeDecorator(vtkSMProxy* representation, pqPropertyWidget* parent);
+  ~pqInrHideForInrVolumeDecorator() override;
+  bool canShowWidget(bool showAdvanced) const override;
+
+private:
+  vtkWeakPointer<vtkSMProxy> Representation;
+  vtkWeakPointer<vtkSMProperty> Type;  // its "Representation" property, observed
+  unsigned long ObserverId = 0;
+};
+
+#endif
