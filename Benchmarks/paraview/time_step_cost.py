@@ -3,7 +3,7 @@ the reader's update at the new time, the view's update (representations, data de
 still render (the mapper's share read back from the representation).
 
     pvpython Benchmarks/paraview/time_step_cost.py [--plugin .../InrVolume.so] [--models A.inr ...]
-        [--size 1024 1024] [--backend cuda] [--steps 24] [--preview 8 2] [--budget 45]
+        [--size 1024 1024] [--backend cuda] [--steps 24] [--preview 8 2] [--budget 50]
 
 Per model and per reader PreviewResolution in --preview: --steps times over the range, each
 visited twice (the second pass is timed: macrocell slices built), one still render per step
@@ -28,7 +28,7 @@ ap.add_argument("--size", type=int, nargs=2, default=[1024, 1024])
 ap.add_argument("--backend", choices=list(BACKENDS), default="cuda")
 ap.add_argument("--steps", type=int, default=24)
 ap.add_argument("--preview", type=int, nargs="+", default=[8, 2])
-ap.add_argument("--budget", type=float, default=45.0, help="InrRefinementTimeBudget (ms)")
+ap.add_argument("--budget", type=float, default=50.0, help="InrRefinementTimeBudget (ms)")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402

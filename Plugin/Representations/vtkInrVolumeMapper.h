@@ -153,7 +153,7 @@ public:
   vtkGetMacro(ConvergenceTarget, double);
   vtkSetClampMacro(FramesPerRender, int, 1, 1 << 20);
   vtkGetMacro(FramesPerRender, int);
-  /// RefinementTimeBudget (ms, default 45; 0 = off): while FramesPerRender is 1 (the GUI's
+  /// RefinementTimeBudget (ms, default 50; 0 = off): while FramesPerRender is 1 (the GUI's
   /// refinement, which renders again by itself), one still render of the view takes about this
   /// long: the frames get what is left of it after the work the render does around them (the
   /// view's update at a new time, reported by MarkViewUpdate: the reader, data delivery; the
@@ -423,7 +423,7 @@ private:
   int MaximumFrames = 2048;
   double ConvergenceTarget = 41.0;
   int FramesPerRender = 1;
-  double RefinementTimeBudget = 45.0;
+  double RefinementTimeBudget = 50.0;
   int ProgressiveRefinement = 1;
   int Seed = 1;
   int UseDefaultTransferFunction = 0;

@@ -24,7 +24,7 @@ os.makedirs(args.out, exist_ok=True)
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view([64, 48])
 display = C.show_inr(reader, view, seed=3, maximum_frames=2048, frames_per_render=1, macrocells=8)
-check(display.InrRefinementTimeBudget == 45, "the default budget is 45 ms")
+check(display.InrRefinementTimeBudget == 50, "the default budget is 50 ms")
 display.Reproject = 0  # a camera move restarts the image (instead of reprojecting it)
 
 
