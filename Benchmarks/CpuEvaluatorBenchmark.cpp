@@ -112,11 +112,12 @@ int main(int argc, char** argv) {
     std::ofstream o(csv);
     o << "model,parameters,threads,batch,median_qps,min_qps,max_qps" << (gradient ? ",gradient_median_qps,gradient_cost" : "")
       << '\n';
-    for (const auto& r : rows)
+    for (const auto& r : rows) {
       o << '"' << r.name << "\"," << r.params << ',' << nthreads << ',' << batch << ',' << r.qps.median << ','
         << r.qps.lo << ',' << r.qps.hi;
       if (r.gradientQps) o << ',' << r.gradientQps->median << ',' << r.qps.median / r.gradientQps->median;
       o << '\n';
+    }
     std::printf("wrote %s\n", csv.c_str());
   }
   return 0;
