@@ -294,6 +294,17 @@ INSTANTIATE_TEST_SUITE_P(AllFamilies, ShippedModelGradient, ::testing::ValuesIn(
                            return name;
                          });
 
+// The parameterised test above covers every architecture family the repository ships: a family
+// dropped from Testing/Data must not leave its gradient untested unnoticed.
+TEST(CpuInrEvaluatorGradient, ShippedModelsCoverEveryFamily) {
+  for (const std::string family : {"siren_", "ffn_", "coordnet_", "neurcomp_"}) {
+    const auto models = everyShippedModel();
+    EXPECT_TRUE(std::any_of(models.begin(), models.end(), [&](const std::string& f) {
+      return std::filesystem::path(f).filename().string().rfind(family, 0) == 0;
+    })) << "no shipped model of family " << family;
+  }
+}
+
 // Every layer kind in one graph (Fourier with its input first and last, every activation, scale,
 // residual blocks with and without shortcut), with permuted inputs that include time, a domain
 // with a different slope per axis, and a per-time output mapping.
