@@ -68,4 +68,57 @@ INR_HD float activate(MlpAct a, float v) {
   return v;
 }
 
+// d activate(a, v) / dv at the pre-activation v (w0 already applied, as for activate: a sine
+// layer's derivative with respect to its input is w0 * activationDerivative(Sine, w0 x)), for
+// forward-mode gradients (value and d/dx in one pass: each tangent is multiplied by this factor).
+// Exact: the fp32 library functions; FastDevice: the fused kernels' one-instruction forms, the
+// same functions activate<FastDevice> computes the value with. ReLU's derivative at 0 is 0 (the
+// subgradient the training frameworks use).
+//
+// The CPU reference evaluator computes the same formulas on whole Eigen arrays (its
+// forward-mode pass in Evaluator/CpuInrEvaluator.cpp), for the reason given at the top.
+template <ActMath M = ActMath::Exact>
+INR_HD float activationDerivative(MlpAct a, float v) {
+#if defined(__CUDA_ARCH__)
+  if constexpr (M == ActMath::FastDevice) {
+    switch (a) {
+      case MlpAct::None: return 1.f;
+      case MlpAct::Sine: return __cosf(v);
+      case MlpAct::SiLU: {  // sigma(v) (1 + v (1 - sigma(v)))
+        const float s = fmaf(0.5f, tanhApprox(0.5f * v), 0.5f);
+        return s * fmaf(v, 1.f - s, 1.f);
+      }
+      case MlpAct::ReLU: return v > 0.f ? 1.f : 0.f;
+      case MlpAct::Sigmoid: {
+        const float s = fmaf(0.5f, tanhApprox(0.5f * v), 0.5f);
+        return s * (1.f - s);
+      }
+      case MlpAct::Tanh: {
+        const float t = tanhApprox(v);
+        return fmaf(-t, t, 1.f);
+      }
+    }
+    return 1.f;
+  }
+#endif
+  switch (a) {
+    case MlpAct::None: return 1.f;
+    case MlpAct::Sine: return cosf(v);
+    case MlpAct::SiLU: {
+      const float s = 1.f / (1.f + expf(-v));
+      return s * (1.f + v * (1.f - s));
+    }
+    case MlpAct::ReLU: return v > 0.f ? 1.f : 0.f;
+    case MlpAct::Sigmoid: {
+      const float s = 1.f / (1.f + expf(-v));
+      return s * (1.f - s);
+    }
+    case MlpAct::Tanh: {
+      const float t = tanhf(v);
+      return 1.f - t * t;
+    }
+  }
+  return 1.f;
+}
+
 }  // namespace inr

@@ -21,6 +21,14 @@ public:
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
   std::string name() const override { return "cpu-eigen-fp32"; }
 
+  // Values and their gradients with respect to world x, y, z in one pass (forward-mode
+  // derivatives through the layer graph, the domain's input mapping and the output mapping):
+  // values[i] as evaluate gives it (the same bits), gradients[3 i + k] = d values[i] / d world
+  // axis k (x, y, z); the time derivative is not computed. Chunked and threaded as evaluate.
+  // Throws std::runtime_error, naming the layer, when the graph holds a layer kind without a
+  // derivative (before any output is written).
+  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const;
+
   // Network output before the output mapping, for inputs already in network coordinates
   // (inputDim floats per query, network input order). For tests and tools.
   void evaluateNetwork(const float* inputs, std::size_t n, float* out) const;
