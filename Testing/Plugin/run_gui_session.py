@@ -70,10 +70,15 @@ for i in range(1, args.drag_steps + 1):
     y = 0.50 + 0.05 * i / args.drag_steps
     drag.append(f'  <pqevent object="{VIEWPORT}" command="mouseMove" arguments="({x:.3f},{y:.3f},0,1,0)" />')
     drag.append('  <pqevent object="pqClientMainWindow" command="process_events" arguments="120" />')
+# A loaded machine builds the fine macrocells (on the worker thread) and refines more slowly: each
+# step's pause grows with the load at the start (up to 3x), so the image it checks has come.
+cores = os.cpu_count() or 1
+settle_ms = int(args.settle_ms * min(3.0, max(1.0, os.getloadavg()[0] / cores)))
+print(f"pause after each step: {settle_ms} ms (load average {os.getloadavg()[0]:.1f} on {cores} cores)")
 xml = open(os.path.join(here, "gui_session.xml.in")).read()
 xml = (xml.replace("@MODEL@", os.path.abspath(args.model)).replace("@VIEWPORT@", VIEWPORT)
        .replace("@PANEL@", PANEL).replace("@DRAG@", "\n".join(drag))
-       .replace("@SETTLE_MS@", str(args.settle_ms)))
+       .replace("@SETTLE_MS@", str(settle_ms)))
 xml_path = os.path.join(args.out, "gui_session.xml")
 with open(xml_path, "w") as f:
     f.write(xml)
