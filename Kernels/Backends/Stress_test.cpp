@@ -76,12 +76,7 @@ InrModel load(const std::vector<std::uint8_t>& bytes, const std::string& label =
   return InrModel::loadBytes(bytes.data(), bytes.size(), label);
 }
 
-std::vector<float> randomValues(std::size_t n, std::mt19937& rng, float scale) {
-  std::uniform_real_distribution<float> d(-scale, scale);
-  std::vector<float> v(n);
-  for (auto& x : v) x = d(rng);
-  return v;
-}
+using test::randomValues;
 
 json domainJson(const std::array<double, 6>& bounds, double t0 = 0.0, double t1 = 10.0) {
   return {{"bounds", bounds}, {"time_range", {t0, t1}}};

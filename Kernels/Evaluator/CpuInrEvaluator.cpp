@@ -207,6 +207,19 @@ struct CpuInrEvaluator::Impl {
   }
   int threads() const { return options.threads > 0 ? options.threads : omp_get_max_threads(); }
 
+  // fn(begin, count) for each chunk of [0, n), over the threads when there are enough chunks. fn
+  // must not throw (an exception cannot leave an OpenMP region).
+  template <class Fn>
+  void forEachChunk(std::size_t n, Fn&& fn) const {
+    const std::int64_t chunk = options.chunkSize;
+    const std::int64_t count = chunks(n);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads()) if (count >= kMinParallelChunks)
+    for (std::int64_t c = 0; c < count; ++c) {
+      const std::int64_t begin = c * chunk;
+      fn(begin, std::min<std::int64_t>(chunk, static_cast<std::int64_t>(n) - begin));
+    }
+  }
+
   // The network inputs of points [begin, begin + count): one column per query.
   Mat networkInputs(const QueryPoint* points, std::int64_t begin, std::int64_t count) const {
     Mat x(inputDim, count);
@@ -267,30 +280,20 @@ CpuInrEvaluator::~CpuInrEvaluator() = default;
 
 void CpuInrEvaluator::evaluateNetwork(const float* inputs, std::size_t n, float* out) const {
   const Impl& I = *impl_;
-  const std::int64_t chunk = I.options.chunkSize;
-  const std::int64_t chunks = I.chunks(n);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(I.threads()) if (chunks >= kMinParallelChunks)
-  for (std::int64_t c = 0; c < chunks; ++c) {
-    const std::int64_t begin = c * chunk;
-    const std::int64_t count = std::min<std::int64_t>(chunk, static_cast<std::int64_t>(n) - begin);
+  I.forEachChunk(n, [&](std::int64_t begin, std::int64_t count) {
     Mat x = Eigen::Map<const Mat>(inputs + begin * I.inputDim, I.inputDim, count);
     run(I.layers, x, nullptr);
     Eigen::Map<Eigen::RowVectorXf>(out + begin, count) = x.row(0);
-  }
+  });
 }
 
 void CpuInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* out) const {
   const Impl& I = *impl_;
-  const std::int64_t chunk = I.options.chunkSize;
-  const std::int64_t chunks = I.chunks(n);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(I.threads()) if (chunks >= kMinParallelChunks)
-  for (std::int64_t c = 0; c < chunks; ++c) {
-    const std::int64_t begin = c * chunk;
-    const std::int64_t count = std::min<std::int64_t>(chunk, static_cast<std::int64_t>(n) - begin);
+  I.forEachChunk(n, [&](std::int64_t begin, std::int64_t count) {
     Mat x = I.networkInputs(points, begin, count);
     run(I.layers, x, nullptr);
     I.forEachOutputMap(points, begin, count, [&](std::int64_t q, float a, float b) { out[begin + q] = a * x(0, q) + b; });
-  }
+  });
 }
 
 void CpuInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
@@ -301,12 +304,7 @@ void CpuInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t
     throw std::runtime_error("CpuInrEvaluator::evaluateWithGradient: " + I.layerWithoutDerivative +
                              " has no derivative; a layer kind needs its Jacobian in runLayer "
                              "(Evaluator/CpuInrEvaluator.cpp) before gradients can be evaluated");
-  const std::int64_t chunk = I.options.chunkSize;
-  const std::int64_t chunks = I.chunks(n);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(I.threads()) if (chunks >= kMinParallelChunks)
-  for (std::int64_t c = 0; c < chunks; ++c) {
-    const std::int64_t begin = c * chunk;
-    const std::int64_t count = std::min<std::int64_t>(chunk, static_cast<std::int64_t>(n) - begin);
+  I.forEachChunk(n, [&](std::int64_t begin, std::int64_t count) {
     Mat x = I.networkInputs(points, begin, count);
     Mat dx = I.inputTangents(count);
     run(I.layers, x, &dx);
@@ -314,7 +312,7 @@ void CpuInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t
       values[begin + q] = a * x(0, q) + b;
       for (int d = 0; d < 3; ++d) gradients[3 * (begin + q) + d] = a * dx(0, d * count + q);
     });
-  }
+  });
 }
 
 }  // namespace inr

@@ -24,14 +24,8 @@ using nlohmann::json;
 using test::buildSafeTensors;
 using test::modelMetadata;
 
-InrModel load(const std::vector<std::uint8_t>& bytes) { return InrModel::loadBytes(bytes.data(), bytes.size(), "m.inr"); }
-
-std::vector<float> randomValues(std::size_t n, std::mt19937& rng, float scale = 0.5f) {
-  std::uniform_real_distribution<float> d(-scale, scale);
-  std::vector<float> v(n);
-  for (auto& x : v) x = d(rng);
-  return v;
-}
+using test::load;
+using test::randomValues;
 
 struct ValuesAndGradients {
   std::vector<float> values, gradients;

@@ -21,7 +21,7 @@ std::vector<test::TensorSpec> tinyTensors() {
   return {{"l0.w", {2, 4}, {1, 0, 0, 0, 0, 1, 0, 0}}, {"l0.b", {2}, {0.5f, -0.5f}}, {"l1.w", {1, 2}, {1, 1}}};
 }
 
-InrModel load(const std::vector<std::uint8_t>& bytes) { return InrModel::loadBytes(bytes.data(), bytes.size(), "m.inr"); }
+using test::load;
 
 TEST(InrModel, LoadsArchitectureAndCountsParameters) {
   const InrModel m = load(buildSafeTensors(tinyTensors(), modelMetadata(kTinyArch)));

@@ -5,8 +5,11 @@
 #include <cstring>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <string>
 #include <vector>
+
+#include "Model/InrModel.h"
 
 namespace inr::test {
 
@@ -52,6 +55,19 @@ inline std::map<std::string, std::string> modelMetadata(const nlohmann::json& ar
                                   : domain).dump();
   if (!output.is_null()) m["output"] = output.dump();
   return m;
+}
+
+// A model from bytes built here; `label` names it in the loader's errors.
+inline InrModel load(const std::vector<std::uint8_t>& bytes, const std::string& label = "m.inr") {
+  return InrModel::loadBytes(bytes.data(), bytes.size(), label);
+}
+
+// n weights drawn uniformly from [-scale, scale].
+inline std::vector<float> randomValues(std::size_t n, std::mt19937& rng, float scale = 0.5f) {
+  std::uniform_real_distribution<float> d(-scale, scale);
+  std::vector<float> v(n);
+  for (auto& x : v) x = d(rng);
+  return v;
 }
 
 }  // namespace inr::test
