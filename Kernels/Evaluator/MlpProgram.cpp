@@ -173,14 +173,7 @@ public:
           if (i + 1 < layers.size() && layers[i + 1].kind == LayerKind::Linear) {
             pendingScale *= L.param;  // folded into the next linear's weights
           } else {
-            cur = ownedCopy(cur);
-            MlpInstr in;
-            in.op = MlpOp::Activation;
-            in.dst = in.src = cur.buf;
-            in.outWidth = cur.width;
-            in.nPad = pad16(cur.width);
-            in.actScale = L.param;
-            p_.instrs.push_back(in);
+            cur = activationInPlace(cur, MlpAct::None, L.param);
           }
           break;
         case LayerKind::Linear: {
@@ -228,15 +221,7 @@ public:
         case LayerKind::ReLU:
         case LayerKind::Sigmoid:
         case LayerKind::Tanh: {
-          cur = ownedCopy(cur);
-          MlpInstr in;
-          in.op = MlpOp::Activation;
-          in.dst = in.src = cur.buf;
-          in.outWidth = cur.width;
-          in.nPad = pad16(cur.width);
-          in.act = actOf(L.kind);
-          in.actScale = L.kind == LayerKind::Sine ? L.param : 1.f;
-          p_.instrs.push_back(in);
+          cur = activationInPlace(cur, actOf(L.kind), L.kind == LayerKind::Sine ? L.param : 1.f);
           break;
         }
         case LayerKind::Residual: cur = residual(L, cur); break;
@@ -254,6 +239,21 @@ public:
       return {-1, 1, false};
     }
     return cur;
+  }
+
+  // act(scale * x) over the value, in a buffer this list owns (a Scale layer not folded into a
+  // linear is MlpAct::None: a plain multiply).
+  Value activationInPlace(Value v, MlpAct act, float scale) {
+    v = ownedCopy(v);
+    MlpInstr in;
+    in.op = MlpOp::Activation;
+    in.dst = in.src = v.buf;
+    in.outWidth = v.width;
+    in.nPad = pad16(v.width);
+    in.act = act;
+    in.actScale = scale;
+    p_.instrs.push_back(in);
+    return v;
   }
 
   // A buffer this list may overwrite: the value itself if owned, else a copy.

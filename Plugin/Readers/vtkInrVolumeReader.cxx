@@ -57,7 +57,6 @@ struct vtkInrVolumeReader::Internals
   long long loadedSize = -1;
   bool ok = false;
   inr::InrModel model;
-  std::unique_ptr<inr::CpuInrEvaluator> evaluator;
   // The preview's evaluator: the model's, with a chunk small enough to use every core.
   std::unique_ptr<inr::CpuInrEvaluator> previewEvaluator;
   std::size_t previewChunk = 0;
@@ -150,7 +149,6 @@ bool vtkInrVolumeReader::LoadModel()
   I.loadedMTime = mtime;
   I.loadedSize = size;
   I.ok = false;
-  I.evaluator.reset();
   I.previewEvaluator.reset();
   I.bytes = nullptr;
   try
@@ -164,8 +162,7 @@ bool vtkInrVolumeReader::LoadModel()
     I.model = inr::InrModel::loadBytes(
       reinterpret_cast<const std::uint8_t*>(data.data()), data.size(), this->FileName);
     I.model.path = this->FileName;
-    I.evaluator = std::make_unique<inr::CpuInrEvaluator>(I.model);
-    const auto vr = inr::valueRangeFor(I.model, *I.evaluator);
+    const auto vr = inr::valueRangeFor(I.model, inr::CpuInrEvaluator(I.model));
     this->ValueRange[0] = vr[0];
     this->ValueRange[1] = vr[1];
     this->TimeRange[0] = I.model.domain.timeBegin;
@@ -179,7 +176,6 @@ bool vtkInrVolumeReader::LoadModel()
   catch (const std::exception& e)
   {
     vtkErrorMacro(<< e.what());
-    I.evaluator.reset();
     I.bytes = nullptr;
   }
   return I.ok;

@@ -986,7 +986,6 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     glFinish();
   }
   const double compositeMs = msSince(compositeStart);
-  I.viewUpdatePending = false;
   I.lastRenderMs = msSince(renderStart);
   I.lod.Drew(interactive);
   I.renderedInWindow = true;

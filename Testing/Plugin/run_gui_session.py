@@ -73,8 +73,9 @@ for i in range(1, args.drag_steps + 1):
 # A loaded machine builds the fine macrocells (on the worker thread) and refines more slowly: each
 # step's pause grows with the load at the start (up to 3x), so the image it checks has come.
 cores = os.cpu_count() or 1
-settle_ms = int(args.settle_ms * min(3.0, max(1.0, os.getloadavg()[0] / cores)))
-print(f"pause after each step: {settle_ms} ms (load average {os.getloadavg()[0]:.1f} on {cores} cores)")
+load_at_start = os.getloadavg()[0]
+settle_ms = int(args.settle_ms * min(3.0, max(1.0, load_at_start / cores)))
+print(f"pause after each step: {settle_ms} ms (load average {load_at_start:.1f} on {cores} cores)")
 xml = open(os.path.join(here, "gui_session.xml.in")).read()
 xml = (xml.replace("@MODEL@", os.path.abspath(args.model)).replace("@VIEWPORT@", VIEWPORT)
        .replace("@PANEL@", PANEL).replace("@DRAG@", "\n".join(drag))
@@ -244,7 +245,6 @@ for k, ((name, start), (_, end)) in enumerate(zip(marks, marks[1:] + [("end", le
 # frame, or builds slices, does: 0.7-1.4 s before the worker thread took them); above that the
 # checks are printed, not judged. The event loop's stalls are printed: they also hold ParaView's
 # own work (the representation switch after Apply: 0.6 s at load 4, before the first INR render).
-cores = os.cpu_count() or 1
 load = max(load_before, os.getloadavg()[0])
 bound = BLOCK_BOUND_MS if load <= cores else 2 * BLOCK_BOUND_MS if load <= 2 * cores else None
 print(f"load average {load:.1f} on {cores} cores: renders judged against "
