@@ -300,15 +300,15 @@ def check_query_reduction_xml_defaults(inr, data):
         q = render_stats(inr, model, d, (8, 8), 1)["query_reduction"]
     xml = os.path.join(data, os.pardir, os.pardir, "ServerManagerXML", "InrVolumeRepresentation.xml")
     props = {e.get("name"): e for e in ET.parse(xml).getroot().iter() if e.get("default_values") is not None}
-    budget = props["RayBudget"]
+    budget = props["InrRayBudget"]
     entries = {e.get("value"): e.get("text") for e in budget.iter("Entry")}
     expect(entries == {"0": "none", "1": "histogram", "2": "stbn", "3": "weighted-stbn"},
-           "RayBudget entries %r must be the CLI's scheme names" % entries)
+           "InrRayBudget entries %r must be the CLI's scheme names" % entries)
     expect(entries[budget.get("default_values")] == q["budget"],
-           "RayBudget default %r, struct default %r" % (entries[budget.get("default_values")], q["budget"]))
-    for prop, key, cast in (("BudgetFraction", "budget_fraction", float), ("BudgetMaxSkip", "budget_max_skip", int),
-                            ("BudgetAlpha", "budget_alpha", float), ("Reproject", "reproject", lambda v: bool(int(v))),
-                            ("PruneEpsilon", "prune_epsilon", float), ("PruneFalloff", "prune_falloff", float)):
+           "InrRayBudget default %r, struct default %r" % (entries[budget.get("default_values")], q["budget"]))
+    for prop, key, cast in (("InrBudgetFraction", "budget_fraction", float), ("InrBudgetMaxSkip", "budget_max_skip", int),
+                            ("InrBudgetAlpha", "budget_alpha", float), ("InrReproject", "reproject", lambda v: bool(int(v))),
+                            ("InrPruneEpsilon", "prune_epsilon", float), ("InrPruneFalloff", "prune_falloff", float)):
         expect(prop in props, "the XML has no property %s" % prop)
         got = cast(props[prop].get("default_values"))
         expect(got == q[key], "%s: XML default %r, QueryReductionSettings default %r" % (prop, got, q[key]))

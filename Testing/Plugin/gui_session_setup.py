@@ -119,7 +119,7 @@ def log_render(ms):
     frames = get(inr, "InrAccumulatedFrames")
     interactive = get(inr, "InrLastRenderInteractive")
     backend = get(inr, "InrBackendInUse").replace(" ", "_")
-    reduction = get(inr, "QueryReductionInUse")
+    reduction = get(inr, "InrQueryReductionInUse")
     budget = reduction.split(" ")[0] if reduction else "-"
     log.write(f"render block_ms={ms:.1f} inr=1 interactive={interactive} image={w}x{h} "
               f"frames={frames} mapper_ms={get(inr, 'InrLastRenderTime'):.1f} "

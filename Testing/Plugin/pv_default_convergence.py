@@ -97,7 +97,7 @@ print(f"scene: time {view.ViewTime:g}, colour range [{lut.RGBPoints[0]:g}, {lut.
 
 defaults = {p: display.GetPropertyValue(p) for p in
             ("InrConvergenceTarget", "InrMaximumFrames", "InrFramesPerRender", "InrSeed",
-             "RayBudget", "PruneEpsilon", "Reproject")}
+             "InrRayBudget", "InrPruneEpsilon", "InrReproject")}
 print("defaults:", defaults, f"minimumFrames {min_frames}", flush=True)
 
 

@@ -1,6 +1,6 @@
 """The "Query reduction" properties of the INR Volume representation through paraview.simple:
 each one set by its documented Python name reaches the renderer (read back from the engine through
-the information property QueryReductionInUse), the panel group and tooltips are there, pruning
+the information property InrQueryReductionInUse), the panel group and tooltips are there, pruning
 changes restart the accumulation, an invalid value is refused and the previous setting kept, and
 renders still work. Exit status 0 = pass.
 
@@ -22,8 +22,8 @@ check = C.Checks()
 
 
 def in_use(display):
-    """QueryReductionInUse ("budget=stbn rho=0.5 ...") as a dict of strings."""
-    text = C.info(display, "QueryReductionInUse")
+    """InrQueryReductionInUse ("budget=stbn rho=0.5 ...") as a dict of strings."""
+    text = C.info(display, "InrQueryReductionInUse")
     return dict(item.split("=", 1) for item in text.split())
 
 
@@ -41,8 +41,8 @@ display = C.show_inr(reader, view, seed=3, maximum_frames=64, frames_per_render=
 
 # The panel: one "Query reduction" group with the seven settings and the read-back, tooltips
 # naming the paper's symbols, the finer knobs under the advanced toggle.
-names = ["RayBudget", "BudgetFraction", "BudgetMaxSkip", "BudgetAlpha", "Reproject", "PruneEpsilon",
-         "PruneFalloff", "QueryReductionInUse"]
+names = ["InrRayBudget", "InrBudgetFraction", "InrBudgetMaxSkip", "InrBudgetAlpha", "InrReproject", "InrPruneEpsilon",
+         "InrPruneFalloff", "InrQueryReductionInUse"]
 proxy = display.SMProxy
 groups = [proxy.GetPropertyGroup(i) for i in range(proxy.GetNumberOfPropertyGroups())]
 group = next((g for g in groups if g.GetXMLLabel() == "Query reduction"), None)
@@ -51,33 +51,33 @@ if group is not None:
     members = [group.GetProperty(i) for i in range(group.GetNumberOfProperties())]
     for n in names:
         check(proxy.GetProperty(n) in members, f"{n} is in the 'Query reduction' group")
-symbols = {"RayBudget": "ρ", "BudgetFraction": "ρ", "BudgetMaxSkip": "K", "BudgetAlpha": "α",
-           "Reproject": "reproject", "PruneEpsilon": "ε", "PruneFalloff": "δ"}
+symbols = {"InrRayBudget": "ρ", "InrBudgetFraction": "ρ", "InrBudgetMaxSkip": "K", "InrBudgetAlpha": "α",
+           "InrReproject": "reproject", "InrPruneEpsilon": "ε", "InrPruneFalloff": "δ"}
 for n, symbol in symbols.items():
     doc = proxy.GetProperty(n).GetDocumentation()
     text = doc.GetDescription() if doc else ""
     check(symbol in text, f"{n}'s tooltip names {symbol!r}")
 for n in names[:-1]:
-    want = "advanced" if n in ("BudgetMaxSkip", "BudgetAlpha", "PruneFalloff") else "default"
+    want = "advanced" if n in ("InrBudgetMaxSkip", "InrBudgetAlpha", "InrPruneFalloff") else "default"
     got = proxy.GetProperty(n).GetPanelVisibility()
     check(got == want, f"{n} panel visibility {got!r} (want {want!r})")
-check(list(display.GetProperty("RayBudget").Available) == ["none", "histogram", "stbn", "weighted-stbn"],
-      f"RayBudget choices {list(display.GetProperty('RayBudget').Available)}")
+check(list(display.GetProperty("InrRayBudget").Available) == ["none", "histogram", "stbn", "weighted-stbn"],
+      f"InrRayBudget choices {list(display.GetProperty('InrRayBudget').Available)}")
 
 # Defaults (the XML's, equal to inr::QueryReductionSettings' by cli.query_reduction_xml_defaults)
 # are what the engine holds after the first render.
-defaults = {"budget": display.RayBudget, "rho": display.BudgetFraction, "K": display.BudgetMaxSkip,
-            "alpha": display.BudgetAlpha, "reproject": display.Reproject, "epsilon": display.PruneEpsilon,
-            "delta": display.PruneFalloff}
+defaults = {"budget": display.InrRayBudget, "rho": display.InrBudgetFraction, "K": display.InrBudgetMaxSkip,
+            "alpha": display.InrBudgetAlpha, "reproject": display.InrReproject, "epsilon": display.InrPruneEpsilon,
+            "delta": display.InrPruneFalloff}
 simple.Render(view)
 expect_in_use(display, defaults, "defaults reach the engine")
 
 # Every property, set by the name Docs/paraview.md documents, reaches the engine.
-display.RayBudget = "stbn"
-display.BudgetFraction = 0.5
-display.BudgetMaxSkip = 5
-display.BudgetAlpha = 0.25
-display.Reproject = 1
+display.InrRayBudget = "stbn"
+display.InrBudgetFraction = 0.5
+display.InrBudgetMaxSkip = 5
+display.InrBudgetAlpha = 0.25
+display.InrReproject = 1
 simple.Render(view)
 expect_in_use(display, {"budget": "stbn", "rho": 0.5, "K": 5, "alpha": 0.25, "reproject": 1},
               "budget settings and reprojection reach the engine")
@@ -88,29 +88,40 @@ check(frames >= 2, f"accumulating with the budget on ({frames} frames after 3 re
 # Pruning thresholds change the estimator: the engine restarts the accumulation (one frame per
 # render from here: no time budget, so the restarted image holds exactly the render's one frame).
 display.InrRefinementTimeBudget = 0.0
-display.PruneEpsilon = 0.02
-display.PruneFalloff = 0.01
+display.InrPruneEpsilon = 0.02
+display.InrPruneFalloff = 0.01
 simple.Render(view)
 expect_in_use(display, {"epsilon": 0.02, "delta": 0.01}, "pruning thresholds reach the engine")
 after = C.info(display, "InrAccumulatedFrames")
 check(after == 1, f"a pruning change restarts the accumulation ({frames} -> {after} frames)")
 
 for scheme in ("histogram", "weighted-stbn"):
-    display.RayBudget = scheme
+    display.InrRayBudget = scheme
     simple.Render(view)
-    expect_in_use(display, {"budget": scheme}, f"RayBudget = {scheme!r} reaches the engine")
+    expect_in_use(display, {"budget": scheme}, f"InrRayBudget = {scheme!r} reaches the engine")
 
 # An invalid value is refused with an error naming it; the engine keeps the previous settings.
-display.BudgetFraction = 0.0
+display.InrBudgetFraction = 0.0
 simple.Render(view)
-expect_in_use(display, {"rho": 0.5}, "BudgetFraction = 0 is refused, rho stays 0.5")
-display.BudgetFraction = 0.5
+expect_in_use(display, {"rho": 0.5}, "InrBudgetFraction = 0 is refused, rho stays 0.5")
+display.InrBudgetFraction = 0.5
+
+# The old names (before the Inr prefix) still set the engine, for older scripts.
+display.RayBudget = "stbn"
+display.BudgetFraction = 0.25
+simple.Render(view)
+expect_in_use(display, {"budget": "stbn", "rho": 0.25}, "the old names RayBudget / BudgetFraction still reach the engine")
+display.InrRayBudget = "histogram"
+display.InrBudgetFraction = 0.4
+simple.Render(view)
+expect_in_use(display, {"budget": "histogram", "rho": 0.4}, "the new names win when set after the old ones")
+display.InrBudgetFraction = 0.5
 
 # Everything off: exact images again.
-display.RayBudget = "none"
-display.Reproject = 0
-display.PruneEpsilon = 0.0
-display.PruneFalloff = 0.0
+display.InrRayBudget = "none"
+display.InrReproject = 0
+display.InrPruneEpsilon = 0.0
+display.InrPruneFalloff = 0.0
 display.InrMaximumFrames = 4
 display.InrFramesPerRender = 4
 out = os.path.join(args.out, "query_reduction_off.png")

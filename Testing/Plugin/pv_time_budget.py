@@ -25,7 +25,7 @@ reader = simple.OpenDataFile(args.model)
 view = C.setup_view([64, 48])
 display = C.show_inr(reader, view, seed=3, maximum_frames=2048, frames_per_render=1, macrocells=8)
 check(display.InrRefinementTimeBudget == 50, "the default budget is 50 ms")
-display.Reproject = 0  # a camera move restarts the image (instead of reprojecting it)
+display.InrReproject = 0  # a camera move restarts the image (instead of reprojecting it)
 
 
 # The read-backs of the last render live on the INR Volume sub-proxy (not exposed on the display).

@@ -25,7 +25,7 @@ position, origin, scale, angle = [0.4, -0.3, 0.2], [1.0, 0.0, 0.5], 1.5, 30.0
 reader = simple.OpenDataFile(args.model)
 view = C.setup_view(size)
 display = C.show_inr(reader, view, seed=7, maximum_frames=16, frames_per_render=16, macrocells=16)
-display.Reproject = 0  # each picture from a fresh accumulation
+display.InrReproject = 0  # each picture from a fresh accumulation
 simple.GetAnimationScene().AnimationTime = 2.5
 
 
