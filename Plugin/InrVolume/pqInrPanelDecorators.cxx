@@ -58,32 +58,39 @@ void pqInrPanelDecorators::createDefaultWidgetDecorators(pqPropertyWidget* widge
   }
   vtkSMProxy* owner = property->GetParent();
   const char* ownerName = owner ? owner->GetXMLName() : nullptr;
-  if (!owner || owner == proxy || (ownerName && std::strcmp(ownerName, kInrSubProxy) == 0))
+  if (!owner || owner == proxy)
   {
-    return;  // the representation's own rows and INR Volume's
+    return;  // the representation's own rows (Representation, axes grids) serve every kind
+  }
+  if (ownerName && std::strcmp(ownerName, kInrSubProxy) == 0)
+  {
+    // INR Volume's own rows do nothing for the other kinds: shown only with INR Volume.
+    new pqInrRepresentationTypeDecorator(proxy, widget, true);
+    return;
   }
   const char* name = proxy->GetPropertyName(property);
   if (InrVolumeHonours(name))
   {
     return;
   }
-  new pqInrHideForInrVolumeDecorator(proxy, widget);
+  new pqInrRepresentationTypeDecorator(proxy, widget, false);
 }
 
-pqInrHideForInrVolumeDecorator::pqInrHideForInrVolumeDecorator(
-  vtkSMProxy* representation, pqPropertyWidget* parent)
+pqInrRepresentationTypeDecorator::pqInrRepresentationTypeDecorator(
+  vtkSMProxy* representation, pqPropertyWidget* parent, bool showOnlyWithInrVolume)
   : pqPropertyWidgetDecorator(nullptr, parent)
   , Representation(representation)
+  , ShowOnlyWithInrVolume(showOnlyWithInrVolume)
 {
   this->Type = representation->GetProperty("Representation");
   if (this->Type)
   {
     this->ObserverId = this->Type->AddObserver(vtkCommand::ModifiedEvent, this,
-      &pqInrHideForInrVolumeDecorator::visibilityChanged);
+      &pqInrRepresentationTypeDecorator::visibilityChanged);
   }
 }
 
-pqInrHideForInrVolumeDecorator::~pqInrHideForInrVolumeDecorator()
+pqInrRepresentationTypeDecorator::~pqInrRepresentationTypeDecorator()
 {
   if (this->Type)
   {
@@ -91,7 +98,7 @@ pqInrHideForInrVolumeDecorator::~pqInrHideForInrVolumeDecorator()
   }
 }
 
-bool pqInrHideForInrVolumeDecorator::canShowWidget(bool) const
+bool pqInrRepresentationTypeDecorator::canShowWidget(bool) const
 {
-  return !showsInrVolume(this->Representation);
+  return showsInrVolume(this->Representation) == this->ShowOnlyWithInrVolume;
 }

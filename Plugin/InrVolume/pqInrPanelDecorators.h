@@ -12,8 +12,9 @@
  * did not define, without touching ParaView's XML. A row is hidden when the representation is INR
  * Volume and its property belongs to another kind's sub-proxy, unless INR Volume honours it
  * (InrVolumeHonours: colouring, the colour and opacity maps, the opacity unit distance, the
- * transform). Rows of the representation itself (Representation, axes grids) and INR Volume's
- * own stay; every row comes back when another representation type is chosen, and the panel's
+ * transform). Rows of the representation itself (Representation, axes grids) stay; every row
+ * comes back when another representation type is chosen, and INR Volume's own rows then hide
+ * (they do nothing for Surface, Slice, ParaView's Volume, ...). The panel's
  * search box still finds a hidden one only after switching type (as for ParaView's own hidden
  * rows).
  */
@@ -44,17 +45,20 @@ public:
   static bool InrVolumeHonours(const char* name);
 };
 
-/// The decorator itself: hides its row while the representation is INR Volume.
-class pqInrHideForInrVolumeDecorator : public pqPropertyWidgetDecorator
+/// The decorator itself: shows its row only while the representation is INR Volume
+/// (`showOnlyWithInrVolume`, INR Volume's own rows) or only while it is not (the other kinds').
+class pqInrRepresentationTypeDecorator : public pqPropertyWidgetDecorator
 {
   Q_OBJECT
 public:
-  pqInrHideForInrVolumeDecorator(vtkSMProxy* representation, pqPropertyWidget* parent);
-  ~pqInrHideForInrVolumeDecorator() override;
+  pqInrRepresentationTypeDecorator(
+    vtkSMProxy* representation, pqPropertyWidget* parent, bool showOnlyWithInrVolume);
+  ~pqInrRepresentationTypeDecorator() override;
   bool canShowWidget(bool showAdvanced) const override;
 
 private:
   vtkWeakPointer<vtkSMProxy> Representation;
+  bool ShowOnlyWithInrVolume;
   vtkWeakPointer<vtkSMProperty> Type;  // its "Representation" property, observed
   unsigned long ObserverId = 0;
 };

@@ -9,7 +9,9 @@ Frame: new macrocell slices build); a camera drag on the view; a property change
 minimum, 0.01, no error); a renderer rebuild in the panel (Backend = CPU); a pause after each step.
 The setup script records every message of VTK's output window (what ParaView's Output Messages
 window pops up for) and every render. Checks:
-  - paraview ran the whole recorded session (exit status 0, every widget found);
+  - paraview ran the whole recorded session (exit status 0, every widget found), with its panel
+    checks: as INR Volume, INR Volume's rows shown and surface rows (Opacity, Line Width) hidden;
+    switched to Surface at the end, the reverse;
   - NO warning and NO error reached the output window: no "Error in cache state", no OpenGL error
     (the plugin's or VTK's), nothing else (each message is printed);
   - every step reached the view: the model is shown as INR Volume, the view time moved twice, the
