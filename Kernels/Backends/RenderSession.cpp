@@ -81,9 +81,11 @@ protected:
   Renderer renderer_;
 };
 
-class CpuRenderSession final : public BackendSession<CpuInrEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
+// Runs any host FieldEvaluator: its own CpuInrEvaluator, another session's, or a stand-in of the
+// network (a GridField: RenderSession::workingMeanField).
+class CpuRenderSession final : public BackendSession<FieldEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
 public:
-  CpuRenderSession(const InrModel& model, std::shared_ptr<const CpuInrEvaluator> evaluator,
+  CpuRenderSession(const InrModel& model, std::shared_ptr<const FieldEvaluator> evaluator,
                    const RenderSessionOptions& o, std::string note)
       : BackendSession(model, std::move(evaluator), o), note_(std::move(note)) {}
   RenderBackend backend() const override { return RenderBackend::Cpu; }
@@ -92,6 +94,11 @@ public:
   }
   SharedEvaluator sharedEvaluator() const override { return SharedEvaluator{evaluator_, RenderBackend::Cpu, 0}; }
   FrameStats renderFrameNaive() override { return renderer_.renderFrameNaive(); }
+  std::shared_ptr<const GridField> workingMeanField(double time) const override {
+    if (!grid_.hasWorkingGrid() || grid_.time() != time) return nullptr;
+    return std::make_shared<const GridField>(grid_.box(), grid_.dims(), grid_.workingMean(),
+                                             "macrocell means at t=" + std::to_string(grid_.time()));
+  }
 
 private:
   std::string note_;
@@ -177,11 +184,7 @@ std::unique_ptr<RenderSession> createOnShared(const InrModel& model, const Rende
   if (options.backend != RenderBackend::Auto && options.backend != shared.backend)
     throw std::invalid_argument(std::string("a shared evaluator of the ") + renderBackendName(shared.backend) +
                                 " backend cannot run a " + renderBackendName(options.backend) + " session");
-  if (shared.backend == RenderBackend::Cpu) {
-    auto cpu = std::dynamic_pointer_cast<const CpuInrEvaluator>(shared.evaluator);
-    if (!cpu) throw std::invalid_argument("the shared evaluator is not a CPU INR evaluator");
-    return std::make_unique<CpuRenderSession>(model, std::move(cpu), options, "");
-  }
+  if (shared.backend == RenderBackend::Cpu) return std::make_unique<CpuRenderSession>(model, shared.evaluator, options, "");
 #ifdef INR_HAVE_CUDA
   if (options.cudaDevice != shared.cudaDevice)
     throw std::invalid_argument("the shared evaluator runs on CUDA device " + std::to_string(shared.cudaDevice) +

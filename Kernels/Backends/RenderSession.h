@@ -21,6 +21,7 @@
 #include "Evaluator/FieldEvaluator.h"
 #include "Model/InrModel.h"
 #include "Render/DeltaTrackingRenderer.h"
+#include "Render/GridField.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/QueryReduction.h"
 #include "Render/RenderStats.h"
@@ -131,6 +132,14 @@ public:
   }
   virtual std::vector<float> residual() const = 0;
   virtual MacrocellInfo macrocellInfo() const = 0;
+  // The working macrocell grid's per-cell means at `time` (the field averaged over each cell's
+  // lattice samples) as a field that costs no query: a stand-in of the network for an approximate
+  // image (the plugin's camera drags on the CPU). Null where the grid is not on the host (CUDA)
+  // or the working grid is not at `time` (no scene at that time set since).
+  virtual std::shared_ptr<const GridField> workingMeanField(double time) const {
+    (void)time;
+    return nullptr;
+  }
   virtual const RendererCounters& counters() const = 0;  // scene-change work, capped rays, truncated frames
   // Where the renderer's once-per-cause warnings go (work caps hit); default: stderr.
   virtual void setWarningHandler(std::function<void(const std::string&)> handler) = 0;

@@ -19,6 +19,7 @@ void MacrocellGridBase::setTime(double t) {
   }
   interpolateWorkingGrid();
   clearDirtyCells();
+  workingGridSet_ = true;
 }
 
 void MacrocellGridBase::buildSlicesFor(double t) {

@@ -40,6 +40,8 @@ public:
   // progress, and changes nothing else: lets a caller do the slow part of a time change first.
   void buildSlicesFor(double t);
   double time() const { return time_; }
+  // Whether the working grid was interpolated (setTime called): it is the grid at time() then.
+  bool hasWorkingGrid() const { return workingGridSet_; }
   virtual bool sliceBuilt(int k) const = 0;
 
   const MacrocellOptions& options() const { return options_; }
@@ -82,6 +84,7 @@ protected:
   MacrocellOptions options_;
   MacrocellLayout layout_;
   double time_ = 0.0;
+  bool workingGridSet_ = false;
   int k0_ = 0, k1_ = 0;
   float w_ = 0.f;
   BuildStats stats_;

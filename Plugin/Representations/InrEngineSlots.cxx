@@ -246,6 +246,8 @@ bool InrEngines::SetModel(const unsigned char* bytes, std::size_t n)
   this->hash = h;
   this->modelOk = false;
   this->coarse.session.reset();  // before the fine one: it runs the fine one's evaluator
+  this->standIn.reset();
+  this->standInField.reset();
   this->fine.session.reset();
   this->coarseFailed = false;
   try
@@ -288,6 +290,8 @@ bool InrEngines::UpdateFine(const InrEngineRequest& want)
     {
       // The coarse session runs the fine session's evaluator: it goes with it.
       this->coarse.session.reset();
+      this->standIn.reset();
+      this->standInField.reset();
       this->coarseFailed = false;
       f.session.reset();
       InrEngineRequest built = want;
@@ -352,6 +356,19 @@ bool InrEngines::UpdateFine(const InrEngineRequest& want)
   return true;
 }
 
+void InrEngines::KeepStandIn(double time)
+{
+  if (this->FineBusy() || !this->fine.session || (this->standInField && this->standInTime == time))
+  {
+    return;
+  }
+  if (auto field = this->fine.session->workingMeanField(time))
+  {
+    this->standInField = std::move(field);
+    this->standInTime = time;
+  }
+}
+
 bool InrEngines::UpdateCoarse(int n)
 {
   InrEngineSlot& c = this->coarse;
@@ -378,8 +395,16 @@ bool InrEngines::UpdateCoarse(int n)
     {
       // No progress handler for its lazy builds (inside interactive frames, short); the build
       // ahead reports progress (BuildCoarseAhead).
-      c.session = inr::RenderSession::create(
-        this->model, InrSessionOptions(this->fine.built, InrSessionLevel::Coarse(n, *this->fine.session)));
+      InrSessionLevel level = InrSessionLevel::Coarse(n, *this->fine.session);
+      this->standIn.reset();
+      if (level.evaluator.backend == inr::RenderBackend::Cpu)
+      {
+        // On the CPU a camera drag may draw a stand-in of the network (StandInReady).
+        this->standIn = std::make_shared<InrStandInSwitch>(level.evaluator.evaluator);
+        level.evaluator.evaluator = this->standIn;
+      }
+      c.session =
+        inr::RenderSession::create(this->model, InrSessionOptions(this->fine.built, level));
       auto warn = this->warning;
       c.session->setWarningHandler([warn](const std::string& message)
         {

@@ -119,6 +119,30 @@ struct InrEngineOptions
   void Check(const std::function<void(const std::string&)>& error);
 };
 
+/// The coarse session's evaluator on the CPU backend: the fine session's network, or, during the
+/// frames of a camera drag, a stand-in of it that costs no query (RenderSession::workingMeanField:
+/// the fine macrocells' per-cell means at the time shown). The mapper switches it on around those
+/// frames only, after the coarse slices of the time are built from the network, so the coarse
+/// session's bounds and its time-change frames always come from the network.
+class InrStandInSwitch final : public inr::FieldEvaluator
+{
+public:
+  explicit InrStandInSwitch(std::shared_ptr<const inr::FieldEvaluator> network)
+    : network(std::move(network))
+  {
+  }
+  void evaluate(const inr::QueryPoint* points, std::size_t n, float* out) const override
+  {
+    (this->active && this->field ? *this->field : *this->network).evaluate(points, n, out);
+  }
+  std::string name() const override { return this->network->name(); }
+  const inr::FieldEvaluator& Network() const { return *this->network; }
+
+  std::shared_ptr<const inr::FieldEvaluator> network;
+  std::shared_ptr<const inr::GridField> field;  // the stand-in while active
+  bool active = false;
+};
+
 /// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
 /// one of reduced interactive frames, built from one request (InrSessionOptions), the long
 /// macrocell builds optionally on one worker thread (the fine slices of a new time, the coarse
@@ -192,6 +216,29 @@ public:
   /// Milliseconds the last joined build ahead ran on the worker (0 before).
   double LastCoarseAheadMs() const { return this->coarseAheadMs; }
 
+  /// Keeps the fine session's stand-in of the network (RenderSession::workingMeanField) for
+  /// `time`, the time of the fine session's scene, unless one is kept for it already: the mapper
+  /// calls it whenever it holds the fine session (not on the worker) after a frame, so that a
+  /// camera drag finds it even while the worker refines the fine session.
+  void KeepStandIn(double time);
+  /// Whether a camera drag at `time` can draw the coarse session on the stand-in of the network
+  /// (InrStandInSwitch): the coarse session runs on the CPU and a stand-in for `time` is kept.
+  /// UseStandIn switches the coarse session's evaluator to it and back.
+  bool StandInReady(double time) const
+  {
+    return this->standIn && this->coarse.session && this->standInField && this->standInTime == time;
+  }
+  void UseStandIn(bool on)
+  {
+    if (this->standIn)
+    {
+      this->standIn->field = on ? this->standInField : nullptr;
+      this->standIn->active = on && this->standInField;
+    }
+  }
+  /// The coarse session's evaluator where it is the switch (CPU backend), else null.
+  const InrStandInSwitch* StandIn() const { return this->standIn.get(); }
+
   /// Hands the query reduction to `slot`'s session when it changed (a refused set is reported
   /// once and the session keeps what it had).
   void PushQueryReduction(InrEngineSlot& slot, const inr::QueryReductionSettings& asked);
@@ -202,6 +249,9 @@ public:
   std::string queryReductionInUse;
 
 private:
+  std::shared_ptr<InrStandInSwitch> standIn;  // the coarse session's evaluator on the CPU
+  std::shared_ptr<const inr::GridField> standInField;  // KeepStandIn's, for standInTime
+  double standInTime = 0.0;
   std::uint64_t hash = 0;
   bool modelOk = false;
   std::uint64_t reportedBadHash = 0;

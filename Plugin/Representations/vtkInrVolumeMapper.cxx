@@ -236,6 +236,7 @@ struct vtkInrVolumeMapper::Internals
   std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
   std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
   bool shownCoarse = false;     // the last Render drew the coarse session's image
+  bool shownStandIn = false;    // ... on the stand-in of the network (InteractiveStandIn)
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   inr::RenderSession* Shown() const
   {
@@ -246,7 +247,18 @@ struct vtkInrVolumeMapper::Internals
   // Level of detail (InrLevelOfDetail.h): the policy and its cost model; the mapper's options
   // as the policy reads them.
   InrLevelOfDetail lod;
+  // The cost model of camera drags drawn on the stand-in (InteractiveStandIn): far cheaper per
+  // pixel than the network's frames, so its scale must not carry over to time changes and back.
+  InrLevelOfDetail lodStandIn;
   InrLevelOfDetail::Settings LodSettings(vtkInrVolumeMapper* self) const;
+  // Whether this render, a camera drag (interactive, not a time change) of an on-screen view,
+  // may draw the stand-in of the network (InteractiveStandIn): it renders on the coarse session
+  // (Reproject on) and the stand-in for the time is ready (InrEngines::StandInReady).
+  bool StandInFor(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d, double time)
+  {
+    return self->InteractiveStandIn && this->window.fullWidth == 0 && !self->Capturing &&
+      d.interactive && !d.timeChange && this->RendersCoarse(self, d) && this->engines.StandInReady(time);
+  }
   // Whether a reduced interactive frame renders on the coarse session (creating it if needed).
   bool RendersCoarse(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d)
   {
@@ -408,7 +420,11 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
   { return progressHandler(this, prefix, muted); };
   // Frames measured while the worker shared the CPU were slower: a scale barred by them may be
   // tried again.
-  engines.joined = [this]() { this->Internal->lod.ForgetCeiling(); };
+  engines.joined = [this]()
+  {
+    this->Internal->lod.ForgetCeiling();
+    this->Internal->lodStandIn.ForgetCeiling();
+  };
 }
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
@@ -635,7 +651,17 @@ int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
   this->Internal->engines.FinishBackgroundBuild();
   const auto& fine = this->Internal->engines.fine.session;
   const auto& coarse = this->Internal->engines.coarse.session;
-  return fine && coarse && &fine->evaluator() == &coarse->evaluator() ? 1 : 0;
+  // On the CPU the coarse session's evaluator is the switch to a stand-in (InrStandInSwitch),
+  // around the fine session's network.
+  const InrStandInSwitch* standIn = this->Internal->engines.StandIn();
+  const inr::FieldEvaluator* coarseNetwork =
+    coarse ? (standIn ? &standIn->Network() : &coarse->evaluator()) : nullptr;
+  return fine && coarse && &fine->evaluator() == coarseNetwork ? 1 : 0;
+}
+
+int vtkInrVolumeMapper::GetLastRenderStandIn()
+{
+  return this->Internal->shownStandIn ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderCoarse()
@@ -943,7 +969,12 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       d = InrLevelOfDetail::WhileFineBuilds(lod);
     }
   }
-  const InrLevelOfDetail::Frame frame = I.lod.Plan(lod, d, tile.width, tile.height);
+  // A camera drag drawn on the stand-in of the network (InteractiveStandIn) has its own cost
+  // model, and stays on the stand-in even where its full resolution fits the budget.
+  const bool standIn = I.StandInFor(this, d, scene.time);
+  InrLevelOfDetail& lodModel = standIn ? I.lodStandIn : I.lod;
+  InrLevelOfDetail::Frame frame = lodModel.Plan(lod, d, tile.width, tile.height);
+  frame.interactive = frame.interactive || standIn;
   // A camera interaction that fits at full resolution renders as a still frame, but one frame:
   // the refinement time budget is for a view at rest (a drag frame would otherwise take it all).
   I.cameraInteraction = d.interactive && !d.timeChange;
@@ -955,6 +986,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
   I.lod.SawTime(scene.time);
+  I.lodStandIn.SawTime(scene.time);
   I.lastEngineBudgetMs = -1.0;
   const auto refineStart = Clock::now();
   const double refineCpuStart = processCpuMs();
@@ -970,9 +1002,18 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     I.engines.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
-  if (!I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background))
+  const bool drawStandIn = standIn && useCoarse;
+  I.engines.UseStandIn(drawStandIn);
+  const bool refined = I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background);
+  I.engines.UseStandIn(false);
+  I.shownStandIn = drawStandIn && refined;
+  if (!refined)
   {
     return;
+  }
+  if (!useCoarse && !background && I.haveFineScene)
+  {
+    I.engines.KeepStandIn(I.fineScene.time);  // a frame of the fine session was rendered here
   }
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
@@ -988,6 +1029,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const double compositeMs = msSince(compositeStart);
   I.lastRenderMs = msSince(renderStart);
   I.lod.Drew(interactive);
+  I.lodStandIn.Drew(interactive);
   I.renderedInWindow = true;
   I.imageWidth = width;
   I.imageHeight = height;
@@ -1002,8 +1044,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   else
   {
-    I.lod.MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
-      I.lastStep.framesRendered, width, height, interactive);
+    (drawStandIn ? I.lodStandIn : I.lod)
+      .MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
+        I.lastStep.framesRendered, width, height, interactive);
   }
   if (lodReport())
   {
@@ -1023,7 +1066,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
-      useCoarse ? ", coarse macrocells" : "", worker.c_str());
+      useCoarse ? (drawStandIn ? ", coarse macrocells, stand-in" : ", coarse macrocells") : "",
+      worker.c_str());
   }
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
@@ -1057,6 +1101,10 @@ void vtkInrVolumeMapper::Internals::LaunchRefine()
     return;
   }
   this->startRefine = false;
+  if (this->haveFineScene)
+  {
+    this->engines.KeepStandIn(this->fineScene.time);  // while the fine session is not the worker's
+  }
   this->fineKept.frames = this->engines.fine.session->accumulatedFrames();
   this->fineKept.estimate = this->engines.fine.refinement.estimate();
   this->engines.StartFineRefine();
@@ -1199,6 +1247,7 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
     self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
+    self->lodStandIn.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
     const double after = msSince(self->framesEnd);
     self->afterMs = self->afterMs > 0.0 ? 0.5 * (self->afterMs + after) : after;
     self->renderedInWindow = false;
@@ -1723,6 +1772,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   os << indent << "Backend: " << this->Backend << " (" << this->GetBackendInUse() << ")\n";
   os << indent << "Traversal: " << this->Traversal << "\n";
+  os << indent << "InteractiveStandIn: " << this->InteractiveStandIn << "\n";
   os << indent << "MacrocellResolution: " << this->MacrocellResolution << "\n";
   os << indent << "TemporalSlices: " << this->TemporalSlices << "\n";
   os << indent << "Shadows: " << this->Shadows << "\n";

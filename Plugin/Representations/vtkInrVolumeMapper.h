@@ -293,6 +293,16 @@ public:
   /// chosen resolution costs (the budget holds): a smoother, blurrier reduced image.
   vtkSetClampMacro(InteractiveFreshFrames, int, 1, 64);
   vtkGetMacro(InteractiveFreshFrames, int);
+  /// InteractiveStandIn (default on): camera drags on the CPU backend draw a stand-in of the
+  /// network, the fine macrocells' per-cell means at the time shown (a coarse grid interpolated
+  /// trilinearly, no network query), on the coarse interactive macrocells: a frame costs a small
+  /// part of a network frame, so drags run at a higher resolution, with the blur of that grid.
+  /// The still image after the drag is the network's. It has its own level-of-detail cost
+  /// model (a drag's scale does not carry over to time changes, which draw the network). Used
+  /// once the fine session has rendered the time shown (not while its slices build) and with
+  /// Reproject on (drags on the coarse session); the GPU draws the network.
+  vtkSetMacro(InteractiveStandIn, int);
+  vtkGetMacro(InteractiveStandIn, int);
   /// The scale and frame count of such a render, for the scale `scale` chosen for one frame.
   static double InteractiveFreshFrameScale(double scale, int fresh);
   static int InteractiveFreshFrameCount(double scale, int fresh);
@@ -307,6 +317,8 @@ public:
   /// 1 when both sessions exist and run one evaluator (weights uploaded, and on CUDA autotuned,
   /// once).
   int GetInteractiveSharesEvaluator();
+  /// 1 when the last Render drew a frame of the stand-in (InteractiveStandIn).
+  int GetLastRenderStandIn();
   /// 1 when the last Render drew a frame of the coarse session.
   int GetLastRenderCoarse();
   /// Capturing (set by the representation while ParaView captures a screenshot or an animation
@@ -433,6 +445,7 @@ private:
   int InteractiveMacrocellResolution = 8;
   int InteractiveMacrocellsAhead = 1;
   int InteractiveFreshFrames = 4;
+  int InteractiveStandIn = 1;
   bool Capturing = false;
 
   struct Internals;

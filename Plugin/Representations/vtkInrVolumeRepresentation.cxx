@@ -205,6 +205,7 @@ INR_FORWARD(InteractiveFrameTime, double)
 INR_FORWARD(InteractiveMacrocellResolution, int)
 INR_FORWARD(InteractiveMacrocellsAhead, int)
 INR_FORWARD(InteractiveFreshFrames, int)
+INR_FORWARD(InteractiveStandIn, int)
 #undef INR_FORWARD
 
 void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)

@@ -100,6 +100,8 @@ public:
   void SetInrInteractiveMacrocellsAhead(int);
   /// InrInteractiveFreshFrames: frames of a time-change interactive image (at a lower resolution).
   void SetInrInteractiveFreshFrames(int);
+  /// InrInteractiveStandIn: camera drags on the CPU draw a stand-in of the network.
+  void SetInrInteractiveStandIn(int);
   int GetInrLastRenderInteractive();
   /// The last render's image size (reduced during interaction), its wall time and its macrocell /
   /// majorant update time (ms).
