@@ -23,15 +23,6 @@ namespace {
 
 using test::SceneSetup;
 
-// The smooth field seen obliquely, 20 x 20 pixels, partly translucent.
-SceneSetup shareScene(bool shadows) {
-  SceneSetup s = test::obliqueCubeScene(20, 5);
-  s.scene.transferFunction = TransferFunction::preset(0.3, 0.95, 0.7);
-  s.scene.transferFunction.unitDistance = 0.25;
-  test::lightScene(s.scene, shadows, ShadowEstimator::Ratio);
-  return s;
-}
-
 // Macrocells and tracking that do not adapt to the samples: no refinement (query reduction is off
 // by default), so the shares' and the single renderer's frames see the same majorants.
 test::ShareRenderer cpuRenderer(const FieldEvaluator& field, const SceneSetup& s, TrackingOptions tracking,
@@ -63,30 +54,18 @@ TEST(SampleShare, FramesOfTheSharesAreTheSingleRenderersFramesOnce) {
   }
 }
 
+// 9 frames over 2 shares (5 + 4) and 13 over 3 (5 + 4 + 4): uneven shares, weighted.
 TEST(SampleShare, SharesAverageToOneRendererOverTheirFrames) {
   const test::FunctionField field(test::smoothField);
-  struct Case {
-    const char* name;
-    TrackingOptions tracking;
-  };
-  const Case cases[] = {{"delta", TrackingOptions{}},
-                        {"ratio", test::ratioTracking(4.0, 8)},
-                        {"march", test::unbiasedMarch(4.0, 1.0, 8)}};
-  for (const Case& c : cases)
-    for (bool shadows : {false, true}) {
-      const SceneSetup s = shareScene(shadows);
-      const test::ShareRenderer render = cpuRenderer(field, s, c.tracking);
-      const std::string what = std::string("CPU ") + c.name + (shadows ? " with shadows" : "");
-      // 9 frames over 2 shares (5 + 4) and 13 over 3 (5 + 4 + 4): uneven shares, weighted.
-      test::expectSharesEqualOneRenderer(render, s.settings, 2, 9, what);
-      test::expectSharesEqualOneRenderer(render, s.settings, 3, 13, what);
-    }
+  test::expectSharesEqualOneRendererForEveryEstimator(
+      "CPU", 20, [&](const SceneSetup& s, const TrackingOptions& t) { return cpuRenderer(field, s, t); },
+      {{2, 9}, {3, 13}});
 }
 
 // A jittered ray marcher keys its jitter by the frame too: its shares follow the same mapping.
 TEST(SampleShare, RayMarcherSharesAverageToOneMarcher) {
   const test::FunctionField field(test::smoothField);
-  const SceneSetup s = shareScene(false);
+  const SceneSetup s = test::sampleShareScene(20, false);
   RayMarchOptions o;
   o.step = 0.05f;
   const test::ShareRenderer march = [&](const RenderSettings& settings, int frames) {
@@ -105,7 +84,7 @@ TEST(SampleShare, RayMarcherSharesAverageToOneMarcher) {
 // differ from the single renderer's, so budgeting keeps the estimate unbiased, not the same.)
 TEST(SampleShare, BlueNoiseBudgetingFollowsTheShare) {
   const test::FunctionField field(test::smoothField);
-  const SceneSetup s = shareScene(false);
+  const SceneSetup s = test::sampleShareScene(20, false);
   QueryReductionSettings stbn;
   stbn.budget = BudgetScheme::Stbn;
   stbn.budgetFraction = 0.5;
@@ -129,7 +108,7 @@ TEST(SampleShare, BlueNoiseBudgetingFollowsTheShare) {
 // single renderer draws, so their work and refinements are the same on every share.
 TEST(SampleShare, GhostPassesAreTheSameOnEveryShare) {
   const test::FunctionField field(test::smoothField);
-  const SceneSetup s = shareScene(false);
+  const SceneSetup s = test::sampleShareScene(20, false);
   const auto ghost = [&](SampleShare share) {
     MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
     DeltaTrackingRenderer r(field, grid);

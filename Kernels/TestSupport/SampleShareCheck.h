@@ -7,16 +7,20 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "Common/ImageIO.h"
 #include "Render/RenderStats.h"
 #include "Render/SceneInputs.h"
+#include "Render/WavefrontRenderer.h"
+#include "TestSupport/TestScene.h"
 
 namespace inr::test {
 
@@ -105,6 +109,35 @@ inline void expectSharesEqualOneRenderer(const ShareRenderer& render, const Rend
               what.c_str(), count, totalFrames, error, tolerance, controlError);
   EXPECT_LE(error, tolerance) << what << ", " << count << " shares";
   EXPECT_GT(controlError, 100.0 * tolerance) << what << ": the check cannot tell shares apart";
+}
+
+// The smooth test field's oblique view (obliqueCubeScene), size x size pixels, partly
+// translucent, lit with ratio-tracked shadows on request.
+inline SceneSetup sampleShareScene(int size, bool shadows) {
+  SceneSetup s = obliqueCubeScene(size, 5);
+  s.scene.transferFunction = TransferFunction::preset(0.3, 0.95, 0.7);
+  s.scene.transferFunction.unitDistance = 0.25;
+  lightScene(s.scene, shadows, ShadowEstimator::Ratio);
+  return s;
+}
+
+// expectSharesEqualOneRenderer for every primary estimator (delta, ratio, march), without and with
+// shadows, on sampleShareScene(size): `makeRenderer(scene, tracking)` gives a backend's renderer;
+// `splits` lists {share count, total frames}.
+inline void expectSharesEqualOneRendererForEveryEstimator(
+    const std::string& backend, int size,
+    const std::function<ShareRenderer(const SceneSetup&, const TrackingOptions&)>& makeRenderer,
+    const std::vector<std::array<int, 2>>& splits) {
+  const std::pair<const char*, TrackingOptions> estimators[] = {
+      {"delta", TrackingOptions{}}, {"ratio", ratioTracking(4.0, 8)}, {"march", unbiasedMarch(4.0, 1.0, 8)}};
+  for (const auto& [name, tracking] : estimators)
+    for (bool shadows : {false, true}) {
+      const SceneSetup s = sampleShareScene(size, shadows);
+      const ShareRenderer render = makeRenderer(s, tracking);
+      for (const auto& [count, total] : splits)
+        expectSharesEqualOneRenderer(render, s.settings, count, total,
+                                     backend + " " + name + (shadows ? " with shadows" : ""));
+    }
 }
 
 }  // namespace inr::test

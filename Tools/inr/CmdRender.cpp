@@ -173,7 +173,7 @@ void writeBrickDescription(const RenderJob& job, const RenderSession& session, c
                            const RenderOutcome& r, double renderSeconds, double estimatedPsnr) {
   nlohmann::json meta;
   meta["brick"] = {{"index", job.splitIndex.index}, {"count", job.splitIndex.count}};
-  meta["split"] = job.split == SplitKind::PixelShare ? "pixels" : job.split == SplitKind::SampleShare ? "samples" : "bricks";
+  meta["split"] = splitKindName(job.split);
   meta["box"] = {b.box.lo.x, b.box.hi.x, b.box.lo.y, b.box.hi.y, b.box.lo.z, b.box.hi.z};
   meta["cells"] = {b.cellLo.x, b.cellHi.x, b.cellLo.y, b.cellHi.y, b.cellLo.z, b.cellHi.z};
   meta["camera"] = {{"position", c.position}, {"focal_point", c.focalPoint}, {"parallel", c.parallelProjection}};
@@ -334,11 +334,7 @@ int runRenderJob(const RenderJob& job) {
   report["time"] = scene.time;
   report["frames_requested"] = job.frames;
   if (job.split != SplitKind::None)
-    report["split"] = {{"kind", job.split == SplitKind::Brick         ? "bricks"
-                                : job.split == SplitKind::PixelShare ? "pixels"
-                                                                     : "samples"},
-                       {"index", job.splitIndex.index},
-                       {"count", job.splitIndex.count}};
+    report["split"] = {{"kind", splitKindName(job.split)}, {"index", job.splitIndex.index}, {"count", job.splitIndex.count}};
   report["threads"] = omp_get_max_threads();
   report["evaluator"] = evaluator.name();
   report["backend"] = session->description();

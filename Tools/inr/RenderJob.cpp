@@ -393,6 +393,16 @@ const char* renderMethodName(RenderMethod method) {
   return "?";
 }
 
+const char* splitKindName(SplitKind split) {
+  switch (split) {
+    case SplitKind::None: return "none";
+    case SplitKind::Brick: return "bricks";
+    case SplitKind::PixelShare: return "pixels";
+    case SplitKind::SampleShare: return "samples";
+  }
+  return "?";
+}
+
 std::string renderUsage() {
   return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + kRenderUsageTail;
 }

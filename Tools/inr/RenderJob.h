@@ -25,6 +25,8 @@ const char* renderMethodName(RenderMethod method);
 // Sub-domain rendering: one brick of the box, one interleaved share of the pixels, or one share
 // of the frames (every pixel).
 enum class SplitKind { None, Brick, PixelShare, SampleShare };
+// "bricks", "pixels", "samples" (the .brick.json's and the statistics' split), "none".
+const char* splitKindName(SplitKind split);
 
 struct RenderJob {
   bool help = false;  // --help: print the usage, nothing else is read

@@ -44,25 +44,12 @@ test::ShareRenderer gpuRenderer(const DeviceFieldEvaluator& field, const Box3f& 
 TEST(CudaSampleShare, SharesAverageToOneRendererOverTheirFrames) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
-  struct Case {
-    const char* name;
-    TrackingOptions tracking;
-  };
-  const Case cases[] = {{"delta", TrackingOptions{}},
-                        {"ratio", test::ratioTracking(4.0, 8)},
-                        {"march", test::unbiasedMarch(4.0, 1.0, 8)}};
-  for (const Case& c : cases)
-    for (bool shadows : {false, true}) {
-      SceneSetup s = test::obliqueCubeScene(48, 5);
-      s.scene.transferFunction = TransferFunction::preset(0.3, 0.95, 0.7);
-      s.scene.transferFunction.unitDistance = 0.25;
-      test::lightScene(s.scene, shadows, ShadowEstimator::Ratio);
-      const test::ShareRenderer render =
-          gpuRenderer(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2), s.scene, c.tracking);
-      const std::string what = std::string("GPU ") + c.name + (shadows ? " with shadows" : "");
-      test::expectSharesEqualOneRenderer(render, s.settings, 2, 9, what);
-      test::expectSharesEqualOneRenderer(render, s.settings, 4, 18, what);
-    }
+  test::expectSharesEqualOneRendererForEveryEstimator(
+      "GPU", 48,
+      [&](const SceneSetup& s, const TrackingOptions& t) {
+        return gpuRenderer(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2), s.scene, t);
+      },
+      {{2, 9}, {4, 18}});
 }
 
 // The same on a network (the fused evaluator's arithmetic) and the recommended estimator, and for
