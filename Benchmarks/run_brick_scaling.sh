@@ -64,6 +64,10 @@ for model in "$@"; do
   CUDA_VISIBLE_DEVICES=0 "$INR" render "$model" "${common[@]}" "${converge[@]}" $(threads_for 1) --pixel-share 0/1 \
     -o "$SCRATCH/$name.whole.npy" --stats-json "$OUT/$name.whole.stats.json" | tail -2
   echo "wall $(( $(ms_now) - t0 )) ms" | tee "$OUT/$name.whole.wall"
+  if [ ! -f "$SCRATCH/$name.whole.brick.json" ]; then
+    echo "$name: the 1-GPU run failed; skipped"
+    continue
+  fi
   cp "$SCRATCH/$name.whole.brick.json" "$OUT/"
   whole_frames=$("${PYTHON:-python3}" -c 'import json, sys; print(json.load(open(sys.argv[1]))["frames"])' \
                  "$SCRATCH/$name.whole.brick.json")
