@@ -13,7 +13,8 @@
 # their frame-weighted mean is the 1-GPU image up to rounding (composite vs 1 GPU at equal frames).
 # BACKEND=cpu INR_BIN=build/bin/inr: CPU processes instead (no build, no GPU): the single run
 # uses every core, each of the N parallel ones nproc/N threads (CPU "ranks" on one machine).
-# PYTHON: the interpreter with numpy for the compositing (default python3).
+# PYTHON: the interpreter with numpy for the compositing (default python3). TIME: the model time
+# rendered (default 2, inside the cylinder and head models' ranges).
 #   OUT=dir [N="2 4"] [SPLIT="pixels samples"] [TARGET=46] [MAX_FRAMES=3000] [SIZE=1024] \
 #     bash Benchmarks/run_brick_scaling.sh MODEL.inr...
 set -uo pipefail
@@ -55,7 +56,7 @@ ms_now() { echo $(( $(date +%s%N) / 1000000 )); }
 for model in "$@"; do
   name=$(basename "$model" .inr)
   tf="${model%.inr}.tf.json"
-  common=(--time 2 --size "${SIZE}x${SIZE}" --macrocells 64 --backend "$BACKEND" --quiet)
+  common=(--time "${TIME:-2}" --size "${SIZE}x${SIZE}" --macrocells 64 --backend "$BACKEND" --quiet)
   [ -f "$tf" ] && common+=(--tf "$tf")
   converge=(--converge "$TARGET" --frames "$MAX_FRAMES")
   echo "== $name: 1 GPU"
