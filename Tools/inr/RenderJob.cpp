@@ -410,11 +410,11 @@ std::string renderUsage() {
 RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   const Args args(arguments,
                   {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
-                   "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
+                   "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method", "sample-share",
                    "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes", "step",
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
-                   "brick", "pixel-share", "sample-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
+                   "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
                    "roulette-threshold"},
                   {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   RenderJob job;
