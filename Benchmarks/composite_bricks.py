@@ -3,8 +3,10 @@
 .brick.json beside it) front to back with the over operator, in the bricks' visibility order from
 the camera, or the pixel shares of `inr render --pixel-share I/N` (disjoint pixels: any order):
 what ParaView's ordered compositing does under MPI, for runs without ParaView (one process per
-GPU). Optionally compares the composite with a whole-box render (`--brick 0/1`, or
-any premultiplied RGBA .npy) over the pixels the volume covers.
+GPU); or averages the sample shares of `inr render --sample-share I/N` (every pixel, each share
+its own frames), weighted by each share's frames: the mean over all their frames. Optionally
+compares the composite with a whole-box render (`--brick 0/1`, or any premultiplied RGBA .npy)
+over the pixels the volume covers.
 
   composite_bricks.py B0.npy B1.npy ... [-o OUT.png|OUT.npy] [--background R,G,B]
                       [--reference WHOLE.npy] [--min-psnr DB] [--csv FILE]
@@ -89,6 +91,20 @@ def psnr_over_volume(a, b, coverage=0.01):
     return (float("inf") if mse == 0 else 10 * np.log10(1.0 / mse)), int(mask.sum())
 
 
+def sample_share_estimate(shares):
+    """Estimated PSNR (dB) of the frame-weighted mean of sample shares from each share's own
+    (frames, estimated PSNR): the shares' errors are independent, so the mean's squared error is
+    the sum of each share's estimated MSE times its weight squared. A share without an estimate
+    (None, or -inf: a covered pixel with one sample) leaves the mean without one."""
+    total = sum(f for f, _ in shares)
+    mse = 0.0
+    for frames, db in shares:
+        if db is None or db == float("-inf"):
+            return float("-inf")
+        mse += (frames / total) ** 2 * 10.0 ** (-db / 10.0)
+    return float("inf") if mse == 0 else -10.0 * np.log10(mse)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bricks", nargs="+")
@@ -112,14 +128,20 @@ def main():
     splits = {m.get("split", "bricks") for _, m in loaded}
     if len(splits) != 1:
         sys.exit(f"composite_bricks: the images mix splits {sorted(splits)}")
-    if splits == {"pixels"}:
-        order = list(range(count))  # disjoint pixel shares: any order adds them up
+    samples = splits == {"samples"}
+    if splits <= {"pixels", "samples"}:
+        order = list(range(count))  # disjoint pixels, or a weighted mean: any order
     else:
         order = visibility_order([m["box"] for _, m in loaded], eye)
 
     out = np.zeros_like(loaded[0][0])
-    for k in order:
-        out += (1.0 - out[..., 3:4]) * loaded[k][0]
+    if samples:
+        total_frames = sum(m["frames"] for _, m in loaded)
+        for im, m in loaded:
+            out += (m["frames"] / total_frames) * im
+    else:
+        for k in order:
+            out += (1.0 - out[..., 3:4]) * loaded[k][0]
 
     total_queries = sum(m["queries"] + m["shadow_queries"] for _, m in loaded)
     rows = []
@@ -130,10 +152,16 @@ def main():
         share = q / total_queries if total_queries else 0.0
         box = ",".join(f"{v:.4g}" for v in m["box"])
         print(f"{m['brick']['index']:>5} {m['frames']:>6} {q:>12} {share:>6.3f} {m['ms_per_frame']:>9.2f} "
-              f"{m['render_seconds']:>8.3f} {m['estimated_psnr_db']:>7.2f}  {box}")
+              f"{m['render_seconds']:>8.3f} {m['estimated_psnr_db'] or float('nan'):>7.2f}  {box}")
         rows.append({"brick": m["brick"]["index"], "count": count, "frames": m["frames"], "queries": q,
                      "share": share, "ms_per_frame": m["ms_per_frame"], "seconds": m["render_seconds"],
                      "estimated_psnr_db": m["estimated_psnr_db"], "backend": m.get("backend", "")})
+
+    if samples:
+        estimate = sample_share_estimate([(m["frames"], m["estimated_psnr_db"]) for _, m in loaded])
+        print(f"sample shares: mean over {total_frames} frames; estimated PSNR of the mean {estimate:.2f} dB")
+        for r in rows:
+            r["composite_estimated_psnr_db"] = estimate
 
     psnr = None
     if a.reference:

@@ -58,7 +58,7 @@ FrameStats RayMarchRenderer::renderFrame() {
   const CameraView cam = scene_.camera.view(settings_.width, settings_.height);
   const TransferFunctionView tf = tfTable_->view();
   const int W = settings_.width, n = settings_.width * settings_.height;
-  const std::uint32_t frame = std::uint32_t(frameIndex_);
+  const std::uint32_t frame = sampleShareFrame(settings_.sampleShare, std::uint32_t(frameIndex_));
   Vec3f toLight = normalize(Vec3f{float(scene_.toLight[0]), float(scene_.toLight[1]),
                                   float(scene_.toLight[2])});
   if (cam.transformed) toLight = normalize(applyLinear(cam.modelFromWorld, toLight));  // model space

@@ -181,6 +181,20 @@ void validateImageWindow(const ImageWindow& w, int width, int height) {
   }
 }
 
+void validateSplit(const RenderSettings& settings) {
+  const auto checkShare = [](const char* what, int index, int count) {
+    if (count < 1 || index < 0 || index >= count)
+      throw std::invalid_argument(std::string(what) + " " + std::to_string(index) + "/" + std::to_string(count) +
+                                  ": need a count of at least 1 and 0 <= index < count");
+  };
+  checkShare("pixel share", settings.pixelShare.index, settings.pixelShare.count);
+  checkShare("sample share", settings.sampleShare.index, settings.sampleShare.count);
+  const int splits = int(settings.clipToBrick) + int(settings.pixelShare.count > 1) + int(settings.sampleShare.count > 1);
+  if (splits > 1)
+    throw std::invalid_argument("bricks (clipToBrick), a pixel share and a sample share are three ways to split a "
+                                "render over ranks: choose one");
+}
+
 std::array<double, 3> defaultLightDirection(const Camera& camera) {
   const CameraView v = camera.view(1, 1);
   const Vec3f d = normalize(v.forward * -1.f + v.up * 0.8f + v.right * -0.5f);

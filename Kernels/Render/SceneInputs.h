@@ -136,6 +136,29 @@ struct PixelShare {
   bool operator!=(const PixelShare& o) const { return !(*this == o); }
 };
 
+// Sample-space split over ranks (`inr render --sample-share`): every rank renders the whole
+// picture, each its own frames. This share's local frame f is frame f * count + index of one
+// renderer (sampleShareFrame) wherever a frame number keys random numbers, so N shares of F
+// frames each draw exactly the numbers one renderer draws over N * F frames, and the mean of their
+// accumulations (weighted by their frames) is its accumulation at N * F frames up to float
+// rounding, while the macrocells and the query reduction do not adapt to the samples (no
+// refinement, no budgeting or pruning). With them each share adapts to its own samples: still an
+// unbiased estimate, no longer the same numbers. Why samples and not pixels: a frame is a chain of
+// latency-bound iterations over the whole image whatever share of its pixels a rank traces, so
+// ranks that each trace every pixel of fewer frames scale where pixel shares cannot. count = 1:
+// every frame is this renderer's own. Exclusive with PixelShare and bricks.
+struct SampleShare {
+  int index = 0, count = 1;
+  bool operator==(const SampleShare& o) const { return index == o.index && count == o.count; }
+  bool operator!=(const SampleShare& o) const { return !(*this == o); }
+};
+
+// The single-renderer frame number of `share`'s local frame `local`: the one mapping every
+// backend's displayed frames go through (WavefrontRenderer::frameKey, the ray marchers).
+inline std::uint32_t sampleShareFrame(const SampleShare& share, std::uint32_t local) {
+  return local * std::uint32_t(share.count) + std::uint32_t(share.index);
+}
+
 struct RenderSettings {
   int width = 256, height = 256;
   std::uint32_t seed = 1;
@@ -147,7 +170,13 @@ struct RenderSettings {
   bool clipToBrick = false;
   Box3f brick{};
   PixelShare pixelShare;
+  SampleShare sampleShare;
 };
+
+// Throws std::invalid_argument naming the setting when a pixel or sample share is out of range
+// (count >= 1, 0 <= index < count) or when more than one split (bricks, pixel share, sample
+// share) is asked for.
+void validateSplit(const RenderSettings& settings);
 
 // The per-frame constants every backend's stages read, from the host scene. `depthLimit` is the
 // backend's copy of scene.depthLimit (host or device memory), ignored when the scene has none.

@@ -77,10 +77,7 @@ void WavefrontRenderer::setSettings(const RenderSettings& settings) {
                        isFiniteValue(b.hi.x + b.hi.y + b.hi.z);
     if (!valid) throw std::invalid_argument("brick: the box to clip primary rays to must be finite with lo < hi");
   }
-  const PixelShare& share = settings.pixelShare;
-  if (share.count < 1 || share.index < 0 || share.index >= share.count)
-    throw std::invalid_argument("pixel share " + std::to_string(share.index) + "/" + std::to_string(share.count) +
-                                ": need a count of at least 1 and 0 <= index < count");
+  validateSplit(settings);
   const bool sizeChanged = settings.width != settings_.width || settings.height != settings_.height;
   settings_ = settings;
   if (sizeChanged) {
@@ -189,7 +186,7 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   b.alpha = float(q.budgetAlpha);
   b.maxSkip = std::min(q.budgetMaxSkip, frameIndex_ / 4);  // S_max = min(K, floor(n / 4))
   b.tau = residualThreshold_;
-  b.noiseFrame = noiseFrame_;
+  b.noiseFrame = sampleShareFrame(settings_.sampleShare, noiseFrame_);
   if (q.budget == BudgetScheme::Stbn || q.budget == BudgetScheme::WeightedStbn) {
     b.mask = blueNoiseMask();
     b.rhoFloor = budgetRhoFloor(b.mask.depth);
@@ -272,7 +269,9 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     fc.estimator = PrimaryEstimator::Delta;  // ghost rays only need to visit cells
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
     // Ghost rays refine this process's whole macrocell grid, not its pixels: with a pixel share
-    // every rank traces all of them (the ghost pixels' pattern would otherwise fall on one share).
+    // every rank traces all of them (the ghost pixels' pattern would otherwise fall on one share),
+    // and with a sample share every rank draws the same ghost frames (their numbers are not
+    // mapped by sampleShareFrame), so every rank's grid is the one a single renderer refines.
     fc.shareIndex = 0;
     fc.shareCount = 1;
     traceGhostPass(table, fc, stride, total);

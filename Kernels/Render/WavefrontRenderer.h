@@ -170,8 +170,8 @@ protected:
   FrameConstants frameConstants(std::uint32_t frame, const float* depthLimit);
   // The random-stream key of the next displayed frame: the accumulated frame index, except that
   // it keeps counting across reprojection (so reprojected history and new samples never share
-  // random numbers).
-  std::uint32_t frameKey() const { return frameKey_; }
+  // random numbers), mapped to the single renderer's frame under a sample share.
+  std::uint32_t frameKey() const { return sampleShareFrame(settings_.sampleShare, frameKey_); }
   // Starts a frame's statistics (method, frame index, the pending update time); throws when no
   // scene has been set.
   FrameStats beginFrame(const char* method, const char* caller);

@@ -381,7 +381,9 @@ def check_brick_errors(inr, data):
 
 
 def render_split_part(inr, model, args, option, spec, out_dir):
-    """`inr render MODEL ARGS OPTION SPEC` (--brick or --pixel-share I/N) into OUT_DIR; the .npy path."""
+    """`inr render MODEL ARGS OPTION SPEC` (--brick, --pixel-share or --sample-share I/N) into
+    OUT_DIR (made if missing); the .npy path."""
+    os.makedirs(out_dir, exist_ok=True)
     out = os.path.join(out_dir, "%s%s.npy" % (option.strip("-")[0], spec.replace("/", "_")))
     p = run(inr, "render", model, *args, option, spec, "-o", out)
     expect(p.returncode == 0, "render %s %s failed: %s" % (option, spec, p.stderr))
@@ -482,43 +484,114 @@ def check_pixel_share_composite(inr, data):
     expect(p.returncode != 0 and "give one" in p.stderr, "both splits: " + p.stderr)
 
 
-def check_pixel_share_two_gpus(inr, data):
-    """Issue 16 on a 2-GPU machine: the two pixel shares of a paper-size model rendered at once,
-    one process per GPU (CUDA_VISIBLE_DEVICES 0 and 1), composited, equal the one-GPU image to
-    >= 40 dB over the volume's pixels, with shadows. Exits 77 (skipped, with the reason) where
-    fewer than two GPUs are visible."""
+def check_sample_share_composite(inr, data):
+    """The sample-space split without MPI (`inr render --sample-share I/N`): every share renders
+    every pixel of its own frames (share I's local frame f is frame f*N + I of one render), so the
+    shares' frame-weighted mean (Benchmarks/composite_bricks.py) equals one render of all their
+    frames, to float rounding without macrocell refinement (>= 90 dB over the volume's pixels;
+    their queries add up exactly), for 2 shares of 12 frames and 4 uneven shares (3 + 3 + 2 + 2)
+    of 10, with shadows; shares that all render the same frames do not (< 60 dB). With refinement
+    on it stays close (>= 45 dB). The stats record the split; --converge prints the shares'
+    expected mean; bad specs and a second split fail naming the option."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
+    common = ["--size", "29x27" if SMALL else "41x37", "--backend", "cpu", "--shadows", "--quiet"]
+    with tempfile.TemporaryDirectory() as d:
+        def part(spec, frames, *extra):
+            out = render_split_part(inr, model, [*common, "--frames", str(frames), *extra], "--sample-share", spec, d)
+            meta = json.load(open(out[:-4] + ".brick.json"))
+            expect(meta["split"] == "samples" and meta["frames"] == frames, "description: %r" % meta)
+            return out, meta
+
+        def composite(parts, whole, min_psnr=None):
+            p = subprocess.run([sys.executable, script, *parts, "--reference", whole] +
+                               (["--min-psnr", str(min_psnr)] if min_psnr else []),
+                               capture_output=True, text=True, timeout=120)
+            print(p.stdout)
+            expect(p.returncode == 0, "composite of %s:\n%s%s" % (parts, p.stdout, p.stderr))
+            return float(p.stdout.split("composite vs ")[1].split("PSNR ")[1].split(" dB")[0])
+
+        for total, n in ((12, 2), (10, 4)):
+            whole, whole_meta = part("0/1", total, "--no-refine")
+            parts = [part("%d/%d" % (i, n), (total - i + n - 1) // n, "--no-refine", "--stats-json",
+                          os.path.join(d, "s%d.json" % i)) for i in range(n)]
+            expect(sum(m["queries"] + m["shadow_queries"] for _, m in parts) ==
+                   whole_meta["queries"] + whole_meta["shadow_queries"],
+                   "the shares' queries must add up to the whole render's: %r vs %r" % ([m for _, m in parts], whole_meta))
+            stats = json.load(open(os.path.join(d, "s1.json")))
+            expect(stats["split"] == {"kind": "samples", "index": 1, "count": n}, "stats split: %r" % stats.get("split"))
+            composite([p for p, _ in parts], whole, 90)
+            # The control: shares that all rendered frames 0, 1, ... average to one render of those
+            # frames, which is not the whole render.
+            same = render_split_part(inr, model, [*common, "--frames", str(total // n), "--no-refine"],
+                                     "--sample-share", "0/1", os.path.join(d, "same"))
+            psnr = composite([same], whole)
+            expect(psnr < 60, "shares without their own frames still match the whole render (%.1f dB)" % psnr)
+        whole, _ = part("0/1", 12)
+        composite([part("%d/2" % i, 6)[0] for i in range(2)], whole, 45)
+        p = subprocess.run([inr, "render", model, "--size", "16x16", "--backend", "cpu", "--frames", "40", "--converge",
+                            "20", "--sample-share", "1/4", "-o", os.path.join(d, "c.npy")],
+                           capture_output=True, text=True, timeout=300)
+        expect(p.returncode == 0 and "sample share 1/4: the average of all 4 shares" in p.stdout,
+               "--converge with a sample share: " + p.stdout + p.stderr)
+    for spec in ("4/4", "0/0", "x"):
+        p = run(inr, "render", model, "--sample-share", spec, "-o", "/nonexistent/x.npy")
+        expect(p.returncode == 2 and "--sample-share" in p.stderr, "--sample-share %s: %s" % (spec, p.stderr))
+    p = run(inr, "render", model, "--sample-share", "0/2", "--pixel-share", "1/2", "-o", "/nonexistent/x.npy")
+    expect(p.returncode == 2 and "give one" in p.stderr, "both splits: " + p.stderr)
+
+
+def split_on_gpus(inr, data, option, count):
+    """`count` parts (`option` I/N) of a paper-size model rendered at once, one process per GPU
+    (CUDA_VISIBLE_DEVICES), composited, equal the one-GPU image to >= 40 dB over the volume's
+    pixels, with shadows; pixel shares render all 512 frames, sample shares 512 / count each.
+    Exits 77 (skipped, with the reason) where fewer than two GPUs are visible; uses at most the
+    GPUs visible."""
     p = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True) \
         if shutil.which("nvidia-smi") else None
     gpus = [l for l in (p.stdout.splitlines() if p and p.returncode == 0 else []) if l.strip()]
     if len(gpus) < 2:
         print("SKIPPED: needs 2 GPUs, nvidia-smi lists %d" % len(gpus))
         sys.exit(77)
-    print("GPUs:", gpus)
+    count = min(count, len(gpus))
+    print("GPUs:", gpus, "parts:", count)
     # The compositing script needs numpy, which the test's own interpreter may lack.
     python = next((py for py in (sys.executable, shutil.which("python3"), "/usr/bin/python3")
                    if py and subprocess.run([py, "-c", "import numpy"], capture_output=True).returncode == 0), None)
     expect(python is not None, "no Python with numpy for Benchmarks/composite_bricks.py (apt install python3-numpy)")
     model = os.path.join(data, "real", "siren_cylinder_vorticity.inr")
     script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
-    common = ["--size", "512x512", "--backend", "cuda", "--frames", "512", "--shadows", "--time", "2",
-              "--tf", model[:-4] + ".tf.json", "--quiet"]
+    common = ["--size", "512x512", "--backend", "cuda", "--shadows", "--time", "2", "--tf", model[:-4] + ".tf.json",
+              "--quiet"]
+    part_frames = 512 // count if option == "--sample-share" else 512
     with tempfile.TemporaryDirectory() as d:
         whole = os.path.join(d, "whole.npy")
-        p = subprocess.run([inr, "render", model, *common, "--pixel-share", "0/1", "-o", whole],
+        p = subprocess.run([inr, "render", model, *common, "--frames", "512", option, "0/1", "-o", whole],
                            env=dict(os.environ, CUDA_VISIBLE_DEVICES="0"), capture_output=True, text=True, timeout=300)
         expect(p.returncode == 0, "one GPU: " + p.stderr)
-        procs = [subprocess.Popen([inr, "render", model, *common, "--pixel-share", "%d/2" % i,
-                                   "-o", os.path.join(d, "p%d.npy" % i)], env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(i)),
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in (0, 1)]
+        procs = [subprocess.Popen([inr, "render", model, *common, "--frames", str(part_frames), option,
+                                   "%d/%d" % (i, count), "-o", os.path.join(d, "p%d.npy" % i)],
+                                  env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(i)),
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in range(count)]
         for i, q in enumerate(procs):
             out, err = q.communicate(timeout=300)
             expect(q.returncode == 0, "GPU %d: %s" % (i, err))
             meta = json.load(open(os.path.join(d, "p%d.brick.json" % i)))
             expect("cuda" in meta["backend"].lower(), "GPU %d ran on %s" % (i, meta["backend"]))
-        p = subprocess.run([python, script, os.path.join(d, "p0.npy"), os.path.join(d, "p1.npy"),
+        p = subprocess.run([python, script, *[os.path.join(d, "p%d.npy" % i) for i in range(count)],
                             "--reference", whole, "--min-psnr", "40"], capture_output=True, text=True, timeout=120)
         print(p.stdout)
-        expect(p.returncode == 0, "two GPUs composited differ from one GPU:\n" + p.stdout + p.stderr)
+        expect(p.returncode == 0, "%d GPUs composited differ from one GPU:\n%s%s" % (count, p.stdout, p.stderr))
+
+
+def check_pixel_share_two_gpus(inr, data):
+    """Issue 16 on a 2-GPU machine: two pixel shares on two GPUs (split_on_gpus)."""
+    split_on_gpus(inr, data, "--pixel-share", 2)
+
+
+def check_sample_share_gpus(inr, data):
+    """Issue 31: sample shares on up to 4 GPUs (split_on_gpus), 128 frames each for 4."""
+    split_on_gpus(inr, data, "--sample-share", 4)
 
 
 def check_raymarch_backend(inr, data):

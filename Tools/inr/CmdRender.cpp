@@ -173,7 +173,7 @@ void writeBrickDescription(const RenderJob& job, const RenderSession& session, c
                            const RenderOutcome& r, double renderSeconds, double estimatedPsnr) {
   nlohmann::json meta;
   meta["brick"] = {{"index", job.splitIndex.index}, {"count", job.splitIndex.count}};
-  meta["split"] = job.split == SplitKind::PixelShare ? "pixels" : "bricks";
+  meta["split"] = splitKindName(job.split);
   meta["box"] = {b.box.lo.x, b.box.hi.x, b.box.lo.y, b.box.hi.y, b.box.lo.z, b.box.hi.z};
   meta["cells"] = {b.cellLo.x, b.cellHi.x, b.cellLo.y, b.cellHi.y, b.cellLo.z, b.cellHi.z};
   meta["camera"] = {{"position", c.position}, {"focal_point", c.focalPoint}, {"parallel", c.parallelProjection}};
@@ -261,6 +261,12 @@ RenderOutcome renderTracking(const RenderJob& job, const RenderSettings& setting
                 reached ? "reached" : "NOT reached (frame limit)", r.frames, renderSeconds, driver.estimate(),
                 job.convergeTarget);
   }
+  if (settings.sampleShare.count > 1 && !job.quiet) {
+    // The estimate above is this share's own; the shares' average has N times the samples.
+    std::printf("sample share %d/%d: the average of all %d shares at these frames estimates about %.2f dB\n",
+                settings.sampleShare.index, settings.sampleShare.count, settings.sampleShare.count,
+                driver.estimate() + 10.0 * std::log10(double(settings.sampleShare.count)));
+  }
   report["macrocells"]["refinements"] = session.macrocellInfo().refinements;
   r.image = job.writesNpy() ? session.premultipliedImage() : session.image();
   if (brick) writeBrickDescription(job, session, *brick, scene.camera, r, renderSeconds, driver.estimate());
@@ -277,10 +283,10 @@ int runRenderJob(const RenderJob& job) {
   RenderSessionOptions sopts = job.session;
   sopts.macrocells.temporalSlices = job.timeSlices.value_or(model.domain.usesTime() ? sopts.macrocells.temporalSlices : 1);
   // The part of the box this run renders: a brick (primary rays clipped to it), or the whole box
-  // for a pixel share.
+  // for a pixel or sample share.
   RenderSettings settings = job.settings;
   std::optional<Brick> brick;
-  if (job.split == SplitKind::PixelShare) {
+  if (job.split == SplitKind::PixelShare || job.split == SplitKind::SampleShare) {
     Brick whole;
     whole.box = box;
     whole.cellLo = Int3{0, 0, 0};
@@ -327,6 +333,8 @@ int runRenderJob(const RenderJob& job) {
   report["height"] = settings.height;
   report["time"] = scene.time;
   report["frames_requested"] = job.frames;
+  if (job.split != SplitKind::None)
+    report["split"] = {{"kind", splitKindName(job.split)}, {"index", job.splitIndex.index}, {"count", job.splitIndex.count}};
   report["threads"] = omp_get_max_threads();
   report["evaluator"] = evaluator.name();
   report["backend"] = session->description();

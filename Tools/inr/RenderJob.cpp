@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "Args.h"
 
@@ -67,7 +69,13 @@ const char* kRenderUsageHead =
     "  --pixel-share I/N        sub-domain rendering, image-space split (what the ParaView plugin does under\n"
     "                           MPI): trace only the pixels (x + y) mod N = I at full depth, same seed as the\n"
     "                           whole image; output as for --brick (split \"pixels\" in the .brick.json;\n"
-    "                           composite_bricks.py adds the shares)\n";
+    "                           composite_bricks.py adds the shares)\n"
+    "  --sample-share I/N       sample-space split: render every pixel, but only this share's frames: local\n"
+    "                           frame f is frame f*N+I of one renderer, so N shares of F frames each average\n"
+    "                           to one render of N*F frames; output as for --brick (split \"samples\";\n"
+    "                           composite_bricks.py averages the shares, weighted by their frames). With\n"
+    "                           --converge the estimate is this share's own: the average of N shares is\n"
+    "                           about 10*log10(N) dB cleaner\n";
 
 // The query-reduction part of the help prints the defaults of QueryReductionSettings, the one
 // place they are defined (the plugin's XML defaults are checked against the same struct).
@@ -101,7 +109,8 @@ std::string queryReductionUsage() {
 const char* kRenderUsageTail =
     "output:\n"
     "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float);\n"
-    "                           .npy with --brick (premultiplied RGBA, see --brick)\n"
+    "                           .npy with --brick, --pixel-share or --sample-share (premultiplied RGBA,\n"
+    "                           see --brick)\n"
     "  --stats-json FILE        statistics: rays, queries, iterations, time per stage, macrocells; per\n"
     "                           frame also budget_skipped (pixels left out) and pruned (queries saved)\n"
     "  --quiet                  only the summary line\n";
@@ -209,13 +218,19 @@ void parseOutputAndSplit(const Args& args, RenderJob& job) {
   job.model = args.positional()[0];
   if (!args.has("output")) throw UsageError("-o OUT.png|.pfm is required");
   job.output = args.get("output");
-  const bool pixelShare = args.has("pixel-share");
-  if (pixelShare && args.has("brick")) throw UsageError("--brick and --pixel-share are two splits: give one");
-  if (pixelShare) job.split = SplitKind::PixelShare;
-  else if (args.has("brick")) job.split = SplitKind::Brick;
+  std::string given;
+  for (const auto& [option, kind] : {std::pair{"brick", SplitKind::Brick}, std::pair{"pixel-share", SplitKind::PixelShare},
+                                     std::pair{"sample-share", SplitKind::SampleShare}}) {
+    if (!args.has(option)) continue;
+    if (job.split != SplitKind::None)
+      throw UsageError("--brick, --pixel-share and --sample-share are three splits: give one, got " + given + " and --" +
+                       option);
+    job.split = kind;
+    given = std::string("--") + option;
+  }
   if (job.split != SplitKind::None) {
     try {
-      job.splitIndex = parseBrickIndex(args.get(pixelShare ? "pixel-share" : "brick"));
+      job.splitIndex = parseBrickIndex(args.get(given.substr(2)));
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string(job.splitOption()) + ": " + e.what());
     }
@@ -240,10 +255,11 @@ void parseImageAndFrames(const Args& args, RenderJob& job) {
   const long seed = args.getInt("seed", 1);
   if (seed < 0 || seed > 0xffffffffL) throw UsageError("--seed must be in [0, 2^32)");
   // Bricks vary the seed (rays of two bricks must not share noise); pixel shares keep it, so the
-  // shares add up to the whole image's pixels.
+  // shares add up to the whole image's pixels, and so do sample shares (their frames differ).
   settings.seed = job.splitIntoBricks() ? brickSeed(std::uint32_t(seed), job.splitIndex.index) : std::uint32_t(seed);
   settings.pixelJitter = !args.has("no-jitter");
   if (job.split == SplitKind::PixelShare) settings.pixelShare = PixelShare{job.splitIndex.index, job.splitIndex.count};
+  if (job.split == SplitKind::SampleShare) settings.sampleShare = SampleShare{job.splitIndex.index, job.splitIndex.count};
   job.frames = args.getInt("frames", job.method == RenderMethod::RayMarch && !settings.pixelJitter ? 1 : 64);
   if (job.frames < 1 || job.frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
   job.convergeTarget = args.getDouble("converge", 0.0);
@@ -377,6 +393,16 @@ const char* renderMethodName(RenderMethod method) {
   return "?";
 }
 
+const char* splitKindName(SplitKind split) {
+  switch (split) {
+    case SplitKind::None: return "none";
+    case SplitKind::Brick: return "bricks";
+    case SplitKind::PixelShare: return "pixels";
+    case SplitKind::SampleShare: return "samples";
+  }
+  return "?";
+}
+
 std::string renderUsage() {
   return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + kRenderUsageTail;
 }
@@ -384,7 +410,7 @@ std::string renderUsage() {
 RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   const Args args(arguments,
                   {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
-                   "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method",
+                   "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method", "sample-share",
                    "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes", "step",
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",

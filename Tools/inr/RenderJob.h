@@ -22,8 +22,11 @@ namespace inr::cli {
 enum class RenderMethod { Delta, RayMarch, Naive };
 const char* renderMethodName(RenderMethod method);
 
-// Sub-domain rendering: one brick of the box, or one interleaved share of the pixels.
-enum class SplitKind { None, Brick, PixelShare };
+// Sub-domain rendering: one brick of the box, one interleaved share of the pixels, or one share
+// of the frames (every pixel).
+enum class SplitKind { None, Brick, PixelShare, SampleShare };
+// "bricks", "pixels", "samples" (the .brick.json's and the statistics' split), "none".
+const char* splitKindName(SplitKind split);
 
 struct RenderJob {
   bool help = false;  // --help: print the usage, nothing else is read
@@ -36,7 +39,7 @@ struct RenderJob {
   SplitKind split = SplitKind::None;
   BrickIndex splitIndex;  // with a split: which part of how many
 
-  // Image: size, seed (already varied per brick), jitter, pixel share.
+  // Image: size, seed (already varied per brick), jitter, pixel or sample share.
   RenderSettings settings;
   long frames = 64;  // with --converge: the most frames
   double convergeTarget = 0.0;  // > 0: stop at this estimated PSNR (dB)
@@ -63,7 +66,9 @@ struct RenderJob {
 
   bool splitIntoBricks() const { return split == SplitKind::Brick; }
   bool writesNpy() const { return split != SplitKind::None; }
-  const char* splitOption() const { return split == SplitKind::PixelShare ? "--pixel-share" : "--brick"; }
+  const char* splitOption() const {
+    return split == SplitKind::PixelShare ? "--pixel-share" : split == SplitKind::SampleShare ? "--sample-share" : "--brick";
+  }
 };
 
 // The arguments after `inr render`. Throws UsageError (Args.h) naming the option at fault.

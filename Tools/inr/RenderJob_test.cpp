@@ -127,12 +127,25 @@ TEST(RenderJob, SplitsSetSeedAndPixelShare) {
   EXPECT_EQ(share.settings.pixelShare.index, 1);
   EXPECT_EQ(share.settings.pixelShare.count, 2);
   EXPECT_TRUE(share.writesNpy());
+
+  // Sample shares keep the seed too (their frames differ) and render every pixel.
+  const RenderJob samples = parseRenderJob(withModel({"--sample-share", "2/3", "--seed", "9"}, "m.npy"));
+  EXPECT_EQ(samples.split, SplitKind::SampleShare);
+  EXPECT_EQ(samples.settings.seed, 9u);
+  EXPECT_EQ(samples.settings.sampleShare.index, 2);
+  EXPECT_EQ(samples.settings.sampleShare.count, 3);
+  EXPECT_EQ(samples.settings.pixelShare.count, 1);
+  EXPECT_FALSE(samples.settings.clipToBrick);
+  EXPECT_TRUE(samples.writesNpy());
+  EXPECT_STREQ(samples.splitOption(), "--sample-share");
+  EXPECT_EQ(parseRenderJob(withModel({"--sample-share", "0/1"}, "m.npy")).settings.sampleShare.count, 1);
 }
 
 TEST(RenderJob, HelpNeedsNothingElse) {
   EXPECT_TRUE(parseRenderJob({"--help"}).help);
   const std::string usage = renderUsage();
-  for (const char* option : {"--method", "--estimator", "--budget", "--brick", "--stats-json"})
+  for (const char* option : {"--method", "--estimator", "--budget", "--brick", "--pixel-share", "--sample-share",
+                             "--stats-json"})
     EXPECT_NE(usage.find(option), std::string::npos) << option;
 }
 
@@ -188,6 +201,16 @@ TEST(RenderJob, BadValuesAreUsageErrorsNamingTheOption) {
       {{"--brick", "0/2", "--method", "naive"}, "b.npy", "--brick"},
       {{"--pixel-share", "0/0"}, "s.npy", "--pixel-share"},
       {{"--pixel-share", "0/2", "--brick", "0/2"}, "s.npy", "give one"},
+      {{"--sample-share", "2/2"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "0/0"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "-1/2"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "1"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "0/5000"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "0/2"}, "out.png", "--sample-share"},
+      {{"--sample-share", "0/2", "--method", "raymarch"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "0/2", "--method", "naive"}, "m.npy", "--sample-share"},
+      {{"--sample-share", "0/2", "--pixel-share", "1/2"}, "m.npy", "--pixel-share and --sample-share"},
+      {{"--sample-share", "0/2", "--brick", "1/2"}, "m.npy", "--brick and --sample-share"},
       {{"--bogus"}, "out.png", "--bogus"},
       {{"--frames"}, "out.png", "--frames"},
       {{}, "out.jpg", "-o"},

@@ -144,7 +144,7 @@ FrameStats CudaRayMarcher::renderFrame() {
   p.depth = scene_.depthLimit.empty() ? nullptr : I.depth.get();
   p.step = step_;
   p.time = float(scene_.time);
-  p.frame = std::uint32_t(frameIndex_);
+  p.frame = sampleShareFrame(settings_.sampleShare, std::uint32_t(frameIndex_));
   p.seed = settings_.seed;
   p.jitter = settings_.pixelJitter ? 1 : 0;
   p.windowX = settings_.window.x;
