@@ -18,9 +18,10 @@ MODEL.tf.json colour map), in one render view of --size (needs X; run under Xvfb
      only coarse slices are built, or none when they were built ahead), then "scrub-first-visit-fine" with them off (0), the fine
      32^3 slices built by the time-change frame itself (what every time change did before the
      coarse grid existed); after it the fine slices of every scrub time are built;
-  3. for level of detail on and off: a camera orbit of --orbit-steps interactive renders
-     (vtkSMViewProxy::InteractiveRender, the path of a mouse drag; 5 degrees azimuth each) and a
-     time scrub over the now built slices;
+  3. for level of detail on (LOD "on": with the CPU backend's drag stand-in, InrInteractiveStandIn;
+     "net": without it, the drag draws the network) and off: a camera orbit of --orbit-steps
+     interactive renders (vtkSMViewProxy::InteractiveRender, the path of a mouse drag; 5 degrees
+     azimuth each) and a time scrub over the now built slices;
   4. with level of detail on: still renders after the orbit until the image converges (the
      representation's convergence target) or --converge-seconds pass: the still image's time to
      converge (the still path is the same with level of detail off).
@@ -45,6 +46,11 @@ ap.add_argument("--models", nargs="*", default=[os.path.join(DATA, m) for m in P
 ap.add_argument("--size", type=int, nargs=2, default=[1280, 768])
 ap.add_argument("--backend", choices=["auto", "cpu", "cuda"], default="cpu")
 ap.add_argument("--orbit-steps", type=int, default=24)
+ap.add_argument("--pictures", default="",
+                help="directory: the window after the last orbit frame of each mode, as drawn "
+                     "(MODEL_orbit_LOD.png), and the still image after the orbits (MODEL_still.png)")
+ap.add_argument("--orbit-only", action="store_true",
+                help="only the open and the orbits (no scrubs, no convergence): the drag figures")
 ap.add_argument("--scrub-steps", type=int, default=16)
 ap.add_argument("--converge-seconds", type=float, default=120.0)
 ap.add_argument("--frame-time", type=float, default=100.0, help="InrInteractiveFrameTime (ms)")
@@ -77,6 +83,22 @@ def percentile(values, q):
 
 
 rows = []
+
+
+def picture(view, name):
+    """The window as last drawn (no render of its own): an interactive frame stays as it was."""
+    from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
+    from vtkmodules.vtkIOImage import vtkPNGWriter
+    os.makedirs(args.pictures, exist_ok=True)
+    grab = vtkWindowToImageFilter()
+    grab.SetInput(view.GetRenderWindow())
+    grab.ShouldRerenderOff()
+    grab.ReadFrontBufferOff()
+    grab.Update()
+    writer = vtkPNGWriter()
+    writer.SetFileName(os.path.join(args.pictures, name))
+    writer.SetInputConnection(grab.GetOutputPort())
+    writer.Write()
 
 
 def timed(model, phase, lod, step, render, state):
@@ -123,7 +145,7 @@ for model_path in args.models:
     rows.append(dict(warm, phase="open", view_ms=round(1000.0 * (time.perf_counter() - open_start), 2)))
     print(f"{name}: open to first still image {rows[-1]['view_ms']:.0f} ms, last still render "
           f"{warm['view_ms']:.0f} ms ({mapper.get('InrBackendInUse')})", flush=True)
-    for i, t in enumerate(times[1:], 1):
+    for i, t in enumerate(times[1:] if not args.orbit_only else [], 1):
         set_time(t)
         timed(name, "scrub-first-visit", "on", i, proxy.StillRender, mapper)
     # The same first visits for the fine grid (coarse interactive macrocells off): each
@@ -131,24 +153,40 @@ for model_path in args.models:
     display.InrInteractiveMacrocellResolution = 0
     set_time(times[0])
     proxy.StillRender()
-    for i, t in enumerate(times[1:], 1):
+    for i, t in enumerate(times[1:] if not args.orbit_only else [], 1):
         set_time(t)
         timed(name, "scrub-first-visit-fine", "on", i, proxy.StillRender, mapper)
     display.InrInteractiveMacrocellResolution = args.interactive_macrocells
     set_time(times[0])
     timed(name, "settle", "on", 0, proxy.StillRender, mapper)
-    for lod, mode in (("on", 2), ("off", 0)):
+    for lod, mode, stand_in in (("on", 2, 1), ("net", 2, 0), ("off", 0, 1)):
         display.InrInteractiveLevelOfDetail = mode
+        display.InrInteractiveStandIn = stand_in
         proxy.StillRender()
         camera = view.GetActiveCamera()
         for i in range(args.orbit_steps):
             camera.Azimuth(5.0)
             timed(name, "orbit", lod, i, proxy.InteractiveRender, mapper)
-        for i, t in enumerate(times[1:], 1):
+        if args.pictures:
+            picture(view, f"{name}_orbit_{lod}.png")
+            camera.Azimuth(-5.0 * args.orbit_steps)  # every mode's orbit ends at the same camera
+        display.InrInteractiveStandIn = 1
+        for i, t in enumerate(times[1:] if not args.orbit_only else [], 1):
             set_time(t)
             timed(name, "scrub-built", lod, i, proxy.StillRender, mapper)
         set_time(times[0])
         proxy.StillRender()
+    if args.pictures:
+        # The still image at the orbits' last camera, refined for a while: what the drag frames
+        # stand for.
+        display.InrInteractiveLevelOfDetail = 2
+        view.GetActiveCamera().Azimuth(5.0 * args.orbit_steps)
+        for _ in range(40):
+            proxy.StillRender()
+        picture(view, f"{name}_still.png")
+        view.GetActiveCamera().Azimuth(-5.0 * args.orbit_steps)
+    if args.orbit_only:
+        continue
     # The still image after an orbit step: time to converge (same with LOD on or off).
     display.InrInteractiveLevelOfDetail = 2
     view.GetActiveCamera().Azimuth(5.0)
