@@ -97,6 +97,8 @@ void WavefrontRenderer::setSettings(const RenderSettings& settings) {
 
 void WavefrontRenderer::setScene(const RenderScene& scene) {
   const CameraView view = validateScene(scene, settings_);
+  if (scene.shading.enabled && !fieldHasGradient())
+    throw std::invalid_argument("shading: this renderer's field evaluator computes no gradients");
   SceneChange change = diffScenes(haveScene_ ? &scene_ : nullptr, scene);
   change.time = change.time || macrocellTime() != scene.time;  // the grid may be shared
   const auto t0 = Clock::now();

@@ -483,4 +483,6 @@ std::vector<float> CudaDeltaTrackingRenderer::blockMajorants() const {
   return impl_->blockMajorants.download(impl_->stream);
 }
 
+bool CudaDeltaTrackingRenderer::fieldHasGradient() const { return false; }
+
 }  // namespace inr
