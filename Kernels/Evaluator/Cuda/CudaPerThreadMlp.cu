@@ -140,9 +140,10 @@ void CudaPerThreadMlp::evaluateWithGradient(const QueryPoint* points, std::size_
   constexpr int kChunk = 1 << 16;
   std::vector<float4> results;
   for (std::size_t first = 0; first < n;) {
-    // One output mapping per launch: a run of equal times.
+    // One output mapping per launch: a run of equal times where the mapping depends on time.
     std::size_t end = first + 1;
-    while (end < n && end - first < std::size_t(kChunk) && points[end].t == points[first].t) ++end;
+    while (end < n && end - first < std::size_t(kChunk) && (!I.output.perTime || points[end].t == points[first].t))
+      ++end;
     const int m = int(end - first);
     I.stagePoints.growTo(std::size_t(m));
     I.stageGradients.growTo(std::size_t(m));
