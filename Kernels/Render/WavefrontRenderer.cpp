@@ -271,6 +271,7 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     FrameConstants fc = frameConstants(GhostSweep::frameNumber(ghostPasses_++), nullptr);
     fc.budget = BudgetConstants{};  // every stride-th pixel (initGhostRay)
     fc.shadows = 0;
+    fc.shading.enabled = 0;
     fc.estimator = PrimaryEstimator::Delta;  // ghost rays only need to visit cells
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
     // Ghost rays refine this process's whole macrocell grid, not its pixels: with a pixel share
