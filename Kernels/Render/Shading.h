@@ -79,12 +79,14 @@ INR_HD Vec3f gradientToWorld(const CameraView& cam, Vec3f g) {
 
 // The light at model point p with model-space gradient g, for the camera `cam` and the light
 // towards unit model-space direction toLightModel (ignored with a headlight): the eye direction is
-// the eye's from p (perspective) or the view direction (parallel projection), as VTK's shader
-// takes it, so it needs no per-ray state.
+// from p to the camera's position, with parallel projection too, as VTK's shader takes it (its
+// eye is the camera position whatever the projection), so it needs no per-ray state.
 INR_HD SampleLight sampleLightAt(const CameraView& cam, const ShadingConstants& s, Vec3f toLightModel, Vec3f p,
                                  Vec3f g) {
   const Vec3f pWorld = modelToWorld(cam, p);
-  const Vec3f toEye = cam.parallel ? cam.forward * -1.f : normalize(cam.position - pWorld);
+  const Vec3f fromP = cam.position - pWorld;
+  // (a point at the eye itself: the view direction)
+  const Vec3f toEye = dot(fromP, fromP) > 0.f ? normalize(fromP) : cam.forward * -1.f;
   Vec3f toLight = toLightModel;
   if (s.headlight)
     toLight = toEye;
