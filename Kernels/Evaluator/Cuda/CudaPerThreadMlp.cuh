@@ -14,9 +14,10 @@ namespace inr::cuda {
 // every activation the scratch holds its derivatives along the three world axes (the
 // view's tangent planes), and each instruction applies its Jacobian to them as it computes the
 // values (the CPU reference's runLayer, Evaluator/CpuInrEvaluator.cpp, element by element).
-// Time is no direction. Without kTangents the arithmetic is the value path's alone.
+// Time is no direction. Without kTangents the arithmetic is the value path's alone. Host and
+// device: the tests run it on the CPU against the reference (no GPU needed).
 template <bool kTangents>
-__device__ inline float perThreadForward(const PerThreadMlpView& N, float x, float y, float z, float t, int tid,
+INR_HD float perThreadForward(const PerThreadMlpView& N, float x, float y, float z, float t, int tid,
                                          float* grad) {
   constexpr int D = kTangents ? 3 : 0;  // tangent directions
   const float world[4] = {x, y, z, t};

@@ -11,6 +11,8 @@
 
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
+#include "Evaluator/Cuda/CudaPerThreadMlp.cuh"
+#include "Evaluator/MlpProgram.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/Cuda/CudaDeltaTrackingRenderer.h"
@@ -25,6 +27,59 @@ namespace inr {
 namespace {
 
 namespace fs = std::filesystem;
+
+// The per-thread network's forward mode is host and device code: run on the CPU (no GPU
+// needed) over the compiled program with host scratch, it must give the reference's gradient.
+// This checks every instruction's Jacobian (and the Fourier encoding's tangent) on any machine.
+TEST(CudaShading, PerThreadForwardModeOnTheHostMatchesCpuGradient) {
+  for (const auto& path : test::shippedModels()) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpu(model);
+    const MlpProgram program = MlpProgram::compile(model.architecture);
+    PerThreadMlpView v;
+    v.instrs = program.instrs.data();
+    v.numInstrs = int(program.instrs.size());
+    v.weights = program.floatWeights.data();
+    v.inputDim = model.architecture.inputDim;
+    for (int i = 0; i < v.inputDim; ++i) {
+      const int w = model.domain.inputOrder[i];
+      v.inputCoord[i] = w;
+      v.inScale[i] = float(model.domain.toNetwork[w].scale);
+      v.inOffset[i] = float(model.domain.toNetwork[w].offset);
+    }
+    v.numBuffers = std::max(1, program.numBuffers);
+    v.width = std::max(16, program.maxWidthPad);
+    v.stride = 1;
+    std::vector<float> scratch(std::size_t(4) * v.numBuffers * v.width);
+    v.scratch = scratch.data();
+    const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
+    model.output.affineAt(time, v.outA, v.outB);
+    const std::vector<QueryPoint> points = test::randomQueryPoints(model, 256, 23, time);
+    const std::size_t n = points.size();
+    std::vector<float> cv(n), cg(3 * n);
+    cpu.evaluateWithGradient(points.data(), n, cv.data(), cg.data());
+    double rms = 0;
+    for (float g : cg) rms += double(g) * g;
+    rms = std::sqrt(rms / double(n));
+    ASSERT_GT(rms, 0.0) << path;
+    double worst = 0, worstValue = 0, valueScale = 0;
+    for (float c : cv) valueScale = std::max(valueScale, double(std::fabs(c)));
+    for (std::size_t i = 0; i < n; ++i) {
+      float g[3];
+      const QueryPoint& q = points[i];
+      const float value = cuda::perThreadForward<true>(v, q.x, q.y, q.z, q.t, 0, g);
+      const float plain = cuda::perThreadForward<false>(v, q.x, q.y, q.z, q.t, 0, nullptr);
+      // The same arithmetic up to the compiler's contraction of each instantiation into FMAs.
+      ASSERT_NEAR(value, plain, 1e-6 * std::max(valueScale, 1e-30)) << path << ": the tangents changed the value";
+      worstValue = std::max(worstValue, std::fabs(double(value) - cv[i]) / std::max(valueScale, 1e-30));
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::fabs(double(g[k]) - cg[3 * i + k]) / rms);
+    }
+    std::printf("%-32s per-thread forward mode on the host: worst |d - CPU| / rms %.2e, value %.2e\n",
+                fs::path(path).filename().c_str(), worst, worstValue);
+    EXPECT_LE(worst, 1e-3) << path;
+    EXPECT_LE(worstValue, 1e-4) << path;
+  }
+}
 
 // Both sides are fp32 forward mode over the same graph (the GPU through the compiled program, the
 // CPU through Eigen), so they differ by summation order: relative to the gradient's typical
