@@ -55,7 +55,15 @@ CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_uniq
   Impl& I = *impl_;
   I.program = MlpProgram::compile(model.architecture);
   I.output = model.output;
-  PerThreadMlpView& v = I.base;
+  I.instrs.upload(I.program.instrs, nullptr);
+  I.weights.upload(I.program.floatWeights, nullptr);
+  INR_CUDA_CHECK(cudaDeviceSynchronize());
+  I.base = perThreadMlpBase(model, I.program, I.instrs.get(), I.weights.get());
+}
+
+PerThreadMlpView perThreadMlpBase(const InrModel& model, const MlpProgram& program, const MlpInstr* instrs,
+                                  const float* weights) {
+  PerThreadMlpView v;
   v.inputDim = model.architecture.inputDim;
   if (v.inputDim < 1 || v.inputDim > 4) throw std::runtime_error("per-thread MLP: input dimension must be 1..4");
   for (int i = 0; i < v.inputDim; ++i) {
@@ -64,14 +72,12 @@ CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_uniq
     v.inScale[i] = float(model.domain.toNetwork[w].scale);
     v.inOffset[i] = float(model.domain.toNetwork[w].offset);
   }
-  I.instrs.upload(I.program.instrs, nullptr);
-  I.weights.upload(I.program.floatWeights, nullptr);
-  INR_CUDA_CHECK(cudaDeviceSynchronize());
-  v.instrs = I.instrs.get();
-  v.numInstrs = int(I.program.instrs.size());
-  v.weights = I.weights.get();
-  v.numBuffers = std::max(1, I.program.numBuffers);
-  v.width = std::max(16, I.program.maxWidthPad);
+  v.instrs = instrs;
+  v.numInstrs = int(program.instrs.size());
+  v.weights = weights;
+  v.numBuffers = std::max(1, program.numBuffers);
+  v.width = std::max(16, program.maxWidthPad);
+  return v;
 }
 
 CudaPerThreadMlp::~CudaPerThreadMlp() = default;

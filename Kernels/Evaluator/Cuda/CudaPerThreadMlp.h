@@ -30,6 +30,14 @@ struct PerThreadMlpView {
   int numBuffers = 1, width = 16, stride = 0;  // stride = threads sharing the scratch
 };
 
+struct MlpProgram;
+
+// The view of `program` compiled from `model` with its instructions and fp32 weights at `instrs`
+// and `weights` (device memory, or host memory for the host form of the code): input mapping,
+// buffers; no scratch, output mapping at no time yet (view() adds them).
+PerThreadMlpView perThreadMlpBase(const InrModel& model, const MlpProgram& program, const MlpInstr* instrs,
+                                  const float* weights);
+
 class CudaPerThreadMlp final : public FieldEvaluator {
 public:
   explicit CudaPerThreadMlp(const InrModel& model);

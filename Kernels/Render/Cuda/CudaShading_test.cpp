@@ -36,19 +36,7 @@ TEST(CudaShading, PerThreadForwardModeOnTheHostMatchesCpuGradient) {
     const InrModel model = InrModel::loadFile(path);
     const CpuInrEvaluator cpu(model);
     const MlpProgram program = MlpProgram::compile(model.architecture);
-    PerThreadMlpView v;
-    v.instrs = program.instrs.data();
-    v.numInstrs = int(program.instrs.size());
-    v.weights = program.floatWeights.data();
-    v.inputDim = model.architecture.inputDim;
-    for (int i = 0; i < v.inputDim; ++i) {
-      const int w = model.domain.inputOrder[i];
-      v.inputCoord[i] = w;
-      v.inScale[i] = float(model.domain.toNetwork[w].scale);
-      v.inOffset[i] = float(model.domain.toNetwork[w].offset);
-    }
-    v.numBuffers = std::max(1, program.numBuffers);
-    v.width = std::max(16, program.maxWidthPad);
+    PerThreadMlpView v = perThreadMlpBase(model, program, program.instrs.data(), program.floatWeights.data());
     v.stride = 1;
     std::vector<float> scratch(std::size_t(4) * v.numBuffers * v.width);
     v.scratch = scratch.data();
