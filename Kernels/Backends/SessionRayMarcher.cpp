@@ -41,17 +41,21 @@ private:
 }  // namespace
 
 std::unique_ptr<SessionRayMarcher> SessionRayMarcher::create(const RenderSession& session, const Box3f& box,
-                                                             const RayMarchOptions& options, bool shadows) {
+                                                             const RayMarchOptions& options, const RenderScene& scene) {
 #ifdef INR_HAVE_CUDA
   if (session.backend() == RenderBackend::Cuda) {
     const auto* gpuEvaluator = dynamic_cast<const CudaInrEvaluator*>(&session.evaluator());
-    if (gpuEvaluator && !shadows)
+    const bool cpuOnly = scene.shadows || scene.shading.enabled;
+    if (gpuEvaluator && !cpuOnly)
       return std::make_unique<MarcherAdapter<CudaRayMarcher>>("GPU ray marcher", *gpuEvaluator, box, options, true);
     if (gpuEvaluator)
       return std::make_unique<MarcherAdapter<RayMarchRenderer>>(
-          "CPU ray marcher on the GPU evaluator (ray-marched shadows run on the CPU only)", session.evaluator(), box,
-          options, false);
+          std::string("CPU ray marcher on the GPU evaluator (ray-marched ") +
+              (scene.shadows ? "shadows" : "shading") + " run on the CPU only)",
+          session.evaluator(), box, options, false);
   }
+#else
+  (void)scene;
 #endif
   return std::make_unique<MarcherAdapter<RayMarchRenderer>>("CPU ray marcher", session.evaluator(), box, options,
                                                             false);

@@ -992,6 +992,27 @@ TEST_F(Stress, NonFiniteAndAbsurdSceneInputs) {
       {"ambient NaN", [&](RenderScene& sc) { sc.ambient = NAN; }, {"ambient"}, true},
       {"ambient -1", [&](RenderScene& sc) { sc.ambient = -1.f; }, {"ambient"}, true},
       {"ambient 2", [&](RenderScene& sc) { sc.ambient = 2.f; }, {"ambient"}, true},
+      {"shading, ambient 2 and specular 1e30 (lit colour clamped)",
+       [&](RenderScene& sc) {
+         sc.shading.enabled = true;
+         sc.ambient = 2.f;
+         sc.shading.specular = 1e30f;
+       },
+       {"specular"}, true},
+      {"shading, specular power 0", [&](RenderScene& sc) { sc.shading.enabled = true; sc.shading.specularPower = 0.f; },
+       {"specular power"}, true},
+      {"shading, specular power 1000",
+       [&](RenderScene& sc) { sc.shading.enabled = true; sc.shading.specularPower = 1000.f; }, {"specular power"}, true},
+      {"shading, diffuse NaN", [&](RenderScene& sc) { sc.shading.enabled = true; sc.shading.diffuse = NAN; },
+       {"diffuse"}, true},
+      {"shading, light NaN", [&](RenderScene& sc) { sc.shading.enabled = true; sc.toLight = {nan, 0, 1}; },
+       {"light"}, true},
+      {"shading with a headlight and shadows",
+       [&](RenderScene& sc) {
+         sc.shading.enabled = true;
+         sc.shading.headlight = true;
+       },
+       {"shading"}, true},
       {"light inf", [&](RenderScene& sc) { sc.toLight = {0, -inf, 0}; }, {"light"}, true},
       {"background NaN", [&](RenderScene& sc) { sc.background = {NAN, 0.f, 0.f}; }, {"background"}, true},
       {"background inf", [&](RenderScene& sc) { sc.background = {INFINITY, 0.f, 0.f}; }, {"background"}, false},

@@ -27,7 +27,8 @@ public:
   // axis k (x, y, z); the time derivative is not computed. Chunked and threaded as evaluate.
   // Throws std::runtime_error, naming the layer, when the graph holds a layer kind without a
   // derivative (before any output is written).
-  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const;
+  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const override;
+  bool providesGradient() const override { return true; }
 
   // Network output before the output mapping, for inputs already in network coordinates
   // (inputDim floats per query, network input order). For tests and tools.

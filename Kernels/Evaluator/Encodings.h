@@ -79,4 +79,26 @@ INR_HD float encodingElement(const MlpInstr& f, const float* weights, const Inpu
   }
 }
 
+// Forward-mode derivative of column k of encoding instruction f along one direction: dx(i) is
+// the derivative of input i (the per-thread network's gradient, Cuda/CudaPerThreadMlp.cuh; the
+// CPU reference carries the same formulas on Eigen arrays). Exact arithmetic only.
+template <class Input, class Tangent>
+INR_HD float encodingElementTangent(const MlpInstr& f, const float* weights, const Input& x, const Tangent& dx, int k) {
+  switch (f.op) {
+    case MlpOp::Fourier: {  // d sin(Bx) = cos(Bx) B dx, d cos(Bx) = -sin(Bx) B dx
+      const float* B = weights + f.floatOffset;
+      const FourierColumns cols(f);
+      if (cols.inputs && k >= cols.inputAt && k < cols.inputAt + cols.inputs) return dx(k - cols.inputAt);
+      const int j = k - cols.sinAt;
+      if (j < 0 || j >= 2 * cols.features) return 0.f;
+      const bool sine = j < cols.features;
+      const float* Bj = B + (sine ? j : j - cols.features) * f.inWidth;
+      const float p = fourierProjection<ActMath::Exact>(Bj, f.inWidth, x);
+      const float dp = fourierProjection<ActMath::Exact>(Bj, f.inWidth, dx);
+      return sine ? cosf(p) * dp : -sinf(p) * dp;
+    }
+    default: return NAN;  // an encoding without its derivative: no normal (ambient only)
+  }
+}
+
 }  // namespace inr

@@ -10,6 +10,7 @@
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
 #include "Render/Reproject.h"
+#include "Render/Shade.h"
 #include "Render/Shadows.h"
 #include "Render/RatioTracking.h"
 #include "Render/Traverse.h"
@@ -43,6 +44,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowRays += o.shadowRays;
   shadowQueries += o.shadowQueries;
   shadowIterations += o.shadowIterations;
+  shadingQueries += o.shadingQueries;
   refinements += o.refinements;
   cappedRays += o.cappedRays;
   budgetSkipped += o.budgetSkipped;
@@ -53,6 +55,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   evaluateMs += o.evaluateMs;
   shadowTraverseMs += o.shadowTraverseMs;
   shadowEvaluateMs += o.shadowEvaluateMs;
+  shadingMs += o.shadingMs;
   finalizeMs += o.finalizeMs;
   totalMs += o.totalMs;
   traversalBuildMs += o.traversalBuildMs;
@@ -212,6 +215,12 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
                     st.shadowEvaluateMs, st.refinements, truncated);
   }
+  if (fc.shading.enabled) {
+    t0 = Clock::now();
+    st.shadingQueries = batch_.gatherShading(fc, rs);
+    batch_.shade(evaluator_, fc, rs);
+    st.shadingMs = msSince(t0);
+  }
   if (prune.expected) st.pruned = sumPruned(rs);
 
   t0 = Clock::now();
@@ -274,6 +283,13 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
           ++st.shadowRays;
           track(i, st.shadowQueries);
         }
+      }
+      if (needsShading(fc, rs, i)) {
+        const QueryPoint q = shadingQuery(fc, rs, i);
+        float v = 0.f, g[3];
+        evaluator_.evaluateWithGradient(&q, 1, &v, g);
+        shadeRay(fc, rs, i, Vec3f{g[0], g[1], g[2]});
+        ++st.shadingQueries;
       }
     }
     st.cappedRays += (rs.flags[i] & kRayCapped) ? 1 : 0;

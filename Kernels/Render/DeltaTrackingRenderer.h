@@ -43,6 +43,7 @@ private:
   const Box3f& volumeBox() const override { return macrocells_.box(); }
   std::array<float, 2> workingValueRange() const override { return macrocells_.workingValueRange(); }
   Vec3f cellSize() const override { return macrocells_.cellSize(); }
+  bool fieldHasGradient() const override { return evaluator_.providesGradient(); }
   void beginGhostPasses() override { applyDirtyMajorants(); }
   void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                       FrameStats& total) override;

@@ -49,10 +49,11 @@ INR_HD Vec3f primaryHitPoint(const RayStateView& rs, int i) {
 }
 
 // This frame's estimate for pixel i: premultiplied emission of the real collision, shaded by the
-// light's visibility when shadows are on; (0,0,0,0) when the ray escaped.
+// light's visibility when shadows are on; (0,0,0,0) when the ray escaped. With gradient shading
+// the shading stage (Shade.h) has lit the colour, visibility included.
 INR_HD Vec4f frameEstimate(const FrameConstants& fc, const RayStateView& rs, int i) {
   Vec4f c = rs.radiance[i];
-  if ((rs.flags[i] & kRayHit) && fc.shadows) {
+  if ((rs.flags[i] & kRayHit) && fc.shadows && !fc.shading.enabled) {
     const float shade = fc.ambient + (1.f - fc.ambient) * rs.visibility[i];
     c.x *= shade;
     c.y *= shade;

@@ -4,6 +4,7 @@
 
 #include "Render/CpuParallel.h"
 #include "Render/Evaluate.h"
+#include "Render/Shade.h"
 
 namespace inr {
 
@@ -75,6 +76,27 @@ void QueryBatch::scatterPoints(const PointStateView& pts) const {
   const long long n = (long long)count_;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (long long k = 0; k < n; ++k) pts.sample[rays_[k]] = values_[k];
+}
+
+std::size_t QueryBatch::gatherShading(const FrameConstants& fc, const RayStateView& rs) {
+  return compact(
+      rs.count, [&](int i) -> std::size_t { return needsShading(fc, rs, i) ? 1 : 0; },
+      [&](int i, std::size_t& k) {
+        if (!needsShading(fc, rs, i)) return;
+        points_[k] = shadingQuery(fc, rs, i);
+        rays_[k] = i;
+        ++k;
+      });
+}
+
+void QueryBatch::shade(const FieldEvaluator& evaluator, const FrameConstants& fc, const RayStateView& rs) {
+  if (count_ == 0) return;
+  gradients_.resize(3 * count_);
+  evaluator.evaluateWithGradient(points_.data(), count_, values_.data(), gradients_.data());
+  const long long n = (long long)count_;
+  const float* g = gradients_.data();
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (long long k = 0; k < n; ++k) shadeRay(fc, rs, rays_[k], Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
 }
 
 void QueryBatch::evaluate(const FieldEvaluator& evaluator) {

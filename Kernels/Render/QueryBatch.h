@@ -21,6 +21,10 @@ public:
   // in ray order, then point order; rayIndices() then holds their slots.
   std::size_t gatherPoints(const RayStateView& rs, const PointStateView& pts, float time);
   void scatterPoints(const PointStateView& pts) const;
+  // Gradient shading (Render/Shade.h): the rays whose colour is to be lit, in ray order; then
+  // their values and gradients in one evaluator call, and the lighting.
+  std::size_t gatherShading(const FrameConstants& fc, const RayStateView& rs);
+  void shade(const FieldEvaluator& evaluator, const FrameConstants& fc, const RayStateView& rs);
 
   std::size_t size() const { return count_; }
   const int* rayIndices() const { return rays_.data(); }
@@ -34,6 +38,7 @@ private:
   std::vector<QueryPoint> points_;
   std::vector<int> rays_;
   std::vector<float> values_;
+  std::vector<float> gradients_;  // gradient shading: 3 per query
   std::vector<std::size_t> chunkOffsets_;
   std::size_t count_ = 0;
 };

@@ -31,6 +31,9 @@
 // E[W c_I V(x_I)] = sum_j w_j c_j V(x_j). Without shadows the colour is the full weighted sum;
 // the picked point still gives the reprojection hit point.
 //
+// Shading (Shading.h) picks one point the same way, with or without shadows: its lit colour needs
+// the network's gradient there, one query per ray rather than one per point.
+//
 // Unbiased ray marching (PrimaryEstimator::March) uses the same point machinery with two kinds of
 // points per macrocell segment of majorant m: a jittered comb of spacing 1 / (k m) (one uniform
 // offset per segment) for the emission integral, and residual ratio-tracking points at rate
@@ -111,6 +114,11 @@ INR_HD RngStream ratioPointStream(const RngStream& ray, float t) {
   return RngStream{ray.pixel, ray.frame, ray.seed ^ 0x85ebca6bu, floatBits(t)};
 }
 
+// Whether the estimate keeps one picked point's colour (weighted by the emission weights' total)
+// instead of the weighted sum of all: when something is computed at that point alone, the
+// shadow ray's visibility or the shading's gradient.
+INR_HD bool pickOnePoint(const FrameConstants& fc) { return fc.shadows || fc.shading.enabled; }
+
 // World point of slot `slot` (ray i) at the frame's time: what the evaluator is asked.
 INR_HD QueryPoint ratioPointQuery(const RayStateView& rs, const PointStateView& pts, int i, int slot, float time) {
   const Vec3f p = rs.origin[i] + rs.direction[i] * pts.t[slot];
@@ -133,6 +141,8 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
   float absSum = rs.collisionProduct[i];
   float control = rs.lastExtinction[i];
   float hitT = rs.hitT[i];
+  float pickedSign = rs.hitWeight[i];  // of the picked point's weight (one picked point: pickOnePoint)
+  const bool pickOne = pickOnePoint(fc);
   bool ended = false;
   for (int j = 0; j < count; ++j) {
     const int slot = pointSlot(rs.count, i, j);
@@ -168,8 +178,11 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
       L.w += w;
       absSum += fabsf(w);
       const bool picked = pick * absSum < fabsf(w);  // reservoir: point j with probability |w| / sum |w|
-      if (fc.shadows) {
-        if (picked) L = w > 0.f ? Vec4f{c.x, c.y, c.z, L.w} : Vec4f{-c.x, -c.y, -c.z, L.w};
+      if (pickOne) {
+        if (picked) {
+          L = Vec4f{c.x, c.y, c.z, L.w};
+          pickedSign = w > 0.f ? 1.f : -1.f;
+        }
       } else {
         L = Vec4f{L.x + w * c.x, L.y + w * c.y, L.z + w * c.z, L.w};
       }
@@ -190,6 +203,7 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
   rs.collisionProduct[i] = absSum;
   rs.lastExtinction[i] = control;
   rs.hitT[i] = hitT;
+  rs.hitWeight[i] = pickedSign;
   return ended;
 }
 
@@ -378,7 +392,13 @@ INR_HD void traverseRatioRayWith(const FrameConstants& fc, const TrackingMedium&
     const float absSum = rs.collisionProduct[i];
     if (absSum > 0.f) {
       flags |= kRayHit;
-      if (fc.shadows) rs.radiance[i] = Vec4f{L.x * absSum, L.y * absSum, L.z * absSum, L.w};  // +-sum|w| c_I
+      if (pickOnePoint(fc)) {  // the estimate is +-sum|w| c_I
+        const float weight = rs.hitWeight[i] * absSum;
+        if (fc.shading.enabled)
+          rs.hitWeight[i] = weight;  // the shading stage lights c_I first (Shading.h)
+        else
+          rs.radiance[i] = Vec4f{L.x * weight, L.y * weight, L.z * weight, L.w};
+      }
       rs.t[i] = rs.hitT[i];
     }
     rs.pointCount[i] = 0;

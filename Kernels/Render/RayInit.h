@@ -36,6 +36,7 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.residualNext[i] = NAN;
   rs.lastExtinction[i] = NAN;  // march's control: not known yet
   rs.controlKnown[i] = 0;
+  rs.hitWeight[i] = 1.f;
   rs.combPhase[i] = NAN;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;

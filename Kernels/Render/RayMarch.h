@@ -11,6 +11,7 @@
 #include "Render/CameraView.h"
 #include "Render/CounterRng.h"
 #include "Render/RenderMath.h"
+#include "Render/Shading.h"
 #include "Render/TransferFunctionTable.h"
 
 namespace inr {
@@ -95,12 +96,25 @@ struct MarchCompositor {
   INR_HD void add(const TransferFunctionView& tf, float v, float ds, Real lightFactor) {
     if (!isFiniteValue(v)) return;
     const Vec4f c = lookupTransferFunction(tf, v);
+    emit(c, tf, ds, lightFactor, Vec3f{c.x, c.y, c.z});
+  }
+
+  // The same with gradient shading (Shading.h): the sample's colour lit by `light` with the
+  // light's visibility lightT (1 without shadows).
+  INR_HD void addLit(const TransferFunctionView& tf, float v, float ds, float ambient, const SampleLight& light,
+                     float lightT) {
+    if (!isFiniteValue(v)) return;
+    const Vec4f c = lookupTransferFunction(tf, v);
+    emit(c, tf, ds, Real(1), litColour(Vec3f{c.x, c.y, c.z}, ambient, light, lightT));
+  }
+
+  INR_HD void emit(const Vec4f& c, const TransferFunctionView& tf, float ds, Real lightFactor, const Vec3f& colour) {
     const Real sigma = opacityToExtinction(c.w, tf.invUnitDistance);
     const Real alpha = -expm1Of(-sigma * ds);
     const Real w = T * alpha * lightFactor;
-    r += w * c.x;
-    g += w * c.y;
-    b += w * c.z;
+    r += w * colour.x;
+    g += w * colour.y;
+    b += w * colour.z;
     T *= Real(1) - alpha;
   }
 

@@ -38,6 +38,9 @@ void RayMarchRenderer::setScene(const RenderScene& scene) {
     throw std::invalid_argument("depth limit must have one value per pixel");
   }
   scene.camera.view(settings_.width, settings_.height);  // validates
+  scene.shading.validate();
+  if (scene.shading.enabled && !evaluator_.providesGradient())
+    throw std::invalid_argument("shading: the evaluator " + evaluator_.name() + " computes no gradients");
   scene_ = scene;
   tfTable_ = std::make_unique<TransferFunctionTable>(scene.transferFunction);
   haveScene_ = true;
@@ -64,7 +67,10 @@ FrameStats RayMarchRenderer::renderFrame() {
   if (cam.transformed) toLight = normalize(applyLinear(cam.modelFromWorld, toLight));  // model space
   const bool shadows = scene_.shadows;
   const float ambient = scene_.ambient;
+  // Gradient shading: every sample's value comes with its gradient (Shading.h).
+  const ShadingConstants shading = shadingConstants(scene_.shading);
   st.pixels = std::size_t(n);
+  std::vector<float> gradients;
 
   std::vector<MarchRay> segs;
   std::vector<QueryPoint> points;
@@ -108,7 +114,12 @@ FrameStats RayMarchRenderer::renderFrame() {
     }
     st.initMs += msSince(t0);
     t0 = Clock::now();
-    if (total > 0) evaluator_.evaluate(points.data(), std::size_t(total), values.data());
+    if (total > 0 && shading.enabled) {
+      gradients.resize(3 * std::size_t(total));
+      evaluator_.evaluateWithGradient(points.data(), std::size_t(total), values.data(), gradients.data());
+    } else if (total > 0) {
+      evaluator_.evaluate(points.data(), std::size_t(total), values.data());
+    }
     st.queries += std::size_t(total);
     if (total > 0) st.iterations += 1;
     st.evaluateMs += msSince(t0);
@@ -169,7 +180,15 @@ FrameStats RayMarchRenderer::renderFrame() {
       MarchCompositor<double> ray;
       for (int j = 0; j < s.count; ++j) {
         const int sample = firstSample[k] + j;
-        ray.add(tf, values[sample], s.ds, shadows ? marchLightFactor<double>(ambient, lightT[sample]) : 1.0);
+        if (shading.enabled) {
+          const float* g = &gradients[3 * std::size_t(sample)];
+          const QueryPoint& q = points[sample];
+          const SampleLight light =
+              sampleLightAt(cam, shading, toLight, Vec3f{q.x, q.y, q.z}, Vec3f{g[0], g[1], g[2]});
+          ray.addLit(tf, values[sample], s.ds, ambient, light, shadows ? lightT[sample] : 1.f);
+        } else {
+          ray.add(tf, values[sample], s.ds, shadows ? marchLightFactor<double>(ambient, lightT[sample]) : 1.0);
+        }
       }
       const int i = chunk0 + k;
       accum_[i] = accumulateMean(accum_[i], ray.estimate(), frameIndex_);

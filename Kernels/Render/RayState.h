@@ -14,6 +14,7 @@
 #include "Render/MajorantGrid.h"
 #include "Render/Pruning.h"
 #include "Render/RenderMath.h"
+#include "Render/Shading.h"
 #include "Render/TransferFunctionTable.h"
 
 namespace inr {
@@ -69,6 +70,9 @@ enum class ShadowEstimator : int {
 //   combPhase          march: fraction of a comb interval to the next comb point, carried from
 //                      one macrocell segment to the next (NaN: the ray has not started its comb)
 //   controlKnown       march: the ray has drawn a comb point (its control is known)
+//   hitWeight          ratio / march with one picked emission point (shadows or shading): its
+//                      weight's sign while tracking, then the signed weight the picked colour
+//                      carries in the frame estimate; 1 for delta tracking (Shading.h applies it)
 #define INR_RAY_STATE_FIELDS(X) \
   X(Vec3f, origin)              \
   X(Vec3f, direction)           \
@@ -89,7 +93,8 @@ enum class ShadowEstimator : int {
   X(float, residualNext)         \
   X(float, lastExtinction)       \
   X(float, combPhase)            \
-  X(std::uint8_t, controlKnown)
+  X(std::uint8_t, controlKnown)  \
+  X(float, hitWeight)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
 // declared the same way; resetPixel (Finalize.h) gives their values after a reset.
@@ -132,10 +137,11 @@ struct FrameConstants {
   std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)
   int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing)
   int shadows = 0;
-  float ambient = 0.2f;               // shading = ambient + (1 - ambient) * visibility
+  float ambient = 0.2f;               // unlit share of the colour (shadows and shading, Shading.h)
   Vec3f toLight{0.f, 0.f, 1.f};       // unit model-space vector towards the (directional) light
   Vec3f background{0.f, 0.f, 0.f};
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+  ShadingConstants shading;           // gradient shading (Shading.h); ambient above is its ambient
   // Primary estimator and ratio tracking's knobs (TrackingOptions; RatioTracking.h).
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   float majorantScale = 1.f;       // ratio: points at this x the cell majorant; march: comb density

@@ -15,6 +15,7 @@ struct FrameStats {
   std::size_t shadowRays = 0;
   std::size_t shadowQueries = 0;
   int shadowIterations = 0;
+  std::size_t shadingQueries = 0;  // value + gradient queries of gradient shading (one per lit ray)
   std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
   std::size_t cappedRays = 0;   // rays cut off by the per-ray collision cap (bounded work)
   std::size_t budgetSkipped = 0;  // pixels ray budgeting left out this frame (no ray cast)
@@ -28,7 +29,7 @@ struct FrameStats {
   std::size_t coveredPixels = 0;
   // Milliseconds per stage. `updateMs`: majorant/working-grid updates done before the frame.
   double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
-         shadowEvaluateMs = 0, finalizeMs = 0, totalMs = 0;
+         shadowEvaluateMs = 0, shadingMs = 0, finalizeMs = 0, totalMs = 0;
 
   // The traversal's structure over the majorants (OptiX GAS; zero for the DDA): wall time of the
   // rebuilds since the previous frame (scene updates, refinements), and its primitives (non-empty
@@ -36,7 +37,7 @@ struct FrameStats {
   double traversalBuildMs = 0;
   std::size_t traversalPrimitives = 0, traversalBytes = 0;
 
-  std::size_t totalQueries() const { return queries + shadowQueries; }
+  std::size_t totalQueries() const { return queries + shadowQueries + shadingQueries; }
   // Sums counts and times (for run totals); keeps the later frame index.
   FrameStats& operator+=(const FrameStats& o);
 };

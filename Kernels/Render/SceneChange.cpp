@@ -72,9 +72,13 @@ SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {
   // The light only shades through shadows: without them its direction, ambient term and
   // estimator change nothing (ParaView's light follows the camera, so counting it made every
   // camera move a light change, which restarts accumulation and so defeated reprojection).
-  c.light = b.shadows != after.shadows ||
-            (after.shadows && (b.toLight != after.toLight || b.ambient != after.ambient ||
-                               b.shadowEstimator != after.shadowEstimator));
+  // Shading uses the direction unless it has a headlight, and the ambient term.
+  const bool shaded = after.shading.enabled;
+  const bool directionUsed = after.shadows || (shaded && !after.shading.headlight);
+  c.light = b.shadows != after.shadows || b.shading != after.shading ||
+            (directionUsed && b.toLight != after.toLight) ||
+            ((after.shadows || shaded) && b.ambient != after.ambient) ||
+            (after.shadows && b.shadowEstimator != after.shadowEstimator);
   c.background = b.background != after.background;
   return c;
 }
@@ -88,7 +92,8 @@ CameraView validateScene(const RenderScene& scene, const RenderSettings& setting
   for (float c : scene.background) {
     if (!std::isfinite(c)) throw std::invalid_argument("background colour must be finite");
   }
-  if (scene.shadows && !(length(toVec3(scene.toLight)) > 0.f)) {
+  scene.shading.validate();
+  if ((scene.shadows || (scene.shading.enabled && !scene.shading.headlight)) && !(length(toVec3(scene.toLight)) > 0.f)) {
     throw std::invalid_argument("light direction must be non-zero");
   }
   return scene.camera.view(settings.width, settings.height);  // validates the camera

@@ -4,7 +4,8 @@
 //   time               working grid (interpolated slices) + majorants + accumulation reset
 //   transfer function  table + majorants + accumulation reset
 //   camera, depth limit, light (shadows on/off; with shadows on: direction, ambient,
-//                      estimator), background
+//                      estimator; shading options; with shading on: ambient, and the
+//                      direction unless it has a headlight), background
 //                      accumulation reset only (a camera-only move reprojects instead when
 //                      QueryReductionSettings::reproject is on)
 //   nothing            nothing: a host re-sending an identical scene keeps accumulating

@@ -438,6 +438,25 @@ TransferFunctionView TransferFunctionTable::view() const {
   return v;
 }
 
+void ShadingOptions::validate() const {
+  if (!(diffuse >= 0.f && diffuse < INFINITY))
+    throw std::invalid_argument("shading: diffuse must be finite and >= 0, got " + std::to_string(diffuse));
+  if (!(specular >= 0.f && specular < INFINITY))
+    throw std::invalid_argument("shading: specular must be finite and >= 0, got " + std::to_string(specular));
+  if (!(specularPower >= 0.f && specularPower <= 128.f))
+    throw std::invalid_argument("shading: specular power must be in [0, 128], got " + std::to_string(specularPower));
+}
+
+ShadingConstants shadingConstants(const ShadingOptions& shading) {
+  ShadingConstants sc;
+  sc.enabled = shading.enabled ? 1 : 0;
+  sc.diffuse = shading.diffuse;
+  sc.specular = shading.specular;
+  sc.specularPower = shading.specularPower;
+  sc.headlight = shading.headlight ? 1 : 0;
+  return sc;
+}
+
 FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, const RenderScene& scene,
                                   const RenderSettings& settings, const float* depthLimit, std::uint32_t frame) {
   FrameConstants fc;
@@ -473,6 +492,7 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   }
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
+  fc.shading = shadingConstants(scene.shading);
   return fc;
 }
 

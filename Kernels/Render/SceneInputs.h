@@ -94,6 +94,26 @@ private:
   float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
 };
 
+// Gradient shading (Render/Shading.h): ParaView's Shade with vtkVolumeProperty's Diffuse,
+// Specular and SpecularPower; its Ambient is RenderScene::ambient, shared with shadows. The
+// defaults make a sample facing the light keep its colour (ambient 0.2 + diffuse 0.8) with VTK's
+// specular highlight (0.2, power 10). headlight: the light sits at the eye, as ParaView's
+// headlight (RenderScene::toLight is then not used for shading; shadows still use it).
+struct ShadingOptions {
+  bool enabled = false;
+  float diffuse = 0.8f;        // >= 0
+  float specular = 0.2f;       // >= 0
+  float specularPower = 10.f;  // in [0, 128] (vtkVolumeProperty's range)
+  bool headlight = false;
+  // Throws std::invalid_argument naming the first option out of its range.
+  void validate() const;
+  bool operator==(const ShadingOptions& o) const {
+    return enabled == o.enabled && diffuse == o.diffuse && specular == o.specular &&
+           specularPower == o.specularPower && headlight == o.headlight;
+  }
+  bool operator!=(const ShadingOptions& o) const { return !(*this == o); }
+};
+
 // Everything that defines the picture, shared by all renderers. Changing the camera, light,
 // background, depth limit or shadow settings restarts accumulation; changing the transfer
 // function also recomputes the majorants; changing the time rebuilds the working grid.
@@ -108,8 +128,11 @@ struct RenderScene {
   std::vector<float> depthLimit;
   bool shadows = false;
   std::array<double, 3> toLight{0.0, 0.0, 1.0};  // world direction towards the directional light
-  float ambient = 0.2f;  // with shadows: emission * (ambient + (1 - ambient) * visibility)
+  // The unlit share of the colour: with shadows emission * (ambient + (1 - ambient) * visibility);
+  // with shading the ambient term of the lighting (Render/Shading.h).
+  float ambient = 0.2f;
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+  ShadingOptions shading;
 };
 
 // Where the rendered image lies in a larger picture (one tile of a tiled render): the image is
@@ -182,6 +205,9 @@ void validateSplit(const RenderSettings& settings);
 // backend's copy of scene.depthLimit (host or device memory), ignored when the scene has none.
 FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, const RenderScene& scene,
                                   const RenderSettings& settings, const float* depthLimit, std::uint32_t frame);
+
+// The stages' form of the shading options.
+ShadingConstants shadingConstants(const ShadingOptions& shading);
 
 inline Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
 

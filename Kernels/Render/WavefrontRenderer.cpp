@@ -94,6 +94,8 @@ void WavefrontRenderer::setSettings(const RenderSettings& settings) {
 
 void WavefrontRenderer::setScene(const RenderScene& scene) {
   const CameraView view = validateScene(scene, settings_);
+  if (scene.shading.enabled && !fieldHasGradient())
+    throw std::invalid_argument("shading: this renderer's field evaluator computes no gradients");
   SceneChange change = diffScenes(haveScene_ ? &scene_ : nullptr, scene);
   change.time = change.time || macrocellTime() != scene.time;  // the grid may be shared
   const auto t0 = Clock::now();
@@ -266,6 +268,7 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     FrameConstants fc = frameConstants(GhostSweep::frameNumber(ghostPasses_++), nullptr);
     fc.budget = BudgetConstants{};  // every stride-th pixel (initGhostRay)
     fc.shadows = 0;
+    fc.shading.enabled = 0;
     fc.estimator = PrimaryEstimator::Delta;  // ghost rays only need to visit cells
     fc.depthLimit = nullptr;  // refine what is hidden now too: it may show up after a camera move
     // Ghost rays refine this process's whole macrocell grid, not its pixels: with a pixel share

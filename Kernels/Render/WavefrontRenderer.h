@@ -148,6 +148,8 @@ protected:
   virtual void sceneUpdateDone() {}          // wait for the update work (so it is timed)
   virtual const Box3f& volumeBox() const = 0;
   virtual std::array<float, 2> workingValueRange() const = 0;
+  // Whether the field gives gradients (gradient shading needs them; setScene refuses it without).
+  virtual bool fieldHasGradient() const = 0;
   virtual Vec3f cellSize() const = 0;
   virtual void beginGhostPasses() = 0;       // bring the displayed majorants up to date
   // One ghost pass with `table`: its majorants, ghost rays (initGhostRay), the tracking loop

@@ -1,6 +1,7 @@
 #pragma once
 // Analytic FieldEvaluators for the render tests (no network needed), and a counting wrapper.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <functional>
@@ -13,25 +14,56 @@
 
 namespace inr::test {
 
+// An analytic field, optionally with its analytic gradient (d f / d x, y, z) for shading.
 class FunctionField : public FieldEvaluator {
 public:
-  explicit FunctionField(std::function<float(const QueryPoint&)> f, std::string name = "analytic")
-      : f_(std::move(f)), name_(std::move(name)) {}
+  using Gradient = std::function<std::array<float, 3>(const QueryPoint&)>;
+  explicit FunctionField(std::function<float(const QueryPoint&)> f, std::string name = "analytic",
+                         Gradient gradient = nullptr)
+      : f_(std::move(f)), gradient_(std::move(gradient)), name_(std::move(name)) {}
   void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
     calls_ += 1;
     points_ += n;
     for (std::size_t i = 0; i < n; ++i) out[i] = f_(p[i]);
   }
+  bool providesGradient() const override { return gradient_ != nullptr; }
+  void evaluateWithGradient(const QueryPoint* p, std::size_t n, float* values, float* gradients) const override {
+    if (!gradient_) FieldEvaluator::evaluateWithGradient(p, n, values, gradients);
+    gradientCalls_ += 1;
+    gradientPoints_ += n;
+    for (std::size_t i = 0; i < n; ++i) {
+      values[i] = f_(p[i]);
+      const std::array<float, 3> g = gradient_(p[i]);
+      for (int k = 0; k < 3; ++k) gradients[3 * i + k] = g[k];
+    }
+  }
   std::string name() const override { return name_; }
   std::size_t points() const { return points_; }
   std::size_t calls() const { return calls_; }
-  void resetCounts() { points_ = 0, calls_ = 0; }
+  std::size_t gradientPoints() const { return gradientPoints_; }
+  std::size_t gradientCalls() const { return gradientCalls_; }
+  void resetCounts() { points_ = 0, calls_ = 0, gradientPoints_ = 0, gradientCalls_ = 0; }
 
 private:
   std::function<float(const QueryPoint&)> f_;
+  Gradient gradient_;
   std::string name_;
-  mutable std::size_t points_ = 0, calls_ = 0;
+  mutable std::size_t points_ = 0, calls_ = 0, gradientPoints_ = 0, gradientCalls_ = 0;
 };
+
+// A Gaussian blob exp(-|p - centre|^2 / w^2) at the centre of [-1,1]^3 shifted by (0.1, -0.05, 0)
+// (not time-varying) and its gradient: level sets are spheres, so the outward normal at p is
+// the unit vector from the centre, which the shading tests predict the light from.
+constexpr float kBlobCentre[3] = {0.1f, -0.05f, 0.f};
+constexpr float kBlobWidth = 0.6f;
+inline float blobField(const QueryPoint& p) {
+  const float dx = p.x - kBlobCentre[0], dy = p.y - kBlobCentre[1], dz = p.z - kBlobCentre[2];
+  return std::exp(-(dx * dx + dy * dy + dz * dz) / (kBlobWidth * kBlobWidth));
+}
+inline std::array<float, 3> blobGradient(const QueryPoint& p) {
+  const float k = -2.f * blobField(p) / (kBlobWidth * kBlobWidth);
+  return {k * (p.x - kBlobCentre[0]), k * (p.y - kBlobCentre[1]), k * (p.z - kBlobCentre[2])};
+}
 
 // Smooth time-varying field on [-1,1]^3 with values in about [0, 1].
 inline float smoothField(const QueryPoint& p) {

@@ -320,3 +320,21 @@ const inr::TransferFunction& InrSceneTranslator::UpdateTransferFunction(
   this->CachedRange[1] = valueRange[1];
   return this->TF;
 }
+
+void InrSceneTranslator::TranslateShading(
+  vtkVolumeProperty* property, bool headlight, inr::RenderScene& scene)
+{
+  scene.shading = inr::ShadingOptions{};
+  if (!property || !property->GetShade(0))
+  {
+    return;
+  }
+  // VTK clamps these to the ranges the engine accepts (Ambient, Diffuse, Specular in [0, 1],
+  // SpecularPower in [0, 128]).
+  scene.shading.enabled = true;
+  scene.shading.diffuse = static_cast<float>(property->GetDiffuse(0));
+  scene.shading.specular = static_cast<float>(property->GetSpecular(0));
+  scene.shading.specularPower = static_cast<float>(property->GetSpecularPower(0));
+  scene.shading.headlight = headlight;
+  scene.ambient = static_cast<float>(property->GetAmbient(0));
+}

@@ -19,7 +19,9 @@
  *    at 256 points so every VTK colour space and log scale is reproduced by the engine's RGB
  *    interpolation; the scalar-opacity nodes with midpoint/sharpness; the scalar opacity unit
  *    distance), or the engine's default TF over the value range; UpdateTransferFunction converts
- *    only when its inputs changed (modification times, value range, default or not).
+ *    only when its inputs changed (modification times, value range, default or not);
+ *  - shading: vtkVolumeProperty's Shade, Ambient, Diffuse, Specular, SpecularPower (ParaView's
+ *    representation properties of those names) -> inr::RenderScene::shading and its ambient.
  */
 #ifndef InrSceneTranslator_h
 #define InrSceneTranslator_h
@@ -119,6 +121,15 @@ public:
   const inr::TransferFunction& GetTransferFunction() const { return this->TF; }
   /// How many times UpdateTransferFunction converted (cache misses).
   int GetTransferFunctionConversions() const { return this->Conversions; }
+  ///@}
+
+  ///@{
+  /// Shading. The property's Shade, Diffuse, Specular and SpecularPower (component 0) become
+  /// scene.shading; with Shade on its Ambient becomes scene.ambient, the engine's one ambient
+  /// (shadows included), as vtkVolumeProperty has one. `headlight`: the light follows the camera
+  /// (ParaView's headlight) rather than scene.toLight. Shade off or no property: shading off,
+  /// scene.ambient untouched.
+  static void TranslateShading(vtkVolumeProperty* property, bool headlight, inr::RenderScene& scene);
   ///@}
 
 private:

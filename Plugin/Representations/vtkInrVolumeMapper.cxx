@@ -1382,6 +1382,9 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   scene.ambient = static_cast<float>(self->Ambient);
   scene.shadowEstimator =
     self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
+  // The automatic light with shading alone is ParaView's headlight; shadows need a direction.
+  const bool automaticLight = l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0;
+  InrSceneTranslator::TranslateShading(vol->GetProperty(), automaticLight && !scene.shadows, scene);
   return scene;
 }
 

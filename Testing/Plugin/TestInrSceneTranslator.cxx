@@ -532,3 +532,38 @@ TEST(InrSceneTranslator, FieldDataTimeAndRange)
   time->InsertNextValue(2.5);
   EXPECT_DOUBLE_EQ(InrSceneTranslator::Time(image, fallback), 2.5) << "InrTime wins";
 }
+
+// ParaView's Shade, Ambient, Diffuse, Specular and SpecularPower (vtkVolumeProperty) drive the
+// engine's shading; with Shade on the property's Ambient is the scene's one ambient.
+TEST(InrSceneTranslator, ShadingFromTheVolumeProperty)
+{
+  vtkNew<vtkVolumeProperty> prop;
+  inr::RenderScene scene;
+  scene.ambient = 0.35f;  // the shadows' ambient (the mapper's Ambient)
+  InrSceneTranslator::TranslateShading(prop, true, scene);
+  EXPECT_FALSE(scene.shading.enabled);  // Shade off: nothing changes
+  EXPECT_EQ(scene.ambient, 0.35f);
+  InrSceneTranslator::TranslateShading(nullptr, true, scene);
+  EXPECT_FALSE(scene.shading.enabled);
+
+  prop->ShadeOn();
+  prop->SetAmbient(0.1);
+  prop->SetDiffuse(0.6);
+  prop->SetSpecular(0.3);
+  prop->SetSpecularPower(40.0);
+  InrSceneTranslator::TranslateShading(prop, true, scene);
+  EXPECT_TRUE(scene.shading.enabled);
+  EXPECT_TRUE(scene.shading.headlight);
+  EXPECT_FLOAT_EQ(scene.ambient, 0.1f);
+  EXPECT_FLOAT_EQ(scene.shading.diffuse, 0.6f);
+  EXPECT_FLOAT_EQ(scene.shading.specular, 0.3f);
+  EXPECT_FLOAT_EQ(scene.shading.specularPower, 40.f);
+  EXPECT_NO_THROW(scene.shading.validate());
+  InrSceneTranslator::TranslateShading(prop, false, scene);
+  EXPECT_FALSE(scene.shading.headlight);
+
+  // Turning Shade off again leaves shading off (the scene is rebuilt per render).
+  prop->ShadeOff();
+  InrSceneTranslator::TranslateShading(prop, true, scene);
+  EXPECT_FALSE(scene.shading.enabled);
+}

@@ -43,6 +43,7 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"shadow_rays", s.shadowRays},
           {"shadow_queries", s.shadowQueries},
           {"shadow_iterations", s.shadowIterations},
+          {"shading_queries", s.shadingQueries},
           {"refinements", s.refinements},
           {"residual_sum", s.residualSum},
           {"capped_rays", s.cappedRays},
@@ -57,6 +58,7 @@ nlohmann::json statsJson(const FrameStats& s) {
             {"evaluate", s.evaluateMs},
             {"shadow_traverse", s.shadowTraverseMs},
             {"shadow_evaluate", s.shadowEvaluateMs},
+            {"shading", s.shadingMs},
             {"finalize", s.finalizeMs},
             {"traversal_build", s.traversalBuildMs},
             {"total", s.totalMs}}}};
@@ -123,6 +125,10 @@ RenderScene sceneFor(const RenderJob& job, const InrModel& model, const Box3f& b
   scene.toLight = job.toLight.value_or(defaultLightDirection(scene.camera));
   scene.ambient = job.ambient;
   scene.shadowEstimator = job.shadowEstimator;
+  scene.shading = job.shading;
+  // ParaView's headlight where no light is named: shadows need a direction, so with them shading
+  // takes their (default) light.
+  scene.shading.headlight = !job.toLight && !job.shadows;
   return scene;
 }
 
@@ -148,7 +154,7 @@ void printFrameLine(const RenderJob& job, const FrameStats& st, long k) {
 // job.frames frames (no split: parseRenderJob refuses one, so job.settings are the run's).
 RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session, const Box3f& box,
                              const RenderScene& scene, nlohmann::json& report) {
-  const std::unique_ptr<SessionRayMarcher> renderer = SessionRayMarcher::create(session, box, job.rayMarch, scene.shadows);
+  const std::unique_ptr<SessionRayMarcher> renderer = SessionRayMarcher::create(session, box, job.rayMarch, scene);
   if (!job.quiet) std::printf("ray marcher: %s\n", renderer->description().c_str());
   renderer->setSettings(job.settings);
   renderer->setScene(scene);
@@ -183,6 +189,7 @@ void writeBrickDescription(const RenderJob& job, const RenderSession& session, c
   meta["frames"] = r.frames;
   meta["queries"] = r.total.queries;
   meta["shadow_queries"] = r.total.shadowQueries;
+  meta["shading_queries"] = r.total.shadingQueries;
   meta["render_seconds"] = renderSeconds;
   meta["ms_per_frame"] = r.total.totalMs / std::max<long>(1, r.frames);
   meta["estimated_psnr_db"] = estimatedPsnr;

@@ -28,7 +28,14 @@ const char* kRenderUsageHead =
     "  --background R,G,B       background colour (default 0,0,0)\n"
     "  --shadows                ray-traced shadows from a directional light\n"
     "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"
-    "  --ambient A              unshadowed fraction of the emission with --shadows (default 0.2)\n"
+    "  --ambient A              share of the colour every sample keeps, unlit and unshadowed: with\n"
+    "                           --shadows and with --shade (ParaView's one Ambient; default 0.2)\n"
+    "  --shade                  gradient shading from the network's own gradient, as ParaView's\n"
+    "                           Shade: ambient + diffuse |N.L| + specular (R.V)^power; the light is\n"
+    "                           --light, else with --shadows their default light, else a headlight\n"
+    "  --diffuse D              with --shade: diffuse coefficient (default 0.8)\n"
+    "  --specular S             with --shade: specular coefficient (default 0.2)\n"
+    "  --specular-power P       with --shade: specular power in [0, 128] (default 10)\n"
     "  --shadow-estimator delta|ratio  shadow transmittance estimator (default delta)\n"
     "rendering:\n"
     "  --method delta|raymarch|naive  wavefront delta tracking (default), fixed-step ray marching,\n"
@@ -372,6 +379,22 @@ void parseScene(const Args& args, RenderJob& job) {
   }
   job.ambient = float(args.getDouble("ambient", 0.2));
   if (job.ambient < 0.f || job.ambient > 1.f) throw UsageError("--ambient must be in [0, 1]");
+  job.shading.enabled = args.has("shade");
+  struct Coefficient {
+    const char* name;
+    float* value;
+    float max;  // vtkVolumeProperty's range (the coefficients have none above)
+  };
+  for (const Coefficient& c : {Coefficient{"diffuse", &job.shading.diffuse, INFINITY},
+                               Coefficient{"specular", &job.shading.specular, INFINITY},
+                               Coefficient{"specular-power", &job.shading.specularPower, 128.f}}) {
+    if (!args.has(c.name)) continue;
+    if (!job.shading.enabled) throw UsageError(std::string("--") + c.name + " needs --shade");
+    *c.value = float(args.getDouble(c.name, 0.0));
+    if (!(*c.value >= 0.f && *c.value <= c.max && *c.value < INFINITY))
+      throw UsageError(std::string("--") + c.name +
+                       (c.max < INFINITY ? " must be in [0, 128]" : " must be finite and >= 0"));
+  }
   const std::string estimator = args.get("shadow-estimator", "delta");
   if (estimator != "delta" && estimator != "ratio") throw UsageError("--shadow-estimator must be delta or ratio");
   job.shadowEstimator = estimator == "ratio" ? ShadowEstimator::Ratio : ShadowEstimator::Delta;
@@ -415,8 +438,8 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold"},
-                  {"help", "shadows", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
+                   "roulette-threshold", "diffuse", "specular", "specular-power"},
+                  {"help", "shadows", "shade", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   RenderJob job;
   if (args.has("help")) {
     job.help = true;

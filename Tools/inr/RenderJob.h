@@ -61,8 +61,9 @@ struct RenderJob {
   std::array<float, 3> background{0.f, 0.f, 0.f};
   bool shadows = false;
   std::optional<std::array<double, 3>> toLight;  // default: defaultLightDirection(camera)
-  float ambient = 0.2f;
+  float ambient = 0.2f;  // shadows' and shading's one ambient (Render/Shading.h)
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
+  ShadingOptions shading;  // --shade, --diffuse, --specular, --specular-power (headlight: the runner)
 
   bool splitIntoBricks() const { return split == SplitKind::Brick; }
   bool writesNpy() const { return split != SplitKind::None; }

@@ -56,6 +56,20 @@ TEST(RenderJob, DefaultsAreTheDocumentedOnes) {
   EXPECT_TRUE(job.transferFunctionFile.empty());
   EXPECT_FALSE(job.shadows);
   EXPECT_EQ(job.shadowEstimator, ShadowEstimator::Delta);
+  EXPECT_FALSE(job.shading.enabled);
+}
+
+TEST(RenderJob, ShadingOptionsReachTheScene) {
+  const RenderJob plain = parseRenderJob(withModel({"--shade"}));
+  EXPECT_TRUE(plain.shading.enabled);
+  EXPECT_EQ(plain.shading.diffuse, ShadingOptions{}.diffuse);
+  EXPECT_EQ(plain.shading.specularPower, ShadingOptions{}.specularPower);
+  const RenderJob job = parseRenderJob(
+      withModel({"--shade", "--ambient", "0.1", "--diffuse", "0.7", "--specular", "0.3", "--specular-power", "24"}));
+  EXPECT_EQ(job.ambient, 0.1f);
+  EXPECT_EQ(job.shading.diffuse, 0.7f);
+  EXPECT_EQ(job.shading.specular, 0.3f);
+  EXPECT_EQ(job.shading.specularPower, 24.f);
 }
 
 TEST(RenderJob, OptionsReachTheirFields) {
@@ -186,6 +200,11 @@ TEST(RenderJob, BadValuesAreUsageErrorsNamingTheOption) {
       {{"--light", "0,0,0"}, "out.png", "--light"},
       {{"--ambient", "2"}, "out.png", "--ambient"},
       {{"--shadow-estimator", "exact"}, "out.png", "--shadow-estimator"},
+      {{"--diffuse", "0.5"}, "out.png", "--shade"},  // a coefficient without shading
+      {{"--shade", "--diffuse", "-1"}, "out.png", "--diffuse"},
+      {{"--shade", "--specular", "nan"}, "out.png", "--specular"},
+      {{"--shade", "--specular-power", "129"}, "out.png", "--specular-power"},
+      {{"--shade", "--specular-power", "x"}, "out.png", "--specular-power"},
       {{"--step", "0"}, "out.png", "--step"},
       {{"--shadow-step", "-1"}, "out.png", "--shadow-step"},
       {{"--budget", "everything"}, "out.png", "--budget"},

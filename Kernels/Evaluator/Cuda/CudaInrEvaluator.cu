@@ -12,6 +12,7 @@
 #include "Common/Cuda/CudaCheck.h"
 #include "Common/Cuda/CudaDevice.h"
 #include "Common/Cuda/DeviceBuffer.h"
+#include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/Cuda/FusedLaunchAutotuner.h"
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
 #include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
@@ -153,6 +154,8 @@ struct CudaInrEvaluator::Impl {
   cublasHandle_t cublas = nullptr;
   mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
   static constexpr int kGenericChunk = 1 << 16;
+  // Gradient shading's value + gradient queries (fp32 forward mode, one thread per query).
+  std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
 
   void prepareParams(const InrModel& model);
   // Runs one fused configuration on n points (at most, with a device-side count).
@@ -256,6 +259,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.program = MlpProgram::compile(model.architecture);
   I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
   I.prepareParams(model);
+  I.gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
 
   // The path: fused where the program and a configuration fit, else generic.
   const MlpProgram& prog = I.program;
@@ -408,6 +412,16 @@ void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* 
   INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points, n * sizeof(float4), cudaMemcpyHostToDevice));
   evaluateDevice(I.stagePoints.get(), int(n), I.stageOut.get(), nullptr, nullptr);
   INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.get(), n * sizeof(float), cudaMemcpyDeviceToHost));
+}
+
+void CudaInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
+                                            float* gradients) const {
+  impl_->gradientNetwork->evaluateWithGradient(points, n, values, gradients);
+}
+
+void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN,
+                                                  float time, float4* out, cudaStream_t stream) const {
+  impl_->gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
 }
 
 }  // namespace inr

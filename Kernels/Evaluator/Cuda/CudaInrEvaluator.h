@@ -64,6 +64,14 @@ public:
   void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
                       cudaStream_t stream) const override;
 
+  // Gradient shading (Render/Shade.h): values and gradients in fp32 forward mode through the
+  // per-thread network (CudaPerThreadMlp), not the fused kernels (their tangent rows are to come).
+  bool providesGradient() const override { return true; }
+  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const override;
+  bool providesDeviceGradient() const override { return true; }
+  void evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN, float time, float4* out,
+                                  cudaStream_t stream) const override;
+
   CudaEvaluatorPath path() const;
   // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,
   // e.g. "... tile 128 x K 64: L / S Gq/s; ... -> tile 128 x K 64, below 32768 queries

@@ -17,6 +17,24 @@ __global__ void perThreadEvaluateKernel(PerThreadMlpView N, const float4* points
   const float4 p = points[i];
   out[i] = cuda::perThreadEvaluate(N, p.x, p.y, p.z, p.w, i);
 }
+
+// Gradient shading's batch: a grid-stride loop of a bounded number of threads (their scratch).
+__global__ void perThreadGradientKernel(PerThreadMlpView N, const float4* points, const unsigned* deviceCount,
+                                        int maxN, float4* out) {
+  const int n = deviceCount ? min(int(*deviceCount), maxN) : maxN;
+  const int threads = gridDim.x * blockDim.x;
+  const int tid = blockIdx.x * blockDim.x + threadIdx.x;
+  for (int i = tid; i < n; i += threads) {
+    const float4 p = points[i];
+    float g[3];
+    const float v = cuda::perThreadForward<true>(N, p.x, p.y, p.z, p.w, tid, g);
+    out[i] = make_float4(v, g[0], g[1], g[2]);
+  }
+}
+
+// Threads of the gradient kernel: enough to fill a large GPU, few enough that four planes of
+// scratch per thread stay small.
+constexpr int kGradientThreads = 1 << 15;
 }  // namespace
 
 struct CudaPerThreadMlp::Impl {
@@ -28,6 +46,7 @@ struct CudaPerThreadMlp::Impl {
   mutable cuda::DeviceBuffer<float> scratch;
   mutable cuda::DeviceBuffer<float4> stagePoints;
   mutable cuda::DeviceBuffer<float> stageOut;
+  mutable cuda::DeviceBuffer<float4> stageGradients;
 };
 
 CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_unique<Impl>()) {
@@ -36,7 +55,15 @@ CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_uniq
   Impl& I = *impl_;
   I.program = MlpProgram::compile(model.architecture);
   I.output = model.output;
-  PerThreadMlpView& v = I.base;
+  I.instrs.upload(I.program.instrs, nullptr);
+  I.weights.upload(I.program.floatWeights, nullptr);
+  INR_CUDA_CHECK(cudaDeviceSynchronize());
+  I.base = perThreadMlpBase(model, I.program, I.instrs.get(), I.weights.get());
+}
+
+PerThreadMlpView perThreadMlpBase(const InrModel& model, const MlpProgram& program, const MlpInstr* instrs,
+                                  const float* weights) {
+  PerThreadMlpView v;
   v.inputDim = model.architecture.inputDim;
   if (v.inputDim < 1 || v.inputDim > 4) throw std::runtime_error("per-thread MLP: input dimension must be 1..4");
   for (int i = 0; i < v.inputDim; ++i) {
@@ -45,14 +72,12 @@ CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_uniq
     v.inScale[i] = float(model.domain.toNetwork[w].scale);
     v.inOffset[i] = float(model.domain.toNetwork[w].offset);
   }
-  I.instrs.upload(I.program.instrs, nullptr);
-  I.weights.upload(I.program.floatWeights, nullptr);
-  INR_CUDA_CHECK(cudaDeviceSynchronize());
-  v.instrs = I.instrs.get();
-  v.numInstrs = int(I.program.instrs.size());
-  v.weights = I.weights.get();
-  v.numBuffers = std::max(1, I.program.numBuffers);
-  v.width = std::max(16, I.program.maxWidthPad);
+  v.instrs = instrs;
+  v.numInstrs = int(program.instrs.size());
+  v.weights = weights;
+  v.numBuffers = std::max(1, program.numBuffers);
+  v.width = std::max(16, program.maxWidthPad);
+  return v;
 }
 
 CudaPerThreadMlp::~CudaPerThreadMlp() = default;
@@ -61,9 +86,10 @@ std::size_t CudaPerThreadMlp::scratchBytesPerThread() const {
   return std::size_t(impl_->base.numBuffers) * impl_->base.width * sizeof(float);
 }
 
-PerThreadMlpView CudaPerThreadMlp::view(int threads, float time) const {
+PerThreadMlpView CudaPerThreadMlp::view(int threads, float time, bool tangents) const {
   Impl& I = *impl_;
-  const std::size_t need = std::size_t(I.base.numBuffers) * I.base.width * std::size_t(std::max(threads, 1));
+  const std::size_t need = std::size_t(I.base.numBuffers) * I.base.width * std::size_t(std::max(threads, 1)) *
+                           (tangents ? 4 : 1);
   I.scratch.growTo(need);
   PerThreadMlpView v = I.base;
   v.scratch = I.scratch.get();
@@ -101,6 +127,43 @@ void CudaPerThreadMlp::evaluate(const QueryPoint* points, std::size_t n, float* 
     perThreadEvaluateKernel<<<(m + 127) / 128, 128>>>(v, I.stagePoints.get(), m, I.stageOut.get());
     INR_CUDA_CHECK_LAUNCH("perThreadEvaluateKernel");
     INR_CUDA_CHECK(cudaMemcpy(out + first, I.stageOut.get(), m * sizeof(float), cudaMemcpyDeviceToHost));
+  }
+}
+
+void CudaPerThreadMlp::evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN,
+                                                  float time, float4* out, cudaStream_t stream) const {
+  if (maxN <= 0) return;
+  const int threads = std::min(maxN, kGradientThreads);
+  const PerThreadMlpView v = view(threads, time, true);
+  perThreadGradientKernel<<<(threads + 127) / 128, 128, 0, stream>>>(v, points, deviceCount, maxN, out);
+  INR_CUDA_CHECK_LAUNCH("perThreadGradientKernel");
+}
+
+void CudaPerThreadMlp::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
+                                            float* gradients) const {
+  static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
+  Impl& I = *impl_;
+  constexpr int kChunk = 1 << 16;
+  std::vector<float4> results;
+  for (std::size_t first = 0; first < n;) {
+    // One output mapping per launch: a run of equal times where the mapping depends on time.
+    std::size_t end = first + 1;
+    while (end < n && end - first < std::size_t(kChunk) && (!I.output.perTime || points[end].t == points[first].t))
+      ++end;
+    const int m = int(end - first);
+    I.stagePoints.growTo(std::size_t(m));
+    I.stageGradients.growTo(std::size_t(m));
+    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points + first, m * sizeof(float4), cudaMemcpyHostToDevice));
+    evaluateWithGradientDevice(I.stagePoints.get(), nullptr, m, points[first].t, I.stageGradients.get(), nullptr);
+    results.resize(std::size_t(m));
+    INR_CUDA_CHECK(cudaMemcpy(results.data(), I.stageGradients.get(), m * sizeof(float4), cudaMemcpyDeviceToHost));
+    for (int i = 0; i < m; ++i) {
+      values[first + i] = results[i].x;
+      gradients[3 * (first + i)] = results[i].y;
+      gradients[3 * (first + i) + 1] = results[i].z;
+      gradients[3 * (first + i) + 2] = results[i].w;
+    }
+    first = end;
   }
 }
 

@@ -30,20 +30,38 @@ struct PerThreadMlpView {
   int numBuffers = 1, width = 16, stride = 0;  // stride = threads sharing the scratch
 };
 
+struct MlpProgram;
+
+// The view of `program` compiled from `model` with its instructions and fp32 weights at `instrs`
+// and `weights` (device memory, or host memory for the host form of the code): input mapping,
+// buffers; no scratch, output mapping at no time yet (view() adds them).
+PerThreadMlpView perThreadMlpBase(const InrModel& model, const MlpProgram& program, const MlpInstr* instrs,
+                                  const float* weights);
+
 class CudaPerThreadMlp final : public FieldEvaluator {
 public:
   explicit CudaPerThreadMlp(const InrModel& model);
   ~CudaPerThreadMlp() override;
 
   // View for `threads` concurrent threads at world time `time` (the output mapping may depend on
-  // time). Grows the scratch array as needed; the view is valid until the next call.
-  PerThreadMlpView view(int threads, float time) const;
-  // Scratch bytes one thread needs.
+  // time). Grows the scratch array as needed; the view is valid until the next call. With
+  // `tangents` the scratch also holds three tangent planes (perThreadForward<true>).
+  PerThreadMlpView view(int threads, float time, bool tangents = false) const;
+  // Scratch bytes one thread needs (values only).
   std::size_t scratchBytesPerThread() const;
 
   // FieldEvaluator (host arrays; for tests): one thread per query through the same device code.
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
   std::string name() const override { return "cuda-per-thread-fp32"; }
+  // Values and gradients in fp32 forward mode (perThreadForward<true>), host arrays.
+  bool providesGradient() const override { return true; }
+  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const override;
+  // The same on the device: for min(*deviceCount, maxN) points (the count in device memory; null:
+  // maxN), all at world time `time`, out[i] = (value, d/dx, d/dy, d/dz). A bounded number of
+  // threads loops over the points, so the tangents' scratch stays bounded whatever the batch.
+  // Asynchronous on `stream`.
+  void evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN, float time, float4* out,
+                                  cudaStream_t stream) const;
 
 private:
   struct Impl;

@@ -6,6 +6,7 @@
 // networks, tests implement it with analytic fields (Render/Cuda/AnalyticDeviceField.h).
 #include <cuda_runtime.h>
 
+#include <stdexcept>
 #include <string>
 
 namespace inr {
@@ -25,6 +26,14 @@ public:
   virtual void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
                               const int* scatter, cudaStream_t stream) const = 0;
   virtual std::string name() const = 0;
+
+  // Gradient shading's batch (Render/Shade.h): for min(*deviceCount, maxN) points at world time
+  // `time`, out[i] = (value, d/dx, d/dy, d/dz). Evaluators without gradients say false and throw.
+  virtual bool providesDeviceGradient() const { return false; }
+  virtual void evaluateWithGradientDevice(const float4* /*points*/, const unsigned* /*deviceCount*/, int /*maxN*/,
+                                          float /*time*/, float4* /*out*/, cudaStream_t /*stream*/) const {
+    throw std::logic_error("the device evaluator " + name() + " computes no gradients (needed for shading)");
+  }
 };
 
 }  // namespace inr

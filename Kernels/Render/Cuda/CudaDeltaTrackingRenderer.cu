@@ -14,6 +14,7 @@
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
 #include "Render/Reproject.h"
+#include "Render/Shade.h"
 #include "Render/Shadows.h"
 
 namespace inr {
@@ -43,6 +44,31 @@ __global__ void initKernel(FrameConstants fc, MajorantGridView grid, RayStateVie
     if (active) atomicAdd(&stats[kStatRays], (unsigned long long)active);
     if (skipped) atomicAdd(&stats[kStatBudgetSkipped], (unsigned long long)skipped);
   }
+}
+
+// Gradient shading (Render/Shade.h): lists the rays whose colour is lit, with their points; the
+// shading-query statistic doubles as the list's counter.
+__global__ void gatherShadingKernel(FrameConstants fc, RayStateView rs, float4* points, int* rays,
+                                    unsigned long long* stats) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= rs.count || !needsShading(fc, rs, i)) return;
+  const int k = int(atomicAdd(&stats[kStatShadingQueries], 1ull));
+  const QueryPoint q = shadingQuery(fc, rs, i);
+  points[k] = make_float4(q.x, q.y, q.z, q.t);
+  rays[k] = i;
+}
+
+__global__ void shadeKernel(FrameConstants fc, RayStateView rs, const float4* results, const int* rays,
+                            const unsigned long long* count) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= int(*count)) return;
+  const float4 r = results[k];
+  shadeRay(fc, rs, rays[k], Vec3f{r.y, r.z, r.w});
+}
+
+// The list's length for the evaluator (32 bits, as its deviceCount).
+__global__ void shadingCountKernel(const unsigned long long* stats, unsigned* count) {
+  *count = unsigned(stats[kStatShadingQueries]);
 }
 
 // Reprojection pass 1: old pixel j offers itself to the new pixels around its hit point.
@@ -337,6 +363,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.cappedRays = std::size_t(I.hostStats[kStatCapped]);
   st.budgetSkipped = std::size_t(I.hostStats[kStatBudgetSkipped]);
   st.pruned = std::size_t(I.hostStats[kStatPruned]);
+  st.shadingQueries = std::size_t(I.hostStats[kStatShadingQueries]);
   // Refinement raised majorants: the next frame's updateDirtyMajorants applies them, and the
   // traversal's structure is rebuilt over them.
   if (st.refinements > 0) I.traversalStale = true;
@@ -383,6 +410,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
     sumPrunedKernel<<<blocksFor(n), kThreads, 0, s>>>(rs, I.stats.get());
     INR_CUDA_CHECK_LAUNCH("sumPrunedKernel");
   }
+  if (fc.shading.enabled) shadeHits(fc);
 
   I.timer.begin(cuda::kFinalize, s);
   const bool histogram = queryReduction_.budget == BudgetScheme::Histogram;
@@ -403,6 +431,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   st.evaluateMs = ms[cuda::kEvaluate];
   st.shadowTraverseMs = ms[cuda::kShadowTraverse];
   st.shadowEvaluateMs = ms[cuda::kShadowEvaluate];
+  st.shadingMs = ms[cuda::kShade];
   st.finalizeMs = ms[cuda::kFinalize];
   const TraversalBuildInfo built = I.traversal->buildInfo();
   st.traversalBuildMs = I.pendingBuildMs;
@@ -481,6 +510,28 @@ std::vector<float> CudaDeltaTrackingRenderer::majorants() const { return impl_->
 
 std::vector<float> CudaDeltaTrackingRenderer::blockMajorants() const {
   return impl_->blockMajorants.download(impl_->stream);
+}
+
+bool CudaDeltaTrackingRenderer::fieldHasGradient() const { return evaluator_.providesDeviceGradient(); }
+
+void CudaDeltaTrackingRenderer::shadeHits(const FrameConstants& fc) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const RayStateView rs = I.rays.view();
+  const int n = rs.count;
+  I.timer.begin(cuda::kShade, s);
+  I.shadingResults.growTo(std::size_t(n));
+  float4* points = I.points[0].get();
+  int* rays = I.queryRays[0].get();
+  gatherShadingKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, points, rays, I.stats.get());
+  INR_CUDA_CHECK_LAUNCH("gatherShadingKernel");
+  unsigned* count = I.queryCount(0);  // free after the tracking loops
+  shadingCountKernel<<<1, 1, 0, s>>>(I.stats.get(), count);
+  INR_CUDA_CHECK_LAUNCH("shadingCountKernel");
+  evaluator_.evaluateWithGradientDevice(points, count, n, fc.time, I.shadingResults.get(), s);
+  shadeKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, I.shadingResults.get(), rays, I.stats.get() + kStatShadingQueries);
+  INR_CUDA_CHECK_LAUNCH("shadeKernel");
+  I.timer.end(s);
 }
 
 }  // namespace inr

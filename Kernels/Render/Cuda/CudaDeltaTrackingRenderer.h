@@ -86,6 +86,10 @@ private:
   const Box3f& volumeBox() const override { return macrocells_.box(); }
   std::array<float, 2> workingValueRange() const override { return macrocells_.workingValueRange(); }
   Vec3f cellSize() const override { return macrocells_.cellSize(); }
+  bool fieldHasGradient() const override;
+  // Gradient shading's stage (Render/Shade.h) after the tracking loops: the lit rays' value +
+  // gradient batch on the evaluator's per-thread forward mode, then the lighting.
+  void shadeHits(const FrameConstants& fc);
   void beginGhostPasses() override;
   void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                       FrameStats& total) override;

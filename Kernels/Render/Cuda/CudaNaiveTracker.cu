@@ -14,6 +14,7 @@
 #include "Render/Evaluate.h"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
+#include "Render/Shade.h"
 #include "Render/Shadows.h"
 #include "Render/Traverse.h"
 
@@ -60,6 +61,13 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
         complete &= naiveTrack(fc, medium, rs, i, net, tid, refine, refineView, sq, maxSteps);
       }
     }
+    if (needsShading(fc, rs, i)) {  // the view holds tangent planes when shading
+      const QueryPoint p = shadingQuery(fc, rs, i);
+      float g[3];
+      cuda::perThreadForward<true>(net, p.x, p.y, p.z, p.t, tid, g);
+      shadeRay(fc, rs, i, Vec3f{g[0], g[1], g[2]});
+      atomicAdd(&stats[kStatShadingQueries], 1ull);
+    }
   }
   if (rs.flags[i] & kRayCapped) atomicAdd(&stats[kStatCapped], 1ull);
   const PixelConvergence pc = finalizePixel(fc, rs, acc, i);
@@ -89,11 +97,12 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const RayStateView& rs = f.rs;
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.
-  const std::size_t perThread = network.scratchBytesPerThread();
+  const bool shading = fc.shading.enabled != 0;
+  const std::size_t perThread = network.scratchBytesPerThread() * (shading ? 4 : 1);
   int chunk = std::min(n, std::max(1, pipeline_.naiveRaysPerLaunch));
   chunk = int(std::max<std::size_t>(1024, std::min<std::size_t>(chunk, (std::size_t(2) << 30) / perThread)));
   chunk = std::min(chunk, n);
-  const PerThreadMlpView net = network.view(chunk, fc.time);
+  const PerThreadMlpView net = network.view(chunk, fc.time, shading);
   const int maxSteps = 1 << 16;
   for (int first = 0; first < n; first += chunk) {
     const int count = std::min(chunk, n - first);

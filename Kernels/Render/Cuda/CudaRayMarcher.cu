@@ -106,6 +106,9 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 }
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
+  // Its samples take no gradients: SessionRayMarcher gives shaded scenes the CPU marcher.
+  if (scene.shading.enabled)
+    throw std::invalid_argument("shading: the GPU ray marcher does not shade (the CPU marcher does)");
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");

@@ -10,7 +10,7 @@
 
 namespace inr::cuda {
 
-enum Stage { kUpdate, kInit, kTraverse, kEvaluate, kShadowTraverse, kShadowEvaluate, kFinalize, kStages };
+enum Stage { kUpdate, kInit, kTraverse, kEvaluate, kShadowTraverse, kShadowEvaluate, kShade, kFinalize, kStages };
 
 class StageTimer {
 public:

@@ -1,0 +1,98 @@
+#pragma once
+// Gradient shading, written once for every backend and both methods (delta / ratio tracking and
+// the ray marcher): the transfer function's colour at a sample is lit by the light as ParaView's
+// Volume representation lights it with Shade on (vtkVolumeProperty's Ambient, Diffuse, Specular,
+// SpecularPower; the lighting of VTK's GPU ray-cast mapper):
+//     lit = ambient * c + V * (diffuse * |N.L| * c + specular * max(0, R.E)^power),
+// clamped to [0, 1] per channel as VTK clamps its lit colour. N is the unit normal of the scalar
+// field (minus the normalised gradient: the outward side of a blob whose values rise inwards),
+// L the unit vector towards the light, E the unit vector towards the eye, R = 2 (N.L) N - L the
+// mirror direction of the light (VTK's Phong term; the half vector of Blinn-Phong gives other
+// highlights), V the light's visibility (1 without shadows). Lighting is two-sided as VTK's
+// default (the renderer's TwoSidedLighting): a sample lit from behind its normal takes |N.L|; the
+// mirror direction is the same for N and -N. Where the gradient vanishes there is no normal and
+// VTK takes the ambient term alone: so do we (a flat region neither faces nor turns from the
+// light).
+//
+// One Ambient serves shading and shadows (as vtkVolumeProperty has one): the share of the colour
+// every sample gets whatever its orientation and visibility. With shadows and without shading the
+// light's factor is (1 - ambient) * V, which is this model for a normal facing the light with
+// diffuse = 1 - ambient and no specular term (Finalize.h, RayMarch.h).
+//
+// The network's gradient is d value / d model coordinate (the evaluators' forward mode through the
+// domain mapping). Under an actor transform the normal is a covector: its world form is the
+// transposed model-from-world map applied to it, and lighting happens in world space, where the
+// light and the eye are.
+#include "Render/CameraView.h"
+#include "Render/RenderMath.h"
+
+namespace inr {
+
+// The shading options as the stages read them (RenderScene::shading on the host).
+struct ShadingConstants {
+  int enabled = 0;
+  float diffuse = 0.8f, specular = 0.2f, specularPower = 10.f;
+  int headlight = 0;  // the light sits at the eye (VTK's headlight): L = E at every sample
+};
+
+// The direct light's two factors at a sample: lit = ambient c + V (diffuse c + specular).
+struct SampleLight {
+  float diffuse = 0.f, specular = 0.f;
+};
+
+// The Phong factors of VTK's volume shading for gradient g (any length, any sign convention of
+// the field: the lighting is two-sided), unit toLight and toEye.
+INR_HD SampleLight phongLight(const ShadingConstants& s, Vec3f g, Vec3f toLight, Vec3f toEye) {
+  SampleLight out;
+  float len = length(g);
+  if (!isFiniteValue(len)) {  // components beyond float's square root: scale them down first
+    const float big = maxf(fabsf(g.x), maxf(fabsf(g.y), fabsf(g.z)));
+    if (!isFiniteValue(big)) return out;
+    g = g * (1.f / big);
+    len = length(g);
+  }
+  if (!(len > 0.f)) return out;  // no normal: ambient only (VTK)
+  const Vec3f n = g * (-1.f / len);
+  const float nDotL = dot(n, toLight);
+  const float facing = fabsf(nDotL);
+  if (!(facing > 0.f)) return out;
+  out.diffuse = s.diffuse * facing;
+  const Vec3f r = n * (2.f * nDotL) - toLight;
+  const float rDotE = maxf(0.f, dot(r, toEye));
+  // pow(0, 0) is 1 in VTK's shader too: a power of 0 makes the highlight uniform.
+  out.specular = s.specular * powf(rDotE, s.specularPower);
+  return out;
+}
+
+// The lit colour of TF colour c with the direct light's visibility V, clamped as VTK clamps.
+INR_HD Vec3f litColour(Vec3f c, float ambient, const SampleLight& light, float visibility) {
+  const float k = ambient + visibility * light.diffuse, s = visibility * light.specular;
+  return Vec3f{clampf(c.x * k + s, 0.f, 1.f), clampf(c.y * k + s, 0.f, 1.f), clampf(c.z * k + s, 0.f, 1.f)};
+}
+
+// The world-space form of a model-space gradient (a covector): M^T g for world-to-model map M.
+INR_HD Vec3f gradientToWorld(const CameraView& cam, Vec3f g) {
+  if (!cam.transformed) return g;
+  const Affine3f& m = cam.modelFromWorld;
+  return m.row0 * g.x + m.row1 * g.y + m.row2 * g.z;
+}
+
+// The light at model point p with model-space gradient g, for the camera `cam` and the light
+// towards unit model-space direction toLightModel (ignored with a headlight): the eye direction is
+// from p to the camera's position, with parallel projection too, as VTK's shader takes it (its
+// eye is the camera position whatever the projection), so it needs no per-ray state.
+INR_HD SampleLight sampleLightAt(const CameraView& cam, const ShadingConstants& s, Vec3f toLightModel, Vec3f p,
+                                 Vec3f g) {
+  const Vec3f pWorld = modelToWorld(cam, p);
+  const Vec3f fromP = cam.position - pWorld;
+  // (a point at the eye itself: the view direction)
+  const Vec3f toEye = dot(fromP, fromP) > 0.f ? normalize(fromP) : cam.forward * -1.f;
+  Vec3f toLight = toLightModel;
+  if (s.headlight)
+    toLight = toEye;
+  else if (cam.transformed)
+    toLight = normalize(applyLinear(cam.worldFromModel, toLightModel));
+  return phongLight(s, gradientToWorld(cam, g), toLight, toEye);
+}
+
+}  // namespace inr

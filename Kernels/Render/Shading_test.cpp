@@ -1,0 +1,355 @@
+// Gradient shading (Render/Shading.h, Render/Shade.h): the lighting formula on hand-computable
+// cases, and the CPU renderers: shading changes the volume's colours the way the normals say and
+// nothing else (coverage and background untouched), costs one gradient query per lit ray, and the
+// wavefront estimators converge to the shaded ray-marched reference.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/RayMarcher.h"
+#include "Render/SceneChange.h"
+#include "Render/Shading.h"
+#include "TestSupport/TestFields.h"
+#include "TestSupport/TestScene.h"
+
+namespace inr {
+namespace {
+
+ShadingConstants shadingOf(float diffuse, float specular, float power) {
+  ShadingConstants s;
+  s.enabled = 1;
+  s.diffuse = diffuse;
+  s.specular = specular;
+  s.specularPower = power;
+  return s;
+}
+
+const Vec3f kUp{0.f, 0.f, 1.f};
+
+// The gradient points to rising values, the normal against it: a field falling along +z has
+// the normal +z.
+TEST(Shading, LightAlongTheNormalGivesAmbientPlusDiffusePlusSpecular) {
+  const ShadingConstants s = shadingOf(0.6f, 0.25f, 10.f);
+  const SampleLight l = phongLight(s, Vec3f{0.f, 0.f, -3.f}, kUp, kUp);
+  EXPECT_FLOAT_EQ(l.diffuse, 0.6f);
+  EXPECT_FLOAT_EQ(l.specular, 0.25f);
+  const Vec3f c = litColour(Vec3f{0.5f, 0.25f, 0.f}, 0.1f, l, 1.f);
+  EXPECT_FLOAT_EQ(c.x, 0.5f * 0.7f + 0.25f);
+  EXPECT_FLOAT_EQ(c.y, 0.25f * 0.7f + 0.25f);
+  EXPECT_FLOAT_EQ(c.z, 0.25f);
+}
+
+TEST(Shading, BackFacingSamplesAreLitTwoSided) {
+  // VTK's volume lighting is two-sided: the same light whichever way the gradient points.
+  const ShadingConstants s = shadingOf(0.6f, 0.25f, 10.f);
+  const SampleLight front = phongLight(s, Vec3f{0.f, 0.f, -3.f}, kUp, kUp);
+  const SampleLight back = phongLight(s, Vec3f{0.f, 0.f, 3.f}, kUp, kUp);
+  EXPECT_FLOAT_EQ(back.diffuse, front.diffuse);
+  EXPECT_FLOAT_EQ(back.specular, front.specular);
+}
+
+TEST(Shading, ObliqueLightFollowsCosineAndMirrorDirection) {
+  // Light 60 degrees off the normal, eye along the normal: N.L = 1/2, the mirror direction
+  // R = 2 (N.L) N - L is 60 degrees off the eye too, R.E = 1/2.
+  const ShadingConstants s = shadingOf(0.8f, 0.5f, 3.f);
+  const float sin60 = std::sqrt(3.f) / 2.f;
+  const SampleLight l = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{sin60, 0.f, 0.5f}, kUp);
+  EXPECT_NEAR(l.diffuse, 0.8f * 0.5f, 1e-6f);
+  EXPECT_NEAR(l.specular, 0.5f * 0.125f, 1e-6f);
+  // The eye on the mirror side gets the full highlight.
+  const SampleLight m = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{sin60, 0.f, 0.5f}, Vec3f{-sin60, 0.f, 0.5f});
+  EXPECT_NEAR(m.specular, 0.5f, 1e-6f);
+  // Grazing light: nothing but ambient.
+  const SampleLight g = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{1.f, 0.f, 0.f}, kUp);
+  EXPECT_EQ(g.diffuse, 0.f);
+  EXPECT_EQ(g.specular, 0.f);
+}
+
+TEST(Shading, NoGradientMeansAmbientOnly) {
+  // A flat region has no normal; VTK then takes the ambient term alone, and so do we (neither
+  // lit like a surface facing the light nor left unlit).
+  const ShadingConstants s = shadingOf(0.8f, 0.5f, 3.f);
+  for (const Vec3f g : {Vec3f{0.f, 0.f, 0.f}, Vec3f{NAN, 0.f, 1.f}, Vec3f{INFINITY, 0.f, 0.f}}) {
+    const SampleLight l = phongLight(s, g, kUp, kUp);
+    EXPECT_EQ(l.diffuse, 0.f);
+    EXPECT_EQ(l.specular, 0.f);
+    const Vec3f c = litColour(Vec3f{0.5f, 1.f, 0.2f}, 0.3f, l, 1.f);
+    EXPECT_FLOAT_EQ(c.x, 0.15f);
+    EXPECT_FLOAT_EQ(c.y, 0.3f);
+  }
+  // A gradient too large to square still has a direction.
+  const SampleLight big = phongLight(s, Vec3f{0.f, 0.f, -1e30f}, kUp, kUp);
+  EXPECT_FLOAT_EQ(big.diffuse, 0.8f);
+}
+
+TEST(Shading, VisibilityDimsOnlyTheDirectLightAndColourIsClamped) {
+  const SampleLight l{0.7f, 0.4f};
+  const Vec3f shadowed = litColour(Vec3f{0.5f, 0.5f, 0.5f}, 0.2f, l, 0.f);
+  EXPECT_FLOAT_EQ(shadowed.x, 0.1f);
+  const Vec3f half = litColour(Vec3f{0.5f, 0.5f, 0.5f}, 0.2f, l, 0.5f);
+  EXPECT_FLOAT_EQ(half.x, 0.5f * (0.2f + 0.35f) + 0.2f);
+  const Vec3f bright = litColour(Vec3f{1.f, 0.f, 1.f}, 0.2f, l, 1.f);
+  EXPECT_EQ(bright.x, 1.f);  // 1.3 clamped, as VTK clamps the lit colour
+  EXPECT_FLOAT_EQ(bright.y, 0.4f);
+}
+
+TEST(Shading, NormalIsACovectorUnderTheActorTransform) {
+  // Actor scale 2 in x: model gradient (1, 1, 0) is world gradient (0.5, 1, 0).
+  RenderScene scene;
+  scene.camera = Camera::framing(test::kCubeBox);
+  scene.camera.modelToWorld = {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  const CameraView cam = scene.camera.view(16, 16);
+  const Vec3f g = gradientToWorld(cam, Vec3f{1.f, 1.f, 0.f});
+  EXPECT_NEAR(g.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(g.y, 1.f, 1e-6f);
+  EXPECT_NEAR(g.z, 0.f, 1e-6f);
+}
+
+TEST(Shading, HeadlightLightsFromTheEye) {
+  RenderScene scene;
+  scene.camera = Camera::framing(test::kCubeBox);  // on +z, looking down -z
+  scene.camera.parallelProjection = true;
+  const CameraView cam = scene.camera.view(16, 16);
+  ShadingConstants s = shadingOf(1.f, 0.f, 1.f);
+  s.headlight = 1;
+  // The given light direction (+x, grazing for a +z normal) is ignored with the headlight.
+  const SampleLight l = sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f});
+  EXPECT_NEAR(l.diffuse, 1.f, 1e-6f);
+  s.headlight = 0;
+  EXPECT_EQ(sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f}).diffuse, 0.f);
+}
+
+TEST(Shading, OptionsOutOfRangeAreRefusedByName) {
+  const auto message = [](ShadingOptions o) -> std::string {
+    try {
+      o.validate();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  ShadingOptions o;
+  EXPECT_EQ(message(o), "");
+  o.diffuse = -0.1f;
+  EXPECT_NE(message(o).find("diffuse"), std::string::npos);
+  o = ShadingOptions{};
+  o.specular = NAN;
+  EXPECT_NE(message(o).find("specular"), std::string::npos);
+  o = ShadingOptions{};
+  o.specularPower = 200.f;
+  EXPECT_NE(message(o).find("specular power"), std::string::npos);
+}
+
+TEST(SceneChange, ShadingOptionsRestartAccumulation) {
+  RenderScene a;
+  RenderScene b = a;
+  b.shading.enabled = true;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  a = b;
+  b.shading.specular = 0.7f;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  b = a;
+  b.ambient = 0.4f;  // shading's ambient, even without shadows
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  // A headlight does not use the direction: ParaView's light following the camera stays a
+  // camera-only change.
+  a.shading.headlight = b.shading.headlight = true;
+  b = a;
+  b.toLight = {0.3, 0.4, 0.8};
+  EXPECT_FALSE(diffScenes(&a, b).light);
+  a.shading.headlight = b.shading.headlight = false;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+}
+
+// ---- Renders of the Gaussian blob (TestFields.h: spherical level sets, analytic gradient).
+
+constexpr float kAmbient = 0.2f, kDiffuse = 0.8f;
+
+// Orthographic view down -z, an opaque shell around the blob's 0.45 level (radius ~0.54).
+test::SceneSetup blobScene(int size, bool shade) {
+  test::SceneSetup s;
+  s.settings.width = s.settings.height = size;
+  s.settings.seed = 11;
+  s.settings.pixelJitter = false;
+  s.scene.camera = Camera::framing(test::kCubeBox);
+  s.scene.camera.parallelProjection = true;
+  s.scene.camera.parallelScale = 0.75;
+  TransferFunction tf;
+  tf.color = {{0.0, 0.9, 0.6, 0.3}, {1.0, 0.9, 0.6, 0.3}};
+  tf.opacity = {{0.0, 0.0}, {0.3, 0.0}, {0.6, 1.0}, {1.0, 1.0}};
+  tf.unitDistance = 0.05;
+  s.scene.transferFunction = tf;
+  s.scene.background = {0.1f, 0.2f, 0.3f};
+  s.scene.ambient = kAmbient;
+  s.scene.shading.enabled = shade;
+  s.scene.shading.diffuse = kDiffuse;
+  s.scene.shading.specular = 0.f;
+  s.scene.shading.headlight = true;
+  return s;
+}
+
+struct BlobRender {
+  ImageRGBA image, premultiplied;
+  FrameStats total;
+  std::size_t gradientPoints = 0;
+};
+
+BlobRender renderBlob(const test::SceneSetup& setup, TrackingOptions options, int frames) {
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer r(f, grid, options);
+  f.resetCounts();
+  BlobRender out;
+  out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
+  out.image = r.image();
+  out.premultiplied = r.premultipliedImage();
+  out.gradientPoints = f.gradientPoints();
+  return out;
+}
+
+// Distance of pixel i's centre from the blob's centre on the image plane (world units).
+double pixelRadius(const test::SceneSetup& s, int i) {
+  const int w = s.settings.width;
+  const double scale = 2.0 * s.scene.camera.parallelScale / w;
+  const double x = (i % w + 0.5 - 0.5 * w) * scale - test::kBlobCentre[0];
+  const double y = (0.5 * w - (i / w + 0.5)) * scale - test::kBlobCentre[1];
+  return std::sqrt(x * x + y * y);
+}
+
+TEST(ShadedRender, ShadingDimsTheRimAndLeavesCoverageAndBackground) {
+  const int size = 40, frames = 24;
+  const test::SceneSetup flat = blobScene(size, false), lit = blobScene(size, true);
+  const BlobRender a = renderBlob(flat, TrackingOptions{}, frames);
+  const BlobRender b = renderBlob(lit, TrackingOptions{}, frames);
+  double centre = 0, centreN = 0, rim = 0, rimN = 0;
+  std::size_t covered = 0;
+  for (int i = 0; i < size * size; ++i) {
+    // Delta tracking's collisions do not depend on shading (it draws nothing): same coverage.
+    ASSERT_EQ(a.premultiplied.data[4 * i + 3], b.premultiplied.data[4 * i + 3]) << "pixel " << i;
+    const float alpha = a.premultiplied.data[4 * i + 3];
+    if (alpha == 0.f) {  // background: untouched
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image.data[4 * i + c], b.image.data[4 * i + c]);
+      continue;
+    }
+    ++covered;
+    // Each hit's colour is scaled by ambient + diffuse |N.L| (no specular): the mean factor lies
+    // in [ambient, ambient + diffuse].
+    const double ratio = b.premultiplied.data[4 * i] / a.premultiplied.data[4 * i];
+    ASSERT_GE(ratio, kAmbient - 1e-5);
+    ASSERT_LE(ratio, kAmbient + kDiffuse + 1e-5);
+    const double r = pixelRadius(lit, i);
+    if (r < 0.1) centre += ratio, ++centreN;
+    if (r > 0.42 && r < 0.5) rim += ratio, ++rimN;
+  }
+  ASSERT_GT(covered, std::size_t(size * size / 8));
+  ASSERT_GT(centreN, 0);
+  ASSERT_GT(rimN, 0);
+  // Facing the headlight: |N.L| near 1; at the rim the normals turn away.
+  EXPECT_GT(centre / centreN, 0.9);
+  EXPECT_LT(rim / rimN, 0.8);
+  // One value + gradient query per hit, none without shading.
+  EXPECT_EQ(a.total.shadingQueries, 0u);
+  EXPECT_EQ(a.gradientPoints, 0u);
+  EXPECT_EQ(b.gradientPoints, b.total.shadingQueries);
+  double hits = 0;
+  for (int i = 0; i < size * size; ++i) hits += a.premultiplied.data[4 * i + 3] * frames;
+  EXPECT_NEAR(double(b.total.shadingQueries), hits, 0.5);
+  EXPECT_EQ(a.total.queries, b.total.queries);
+}
+
+// The shaded reference: one ray-marched frame with a fine step (gradient at every sample).
+ImageRGBA marchedBlob(const test::SceneSetup& setup) {
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  RayMarchOptions ro;
+  ro.step = 2.f / 1024.f;
+  ro.shadowStep = 2.f / 256.f;
+  RayMarchRenderer rm(f, test::kCubeBox, ro);
+  test::renderFrames(rm, setup.settings, setup.scene, 1);
+  return rm.image();
+}
+
+// A directional light with a highlight, so every term of the model is in the picture.
+test::SceneSetup highlightScene(bool shadows) {
+  test::SceneSetup s = blobScene(32, true);
+  s.scene.shading.headlight = false;
+  s.scene.shading.specular = 0.4f;
+  s.scene.shading.specularPower = 8.f;
+  s.scene.toLight = {0.5, 0.6, 0.8};
+  s.scene.shadows = shadows;
+  // A softer shell than blobScene's, so shadows fall across it rather than only behind it.
+  s.scene.transferFunction.unitDistance = 0.2;
+  return s;
+}
+
+void expectConvergesToMarcher(const test::SceneSetup& setup, TrackingOptions options, int frames, double minPsnr) {
+  const BlobRender tracked = renderBlob(setup, options, frames);
+  const ImageRGBA reference = marchedBlob(setup);
+  test::SceneSetup flat = setup;
+  flat.scene.shading.enabled = false;
+  const ImageRGBA unshaded = marchedBlob(flat);
+  const double psnr = test::psnrOverCoverage(tracked.image, reference, tracked.premultiplied);
+  const double flatPsnr = test::psnrOverCoverage(unshaded, reference, tracked.premultiplied);
+  std::printf("shaded %s (%d frames%s) vs shaded ray marching: %.2f dB over the volume; unshaded marcher %.2f dB\n",
+              primaryEstimatorName(options.estimator), frames, setup.scene.shadows ? ", shadows" : "", psnr, flatPsnr);
+  EXPECT_GE(psnr, minPsnr);
+  // The comparison can fail: the unshaded picture is far from the shaded one, and so is the
+  // shaded one without its shadows.
+  EXPECT_LT(flatPsnr, minPsnr - 8.0);
+  if (setup.scene.shadows) {
+    test::SceneSetup unshadowed = setup;
+    unshadowed.scene.shadows = false;
+    const double unshadowedPsnr = test::psnrOverCoverage(marchedBlob(unshadowed), reference, tracked.premultiplied);
+    std::printf("  shaded marcher without shadows: %.2f dB\n", unshadowedPsnr);
+    EXPECT_LT(unshadowedPsnr, minPsnr - 8.0);
+  }
+  EXPECT_EQ(test::nonFinitePixels(tracked.image), 0u);
+}
+
+TEST(ShadedRender, DeltaTrackingConvergesToShadedRayMarching) {
+  expectConvergesToMarcher(highlightScene(false), TrackingOptions{}, 400, 40.0);
+}
+
+TEST(ShadedRender, RatioTrackingConvergesToShadedRayMarching) {
+  // Ratio tracking keeps one picked point per ray when shading (RatioTracking.h).
+  expectConvergesToMarcher(highlightScene(false), test::ratioTracking(4.0), 100, 40.0);
+}
+
+TEST(ShadedRender, ShadowsMultiplyTheDirectLight) {
+  expectConvergesToMarcher(highlightScene(true), test::ratioTracking(4.0), 150, 34.0);
+}
+
+TEST(ShadedRender, NaiveTrackerShadesTheSame) {
+  // Same streams, same lighting code: the unbatched baseline reproduces the wavefront image.
+  const test::SceneSetup setup = highlightScene(true);
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  MacrocellGrid gridA(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  MacrocellGrid gridB(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer wavefront(f, gridA), naive(f, gridB);
+  wavefront.setSettings(setup.settings);
+  wavefront.setScene(setup.scene);
+  naive.setSettings(setup.settings);
+  naive.setScene(setup.scene);
+  for (int k = 0; k < 3; ++k) {
+    wavefront.renderFrame();
+    naive.renderFrameNaive();
+  }
+  EXPECT_TRUE(wavefront.image().data == naive.image().data);
+}
+
+TEST(ShadedRender, FieldWithoutGradientIsRefused) {
+  test::FunctionField f(test::blobField);  // no gradient
+  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer r(f, grid);
+  const test::SceneSetup setup = blobScene(8, true);
+  r.setSettings(setup.settings);
+  EXPECT_THROW(r.setScene(setup.scene), std::invalid_argument);
+  RayMarchRenderer rm(f, test::kCubeBox);
+  rm.setSettings(setup.settings);
+  EXPECT_THROW(rm.setScene(setup.scene), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace inr
