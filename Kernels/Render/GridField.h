@@ -22,12 +22,16 @@ public:
 
   void evaluate(const QueryPoint* points, std::size_t n, float* out) const override;
   std::string name() const override;
+  // The interpolant's own gradient (piecewise: 0 along an axis clamped at the border), so that a
+  // shaded image of the stand-in costs no network query either.
+  bool providesGradient() const override { return true; }
+  void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const override;
 
   const Box3f& box() const { return box_; }
   Int3 dims() const { return dims_; }
   const std::vector<float>& values() const { return values_; }
-  // The value at world point (x, y, z).
-  float at(float x, float y, float z) const;
+  // The value at world point (x, y, z), and its gradient (d/dx, d/dy, d/dz) when `gradient`.
+  float at(float x, float y, float z, float* gradient = nullptr) const;
 
 private:
   Box3f box_;

@@ -37,6 +37,34 @@ TEST(GridField, ReproducesALinearFieldBetweenCellCentres) {
     EXPECT_NEAR(out[i], 2.f * pts[i].x - 0.5f * pts[i].y + 3.f * pts[i].z + 1.f, 1e-5f) << "point " << i;
 }
 
+TEST(GridField, GradientOfTheInterpolant) {
+  const GridField g = linearGrid(Int3{5, 7, 3}, 2.f, -0.5f, 3.f, 1.f);
+  ASSERT_TRUE(g.providesGradient());
+  const std::vector<QueryPoint> pts = {{0.f, 2.f, 2.5f, 0.f}, {0.13f, 1.234f, 2.61f, 0.5f}};
+  std::vector<float> v(pts.size()), grad(3 * pts.size());
+  g.evaluateWithGradient(pts.data(), pts.size(), v.data(), grad.data());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(v[i], 2.f * pts[i].x - 0.5f * pts[i].y + 3.f * pts[i].z + 1.f, 1e-5f);
+    EXPECT_NEAR(grad[3 * i + 0], 2.f, 1e-4f) << "point " << i;
+    EXPECT_NEAR(grad[3 * i + 1], -0.5f, 1e-4f) << "point " << i;
+    EXPECT_NEAR(grad[3 * i + 2], 3.f, 1e-4f) << "point " << i;
+  }
+  // A curved field: the gradient is the interpolant's, checked against central differences.
+  std::vector<float> vals;
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j < 4; ++j)
+      for (int i = 0; i < 4; ++i) vals.push_back(float(i * i + 2 * j * k + k));
+  const GridField c(kBox, Int3{4, 4, 4}, vals, "");
+  const float p[3] = {0.1f, 1.7f, 2.4f}, h = 1e-3f;
+  float gp[3];
+  c.at(p[0], p[1], p[2], gp);
+  EXPECT_NEAR(gp[0], (c.at(p[0] + h, p[1], p[2]) - c.at(p[0] - h, p[1], p[2])) / (2 * h), 2e-2f);
+  EXPECT_NEAR(gp[1], (c.at(p[0], p[1] + h, p[2]) - c.at(p[0], p[1] - h, p[2])) / (2 * h), 2e-2f);
+  EXPECT_NEAR(gp[2], (c.at(p[0], p[1], p[2] + h) - c.at(p[0], p[1], p[2] - h)) / (2 * h), 2e-2f);
+  c.at(-5.f, 1.7f, 2.4f, gp);  // clamped in x: flat there
+  EXPECT_EQ(gp[0], 0.f);
+}
+
 TEST(GridField, ClampsToTheOutermostCentresAndIgnoresTime) {
   const GridField g = linearGrid(Int3{4, 4, 4}, 1.f, 0.f, 0.f, 0.f);  // x only; centres at x = -0.75 ... 0.75
   EXPECT_NEAR(g.at(-1.f, 2.f, 2.5f), -0.75f, 1e-6f);

@@ -31,11 +31,11 @@ pqInrPanelDecorators::~pqInrPanelDecorators() = default;
 bool pqInrPanelDecorators::InrVolumeHonours(const char* name)
 {
   // Colouring by the model's value (the Coloring group), the colour and opacity maps (the
-  // transfer function), the volume's opacity unit distance, and the transform (the mapper reads
-  // the volume's matrix).
+  // transfer function), the volume's opacity unit distance, the transform (the mapper reads
+  // the volume's matrix) and the volume's lighting (gradient shading: InrSceneTranslator).
   static const char* const honoured[] = { "ColorArrayName", "LookupTable", "ScalarOpacityFunction",
     "ScalarOpacityUnitDistance", "UseSeparateColorMap", "Position", "Scale", "Orientation",
-    "Origin" };
+    "Origin", "Shade", "Ambient", "Diffuse", "Specular", "SpecularPower" };
   for (const char* h : honoured)
   {
     if (name && std::strcmp(name, h) == 0)

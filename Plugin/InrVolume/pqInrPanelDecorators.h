@@ -12,11 +12,11 @@
  * did not define, without touching ParaView's XML. A row is hidden when the representation is INR
  * Volume and its property belongs to another kind's sub-proxy, unless INR Volume honours it
  * (InrVolumeHonours: colouring, the colour and opacity maps, the opacity unit distance, the
- * transform). Rows of the representation itself (Representation, axes grids) stay; every row
- * comes back when another representation type is chosen, and INR Volume's own rows then hide
- * (they do nothing for Surface, Slice, ParaView's Volume, ...). The panel's
- * search box still finds a hidden one only after switching type (as for ParaView's own hidden
- * rows).
+ * transform, the volume's lighting). Rows of the representation itself (Representation, axes
+ * grids) stay; every row comes back when another representation type is chosen, and INR
+ * Volume's own rows then hide (they do nothing for Surface, Slice, ParaView's Volume, ...). The
+ * panel's search box still finds a hidden one only after switching type (as for ParaView's own
+ * hidden rows).
  */
 #ifndef pqInrPanelDecorators_h
 #define pqInrPanelDecorators_h

@@ -136,6 +136,14 @@ public:
     (this->active && this->field ? *this->field : *this->network).evaluate(points, n, out);
   }
   std::string name() const override { return this->network->name(); }
+  // Shading (the volume property's Shade) needs gradients: the stand-in's own, or the network's.
+  bool providesGradient() const override { return this->network->providesGradient(); }
+  void evaluateWithGradient(
+    const inr::QueryPoint* points, std::size_t n, float* values, float* gradients) const override
+  {
+    (this->active && this->field ? *this->field : *this->network)
+      .evaluateWithGradient(points, n, values, gradients);
+  }
   const inr::FieldEvaluator& Network() const { return *this->network; }
 
   std::shared_ptr<const inr::FieldEvaluator> network;
