@@ -421,7 +421,7 @@ TEST(CpuInrEvaluatorGradient, LayerKindWithoutDerivativeIsRefusedByName) {
   // No LayerKind lacks a derivative today, so the test stands one in: a kind past the last
   // enumerator, as a kind added to the model without its Jacobian would be to this evaluator.
   InrModel model = everyLayerKindModel("none");
-  const auto unknown = static_cast<LayerKind>(static_cast<int>(LayerKind::Residual) + 1);
+  const auto unknown = static_cast<LayerKind>(static_cast<int>(LayerKind::HashGrid) + 1);
   model.architecture.layers[4].body[1].kind = unknown;
   const CpuInrEvaluator e(model);
   const std::vector<QueryPoint> pts = test::randomQueryPoints(model, 300, 2);

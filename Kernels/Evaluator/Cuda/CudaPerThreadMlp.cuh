@@ -58,7 +58,8 @@ __device__ inline float perThreadEvaluate(const PerThreadMlpView& N, float x, fl
         }
         break;
       }
-      case MlpOp::Fourier: {  // every encoding (Evaluator/Encodings.h)
+      case MlpOp::Fourier:  // every encoding (Evaluator/Encodings.h)
+      case MlpOp::HashGrid: {
         auto input = [&](int k) { return load(in.src, k); };
         for (int c = 0; c < in.outWidth; ++c) at(in.dst, c) = encodingElement(in, N.weights, input, c);
         break;

@@ -23,7 +23,7 @@ struct RowTile {
   int rows, base;
 };
 
-// LoadInput, DenseFp32, Fourier, Activation, Combine, OutputDot and Output on M rows with THREADS
+// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
 // threads (tid: this thread's index among them); the caller synchronises afterwards.
 template <int M, int THREADS>
 __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
@@ -117,6 +117,17 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       }
       break;
     }
+    case MlpOp::HashGrid:
+      // A stored hash-grid encoding: one thread per (row, column) in fp32 (Evaluator/Encodings.h),
+      // rounded to fp16 like every buffer; any row's coordinates give in-bounds table reads.
+      for (int idx = tid; idx < M * in.nPad; idx += THREADS) {
+        const int r = idx / in.nPad, c = idx - r * in.nPad;
+        const float v = c < in.outWidth ? hashGridElement(in, P.floatWeights + in.floatOffset,
+                                                          [&](int k) { return input(r, k); }, c)
+                                        : 0.f;
+        dst[r * ldDst + c] = __float2half(v);
+      }
+      break;
     case MlpOp::Activation:
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.outWidth; c += 32)

@@ -1,0 +1,82 @@
+#pragma once
+// Test-only: hash-grid models (tiny-cuda-nn's HashGrid, Docs/FORMAT.md "hashgrid") built in
+// memory with random fp16-representable tables and a small MLP, for the evaluator, GPU and
+// macrocell tests. The table size is computed here by the format's formula, independently of the
+// loader, so a loader that sized levels differently rejects these models.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "Common/Half.h"
+#include "TestSupport/TestModelBuilder.h"
+
+namespace inr::test {
+
+struct HashGridOptions {
+  int dims = 3;  // 3: x, y, z; 4: x, y, z, t
+  int levels = 8;
+  int featuresPerLevel = 2;
+  int log2TableSize = 12;
+  int baseResolution = 4;
+  double perLevelScale = 2.0;
+  bool smoothstep = false;
+  std::string includeInput = "none";
+  int width = 32;       // hidden width of the MLP after the encoding
+  int hiddenLayers = 1;  // linear + relu pairs before the final linear
+  float tableScale = 0.5f;
+  unsigned seed = 1;
+};
+
+// Entries of each level, by the format's formula (tiny-cuda-nn's): the dense grid rounded up to 8
+// entries, or the hash table, whichever is smaller.
+inline std::vector<std::uint64_t> hashGridLevelSizes(const HashGridOptions& o) {
+  std::vector<std::uint64_t> sizes;
+  const float log2Scale = std::log2(float(o.perLevelScale));
+  for (int l = 0; l < o.levels; ++l) {
+    const float scale = std::exp2(float(l) * log2Scale) * float(o.baseResolution) - 1.0f;
+    const double res = std::ceil(scale) + 1.0;
+    const double dense = std::min(std::pow(res, o.dims), 2147483647.0);
+    sizes.push_back(std::min<std::uint64_t>((std::uint64_t(dense) + 7) / 8 * 8, std::uint64_t(1) << o.log2TableSize));
+  }
+  return sizes;
+}
+
+inline std::vector<std::uint8_t> hashGridModelBytes(const HashGridOptions& o) {
+  std::mt19937 rng(o.seed);
+  std::uint64_t entries = 0;
+  for (std::uint64_t s : hashGridLevelSizes(o)) entries += s;
+  std::vector<float> table = randomValues(entries * o.featuresPerLevel, rng, o.tableScale);
+  for (float& v : table) v = halfBitsToFloat(floatToHalfBits(v));  // as stored in fp16
+  std::vector<TensorSpec> tensors{{"enc.table", {std::int64_t(entries), o.featuresPerLevel}, table}};
+  nlohmann::json layers = nlohmann::json::array();
+  layers.push_back({{"type", "hashgrid"}, {"table", "enc.table"}, {"n_levels", o.levels},
+                    {"n_features_per_level", o.featuresPerLevel}, {"log2_hashmap_size", o.log2TableSize},
+                    {"base_resolution", o.baseResolution}, {"per_level_scale", o.perLevelScale},
+                    {"interpolation", o.smoothstep ? "smoothstep" : "linear"}, {"include_input", o.includeInput}});
+  int width = o.levels * o.featuresPerLevel + (o.includeInput == "none" ? 0 : o.dims);
+  for (int h = 0; h <= o.hiddenLayers; ++h) {
+    const bool last = h == o.hiddenLayers;
+    const int out = last ? 1 : o.width;
+    const std::string name = "l" + std::to_string(h);
+    // Glorot-like scale keeps the field's range near 1 whatever the widths.
+    tensors.push_back({name + ".weight", {out, width}, randomValues(std::size_t(out) * width, rng, 2.f / std::sqrt(float(width)))});
+    tensors.push_back({name + ".bias", {out}, randomValues(out, rng, 0.1f)});
+    layers.push_back({{"type", "linear"}, {"weight", name + ".weight"}, {"bias", name + ".bias"}});
+    if (!last) layers.push_back({{"type", "relu"}});
+    width = out;
+  }
+  const nlohmann::json arch{{"input_dim", o.dims}, {"layers", layers}};
+  // tiny-cuda-nn's encodings take inputs in [0, 1]: the box and time range map there.
+  nlohmann::json domain{{"bounds", {-1, 1, -1, 1, -1, 1}}, {"input_range", {0, 1}}, {"time_range", {0, 1}},
+                        {"time_input_range", {0, 1}}};
+  if (o.dims == 3) domain["input_order"] = {"x", "y", "z"};
+  return buildSafeTensors(tensors, modelMetadata(arch, domain));
+}
+
+inline InrModel hashGridModel(const HashGridOptions& o = {}) { return load(hashGridModelBytes(o), "hashgrid-test.inr"); }
+
+}  // namespace inr::test
