@@ -7,7 +7,9 @@
 #include <vector>
 
 #include "Render/DeltaTrackingRenderer.h"
+#include "Evaluator/CpuInrEvaluator.h"
 #include "Render/MacrocellGrid.h"
+#include "TestSupport/HashGridModels.h"
 #include "TestSupport/TestFields.h"
 
 namespace inr {
@@ -346,6 +348,81 @@ TEST(MacrocellLayout, ValidatesAndSharesTheTileArithmetic) {
   EXPECT_EQ(r.max, 4.5f);
   EXPECT_EQ(r.mean, 3.f);
   EXPECT_FALSE(validBounds(interpolateCell(empty, empty, 0.5f, 1.f)));
+}
+
+}  // namespace
+}  // namespace inr
+
+namespace inr {
+namespace {
+
+// A hash-grid model (tiny-cuda-nn's HashGrid) whose finest levels vary much faster than the
+// 8^3 macrocells' lattice resolves: lattice sampling misses extremes between its points, and the
+// renderer's refinement (ghost passes, then every evaluated sample) must repair the bounds so
+// every value the renderer sees lies inside its cell's [min, max].
+TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
+  test::HashGridOptions o;
+  o.levels = 12;
+  o.log2TableSize = 14;
+  o.baseResolution = 4;
+  o.perLevelScale = 1.6;  // finest level: ~ 4 * 1.6^11 = 700 cells across the box
+  o.tableScale = 1.f;
+  o.width = 32;
+  o.hiddenLayers = 1;
+  o.seed = 34;
+  const InrModel model = test::hashGridModel(o);
+  const CpuInrEvaluator field(model);
+  struct Recorder : FieldEvaluator {
+    const FieldEvaluator* inner = nullptr;
+    mutable std::vector<QueryPoint> pts;
+    mutable std::vector<float> vals;
+    bool recording = false;
+    void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
+      inner->evaluate(p, n, out);
+      if (recording) pts.insert(pts.end(), p, p + n), vals.insert(vals.end(), out, out + n);
+    }
+    std::string name() const override { return "recorder"; }
+  } rec;
+  rec.inner = &field;
+  MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
+  grid.setTime(0.0);
+  const float before = worstUnderestimate(grid, field);
+  EXPECT_GT(before, 0.f);  // the lattice misses the fine levels' extremes
+
+  TrackingOptions topt;
+  topt.ghostPixelStride = 1;
+  DeltaTrackingRenderer r(rec, grid, topt);
+  RenderSettings s;
+  s.width = s.height = 48;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = Camera::framing(kBox);
+  const std::array<float, 2> range = grid.workingValueRange();
+  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.3);
+  scene.transferFunction.unitDistance = 0.2;
+  r.setScene(scene);
+  rec.recording = true;
+  const FrameStats g = r.runGhostPasses(8);
+  EXPECT_GT(g.refinements, 0u);
+  for (int k = 0; k < 3; ++k) r.renderFrame();
+  ASSERT_GT(rec.pts.size(), 1000u);
+  const Vec3f cs = grid.cellSize();
+  int outside = 0;
+  for (std::size_t i = 0; i < rec.pts.size(); ++i) {
+    const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
+                 std::min(7, int((rec.pts[i].z + 1) / cs.z))};
+    const int idx = linearCellIndex(grid.dims(), c);
+    if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
+  }
+  EXPECT_LE(outside, int(rec.pts.size() / 1000));
+  EXPECT_LE(worstUnderestimate(grid, field), before);  // refinement only ever widens bounds
+
+  // Padding, the documented alternative, covers the misses outright.
+  MacrocellOptions padded = options(8, 1);
+  padded.boundsPadding = 3.0;
+  MacrocellGrid pgrid(field, kBox, 0.0, 1.0, padded);
+  pgrid.setTime(0.0);
+  EXPECT_LE(worstUnderestimate(pgrid, field), 0.f);
 }
 
 }  // namespace

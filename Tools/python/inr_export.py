@@ -48,7 +48,8 @@ Layouts (``--help`` lists every option):
                   ``encoding.offsets``, then ``network.{i}.weight`` / ``.bias`` (Linear layers
                   with ``--nonlinearity`` between, relu by default). The encoding's parameters
                   come from ``--hashgrid-config JSON`` (tiny-cuda-nn's encoding fields, inline or
-                  a file); the offsets must match the levels they give.
+                  a file; ``n_input_dims`` where the table does not tell 3 from 4); the
+                  offsets must match the levels they give.
   generic         any MLP: ``--layers SPEC.json`` lists the layers (the architecture JSON of
                   Docs/FORMAT.md with state_dict key names where tensors go), see below.
 
@@ -709,7 +710,10 @@ def _hashgrid_torch(K, o):
     cfg = _read_json_arg(o.hashgrid_config, "the hash-grid config")
     table_shape = K.raw_shape("encoding.embeddings")
     candidates = []
-    for dims in (3, 4):
+    dims_given = cfg.pop("n_input_dims", None)
+    if dims_given is None and o.input_order:
+        dims_given = len(o.input_order.replace(",", " ").split())
+    for dims in (int(dims_given),) if dims_given else (3, 4):
         spec = _tcnn_hashgrid(dict(cfg, otype=cfg.get("otype", "HashGrid")), dims, "--hashgrid-config")
         if spec.table_shape == tuple(table_shape):
             candidates.append(spec)
@@ -719,8 +723,10 @@ def _hashgrid_torch(K, o):
                           "(3 inputs) or %s (4 inputs); check the config against the module's"
                           % (K.where, list(table_shape), list(spec3.table_shape),
                              list(_tcnn_hashgrid(dict(cfg, otype="HashGrid"), 4, "").table_shape)))
-    spec = candidates[-1] if len(candidates) > 1 and o.input_order and \
-        len(o.input_order.replace(",", " ").split()) == 4 else candidates[0]
+    if len(candidates) > 1:  # every level hashed: the table does not tell 3 inputs from 4
+        raise ExportError("--hashgrid-config: the table fits 3 and 4 inputs alike; add "
+                          "\"n_input_dims\" to the config (or give --input-order)")
+    spec = candidates[0]
     if K.has("encoding.offsets"):
         offsets = [int(v) for v in np.asarray(K._get("encoding.offsets")).ravel()]
         if offsets != spec.offsets + [spec.entries]:

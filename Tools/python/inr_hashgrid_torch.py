@@ -81,3 +81,7 @@ class HashGridNetwork(nn.Module):
 
     def forward(self, x):
         return self.network(self.encoding(x))
+
+    def forward_points(self, x):
+        """For inputs in [-1, 1] (Tools/training's coordinates): the grid spans [0, 1]."""
+        return self.forward(0.5 * (x + 1.0))[:, 0]

@@ -117,17 +117,26 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       }
       break;
     }
-    case MlpOp::HashGrid:
-      // A stored hash-grid encoding: one thread per (row, column) in fp32 (Evaluator/Encodings.h),
-      // rounded to fp16 like every buffer; any row's coordinates give in-bounds table reads.
-      for (int idx = tid; idx < M * in.nPad; idx += THREADS) {
-        const int r = idx / in.nPad, c = idx - r * in.nPad;
-        const float v = c < in.outWidth ? hashGridElement(in, P.floatWeights + in.floatOffset,
-                                                          [&](int k) { return input(r, k); }, c)
-                                        : 0.f;
-        dst[r * ldDst + c] = __float2half(v);
+    case MlpOp::HashGrid: {
+      // A stored hash-grid encoding: one thread per (row, level), all of the level's features
+      // from one set of weights and vertex indices (Evaluator/Encodings.h, fp32), rounded to fp16
+      // like every buffer. Any row's coordinates give in-bounds table reads.
+      const HashGridView g{P.floatWeights + in.floatOffset};
+      const HashGridColumns cols(in);
+      const int levels = g.levels(), F = g.features();
+      for (int idx = tid; idx < M * levels; idx += THREADS) {
+        const int r = idx / levels, l = idx - r * levels;
+        float v[8];
+        hashGridLevel(g, l, in.inWidth, [&](int k) { return input(r, k); }, 0, F, v);
+        for (int j = 0; j < F; ++j) dst[r * ldDst + cols.featureAt + l * F + j] = __float2half(v[j]);
+      }
+      // Included inputs and zero padding: only those columns.
+      for (int r = warp; r < M; r += WARPS) {
+        for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
       }
       break;
+    }
     case MlpOp::Activation:
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.outWidth; c += 32)
