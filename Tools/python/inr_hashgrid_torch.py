@@ -42,7 +42,8 @@ class HashGridEncoding(nn.Module):
             table = self.embeddings[s.offsets[level]:s.offsets[level] + s.sizes[level]]
             acc = 0
             for corner in range(1 << s.dims):
-                up = torch.tensor([(corner >> d) & 1 for d in range(s.dims)], dtype=torch.int64)
+                up = torch.tensor([(corner >> d) & 1 for d in range(s.dims)], dtype=torch.int64,
+                                  device=x.device)
                 vertex = (cell + up) & 0xFFFFFFFF
                 weight = torch.prod(torch.where(up.bool(), t, 1 - t), dim=1, keepdim=True)
                 acc = acc + weight * table[self._index(level, vertex)]

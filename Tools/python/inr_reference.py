@@ -217,7 +217,8 @@ class ReferenceModel(object):
         tlo, thi = (float(v) for v in d.get("time_input_range", [-1, 1]))
         s = (thi - tlo) / (t1 - t0)
         self.axis_maps.append((s, tlo - s * t0))
-        order = d.get("input_order", ["x", "y", "z", "t"])
+        # Default as the C++ loader: x, y, z (and t for 4 inputs).
+        order = d.get("input_order", ["x", "y", "z", "t"][:self.input_dim])
         if len(order) != self.input_dim or sorted(set(order) - {"t"}) != ["x", "y", "z"] \
                 or len(set(order)) != len(order):
             raise FormatError("%s: domain.input_order %s does not fit input_dim %d"
