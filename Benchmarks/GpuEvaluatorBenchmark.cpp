@@ -120,14 +120,7 @@ int main(int argc, char** argv) {
   {
     // The hash-grid network of issue 34's target: tiny-cuda-nn's HashGrid over x, y, z, t (16
     // levels x 2 features, 2^19 entries, base 16, x1.5 per level) into 2 x 64 ReLU.
-    test::HashGridOptions o;
-    o.dims = 4;
-    o.levels = 16;
-    o.log2TableSize = 19;
-    o.baseResolution = 16;
-    o.perLevelScale = 1.5;
-    o.width = 64;
-    o.hiddenLayers = 2;
+    const test::HashGridOptions o = test::hashGridMlp(4, 16, 19, 16, 1.5, 64, 2);
     bytes = test::hashGridModelBytes(o);
     synthetic("paper_hashgrid.inr", test::load(bytes, "paper_hashgrid.inr"));
   }

@@ -193,36 +193,8 @@ public:
           if (isFinal) return cur;
           break;
         }
-        case LayerKind::Fourier: {
-          MlpInstr in;
-          in.op = MlpOp::Fourier;
-          in.src = cur.buf;
-          in.inWidth = L.inWidth;
-          in.outWidth = L.outWidth;
-          in.kPad = pad16(L.inWidth);
-          in.nPad = pad16(L.outWidth);
-          in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
-          std::vector<float> B(L.weight.size());
-          for (std::size_t k = 0; k < B.size(); ++k) B[k] = L.weight[k] * L.param;
-          in.floatOffset = pushFloats(B);
-          noteWidth(L.outWidth);
-          cur = encodingInto(in, cur);
-          break;
-        }
-        case LayerKind::HashGrid: {
-          MlpInstr in;
-          in.op = MlpOp::HashGrid;
-          in.src = cur.buf;
-          in.inWidth = L.inWidth;
-          in.outWidth = L.outWidth;
-          in.kPad = pad16(L.inWidth);
-          in.nPad = pad16(L.outWidth);
-          in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
-          in.floatOffset = pushFloats(packHashGrid(L));
-          noteWidth(L.outWidth);
-          cur = encodingInto(in, cur);
-          break;
-        }
+        case LayerKind::Fourier:
+        case LayerKind::HashGrid: cur = encoding(L, cur); break;
         case LayerKind::Identity: break;
         case LayerKind::Sine:
         case LayerKind::SiLU:
@@ -249,9 +221,25 @@ public:
     return cur;
   }
 
-  // Appends encoding instruction `in` reading x into a fresh buffer (never x's own: the encoding
-  // reads all of x for every column) and returns that buffer's value.
-  Value encodingInto(MlpInstr in, const Value& x) {
+  // An encoding layer (Fourier, hash grid) of x into a fresh buffer (never x's own: the
+  // encoding reads all of x for every column).
+  Value encoding(const Layer& L, const Value& x) {
+    MlpInstr in;
+    in.op = L.kind == LayerKind::Fourier ? MlpOp::Fourier : MlpOp::HashGrid;
+    in.src = x.buf;
+    in.inWidth = L.inWidth;
+    in.outWidth = L.outWidth;
+    in.kPad = pad16(L.inWidth);
+    in.nPad = pad16(L.outWidth);
+    in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
+    if (L.kind == LayerKind::Fourier) {
+      std::vector<float> B(L.weight.size());
+      for (std::size_t k = 0; k < B.size(); ++k) B[k] = L.weight[k] * L.param;  // B pre-scaled
+      in.floatOffset = pushFloats(B);
+    } else {
+      in.floatOffset = pushFloats(packHashGrid(L));
+    }
+    noteWidth(L.outWidth);
     release(x);
     in.dst = alloc();
     if (in.dst == x.buf) {

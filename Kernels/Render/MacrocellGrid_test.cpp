@@ -238,20 +238,38 @@ TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
   EXPECT_LE(worstUnderestimate(pgrid, f), 0.f);
 }
 
+// A field that records every query (and its value) while `recording`.
+struct Recorder : FieldEvaluator {
+  explicit Recorder(const FieldEvaluator& f) : inner(f) {}
+  const FieldEvaluator& inner;
+  mutable std::vector<QueryPoint> pts;
+  mutable std::vector<float> vals;
+  bool recording = false;
+  void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
+    inner.evaluate(p, n, out);
+    if (recording) pts.insert(pts.end(), p, p + n), vals.insert(vals.end(), out, out + n);
+  }
+  std::string name() const override { return "recorder"; }
+};
+
+// How many recorded samples lie outside their 8^3 cell's [min, max] (points exactly on a face
+// may belong to either neighbour: a rounding slack).
+int samplesOutsideTheirCells(const MacrocellGrid& grid, const Recorder& rec) {
+  const Vec3f cs = grid.cellSize();
+  int outside = 0;
+  for (std::size_t i = 0; i < rec.pts.size(); ++i) {
+    const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
+                 std::min(7, int((rec.pts[i].z + 1) / cs.z))};
+    const int idx = linearCellIndex(grid.dims(), c);
+    if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
+  }
+  return outside;
+}
+
 TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
   // After rendering, the refined bounds contain every value the renderer has seen.
-  struct Recorder : FieldEvaluator {
-    mutable std::vector<QueryPoint> pts;
-    mutable std::vector<float> vals;
-    bool recording = false;
-    void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
-      for (std::size_t i = 0; i < n; ++i) {
-        out[i] = bumpField(p[i]);
-        if (recording) pts.push_back(p[i]), vals.push_back(out[i]);
-      }
-    }
-    std::string name() const override { return "recorder"; }
-  } rec;
+  const test::FunctionField bump(bumpField);
+  Recorder rec(bump);
   MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
   DeltaTrackingRenderer r(rec, grid);
   RenderSettings s;
@@ -265,16 +283,7 @@ TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
   r.setScene(scene);
   for (int k = 0; k < 3; ++k) r.renderFrame();
   ASSERT_GT(rec.pts.size(), 1000u);
-  const Vec3f cs = grid.cellSize();
-  int outside = 0;
-  for (std::size_t i = 0; i < rec.pts.size(); ++i) {
-    const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
-                 std::min(7, int((rec.pts[i].z + 1) / cs.z))};
-    const int idx = linearCellIndex(grid.dims(), c);
-    // Points exactly on a face may belong to either neighbour: allow a rounding slack.
-    if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
-  }
-  EXPECT_LE(outside, int(rec.pts.size() / 1000));
+  EXPECT_LE(samplesOutsideTheirCells(grid, rec), int(rec.pts.size() / 1000));
 }
 
 // The layout and the per-point / per-cell helpers both grids run (Render/MacrocellLayout.h).
@@ -361,29 +370,13 @@ namespace {
 // renderer's refinement (ghost passes, then every evaluated sample) must repair the bounds so
 // every value the renderer sees lies inside its cell's [min, max].
 TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
-  test::HashGridOptions o;
-  o.levels = 12;
-  o.log2TableSize = 14;
-  o.baseResolution = 4;
-  o.perLevelScale = 1.6;  // finest level: ~ 4 * 1.6^11 = 700 cells across the box
+  // 12 levels from base 4 by x1.6: the finest has ~ 4 * 1.6^11 = 700 cells across the box.
+  test::HashGridOptions o = test::hashGridMlp(3, 12, 14, 4, 1.6, 32, 1);
   o.tableScale = 1.f;
-  o.width = 32;
-  o.hiddenLayers = 1;
   o.seed = 34;
   const InrModel model = test::hashGridModel(o);
   const CpuInrEvaluator field(model);
-  struct Recorder : FieldEvaluator {
-    const FieldEvaluator* inner = nullptr;
-    mutable std::vector<QueryPoint> pts;
-    mutable std::vector<float> vals;
-    bool recording = false;
-    void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
-      inner->evaluate(p, n, out);
-      if (recording) pts.insert(pts.end(), p, p + n), vals.insert(vals.end(), out, out + n);
-    }
-    std::string name() const override { return "recorder"; }
-  } rec;
-  rec.inner = &field;
+  Recorder rec(field);
   MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
   grid.setTime(0.0);
   const float before = worstUnderestimate(grid, field);
@@ -406,15 +399,7 @@ TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
   EXPECT_GT(g.refinements, 0u);
   for (int k = 0; k < 3; ++k) r.renderFrame();
   ASSERT_GT(rec.pts.size(), 1000u);
-  const Vec3f cs = grid.cellSize();
-  int outside = 0;
-  for (std::size_t i = 0; i < rec.pts.size(); ++i) {
-    const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
-                 std::min(7, int((rec.pts[i].z + 1) / cs.z))};
-    const int idx = linearCellIndex(grid.dims(), c);
-    if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
-  }
-  EXPECT_LE(outside, int(rec.pts.size() / 1000));
+  EXPECT_LE(samplesOutsideTheirCells(grid, rec), int(rec.pts.size() / 1000));
   EXPECT_LE(worstUnderestimate(grid, field), before);  // refinement only ever widens bounds
 
   // Padding, the documented alternative, covers the misses outright.

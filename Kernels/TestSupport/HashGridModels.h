@@ -31,6 +31,21 @@ struct HashGridOptions {
   unsigned seed = 1;
 };
 
+// tiny-cuda-nn style: `levels` levels of 2 features over `dims` inputs into `hiddenLayers` x
+// `width` ReLU.
+inline HashGridOptions hashGridMlp(int dims, int levels, int log2TableSize, int baseResolution, double perLevelScale,
+                                   int width, int hiddenLayers) {
+  HashGridOptions o;
+  o.dims = dims;
+  o.levels = levels;
+  o.log2TableSize = log2TableSize;
+  o.baseResolution = baseResolution;
+  o.perLevelScale = perLevelScale;
+  o.width = width;
+  o.hiddenLayers = hiddenLayers;
+  return o;
+}
+
 // Entries of each level, by the format's formula (tiny-cuda-nn's): the dense grid rounded up to 8
 // entries, or the hash table, whichever is smaller.
 inline std::vector<std::uint64_t> hashGridLevelSizes(const HashGridOptions& o) {

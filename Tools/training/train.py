@@ -523,8 +523,9 @@ def main(argv=None):
             ("time_range", [m["times"][0], m["times"][-1]]), ("time_units", m.get("time_units")),
             ("snapshots", len(m["times"])), ("value_range", [vol.vmin, vol.vmax]),
             ("input_order", list(spec.inputs)),
-            ("input_mapping", "cell-centred: first/last sample centre -> -1/+1 on every axis "
-                              "(x, y, z); first/last snapshot time -> -1/+1"),
+            ("input_mapping", "cell-centred: first/last sample centre -> %s on every axis "
+                              "(x, y, z); first/last snapshot time -> %s"
+                              % (("0/1", "0/1") if spec.layout == "hashgrid-torch" else ("-1/+1", "-1/+1"))),
             ("output_mapping", mapping), ("target", spec.target),
             ("device", dev_name), ("torch", torch.__version__),
             ("seed", SEED), ("optimizer", "Adam"), ("lr", spec.lr),

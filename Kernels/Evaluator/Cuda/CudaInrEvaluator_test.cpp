@@ -44,28 +44,13 @@ Err compare(const std::vector<float>& a, const std::vector<float>& b) {
 
 // Hash grids (tiny-cuda-nn's HashGrid): 16 levels of 2 features with 2^16 entries (dense coarse
 // levels, hashed fine ones) into 2 x 64 ReLU; and a 4D smoothstep grid with the inputs appended.
-InrModel hashGrid3d() {
-  test::HashGridOptions o;
-  o.levels = 16;
-  o.log2TableSize = 16;
-  o.baseResolution = 16;
-  o.perLevelScale = 1.5;
-  o.width = 64;
-  o.hiddenLayers = 2;
-  return test::hashGridModel(o);
-}
+InrModel hashGrid3d() { return test::hashGridModel(test::hashGridMlp(3, 16, 16, 16, 1.5, 64, 2)); }
 
 InrModel hashGrid4d() {
-  test::HashGridOptions o;
-  o.dims = 4;
-  o.levels = 8;
+  test::HashGridOptions o = test::hashGridMlp(4, 8, 14, 4, 2.0, 64, 2);
   o.featuresPerLevel = 4;
-  o.log2TableSize = 14;
-  o.baseResolution = 4;
   o.smoothstep = true;
   o.includeInput = "last";
-  o.width = 64;
-  o.hiddenLayers = 2;
   o.seed = 4;
   return test::hashGridModel(o);
 }
