@@ -120,7 +120,10 @@ INR_HD std::uint32_t hashGridEntry(const std::uint32_t* v, int dims, std::uint32
     index = 0;
     for (int d = 0; d < dims; ++d) index ^= v[d] * kPrimes[d];
   }
-  return index % entries;
+  // index % entries without a division where it is not needed (hashed levels hold a power of 2,
+  // dense ones wrap only for vertices past the grid).
+  if ((entries & (entries - 1)) == 0) return index & (entries - 1);
+  return index < entries ? index : index % entries;
 }
 
 // Features [first, first + count) of hash-grid level `level` at the inputs x (x(i), i < dims),

@@ -17,58 +17,11 @@ namespace {
 
 using test::HashGridOptions;
 
-// tiny-cuda-nn's encoding of one query (inputs x in [0, 1]^D) in double, from the format's text:
-// per level, the cell of x * scale + 0.5, its vertices' entries (dense index while the grid fits
-// the level, else the XOR-of-primes hash, modulo the level's size), d-linear or smoothstep weights.
-std::vector<double> encodeInDouble(const Layer& L, const std::vector<double>& x) {
-  const HashGridSpec& g = L.hashGrid;
-  const int D = L.inWidth, F = g.featuresPerLevel;
-  std::vector<double> out;
-  for (int l = 0; l < g.levels; ++l) {
-    const double scale = g.levelScale[l];
-    const std::uint64_t res = g.levelResolution[l], size = g.levelSize[l];
-    std::vector<double> feature(F, 0.0);
-    std::int64_t cell[4];
-    double w[4];
-    for (int d = 0; d < D; ++d) {
-      const double p = scale * x[d] + 0.5;
-      cell[d] = std::int64_t(std::floor(p));
-      const double t = p - std::floor(p);
-      w[d] = g.smoothstep ? t * t * (3 - 2 * t) : t;
-    }
-    for (int c = 0; c < (1 << D); ++c) {
-      double weight = 1;
-      std::uint64_t v[4];
-      for (int d = 0; d < D; ++d) {
-        const bool up = (c >> d) & 1;
-        v[d] = std::uint64_t(cell[d] + up) & 0xffffffffu;
-        weight *= up ? w[d] : 1 - w[d];
-      }
-      std::uint64_t dense = 1;
-      for (int d = 0; d < D; ++d) dense *= res;
-      std::uint64_t index = 0;
-      if (dense <= size) {
-        std::uint64_t stride = 1;  // uint32 arithmetic, as tiny-cuda-nn's (wrapped vertices wrap the index)
-        for (int d = 0; d < D; ++d, stride *= res) index = (index + v[d] * stride) & 0xffffffffu;
-      } else {
-        const std::uint64_t primes[4] = {1, 2654435761u, 805459861u, 3674653429u};
-        for (int d = 0; d < D; ++d) index ^= (v[d] * primes[d]) & 0xffffffffu;
-      }
-      index %= size;
-      for (int f = 0; f < F; ++f) feature[f] += weight * L.weight[(g.levelOffset[l] + index) * F + f];
-    }
-    out.insert(out.end(), feature.begin(), feature.end());
-  }
-  if (L.includeInput == IncludeInput::First) out.insert(out.begin(), x.begin(), x.end());
-  if (L.includeInput == IncludeInput::Last) out.insert(out.end(), x.begin(), x.end());
-  return out;
-}
-
 // The whole network (hash grid, then linear/relu layers) in double.
 double networkInDouble(const InrModel& m, std::vector<double> x) {
   for (const Layer& L : m.architecture.layers) {
     if (L.kind == LayerKind::HashGrid) {
-      x = encodeInDouble(L, x);
+      x = test::hashGridInDouble(L, x);
     } else if (L.kind == LayerKind::Linear) {
       std::vector<double> y(L.outWidth);
       for (int o = 0; o < L.outWidth; ++o) {

@@ -207,20 +207,25 @@ float worstUnderestimate(const MacrocellGrid& grid, const FieldEvaluator& f) {
   return worst;
 }
 
+// A size x size view of the whole box with a preset transfer function over [lo, hi].
+void frameTheBox(DeltaTrackingRenderer& r, int size, float lo, float hi, float opacity, double unitDistance) {
+  RenderSettings s;
+  s.width = s.height = size;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = Camera::framing(kBox);
+  scene.transferFunction = TransferFunction::preset(lo, hi, opacity);
+  scene.transferFunction.unitDistance = unitDistance;
+  r.setScene(scene);
+}
+
 TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
   test::FunctionField f(bumpField);
   MacrocellGrid grid(f, kBox, 0.0, 1.0, options(8, 1));
   TrackingOptions topt;
   topt.ghostPixelStride = 1;
   DeltaTrackingRenderer r(f, grid, topt);
-  RenderSettings s;
-  s.width = s.height = 64;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = Camera::framing(kBox);
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.2);
-  scene.transferFunction.unitDistance = 0.1;
-  r.setScene(scene);
+  frameTheBox(r, 64, 0.f, 1.f, 0.2f, 0.1);
   const float before = worstUnderestimate(grid, f);
   EXPECT_GT(before, 0.2f);  // the bump's peak is missed by the lattice
   const FrameStats g = r.runGhostPasses(8);
@@ -272,15 +277,8 @@ TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
   Recorder rec(bump);
   MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
   DeltaTrackingRenderer r(rec, grid);
-  RenderSettings s;
-  s.width = s.height = 48;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = Camera::framing(kBox);
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.3);
-  scene.transferFunction.unitDistance = 0.2;
   rec.recording = true;
-  r.setScene(scene);
+  frameTheBox(r, 48, 0.f, 1.f, 0.3f, 0.2);
   for (int k = 0; k < 3; ++k) r.renderFrame();
   ASSERT_GT(rec.pts.size(), 1000u);
   EXPECT_LE(samplesOutsideTheirCells(grid, rec), int(rec.pts.size() / 1000));
@@ -385,15 +383,8 @@ TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
   TrackingOptions topt;
   topt.ghostPixelStride = 1;
   DeltaTrackingRenderer r(rec, grid, topt);
-  RenderSettings s;
-  s.width = s.height = 48;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = Camera::framing(kBox);
   const std::array<float, 2> range = grid.workingValueRange();
-  scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.3);
-  scene.transferFunction.unitDistance = 0.2;
-  r.setScene(scene);
+  frameTheBox(r, 48, range[0], range[1], 0.3f, 0.2);
   rec.recording = true;
   const FrameStats g = r.runGhostPasses(8);
   EXPECT_GT(g.refinements, 0u);

@@ -94,4 +94,56 @@ inline std::vector<std::uint8_t> hashGridModelBytes(const HashGridOptions& o) {
 
 inline InrModel hashGridModel(const HashGridOptions& o = {}) { return load(hashGridModelBytes(o), "hashgrid-test.inr"); }
 
+// A hash-grid layer on one query's inputs (in [0, 1]^D inside the grid) in double, written from
+// the format's text, independently of the evaluators: per level, the cell of x * scale + 0.5, its
+// vertices' entries (dense index while the grid fits the level, else the XOR-of-primes hash,
+// modulo the level's size), d-linear or smoothstep weights. gridMargin, where given, gets the
+// smallest distance (in input units) from x to a cell face of any level: the encoding has kinks
+// there, where central differences do not estimate the derivative.
+inline std::vector<double> hashGridInDouble(const Layer& L, const std::vector<double>& x, double* gridMargin = nullptr) {
+  const HashGridSpec& g = L.hashGrid;
+  const int D = L.inWidth, F = g.featuresPerLevel;
+  std::vector<double> out;
+  for (int l = 0; l < g.levels; ++l) {
+    const double scale = g.levelScale[l];
+    const std::uint64_t res = g.levelResolution[l], size = g.levelSize[l];
+    std::vector<double> feature(F, 0.0);
+    std::int64_t cell[4];
+    double w[4];
+    for (int d = 0; d < D; ++d) {
+      const double p = scale * x[d] + 0.5;
+      cell[d] = std::int64_t(std::floor(p));
+      const double t = p - std::floor(p);
+      if (gridMargin && scale > 0) *gridMargin = std::min(*gridMargin, std::min(t, 1 - t) / scale);
+      w[d] = g.smoothstep ? t * t * (3 - 2 * t) : t;
+    }
+    for (int c = 0; c < (1 << D); ++c) {
+      double weight = 1;
+      std::uint64_t v[4];
+      for (int d = 0; d < D; ++d) {
+        const bool up = (c >> d) & 1;
+        v[d] = std::uint64_t(cell[d] + up) & 0xffffffffu;
+        weight *= up ? w[d] : 1 - w[d];
+      }
+      std::uint64_t dense = 1;
+      for (int d = 0; d < D; ++d) dense *= res;
+      std::uint64_t index = 0;
+      if (dense <= size) {
+        std::uint64_t stride = 1;  // uint32 arithmetic, as tiny-cuda-nn's (wrapped vertices wrap the index)
+        for (int d = 0; d < D; ++d, stride *= res) index = (index + v[d] * stride) & 0xffffffffu;
+      } else {
+        const std::uint64_t primes[4] = {1, 2654435761u, 805459861u, 3674653429u};
+        for (int d = 0; d < D; ++d) index ^= (v[d] * primes[d]) & 0xffffffffu;
+      }
+      index %= size;
+      for (int f = 0; f < F; ++f) feature[f] += weight * L.weight[(g.levelOffset[l] + index) * F + f];
+    }
+    out.insert(out.end(), feature.begin(), feature.end());
+  }
+  if (L.includeInput == IncludeInput::First) out.insert(out.begin(), x.begin(), x.end());
+  if (L.includeInput == IncludeInput::Last) out.insert(out.end(), x.begin(), x.end());
+  return out;
+}
+
+
 }  // namespace inr::test

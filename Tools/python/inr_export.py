@@ -623,13 +623,15 @@ def _tcnn_activation(name, field, where):
     return [dict(a) for a in _TCNN_ACTIVATIONS[key]]
 
 
-def _tcnn_mlp_shapes(net, fan_in, alignment):
-    """[(out, in)] of tiny-cuda-nn's MLP weight matrices for a network input of fan_in."""
+def _tcnn_mlp_shapes(net, fan_in, in_alignment, out_alignment):
+    """[(out, in)] of tiny-cuda-nn's MLP weight matrices for a network input of fan_in, padded
+    to the alignments (16 for FullyFusedMLP; CutlassMLP's are smaller: the caller tries both)."""
     width, hidden = int(net.get("n_neurons", 128)), int(net.get("n_hidden_layers", 5))
-    pad = lambda n: (n + alignment - 1) // alignment * alignment  # noqa: E731
+    pad = lambda n, a: (n + a - 1) // a * a  # noqa: E731
     if hidden == 0:
-        return [(pad(1), pad(fan_in))]
-    return [(width, pad(fan_in))] + [(width, width)] * (hidden - 1) + [(pad(1), width)]
+        return [(pad(1, out_alignment), pad(fan_in, in_alignment))]
+    return [(width, pad(fan_in, in_alignment))] + [(width, width)] * (hidden - 1) + \
+        [(pad(1, out_alignment), width)]
 
 
 def _tcnn(K, o):
@@ -661,14 +663,17 @@ def _tcnn(K, o):
                           "NetworkWithInputEncoding) or 'network.params' and 'encoding.params'%s"
                           % (K.where, K._hint("params")))
     dims_given = cfg.get("n_input_dims")
+    if dims_given is None and o.input_order:
+        dims_given = len(o.input_order.replace(",", " ").split())
     candidates = []
     for dims in ((int(dims_given),) if dims_given else (3, 4)):
         spec = _tcnn_hashgrid(enc, dims, where)
-        for alignment in (16, 8):
-            shapes = _tcnn_mlp_shapes(net, spec.n_output_dims, alignment)
+        for in_alignment, out_alignment in ((16, 16), (8, 8), (8, 16), (16, 8)):
+            shapes = _tcnn_mlp_shapes(net, spec.n_output_dims, in_alignment, out_alignment)
             n_net = sum(a * b for a, b in shapes)
             if n_net + spec.entries * spec.n_features_per_level == flat.size and \
-                    (split is None or split == n_net):
+                    (split is None or split == n_net) and \
+                    not any(c[1].dims == dims and c[3] == n_net for c in candidates):
                 candidates.append((dims, spec, shapes, n_net))
     if not candidates:
         raise ExportError("%s: %d parameters fit neither 3 nor 4 inputs with this config (a hash "
@@ -678,6 +683,9 @@ def _tcnn(K, o):
                           % (K.where, flat.size, _tcnn_hashgrid(enc, 3, where).n_levels,
                              _tcnn_hashgrid(enc, 3, where).entries
                              * _tcnn_hashgrid(enc, 3, where).n_features_per_level))
+    if len({c[0] for c in candidates}) > 1:  # every level hashed: 3 and 4 inputs fit alike
+        raise ExportError("%s: the parameters fit 3 and 4 inputs alike; add \"n_input_dims\" to "
+                          "the config (or give --input-order)" % where)
     dims, spec, shapes, n_net = candidates[0]
     if not np.all(np.isfinite(flat)):
         raise ExportError("%s: the parameters contain NaN or Inf" % K.where)
