@@ -27,6 +27,10 @@ class HashGridEncoding(nn.Module):
         s = self.spec
         self.embeddings = nn.Parameter(torch.empty(s.entries, s.n_features_per_level).uniform_(-1e-4, 1e-4))
         self.register_buffer("offsets", torch.tensor(s.offsets + [s.entries], dtype=torch.int64))
+        # The cell's 2^D vertices as offsets from its lower corner (bit d of vertex c: axis d);
+        # not part of the state_dict.
+        corners = [[(c >> d) & 1 for d in range(s.dims)] for c in range(1 << s.dims)]
+        self.register_buffer("corners", torch.tensor(corners, dtype=torch.int64), persistent=False)
 
     def forward(self, x):
         s = self.spec
@@ -41,9 +45,7 @@ class HashGridEncoding(nn.Module):
             cell = cell.to(torch.int64)
             table = self.embeddings[s.offsets[level]:s.offsets[level] + s.sizes[level]]
             acc = 0
-            for corner in range(1 << s.dims):
-                up = torch.tensor([(corner >> d) & 1 for d in range(s.dims)], dtype=torch.int64,
-                                  device=x.device)
+            for up in self.corners:
                 vertex = (cell + up) & 0xFFFFFFFF
                 weight = torch.prod(torch.where(up.bool(), t, 1 - t), dim=1, keepdim=True)
                 acc = acc + weight * table[self._index(level, vertex)]
