@@ -1,5 +1,5 @@
 // GPU evaluator throughput (queries/s): the fused tensor-core kernel and the generic fp32 path
-// on the paper-size architectures and on model files, timed with CUDA events (median of R
+// on the paper-size architectures (and a hash-grid network) and on model files, timed with CUDA events (median of R
 // launches over one batch of N random world points already on the device).
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
@@ -30,6 +30,7 @@
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "GpuBenchmarkSupport.h"
 #include "TestSupport/DevicePoints.h"
+#include "TestSupport/HashGridModels.h"
 #include "TestSupport/PaperArchitectures.h"
 #include "TestSupport/ShippedModels.h"
 
@@ -116,6 +117,13 @@ int main(int argc, char** argv) {
   synthetic("paper_siren.inr", bench::sirenPaper(1, &bytes));
   synthetic("paper_ffn.inr", bench::ffnPaper(2, &bytes));
   synthetic("paper_coordnet.inr", bench::coordNetPaper(3, &bytes));
+  {
+    // The hash-grid network of issue 34's target: tiny-cuda-nn's HashGrid over x, y, z, t (16
+    // levels x 2 features, 2^19 entries, base 16, x1.5 per level) into 2 x 64 ReLU.
+    const test::HashGridOptions o = test::hashGridMlp(4, 16, 19, 16, 1.5, 64, 2);
+    bytes = test::hashGridModelBytes(o);
+    synthetic("paper_hashgrid.inr", test::load(bytes, "paper_hashgrid.inr"));
+  }
   for (auto& m : loadModelFiles(files)) models.push_back(std::move(m));
 
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """PyTorch fp16 eager baseline for the evaluator benchmark: builds a torch module from an INR
 Volume file's layer graph (Docs/FORMAT.md) — nn.Linear layers with fp16 weights, torch.sin /
-silu / relu / ... activations, Fourier encodings, residual blocks — and times batched inference
+silu / relu / ... activations, Fourier encodings, hash grids (the plain PyTorch module of
+Tools/python/inr_hashgrid_torch.py, fp16 table, fp32 interpolation), residual blocks — and times batched inference
 on the GPU with CUDA events (median of --reps). The same files are timed by
 gpu_evaluator_benchmark, so the ratio compares the very same networks and batch.
 
@@ -17,10 +18,11 @@ import torch
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "Tools", "python"))
 import inr_format  # noqa: E402
+import inr_hashgrid_torch  # noqa: E402
 
 
 class Graph(torch.nn.Module):
-    def __init__(self, layers, tensors):
+    def __init__(self, layers, tensors, dims=4):
         super().__init__()
         self.steps = []
         self.mods = torch.nn.ModuleList()
@@ -39,6 +41,13 @@ class Graph(torch.nn.Module):
                 B = torch.from_numpy(tensors[L["B"]].copy()) * L.get("frequency_scale", 2 * math.pi)
                 self.register_buffer("B%d" % len(self.steps), B)
                 self.steps.append(("fourier", ("B%d" % len(self.steps), L.get("include_input", "none"))))
+            elif t == "hashgrid":
+                fields = {k: L[k] for k in inr_hashgrid_torch.inr_hashgrid.HashGridSpec.FIELDS if k in L}
+                enc = inr_hashgrid_torch.HashGridEncoding(dims, **fields)
+                with torch.no_grad():
+                    enc.embeddings.copy_(torch.from_numpy(tensors[L["table"]].copy()))
+                self.mods.append(enc)
+                self.steps.append(("hashgrid", (len(self.mods) - 1, L.get("include_input", "none"))))
             elif t == "residual":
                 body = Graph(L["body"], tensors)
                 short = Graph(L.get("shortcut") or [], tensors)
@@ -56,6 +65,14 @@ class Graph(torch.nn.Module):
                 B, inc = arg
                 p = x @ getattr(self, B).t()
                 parts = [torch.sin(p), torch.cos(p)]
+                if inc == "first":
+                    parts.insert(0, x)
+                elif inc == "last":
+                    parts.append(x)
+                x = torch.cat(parts, dim=-1)
+            elif kind == "hashgrid":
+                m, inc = arg
+                parts = [self.mods[m](x).to(x.dtype)]
                 if inc == "first":
                     parts.insert(0, x)
                 elif inc == "last":
@@ -81,7 +98,7 @@ class Graph(torch.nn.Module):
 
 def bench(path, batch, reps, compile_):
     inr = inr_format.read_inr(path)
-    net = Graph(inr.architecture["layers"], inr.tensors).cuda().half().eval()
+    net = Graph(inr.architecture["layers"], inr.tensors, inr.architecture["input_dim"]).cuda().half().eval()
     if compile_:
         net = torch.compile(net)
     x = (torch.rand(batch, inr.architecture["input_dim"], device="cuda") * 2 - 1).half()

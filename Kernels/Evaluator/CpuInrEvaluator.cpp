@@ -8,6 +8,9 @@
 #include <utility>
 #include <vector>
 
+#include "Evaluator/Encodings.h"  // hashGridLevel
+#include "Evaluator/MlpProgram.h"  // packHashGrid
+
 namespace inr {
 namespace {
 
@@ -27,6 +30,7 @@ struct CompiledLayer {
   IncludeInput includeInput = IncludeInput::None;
   std::vector<CompiledLayer> body, shortcut;
   float residualScale = 1.f;
+  std::vector<float> hashGrid;  // HashGrid: packHashGrid's layout
 };
 
 std::vector<CompiledLayer> compile(const std::vector<Layer>& layers) {
@@ -45,6 +49,8 @@ std::vector<CompiledLayer> compile(const std::vector<Layer>& layers) {
     } else if (L.kind == LayerKind::Fourier) {
       const int m = static_cast<int>(L.weight.size() / L.inWidth);
       c.weight = RowMajorMap(L.weight.data(), m, L.inWidth) * L.param;  // fold the 2π scale into B
+    } else if (L.kind == LayerKind::HashGrid) {
+      c.hashGrid = packHashGrid(L);
     }
     c.body = compile(L.body);
     c.shortcut = compile(L.shortcut);
@@ -81,7 +87,8 @@ bool hasDerivative(LayerKind kind) {
     case LayerKind::Tanh:
     case LayerKind::Identity:
     case LayerKind::Scale:
-    case LayerKind::Residual: return true;
+    case LayerKind::Residual:
+    case LayerKind::HashGrid: return true;
   }
   return false;
 }
@@ -140,6 +147,40 @@ void runLayer(const CompiledLayer& L, Mat& x, Mat* dx) {
         dx->swap(dy);
       }
       x.swap(y);
+      break;
+    }
+    case LayerKind::HashGrid: {
+      // No whole-array form: query by query and level by level, with the one implementation the
+      // GPU paths run (Evaluator/Encodings.h), derivatives from the interpolation weights'.
+      const HashGridView g{L.hashGrid.data()};
+      const int dims = L.inWidth, F = g.features(), features = g.levels() * F;
+      const int featureAt = L.includeInput == IncludeInput::First ? dims : 0;
+      const int inputAt = L.includeInput == IncludeInput::First ? 0 : features;
+      const Eigen::Index n = x.cols();
+      Mat y(L.outWidth, n);
+      Mat dy;
+      if (dx) dy.resize(L.outWidth, dx->cols());
+      float jac[8 * 4];  // d feature j / d input i of one level: jac[j * dims + i]
+      for (Eigen::Index q = 0; q < n; ++q) {
+        const auto input = [&](int i) { return x(i, q); };
+        for (int l = 0; l < g.levels(); ++l) {
+          float* v = &y(featureAt + l * F, q);
+          hashGridLevel(g, l, dims, input, 0, F, v, dx ? jac : nullptr);
+          if (dx)
+            for (int j = 0; j < F; ++j)
+              for (int d = 0; d < 3; ++d) {
+                float t = 0.f;
+                for (int i = 0; i < dims; ++i) t += jac[j * dims + i] * (*dx)(i, d * n + q);
+                dy(featureAt + l * F + j, d * n + q) = t;
+              }
+        }
+      }
+      if (L.includeInput != IncludeInput::None) {
+        y.middleRows(inputAt, dims) = x;
+        if (dx) dy.middleRows(inputAt, dims) = *dx;
+      }
+      x.swap(y);
+      if (dx) dx->swap(dy);
       break;
     }
     // The formulas of Common/Activation.h on whole arrays, by Eigen's vectorised sin/exp/tanh:

@@ -16,6 +16,8 @@
 // The CPU reference evaluator (Evaluator/CpuInrEvaluator.cpp) computes the same formula on whole
 // Eigen arrays instead, for the reason Common/Activation.h gives.
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "Common/Activation.h"  // ActMath, INR_HD
 #include "Evaluator/MlpProgram.h"
@@ -23,7 +25,7 @@
 namespace inr {
 
 // Which operations are encodings of their input (evaluated through encodingElement).
-INR_HD bool isEncoding(MlpOp op) { return op == MlpOp::Fourier; }
+INR_HD bool isEncoding(MlpOp op) { return op == MlpOp::Fourier || op == MlpOp::HashGrid; }
 
 // Where the columns of a Fourier instruction f come from: sin(B_j x) in column sinAt + j,
 // cos(B_j x) in column sinAt + features + j, the `inputs` included inputs x_i in column
@@ -70,11 +72,125 @@ INR_HD float fourierElement(const MlpInstr& f, const float* B, const Input& x, i
   return sine ? sinf(p) : cosf(p);
 }
 
+// A hash-grid encoding's packed weights (packHashGrid, MlpProgram.h): a header of 4 words
+// (levels, features per level, smoothstep, 0), then 4 words per level (scale as fp32, then
+// resolution, first entry and entry count as uint32 bit patterns), then the table, one row of
+// features per entry. Integers travel as bit patterns because the offsets exceed fp32's 2^24.
+struct HashGridView {
+  const float* data;
+  INR_HD std::uint32_t word(int i) const {
+    std::uint32_t u;
+    memcpy(&u, data + i, sizeof u);
+    return u;
+  }
+  INR_HD int levels() const { return int(word(0)); }
+  INR_HD int features() const { return int(word(1)); }
+  INR_HD bool smoothstep() const { return word(2) != 0; }
+  INR_HD float scale(int level) const { return data[4 + 4 * level]; }
+  INR_HD std::uint32_t resolution(int level) const { return word(5 + 4 * level); }
+  INR_HD std::uint32_t firstEntry(int level) const { return word(6 + 4 * level); }
+  INR_HD std::uint32_t entries(int level) const { return word(7 + 4 * level); }
+  INR_HD const float* table() const { return data + 4 + 4 * levels(); }
+};
+
+// Where the columns of a hash-grid instruction f come from: feature j of level l in column
+// featureAt + l * features + j, the included inputs x_i in column inputAt + i.
+struct HashGridColumns {
+  int inputs;  // 0 or f.inWidth
+  int featureAt;
+  int inputAt;
+  INR_HD explicit HashGridColumns(const MlpInstr& f)
+      : inputs(f.includeInput ? f.inWidth : 0),
+        featureAt(f.includeInput == 1 ? f.inWidth : 0),
+        inputAt(f.includeInput == 1 ? 0 : f.outWidth - inputs) {}
+};
+
+// The entry of grid vertex v (dims coordinates) in a level of `entries` entries at resolution
+// res: the dense index while the grid fits the level (row-major, x fastest), else instant-ngp's
+// spatial hash (XOR of v_i times a prime per axis); both modulo the level's size, in uint32
+// arithmetic, as tiny-cuda-nn computes it (so out-of-grid vertices wrap, as there).
+INR_HD std::uint32_t hashGridEntry(const std::uint32_t* v, int dims, std::uint32_t res, std::uint32_t entries) {
+  std::uint32_t stride = 1, index = 0;
+  for (int d = 0; d < dims && stride <= entries; ++d) {
+    index += v[d] * stride;
+    stride *= res;
+  }
+  if (entries < stride) {
+    constexpr std::uint32_t kPrimes[4] = {1u, 2654435761u, 805459861u, 3674653429u};
+    index = 0;
+    for (int d = 0; d < dims; ++d) index ^= v[d] * kPrimes[d];
+  }
+  // index % entries without a division where it is not needed (hashed levels hold a power of 2,
+  // dense ones wrap only for vertices past the grid).
+  if ((entries & (entries - 1)) == 0) return index & (entries - 1);
+  return index < entries ? index : index % entries;
+}
+
+// Features [first, first + count) of hash-grid level `level` at the inputs x (x(i), i < dims),
+// interpolated (d-linearly, or with smoothstep weights) between the 2^dims vertices of the cell
+// around x * scale + 0.5, into out[0, count). With dOut, also their derivatives along each input:
+// dOut[j * dims + i] = d out[j] / d x_i.
+template <class Input>
+INR_HD void hashGridLevel(const HashGridView& g, int level, int dims, const Input& x, int first, int count, float* out,
+                          float* dOut = nullptr) {
+  const float scale = g.scale(level);
+  const std::uint32_t res = g.resolution(level), entries = g.entries(level);
+  const int F = g.features();
+  const float* table = g.table() + std::size_t(g.firstEntry(level)) * F;
+  std::uint32_t cell[4];
+  float w[4], dw[4];  // interpolation weight of the upper vertex along each axis, and d w / d x
+  for (int d = 0; d < dims; ++d) {
+    const float p = fmaf(scale, x(d), 0.5f);
+    // Clamped before the integer conversion, so any input (far outside [0, 1], NaN) is defined.
+    const float corner = fminf(fmaxf(floorf(p), -1073741824.f), 1073741824.f);
+    cell[d] = static_cast<std::uint32_t>(static_cast<std::int32_t>(corner));
+    const float t = p - corner;
+    w[d] = g.smoothstep() ? t * t * (3.f - 2.f * t) : t;
+    dw[d] = g.smoothstep() ? 6.f * t * (1.f - t) * scale : scale;
+  }
+  for (int j = 0; j < count; ++j) out[j] = 0.f;
+  if (dOut)
+    for (int j = 0; j < count * dims; ++j) dOut[j] = 0.f;
+  for (int corner = 0; corner < (1 << dims); ++corner) {
+    std::uint32_t v[4];
+    float weight = 1.f;
+    for (int d = 0; d < dims; ++d) {
+      const bool upper = (corner >> d) & 1;
+      v[d] = cell[d] + (upper ? 1u : 0u);
+      weight *= upper ? w[d] : 1.f - w[d];
+    }
+    const float* entry = table + std::size_t(hashGridEntry(v, dims, res, entries)) * F + first;
+    for (int j = 0; j < count; ++j) out[j] += weight * entry[j];
+    if (dOut) {
+      for (int i = 0; i < dims; ++i) {  // d weight / d x_i: the factor of axis i differentiated
+        float dweight = ((corner >> i) & 1) ? dw[i] : -dw[i];
+        for (int d = 0; d < dims; ++d)
+          if (d != i) dweight *= ((corner >> d) & 1) ? w[d] : 1.f - w[d];
+        for (int j = 0; j < count; ++j) dOut[j * dims + i] += dweight * entry[j];
+      }
+    }
+  }
+}
+
+// Column k of hash-grid instruction f of the inputs x; grid: f's packed weights.
+template <class Input>
+INR_HD float hashGridElement(const MlpInstr& f, const float* grid, const Input& x, int k) {
+  const HashGridColumns cols(f);
+  if (cols.inputs && k >= cols.inputAt && k < cols.inputAt + cols.inputs) return x(k - cols.inputAt);
+  const HashGridView g{grid};
+  const int j = k - cols.featureAt;
+  if (j < 0 || j >= g.levels() * g.features()) return 0.f;
+  float v;
+  hashGridLevel(g, j / g.features(), f.inWidth, x, j % g.features(), 1, &v);
+  return v;
+}
+
 // Column k of encoding instruction f (isEncoding(f.op)); weights: the program's floatWeights.
 template <ActMath M = ActMath::Exact, class Input>
 INR_HD float encodingElement(const MlpInstr& f, const float* weights, const Input& x, int k) {
   switch (f.op) {
     case MlpOp::Fourier: return fourierElement<M>(f, weights + f.floatOffset, x, k);
+    case MlpOp::HashGrid: return hashGridElement(f, weights + f.floatOffset, x, k);
     default: return 0.f;
   }
 }

@@ -1,6 +1,7 @@
 #include "Evaluator/MlpProgram.h"
 
 #include <algorithm>
+#include <cstring>
 #include <sstream>
 #include <stdexcept>
 
@@ -192,29 +193,8 @@ public:
           if (isFinal) return cur;
           break;
         }
-        case LayerKind::Fourier: {
-          MlpInstr in;
-          in.op = MlpOp::Fourier;
-          in.src = cur.buf;
-          in.inWidth = L.inWidth;
-          in.outWidth = L.outWidth;
-          in.kPad = pad16(L.inWidth);
-          in.nPad = pad16(L.outWidth);
-          in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
-          std::vector<float> B(L.weight.size());
-          for (std::size_t k = 0; k < B.size(); ++k) B[k] = L.weight[k] * L.param;
-          in.floatOffset = pushFloats(B);
-          noteWidth(L.outWidth);
-          release(cur);
-          in.dst = alloc();
-          if (in.dst == cur.buf) {
-            in.dst = alloc();
-            inUse_[cur.buf] = false;
-          }
-          p_.instrs.push_back(in);
-          cur = {in.dst, L.outWidth, true};
-          break;
-        }
+        case LayerKind::Fourier:
+        case LayerKind::HashGrid: cur = encoding(L, cur); break;
         case LayerKind::Identity: break;
         case LayerKind::Sine:
         case LayerKind::SiLU:
@@ -239,6 +219,35 @@ public:
       return {-1, 1, false};
     }
     return cur;
+  }
+
+  // An encoding layer (Fourier, hash grid) of x into a fresh buffer (never x's own: the
+  // encoding reads all of x for every column).
+  Value encoding(const Layer& L, const Value& x) {
+    MlpInstr in;
+    in.op = L.kind == LayerKind::Fourier ? MlpOp::Fourier : MlpOp::HashGrid;
+    in.src = x.buf;
+    in.inWidth = L.inWidth;
+    in.outWidth = L.outWidth;
+    in.kPad = pad16(L.inWidth);
+    in.nPad = pad16(L.outWidth);
+    in.includeInput = L.includeInput == IncludeInput::None ? 0 : L.includeInput == IncludeInput::First ? 1 : 2;
+    if (L.kind == LayerKind::Fourier) {
+      std::vector<float> B(L.weight.size());
+      for (std::size_t k = 0; k < B.size(); ++k) B[k] = L.weight[k] * L.param;  // B pre-scaled
+      in.floatOffset = pushFloats(B);
+    } else {
+      in.floatOffset = pushFloats(packHashGrid(L));
+    }
+    noteWidth(L.outWidth);
+    release(x);
+    in.dst = alloc();
+    if (in.dst == x.buf) {
+      in.dst = alloc();
+      inUse_[x.buf] = false;
+    }
+    p_.instrs.push_back(in);
+    return {in.dst, in.outWidth, true};
   }
 
   // act(scale * x) over the value, in a buffer this list owns (a Scale layer not folded into a
@@ -340,6 +349,7 @@ const char* opName(MlpOp op) {
     case MlpOp::LoadInput: return "load-input";
     case MlpOp::DenseFp32: return "dense-fp32";
     case MlpOp::Fourier: return "fourier-fp32";
+    case MlpOp::HashGrid: return "hashgrid-fp32";
     case MlpOp::Gemm: return "gemm-fp16";
     case MlpOp::Activation: return "activation";
     case MlpOp::Combine: return "combine";
@@ -362,6 +372,24 @@ const char* actName(MlpAct a) {
 }
 
 }  // namespace
+
+std::vector<float> packHashGrid(const Layer& L) {
+  const HashGridSpec& g = L.hashGrid;
+  std::vector<float> packed(4 + 4 * std::size_t(g.levels) + L.weight.size());
+  auto putWord = [&](std::size_t i, std::uint32_t u) { std::memcpy(&packed[i], &u, sizeof u); };
+  putWord(0, std::uint32_t(g.levels));
+  putWord(1, std::uint32_t(g.featuresPerLevel));
+  putWord(2, g.smoothstep ? 1u : 0u);
+  putWord(3, 0u);
+  for (int l = 0; l < g.levels; ++l) {
+    packed[4 + 4 * l] = g.levelScale[l];
+    putWord(5 + 4 * l, g.levelResolution[l]);
+    putWord(6 + 4 * l, g.levelOffset[l]);
+    putWord(7 + 4 * l, g.levelSize[l]);
+  }
+  std::copy(L.weight.begin(), L.weight.end(), packed.begin() + 4 + 4 * g.levels);
+  return packed;
+}
 
 MlpProgram MlpProgram::compile(const Architecture& arch) {
   MlpProgram p;

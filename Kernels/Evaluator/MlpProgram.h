@@ -11,6 +11,8 @@
 //   DenseFp32    src (coordinates or buffer) -> dst, fp32 FMA: first layers, where coordinate
 //                precision matters, and any linear with K <= 16
 //   Fourier      src (coordinates or buffer) -> dst, fp32 [sin(Bx), cos(Bx)] (+x), B pre-scaled
+//   HashGrid     src (coordinates or buffer) -> dst, fp32 hash-grid features (+x), from the
+//                packed table (packHashGrid; Evaluator/Encodings.h HashGridView)
 //   Gemm         src -> dst on tensor cores, fp32 accumulate, + bias, activation epilogue,
 //                optionally dst = combineScale * (act(acc) + other)
 //   Activation   dst = act(actScale * dst) in place (standalone activations)
@@ -29,7 +31,7 @@
 
 namespace inr {
 
-enum class MlpOp : std::int32_t { LoadInput, DenseFp32, Fourier, Gemm, Activation, Combine, OutputDot, Output };
+enum class MlpOp : std::int32_t { LoadInput, DenseFp32, Fourier, Gemm, Activation, Combine, OutputDot, Output, HashGrid };
 
 struct MlpInstr {
   MlpOp op = MlpOp::Output;
@@ -39,7 +41,7 @@ struct MlpInstr {
   MlpAct act = MlpAct::None;
   float actScale = 1.f;      // Activation: scale before the activation (scale layers)
   float combineScale = 1.f;  // Combine / Gemm with `other`
-  std::int32_t includeInput = 0;  // Fourier: 0 none, 1 first, 2 last
+  std::int32_t includeInput = 0;  // Fourier, HashGrid: 0 none, 1 first, 2 last
   std::int64_t halfOffset = -1;   // Gemm: fp16 weights [nPad][kPad] in MlpProgram::halfWeights
   std::int64_t floatOffset = -1;  // fp32 weights [out][in] (B [m][in]); Gemm: the generic path's copy
   std::int64_t biasOffset = -1;   // fp32 bias [nPad] in floatWeights, -1 = none
@@ -100,6 +102,11 @@ struct MlpProgram {
   MlpProgram withEncodingsStored() const;
   std::string describe() const;  // one line per instruction, for logs and `inr info`
 };
+
+// A hash-grid layer's parameters and table as one float array, the layout HashGridView
+// (Evaluator/Encodings.h) reads: what a HashGrid instruction's floatOffset points at, and what
+// the CPU reference evaluates from.
+std::vector<float> packHashGrid(const Layer& hashGridLayer);
 
 // Runs the program on the CPU exactly as the fused kernel does arithmetically (fp16 weights and
 // activations, fp32 accumulation and epilogues), on network-space inputs (inputDim floats per

@@ -71,7 +71,8 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
           }
           for (int o = 0; o < W; ++o) buf[in.dst][o] = o < in.nPad ? tmp[o] : 0.f;
           break;
-        case MlpOp::Fourier: {  // every encoding (Evaluator/Encodings.h)
+        case MlpOp::Fourier:  // every encoding (Evaluator/Encodings.h)
+        case MlpOp::HashGrid: {
           auto input = [&](int k) { return srcAt(in.src, k); };
           for (int c = 0; c < W; ++c) tmp[c] = c < in.outWidth ? h(encodingElement(in, p.floatWeights.data(), input, c)) : 0.f;
           buf[in.dst] = tmp;

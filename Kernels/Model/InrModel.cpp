@@ -181,13 +181,11 @@ public:
              " (fourier) receives width " + std::to_string(inWidth) + ", so B must be [m, " + std::to_string(inWidth) + "]");
       L.weight = b.values;
       L.param = floatNumber(j, "frequency_scale", path, 6.283185307179586);
-      const std::string inc = optionalString(j, "include_input", path, "none");
-      if (inc == "none") L.includeInput = IncludeInput::None;
-      else if (inc == "first") L.includeInput = IncludeInput::First;
-      else if (inc == "last") L.includeInput = IncludeInput::Last;
-      else fail(path + ".include_input must be \"none\", \"first\" or \"last\", not \"" + inc + "\"");
+      L.includeInput = includeInput(j, path);
       if (b.shape[0] > 32768) fail(path + ": " + std::to_string(b.shape[0]) + " frequencies out of range (at most 32768)");
       L.outWidth = static_cast<int>(2 * b.shape[0]) + (L.includeInput == IncludeInput::None ? 0 : inWidth);
+    } else if (type == "hashgrid") {
+      hashGridLayer(j, path, L);
     } else if (type == "sine") {
       checkKeys(j, path, {"type", "w0"});
       L.kind = LayerKind::Sine;
@@ -220,9 +218,91 @@ public:
       L.residualScale = floatNumber(j, "scale", path, 1.0);
     } else {
       fail(path + " has unknown layer type '" + type +
-           "' (known: fourier, linear, sine, silu, relu, sigmoid, tanh, identity, scale, residual)");
+           "' (known: fourier, hashgrid, linear, sine, silu, relu, sigmoid, tanh, identity, scale, residual)");
     }
     return L;
+  }
+
+  IncludeInput includeInput(const json& j, const std::string& path) const {
+    const std::string inc = optionalString(j, "include_input", path, "none");
+    if (inc == "none") return IncludeInput::None;
+    if (inc == "first") return IncludeInput::First;
+    if (inc == "last") return IncludeInput::Last;
+    fail(path + ".include_input must be \"none\", \"first\" or \"last\", not \"" + inc + "\"");
+  }
+
+  // An integer field in [lo, hi] (`what` says what the bound protects, for the message).
+  int boundedInteger(const json& j, const char* key, const std::string& path, std::optional<double> dflt, int lo,
+                     int hi, const char* what) const {
+    const double v = number(j, key, path, dflt);
+    if (v != std::floor(v) || v < lo || v > hi)
+      fail(path + "." + key + " is " + num(v) + "; it must be an integer in [" + std::to_string(lo) + ", " +
+           std::to_string(hi) + "]" + what);
+    return static_cast<int>(v);
+  }
+
+  // A hash-grid encoding (tiny-cuda-nn's HashGrid): parameters, the derived levels, the table.
+  void hashGridLayer(const json& j, const std::string& path, Layer& L) {
+    checkKeys(j, path, {"type", "table", "n_levels", "n_features_per_level", "log2_hashmap_size", "base_resolution",
+                        "per_level_scale", "interpolation", "include_input"});
+    L.kind = LayerKind::HashGrid;
+    const int dims = L.inWidth;
+    if (dims < 3 || dims > 4)
+      fail(path + " (hashgrid) receives width " + std::to_string(dims) +
+           "; a hash grid encodes 3 coordinates (x, y, z) or 4 (x, y, z, t): put it first in the layer list");
+    HashGridSpec& g = L.hashGrid;
+    g.levels = boundedInteger(j, "n_levels", path, 16.0, 1, HashGridSpec::kMaxLevels, " (tiny-cuda-nn's limit)");
+    g.featuresPerLevel = boundedInteger(j, "n_features_per_level", path, 2.0, 1, 8, "");
+    if (g.featuresPerLevel & (g.featuresPerLevel - 1))
+      fail(path + ".n_features_per_level is " + std::to_string(g.featuresPerLevel) + "; it must be 1, 2, 4 or 8");
+    g.log2TableSize = boundedInteger(j, "log2_hashmap_size", path, 19.0, 1, HashGridSpec::kMaxLog2TableSize,
+                                     " (at most 2^24 entries per level)");
+    g.baseResolution = boundedInteger(j, "base_resolution", path, 16.0, 1, HashGridSpec::kMaxBaseResolution, "");
+    const double scale = number(j, "per_level_scale", path, 2.0);
+    if (!(scale >= 1.0) || !fitsFp32(scale))
+      fail(path + ".per_level_scale is " + num(scale) + "; it must be at least 1 (each level at least as fine as the last)");
+    g.perLevelScale = static_cast<float>(scale);
+    const std::string interp = optionalString(j, "interpolation", path, "linear");
+    if (interp == "linear" || interp == "Linear") g.smoothstep = false;
+    else if (interp == "smoothstep" || interp == "Smoothstep") g.smoothstep = true;
+    else fail(path + ".interpolation must be \"linear\" or \"smoothstep\", not \"" + interp + "\"");
+    L.includeInput = includeInput(j, path);
+
+    // tiny-cuda-nn's levels: scale_l = 2^(l log2(per_level_scale)) * base - 1 (fp32), resolution
+    // ceil(scale_l) + 1, and as many entries as the dense grid needs (rounded up to 8) or the
+    // hash table holds, whichever is fewer.
+    const float log2Scale = std::log2(g.perLevelScale);
+    const std::uint64_t tableSize = std::uint64_t(1) << g.log2TableSize;
+    constexpr std::uint64_t kMaxDenseParams = std::numeric_limits<std::uint32_t>::max() / 2;
+    std::uint64_t offset = 0;
+    for (int l = 0; l < g.levels; ++l) {
+      const float s = std::exp2(float(l) * log2Scale) * float(g.baseResolution) - 1.0f;
+      if (!(s <= HashGridSpec::kMaxFinestScale))
+        fail(path + ": level " + std::to_string(l) + " has scale " + num(s) + " (base_resolution " +
+             std::to_string(g.baseResolution) + " x per_level_scale " + num(scale) + "^" + std::to_string(l) +
+             "); at most 2^24 is supported: lower n_levels or per_level_scale");
+      const std::uint32_t res = static_cast<std::uint32_t>(std::ceil(s)) + 1;
+      std::uint64_t dense = std::pow(double(res), dims) > double(kMaxDenseParams) ? kMaxDenseParams
+                                                                                   : std::uint64_t(std::pow(double(res), dims));
+      dense = (dense + 7) / 8 * 8;
+      const std::uint64_t size = std::min(dense, tableSize);
+      g.levelScale.push_back(s);
+      g.levelResolution.push_back(res);
+      g.levelOffset.push_back(static_cast<std::uint32_t>(offset));
+      g.levelSize.push_back(static_cast<std::uint32_t>(size));
+      offset += size;
+    }
+    const SafeTensor& t = takeTensor(j, "table", path, L.weightName);
+    const std::vector<std::int64_t> want{std::int64_t(offset), g.featuresPerLevel};
+    if (t.shape != want)
+      fail("tensor '" + L.weightName + "' has shape " + shapeToString(t.shape) + " but " + path + ".table expects " +
+           shapeToString(want) + ": " + std::to_string(g.levels) + " levels of " + std::to_string(g.featuresPerLevel) +
+           " features with log2_hashmap_size " + std::to_string(g.log2TableSize) + ", base_resolution " +
+           std::to_string(g.baseResolution) + " and per_level_scale " + num(scale) + " over " + std::to_string(dims) +
+           " inputs need " + std::to_string(offset) +
+           " entries (check these parameters against the training config; Docs/FORMAT.md gives the formula)");
+    L.weight = t.values;
+    L.outWidth = g.levels * g.featuresPerLevel + (L.includeInput == IncludeInput::None ? 0 : dims);
   }
 
   Architecture architecture() {
@@ -428,6 +508,11 @@ void summarise(const std::vector<Layer>& layers, std::ostringstream& s) {
       s << "}x" << L.residualScale;
     } else if (L.kind == LayerKind::Linear || L.kind == LayerKind::Fourier) {
       s << '(' << L.inWidth << "->" << L.outWidth << ')';
+    } else if (L.kind == LayerKind::HashGrid) {
+      const HashGridSpec& g = L.hashGrid;
+      s << '(' << L.inWidth << "->" << L.outWidth << ": " << g.levels << "x" << g.featuresPerLevel << ", 2^"
+        << g.log2TableSize << ", base " << g.baseResolution << ", x" << g.perLevelScale
+        << (g.smoothstep ? ", smoothstep" : "") << ')';
     } else if (L.kind == LayerKind::Sine) {
       s << '(' << L.param << ')';
     }
@@ -448,6 +533,7 @@ const char* layerKindName(LayerKind kind) {
     case LayerKind::Identity: return "identity";
     case LayerKind::Scale: return "scale";
     case LayerKind::Residual: return "residual";
+    case LayerKind::HashGrid: return "hashgrid";
   }
   return "?";
 }

@@ -19,10 +19,34 @@ public:
   using std::runtime_error::runtime_error;
 };
 
-enum class LayerKind { Fourier, Linear, Sine, SiLU, ReLU, Sigmoid, Tanh, Identity, Scale, Residual };
+enum class LayerKind { Fourier, Linear, Sine, SiLU, ReLU, Sigmoid, Tanh, Identity, Scale, Residual, HashGrid };
 enum class IncludeInput { None, First, Last };
 
 const char* layerKindName(LayerKind kind);
+
+// A multiresolution hash encoding (Müller et al. 2022, tiny-cuda-nn's HashGrid) of the layer's
+// inputs (3 or 4 coordinates), with tiny-cuda-nn's conventions (Docs/FORMAT.md, "hashgrid").
+// The per-level figures are derived once, on load, by tiny-cuda-nn's formulas in fp32, and every
+// evaluator uses these very numbers, so no two evaluators can disagree on a level's resolution.
+struct HashGridSpec {
+  // Documented bounds (Docs/FORMAT.md), so the tables and the per-query work stay bounded.
+  static constexpr int kMaxLevels = 32;            // tiny-cuda-nn's offset table
+  static constexpr int kMaxLog2TableSize = 24;     // 16 M entries per level
+  static constexpr int kMaxBaseResolution = 1 << 16;
+  static constexpr double kMaxFinestScale = 16777216.0;  // 2^24: cells still resolved in fp32
+
+  int levels = 0;
+  int featuresPerLevel = 0;  // 1, 2, 4 or 8
+  int log2TableSize = 0;
+  int baseResolution = 0;
+  float perLevelScale = 0.f;
+  bool smoothstep = false;  // interpolation weights t^2 (3 - 2t) instead of t
+  // Per level: position scale (pos = x * scale + 0.5), grid resolution ceil(scale) + 1, and the
+  // level's entries [offset, offset + size) of the table (dense where resolution^D fits, else hashed).
+  std::vector<float> levelScale;
+  std::vector<std::uint32_t> levelResolution, levelOffset, levelSize;
+  std::uint64_t entries() const { return levelOffset.empty() ? 0 : std::uint64_t(levelOffset.back()) + levelSize.back(); }
+};
 
 struct Layer {
   LayerKind kind = LayerKind::Identity;
@@ -30,11 +54,14 @@ struct Layer {
   int outWidth = 0;
   // Linear: weight [outWidth x inWidth] row-major (PyTorch layout), bias [outWidth] or empty.
   // Fourier: weight holds B [m x inWidth] row-major, outWidth = 2m (+ inWidth if included).
+  // HashGrid: weight holds the table [entries x featuresPerLevel] (tiny-cuda-nn's layout: level
+  // by level, entry by entry), outWidth = levels * featuresPerLevel (+ inWidth if included).
   std::vector<float> weight;
   std::vector<float> bias;
   std::string weightName, biasName;  // tensor names in the file, for messages
   float param = 0.f;                 // Sine: w0; Scale: factor; Fourier: frequency scale
-  IncludeInput includeInput = IncludeInput::None;  // Fourier only
+  IncludeInput includeInput = IncludeInput::None;  // Fourier and HashGrid
+  HashGridSpec hashGrid;                           // HashGrid only
   // Residual: out = residualScale * (body(x) + shortcut(x)); empty shortcut = identity.
   std::vector<Layer> body;
   std::vector<Layer> shortcut;

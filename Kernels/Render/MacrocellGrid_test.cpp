@@ -7,7 +7,9 @@
 #include <vector>
 
 #include "Render/DeltaTrackingRenderer.h"
+#include "Evaluator/CpuInrEvaluator.h"
 #include "Render/MacrocellGrid.h"
+#include "TestSupport/HashGridModels.h"
 #include "TestSupport/TestFields.h"
 
 namespace inr {
@@ -205,20 +207,25 @@ float worstUnderestimate(const MacrocellGrid& grid, const FieldEvaluator& f) {
   return worst;
 }
 
+// A size x size view of the whole box with a preset transfer function over [lo, hi].
+void frameTheBox(DeltaTrackingRenderer& r, int size, float lo, float hi, float opacity, double unitDistance) {
+  RenderSettings s;
+  s.width = s.height = size;
+  r.setSettings(s);
+  RenderScene scene;
+  scene.camera = Camera::framing(kBox);
+  scene.transferFunction = TransferFunction::preset(lo, hi, opacity);
+  scene.transferFunction.unitDistance = unitDistance;
+  r.setScene(scene);
+}
+
 TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
   test::FunctionField f(bumpField);
   MacrocellGrid grid(f, kBox, 0.0, 1.0, options(8, 1));
   TrackingOptions topt;
   topt.ghostPixelStride = 1;
   DeltaTrackingRenderer r(f, grid, topt);
-  RenderSettings s;
-  s.width = s.height = 64;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = Camera::framing(kBox);
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.2);
-  scene.transferFunction.unitDistance = 0.1;
-  r.setScene(scene);
+  frameTheBox(r, 64, 0.f, 1.f, 0.2f, 0.1);
   const float before = worstUnderestimate(grid, f);
   EXPECT_GT(before, 0.2f);  // the bump's peak is missed by the lattice
   const FrameStats g = r.runGhostPasses(8);
@@ -236,43 +243,45 @@ TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
   EXPECT_LE(worstUnderestimate(pgrid, f), 0.f);
 }
 
-TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
-  // After rendering, the refined bounds contain every value the renderer has seen.
-  struct Recorder : FieldEvaluator {
-    mutable std::vector<QueryPoint> pts;
-    mutable std::vector<float> vals;
-    bool recording = false;
-    void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
-      for (std::size_t i = 0; i < n; ++i) {
-        out[i] = bumpField(p[i]);
-        if (recording) pts.push_back(p[i]), vals.push_back(out[i]);
-      }
-    }
-    std::string name() const override { return "recorder"; }
-  } rec;
-  MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
-  DeltaTrackingRenderer r(rec, grid);
-  RenderSettings s;
-  s.width = s.height = 48;
-  r.setSettings(s);
-  RenderScene scene;
-  scene.camera = Camera::framing(kBox);
-  scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.3);
-  scene.transferFunction.unitDistance = 0.2;
-  rec.recording = true;
-  r.setScene(scene);
-  for (int k = 0; k < 3; ++k) r.renderFrame();
-  ASSERT_GT(rec.pts.size(), 1000u);
+// A field that records every query (and its value) while `recording`.
+struct Recorder : FieldEvaluator {
+  explicit Recorder(const FieldEvaluator& f) : inner(f) {}
+  const FieldEvaluator& inner;
+  mutable std::vector<QueryPoint> pts;
+  mutable std::vector<float> vals;
+  bool recording = false;
+  void evaluate(const QueryPoint* p, std::size_t n, float* out) const override {
+    inner.evaluate(p, n, out);
+    if (recording) pts.insert(pts.end(), p, p + n), vals.insert(vals.end(), out, out + n);
+  }
+  std::string name() const override { return "recorder"; }
+};
+
+// How many recorded samples lie outside their 8^3 cell's [min, max] (points exactly on a face
+// may belong to either neighbour: a rounding slack).
+int samplesOutsideTheirCells(const MacrocellGrid& grid, const Recorder& rec) {
   const Vec3f cs = grid.cellSize();
   int outside = 0;
   for (std::size_t i = 0; i < rec.pts.size(); ++i) {
     const Int3 c{std::min(7, int((rec.pts[i].x + 1) / cs.x)), std::min(7, int((rec.pts[i].y + 1) / cs.y)),
                  std::min(7, int((rec.pts[i].z + 1) / cs.z))};
     const int idx = linearCellIndex(grid.dims(), c);
-    // Points exactly on a face may belong to either neighbour: allow a rounding slack.
     if (rec.vals[i] > grid.workingMax()[idx] + 1e-3f || rec.vals[i] < grid.workingMin()[idx] - 1e-3f) ++outside;
   }
-  EXPECT_LE(outside, int(rec.pts.size() / 1000));
+  return outside;
+}
+
+TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
+  // After rendering, the refined bounds contain every value the renderer has seen.
+  const test::FunctionField bump(bumpField);
+  Recorder rec(bump);
+  MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
+  DeltaTrackingRenderer r(rec, grid);
+  rec.recording = true;
+  frameTheBox(r, 48, 0.f, 1.f, 0.3f, 0.2);
+  for (int k = 0; k < 3; ++k) r.renderFrame();
+  ASSERT_GT(rec.pts.size(), 1000u);
+  EXPECT_LE(samplesOutsideTheirCells(grid, rec), int(rec.pts.size() / 1000));
 }
 
 // The layout and the per-point / per-cell helpers both grids run (Render/MacrocellLayout.h).
@@ -346,6 +355,50 @@ TEST(MacrocellLayout, ValidatesAndSharesTheTileArithmetic) {
   EXPECT_EQ(r.max, 4.5f);
   EXPECT_EQ(r.mean, 3.f);
   EXPECT_FALSE(validBounds(interpolateCell(empty, empty, 0.5f, 1.f)));
+}
+
+}  // namespace
+}  // namespace inr
+
+namespace inr {
+namespace {
+
+// A hash-grid model (tiny-cuda-nn's HashGrid) whose finest levels vary much faster than the
+// 8^3 macrocells' lattice resolves: lattice sampling misses extremes between its points, and the
+// renderer's refinement (ghost passes, then every evaluated sample) must repair the bounds so
+// every value the renderer sees lies inside its cell's [min, max].
+TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
+  // 12 levels from base 4 by x1.6: the finest has ~ 4 * 1.6^11 = 700 cells across the box.
+  test::HashGridOptions o = test::hashGridMlp(3, 12, 14, 4, 1.6, 32, 1);
+  o.tableScale = 1.f;
+  o.seed = 34;
+  const InrModel model = test::hashGridModel(o);
+  const CpuInrEvaluator field(model);
+  Recorder rec(field);
+  MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
+  grid.setTime(0.0);
+  const float before = worstUnderestimate(grid, field);
+  EXPECT_GT(before, 0.f);  // the lattice misses the fine levels' extremes
+
+  TrackingOptions topt;
+  topt.ghostPixelStride = 1;
+  DeltaTrackingRenderer r(rec, grid, topt);
+  const std::array<float, 2> range = grid.workingValueRange();
+  frameTheBox(r, 48, range[0], range[1], 0.3f, 0.2);
+  rec.recording = true;
+  const FrameStats g = r.runGhostPasses(8);
+  EXPECT_GT(g.refinements, 0u);
+  for (int k = 0; k < 3; ++k) r.renderFrame();
+  ASSERT_GT(rec.pts.size(), 1000u);
+  EXPECT_LE(samplesOutsideTheirCells(grid, rec), int(rec.pts.size() / 1000));
+  EXPECT_LE(worstUnderestimate(grid, field), before);  // refinement only ever widens bounds
+
+  // Padding, the documented alternative, covers the misses outright.
+  MacrocellOptions padded = options(8, 1);
+  padded.boundsPadding = 3.0;
+  MacrocellGrid pgrid(field, kBox, 0.0, 1.0, padded);
+  pgrid.setTime(0.0);
+  EXPECT_LE(worstUnderestimate(pgrid, field), 0.f);
 }
 
 }  // namespace

@@ -31,6 +31,25 @@ Layouts (``--help`` lists every option):
                   with ``--fourier-B FILE`` (.npy/.pt, the official [channels, nf] orientation)
                   or regenerate it as the official code does with ``--reed-sigma S``
                   [``--reed-seed 0``] [``--reed-input-channels 3``].
+  tcnn            tiny-cuda-nn: ``--tcnn-config CONFIG.json`` (the training config: ``encoding``
+                  and ``network``, optionally inside ``"otype": "NetworkWithInputEncoding"``)
+                  and the flat parameter vector: key ``params`` of a tcnn.NetworkWithInputEncoding
+                  state_dict or a .npy (network parameters first, then the encoding's, as
+                  tiny-cuda-nn lays them out), or keys ``network.params`` and
+                  ``encoding.params`` of a module holding tcnn.Network and tcnn.Encoding. Encoding
+                  ``HashGrid`` (or ``Grid`` of type ``Hash``, hash ``CoherentPrime``, interpolation
+                  Linear or Smoothstep); network ``FullyFusedMLP`` or ``CutlassMLP`` (no biases;
+                  weight matrices [out, in] row-major with the encoding's width padded with zero
+                  inputs and the output padded, both to the MLP's alignment), activations ReLU,
+                  Sigmoid, Tanh, Sine, None. Inputs in [0, 1] (the default --input-range and
+                  --time-input-range here); 3 or 4 inputs, found from the parameter count.
+  hashgrid-torch  the plain PyTorch module of Tools/python/inr_hashgrid_torch.py
+                  (``HashGridNetwork``): ``encoding.embeddings`` [entries, F] with
+                  ``encoding.offsets``, then ``network.{i}.weight`` / ``.bias`` (Linear layers
+                  with ``--nonlinearity`` between, relu by default). The encoding's parameters
+                  come from ``--hashgrid-config JSON`` (tiny-cuda-nn's encoding fields, inline or
+                  a file; ``n_input_dims`` where the table does not tell 3 from 4); the
+                  offsets must match the levels they give.
   generic         any MLP: ``--layers SPEC.json`` lists the layers (the architecture JSON of
                   Docs/FORMAT.md with state_dict key names where tensors go), see below.
 
@@ -78,8 +97,10 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from inr_format import FormatError, write_inr  # noqa: E402
+import inr_hashgrid  # noqa: E402
 
-LAYOUTS = ("siren-notebook", "siren-modules", "coordnet", "neurcomp", "reed-ffn", "generic")
+LAYOUTS = ("siren-notebook", "siren-modules", "coordnet", "neurcomp", "reed-ffn", "tcnn",
+           "hashgrid-torch", "generic")
 
 
 class ExportError(Exception):
@@ -108,6 +129,8 @@ def load_state_dict(path, prefix=None):
         raise ExportError("%s: no such file" % path)
     if path.endswith(".npz"):
         obj = dict(np.load(path))
+    elif path.endswith(".npy"):  # a bare parameter vector (tiny-cuda-nn's flat params)
+        obj = {"params": np.load(path)}
     else:
         try:
             import torch
@@ -281,7 +304,7 @@ def _siren_modules(K, o):
     in_dim = K.raw_shape(p + "0.0.weight")[1]
     while K.has("%s%d.0.weight" % (p, i)) or K.has("%s%d.0.bias" % (p, i)):
         if i > 0:
-            layers += _act(o.nonlinearity, o.w0 if i > 1 else o.first_w0)
+            layers += _act(o.nonlinearity or "sine", o.w0 if i > 1 else o.first_w0)
         lin, width = K.linear("%s%d.0.weight" % (p, i), "%s%d.0.bias" % (p, i), width)
         layers.append(lin)
         i += 1
@@ -541,9 +564,202 @@ def _generic(K, o):
     return int(in_dim), layers, defaults
 
 
+# ---------------------------------------------------------------------------- hash grids
+_TCNN_ENCODING_FIELDS = {"otype", "type", "n_levels", "n_features", "n_features_per_level",
+                         "log2_hashmap_size", "base_resolution", "per_level_scale",
+                         "interpolation", "hash", "stochastic_interpolation", "n_dims_to_encode"}
+_TCNN_NETWORK_FIELDS = {"otype", "activation", "output_activation", "n_neurons",
+                        "n_hidden_layers", "feedback_alignment"}
+# tiny-cuda-nn activation -> this format's layers (tcnn's Sine is sin(x): w0 = 1)
+_TCNN_ACTIVATIONS = {"none": [], "relu": [{"type": "relu"}], "sigmoid": [{"type": "sigmoid"}],
+                     "tanh": [{"type": "tanh"}], "sine": [{"type": "sine", "w0": 1.0}]}
+
+
+def _read_json_arg(text, what):
+    """JSON given inline or as a file name."""
+    try:
+        if text.lstrip().startswith("{"):
+            return json.loads(text, object_pairs_hook=collections.OrderedDict)
+        with open(text) as f:
+            return json.load(f, object_pairs_hook=collections.OrderedDict)
+    except (OSError, ValueError) as e:
+        raise ExportError("%s: cannot read %s: %s" % (text, what, e))
+
+
+def _tcnn_hashgrid(enc, dims, where):
+    """A HashGridSpec from tiny-cuda-nn's encoding config; unsupported options are named."""
+    extra = set(enc) - _TCNN_ENCODING_FIELDS
+    if extra:
+        raise ExportError("%s: encoding: unknown or unsupported fields %s" % (where, sorted(extra)))
+    otype = str(enc.get("otype", ""))
+    grid_type = str(enc.get("type", "Hash"))
+    if otype.lower() not in ("hashgrid", "grid") or grid_type.lower() != "hash":
+        raise ExportError("%s: encoding otype %r (type %r) is not supported: only HashGrid (or Grid "
+                          "of type Hash) is; DenseGrid, TiledGrid and Composite encodings are not"
+                          % (where, otype, grid_type))
+    if str(enc.get("hash", "CoherentPrime")) != "CoherentPrime":
+        raise ExportError("%s: encoding hash %r is not supported (only CoherentPrime, tiny-cuda-nn's "
+                          "default)" % (where, enc["hash"]))
+    if "n_dims_to_encode" in enc and int(enc["n_dims_to_encode"]) != dims:
+        raise ExportError("%s: encoding n_dims_to_encode %s: the hash grid must encode every input"
+                          % (where, enc["n_dims_to_encode"]))
+    fields = {k: enc[k] for k in inr_hashgrid.HashGridSpec.FIELDS if k in enc}
+    if "n_features" in enc:
+        fields["n_levels"] = int(enc["n_features"]) // int(enc.get("n_features_per_level", 2))
+    if str(fields.get("interpolation", "Linear")).lower() == "nearest":
+        raise ExportError("%s: encoding interpolation Nearest is not supported (Linear, Smoothstep)"
+                          % where)
+    try:
+        return inr_hashgrid.HashGridSpec(dims, **fields)
+    except ValueError as e:
+        raise ExportError("%s: encoding: %s" % (where, e))
+
+
+def _tcnn_activation(name, field, where):
+    key = str(name).lower()
+    if key not in _TCNN_ACTIVATIONS:
+        raise ExportError("%s: network %s %r is not supported (ReLU, Sigmoid, Tanh, Sine, None)"
+                          % (where, field, name))
+    return [dict(a) for a in _TCNN_ACTIVATIONS[key]]
+
+
+def _tcnn_mlp_shapes(net, fan_in, in_alignment, out_alignment):
+    """[(out, in)] of tiny-cuda-nn's MLP weight matrices for a network input of fan_in, padded
+    to the alignments (16 for FullyFusedMLP; CutlassMLP's are smaller: the caller tries both)."""
+    width, hidden = int(net.get("n_neurons", 128)), int(net.get("n_hidden_layers", 5))
+    pad = lambda n, a: (n + a - 1) // a * a  # noqa: E731
+    if hidden == 0:
+        return [(pad(1, out_alignment), pad(fan_in, in_alignment))]
+    return [(width, pad(fan_in, in_alignment))] + [(width, width)] * (hidden - 1) + \
+        [(pad(1, out_alignment), width)]
+
+
+def _tcnn(K, o):
+    where = o.tcnn_config or "tcnn"
+    if not o.tcnn_config:
+        raise ExportError("the tcnn layout needs --tcnn-config CONFIG.json (the encoding and network "
+                          "of the training config)")
+    cfg = _read_json_arg(o.tcnn_config, "the tiny-cuda-nn config")
+    if "encoding" not in cfg or "network" not in cfg:
+        raise ExportError("%s: the config needs 'encoding' and 'network' objects" % where)
+    enc, net = cfg["encoding"], cfg["network"]
+    extra = set(net) - _TCNN_NETWORK_FIELDS
+    if extra:
+        raise ExportError("%s: network: unknown or unsupported fields %s" % (where, sorted(extra)))
+    if str(net.get("otype")) not in ("FullyFusedMLP", "CutlassMLP"):
+        raise ExportError("%s: network otype %r is not supported (FullyFusedMLP, CutlassMLP)"
+                          % (where, net.get("otype")))
+    hidden_act = _tcnn_activation(net.get("activation", "ReLU"), "activation", where)
+    out_act = _tcnn_activation(net.get("output_activation", "None"), "output_activation", where)
+    if K.has("params"):  # NetworkWithInputEncoding: network parameters, then the encoding's
+        flat = np.asarray(K._get("params"), np.float64).ravel()
+        split = None
+    elif K.has("network.params") and K.has("encoding.params"):
+        net_params = np.asarray(K._get("network.params"), np.float64).ravel()
+        enc_params = np.asarray(K._get("encoding.params"), np.float64).ravel()
+        flat, split = np.concatenate([net_params, enc_params]), net_params.size
+    else:
+        raise ExportError("%s: no tiny-cuda-nn parameters: expected key 'params' (a "
+                          "NetworkWithInputEncoding) or 'network.params' and 'encoding.params'%s"
+                          % (K.where, K._hint("params")))
+    dims_given = cfg.get("n_input_dims")
+    if dims_given is None and o.input_order:
+        dims_given = len(o.input_order.replace(",", " ").split())
+    candidates = []
+    for dims in ((int(dims_given),) if dims_given else (3, 4)):
+        spec = _tcnn_hashgrid(enc, dims, where)
+        for in_alignment, out_alignment in ((16, 16), (8, 8), (8, 16), (16, 8)):
+            shapes = _tcnn_mlp_shapes(net, spec.n_output_dims, in_alignment, out_alignment)
+            n_net = sum(a * b for a, b in shapes)
+            if n_net + spec.entries * spec.n_features_per_level == flat.size and \
+                    (split is None or split == n_net) and \
+                    not any(c[1].dims == dims and c[3] == n_net for c in candidates):
+                candidates.append((dims, spec, shapes, n_net))
+    if not candidates:
+        raise ExportError("%s: %d parameters fit neither 3 nor 4 inputs with this config (a hash "
+                          "grid of %d levels over 3 inputs has %d table parameters); check "
+                          "n_levels, log2_hashmap_size, base_resolution, per_level_scale, n_neurons "
+                          "and n_hidden_layers against the training config"
+                          % (K.where, flat.size, _tcnn_hashgrid(enc, 3, where).n_levels,
+                             _tcnn_hashgrid(enc, 3, where).entries
+                             * _tcnn_hashgrid(enc, 3, where).n_features_per_level))
+    if len({c[0] for c in candidates}) > 1:  # every level hashed: 3 and 4 inputs fit alike
+        raise ExportError("%s: the parameters fit 3 and 4 inputs alike; add \"n_input_dims\" to "
+                          "the config (or give --input-order)" % where)
+    dims, spec, shapes, n_net = candidates[0]
+    if not np.all(np.isfinite(flat)):
+        raise ExportError("%s: the parameters contain NaN or Inf" % K.where)
+    K.tensors["encoding.table"] = flat[n_net:].reshape(spec.table_shape).astype(np.float16)
+    layers = [spec.to_layer("encoding.table")]
+    at, fan_in = 0, spec.n_output_dims
+    for i, (rows, cols) in enumerate(shapes):
+        W = flat[at:at + rows * cols].reshape(rows, cols)
+        at += rows * cols
+        last = i + 1 == len(shapes)
+        # Padded inputs are zero (tiny-cuda-nn's grid pads its output with zeros): drop their
+        # columns; of the padded outputs only the first is the field.
+        W = W[:1 if last else rows, :fan_in]
+        name = "mlp.%d.weight" % i
+        K.tensors[name] = W.astype(np.float32)
+        layers.append({"type": "linear", "weight": name, "bias": None})
+        layers += out_act if last else [dict(a) for a in hidden_act]
+        fan_in = W.shape[0]
+    defaults = {"input_range": [0.0, 1.0],
+                "domain": {"input_range": [0.0, 1.0], "time_input_range": [0.0, 1.0]},
+                "_provenance": "tiny-cuda-nn %s + %s" % (enc.get("otype"), net.get("otype"))}
+    return dims, layers, defaults
+
+
+def _hashgrid_torch(K, o):
+    if not o.hashgrid_config:
+        raise ExportError("the hashgrid-torch layout needs --hashgrid-config JSON (n_levels, "
+                          "n_features_per_level, log2_hashmap_size, base_resolution, per_level_scale, "
+                          "interpolation: the module's constructor arguments)")
+    cfg = _read_json_arg(o.hashgrid_config, "the hash-grid config")
+    table_shape = K.raw_shape("encoding.embeddings")
+    candidates = []
+    dims_given = cfg.pop("n_input_dims", None)
+    if dims_given is None and o.input_order:
+        dims_given = len(o.input_order.replace(",", " ").split())
+    for dims in (int(dims_given),) if dims_given else (3, 4):
+        spec = _tcnn_hashgrid(dict(cfg, otype=cfg.get("otype", "HashGrid")), dims, "--hashgrid-config")
+        if spec.table_shape == tuple(table_shape):
+            candidates.append(spec)
+    if not candidates:
+        spec3 = _tcnn_hashgrid(dict(cfg, otype="HashGrid"), 3, "--hashgrid-config")
+        raise ExportError("%s: key 'encoding.embeddings' has shape %s, but --hashgrid-config gives %s "
+                          "(3 inputs) or %s (4 inputs); check the config against the module's"
+                          % (K.where, list(table_shape), list(spec3.table_shape),
+                             list(_tcnn_hashgrid(dict(cfg, otype="HashGrid"), 4, "").table_shape)))
+    if len(candidates) > 1:  # every level hashed: the table does not tell 3 inputs from 4
+        raise ExportError("--hashgrid-config: the table fits 3 and 4 inputs alike; add "
+                          "\"n_input_dims\" to the config (or give --input-order)")
+    spec = candidates[0]
+    if K.has("encoding.offsets"):
+        offsets = [int(v) for v in np.asarray(K._get("encoding.offsets")).ravel()]
+        if offsets != spec.offsets + [spec.entries]:
+            raise ExportError("%s: key 'encoding.offsets' %s disagrees with tiny-cuda-nn's level sizes "
+                              "for this config %s: the module sizes its levels differently, which this "
+                              "format cannot represent" % (K.where, offsets[:6], (spec.offsets + [spec.entries])[:6]))
+    table_name, _ = K.take("encoding.embeddings", list(spec.table_shape), name="encoding.table")
+    K.tensors[table_name] = K.tensors[table_name].astype(np.float16)
+    layers = [spec.to_layer(table_name)]
+    idx = sorted(int(m.group(1)) for m in (re.match(r"network\.(\d+)\.weight$", k) for k in K.sd) if m)
+    if not idx:
+        raise ExportError("%s: no Linear layers 'network.{i}.weight'%s" % (K.where, K._hint("network.0.weight")))
+    width = spec.n_output_dims
+    for n, i in enumerate(idx):
+        lin, width = K.linear("network.%d.weight" % i, "network.%d.bias" % i, width)
+        layers.append(lin)
+        if n + 1 < len(idx):
+            layers += _act(o.nonlinearity or "relu", o.w0)
+    defaults = {"domain": {"input_range": [0.0, 1.0], "time_input_range": [0.0, 1.0]}}
+    return spec.dims, layers, defaults
+
+
 _CONVERTERS = {"siren-notebook": _siren_notebook, "siren-modules": _siren_modules,
                "coordnet": _coordnet, "neurcomp": _neurcomp, "reed-ffn": _reed_ffn,
-               "generic": _generic}
+               "tcnn": _tcnn, "hashgrid-torch": _hashgrid_torch, "generic": _generic}
 
 
 def convert(state_dict, layout, opts, where="<state_dict>"):
@@ -689,14 +905,14 @@ def make_parser():
         prog="inr_export.py", formatter_class=argparse.RawDescriptionHelpFormatter,
         description=__doc__.split("\n\n", 1)[0], epilog=__doc__.split("\n\n", 1)[1])
     ap.add_argument("layout", choices=LAYOUTS)
-    ap.add_argument("input", help="PyTorch state_dict (.pth/.pt) or .npz")
+    ap.add_argument("input", help="PyTorch state_dict (.pth/.pt), .npz, or .npy (tcnn params)")
     ap.add_argument("output", help="INR Volume file to write (.inr)")
     ap.add_argument("--prefix", help="use only keys starting with this prefix (removed)")
     g = ap.add_argument_group("layout options")
     g.add_argument("--w0", type=float, default=30.0, help="sine frequency (hidden) [30]")
     g.add_argument("--first-w0", type=float, help="sine frequency of the first layer [--w0]")
-    g.add_argument("--nonlinearity", default="sine",
-                   choices=("sine", "relu", "tanh", "sigmoid"), help="siren-modules [sine]")
+    g.add_argument("--nonlinearity", choices=("sine", "relu", "tanh", "sigmoid", "silu"),
+                   help="hidden activation: siren-modules [sine], hashgrid-torch [relu]")
     g.add_argument("--final-activation", choices=("none", "sine", "relu", "tanh", "sigmoid",
                                                   "silu"),
                    help="activation after the last layer (reed-ffn default: sigmoid)")
@@ -709,6 +925,9 @@ def make_parser():
     g.add_argument("--reed-input-channels", type=int, default=3,
                    help="reed-ffn: rows of B (3 = x,y,z as published; 4 adds t) [3]")
     g.add_argument("--layers", help="generic: layer spec JSON")
+    g.add_argument("--tcnn-config", help="tcnn: tiny-cuda-nn config JSON (file or inline)")
+    g.add_argument("--hashgrid-config",
+                   help="hashgrid-torch: the encoding's parameters, JSON (file or inline)")
     g = ap.add_argument_group("domain (Docs/FORMAT.md 'domain')")
     g.add_argument("--bounds", nargs=6, type=float,
                    metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"))
@@ -779,9 +998,11 @@ def export(opts):
     name = opts.name or defaults.get("name") or \
         os.path.splitext(os.path.basename(opts.output))[0]
     try:
+        # Hash-grid tables stay fp16, as trained (Docs/FORMAT.md "hashgrid").
+        tables = {L["table"]: "F16" for L in arch["layers"] if L["type"] == "hashgrid"}
         write_inr(opts.output, tensors, arch, domain, output=output, value_range=vr, name=name,
                   description=opts.description or defaults.get("description"),
-                  provenance=prov, dtype=opts.dtype)
+                  provenance=prov, dtype=opts.dtype, tensor_dtypes=tables)
         from inr_reference import ReferenceModel  # validate what we wrote
         ReferenceModel.load(opts.output)
     except FormatError as e:

@@ -92,15 +92,18 @@ def build_metadata(architecture, domain, output=None, value_range=None, name=Non
     return md
 
 
-def write_safetensors(path, tensors, metadata, dtype="F32"):
+def write_safetensors(path, tensors, metadata, dtype="F32", tensor_dtypes=None):
     """Write ``tensors`` (ordered name -> array) and ``metadata`` (str -> str) to ``path``.
 
-    Arrays are converted to ``dtype`` (F32 default; F16, BF16, F64 allowed). Non-finite values
-    are rejected. With the hand-written container the data section holds the tensors
+    Arrays are converted to ``dtype`` (F32 default; F16, BF16, F64 allowed), or to
+    ``tensor_dtypes[name]`` where given (hash-grid tables stay F16, as trained). Non-finite
+    values are rejected. With the hand-written container the data section holds the tensors
     contiguously in the order given.
     """
-    if dtype not in _DTYPES:
-        raise FormatError("unsupported dtype %r (use one of %s)" % (dtype, ", ".join(_DTYPES)))
+    tensor_dtypes = dict(tensor_dtypes or {})
+    for dt in [dtype] + list(tensor_dtypes.values()):
+        if dt not in _DTYPES:
+            raise FormatError("unsupported dtype %r (use one of %s)" % (dt, ", ".join(_DTYPES)))
     arrays = collections.OrderedDict()
     for name, arr in tensors.items():
         a = np.asarray(arr)
@@ -114,10 +117,12 @@ def write_safetensors(path, tensors, metadata, dtype="F32"):
         if not isinstance(k, str) or not isinstance(v, str):
             raise FormatError("__metadata__ must map strings to strings (key %r)" % (k,))
 
-    if _st_numpy is not None and dtype != "BF16":
-        np_dtype = _DTYPES[dtype][0]
+    def dtype_of(name):
+        return tensor_dtypes.get(name, dtype)
+
+    if _st_numpy is not None and "BF16" not in [dtype_of(n) for n in arrays]:
         conv = collections.OrderedDict(
-            (n, np.ascontiguousarray(a, dtype=np_dtype)) for n, a in arrays.items())
+            (n, np.ascontiguousarray(a, dtype=_DTYPES[dtype_of(n)][0])) for n, a in arrays.items())
         _st_numpy.save_file(conv, str(path), metadata=dict(metadata))
         return
 
@@ -128,12 +133,12 @@ def write_safetensors(path, tensors, metadata, dtype="F32"):
     for name, a in arrays.items():
         if name == "__metadata__":
             raise FormatError("a tensor may not be called __metadata__")
-        if dtype == "BF16":
+        if dtype_of(name) == "BF16":
             blob = _to_bf16_bytes(a)
         else:
-            blob = np.ascontiguousarray(a, dtype=_DTYPES[dtype][0]).tobytes()
+            blob = np.ascontiguousarray(a, dtype=_DTYPES[dtype_of(name)][0]).tobytes()
         header[name] = collections.OrderedDict(
-            [("dtype", dtype), ("shape", [int(s) for s in a.shape]),
+            [("dtype", dtype_of(name)), ("shape", [int(s) for s in a.shape]),
              ("data_offsets", [offset, offset + len(blob)])])
         blobs.append(blob)
         offset += len(blob)
@@ -147,12 +152,14 @@ def write_safetensors(path, tensors, metadata, dtype="F32"):
 
 
 def write_inr(path, tensors, architecture, domain, output=None, value_range=None, name=None,
-              description=None, provenance=None, dtype="F32", extra_metadata=None):
+              description=None, provenance=None, dtype="F32", extra_metadata=None,
+              tensor_dtypes=None):
     """Write an INR Volume model file. ``tensors``: ordered dict name -> numpy array; the
-    metadata dicts are serialised as JSON strings exactly as Docs/FORMAT.md specifies."""
+    metadata dicts are serialised as JSON strings exactly as Docs/FORMAT.md specifies.
+    ``tensor_dtypes``: per-tensor dtypes overriding ``dtype`` (see write_safetensors)."""
     md = build_metadata(architecture, domain, output, value_range, name, description,
                         provenance, extra_metadata)
-    write_safetensors(path, tensors, md, dtype=dtype)
+    write_safetensors(path, tensors, md, dtype=dtype, tensor_dtypes=tensor_dtypes)
 
 
 def read_safetensors(path):

@@ -23,9 +23,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from inr_format import FormatError, read_inr  # noqa: E402
+import inr_hashgrid  # noqa: E402
 
 _LAYER_FIELDS = {
     "fourier": {"B", "frequency_scale", "include_input"},
+    "hashgrid": {"table", "include_input"} | set(inr_hashgrid.HashGridSpec.FIELDS),
     "linear": {"weight", "bias"},
     "sine": {"w0"},
     "silu": set(), "relu": set(), "sigmoid": set(), "tanh": set(), "identity": set(),
@@ -109,6 +111,20 @@ class ReferenceModel(object):
                 if R["inc"] not in ("none", "first", "last"):
                     raise FormatError("%s: %s: bad include_input" % (self.where, what))
                 width = 2 * B.shape[0] + (width if R["inc"] != "none" else 0)
+            elif kind == "hashgrid":
+                try:
+                    R["spec"] = inr_hashgrid.HashGridSpec.from_json(width, L, what)
+                except ValueError as e:
+                    raise FormatError("%s: %s" % (self.where, e))
+                R["table"] = self._tensor(L["table"], what)
+                if R["table"].shape != R["spec"].table_shape:
+                    raise FormatError("%s: %s: table %r has shape %s, expected %s"
+                                      % (self.where, what, L["table"], R["table"].shape,
+                                         R["spec"].table_shape))
+                R["inc"] = L.get("include_input", "none")
+                if R["inc"] not in ("none", "first", "last"):
+                    raise FormatError("%s: %s: bad include_input" % (self.where, what))
+                width = R["spec"].n_output_dims + (width if R["inc"] != "none" else 0)
             elif kind == "sine":
                 R["w0"] = float(L.get("w0", 30.0))
             elif kind == "scale":
@@ -136,6 +152,13 @@ class ReferenceModel(object):
             elif k == "fourier":
                 p = R["s"] * (x @ R["B"].T)
                 f = [np.sin(p), np.cos(p)]
+                if R["inc"] == "first":
+                    f = [x] + f
+                elif R["inc"] == "last":
+                    f = f + [x]
+                x = np.concatenate(f, axis=1)
+            elif k == "hashgrid":
+                f = [inr_hashgrid.encode(R["spec"], R["table"], x)]
                 if R["inc"] == "first":
                     f = [x] + f
                 elif R["inc"] == "last":
@@ -194,7 +217,8 @@ class ReferenceModel(object):
         tlo, thi = (float(v) for v in d.get("time_input_range", [-1, 1]))
         s = (thi - tlo) / (t1 - t0)
         self.axis_maps.append((s, tlo - s * t0))
-        order = d.get("input_order", ["x", "y", "z", "t"])
+        # Default as the C++ loader: x, y, z (and t for 4 inputs).
+        order = d.get("input_order", ["x", "y", "z", "t"][:self.input_dim])
         if len(order) != self.input_dim or sorted(set(order) - {"t"}) != ["x", "y", "z"] \
                 or len(set(order)) != len(order):
             raise FormatError("%s: domain.input_order %s does not fit input_dim %d"

@@ -14,6 +14,8 @@ siblings of tens of KB for the CPU tests:
                                 layout (4-channel B, SiLU, sigmoid), on the deforming MR head
   coordnet_cylinder_u           CoordNet, stevenhan1991/TVCG23-CoordNet layout, on Gerris
                                 cylinder streamwise velocity (per-time-step normalisation)
+  hashgrid_mri_head             hash grid (tiny-cuda-nn HashGrid over x, y, z, t) + ReLU MLP,
+                                Tools/python/inr_hashgrid_torch.py, on the deforming MR head
 
 Every model is trained with Adam on MSE at the grid samples (fixed seeds; learning rate on a
 cosine schedule over the budget), its reconstruction PSNR against the training data is
@@ -49,6 +51,7 @@ sys.path.insert(0, os.path.join(REPO, "Tools", "python"))
 sys.path.insert(0, os.path.join(REPO, "Tools", "data"))
 import dataset_io  # noqa: E402
 import inr_export  # noqa: E402
+import inr_hashgrid_torch as HG  # noqa: E402
 import inr_torch_layouts as L  # noqa: E402
 
 SEED = 20240607
@@ -90,6 +93,23 @@ def specs_for(config, ffn_sigma=None):
                                 hidden_convs=hc),
         inputs="xyzt", target="sigmoid", sigma=sigma,
         lr=1e-3 if paper else 2e-3, batch=65536 if paper else 2048))
+    # Hash grid (tiny-cuda-nn's HashGrid over x, y, z, t; instant-vnr style) + ReLU MLP.
+    hg = ({"n_levels": 16, "n_features_per_level": 2, "log2_hashmap_size": 17, "base_resolution": 4,
+           "per_level_scale": 1.4} if paper else
+          {"n_levels": 8, "n_features_per_level": 2, "log2_hashmap_size": 11, "base_resolution": 4,
+           "per_level_scale": 1.6})
+    hw = 64 if paper else 32
+    s.append(Spec(
+        name="hashgrid_mri_head", dataset="mri_head_deform", family="HashGrid",
+        layout="hashgrid-torch",
+        official="Tools/python/inr_hashgrid_torch.py `HashGridNetwork` (tiny-cuda-nn HashGrid "
+                 "conventions, plain PyTorch)",
+        arch="hashgrid(4D, %d levels x %d, 2^%d, base %d, x%g) -> %d relu -> %d relu -> 1"
+             % (hg["n_levels"], hg["n_features_per_level"], hg["log2_hashmap_size"],
+                hg["base_resolution"], hg["per_level_scale"], hw, hw),
+        build=lambda: HG.HashGridNetwork(4, hg, width=hw, hidden_layers=2),
+        hashgrid_config=dict(hg, n_input_dims=4),
+        inputs="xyzt", target="minmax", lr=1e-2, batch=65536 if paper else 4096))
     f0, nres = (48, 6) if paper else (12, 1)
     s.append(Spec(
         name="coordnet_cylinder_u", dataset="gerris_cylinder_u", family="CoordNet",
@@ -348,6 +368,8 @@ def export(model, spec, vol, target, outdir, log):
             bfile = os.path.join(tmp, "B.npy")
             np.save(bfile, model.B.detach().cpu().numpy().astype(np.float64))
             extra = ["--fourier-B", bfile]
+        if spec.layout == "hashgrid-torch":
+            extra = ["--hashgrid-config", json.dumps(spec.hashgrid_config)]
         out = os.path.join(outdir, spec.name + ".inr")
         args = [spec.layout, pth, out, "--quiet", "--name", spec.name,
                 "--bounds"] + [repr(float(b)) for b in meta["bounds"]] + [
@@ -501,8 +523,9 @@ def main(argv=None):
             ("time_range", [m["times"][0], m["times"][-1]]), ("time_units", m.get("time_units")),
             ("snapshots", len(m["times"])), ("value_range", [vol.vmin, vol.vmax]),
             ("input_order", list(spec.inputs)),
-            ("input_mapping", "cell-centred: first/last sample centre -> -1/+1 on every axis "
-                              "(x, y, z); first/last snapshot time -> -1/+1"),
+            ("input_mapping", "cell-centred: first/last sample centre -> %s on every axis "
+                              "(x, y, z); first/last snapshot time -> %s"
+                              % (("0/1", "0/1") if spec.layout == "hashgrid-torch" else ("-1/+1", "-1/+1"))),
             ("output_mapping", mapping), ("target", spec.target),
             ("device", dev_name), ("torch", torch.__version__),
             ("seed", SEED), ("optimizer", "Adam"), ("lr", spec.lr),

@@ -379,6 +379,7 @@ void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* devi
           INR_CUDA_CHECK_LAUNCH("genericEpilogue");
           break;
         case MlpOp::Fourier:  // every encoding
+        case MlpOp::HashGrid:
           genericEncoding<<<grid2, block, 0, stream>>>(in, I.floatW.get(), src, srcLd, buf(in.dst), ld, m);
           INR_CUDA_CHECK_LAUNCH("genericEncoding");
           break;

@@ -15,7 +15,9 @@
 #include "Common/Cuda/CudaDevice.h"
 #include "Common/Cuda/DeviceBuffer.h"
 #include "Evaluator/CpuInrEvaluator.h"
+#include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/MlpProgram.h"
+#include "TestSupport/HashGridModels.h"
 #include "TestSupport/PaperArchitectures.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/ShippedModels.h"
@@ -40,11 +42,26 @@ Err compare(const std::vector<float>& a, const std::vector<float>& b) {
   return e;
 }
 
+// Hash grids (tiny-cuda-nn's HashGrid): 16 levels of 2 features with 2^16 entries (dense coarse
+// levels, hashed fine ones) into 2 x 64 ReLU; and a 4D smoothstep grid with the inputs appended.
+InrModel hashGrid3d() { return test::hashGridModel(test::hashGridMlp(3, 16, 16, 16, 1.5, 64, 2)); }
+
+InrModel hashGrid4d() {
+  test::HashGridOptions o = test::hashGridMlp(4, 8, 14, 4, 2.0, 64, 2);
+  o.featuresPerLevel = 4;
+  o.smoothstep = true;
+  o.includeInput = "last";
+  o.seed = 4;
+  return test::hashGridModel(o);
+}
+
 std::vector<std::pair<std::string, InrModel>> allModels() {
   std::vector<std::pair<std::string, InrModel>> out;
   out.emplace_back("SIREN paper", bench::sirenPaper());
   out.emplace_back("FFN paper", bench::ffnPaper());
   out.emplace_back("CoordNet paper", bench::coordNetPaper());
+  out.emplace_back("HashGrid 3D + 2x64", hashGrid3d());
+  out.emplace_back("HashGrid 4D smoothstep", hashGrid4d());
   for (const char* folder : {"models", "real"})
     for (const auto& path : test::shippedModels(folder))
       out.emplace_back(std::filesystem::path(path).filename().string(), InrModel::loadFile(path));
@@ -213,6 +230,22 @@ TEST(CudaInrEvaluator, GenericPathMatchesCpuInFp32) {
     std::printf("%-30s generic fp32: max abs %.3g mean abs %.3g\n", name.c_str(), e.maxAbs, e.meanAbs);
     EXPECT_LT(e.maxAbs, 1e-3) << name;
     EXPECT_LT(e.meanAbs, 1e-4) << name;
+  }
+}
+
+TEST(CudaInrEvaluator, HashGridPerThreadNetworkMatchesCpuInFp32) {
+  REQUIRE_GPU();
+  for (const InrModel& model : {hashGrid3d(), hashGrid4d()}) {
+    const CudaPerThreadMlp gpu(model);
+    const auto pts = randomQueryPoints(model, 20011, 6);
+    std::vector<float> ref(pts.size()), got(pts.size(), NAN);
+    CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
+    gpu.evaluate(pts.data(), pts.size(), got.data());
+    const Err e = compare(got, ref);
+    std::printf("%-30s per-thread fp32: max abs %.3g mean abs %.3g\n", model.architecture.summary().substr(0, 30).c_str(),
+                e.maxAbs, e.meanAbs);
+    EXPECT_LT(e.maxAbs, 1e-3);
+    EXPECT_LT(e.meanAbs, 1e-4);
   }
 }
 

@@ -103,7 +103,8 @@ INR_HD float perThreadForward(const PerThreadMlpView& N, float x, float y, float
         }
         break;
       }
-      case MlpOp::Fourier: {  // every encoding (Evaluator/Encodings.h)
+      case MlpOp::Fourier:  // every encoding (Evaluator/Encodings.h)
+      case MlpOp::HashGrid: {
         auto input = [&](int k) { return load(in.src, k); };
         for (int c = 0; c < in.outWidth; ++c) {
           at(in.dst, c) = encodingElement(in, N.weights, input, c);

@@ -23,7 +23,7 @@ struct RowTile {
   int rows, base;
 };
 
-// LoadInput, DenseFp32, Fourier, Activation, Combine, OutputDot and Output on M rows with THREADS
+// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
 // threads (tid: this thread's index among them); the caller synchronises afterwards.
 template <int M, int THREADS>
 __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
@@ -113,6 +113,26 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
         for (int c = lane; c < inc; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+      }
+      break;
+    }
+    case MlpOp::HashGrid: {
+      // A stored hash-grid encoding: one thread per (row, level), all of the level's features
+      // from one set of weights and vertex indices (Evaluator/Encodings.h, fp32), rounded to fp16
+      // like every buffer. Any row's coordinates give in-bounds table reads.
+      const HashGridView g{P.floatWeights + in.floatOffset};
+      const HashGridColumns cols(in);
+      const int levels = g.levels(), F = g.features();
+      for (int idx = tid; idx < M * levels; idx += THREADS) {
+        const int r = idx / levels, l = idx - r * levels;
+        float v[8];
+        hashGridLevel(g, l, in.inWidth, [&](int k) { return input(r, k); }, 0, F, v);
+        for (int j = 0; j < F; ++j) dst[r * ldDst + cols.featureAt + l * F + j] = __float2half(v[j]);
+      }
+      // Included inputs and zero padding: only those columns.
+      for (int r = warp; r < M; r += WARPS) {
+        for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
         for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
       }
       break;

@@ -34,7 +34,7 @@ def metadata(arch=ARCH, domain=DOMAIN, **extra):
 
 
 def pack(dtype, values):
-    fmt = {"F32": "f", "F64": "d", "I32": "i"}[dtype]
+    fmt = {"F32": "f", "F64": "d", "I32": "i", "F16": "e"}[dtype]
     return struct.pack("<%d%s" % (len(values), fmt), *values)
 
 
@@ -186,6 +186,42 @@ def main():
          build(tensors() + [("empty", "F32", [0], [])]))
     case("F64 weight beyond fp32", "f64_beyond_fp32.inr", "outside the fp32 range",
          build(replace(tensors(), "l0.bias", dtype="F64", values=[1e300] + [0.0] * 7)))
+
+    # Hash grids (tiny-cuda-nn's HashGrid): 2 levels of 2 features over x, y, z with base
+    # resolution 2, per-level scale 2 and 2^4 entries: level 0 dense (2^3 = 8 entries), level 1
+    # hashed (4^3 > 16): 24 entries in all.
+    def hashgrid(table_rows=24, inputs=3, **fields):
+        grid = {"type": "hashgrid", "table": "enc.table", "n_levels": 2, "n_features_per_level": 2,
+                "log2_hashmap_size": 4, "base_resolution": 2, "per_level_scale": 2.0}
+        grid.update(fields)
+        layers = [grid, {"type": "linear", "weight": "out.weight", "bias": None}]
+        if inputs != 3:
+            layers.insert(0, {"type": "linear", "weight": "in.weight", "bias": None})
+        ts = [("enc.table", "F16", [table_rows, 2], [((i * 7) % 5 - 2) / 8.0 for i in range(2 * table_rows)]),
+              ("out.weight", "F32", [1, 4], [0.25, -0.5, 0.75, 1.0])]
+        if inputs != 3:
+            ts.append(("in.weight", "F32", [inputs, 3], [0.1] * (3 * inputs)))
+        return build(ts, metadata(arch={"input_dim": 3, "layers": layers}))
+    case("valid hash grid (control)", "valid_hashgrid_control.inr", "", hashgrid())
+    CASES.pop()  # a control, not a failure class: HashGrid_test loads it
+    case("hash-grid table size mismatch", "hashgrid_table_size.inr",
+         "architecture.layers[0].table expects [24, 2]", hashgrid(table_rows=20))
+    case("hash-grid without levels", "hashgrid_levels_zero.inr", "architecture.layers[0].n_levels is 0",
+         hashgrid(n_levels=0))
+    case("hash-grid table size out of range", "hashgrid_log2_size.inr",
+         "architecture.layers[0].log2_hashmap_size is 31", hashgrid(log2_hashmap_size=31))
+    case("hash-grid features per level not a power of 2", "hashgrid_features.inr",
+         "n_features_per_level is 3; it must be 1, 2, 4 or 8", hashgrid(n_features_per_level=3))
+    case("hash-grid levels getting coarser", "hashgrid_scale_below_1.inr", "per_level_scale is 0.5",
+         hashgrid(per_level_scale=0.5))
+    case("hash-grid unsupported interpolation", "hashgrid_interpolation.inr",
+         'interpolation must be "linear" or "smoothstep", not "Nearest"', hashgrid(interpolation="Nearest"))
+    case("hash-grid finest level beyond 2^24", "hashgrid_too_fine.inr", "at most 2^24 is supported",
+         hashgrid(base_resolution=65536, per_level_scale=1024.0))
+    case("hash grid not on the coordinates", "hashgrid_not_first.inr", "a hash grid encodes 3 coordinates",
+         hashgrid(inputs=8))
+    case("hash-grid unknown option", "hashgrid_unknown_field.inr", "unknown field 'hash'",
+         hashgrid(hash="ReversedPrime"))
 
     def header_overflow(h):
         h["l0.bias"]["data_offsets"] = "OVERFLOW"
