@@ -65,7 +65,7 @@ args = ap.parse_args()
 from paraview import simple  # noqa: E402
 
 sys.path.insert(0, HERE)
-from pv_bench_common import RepresentationState, show_model  # noqa: E402
+from pv_bench_common import RepresentationState, save_window, show_model  # noqa: E402
 
 if args.plugin:
     simple.LoadPlugin(args.plugin, remote=False, ns=globals())
@@ -86,19 +86,9 @@ rows = []
 
 
 def picture(view, name):
-    """The window as last drawn (no render of its own): an interactive frame stays as it was."""
-    from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
-    from vtkmodules.vtkIOImage import vtkPNGWriter
+    """The window as last drawn into --pictures/NAME."""
     os.makedirs(args.pictures, exist_ok=True)
-    grab = vtkWindowToImageFilter()
-    grab.SetInput(view.GetRenderWindow())
-    grab.ShouldRerenderOff()
-    grab.ReadFrontBufferOff()
-    grab.Update()
-    writer = vtkPNGWriter()
-    writer.SetFileName(os.path.join(args.pictures, name))
-    writer.SetInputConnection(grab.GetOutputPort())
-    writer.Write()
+    save_window(view, os.path.join(args.pictures, name))
 
 
 def timed(model, phase, lod, step, render, state):

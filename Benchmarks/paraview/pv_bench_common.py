@@ -65,15 +65,31 @@ class RepresentationState:
         return prop.GetElement(0)
 
 
-def grab(view):
-    """The window as last drawn (no render), RGB floats, row 0 at the bottom."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
+def _grab_filter(view):
+    """A filter reading the window as last drawn (no render of its own)."""
     from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
     g = vtkWindowToImageFilter()
     g.SetInput(view.GetRenderWindow())
     g.ShouldRerenderOff()
     g.ReadFrontBufferOff()
     g.Update()
-    image = g.GetOutput()
+    return g
+
+
+def save_window(view, path):
+    """The window as last drawn, as a PNG: an interactive frame stays as it was shown."""
+    from vtkmodules.vtkIOImage import vtkPNGWriter
+    grabbed = _grab_filter(view)  # kept alive while the writer reads it
+    writer = vtkPNGWriter()
+    writer.SetFileName(path)
+    writer.SetInputConnection(grabbed.GetOutputPort())
+    writer.Write()
+
+
+def grab(view):
+    """The window as last drawn (no render), RGB floats, row 0 at the bottom."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    grabbed = _grab_filter(view)
+    image = grabbed.GetOutput()
     w, h, _ = image.GetDimensions()
     return vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)[:, :, :3].astype(float)
