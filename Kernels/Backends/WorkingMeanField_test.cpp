@@ -9,7 +9,6 @@
 #include "Backends/RenderSession.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
-#include "Render/ModelBox.h"
 #include "TestSupport/TestScene.h"
 
 namespace inr {
@@ -35,11 +34,8 @@ struct StandInFixture {
     settings.height = 64;
     settings.seed = 7;
     session->setSettings(settings);
-    const Box3f box = modelWorldBox(model);
-    scene.camera = Camera::framing(box);
     range = valueRangeFor(model, session->evaluator());
-    scene.transferFunction = TransferFunction::preset(range[0], range[1], 0.8);
-    scene.transferFunction.unitDistance = length(box.hi - box.lo) / 16.0;
+    scene = test::testScene(model, range, false, ShadowEstimator::Ratio, 0.8);
     scene.time = model.domain.timeBegin + 0.3 * (model.domain.timeEnd - model.domain.timeBegin);
     session->setScene(scene);
     return session;

@@ -133,7 +133,7 @@ public:
   }
   void evaluate(const inr::QueryPoint* points, std::size_t n, float* out) const override
   {
-    (this->active && this->field ? *this->field : *this->network).evaluate(points, n, out);
+    (this->field ? *this->field : *this->network).evaluate(points, n, out);
   }
   std::string name() const override { return this->network->name(); }
   // Shading (the volume property's Shade) needs gradients: the stand-in's own, or the network's.
@@ -141,14 +141,12 @@ public:
   void evaluateWithGradient(
     const inr::QueryPoint* points, std::size_t n, float* values, float* gradients) const override
   {
-    (this->active && this->field ? *this->field : *this->network)
-      .evaluateWithGradient(points, n, values, gradients);
+    (this->field ? *this->field : *this->network).evaluateWithGradient(points, n, values, gradients);
   }
   const inr::FieldEvaluator& Network() const { return *this->network; }
 
   std::shared_ptr<const inr::FieldEvaluator> network;
-  std::shared_ptr<const inr::GridField> field;  // the stand-in while active
-  bool active = false;
+  std::shared_ptr<const inr::GridField> field;  // the stand-in while switched on, else null
 };
 
 /// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
@@ -241,7 +239,6 @@ public:
     if (this->standIn)
     {
       this->standIn->field = on ? this->standInField : nullptr;
-      this->standIn->active = on && this->standInField;
     }
   }
   /// The coarse session's evaluator where it is the switch (CPU backend), else null.

@@ -985,8 +985,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
-  I.lod.SawTime(scene.time);
-  I.lodStandIn.SawTime(scene.time);
+  I.lod.SawTime(scene.time);  // the one model that classifies renders (lodStandIn only plans)
   I.lastEngineBudgetMs = -1.0;
   const auto refineStart = Clock::now();
   const double refineCpuStart = processCpuMs();
