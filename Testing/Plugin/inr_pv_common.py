@@ -127,8 +127,22 @@ def read_png(path):
 
 
 def psnr(a, b):
+    """PSNR (8-bit RGB) over the whole image: for baselines of the same view, where the maximum
+    absolute error is checked beside it (compare)."""
     import numpy as np
     mse = float(np.mean((a - b) ** 2))
+    return 999.0 if mse == 0 else 10.0 * np.log10(255.0 ** 2 / mse)
+
+
+def psnr_over_volume(a, b):
+    """PSNR (8-bit RGB) over the pixels where either image shows the volume (differs from the
+    view's BACKGROUND by more than 2 in a channel): the background would dilute the error."""
+    import numpy as np
+    bg = np.array(BACKGROUND) * 255.0
+    covered = np.any(np.abs(a - bg) > 2, axis=2) | np.any(np.abs(b - bg) > 2, axis=2)
+    if not covered.any():
+        return 0.0  # nothing shown: no evidence either way
+    mse = float(np.mean((a[covered] - b[covered]) ** 2))
     return 999.0 if mse == 0 else 10.0 * np.log10(255.0 ** 2 / mse)
 
 

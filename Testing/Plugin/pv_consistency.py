@@ -1,6 +1,7 @@
 """Consistency: the converged INR Volume image against ParaView's own Volume representation of
 the same model resampled at 128^3 (the reader's preview grid), same colour map, opacity, unit
-distance and camera. Prints the PSNR and fails below the bound. With --shade both are shaded (Shade,
+distance and camera. Prints the PSNR over the pixels either image covers (the background would
+dilute it) and fails below the bound. With --shade both are shaded (Shade,
 Ambient, Diffuse, Specular, SpecularPower of the representation) under ParaView's headlight alone
 (the light kit off: VTK's default-lighting path, the light the engine's headlight reproduces).
   pvpython pv_consistency.py --model M.inr --plugin InrVolume.so --out DIR [--shade]"""
@@ -13,7 +14,7 @@ import inr_pv_common as C  # noqa: E402
 ap = C.argument_parser()
 ap.add_argument("--frames", type=int, default=256)
 ap.add_argument("--resolution", type=int, default=128)
-ap.add_argument("--min-psnr", type=float, default=38.0)  # measured 44.5 dB here
+ap.add_argument("--min-psnr", type=float, default=38.0)  # measured 47.7 (shaded 41.5) dB over the volume
 ap.add_argument("--shade", action="store_true")
 args = ap.parse_args()
 suffix = "_shaded" if args.shade else ""
@@ -49,18 +50,18 @@ vol_png = os.path.join(args.out, f"consistency{suffix}_paraview_volume.png")
 simple.SaveScreenshot(vol_png, view, ImageResolution=size)
 
 a, b = C.read_png(inr_png), C.read_png(vol_png)
-p = C.psnr(a, b)
+p = C.psnr_over_volume(a, b)
 unshaded = None
 if args.shade:  # the comparison can fail: shading must change ParaView's own picture clearly
     display.Shade = 0
     flat_png = os.path.join(args.out, "consistency_shaded_paraview_volume_unshaded.png")
     simple.SaveScreenshot(flat_png, view, ImageResolution=size)
-    unshaded = C.psnr(a, C.read_png(flat_png))
+    unshaded = C.psnr_over_volume(a, C.read_png(flat_png))
 import numpy as np  # noqa: E402
 bg = np.array(C.BACKGROUND) * 255.0
 covered = np.mean(np.any(np.abs(a - bg) > 8, axis=2))
 msg = (f"{'shaded ' if args.shade else ''}INR Volume ({args.frames} frames) vs ParaView Volume ({args.resolution}^3 resampled): "
-       f"PSNR {p:.2f} dB (bound >= {args.min_psnr}); volume covers {100 * covered:.0f}% of the image"
+       f"PSNR {p:.2f} dB over the volume's pixels (bound >= {args.min_psnr}); volume covers {100 * covered:.0f}% of the image"
        + (f"; against ParaView's unshaded Volume {unshaded:.2f} dB" if unshaded is not None else ""))
 print(msg, flush=True)
 with open(os.path.join(args.out, f"consistency{suffix}.txt"), "w") as f:
