@@ -11,7 +11,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash Tools/install-deps.sh
-bash Tools/build.sh "$@"
+# Without a usable GPU the GPU tests skip, so the CUDA code only has to compile: for the oldest
+# architecture the build supports and for Hopper (with its wgmma kernel), not the five of the
+# default (the fused kernel's translation unit alone was most of a 2-core build's time). A usable
+# GPU, or CMAKE_CUDA_ARCHITECTURES given here, keeps the default / the given list.
+cuda_archs=()
+if ! nvidia-smi -L >/dev/null 2>&1 && [[ " $* " != *CMAKE_CUDA_ARCHITECTURES* ]]; then
+  cuda_archs=("-DCMAKE_CUDA_ARCHITECTURES=75-real;90")
+  echo "run-tests: no usable GPU: CUDA code (if nvcc is found) is compiled for sm_75 and sm_90 only"
+fi
+bash Tools/build.sh "${cuda_archs[@]}" "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
 source Tools/xvfb.sh
 SAN_PID=""
