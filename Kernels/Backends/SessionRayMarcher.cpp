@@ -27,10 +27,7 @@ public:
   FrameStats renderFrame() override { return marcher_.renderFrame(); }
   ImageRGBA image() const override { return marcher_.image(); }
   float step() const override { return marcher_.step(); }
-  float shadowStep() const override {
-    if constexpr (std::is_same_v<Marcher, RayMarchRenderer>) return marcher_.shadowStep();
-    else return 0.f;
-  }
+  float shadowStep() const override { return marcher_.shadowStep(); }
 
 private:
   std::string description_;
@@ -45,14 +42,12 @@ std::unique_ptr<SessionRayMarcher> SessionRayMarcher::create(const RenderSession
 #ifdef INR_HAVE_CUDA
   if (session.backend() == RenderBackend::Cuda) {
     const auto* gpuEvaluator = dynamic_cast<const CudaInrEvaluator*>(&session.evaluator());
-    const bool cpuOnly = scene.shadows || scene.shading.enabled;
-    if (gpuEvaluator && !cpuOnly)
+    if (gpuEvaluator && !scene.shading.enabled)
       return std::make_unique<MarcherAdapter<CudaRayMarcher>>("GPU ray marcher", *gpuEvaluator, box, options, true);
     if (gpuEvaluator)
       return std::make_unique<MarcherAdapter<RayMarchRenderer>>(
-          std::string("CPU ray marcher on the GPU evaluator (ray-marched ") +
-              (scene.shadows ? "shadows" : "shading") + " run on the CPU only)",
-          session.evaluator(), box, options, false);
+          "CPU ray marcher on the GPU evaluator (ray-marched shading runs on the CPU only)", session.evaluator(), box,
+          options, false);
   }
 #else
   (void)scene;

@@ -26,7 +26,7 @@ public:
   virtual FrameStats renderFrame() = 0;
   virtual ImageRGBA image() const = 0;
   virtual float step() const = 0;
-  virtual float shadowStep() const = 0;  // 0 where shadows are not marched (the GPU marcher)
+  virtual float shadowStep() const = 0;  // world units, both marchers
 };
 
 }  // namespace inr

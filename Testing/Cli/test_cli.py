@@ -596,9 +596,10 @@ def check_sample_share_gpus(inr, data):
 
 def check_raymarch_backend(inr, data):
     """--method raymarch marches on the session's backend: the CPU marcher with --backend cpu;
-    with --backend cuda the GPU marcher, and the CPU marcher on the GPU evaluator with --shadows
-    (ray-marched shadows are CPU only). The stats' "marcher" and the "ray marcher:" line say
-    which. The CUDA half is skipped (said in the output) where --backend cuda cannot run."""
+    with --backend cuda the GPU marcher, shadows included, and the CPU marcher on the GPU
+    evaluator with --shade (ray-marched shading is CPU only). The stats' "marcher" and the
+    "ray marcher:" line say which. The CUDA half is skipped (said in the output) where
+    --backend cuda cannot run."""
     model = os.path.join(data, "models", "siren_blobs.inr")
     common = ["--method", "raymarch", "--size", "16x12", "--frames", "1"]
     with tempfile.TemporaryDirectory() as d:
@@ -621,7 +622,9 @@ def check_raymarch_backend(inr, data):
             return
         expect(m == "GPU ray marcher", "--backend cuda runs %s" % m)
         p, m = marcher("--backend", "cuda", "--shadows")
-        expect(m is not None and m.startswith("CPU ray marcher on the GPU evaluator"), "--backend cuda --shadows: %s %s"
+        expect(m == "GPU ray marcher", "--backend cuda --shadows runs %s %s" % (m, p.stderr))
+        p, m = marcher("--backend", "cuda", "--shade")
+        expect(m is not None and m.startswith("CPU ray marcher on the GPU evaluator"), "--backend cuda --shade: %s %s"
                % (m, p.stderr))
 
 

@@ -160,7 +160,7 @@ RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session,
   renderer->setScene(scene);
   report["marcher"] = renderer->description();
   report["step"] = renderer->step();
-  report["shadow_step"] = renderer->shadowStep();  // 0: shadows not marched
+  report["shadow_step"] = renderer->shadowStep();
   RenderOutcome r;
   for (long k = 0; k < job.frames; ++k) {
     const FrameStats st = renderer->renderFrame();

@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "Common/Cuda/CudaDevice.h"
 #include "Common/Cuda/DeviceBuffer.h"
@@ -361,9 +363,11 @@ TEST(CudaPipeline, GpuRayMarcherMatchesCpuRayMarcher) {
 
 // The GPU marcher runs the CPU marcher's per-ray code (Render/RayMarch.h): on the same evaluator
 // (one fused configuration for every batch size, so each query gets the same value in either
-// marcher's batches) the two differ only by compositing in float instead of double. Over the
-// pixels the volume covers: the same pixels, the same queries, and every channel within 1e-4,
-// jittered over several frames, at a parallel and at a perspective camera.
+// marcher's batches) the two differ only by compositing (and summing optical depths towards the
+// light) in float instead of double. Over the pixels the volume covers: the same pixels, the same
+// queries, shadow rays and shadow queries, and every channel within 1e-4 (2e-4 with shadows),
+// jittered over several frames, at a parallel and at a perspective camera, without and with
+// shadows (in batches of 4096 shadow points, so that a sample's shadow points span batches).
 TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
   REQUIRE_GPU();
   for (const auto& path : shippedModels()) {
@@ -375,11 +379,13 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
     const Box3f box = modelWorldBox(model);
     RayMarchOptions o;
     o.step = length(box.hi - box.lo) / 200.f;
-    for (const bool parallel : {false, true}) {
+    o.maxShadowBatch = 4096;
+    for (const auto& [parallel, shadows] :
+         std::vector<std::pair<bool, bool>>{{false, false}, {true, false}, {false, true}, {true, true}}) {
       RenderSettings settings;
       settings.width = 36;
       settings.height = 28;
-      RenderScene scene = testScene(model, range, false);
+      RenderScene scene = testScene(model, range, shadows);
       if (parallel) {
         scene.camera.parallelProjection = true;
         scene.camera.parallelScale = 0.6 * length(box.hi - box.lo);
@@ -389,6 +395,9 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
       const FrameStats a = test::renderFrames(cpu, settings, scene, 3), b = test::renderFrames(gpu, settings, scene, 3);
       EXPECT_EQ(a.queries, b.queries) << path;
       EXPECT_EQ(a.rays, b.rays) << path;
+      EXPECT_EQ(a.shadowRays, b.shadowRays) << path;
+      EXPECT_EQ(a.shadowQueries, b.shadowQueries) << path;
+      EXPECT_EQ(shadows, b.shadowQueries > 0) << path;
       const ImageRGBA ci = cpu.image(), gi = gpu.image();  // both over the scene's background
       std::size_t covered = 0, coverageMismatch = 0;
       double maxError = 0.0;
@@ -399,11 +408,13 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
         ++covered;
         for (int c = 0; c < 4; ++c) maxError = std::max(maxError, double(std::fabs(ci.data[4 * i + c] - gi.data[4 * i + c])));
       }
-      std::printf("%-24s %s: GPU vs CPU ray marcher on one evaluator: %zu covered pixels, max error %.2e\n",
-                  fs::path(path).filename().c_str(), parallel ? "parallel" : "perspective", covered, maxError);
+      std::printf("%-24s %s%s: GPU vs CPU ray marcher on one evaluator: %zu covered pixels, %zu shadow queries, "
+                  "max error %.2e\n",
+                  fs::path(path).filename().c_str(), parallel ? "parallel" : "perspective", shadows ? ", shadows" : "",
+                  covered, b.shadowQueries, maxError);
       EXPECT_GT(covered, std::size_t(settings.width * settings.height / 10)) << path;
       EXPECT_EQ(coverageMismatch, 0u) << path;
-      EXPECT_LE(maxError, 1e-4) << path;
+      EXPECT_LE(maxError, shadows ? 2e-4 : 1e-4) << path;
     }
   }
 }

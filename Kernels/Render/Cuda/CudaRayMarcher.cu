@@ -16,6 +16,14 @@
 
 namespace inr {
 
+// Shadows, as the CPU marcher casts them (Render/RayMarch.h): from every primary sample that can
+// emit, a ray towards the light cut into segments of at most `step`.
+struct MarchShadowParams {
+  Box3f box;
+  Vec3f toLight;  // unit, model space
+  float step, time, ambient;
+};
+
 namespace {
 
 
@@ -58,13 +66,80 @@ __global__ void pointsKernel(MarchParams p, const MarchRay* rays, const int* off
   }
 }
 
+__device__ __forceinline__ MarchShadowRay shadowRayOf(const MarchShadowParams& sp, const float4& q) {
+  return marchShadowRay(sp.box, Vec3f{q.x, q.y, q.z}, sp.toLight, sp.step);
+}
+
+// Each primary sample's shadow-ray sample count (0 when it cannot emit); count has total + 1
+// entries (the last 0, so that the exclusive scan's last entry is the chunk's shadow points).
+// tau (the optical depth towards the light) starts at 0.
+__global__ void shadowCountKernel(int total, const float4* points, const float* values, TransferFunctionView tf,
+                                  MarchShadowParams sp, int* count, float* tau, int* shadowRays) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j > total) return;
+  if (j == total) {
+    count[j] = 0;
+    return;
+  }
+  tau[j] = 0.f;
+  const int c = marchSampleEmits(tf, values[j]) ? shadowRayOf(sp, points[j]).count : 0;
+  count[j] = c;
+  if (c > 0) atomicAdd(shadowRays, 1);
+}
+
+// The primary sample whose shadow points include point m: the last j with offsets[j] <= m (the
+// offsets are non-decreasing; samples without shadow points share their successor's offset).
+__device__ __forceinline__ int shadowOwner(const int* offsets, int total, int m) {
+  int lo = 0, hi = total;  // offsets[lo] <= m < offsets[hi]
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    if (offsets[mid] <= m) lo = mid;
+    else hi = mid;
+  }
+  return lo;
+}
+
+// Shadow points [first, first + n) of the chunk into points (from 0).
+__global__ void shadowPointsKernel(int first, int n, int total, const float4* primary, const int* offsets,
+                                   MarchShadowParams sp, float4* points) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= n) return;
+  const int m = first + k;
+  const int j = shadowOwner(offsets, total, m);
+  const float4 q = primary[j];
+  const Vec3f s = marchShadowSample(Vec3f{q.x, q.y, q.z}, sp.toLight, shadowRayOf(sp, q), m - offsets[j]);
+  points[k] = make_float4(s.x, s.y, s.z, sp.time);
+}
+
+// Adds each primary sample's share of the optical depth from shadow points [first, first + n)
+// (values from 0), in the order of its points, so that batches add up as one sum would.
+__global__ void shadowDepthKernel(int first, int n, int total, const float4* primary, const int* offsets,
+                                  const float* values, TransferFunctionView tf, MarchShadowParams sp, float* tau) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j >= total) return;
+  const int a = max(offsets[j], first), b = min(offsets[j + 1], first + n);
+  if (a >= b) return;
+  const float ds = shadowRayOf(sp, primary[j]).ds;
+  float sum = tau[j];
+  for (int m = a; m < b; ++m) {
+    const float v = values[m - first];
+    if (isFiniteValue(v)) sum += extinctionAt(tf, v) * ds;
+  }
+  tau[j] = sum;
+}
+
+// tau: each sample's optical depth towards the light, or null without shadows.
 __global__ void compositeKernel(MarchParams p, const MarchRay* rays, const int* offsets, const float* values,
-                                TransferFunctionView tf, Vec4f* accum, int frameIndex) {
+                                const float* tau, float ambient, TransferFunctionView tf, Vec4f* accum,
+                                int frameIndex) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= p.chunkN) return;
   const MarchRay r = rays[k];
   MarchCompositor<float> ray;
-  for (int j = 0; j < r.count; ++j) ray.add(tf, values[offsets[k] + j], r.ds, 1.f);
+  for (int j = 0; j < r.count; ++j) {
+    const int sample = offsets[k] + j;
+    ray.add(tf, values[sample], r.ds, tau ? marchLightFactor<float>(ambient, expf(-tau[sample])) : 1.f);
+  }
   const int i = p.chunk0 + k;
   accum[i] = accumulateMean(accum[i], ray.estimate(), frameIndex);
 }
@@ -85,13 +160,22 @@ struct CudaRayMarcher::Impl {
   cuda::DeviceBuffer<int> hitRays;
   cuda::PinnedHost<int> total{1};
   cuda::PinnedHost<int> hitRaysHost{1};
+  // Shadows: per primary sample its shadow points' count, offset and optical depth; the shadow
+  // points and values of one evaluator call; the counter of shadow rays.
+  cuda::DeviceBuffer<int> shadowCount, shadowOffsets, shadowRays;
+  cuda::DeviceBuffer<unsigned char> shadowScanTemp;
+  cuda::DeviceBuffer<float> tau;
+  cuda::DeviceBuffer<float4> shadowPoints;
+  cuda::DeviceBuffer<float> shadowValues;
+  cuda::PinnedHost<int> shadowRaysHost{1};
 };
 
 CudaRayMarcher::CudaRayMarcher(const CudaInrEvaluator& evaluator, const Box3f& box, RayMarchOptions options)
     : evaluator_(evaluator), box_(box), options_(options), impl_(std::make_unique<Impl>()) {
   const float diag = length(box.hi - box.lo);
   step_ = options.step > 0.f ? options.step : diag / 512.f;
-  if (!(step_ > 0.f)) throw std::invalid_argument("ray-march step must be > 0");
+  shadowStep_ = options.shadowStep > 0.f ? options.shadowStep : 2.f * step_;  // as the CPU marcher
+  if (!(step_ > 0.f) || !(shadowStep_ > 0.f)) throw std::invalid_argument("ray-march step must be > 0");
   setSettings(settings_);
 }
 
@@ -112,7 +196,6 @@ void CudaRayMarcher::setScene(const RenderScene& scene) {
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");
-  if (scene.shadows) throw std::invalid_argument("CudaRayMarcher: shadows are not implemented on the GPU");
   scene.camera.view(settings_.width, settings_.height);  // validates
   scene_ = scene;
   impl_->tfTable = std::make_unique<TransferFunctionTable>(scene.transferFunction);
@@ -153,9 +236,13 @@ FrameStats CudaRayMarcher::renderFrame() {
   p.windowX = settings_.window.x;
   p.windowY = settings_.window.y;
   p.fullWidth = settings_.window.fullWidth;
-  // Pixels per chunk: at most 2^24 samples (the longest ray has ceil(diagonal / step) + 1).
-  const long long maxPerRay = (long long)std::ceil(length(box_.hi - box_.lo) / step_) + 2;
-  const int chunk = int(std::max<long long>(1, std::min<long long>(n, (1ll << 24) / maxPerRay)));
+  // Pixels per chunk: at most 2^24 samples (the longest ray has ceil(diagonal / step) + 1); with
+  // shadows, few enough that the chunk's shadow points stay below 2^30 (int offsets).
+  const double diag = length(box_.hi - box_.lo);
+  const long long maxPerRay = (long long)std::ceil(diag / step_) + 2;
+  const long long maxShadowPerSample = (long long)std::ceil(diag / shadowStep_) + 2;
+  const long long maxSamples = scene_.shadows ? std::min(1ll << 24, (1ll << 30) / maxShadowPerSample) : (1ll << 24);
+  const int chunk = int(std::max<long long>(1, std::min<long long>(n, maxSamples / maxPerRay)));
   if (I.count.size() < std::size_t(chunk + 1)) {
     I.rays.resize(chunk);
     I.count.resize(chunk + 1);
@@ -167,6 +254,17 @@ FrameStats CudaRayMarcher::renderFrame() {
   const TransferFunctionView tf = I.tf.view();
   I.hitRays.resize(1);
   I.hitRays.zero(s);
+  MarchShadowParams sp;
+  sp.box = box_;
+  sp.toLight = normalize(Vec3f{float(scene_.toLight[0]), float(scene_.toLight[1]), float(scene_.toLight[2])});
+  if (p.cam.transformed) sp.toLight = normalize(applyLinear(p.cam.modelFromWorld, sp.toLight));  // model space
+  sp.step = shadowStep_;
+  sp.time = p.time;
+  sp.ambient = scene_.ambient;
+  if (scene_.shadows) {
+    I.shadowRays.resize(1);
+    I.shadowRays.zero(s);
+  }
   for (int c0 = 0; c0 < n; c0 += chunk) {
     p.chunk0 = c0;
     p.chunkN = std::min(chunk, n - c0);
@@ -190,15 +288,70 @@ FrameStats CudaRayMarcher::renderFrame() {
       st.queries += std::size_t(total);
       st.iterations += 1;
     }
-    compositeKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.values.get(), tf, I.accum.get(), frameIndex_);
+    const bool shadows = scene_.shadows && total > 0;
+    if (shadows) castShadows(total, tf, sp, st);
+    compositeKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.values.get(),
+                                           shadows ? I.tau.get() : nullptr, sp.ambient, tf, I.accum.get(), frameIndex_);
     INR_CUDA_CHECK_LAUNCH("compositeKernel");
   }
   INR_CUDA_CHECK(cudaMemcpyAsync(I.hitRaysHost.get(), I.hitRays.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
   st.rays = std::size_t(I.hitRaysHost[0]);
+  if (scene_.shadows) {
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.shadowRaysHost.get(), I.shadowRays.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+    INR_CUDA_CHECK(cudaStreamSynchronize(s));
+    st.shadowRays = std::size_t(I.shadowRaysHost[0]);
+  }
   ++frameIndex_;
   st.totalMs = msSince(tFrame);
   return st;
+}
+
+// The optical depth towards the light of the chunk's `total` primary samples (I.points, I.values)
+// into I.tau: count each emitting sample's shadow points, place them by a prefix sum, then
+// evaluate them in calls of at most options_.maxShadowBatch points, each adding its share.
+void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, const MarchShadowParams& sp, FrameStats& st) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream.get();
+  const auto t0 = Clock::now();
+  if (I.shadowCount.size() < std::size_t(total) + 1) {
+    I.shadowCount.resize(std::size_t(total) + 1);
+    I.shadowOffsets.resize(std::size_t(total) + 1);
+    I.tau.resize(std::size_t(total));
+    std::size_t bytes = 0;
+    INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, I.shadowCount.get(), I.shadowOffsets.get(), total + 1, s));
+    I.shadowScanTemp.resize(bytes);
+  }
+  const int sampleBlocks = (total + 1 + 127) / 128;
+  shadowCountKernel<<<sampleBlocks, 128, 0, s>>>(total, I.points.get(), I.values.get(), tf, sp, I.shadowCount.get(),
+                                                 I.tau.get(), I.shadowRays.get());
+  INR_CUDA_CHECK_LAUNCH("shadowCountKernel");
+  std::size_t bytes = I.shadowScanTemp.size();
+  INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.shadowScanTemp.get(), bytes, I.shadowCount.get(), I.shadowOffsets.get(),
+                                               total + 1, s));
+  INR_CUDA_CHECK(cudaMemcpyAsync(I.total.get(), I.shadowOffsets.get() + total, sizeof(int), cudaMemcpyDeviceToHost, s));
+  INR_CUDA_CHECK(cudaStreamSynchronize(s));
+  const int shadowTotal = I.total[0];
+  const int batch = int(std::max<std::size_t>(1, std::min<std::size_t>(options_.maxShadowBatch, std::size_t(shadowTotal))));
+  if (shadowTotal > 0 && I.shadowPoints.size() < std::size_t(batch)) {
+    I.shadowPoints.resize(std::size_t(batch));
+    I.shadowValues.resize(std::size_t(batch));
+  }
+  for (int first = 0; first < shadowTotal; first += batch) {
+    const int m = std::min(batch, shadowTotal - first);
+    shadowPointsKernel<<<(m + 127) / 128, 128, 0, s>>>(first, m, total, I.points.get(), I.shadowOffsets.get(), sp,
+                                                        I.shadowPoints.get());
+    INR_CUDA_CHECK_LAUNCH("shadowPointsKernel");
+    const auto te = Clock::now();
+    evaluator_.evaluateDevice(I.shadowPoints.get(), m, I.shadowValues.get(), nullptr, s);
+    shadowDepthKernel<<<(total + 127) / 128, 128, 0, s>>>(first, m, total, I.points.get(), I.shadowOffsets.get(),
+                                                          I.shadowValues.get(), tf, sp, I.tau.get());
+    INR_CUDA_CHECK_LAUNCH("shadowDepthKernel");
+    st.shadowQueries += std::size_t(m);
+    st.shadowIterations += 1;
+    st.shadowEvaluateMs += msSince(te);  // launch time only: the stream runs on
+  }
+  st.shadowTraverseMs += msSince(t0);
 }
 
 ImageRGBA CudaRayMarcher::image() const {

@@ -4,7 +4,10 @@
 // samples evaluated in large batches through CudaInrEvaluator::evaluateDevice: per chunk of
 // pixels a kernel cuts each ray and counts its samples, a device prefix sum (CUB) places them, a
 // kernel writes the points, the evaluator fills the values, a kernel composites and accumulates.
-// Shadows are not implemented on the GPU (setScene throws when they are requested).
+// Shadows as the CPU marcher casts them: per chunk, each emitting sample's shadow points are
+// counted and placed by a second prefix sum, evaluated in calls of at most maxShadowBatch points,
+// and summed per sample in the order of its points. Gradient shading is the CPU marcher's only
+// (setScene refuses it by name).
 #include <memory>
 #include <vector>
 
@@ -16,6 +19,8 @@
 namespace inr {
 
 class CudaInrEvaluator;
+struct MarchShadowParams;
+struct TransferFunctionView;
 
 class CudaRayMarcher {
 public:
@@ -28,13 +33,15 @@ public:
   int accumulatedFrames() const { return frameIndex_; }
   ImageRGBA image() const;
   float step() const { return step_; }
+  float shadowStep() const { return shadowStep_; }
 
 private:
   struct Impl;
+  void castShadows(int total, const TransferFunctionView& tf, const MarchShadowParams& sp, FrameStats& st);
   const CudaInrEvaluator& evaluator_;
   Box3f box_;
   RayMarchOptions options_;
-  float step_ = 0.f;
+  float step_ = 0.f, shadowStep_ = 0.f;
   RenderSettings settings_;
   RenderScene scene_;
   bool haveScene_ = false;

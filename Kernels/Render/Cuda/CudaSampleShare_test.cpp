@@ -72,12 +72,10 @@ TEST(CudaSampleShare, SharesOfANetworkAndOfTheRayMarcher) {
 
   RayMarchOptions o;
   o.step = length(box.hi - box.lo) / 200.f;
-  RenderScene unshadowed = scene;
-  unshadowed.shadows = false;  // the GPU marcher marches no shadows
   const test::ShareRenderer march = [&](const RenderSettings& s, int frames) {
     CudaRayMarcher r(eval, box, o);
     test::ShareRun run;
-    run.frames = test::renderEachFrame(r, s, unshadowed, frames);
+    run.frames = test::renderEachFrame(r, s, scene, frames);  // with shadows
     run.image = r.image();
     return run;
   };
