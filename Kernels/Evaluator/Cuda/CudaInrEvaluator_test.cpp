@@ -42,6 +42,15 @@ Err compare(const std::vector<float>& a, const std::vector<float>& b) {
   return e;
 }
 
+// Options for one fixed fused configuration of the `mma` kernel (the first that fits, no timing).
+CudaEvaluatorOptions fixedFused(FusedMma mma) {
+  CudaEvaluatorOptions o;
+  o.path = CudaEvaluatorPath::Fused;
+  o.mma = mma;
+  o.autotuneBatch = 0;
+  return o;
+}
+
 // The fused kernels' arithmetic emulated on the CPU (emulateFusedProgram) for the first `count`
 // world points, through the model's input and output mappings.
 std::vector<float> emulated(const InrModel& model, const std::vector<QueryPoint>& pts, std::size_t count) {
@@ -157,12 +166,9 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     // consumer without queries (it must keep the pace and write nothing).
     for (const int config : {0, 1, 2, 3}) {
       const int pingPong = config & 1, columns = config < 2 ? 128 : 64;
-      CudaEvaluatorOptions o;
-      o.path = CudaEvaluatorPath::Fused;
-      o.mma = FusedMma::Wgmma;
+      CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
       o.wgmmaPingPong = pingPong;
       o.wgmmaChunkColumns = columns;
-      o.autotuneBatch = 0;
       std::unique_ptr<CudaInrEvaluator> made;
       try {
         made = std::make_unique<CudaInrEvaluator>(model, o);
@@ -232,11 +238,8 @@ TEST(CudaInrEvaluator, HashGridGathersMatchEmulationAndParityTarget) {
     for (const FusedMma mma : {FusedMma::MmaSync, FusedMma::Wgmma}) {
       std::vector<float> byPairs[2];
       for (const int pairs : {1, 0}) {
-        CudaEvaluatorOptions o;
-        o.path = CudaEvaluatorPath::Fused;
-        o.mma = mma;
+        CudaEvaluatorOptions o = fixedFused(mma);
         o.hashGridPairs = pairs;
-        o.autotuneBatch = 0;
         std::unique_ptr<CudaInrEvaluator> gpu;
         try {
           gpu = std::make_unique<CudaInrEvaluator>(model, o);
