@@ -3,7 +3,8 @@
 # engine with CUDA for sm_90 (only the targets below), runs the GPU evaluator tests and every
 # hash-grid test (ctest label cuda) and their CPU counterparts, the evaluator benchmark on the
 # issue's network (autotuned, each gather lane arrangement fixed, and with the L2-persisting
-# window over the tables), and the shipped hash-grid model's render to an estimated 40 dB.
+# window over the tables), the SIREN and FFN rows (unchanged programs, for comparison), and the
+# shipped hash-grid model's render to an estimated 40 dB.
 # Logs and CSV go to $OUT (default ./out); about 8 minutes at most (the build takes most).
 #   bash Benchmarks/run_hashgrid_checks.sh
 set -uo pipefail
@@ -49,6 +50,11 @@ done
 stamp "evaluator benchmark, tables in an L2-persisting window"
 timeout 90 "$bench" --only hashgrid --l2-persist --csv "$OUT/hashgrid_bench_l2persist.csv" 2>&1 \
   | tee "$OUT/hashgrid_bench_l2persist.txt"
+
+stamp "evaluator benchmark, SIREN and FFN (the kernels' other programs: rates and checksums against RESULTS)"
+for m in paper_siren paper_ffn; do
+  timeout 60 "$bench" --only "$m" --checksum --csv "$OUT/bench_$m.csv" 2>&1 | tee "$OUT/bench_$m.txt"
+done
 
 stamp "render: shipped hash-grid model to 40 dB (512x512, CUDA)"
 model=Testing/Data/real/hashgrid_mri_head_small

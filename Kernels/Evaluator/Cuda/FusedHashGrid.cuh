@@ -118,17 +118,17 @@ __device__ inline void hashGridGather(const HashGridView& g, const __half* table
 }
 
 // A HashGrid instruction's features on a tile's M rows (runRowInstr adds any included inputs and
-// the zero padding): the gather above for the grid's dimensions, features per level and the
-// launch's lane arrangement.
-template <int M, int THREADS, class Input>
-__device__ inline void hashGridRows(const FusedParams& P, const MlpInstr& in, const Input& input, __half* dst, int ldDst,
-                                    int tid) {
-  const HashGridView g{P.floatWeights + in.floatOffset};
-  const __half* table = P.hashTables + in.halfOffset;
-  const int featureAt = HashGridColumns(in).featureAt;
-  auto run = [&](auto dims, auto pairs) {
-    constexpr int D = decltype(dims)::value;
-    constexpr bool kPairs = decltype(pairs)::value;
+// the zero padding): the gather above for the grid's dimensions, features per level and lane
+// arrangement; the inputs are the tile's coordinates (src null) or an fp16 buffer. Not inlined:
+// the gather's loads in flight want registers that the GEMM code around it holds, and a call
+// saves those once per tile instead of spilling inside either loop.
+template <int M, int THREADS>
+__device__ __noinline__ void hashGridRows(HashGridView g, const __half* table, int dims, bool pairs, const float* coords,
+                                          const __half* src, int ldSrc, __half* dst, int ldDst, int featureAt, int tid) {
+  auto input = [&](int r, int k) { return src ? __half2float(src[r * ldSrc + k]) : coords[r * 4 + k]; };
+  auto run = [&](auto dimsTag, auto pairsTag) {
+    constexpr int D = decltype(dimsTag)::value;
+    constexpr bool kPairs = decltype(pairsTag)::value;
     switch (g.features()) {
       case 1: hashGridGather<M, THREADS, D, 1, kPairs>(g, table, input, dst, ldDst, featureAt, tid); break;
       case 2: hashGridGather<M, THREADS, D, 2, kPairs>(g, table, input, dst, ldDst, featureAt, tid); break;
@@ -136,13 +136,13 @@ __device__ inline void hashGridRows(const FusedParams& P, const MlpInstr& in, co
       default: hashGridGather<M, THREADS, D, 8, kPairs>(g, table, input, dst, ldDst, featureAt, tid); break;
     }
   };
-  auto withPairs = [&](auto dims) {
-    if (P.hashGridPairs)
-      run(dims, BoolTag<true>{});
+  auto withPairs = [&](auto dimsTag) {
+    if (pairs)
+      run(dimsTag, BoolTag<true>{});
     else
-      run(dims, BoolTag<false>{});
+      run(dimsTag, BoolTag<false>{});
   };
-  if (in.inWidth == 3)
+  if (dims == 3)
     withPairs(IntTag<3>{});
   else
     withPairs(IntTag<4>{});

@@ -122,7 +122,8 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
     case MlpOp::HashGrid: {
       // The features from the fp16 tables (FusedHashGrid.cuh), rounded to fp16 like every buffer.
       const HashGridColumns cols(in);
-      hashGridRows<M, THREADS>(P, in, input, dst, ldDst, tid);
+      hashGridRows<M, THREADS>(HashGridView{P.floatWeights + in.floatOffset}, P.hashTables + in.halfOffset, in.inWidth,
+                               P.hashGridPairs != 0, coords, src, ldSrc, dst, ldDst, cols.featureAt, tid);
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
         for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
