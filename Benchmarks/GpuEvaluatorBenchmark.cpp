@@ -4,11 +4,14 @@
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
 //                           [--wgmma-columns 64|128]
+//                           [--hash-pairs 0|1] [--l2-persist]
 //                           [--no-autotune] [--checksum] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
-// the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel.
+// the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel;
+// --hash-pairs fixes a hash grid's gather (lane pairs 1, a lane per row 0), and --l2-persist
+// keeps its fp16 tables in L2 with a persisting access-policy window (hashTablesPersistInL2).
 // --checksum prints a hash of each row's output bits (the last launch over the batch, seed 1):
 // with a fixed configuration, the same on two builds when a change keeps the arithmetic.
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
@@ -88,6 +91,8 @@ int main(int argc, char** argv) {
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--no-autotune") fixed.autotuneBatch = 0;
+    else if (a == "--hash-pairs") fixed.hashGridPairs = std::stoi(cl.value()) ? 1 : 0;
+    else if (a == "--l2-persist") fixed.hashTablesPersistInL2 = true;
     else if (a == "--checksum") checksum = true;
     else if (a == "--mma") {
       const std::string m = cl.value();
@@ -129,7 +134,8 @@ int main(int argc, char** argv) {
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
   std::printf("%-28s %-14s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
-  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch;
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch ||
+                          fixed.hashGridPairs >= 0;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 3; ++variant) {
       if (!only.empty() && name.find(only) == std::string::npos) continue;

@@ -105,6 +105,19 @@ struct HashGridColumns {
         inputAt(f.includeInput == 1 ? 0 : f.outWidth - inputs) {}
 };
 
+// instant-ngp's spatial hash multiplies vertex coordinate d by this prime (1 for x, so that
+// neighbours along x land in neighbouring entries) before XORing the axes.
+INR_HD constexpr std::uint32_t hashGridPrime(int d) {
+  return d == 0 ? 1u : d == 1 ? 2654435761u : d == 2 ? 805459861u : 3674653429u;
+}
+
+// index modulo a level's `entries`, without a division where none is needed (hashed levels hold
+// a power of 2, dense ones wrap only for vertices past the grid).
+INR_HD std::uint32_t hashGridWrap(std::uint32_t index, std::uint32_t entries) {
+  if ((entries & (entries - 1)) == 0) return index & (entries - 1);
+  return index < entries ? index : index % entries;
+}
+
 // The entry of grid vertex v (dims coordinates) in a level of `entries` entries at resolution
 // res: the dense index while the grid fits the level (row-major, x fastest), else instant-ngp's
 // spatial hash (XOR of v_i times a prime per axis); both modulo the level's size, in uint32
@@ -116,60 +129,126 @@ INR_HD std::uint32_t hashGridEntry(const std::uint32_t* v, int dims, std::uint32
     stride *= res;
   }
   if (entries < stride) {
-    constexpr std::uint32_t kPrimes[4] = {1u, 2654435761u, 805459861u, 3674653429u};
     index = 0;
-    for (int d = 0; d < dims; ++d) index ^= v[d] * kPrimes[d];
+    for (int d = 0; d < dims; ++d) index ^= v[d] * hashGridPrime(d);
   }
-  // index % entries without a division where it is not needed (hashed levels hold a power of 2,
-  // dense ones wrap only for vertices past the grid).
-  if ((entries & (entries - 1)) == 0) return index & (entries - 1);
-  return index < entries ? index : index % entries;
+  return hashGridWrap(index, entries);
 }
 
-// Features [first, first + count) of hash-grid level `level` at the inputs x (x(i), i < dims),
-// interpolated (d-linearly, or with smoothstep weights) between the 2^dims vertices of the cell
-// around x * scale + 0.5, into out[0, count). With dOut, also their derivatives along each input:
-// dOut[j * dims + i] = d out[j] / d x_i.
+// The cell of a level around inputs x: per axis its lower vertex, the interpolation weight of the
+// upper vertex (linear, or smoothstep) and that weight's derivative along the input.
+struct HashGridCell {
+  std::uint32_t lower[4];
+  float w[4], dw[4];
+};
+
 template <class Input>
-INR_HD void hashGridLevel(const HashGridView& g, int level, int dims, const Input& x, int first, int count, float* out,
-                          float* dOut = nullptr) {
+INR_HD HashGridCell hashGridCell(const HashGridView& g, int level, int dims, const Input& x) {
   const float scale = g.scale(level);
-  const std::uint32_t res = g.resolution(level), entries = g.entries(level);
-  const int F = g.features();
-  const float* table = g.table() + std::size_t(g.firstEntry(level)) * F;
-  std::uint32_t cell[4];
-  float w[4], dw[4];  // interpolation weight of the upper vertex along each axis, and d w / d x
+  HashGridCell c;
   for (int d = 0; d < dims; ++d) {
     const float p = fmaf(scale, x(d), 0.5f);
     // Clamped before the integer conversion, so any input (far outside [0, 1], NaN) is defined.
     const float corner = fminf(fmaxf(floorf(p), -1073741824.f), 1073741824.f);
-    cell[d] = static_cast<std::uint32_t>(static_cast<std::int32_t>(corner));
+    c.lower[d] = static_cast<std::uint32_t>(static_cast<std::int32_t>(corner));
     const float t = p - corner;
-    w[d] = g.smoothstep() ? t * t * (3.f - 2.f * t) : t;
-    dw[d] = g.smoothstep() ? 6.f * t * (1.f - t) * scale : scale;
+    // fmaf spelled out: nvcc would contract 3 - 2t and the host compiler not, and the fused
+    // kernels' emulation must round as they do.
+    c.w[d] = g.smoothstep() ? t * t * fmaf(-2.f, t, 3.f) : t;
+    c.dw[d] = g.smoothstep() ? 6.f * t * (1.f - t) * scale : scale;
   }
+  return c;
+}
+
+// The interpolation weight of corner `corner` of the cell (bit d set: the upper vertex along d).
+INR_HD float hashGridCornerWeight(const HashGridCell& c, int dims, int corner) {
+  float weight = 1.f;
+  for (int d = 0; d < dims; ++d) weight *= ((corner >> d) & 1) ? c.w[d] : 1.f - c.w[d];
+  return weight;
+}
+
+// The entries of a cell's corners on one level, as hashGridEntry gives them, from what each
+// axis's lower and upper vertex contribute (v * res^d, summed, on a dense level; v * prime_d,
+// XORed, on a hashed one), so a corner costs DIMS - 1 adds or XORs.
+template <int DIMS>
+struct HashGridCorners {
+  std::uint32_t lo[DIMS], hi[DIMS], entries;
+  bool hashed;
+  INR_HD HashGridCorners(const std::uint32_t* lower, std::uint32_t res, std::uint32_t levelEntries)
+      : entries(levelEntries) {
+    std::uint32_t stride = 1;  // as hashGridEntry decides dense or hashed
+    for (int d = 0; d < DIMS && stride <= entries; ++d) stride *= res;
+    hashed = entries < stride;
+    std::uint32_t s = 1;
+    for (int d = 0; d < DIMS; ++d) {
+      const std::uint32_t k = hashed ? hashGridPrime(d) : s;
+      lo[d] = lower[d] * k;
+      hi[d] = (lower[d] + 1u) * k;
+      s *= res;
+    }
+  }
+  INR_HD std::uint32_t entry(int corner) const {
+    std::uint32_t index = (corner & 1) ? hi[0] : lo[0];
+    for (int d = 1; d < DIMS; ++d) {
+      const std::uint32_t part = ((corner >> d) & 1) ? hi[d] : lo[d];
+      index = hashed ? index ^ part : index + part;
+    }
+    return hashGridWrap(index, entries);
+  }
+};
+
+// Features [first, first + count) of hash-grid level `level` at the inputs x (x(i), i < dims),
+// interpolated (d-linearly, or with smoothstep weights) between the 2^dims vertices of the cell
+// around x * scale + 0.5, into out[0, count). With dOut, also their derivatives along each input:
+// dOut[j * dims + i] = d out[j] / d x_i. The fp32 reference form (CPU, generic and per-thread
+// GPU paths); the fused kernels' is hashGridLevelFused.
+template <class Input>
+INR_HD void hashGridLevel(const HashGridView& g, int level, int dims, const Input& x, int first, int count, float* out,
+                          float* dOut = nullptr) {
+  const std::uint32_t res = g.resolution(level), entries = g.entries(level);
+  const int F = g.features();
+  const float* table = g.table() + std::size_t(g.firstEntry(level)) * F;
+  const HashGridCell c = hashGridCell(g, level, dims, x);
   for (int j = 0; j < count; ++j) out[j] = 0.f;
   if (dOut)
     for (int j = 0; j < count * dims; ++j) dOut[j] = 0.f;
   for (int corner = 0; corner < (1 << dims); ++corner) {
     std::uint32_t v[4];
-    float weight = 1.f;
-    for (int d = 0; d < dims; ++d) {
-      const bool upper = (corner >> d) & 1;
-      v[d] = cell[d] + (upper ? 1u : 0u);
-      weight *= upper ? w[d] : 1.f - w[d];
-    }
+    for (int d = 0; d < dims; ++d) v[d] = c.lower[d] + (((corner >> d) & 1) ? 1u : 0u);
+    const float weight = hashGridCornerWeight(c, dims, corner);
     const float* entry = table + std::size_t(hashGridEntry(v, dims, res, entries)) * F + first;
     for (int j = 0; j < count; ++j) out[j] += weight * entry[j];
     if (dOut) {
       for (int i = 0; i < dims; ++i) {  // d weight / d x_i: the factor of axis i differentiated
-        float dweight = ((corner >> i) & 1) ? dw[i] : -dw[i];
+        float dweight = ((corner >> i) & 1) ? c.dw[i] : -c.dw[i];
         for (int d = 0; d < dims; ++d)
-          if (d != i) dweight *= ((corner >> d) & 1) ? w[d] : 1.f - w[d];
+          if (d != i) dweight *= ((corner >> d) & 1) ? c.w[d] : 1.f - c.w[d];
         for (int j = 0; j < count; ++j) dOut[j * dims + i] += dweight * entry[j];
       }
     }
   }
+}
+
+// All F features of hash-grid level `level` as the fused kernels compute them
+// (Cuda/FusedHashGrid.cuh) from the fp16 copy of the table: value(e, j) is feature j of the
+// level's entry e as stored there. The corners whose x vertex is the lower one and those whose
+// is the upper one are summed apart (fmaf, in corner order) and the two sums then added: the
+// kernels may give the two halves to the two lanes of a pair. The CPU emulation runs this.
+template <int DIMS, class Input, class Value>
+INR_HD void hashGridLevelFused(const HashGridView& g, int level, const Input& x, const Value& value, float* out) {
+  const int F = g.features();
+  const HashGridCell c = hashGridCell(g, level, DIMS, x);
+  const HashGridCorners<DIMS> corners(c.lower, g.resolution(level), g.entries(level));
+  float half[2][8];
+  for (int xb = 0; xb < 2; ++xb) {
+    for (int j = 0; j < F; ++j) half[xb][j] = 0.f;
+    for (int corner = xb; corner < (1 << DIMS); corner += 2) {
+      const float weight = hashGridCornerWeight(c, DIMS, corner);
+      const std::uint32_t e = corners.entry(corner);
+      for (int j = 0; j < F; ++j) half[xb][j] = fmaf(weight, value(e, j), half[xb][j]);
+    }
+  }
+  for (int j = 0; j < F; ++j) out[j] = half[0][j] + half[1][j];
 }
 
 // Column k of hash-grid instruction f of the inputs x; grid: f's packed weights.

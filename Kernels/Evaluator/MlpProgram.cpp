@@ -238,6 +238,12 @@ public:
       in.floatOffset = pushFloats(B);
     } else {
       in.floatOffset = pushFloats(packHashGrid(L));
+      // The fused kernels gather from an fp16 copy of the table, as tiny-cuda-nn stores it: half
+      // the bytes, so a large table stays in L2. 16-byte aligned: an entry of 8 features is one
+      // load there.
+      while (p_.halfWeights.size() % 8) p_.halfWeights.push_back(0);
+      in.halfOffset = std::int64_t(p_.halfWeights.size());
+      for (float v : L.weight) p_.halfWeights.push_back(floatToHalfBits(v));
     }
     noteWidth(L.outWidth);
     release(x);
@@ -349,7 +355,7 @@ const char* opName(MlpOp op) {
     case MlpOp::LoadInput: return "load-input";
     case MlpOp::DenseFp32: return "dense-fp32";
     case MlpOp::Fourier: return "fourier-fp32";
-    case MlpOp::HashGrid: return "hashgrid-fp32";
+    case MlpOp::HashGrid: return "hashgrid";
     case MlpOp::Gemm: return "gemm-fp16";
     case MlpOp::Activation: return "activation";
     case MlpOp::Combine: return "combine";
@@ -520,6 +526,7 @@ std::string MlpProgram::describe() const {
     if (in.fusedIntoPrevious) s << " (fused into the previous gemm)";
     if (in.splitPrecision) s << " (fp16 hi/lo split)";
     if (in.fusedIntoNext) s << " (computed in the next gemm's operand load)";
+    if (in.op == MlpOp::HashGrid) s << " (fp32 table; fused kernels: fp16 table)";
     s << "\n";
   }
   s << numBuffers << " buffers, width " << maxWidthPad << (fusable ? ", fused" : ", generic: " + whyNotFused);

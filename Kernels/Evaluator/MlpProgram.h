@@ -11,8 +11,10 @@
 //   DenseFp32    src (coordinates or buffer) -> dst, fp32 FMA: first layers, where coordinate
 //                precision matters, and any linear with K <= 16
 //   Fourier      src (coordinates or buffer) -> dst, fp32 [sin(Bx), cos(Bx)] (+x), B pre-scaled
-//   HashGrid     src (coordinates or buffer) -> dst, fp32 hash-grid features (+x), from the
-//                packed table (packHashGrid; Evaluator/Encodings.h HashGridView)
+//   HashGrid     src (coordinates or buffer) -> dst, hash-grid features (+x) interpolated in
+//                fp32: the parameters from the packed layer (packHashGrid; Evaluator/Encodings.h
+//                HashGridView), the table read from its fp32 copy there (generic and per-thread
+//                paths) or from an fp16 copy in halfWeights (the fused kernels, at halfOffset)
 //   Gemm         src -> dst on tensor cores, fp32 accumulate, + bias, activation epilogue,
 //                optionally dst = combineScale * (act(acc) + other)
 //   Activation   dst = act(actScale * dst) in place (standalone activations)
@@ -42,7 +44,8 @@ struct MlpInstr {
   float actScale = 1.f;      // Activation: scale before the activation (scale layers)
   float combineScale = 1.f;  // Combine / Gemm with `other`
   std::int32_t includeInput = 0;  // Fourier, HashGrid: 0 none, 1 first, 2 last
-  std::int64_t halfOffset = -1;   // Gemm: fp16 weights [nPad][kPad] in MlpProgram::halfWeights
+  std::int64_t halfOffset = -1;   // Gemm: fp16 weights [nPad][kPad] in MlpProgram::halfWeights;
+                                  // HashGrid: its fp16 table [entries][features] there
   std::int64_t floatOffset = -1;  // fp32 weights [out][in] (B [m][in]); Gemm: the generic path's copy
   std::int64_t biasOffset = -1;   // fp32 bias [nPad] in floatWeights, -1 = none
   // Gemm: index of the next Gemm in execution order (wrapping to the first one, whose weights

@@ -9,6 +9,31 @@
 #include "Evaluator/MlpProgram.h"
 
 namespace inr {
+namespace {
+
+// Hash-grid instruction f's row of `width` columns as the fused kernels store it: the features
+// from the fp16 table (Evaluator/Encodings.h hashGridLevelFused) and any included inputs, rounded
+// to fp16, zeros past f.outWidth.
+template <class Input>
+void hashGridRowAsFused(const MlpProgram& p, const MlpInstr& f, const Input& x, int width, float* row) {
+  const HashGridView g{p.floatWeights.data() + f.floatOffset};
+  const HashGridColumns cols(f);
+  const int F = g.features();
+  for (int c = 0; c < width; ++c) row[c] = 0.f;
+  for (int i = 0; i < cols.inputs; ++i) row[cols.inputAt + i] = roundToHalf(x(i));
+  for (int l = 0; l < g.levels(); ++l) {
+    const std::uint16_t* table = p.halfWeights.data() + f.halfOffset + std::size_t(g.firstEntry(l)) * F;
+    auto value = [&](std::uint32_t e, int j) { return halfBitsToFloat(table[std::size_t(e) * F + j]); };
+    float v[8];
+    if (f.inWidth == 3)
+      hashGridLevelFused<3>(g, l, x, value, v);
+    else
+      hashGridLevelFused<4>(g, l, x, value, v);
+    for (int j = 0; j < F; ++j) row[cols.featureAt + l * F + j] = roundToHalf(v[j]);
+  }
+}
+
+}  // namespace
 
 void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n, float* out) {
   const int W = p.maxWidthPad;
@@ -74,7 +99,10 @@ void emulateFusedProgram(const MlpProgram& p, const float* inputs, std::size_t n
         case MlpOp::Fourier:  // every encoding (Evaluator/Encodings.h)
         case MlpOp::HashGrid: {
           auto input = [&](int k) { return srcAt(in.src, k); };
-          for (int c = 0; c < W; ++c) tmp[c] = c < in.outWidth ? h(encodingElement(in, p.floatWeights.data(), input, c)) : 0.f;
+          if (in.op == MlpOp::HashGrid)
+            hashGridRowAsFused(p, in, input, W, tmp.data());
+          else
+            for (int c = 0; c < W; ++c) tmp[c] = c < in.outWidth ? h(encodingElement(in, p.floatWeights.data(), input, c)) : 0.f;
           buf[in.dst] = tmp;
           break;
         }

@@ -146,6 +146,10 @@ struct CudaInrEvaluator::Impl {
   cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma chunks' core-matrix layout, chunks of 64 / 128 columns
   std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
   cuda::DeviceBuffer<float> floatW;
+  cuda::DeviceBuffer<__half> hashTables;  // MlpProgram::halfWeights, for a program with a hash grid
+  // CudaEvaluatorOptions::hashTablesPersistInL2: the fused launches' access-policy window over
+  // the tables (num_bytes 0: none).
+  cudaAccessPolicyWindow tablesWindow{};
   cuda::DeviceBuffer<float> outputTable;
   // host-interface staging
   mutable cuda::DeviceBuffer<float4> stagePoints;
@@ -158,6 +162,8 @@ struct CudaInrEvaluator::Impl {
   std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
 
   void prepareParams(const InrModel& model);
+  // Sets tablesWindow (and the device's persisting L2 limit) over the hash tables; what it did.
+  std::string persistTablesInL2();
   // Runs one fused configuration on n points (at most, with a device-side count).
   void launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float* out,
                    const int* scatter, cudaStream_t stream) const;
@@ -217,6 +223,9 @@ void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
   const MlpProgram storedProgram = prog.withEncodingsStored();
   if (P.fusedFourier) storedInstrs.upload(storedProgram.instrs, nullptr);
   floatW.upload(prog.floatWeights, nullptr);
+  for (const MlpInstr& in : prog.instrs)
+    if (in.op == MlpOp::HashGrid && !hashTables.get()) hashTables.upload(asHalves(prog.halfWeights), nullptr);
+  P.hashTables = hashTables.get();
   INR_CUDA_CHECK(cudaDeviceSynchronize());  // the uploads are asynchronous; launches may use other streams
   P.instrs = instrs.get();
   P.numInstrs = int(prog.instrs.size());
@@ -234,6 +243,33 @@ void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
   }
 }
 
+std::string CudaInrEvaluator::Impl::persistTablesInL2() {
+  if (!hashTables.get()) return "";
+  // The span of halfWeights the tables occupy (they follow the GEMM weights of earlier layers).
+  std::size_t begin = program.halfWeights.size(), end = 0;
+  for (const MlpInstr& in : program.instrs) {
+    if (in.op != MlpOp::HashGrid) continue;
+    const HashGridView g{program.floatWeights.data() + in.floatOffset};
+    const int last = g.levels() - 1;
+    begin = std::min(begin, std::size_t(in.halfOffset));
+    end = std::max(end, std::size_t(in.halfOffset) + (std::size_t(g.firstEntry(last)) + g.entries(last)) * g.features());
+  }
+  int maxPersist = 0, maxWindow = 0;
+  INR_CUDA_CHECK(cudaDeviceGetAttribute(&maxPersist, cudaDevAttrMaxPersistingL2CacheSize, device.device));
+  INR_CUDA_CHECK(cudaDeviceGetAttribute(&maxWindow, cudaDevAttrMaxAccessPolicyWindowSize, device.device));
+  if (maxPersist <= 0 || maxWindow <= 0) return " [L2 persistence: not supported here]";
+  const std::size_t bytes = std::min((end - begin) * sizeof(__half), std::size_t(maxWindow));
+  const std::size_t persist = std::min(bytes, std::size_t(maxPersist));
+  INR_CUDA_CHECK(cudaDeviceSetLimit(cudaLimitPersistingL2CacheSize, persist));
+  tablesWindow.base_ptr = hashTables.get() + begin;
+  tablesWindow.num_bytes = bytes;
+  // A window larger than the persisting set: only that fraction of its lines persist.
+  tablesWindow.hitRatio = float(double(persist) / double(bytes));
+  tablesWindow.hitProp = cudaAccessPropertyPersisting;
+  tablesWindow.missProp = cudaAccessPropertyStreaming;
+  return " [L2 persistence: " + std::to_string(persist >> 20) + " of " + std::to_string(bytes >> 20) + " MB of tables]";
+}
+
 void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount,
                                          float* out, const int* scatter, cudaStream_t stream) const {
   // With a device-side count, the grid follows the bound (the kernel's tile loop is
@@ -246,7 +282,20 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
     P.hopperStages = c.stages;
     P.hopperPingPong = c.pingPong ? 1 : 0;
   }
-  kernel<<<grid, c.wgmma ? cuda::kHopperThreads : c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, out, scatter);
+  P.hashGridPairs = c.hashGridPairs != 0 ? 1 : 0;
+  cudaLaunchConfig_t launch{};
+  launch.gridDim = dim3(unsigned(grid));
+  launch.blockDim = dim3(unsigned(c.wgmma ? cuda::kHopperThreads : c.tile * 4));
+  launch.dynamicSmemBytes = c.sharedBytes;
+  launch.stream = stream;
+  cudaLaunchAttribute window{};
+  if (tablesWindow.num_bytes) {
+    window.id = cudaLaunchAttributeAccessPolicyWindow;
+    window.val.accessPolicyWindow = tablesWindow;
+    launch.attrs = &window;
+    launch.numAttrs = 1;
+  }
+  INR_CUDA_CHECK(cudaLaunchKernelEx(&launch, kernel, P, points, n, deviceCount, out, scatter));
   INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
 }
 
@@ -259,6 +308,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.program = MlpProgram::compile(model.architecture);
   I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
   I.prepareParams(model);
+  const std::string persistence = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
   I.gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
 
   // The path: fused where the program and a configuration fit, else generic.
@@ -298,6 +348,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.smallConfig = choice.small;
   I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
+  I.launchReport += persistence;
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {

@@ -46,6 +46,15 @@ struct CudaEvaluatorOptions {
   // never (0), or both are autotuned (-1).
   int wgmmaPingPong = -1;
   int wgmmaChunkColumns = 0;
+  // Hash-grid networks: keep the fp16 tables in L2 with a persisting access-policy window on the
+  // fused launches (cudaLaunchAttributeAccessPolicyWindow; sets the device's persisting L2 limit
+  // to the tables' size, at most what the device allows). Off by default: it changes a
+  // device-wide limit that other work on the GPU shares, and a table that fits L2 mostly stays
+  // there anyway (gpu_evaluator_benchmark --l2-persist measures both).
+  bool hashTablesPersistInL2 = false;
+  // Hash-grid networks: the gather's lanes (FusedParams::hashGridPairs): a pair per row and level
+  // (1), one lane (0), or both autotuned (-1). The same bits either way.
+  int hashGridPairs = -1;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {

@@ -12,9 +12,11 @@
 namespace inr::cuda {
 
 std::string configName(const FusedConfig& c) {
-  if (!c.wgmma) return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "");
+  const std::string hash = c.hashGridPairs < 0 ? "" : c.hashGridPairs ? ", hash lane pairs" : ", hash lane per row";
+  if (!c.wgmma)
+    return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") + hash;
   return "wgmma " + std::to_string(kHopperConsumers) + "x" + std::to_string(kHopperRows) + " x N " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "");
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
 }
 
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
@@ -72,7 +74,16 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           candidates.push_back({true, kHopperQueriesPerRound, nc, stages, pingPong, false, bytes,
                                 perSm * device_.multiprocessors, 0.0});
     }
-  return candidates;
+  if (!P.hashTables) return candidates;
+  // A hash grid's gather both ways (FusedParams::hashGridPairs): lane pairs first.
+  std::vector<FusedConfig> both;
+  for (const FusedConfig& c : candidates)
+    for (const int pairs : {1, 0}) {
+      if (options.hashGridPairs >= 0 && options.hashGridPairs != pairs) continue;
+      both.push_back(c);
+      both.back().hashGridPairs = pairs;
+    }
+  return both;
 }
 
 FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<FusedConfig>& candidates,

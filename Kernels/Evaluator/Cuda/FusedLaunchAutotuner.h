@@ -33,9 +33,13 @@ struct FusedConfig {
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
   double measuredQps = 0.0;
+  // A program with a hash grid: its gathers with a pair of lanes per row and level (splitting
+  // the corners) or one lane (FusedParams::hashGridPairs); the same bits either way. -1: no grid.
+  int hashGridPairs = -1;
 };
 
-// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong".
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong", with ", hash lane
+// pairs" or ", hash lane per row" for a program with a hash grid.
 std::string configName(const FusedConfig& config);
 
 class FusedLaunchAutotuner {
@@ -52,7 +56,8 @@ public:
 
   // The configurations options allow whose shared memory fits, in the order that runs without
   // timing: mma.sync first (the stored encoding before the fused one: the kernel of earlier
-  // versions), then wgmma when `wgmmaRuns`. `params`: the program as compiled; `storedParams`:
+  // versions), then wgmma when `wgmmaRuns`; each twice for a program with a hash grid (lane pairs
+  // first, then a lane per row). `params`: the program as compiled; `storedParams`:
   // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
                                       bool wgmmaRuns) const;

@@ -42,6 +42,11 @@ struct FusedParams {
   // The program has a Fourier encoding fused into a GEMM: the mma.sync kernel computes it chunk
   // by chunk into a stage of M x (KC + 8) halves.
   int fusedFourier = 0;
+  // The hash-grid tables in fp16 (MlpProgram::halfWeights, uploaded; a HashGrid instruction's
+  // table at its halfOffset), and how the gather (FusedHashGrid.cuh) lays its work over lanes: a
+  // pair of lanes per row and level, splitting the corners (1), or one lane (0). Same bits.
+  const __half* hashTables = nullptr;
+  int hashGridPairs = 1;
   // The Hopper kernel (FusedMlpKernelHopper.cuh): its program (MlpProgram::withGemmsInPlace, the
   // same instructions over fewer buffers) and buffers, its weights (packHopperWeights) with each
   // instruction's offset (per chunk width), each GEMM's bias offset in shared memory

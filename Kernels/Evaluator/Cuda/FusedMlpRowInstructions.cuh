@@ -4,8 +4,10 @@
 // tile's rows in shared memory; both fused kernels call runRowInstr between their GEMMs. Where an
 // encoding is fused into a GEMM's operand load instead, the kernels compute its elements with
 // Evaluator/Encodings.h (fourierElement<ActMath::FastDevice>), the same arithmetic as stored here.
+// The hash-grid encoding's gathers are FusedHashGrid.cuh.
 #include <cuda_fp16.h>
 
+#include "Evaluator/Cuda/FusedHashGrid.cuh"
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
 #include "Evaluator/Encodings.h"
@@ -118,18 +120,10 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       break;
     }
     case MlpOp::HashGrid: {
-      // A stored hash-grid encoding: one thread per (row, level), all of the level's features
-      // from one set of weights and vertex indices (Evaluator/Encodings.h, fp32), rounded to fp16
-      // like every buffer. Any row's coordinates give in-bounds table reads.
-      const HashGridView g{P.floatWeights + in.floatOffset};
+      // The features from the fp16 tables (FusedHashGrid.cuh), rounded to fp16 like every buffer.
       const HashGridColumns cols(in);
-      const int levels = g.levels(), F = g.features();
-      for (int idx = tid; idx < M * levels; idx += THREADS) {
-        const int r = idx / levels, l = idx - r * levels;
-        float v[8];
-        hashGridLevel(g, l, in.inWidth, [&](int k) { return input(r, k); }, 0, F, v);
-        for (int j = 0; j < F; ++j) dst[r * ldDst + cols.featureAt + l * F + j] = __float2half(v[j]);
-      }
+      hashGridRows<M, THREADS>(HashGridView{P.floatWeights + in.floatOffset}, P.hashTables + in.halfOffset, in.inWidth,
+                               P.hashGridPairs != 0, coords, src, ldSrc, dst, ldDst, cols.featureAt, tid);
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
         for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
