@@ -154,13 +154,27 @@ struct CudaInrEvaluator::Impl {
   cublasHandle_t cublas = nullptr;
   mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
   static constexpr int kGenericChunk = 1 << 16;
-  // Gradient shading's value + gradient queries (fp32 forward mode, one thread per query).
+  // Gradient shading's value + gradient queries: the fused kernel's tangent rows (tangentConfig
+  // for launches of kSmallBatchThreshold queries or more, smallTangentConfig below) where
+  // fusedTangents, else fp32 forward mode, one thread per query (gradientNetwork; why not fused:
+  // whyNoFusedTangents).
   std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
+  bool fusedTangents = false;
+  std::string whyNoFusedTangents;
+  FusedConfig tangentConfig, smallTangentConfig;
+  std::string tangentReport;
+  OutputMapping output;
 
   void prepareParams(const InrModel& model);
   // Runs one fused configuration on n points (at most, with a device-side count).
   void launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float* out,
                    const int* scatter, cudaStream_t stream) const;
+  // The same for value + gradient (a configuration with tangent rows) at world time `time`.
+  void launchTangents(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float time,
+                      float4* out, cudaStream_t stream) const;
+  // Chooses the tangent configurations among the value path's candidates, or says why not.
+  void prepareTangents(const InrModel& model, const CudaEvaluatorOptions& options, const FusedLaunchAutotuner& tuner,
+                       const std::vector<FusedConfig>& candidates);
 };
 
 // The program's parameters for the fused kernels (params, and paramsStored with any Fourier
@@ -250,6 +264,61 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
 }
 
+void CudaInrEvaluator::Impl::launchTangents(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount,
+                                            float time, float4* out, cudaStream_t stream) const {
+  const int queriesPerTile = c.tile / 4;  // TileRows<true>: a query's value and three tangents
+  const int grid = std::min((n + queriesPerTile - 1) / queriesPerTile, c.gridBlocks);
+  cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  // One output mapping for the launch, at `time` (as the per-thread path maps it).
+  float a = 1.f, b = 0.f;
+  output.affineAt(time, a, b);
+  P.output = cuda::OutputMap{a, b, 0, nullptr};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int i = P.tangentInput[axis];
+    P.gradientScale[axis] = i >= 0 ? a * P.inScale[i] / P.tangentScale : 0.f;
+  }
+  cuda::mmaSyncTangentKernel(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(
+      P, points, n, deviceCount, reinterpret_cast<float*>(out), nullptr);
+  INR_CUDA_CHECK_LAUNCH("fusedMlpKernel (tangent rows)");
+}
+
+void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEvaluatorOptions& options,
+                                             const FusedLaunchAutotuner& tuner, const std::vector<FusedConfig>& candidates) {
+  int tangentInput[3];
+  if (options.gradientPath == CudaGradientPath::PerThread) {
+    whyNoFusedTangents = "per-thread requested";
+  } else if (path != CudaEvaluatorPath::Fused) {
+    whyNoFusedTangents = "the model runs on the generic path";
+  } else if (!tangentInputsOf(model, tangentInput)) {
+    whyNoFusedTangents = "a world axis feeds more than one network input";
+  }
+  const std::vector<FusedConfig> tangentCandidates =
+      whyNoFusedTangents.empty() ? tuner.tangentCandidates(candidates) : std::vector<FusedConfig>{};
+  if (whyNoFusedTangents.empty() && tangentCandidates.empty())
+    whyNoFusedTangents = "no mma.sync configuration among the launch candidates (the kernel with tangent rows)";
+  if (!whyNoFusedTangents.empty()) {
+    if (options.gradientPath == CudaGradientPath::FusedTangents)
+      throw std::runtime_error("fused tangent rows requested but impossible for this model: " + whyNoFusedTangents);
+    return;
+  }
+  program.tangentScale = chooseTangentScale(program, model);
+  for (cuda::FusedParams* P : {&params, &paramsStored}) {
+    P->tangentScale = program.tangentScale;
+    for (int axis = 0; axis < 3; ++axis) P->tangentInput[axis] = tangentInput[axis];
+  }
+  cuda::DeviceBuffer<float4> results;
+  results.growTo(std::size_t(std::max(options.autotuneBatch, FusedLaunchAutotuner::kSmallBatch)));
+  const float time = float(model.domain.timeBegin);
+  const FusedLaunchAutotuner::Choice choice =
+      tuner.choose(tangentCandidates, model.domain, [&](const FusedConfig& c, const float4* points, int n, float*) {
+        launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
+      });
+  tangentConfig = choice.large;
+  smallTangentConfig = choice.small;
+  tangentReport = choice.report;
+  fusedTangents = true;
+}
+
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
     : impl_(std::make_unique<Impl>()) {
   Impl& I = *impl_;
@@ -260,6 +329,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
   I.prepareParams(model);
   I.gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
+  I.output = model.output;
 
   // The path: fused where the program and a configuration fit, else generic.
   const MlpProgram& prog = I.program;
@@ -288,6 +358,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
   if (!fused) {
     cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
+    I.prepareTangents(model, options, tuner, candidates);  // says why not
     return;
   }
   const FusedLaunchAutotuner::Choice choice =
@@ -298,6 +369,8 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.smallConfig = choice.small;
   I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
+  I.prepareTangents(model, options, tuner, candidates);
+  I.launchReport += "; value + gradient: " + (I.fusedTangents ? I.tangentReport : "per-thread fp32 (" + I.whyNoFusedTangents + ")");
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {
@@ -417,12 +490,33 @@ void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* 
 
 void CudaInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
                                             float* gradients) const {
-  impl_->gradientNetwork->evaluateWithGradient(points, n, values, gradients);
+  gradientsThroughDevice(impl_->output, points, n, values, gradients, [&](const float4* p, int m, float time, float4* out) {
+    evaluateWithGradientDevice(p, nullptr, m, time, out, nullptr);
+  });
 }
 
 void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN,
                                                   float time, float4* out, cudaStream_t stream) const {
-  impl_->gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
+  const Impl& I = *impl_;
+  if (maxN <= 0) return;
+  if (!I.fusedTangents) {
+    I.gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
+    return;
+  }
+  I.launchTangents(maxN < Impl::kSmallBatchThreshold ? I.smallTangentConfig : I.tangentConfig, points, maxN, deviceCount,
+                   time, out, stream);
 }
+
+std::string CudaInrEvaluator::gradientPath() const {
+  const Impl& I = *impl_;
+  return I.fusedTangents ? "fused tangent rows (" + configName(I.tangentConfig) + ", below " +
+                               std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallTangentConfig) +
+                               ", tangent scale " + std::to_string(I.program.tangentScale) + ")"
+                         : "per-thread fp32 (" + I.whyNoFusedTangents + ")";
+}
+
+bool CudaInrEvaluator::usesFusedTangents() const { return impl_->fusedTangents; }
+
+float CudaInrEvaluator::tangentScale() const { return impl_->program.tangentScale; }
 
 }  // namespace inr

@@ -33,6 +33,9 @@ struct FusedConfig {
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
   double measuredQps = 0.0;
+  // The mma.sync kernel with tangent rows (value + gradient; a tile of `tile` rows holds tile / 4
+  // queries).
+  bool tangents = false;
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong".
@@ -56,6 +59,11 @@ public:
   // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
                                       bool wgmmaRuns) const;
+
+  // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
+  // (the same shared memory; its own register count, so its own resident blocks), its dynamic
+  // shared-memory limit set. Empty when no candidate is mma.sync (wgmma requested).
+  std::vector<FusedConfig> tangentCandidates(const std::vector<FusedConfig>& candidates) const;
 
   struct Choice {
     FusedConfig large;  // launches of kSmallBatchThreshold queries or more

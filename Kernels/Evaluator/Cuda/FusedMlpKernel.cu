@@ -11,6 +11,13 @@
 // width compute it on whatever the (64-row aligned) weight stage holds and discard it, so the
 // tensor-core loop has no per-warp branches (which would make every ldmatrix/mma reconverge).
 // Coordinates, Fourier encodings and DenseFp32 layers stay fp32.
+// kTangents: value and gradient in one pass (forward mode, gradient shading). A tile's rows are
+// then M / 4 queries' values and three tangents each (TileRows<true>, FusedMlpDevice.cuh), so
+// the tangents ride as extra rows of the same GEMMs, through the same weight fragments; the
+// epilogue computes act(z) for a value and act'(z) * (W dx) for a tangent (no bias: the
+// accumulators of tangent rows start at zero), residual sums add the tangents' own rows, and
+// the output is the value with its world gradient (float4 per query). Tangents are stored in
+// fp16 like the values, scaled by MlpProgram::tangentScale (a power of two: fp16's range).
 // The kernel's instantiations (tile x weight chunk) live in this translation unit only; the
 // evaluator reaches them through mmaSyncKernel() (FusedMlpKernels.h).
 #include <cuda_fp16.h>
@@ -40,14 +47,16 @@ __device__ inline void stageWeightChunk(const FusedParams& P, int ip, int nPad, 
 
 // At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
 // exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
-template <int WR, int KC>
+template <int WR, int KC, bool kTangents>
 __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                   const unsigned* __restrict__ deviceCount,
                                                                   float* __restrict__ out, const int* __restrict__ scatter) {
   // deviceCount: the batch size as written by an earlier kernel (n is then its upper bound), so
   // a producer-consumer loop needs no host round trip per batch.
   if (deviceCount) n = min(n, int(*deviceCount));
-  constexpr int M = 32 * WR;  // queries per tile
+  constexpr int M = 32 * WR;  // rows per tile
+  using Rows = TileRows<kTangents>;
+  constexpr int Q = M / Rows::kDirections;  // queries per tile
   constexpr int THREADS = WR * 128;
   constexpr int kStride = KC + 8;  // halves per staged weight row
   extern __shared__ __align__(128) unsigned char smem[];
@@ -84,12 +93,12 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
   const int rowGroup = warp >> 2, colGroup = warp & 3;
 
-  const int numTiles = (n + M - 1) / M;
+  const int numTiles = (n + Q - 1) / Q;
   bool firstChunkStaged = false;  // the coming GEMM's chunk 0 is already in flight
   for (int tile = blockIdx.x; tile < numTiles; tile += gridDim.x) {
-    const int base = tile * M;
-    const int rows = min(M, n - base);
-    loadTileCoords<M, THREADS>(P, points, base, rows, coords, tid);
+    const int base = tile * Q;
+    const int rows = min(Q, n - base);  // queries of this tile
+    loadTileCoords<M, THREADS, kTangents>(P, points, base, rows, coords, tid);
     __syncthreads();
 
     for (int ip = 0; ip < P.numInstrs; ++ip) {
@@ -97,7 +106,8 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
       // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
       if (in.fusedIntoPrevious || in.fusedIntoNext) continue;  // uniform
       if (in.op != MlpOp::Gemm) {
-        runRowInstr<M, THREADS>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out, scatter);
+        runRowInstr<M, THREADS, kTangents>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out,
+                                           scatter);
         __syncthreads();
         continue;
       }
@@ -151,7 +161,11 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 ldmatrixX4(b, bBase + bOff + unsigned(j * 64 * kStride * 2));
 #pragma unroll
                 for (int mt = 0; mt < 2; ++mt) {
-                  if constexpr (kFirst) {
+                  if constexpr (kFirst && kTangents) {  // bias in the value rows only
+                    const float2 zero = make_float2(0.f, 0.f);
+                    mma16816BiasUpperZero(acc[mt][j][0], a[mt], b[0], b[1], mt == 0 ? biasPair[j][0] : zero);
+                    mma16816BiasUpperZero(acc[mt][j][1], a[mt], b[2], b[3], mt == 0 ? biasPair[j][1] : zero);
+                  } else if constexpr (kFirst) {
                     mma16816Bias(acc[mt][j][0], a[mt], b[0], b[1], biasPair[j][0]);
                     mma16816Bias(acc[mt][j][1], a[mt], b[2], b[3], biasPair[j][1]);
                   } else {
@@ -177,11 +191,16 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 const MlpInstr& f = program[in.fourierInput];
                 for (int idx = tid; idx < M * (KC / 2); idx += THREADS) {
                   const int r = idx / (KC / 2), k = 2 * (idx % (KC / 2)), col = chunk * KC + k;
-                  const float* x = coords + r * 4;
+                  // A tangent row: the element's derivative at its query's value row's inputs.
+                  const float* x = coords + Rows::row(Rows::query(r), 0) * 4;
+                  const float* dx = coords + r * 4;
                   auto input = [x](int i) { return x[i]; };
-                  *reinterpret_cast<__half2*>(encStage + r * (KC + 8) + k) =
-                      __floats2half2_rn(fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, col),
-                                        fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, col + 1));
+                  auto tangent = [dx](int i) { return dx[i]; };
+                  auto element = [&](int c) {
+                    return Rows::direction(r) == 0 ? fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, c)
+                                                   : encodingElementTangent(f, P.floatWeights, input, tangent, c);
+                  };
+                  *reinterpret_cast<__half2*>(encStage + r * (KC + 8) + k) = __floats2half2_rn(element(col), element(col + 1));
                 }
               }
               __syncthreads();
@@ -207,16 +226,22 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
             if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
               if (colGroup == 0 && t4 == 0) {
+                if constexpr (kTangents) {  // this lane's four rows: query g's value and tangents
+                  const int q = rowGroup * 8 + g;
+                  if (q < rows)
+                    emitOutput<true>(P, in.act, [&](int d) { return acc[d >> 1][0][0][2 * (d & 1)]; }, base + q, points, out,
+                                     scatter);
+                } else {
 #pragma unroll
-                for (int mt = 0; mt < 2; ++mt)
+                  for (int mt = 0; mt < 2; ++mt)
 #pragma unroll
-                  for (int half = 0; half < 2; ++half) {
-                    const int row = rowBase + mt * 16 + g + half * 8;
-                    if (row < rows) {
-                      const float net = applyActivation(in.act, acc[mt][0][0][2 * half]);
-                      writeOutput(P.output, points[base + row].w, net, base + row, out, scatter);
+                    for (int half = 0; half < 2; ++half) {
+                      const int row = rowBase + mt * 16 + g + half * 8;
+                      if (row < rows)
+                        emitOutput<false>(P, in.act, [&](int) { return acc[mt][0][0][2 * half]; }, base + row, points, out,
+                                          scatter);
                     }
-                  }
+                }
               }
               return;
             }
@@ -224,7 +249,11 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
             dispatchActivation(in.act, [&](auto A) {
               constexpr MlpAct kAct = decltype(A)::value;
               // act(acc) [+ residual], fp32; sigmoid(0) != 0, so its padding columns are masked.
+              // A tangent row (kTangents: m16 tile 1, or rows g + 8 of tile 0) gets act'(z) times
+              // its accumulator, z being the value row's (tile 0, fragment f & 1) pre-activation.
               auto value = [&](int mt, int j, int h, int f, int col) {
+                if (kTangents && (mt > 0 || f >= 2))
+                  return activationDerivative<ActMath::FastDevice>(kAct, acc[0][j][h][f & 1]) * acc[mt][j][h][f];
                 float v = applyActivation(kAct, acc[mt][j][h][f]);
                 if (kAct == MlpAct::Sigmoid && col >= in.outWidth) v = 0.f;
                 return v;
@@ -283,10 +312,12 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                   }
                 __syncthreads();
                 const float dotBias = P.floatWeights[fin.biasOffset];
-                for (int r = tid; r < rows; r += THREADS) {
-                  const float net =
-                      applyActivation(fin.act, dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + dotBias);
-                  writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
+                for (int q = tid; q < rows; q += THREADS) {
+                  auto pre = [&](int d) {  // direction d's dot product (the value's with the bias)
+                    const int r = Rows::row(q, d);
+                    return dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + (d == 0 ? dotBias : 0.f);
+                  };
+                  emitOutput<kTangents>(P, fin.act, pre, base + q, points, out, scatter);
                 }
                 return;
               }
@@ -308,20 +339,24 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   }
 }
 
-// Tile of 32*WR queries, 4*WR warps; weight chunks of KC columns.
-FusedKernel mmaSyncKernel(int tile, int kc) {
+// Tile of 32*WR rows, 4*WR warps; weight chunks of KC columns.
+template <bool kTangents>
+FusedKernel mmaSyncKernelOf(int tile, int kc) {
   if (kc == 32) {
     switch (tile) {
-      case 128: return fusedMlpKernel<4, 32>;
-      case 64: return fusedMlpKernel<2, 32>;
-      default: return fusedMlpKernel<1, 32>;
+      case 128: return fusedMlpKernel<4, 32, kTangents>;
+      case 64: return fusedMlpKernel<2, 32, kTangents>;
+      default: return fusedMlpKernel<1, 32, kTangents>;
     }
   }
   switch (tile) {
-    case 128: return fusedMlpKernel<4, 64>;
-    case 64: return fusedMlpKernel<2, 64>;
-    default: return fusedMlpKernel<1, 64>;
+    case 128: return fusedMlpKernel<4, 64, kTangents>;
+    case 64: return fusedMlpKernel<2, 64, kTangents>;
+    default: return fusedMlpKernel<1, 64, kTangents>;
   }
 }
+
+FusedKernel mmaSyncKernel(int tile, int kc) { return mmaSyncKernelOf<false>(tile, kc); }
+FusedKernel mmaSyncTangentKernel(int tile, int kc) { return mmaSyncKernelOf<true>(tile, kc); }
 
 }  // namespace inr::cuda

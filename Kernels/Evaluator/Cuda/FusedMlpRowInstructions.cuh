@@ -23,12 +23,99 @@ struct RowTile {
   int rows, base;
 };
 
-// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
-// threads (tid: this thread's index among them); the caller synchronises afterwards.
+// With tangents (TileRows<true>: t.rows counts queries), the instructions whose tangent rows
+// need their query's value row (the derivative of a nonlinearity at the value; an in-place
+// activation; the output): one thread per (query, column) computes the value and its three
+// tangents, as emulateFusedTangents does (MlpProgramEmulation.cpp). LoadInput and Combine treat
+// every row alike (linear), so runRowInstr runs them for tangent rows too.
 template <int M, int THREADS>
+__device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+                                          float* __restrict__ out) {
+  using L = TileRows<true>;
+  constexpr int Q = M / 4;
+  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
+  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
+  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
+  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
+  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
+  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
+  // Input k of direction d of query q (a coordinate row holds the input tangent).
+  auto x = [&](int q, int d, int k) -> float {
+    const int r = L::row(q, d);
+    return in.src < 0 ? t.coords[r * 4 + k] : __half2float(src[r * ldSrc + k]);
+  };
+  auto store = [&](int q, int d, int c, float v) { dst[L::row(q, d) * ldDst + c] = __float2half(v); };
+  switch (in.op) {
+    case MlpOp::Fourier:  // every encoding, element by element (Evaluator/Encodings.h)
+    case MlpOp::HashGrid:
+      for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
+        const int q = idx / in.nPad, c = idx - q * in.nPad;
+        auto input = [&](int k) { return x(q, 0, k); };
+        const bool live = c < in.outWidth;
+        store(q, 0, c, live ? encodingElement<ActMath::FastDevice>(in, P.floatWeights, input, c) : 0.f);
+        for (int d = 1; d < 4; ++d) {
+          auto tangent = [&](int k) { return x(q, d, k); };
+          store(q, d, c, live ? encodingElementTangent(in, P.floatWeights, input, tangent, c) : 0.f);
+        }
+      }
+      break;
+    case MlpOp::DenseFp32:
+      for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
+        const int q = idx / in.nPad, o = idx - q * in.nPad;
+        float v[4] = {0.f, 0.f, 0.f, 0.f};  // zero padding columns
+        if (o < in.outWidth) {
+          const float* W = P.floatWeights + in.floatOffset + o * in.inWidth;
+          v[0] = __ldg(P.floatWeights + in.biasOffset + o);
+          for (int k = 0; k < in.inWidth; ++k)
+            for (int d = 0; d < 4; ++d) v[d] = fmaf(__ldg(W + k), x(q, d, k), v[d]);
+          const float pre = v[0], f = activationDerivative<ActMath::FastDevice>(in.act, pre);
+          for (int d = 0; d < 4; ++d) {
+            v[d] = d == 0 ? applyActivation(in.act, pre) : f * v[d];
+            if (other) v[d] = in.combineScale * (v[d] + __half2float(other[L::row(q, d) * ldOther + o]));
+          }
+        }
+        for (int d = 0; d < 4; ++d) store(q, d, o, v[d]);
+      }
+      break;
+    case MlpOp::Activation:  // in place: the value row is read before it is overwritten
+      for (int idx = tid; idx < Q * in.outWidth; idx += THREADS) {
+        const int q = idx / in.outWidth, c = idx - q * in.outWidth;
+        const float pre = in.actScale * __half2float(dst[L::row(q, 0) * ldDst + c]);
+        const float f = activationDerivative<ActMath::FastDevice>(in.act, pre) * in.actScale;
+        for (int d = 1; d < 4; ++d) store(q, d, c, f * __half2float(dst[L::row(q, d) * ldDst + c]));
+        store(q, 0, c, applyActivation(in.act, pre));
+      }
+      break;
+    case MlpOp::OutputDot:
+    case MlpOp::Output:
+      for (int q = tid; q < t.rows; q += THREADS) {
+        const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
+        float pre[4] = {0.f, 0.f, 0.f, 0.f};
+        for (int d = 0; d < 4; ++d) {
+          if (!W) pre[d] = x(q, d, 0);
+          for (int k = 0; W && k < in.inWidth; ++k) pre[d] = fmaf(__ldg(W + k), x(q, d, k), pre[d]);
+        }
+        if (W) pre[0] += P.floatWeights[in.biasOffset];
+        emitOutput<true>(P, W ? in.act : MlpAct::None, [&](int d) { return pre[d]; }, t.base + q, nullptr, out, nullptr);
+      }
+      break;
+    default: break;  // LoadInput, Combine: runRowInstr; Gemm: the kernel's own code
+  }
+}
+
+// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
+// threads (tid: this thread's index among them); the caller synchronises afterwards. With
+// kTangents (the rows of TileRows<true>), runTangentRowInstr runs what needs a query's rows together.
+template <int M, int THREADS, bool kTangents = false>
 __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                    const float4* __restrict__ points, float* __restrict__ out,
                                    const int* __restrict__ scatter) {
+  if constexpr (kTangents) {
+    if (in.op != MlpOp::LoadInput && in.op != MlpOp::Combine) {
+      runTangentRowInstr<M, THREADS>(P, in, t, tid, out);
+      return;
+    }
+  }
   constexpr int WARPS = THREADS / 32;
   const int warp = tid >> 5, lane = tid & 31;
   const int rows = t.rows, base = t.base;
@@ -161,8 +248,8 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
         }
         if (lane == 0) {
-          const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
-          writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
+          const float pre = W ? acc + P.floatWeights[in.biasOffset] : input(r, 0);
+          emitOutput<false>(P, W ? in.act : MlpAct::None, [&](int) { return pre; }, base + r, points, out, scatter);
         }
       }
       break;
