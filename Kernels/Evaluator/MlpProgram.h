@@ -147,9 +147,9 @@ constexpr float kTangentTarget = 1024.f;
 // The network inputs the world axes x, y, z feed (tangentInput[a], -1 where axis a feeds none),
 // as the fused kernel's tangent rows take them: false when an axis feeds more than one input
 // (the fused tangent path does not run such a model).
-bool tangentInputsOf(const InrModel& model, int tangentInput[3]);
+bool tangentInputsOf(const Domain& domain, int inputDim, int tangentInput[3]);
 // chooseTangentScale on kTangentSamplePoints points drawn (fixed seed) in the model's domain.
-float chooseTangentScale(const MlpProgram& program, const InrModel& model);
+float chooseTangentScale(const MlpProgram& program, const Domain& domain);
 constexpr int kTangentSamplePoints = 64;
 
 }  // namespace inr

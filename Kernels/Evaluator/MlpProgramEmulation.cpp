@@ -184,10 +184,10 @@ float chooseTangentScale(const MlpProgram& program, const float* inputs, std::si
   return std::ldexp(1.f, std::clamp(e, -16, 16));
 }
 
-bool tangentInputsOf(const InrModel& model, int tangentInput[3]) {
+bool tangentInputsOf(const Domain& domain, int inputDim, int tangentInput[3]) {
   for (int a = 0; a < 3; ++a) tangentInput[a] = -1;
-  for (int i = 0; i < model.architecture.inputDim; ++i) {
-    const int w = model.domain.inputOrder[std::size_t(i)];
+  for (int i = 0; i < inputDim; ++i) {
+    const int w = domain.inputOrder[std::size_t(i)];
     if (w >= 3) continue;  // time: no direction
     if (tangentInput[w] >= 0) return false;
     tangentInput[w] = i;
@@ -195,11 +195,10 @@ bool tangentInputsOf(const InrModel& model, int tangentInput[3]) {
   return true;
 }
 
-float chooseTangentScale(const MlpProgram& program, const InrModel& model) {
+float chooseTangentScale(const MlpProgram& program, const Domain& dom) {
   int tangentInput[3];
-  tangentInputsOf(model, tangentInput);
-  const Domain& dom = model.domain;
-  const int dim = model.architecture.inputDim;
+  const int dim = program.inputDim;
+  tangentInputsOf(dom, dim, tangentInput);
   std::vector<float> inputs(std::size_t(kTangentSamplePoints) * dim);
   std::uint32_t state = 20251127u;
   auto uniform = [&](double lo, double hi) {

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
+#include <mutex>
+#include <optional>
 #include <vector>
 
 #include "Common/Activation.h"
@@ -161,9 +163,17 @@ struct CudaInrEvaluator::Impl {
   std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
   bool fusedTangents = false;
   std::string whyNoFusedTangents;
-  FusedConfig tangentConfig, smallTangentConfig;
-  std::string tangentReport;
   OutputMapping output;
+  // Chosen at the first value + gradient call (most evaluators never see one): the tangent
+  // scale (a CPU emulation of a sample) and the configurations (timed like the value path's).
+  mutable std::once_flag tangentsTuned;
+  mutable float tangentScale = 1.f;  // MlpProgram::tangentScale
+  int tangentInput[3] = {-1, -1, -1};
+  mutable FusedConfig tangentConfig, smallTangentConfig;
+  mutable std::string tangentReport;
+  std::optional<FusedLaunchAutotuner> tuner;
+  std::vector<FusedConfig> tangentCandidates;
+  Domain domain;
 
   void prepareParams(const InrModel& model);
   // Runs one fused configuration on n points (at most, with a device-side count).
@@ -172,9 +182,11 @@ struct CudaInrEvaluator::Impl {
   // The same for value + gradient (a configuration with tangent rows) at world time `time`.
   void launchTangents(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float time,
                       float4* out, cudaStream_t stream) const;
-  // Chooses the tangent configurations among the value path's candidates, or says why not.
+  // Whether the tangent rows can run (their candidates among the value path's), or why not.
   void prepareTangents(const InrModel& model, const CudaEvaluatorOptions& options, const FusedLaunchAutotuner& tuner,
                        const std::vector<FusedConfig>& candidates);
+  // The tangent scale and configurations, once (tangentsTuned).
+  void tuneTangents() const;
 };
 
 // The program's parameters for the fused kernels (params, and paramsStored with any Fourier
@@ -269,6 +281,8 @@ void CudaInrEvaluator::Impl::launchTangents(const FusedConfig& c, const float4* 
   const int queriesPerTile = c.tile / 4;  // TileRows<true>: a query's value and three tangents
   const int grid = std::min((n + queriesPerTile - 1) / queriesPerTile, c.gridBlocks);
   cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  P.tangentScale = tangentScale;
+  for (int axis = 0; axis < 3; ++axis) P.tangentInput[axis] = tangentInput[axis];
   // One output mapping for the launch, at `time` (as the per-thread path maps it).
   float a = 1.f, b = 0.f;
   output.affineAt(time, a, b);
@@ -289,11 +303,10 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
     whyNoFusedTangents = "per-thread requested";
   } else if (path != CudaEvaluatorPath::Fused) {
     whyNoFusedTangents = "the model runs on the generic path";
-  } else if (!tangentInputsOf(model, tangentInput)) {
+  } else if (!tangentInputsOf(model.domain, model.architecture.inputDim, tangentInput)) {
     whyNoFusedTangents = "a world axis feeds more than one network input";
   }
-  const std::vector<FusedConfig> tangentCandidates =
-      whyNoFusedTangents.empty() ? tuner.tangentCandidates(candidates) : std::vector<FusedConfig>{};
+  if (whyNoFusedTangents.empty()) tangentCandidates = tuner.tangentCandidates(candidates);
   if (whyNoFusedTangents.empty() && tangentCandidates.empty())
     whyNoFusedTangents = "no mma.sync configuration among the launch candidates (the kernel with tangent rows)";
   if (!whyNoFusedTangents.empty()) {
@@ -301,22 +314,29 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
       throw std::runtime_error("fused tangent rows requested but impossible for this model: " + whyNoFusedTangents);
     return;
   }
-  program.tangentScale = chooseTangentScale(program, model);
-  for (cuda::FusedParams* P : {&params, &paramsStored}) {
-    P->tangentScale = program.tangentScale;
-    for (int axis = 0; axis < 3; ++axis) P->tangentInput[axis] = tangentInput[axis];
-  }
-  cuda::DeviceBuffer<float4> results;
-  results.growTo(std::size_t(std::max(options.autotuneBatch, FusedLaunchAutotuner::kSmallBatch)));
-  const float time = float(model.domain.timeBegin);
-  const FusedLaunchAutotuner::Choice choice =
-      tuner.choose(tangentCandidates, model.domain, [&](const FusedConfig& c, const float4* points, int n, float*) {
-        launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
-      });
-  tangentConfig = choice.large;
-  smallTangentConfig = choice.small;
-  tangentReport = choice.report;
+  for (int axis = 0; axis < 3; ++axis) this->tangentInput[axis] = tangentInput[axis];
+  this->tuner.emplace(tuner);
+  domain = model.domain;
+  tangentConfig = smallTangentConfig = tangentCandidates.front();
   fusedTangents = true;
+}
+
+void CudaInrEvaluator::Impl::tuneTangents() const {
+  std::call_once(tangentsTuned, [&] {
+    // The scale from a CPU emulation of a sample (MlpProgram.h chooseTangentScale).
+    tangentScale = chooseTangentScale(program, domain);
+    INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
+    cuda::DeviceBuffer<float4> results;
+    results.growTo(std::size_t(std::max(tuner->candidatesBatch(), FusedLaunchAutotuner::kSmallBatch)));
+    const float time = float(domain.timeBegin);
+    const FusedLaunchAutotuner::Choice choice =
+        tuner->choose(tangentCandidates, domain, [&](const FusedConfig& c, const float4* points, int n, float*) {
+          launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
+        });
+    tangentConfig = choice.large;
+    smallTangentConfig = choice.small;
+    tangentReport = choice.report;
+  });
 }
 
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
@@ -370,7 +390,6 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
   I.prepareTangents(model, options, tuner, candidates);
-  I.launchReport += "; value + gradient: " + (I.fusedTangents ? I.tangentReport : "per-thread fp32 (" + I.whyNoFusedTangents + ")");
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {
@@ -503,20 +522,23 @@ void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const un
     I.gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
     return;
   }
+  I.tuneTangents();
   I.launchTangents(maxN < Impl::kSmallBatchThreshold ? I.smallTangentConfig : I.tangentConfig, points, maxN, deviceCount,
                    time, out, stream);
 }
 
 std::string CudaInrEvaluator::gradientPath() const {
   const Impl& I = *impl_;
-  return I.fusedTangents ? "fused tangent rows (" + configName(I.tangentConfig) + ", below " +
-                               std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallTangentConfig) +
-                               ", tangent scale " + std::to_string(I.program.tangentScale) + ")"
-                         : "per-thread fp32 (" + I.whyNoFusedTangents + ")";
+  if (!I.fusedTangents) return "per-thread fp32 (" + I.whyNoFusedTangents + ")";
+  I.tuneTangents();
+  return "fused tangent rows, tangent scale " + std::to_string(I.tangentScale) + " (" + I.tangentReport + ")";
 }
 
 bool CudaInrEvaluator::usesFusedTangents() const { return impl_->fusedTangents; }
 
-float CudaInrEvaluator::tangentScale() const { return impl_->program.tangentScale; }
+float CudaInrEvaluator::tangentScale() const {
+  if (impl_->fusedTangents) impl_->tuneTangents();
+  return impl_->tangentScale;
+}
 
 }  // namespace inr

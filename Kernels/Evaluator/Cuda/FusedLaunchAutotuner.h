@@ -74,6 +74,8 @@ public:
   // on kSmallBatch random queries in `domain` and keeps the fastest of each; with one candidate
   // or autotuneBatch = 0 the first runs every launch.
   Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch) const;
+  // The large batch choose() times on (options.autotuneBatch).
+  int candidatesBatch() const { return options_.autotuneBatch; }
 
 private:
   CudaDeviceInfo device_;

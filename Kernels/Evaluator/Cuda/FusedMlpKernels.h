@@ -20,5 +20,9 @@ FusedKernel mmaSyncKernel(int tile, int kc);
 // `tile` rows holds tile / 4 queries, `out` is a float4 per query (value, d/dx, d/dy, d/dz in
 // world units, FusedParams' tangent fields), no scatter.
 FusedKernel mmaSyncTangentKernel(int tile, int kc);
+// The instantiations behind them, per tangent rows and weight chunk (one translation unit each,
+// FusedMlpKernel.cuh).
+template <bool kTangents, int KC>
+FusedKernel mmaSyncKernelFor(int tile);
 
 }  // namespace inr::cuda
