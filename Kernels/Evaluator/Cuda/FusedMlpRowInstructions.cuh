@@ -23,6 +23,21 @@ struct RowTile {
   int rows, base;
 };
 
+// An instruction's buffers in a tile (null where it has none) and their row strides (halves).
+struct InstrBuffers {
+  __half* dst;
+  const __half* src;
+  const __half* other;
+  int ldDst, ldSrc, ldOther;
+  __device__ InstrBuffers(const MlpInstr& in, const RowTile& t)
+      : dst(in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr),
+        src(in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr),
+        other(in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr),
+        ldDst(in.dst >= 0 ? t.bufferLd[in.dst] : 0),
+        ldSrc(in.src >= 0 ? t.bufferLd[in.src] : 0),
+        ldOther(in.other >= 0 ? t.bufferLd[in.other] : 0) {}
+};
+
 // With tangents (TileRows<true>: t.rows counts queries), the instructions whose tangent rows
 // need their query's value row (the derivative of a nonlinearity at the value; an in-place
 // activation; the output): one thread per (query, column) computes the value and its three
@@ -33,18 +48,13 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
                                           float* __restrict__ out) {
   using L = TileRows<true>;
   constexpr int Q = M / 4;
-  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
-  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
-  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
-  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
-  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
-  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
+  const InstrBuffers b(in, t);
   // Input k of direction d of query q (a coordinate row holds the input tangent).
   auto x = [&](int q, int d, int k) -> float {
     const int r = L::row(q, d);
-    return in.src < 0 ? t.coords[r * 4 + k] : __half2float(src[r * ldSrc + k]);
+    return in.src < 0 ? t.coords[r * 4 + k] : __half2float(b.src[r * b.ldSrc + k]);
   };
-  auto store = [&](int q, int d, int c, float v) { dst[L::row(q, d) * ldDst + c] = __float2half(v); };
+  auto store = [&](int q, int d, int c, float v) { b.dst[L::row(q, d) * b.ldDst + c] = __float2half(v); };
   switch (in.op) {
     case MlpOp::Fourier:  // every encoding, element by element (Evaluator/Encodings.h)
     case MlpOp::HashGrid:
@@ -71,7 +81,7 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
           const float pre = v[0], f = activationDerivative<ActMath::FastDevice>(in.act, pre);
           for (int d = 0; d < 4; ++d) {
             v[d] = d == 0 ? applyActivation(in.act, pre) : f * v[d];
-            if (other) v[d] = in.combineScale * (v[d] + __half2float(other[L::row(q, d) * ldOther + o]));
+            if (b.other) v[d] = in.combineScale * (v[d] + __half2float(b.other[L::row(q, d) * b.ldOther + o]));
           }
         }
         for (int d = 0; d < 4; ++d) store(q, d, o, v[d]);
@@ -80,9 +90,9 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
     case MlpOp::Activation:  // in place: the value row is read before it is overwritten
       for (int idx = tid; idx < Q * in.outWidth; idx += THREADS) {
         const int q = idx / in.outWidth, c = idx - q * in.outWidth;
-        const float pre = in.actScale * __half2float(dst[L::row(q, 0) * ldDst + c]);
+        const float pre = in.actScale * __half2float(b.dst[L::row(q, 0) * b.ldDst + c]);
         const float f = activationDerivative<ActMath::FastDevice>(in.act, pre) * in.actScale;
-        for (int d = 1; d < 4; ++d) store(q, d, c, f * __half2float(dst[L::row(q, d) * ldDst + c]));
+        for (int d = 1; d < 4; ++d) store(q, d, c, f * __half2float(b.dst[L::row(q, d) * b.ldDst + c]));
         store(q, 0, c, applyActivation(in.act, pre));
       }
       break;
@@ -120,13 +130,8 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
   const int warp = tid >> 5, lane = tid & 31;
   const int rows = t.rows, base = t.base;
   const float* const coords = t.coords;
-  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
-  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
-  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
-  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
-  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
-  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
-  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]); };
+  const InstrBuffers b(in, t);
+  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(b.src[r * b.ldSrc + k]); };
   switch (in.op) {
     case MlpOp::LoadInput:
       if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
@@ -134,7 +139,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           const int r = idx >> 2, c = idx & 3;
           const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
           const __half hi = __float2half(x);
-          __half* d = dst + r * ldDst + c;
+          __half* d = b.dst + r * b.ldDst + c;
           d[0] = hi;
           d[4] = __float2half(x - __half2float(hi));
           d[8] = hi;
@@ -142,7 +147,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
         }
       } else {
         for (int r = warp; r < M; r += WARPS)
-          for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+          for (int c = lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
       }
       break;
     case MlpOp::DenseFp32:
@@ -184,23 +189,23 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           for (int r = rStart; r < M; r += rowsPerPass) {
             float sn, cs;
             __sincosf(dot(r), &sn, &cs);
-            dst[r * ldDst + sinBase + o] = __float2half(sn);
-            dst[r * ldDst + sinBase + m + o] = __float2half(cs);
+            b.dst[r * b.ldDst + sinBase + o] = __float2half(sn);
+            b.dst[r * b.ldDst + sinBase + m + o] = __float2half(cs);
           }
         } else {
           dispatchActivation(in.act, [&](auto A) {
             for (int r = rStart; r < M; r += rowsPerPass) {
               float v = applyActivation(decltype(A)::value, dot(r));
-              if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
-              dst[r * ldDst + o] = __float2half(v);
+              if (b.other) v = in.combineScale * (v + __half2float(b.other[r * b.ldOther + o]));
+              b.dst[r * b.ldDst + o] = __float2half(v);
             }
           });
         }
       }
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < inc; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
-        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+        for (int c = lane; c < inc; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
       }
       break;
     }
@@ -215,25 +220,25 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
         const int r = idx / levels, l = idx - r * levels;
         float v[8];
         hashGridLevel(g, l, in.inWidth, [&](int k) { return input(r, k); }, 0, F, v);
-        for (int j = 0; j < F; ++j) dst[r * ldDst + cols.featureAt + l * F + j] = __float2half(v[j]);
+        for (int j = 0; j < F; ++j) b.dst[r * b.ldDst + cols.featureAt + l * F + j] = __float2half(v[j]);
       }
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
-        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+        for (int c = lane; c < cols.inputs; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
       }
       break;
     }
     case MlpOp::Activation:
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.outWidth; c += 32)
-          dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
+          b.dst[r * b.ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(b.dst[r * b.ldDst + c])));
       break;
     case MlpOp::Combine: {
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.nPad; c += 32) {
-          const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
-          dst[r * ldDst + c] = __float2half(in.combineScale * v);
+          const float v = __half2float(b.src[r * b.ldSrc + c]) + (b.other ? __half2float(b.other[r * b.ldOther + c]) : 0.f);
+          b.dst[r * b.ldDst + c] = __float2half(in.combineScale * v);
         }
       break;
     }
