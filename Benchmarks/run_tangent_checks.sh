@@ -9,15 +9,20 @@
 #   4. gpu_render_benchmark: shaded vs unshaded 1024² frames on the three full-size real models,
 #      with the tangent rows, then with --per-thread-gradient (the path before, for the ratio)
 # Logs and CSV go to $OUT (default ./out); each step's wall time is printed. Aim: under 8 min.
-#   OUT=dir bash Benchmarks/run_tangent_checks.sh
+# A phase argument runs one part (build, test or bench; default all), for machines whose command
+# limit the whole does not fit: set BUILD to a directory that persists between the calls.
+#   OUT=dir bash Benchmarks/run_tangent_checks.sh [all|build|test|bench]
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-./out}
 BUILD=${BUILD:-/tmp/bt}
+PHASE=${1:-all}
 mkdir -p "$OUT"
 t0=$(date +%s)
 step() { echo "== [$(($(date +%s) - t0)) s] $*"; }
+want() { [ "$PHASE" = all ] || [ "$PHASE" = "$1" ]; }
 
+if want build; then
 step "configure"
 nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1
 git log --oneline -1 > "$OUT/commit.txt" 2>/dev/null
@@ -30,6 +35,9 @@ targets="cuda_evaluator_tests cuda_pipeline_tests fused_tangent_emulation_tests 
 ninja -C "$BUILD" -j16 $targets > "$OUT/build.log" 2>&1 || { grep -E "error" "$OUT/build.log" | head -40; exit 1; }
 grep -E "spill" "$OUT/build.log" > "$OUT/spills.txt"
 echo "register spills (tangent kernels expected, value kernels none):"; sed 's/^/  /' "$OUT/spills.txt" | cut -c1-160
+fi
+
+if want test; then
 
 step "tests"
 # The tests are listed first (gtest_discover_tests), so a filter that matches nothing is visible.
@@ -45,6 +53,9 @@ cat "$OUT/tangent_errors.txt" | cut -c1-200
 (cd "$BUILD" && timeout 120 ctest -R "FusedTangentEmulation|CpuInrEvaluatorGradient" --output-on-failure) \
   > "$OUT/ctest_cpu.log" 2>&1
 echo "ctest (CPU tangent emulation, CPU gradient) exit $?"; grep -E "tests passed|tests failed" "$OUT/ctest_cpu.log"
+fi
+
+if want bench; then
 
 step "evaluator benchmark: value + gradient throughput"
 real="Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr
@@ -68,4 +79,5 @@ timeout 120 "$BUILD/Benchmarks/gpu_render_benchmark" --no-paper --no-baselines -
 echo "exit $?"
 grep -E "^== |value \+ gradient|wavefront\+shade|unshaded frame" "$OUT/render_shade_per_thread.txt" | cut -c1-200
 
+fi
 step "done; results in $OUT"
