@@ -40,21 +40,34 @@ private:
   cudaEvent_t e0_ = nullptr, e1_ = nullptr;
 };
 
-// Queries per second of `eval` over n points already on the device, one value per launch of
-// `reps` after a warm-up launch.
-inline std::vector<double> evaluatorRates(const CudaInrEvaluator& eval, const float4* points, int n, float* out,
-                                          int reps) {
+// Queries per second of launch() over n queries, one value per launch of `reps` after a
+// warm-up launch (CUDA events on the default stream).
+template <class Launch>
+std::vector<double> launchRates(int n, int reps, const Launch& launch) {
   EventTimer timer;
-  eval.evaluateDevice(points, n, out, nullptr, nullptr);  // warm-up
+  launch();  // warm-up
   INR_CUDA_CHECK(cudaDeviceSynchronize());
   std::vector<double> rates;
   for (int r = 0; r < reps; ++r) {
     timer.start();
-    eval.evaluateDevice(points, n, out, nullptr, nullptr);
+    launch();
     timer.stop();
     rates.push_back(n / (timer.ms() * 1e-3));
   }
   return rates;
+}
+
+// Queries per second of `eval` over n points already on the device (launchRates).
+inline std::vector<double> evaluatorRates(const CudaInrEvaluator& eval, const float4* points, int n, float* out,
+                                          int reps) {
+  return launchRates(n, reps, [&] { eval.evaluateDevice(points, n, out, nullptr, nullptr); });
+}
+
+// Value + gradient queries per second of `eval` over n points on the device, all at world time
+// `time` (launchRates).
+inline std::vector<double> gradientRates(const CudaInrEvaluator& eval, const float4* points, int n, float time,
+                                         float4* out, int reps) {
+  return launchRates(n, reps, [&] { eval.evaluateWithGradientDevice(points, nullptr, n, time, out, nullptr); });
 }
 
 }  // namespace inr::bench

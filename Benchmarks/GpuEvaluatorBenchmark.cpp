@@ -5,7 +5,7 @@
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
 //                           [--wgmma-columns 64|128]
 //                           [--hash-pairs 0|1] [--l2-persist]
-//                           [--no-autotune] [--checksum] [MODEL.inr ...]
+//                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
@@ -14,6 +14,10 @@
 // keeps its fp16 tables in L2 with a persisting access-policy window (hashTablesPersistInL2).
 // --checksum prints a hash of each row's output bits (the last launch over the batch, seed 1):
 // with a fixed configuration, the same on two builds when a change keeps the arithmetic.
+// --gradient adds, per model, value + gradient rows (gradient shading's queries, issue 33) on
+// --gradient-batch points (default 2^16, a shaded 1024² frame's order): "grad-per-thread" (the
+// per-thread fp32 forward mode, at most 5 reps: it is slow) and "grad-fused" (the fused kernel's
+// tangent rows; the per-thread path again where the model cannot run them, its note says why).
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
@@ -47,7 +51,18 @@ struct Row {
   std::size_t params;
   Spread qps;  // queries per second over the launches
   std::uint64_t outputHash;  // FNV-1a over the output floats' bits
+  int batch;
 };
+
+std::uint64_t hashBits(const float* v, std::size_t n) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t bits;
+    std::memcpy(&bits, v + i, sizeof bits);
+    h = (h ^ bits) * 1099511628211ull;
+  }
+  return h;
+}
 
 // mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
 // where the autotuned "fused-fp16" runs the wgmma kernel).
@@ -60,23 +75,44 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
   cuda::DeviceBuffer<float> dOut(batch);
   Row r{name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
         eval.launchReport(), model.architecture.parameterCount(),
-        spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps)), 0};
-  std::uint64_t h = 1469598103934665603ull;
-  for (const float v : dOut.download(nullptr)) {
-    std::uint32_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    h = (h ^ bits) * 1099511628211ull;
-  }
-  r.outputHash = h;
+        spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps)), 0, batch};
+  const std::vector<float> out = dOut.download(nullptr);
+  r.outputHash = hashBits(out.data(), out.size());
   return r;
+}
+
+// Value + gradient queries (CudaInrEvaluator::evaluateWithGradientDevice) at the middle of the
+// time range, through the gradient path `gp`.
+Row measureGradient(const InrModel& model, const std::string& name, CudaGradientPath gp, int batch, int reps,
+                    CudaEvaluatorOptions o) {
+  o.gradientPath = gp;
+  const CudaInrEvaluator eval(model, o);
+  const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
+  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1, time));
+  cuda::DeviceBuffer<float4> dOut(batch);
+  Row r{name, gp == CudaGradientPath::PerThread ? "grad-per-thread" : "grad-fused", eval.gradientPath(),
+        model.architecture.parameterCount(), spreadOf(gradientRates(eval, dPts.get(), batch, time, dOut.get(), reps)), 0,
+        batch};
+  const std::vector<float4> out = dOut.download(nullptr);
+  r.outputHash = hashBits(reinterpret_cast<const float*>(out.data()), 4 * out.size());
+  return r;
+}
+
+void printRow(const Row& r, bool checksum) {
+  std::printf("%-28s %-16s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params, r.qps.median / 1e9,
+              r.qps.lo / 1e9, r.qps.hi / 1e9);
+  if (!r.launch.empty()) std::printf("    %s: %s\n", r.path.rfind("grad", 0) == 0 ? "value + gradient" : "fused launch autotuning",
+                                     r.launch.c_str());
+  if (checksum) std::printf("    output checksum: %016llx\n", (unsigned long long)r.outputHash);
+  std::fflush(stdout);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  int batch = 1 << 21, reps = 20;
+  int batch = 1 << 21, reps = 20, gradientBatch = 1 << 16;
   std::string csv, writeDir, only;
-  bool checksum = false;
+  bool checksum = false, gradient = false;
   std::vector<std::string> files;
   CudaEvaluatorOptions fixed;
   for (CommandLine cl(argc, argv); !cl.done();) {
@@ -94,6 +130,8 @@ int main(int argc, char** argv) {
     else if (a == "--hash-pairs") fixed.hashGridPairs = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--l2-persist") fixed.hashTablesPersistInL2 = true;
     else if (a == "--checksum") checksum = true;
+    else if (a == "--gradient") gradient = true;
+    else if (a == "--gradient-batch") gradientBatch = std::max(1, std::stoi(cl.value()));
     else if (a == "--mma") {
       const std::string m = cl.value();
       if (m != "wgmma" && m != "mma.sync") {
@@ -132,13 +170,26 @@ int main(int argc, char** argv) {
   for (auto& m : loadModelFiles(files)) models.push_back(std::move(m));
 
   std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
-  std::printf("%-28s %-14s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
+  std::printf("%-28s %-16s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
   const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch ||
                           fixed.hashGridPairs >= 0;
   for (const auto& [name, model] : models)
-    for (int variant = 0; variant < 3; ++variant) {
+    for (int variant = 0; variant < 5; ++variant) {
       if (!only.empty() && name.find(only) == std::string::npos) continue;
+      if (variant >= 3) {  // value + gradient: per-thread, then fused tangent rows
+        if (!gradient) continue;
+        const bool perThread = variant == 3;
+        try {
+          rows.push_back(measureGradient(model, name, perThread ? CudaGradientPath::PerThread : CudaGradientPath::Auto,
+                                         gradientBatch, perThread ? std::min(reps, 5) : reps, fixed));
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
+          continue;
+        }
+        printRow(rows.back(), checksum);
+        continue;
+      }
       const CudaEvaluatorPath p = variant == 2 ? CudaEvaluatorPath::Generic : CudaEvaluatorPath::Auto;
       CudaEvaluatorOptions o = fixed;
       if (variant == 1) o.mma = FusedMma::MmaSync;
@@ -155,18 +206,14 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
         continue;
       }
-      std::printf("%-28s %-14s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params,
-                  r.qps.median / 1e9, r.qps.lo / 1e9, r.qps.hi / 1e9);
-      if (!r.launch.empty()) std::printf("    fused launch autotuning: %s\n", r.launch.c_str());
-      if (checksum) std::printf("    output checksum: %016llx\n", (unsigned long long)r.outputHash);
-      std::fflush(stdout);
+      printRow(r, checksum);
       rows.push_back(r);
     }
   if (!csv.empty()) {
     std::ofstream o(csv);
     o << "model,path,parameters,batch,median_qps,min_qps,max_qps,device\n";
     for (const auto& r : rows)
-      o << r.model << ',' << r.path << ',' << r.params << ',' << batch << ',' << r.qps.median << ',' << r.qps.lo << ',' << r.qps.hi
+      o << r.model << ',' << r.path << ',' << r.params << ',' << r.batch << ',' << r.qps.median << ',' << r.qps.lo << ',' << r.qps.hi
         << ",\"" << dev.name << "\"\n";
   }
   return 0;

@@ -11,7 +11,10 @@
 // [-1,1]³, time [-1,1]) unless --no-paper, then every model file given.
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
-//                        [--traversal auto|dda|optix] [--csv FILE] [MODEL.inr ...]
+//                        [--traversal auto|dda|optix] [--per-thread-gradient] [--csv FILE] [MODEL.inr ...]
+// The shaded row's value + gradient queries run on the fused kernel's tangent rows where the
+// model runs fused (the header line says which path), or with --per-thread-gradient on the
+// per-thread fp32 forward mode (the path before the tangent rows, for comparison).
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -49,7 +52,7 @@ namespace {
 
 struct Options {
   int size = 1024, frames = 20, warmup = 5, naiveSize = 256, marchSize = 256, macrocells = 64, slices = 16;
-  bool paper = true, baselines = true;
+  bool paper = true, baselines = true, perThreadGradient = false;
   TraversalKind traversal = TraversalKind::Dda;  // --traversal: the wavefront rows' GPU traversal
   std::string csv;
   std::vector<std::string> models;
@@ -102,13 +105,16 @@ Row fromStats(const std::string& group, const std::string& model, const std::str
 }
 
 void benchModel(const std::string& name, const InrModel& model, const Options& o) {
-  const CudaInrEvaluator eval(model);
+  CudaEvaluatorOptions evalOptions;
+  if (o.perThreadGradient) evalOptions.gradientPath = CudaGradientPath::PerThread;
+  const CudaInrEvaluator eval(model, evalOptions);
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const double gqps = evaluatorGqps(eval, model, time);
   const auto range = valueRangeFor(model, eval);
   const Box3f box = modelWorldBox(model);
   std::printf("\n== %s  (%s)\n   evaluator %.3f G queries/s (2^21 batch, this run); value range [%.3g, %.3g]\n",
               name.c_str(), eval.name().c_str(), gqps, range[0], range[1]);
+  std::printf("   value + gradient: %s\n", eval.gradientPath().c_str());
   std::fflush(stdout);
   MacrocellOptions mo;
   mo.dims = Int3{o.macrocells, o.macrocells, o.macrocells};
@@ -295,12 +301,13 @@ int main(int argc, char** argv) {
     else if (a == "--slices") o.slices = std::stoi(cl.value());
     else if (a == "--no-paper") o.paper = false;
     else if (a == "--no-baselines") o.baselines = false;
+    else if (a == "--per-thread-gradient") o.perThreadGradient = true;
     else if (a == "--csv") o.csv = cl.value();
     else if (a == "--traversal") o.traversal = parseTraversalKind(cl.value());
     else if (a == "-h" || a == "--help") {
       std::printf("usage: gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] "
                   "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] "
-                  "[--traversal auto|dda|optix (default dda)] [--csv FILE] "
+                  "[--traversal auto|dda|optix (default dda)] [--per-thread-gradient] [--csv FILE] "
                   "[MODEL.inr ...]\n");
       return 0;
     } else if (!a.empty() && a[0] == '-') {

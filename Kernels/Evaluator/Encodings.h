@@ -276,7 +276,8 @@ INR_HD float encodingElement(const MlpInstr& f, const float* weights, const Inpu
 
 // Forward-mode derivative of column k of encoding instruction f along one direction: dx(i) is
 // the derivative of input i (the per-thread network's gradient, Cuda/CudaPerThreadMlp.cuh; the
-// CPU reference carries the same formulas on Eigen arrays). Exact arithmetic only.
+// fused kernel's tangent rows and their emulation; the CPU reference carries the same formulas
+// on Eigen arrays). Exact arithmetic only.
 template <class Input, class Tangent>
 INR_HD float encodingElementTangent(const MlpInstr& f, const float* weights, const Input& x, const Tangent& dx, int k) {
   switch (f.op) {
@@ -291,6 +292,18 @@ INR_HD float encodingElementTangent(const MlpInstr& f, const float* weights, con
       const float p = fourierProjection<ActMath::Exact>(Bj, f.inWidth, x);
       const float dp = fourierProjection<ActMath::Exact>(Bj, f.inWidth, dx);
       return sine ? cosf(p) * dp : -sinf(p) * dp;
+    }
+    case MlpOp::HashGrid: {  // the interpolation weights' derivatives (hashGridLevel's dOut)
+      const HashGridColumns cols(f);
+      if (cols.inputs && k >= cols.inputAt && k < cols.inputAt + cols.inputs) return dx(k - cols.inputAt);
+      const HashGridView g{weights + f.floatOffset};
+      const int j = k - cols.featureAt;
+      if (j < 0 || j >= g.levels() * g.features()) return 0.f;
+      float v, dv[4];
+      hashGridLevel(g, j / g.features(), f.inWidth, x, j % g.features(), 1, &v, dv);
+      float t = 0.f;
+      for (int i = 0; i < f.inWidth; ++i) t += dv[i] * dx(i);
+      return t;
     }
     default: return NAN;  // an encoding without its derivative: no normal (ambient only)
   }

@@ -88,6 +88,13 @@ struct MlpProgram {
   // and the generic path is used.
   bool fusable = true;
   std::string whyNotFused;
+  // Forward-mode tangents (value + gradient, emulateFusedTangents and the fused kernel's tangent
+  // rows) are stored in fp16 like the activations, multiplied by this power of two: the input
+  // tangent is tangentScale (not 1) and the result is divided by it again in fp32, exactly. One
+  // scale for the whole program, because every tangent operation is linear in the tangents
+  // (residual sums add tangents of different layers: a per-layer scale would need rescaling
+  // there). chooseTangentScale sets it from the largest tangent a sample of inputs stores.
+  float tangentScale = 1.f;
 
   static constexpr int kMaxFusedWidth = 512;
   static constexpr int kMaxFusedGemmOut = 256;
@@ -115,5 +122,37 @@ std::vector<float> packHashGrid(const Layer& hashGridLayer);
 // activations, fp32 accumulation and epilogues), on network-space inputs (inputDim floats per
 // query). Slow; for tests and for explaining fp16 error. In MlpProgramEmulation.cpp.
 void emulateFusedProgram(const MlpProgram& program, const float* inputs, std::size_t n, float* out);
+
+// The same with forward-mode tangents, exactly as the fused kernel's tangent rows compute them:
+// for each query, the value and its derivatives along up to three network inputs
+// (tangentInput[a], -1 = none: derivative 0), each tangent rounded to fp16 wherever the value is
+// (scaled by program.tangentScale while stored), through the derivative of every instruction
+// (dy = act'(Wx + b) * (W dx) for a layer, no bias; the encodings' element derivatives,
+// Evaluator/Encodings.h; residual sums and scale layers linearly). values[q] = network output,
+// tangents[3 q + a] = d output / d input tangentInput[a]. maxStoredTangent, when given, receives
+// the largest |tangent| the program stores in a buffer (before fp16 rounding; the tangent scale
+// included).
+void emulateFusedTangents(const MlpProgram& program, const float* inputs, std::size_t n, const int tangentInput[3],
+                          float* values, float* tangents, float* maxStoredTangent = nullptr);
+
+// The power of two for program.tangentScale: the largest tangent stored for the sample `inputs`
+// (n queries, network space, unit tangents along the inputs tangentInput names, as for
+// emulateFusedTangents)
+// scaled to about kTangentTarget. fp16 overflows at 65504: a SIREN's tangents grow by w0 (30)
+// and a trained layer's gain at every layer, while the values stay in [-1, 1], so the tangents
+// of a deep sine network can pass fp16's range where the values never do; scaled down, the
+// largest sampled one lands at 2^10, leaving a factor 64 for points the sample missed, and
+// scaled up (small domains' tangents) they stay clear of fp16's subnormals (below 6.1e-5).
+// Clamped to [2^-16, 2^16].
+float chooseTangentScale(const MlpProgram& program, const float* inputs, std::size_t n, const int tangentInput[3]);
+constexpr float kTangentTarget = 1024.f;
+
+// The network inputs the world axes x, y, z feed (tangentInput[a], -1 where axis a feeds none),
+// as the fused kernel's tangent rows take them: false when an axis feeds more than one input
+// (the fused tangent path does not run such a model).
+bool tangentInputsOf(const Domain& domain, int inputDim, int tangentInput[3]);
+// chooseTangentScale on kTangentSamplePoints points drawn (fixed seed) in the model's domain.
+float chooseTangentScale(const MlpProgram& program, const Domain& domain);
+constexpr int kTangentSamplePoints = 64;
 
 }  // namespace inr

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
+#include <mutex>
+#include <optional>
 #include <vector>
 
 #include "Common/Activation.h"
@@ -158,8 +160,24 @@ struct CudaInrEvaluator::Impl {
   cublasHandle_t cublas = nullptr;
   mutable cuda::DeviceBuffer<float> genericBuffers, genericCoords;
   static constexpr int kGenericChunk = 1 << 16;
-  // Gradient shading's value + gradient queries (fp32 forward mode, one thread per query).
+  // Gradient shading's value + gradient queries: the fused kernel's tangent rows (tangentConfig
+  // for launches of kSmallBatchThreshold queries or more, smallTangentConfig below) where
+  // fusedTangents, else fp32 forward mode, one thread per query (gradientNetwork; why not fused:
+  // whyNoFusedTangents).
   std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
+  bool fusedTangents = false;
+  std::string whyNoFusedTangents;
+  OutputMapping output;
+  // Chosen at the first value + gradient call (most evaluators never see one): the tangent
+  // scale (a CPU emulation of a sample) and the configurations (timed like the value path's).
+  mutable std::once_flag tangentsTuned;
+  mutable float tangentScale = 1.f;  // MlpProgram::tangentScale
+  int tangentInput[3] = {-1, -1, -1};
+  mutable FusedConfig tangentConfig, smallTangentConfig;
+  mutable std::string tangentReport;
+  std::optional<FusedLaunchAutotuner> tuner;
+  std::vector<FusedConfig> tangentCandidates;
+  Domain domain;
 
   void prepareParams(const InrModel& model);
   // Sets tablesWindow (and the device's persisting L2 limit) over the hash tables; what it did.
@@ -167,6 +185,14 @@ struct CudaInrEvaluator::Impl {
   // Runs one fused configuration on n points (at most, with a device-side count).
   void launchFused(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float* out,
                    const int* scatter, cudaStream_t stream) const;
+  // The same for value + gradient (a configuration with tangent rows) at world time `time`.
+  void launchTangents(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount, float time,
+                      float4* out, cudaStream_t stream) const;
+  // Whether the tangent rows can run (their candidates among the value path's), or why not.
+  void prepareTangents(const InrModel& model, const CudaEvaluatorOptions& options, const FusedLaunchAutotuner& tuner,
+                       const std::vector<FusedConfig>& candidates);
+  // The tangent scale and configurations, once (tangentsTuned).
+  void tuneTangents() const;
 };
 
 // The program's parameters for the fused kernels (params, and paramsStored with any Fourier
@@ -299,6 +325,69 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   INR_CUDA_CHECK_LAUNCH("fusedMlpKernel");
 }
 
+void CudaInrEvaluator::Impl::launchTangents(const FusedConfig& c, const float4* points, int n, const unsigned* deviceCount,
+                                            float time, float4* out, cudaStream_t stream) const {
+  const int queriesPerTile = c.tile / 4;  // TileRows<true>: a query's value and three tangents
+  const int grid = std::min((n + queriesPerTile - 1) / queriesPerTile, c.gridBlocks);
+  cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  P.tangentScale = tangentScale;
+  for (int axis = 0; axis < 3; ++axis) P.tangentInput[axis] = tangentInput[axis];
+  // One output mapping for the launch, at `time` (as the per-thread path maps it).
+  float a = 1.f, b = 0.f;
+  output.affineAt(time, a, b);
+  P.output = cuda::OutputMap{a, b, 0, nullptr};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int i = P.tangentInput[axis];
+    P.gradientScale[axis] = i >= 0 ? a * P.inScale[i] / P.tangentScale : 0.f;
+  }
+  cuda::mmaSyncTangentKernel(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(
+      P, points, n, deviceCount, reinterpret_cast<float*>(out), nullptr);
+  INR_CUDA_CHECK_LAUNCH("fusedMlpKernel (tangent rows)");
+}
+
+void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEvaluatorOptions& options,
+                                             const FusedLaunchAutotuner& tuner, const std::vector<FusedConfig>& candidates) {
+  int tangentInput[3];
+  if (options.gradientPath == CudaGradientPath::PerThread) {
+    whyNoFusedTangents = "per-thread requested";
+  } else if (path != CudaEvaluatorPath::Fused) {
+    whyNoFusedTangents = "the model runs on the generic path";
+  } else if (!tangentInputsOf(model.domain, model.architecture.inputDim, tangentInput)) {
+    whyNoFusedTangents = "a world axis feeds more than one network input";
+  }
+  if (whyNoFusedTangents.empty()) tangentCandidates = tuner.tangentCandidates(candidates);
+  if (whyNoFusedTangents.empty() && tangentCandidates.empty())
+    whyNoFusedTangents = "no mma.sync configuration among the launch candidates (the kernel with tangent rows)";
+  if (!whyNoFusedTangents.empty()) {
+    if (options.gradientPath == CudaGradientPath::FusedTangents)
+      throw std::runtime_error("fused tangent rows requested but impossible for this model: " + whyNoFusedTangents);
+    return;
+  }
+  for (int axis = 0; axis < 3; ++axis) this->tangentInput[axis] = tangentInput[axis];
+  this->tuner.emplace(tuner);
+  domain = model.domain;
+  tangentConfig = smallTangentConfig = tangentCandidates.front();
+  fusedTangents = true;
+}
+
+void CudaInrEvaluator::Impl::tuneTangents() const {
+  std::call_once(tangentsTuned, [&] {
+    // The scale from a CPU emulation of a sample (MlpProgram.h chooseTangentScale).
+    tangentScale = chooseTangentScale(program, domain);
+    INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
+    cuda::DeviceBuffer<float4> results;
+    results.growTo(std::size_t(std::max(tuner->candidatesBatch(), FusedLaunchAutotuner::kSmallBatch)));
+    const float time = float(domain.timeBegin);
+    const FusedLaunchAutotuner::Choice choice =
+        tuner->choose(tangentCandidates, domain, [&](const FusedConfig& c, const float4* points, int n, float*) {
+          launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
+        });
+    tangentConfig = choice.large;
+    smallTangentConfig = choice.small;
+    tangentReport = choice.report;
+  });
+}
+
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
     : impl_(std::make_unique<Impl>()) {
   Impl& I = *impl_;
@@ -310,6 +399,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.prepareParams(model);
   const std::string persistence = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
   I.gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
+  I.output = model.output;
 
   // The path: fused where the program and a configuration fit, else generic.
   const MlpProgram& prog = I.program;
@@ -338,6 +428,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.path = fused ? CudaEvaluatorPath::Fused : CudaEvaluatorPath::Generic;
   if (!fused) {
     cublasCheck(cublasCreate(&I.cublas), "cublasCreate");
+    I.prepareTangents(model, options, tuner, candidates);  // says why not
     return;
   }
   const FusedLaunchAutotuner::Choice choice =
@@ -349,6 +440,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
   I.launchReport += persistence;
+  I.prepareTangents(model, options, tuner, candidates);
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {
@@ -468,12 +560,36 @@ void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* 
 
 void CudaInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
                                             float* gradients) const {
-  impl_->gradientNetwork->evaluateWithGradient(points, n, values, gradients);
+  gradientsThroughDevice(impl_->output, points, n, values, gradients, [&](const float4* p, int m, float time, float4* out) {
+    evaluateWithGradientDevice(p, nullptr, m, time, out, nullptr);
+  });
 }
 
 void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN,
                                                   float time, float4* out, cudaStream_t stream) const {
-  impl_->gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
+  const Impl& I = *impl_;
+  if (maxN <= 0) return;
+  if (!I.fusedTangents) {
+    I.gradientNetwork->evaluateWithGradientDevice(points, deviceCount, maxN, time, out, stream);
+    return;
+  }
+  I.tuneTangents();
+  I.launchTangents(maxN < Impl::kSmallBatchThreshold ? I.smallTangentConfig : I.tangentConfig, points, maxN, deviceCount,
+                   time, out, stream);
+}
+
+std::string CudaInrEvaluator::gradientPath() const {
+  const Impl& I = *impl_;
+  if (!I.fusedTangents) return "per-thread fp32 (" + I.whyNoFusedTangents + ")";
+  I.tuneTangents();
+  return "fused tangent rows, tangent scale " + std::to_string(I.tangentScale) + " (" + I.tangentReport + ")";
+}
+
+bool CudaInrEvaluator::usesFusedTangents() const { return impl_->fusedTangents; }
+
+float CudaInrEvaluator::tangentScale() const {
+  if (impl_->fusedTangents) impl_->tuneTangents();
+  return impl_->tangentScale;
 }
 
 }  // namespace inr

@@ -23,6 +23,11 @@ enum class CudaEvaluatorPath { Auto, Fused, Generic };
 // The fused kernel's tensor-core instructions: mma.sync (every GPU from Turing on) or warpgroup
 // MMA (wgmma, Hopper only, code built for sm_90a). Auto times both where both run.
 enum class FusedMma { Auto, MmaSync, Wgmma };
+// Value + gradient (gradient shading): the fused mma.sync kernel's tangent rows (fp16, forward
+// mode beside the value in the same GEMMs) wherever the model runs on the fused path (Auto), or
+// the per-thread fp32 forward mode (CudaPerThreadMlp) always (PerThread), or the tangent rows
+// only (FusedTangents: the constructor throws, saying why, where they cannot run).
+enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 
 struct CudaEvaluatorOptions {
   int device = 0;
@@ -55,6 +60,7 @@ struct CudaEvaluatorOptions {
   // Hash-grid networks: the gather's lanes (FusedParams::hashGridPairs): a pair per row and level
   // (1), one lane (0), or both autotuned (-1). The same bits either way.
   int hashGridPairs = -1;
+  CudaGradientPath gradientPath = CudaGradientPath::Auto;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
@@ -73,8 +79,11 @@ public:
   void evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out, const int* scatter,
                       cudaStream_t stream) const override;
 
-  // Gradient shading (Render/Shade.h): values and gradients in fp32 forward mode through the
-  // per-thread network (CudaPerThreadMlp), not the fused kernels (their tangent rows are to come).
+  // Gradient shading (Render/Shade.h): values and gradients in one forward-mode pass. On the
+  // fused path, the mma.sync kernel's tangent rows (fp16 like the values: the gradient's error
+  // is fp16's, MlpProgram.h emulateFusedTangents); elsewhere (the generic path's models: wider
+  // than 256 outputs, more than 4 live buffers or 64 instructions; a world axis feeding two
+  // network inputs; wgmma forced) the per-thread fp32 forward mode. gradientPath() says which.
   bool providesGradient() const override { return true; }
   void evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values, float* gradients) const override;
   bool providesDeviceGradient() const override { return true; }
@@ -82,6 +91,10 @@ public:
                                   cudaStream_t stream) const override;
 
   CudaEvaluatorPath path() const;
+  // "fused tangent rows (tile ...)" or "per-thread fp32 (why)".
+  std::string gradientPath() const;
+  bool usesFusedTangents() const;
+  float tangentScale() const;  // the program's MlpProgram::tangentScale (1 without tangent rows)
   // Fused path: the chosen configuration and, when autotuned, each candidate's measured rate,
   // e.g. "... tile 128 x K 64: L / S Gq/s; ... -> tile 128 x K 64, below 32768 queries
   // tile 32 x K 64" (L / S: large / small batch rates; empty for the generic path).

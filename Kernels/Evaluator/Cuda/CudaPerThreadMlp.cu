@@ -46,7 +46,6 @@ struct CudaPerThreadMlp::Impl {
   mutable cuda::DeviceBuffer<float> scratch;
   mutable cuda::DeviceBuffer<float4> stagePoints;
   mutable cuda::DeviceBuffer<float> stageOut;
-  mutable cuda::DeviceBuffer<float4> stageGradients;
 };
 
 CudaPerThreadMlp::CudaPerThreadMlp(const InrModel& model) : impl_(std::make_unique<Impl>()) {
@@ -139,24 +138,23 @@ void CudaPerThreadMlp::evaluateWithGradientDevice(const float4* points, const un
   INR_CUDA_CHECK_LAUNCH("perThreadGradientKernel");
 }
 
-void CudaPerThreadMlp::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
-                                            float* gradients) const {
+void gradientsThroughDevice(const OutputMapping& output, const QueryPoint* points, std::size_t n, float* values,
+                            float* gradients, const std::function<void(const float4*, int, float, float4*)>& launch) {
   static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
-  Impl& I = *impl_;
   constexpr int kChunk = 1 << 16;
+  cuda::DeviceBuffer<float4> stagePoints, stageResults;
   std::vector<float4> results;
   for (std::size_t first = 0; first < n;) {
     // One output mapping per launch: a run of equal times where the mapping depends on time.
     std::size_t end = first + 1;
-    while (end < n && end - first < std::size_t(kChunk) && (!I.output.perTime || points[end].t == points[first].t))
-      ++end;
+    while (end < n && end - first < std::size_t(kChunk) && (!output.perTime || points[end].t == points[first].t)) ++end;
     const int m = int(end - first);
-    I.stagePoints.growTo(std::size_t(m));
-    I.stageGradients.growTo(std::size_t(m));
-    INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points + first, m * sizeof(float4), cudaMemcpyHostToDevice));
-    evaluateWithGradientDevice(I.stagePoints.get(), nullptr, m, points[first].t, I.stageGradients.get(), nullptr);
+    stagePoints.growTo(std::size_t(m));
+    stageResults.growTo(std::size_t(m));
+    INR_CUDA_CHECK(cudaMemcpy(stagePoints.get(), points + first, m * sizeof(float4), cudaMemcpyHostToDevice));
+    launch(stagePoints.get(), m, points[first].t, stageResults.get());
     results.resize(std::size_t(m));
-    INR_CUDA_CHECK(cudaMemcpy(results.data(), I.stageGradients.get(), m * sizeof(float4), cudaMemcpyDeviceToHost));
+    INR_CUDA_CHECK(cudaMemcpy(results.data(), stageResults.get(), m * sizeof(float4), cudaMemcpyDeviceToHost));
     for (int i = 0; i < m; ++i) {
       values[first + i] = results[i].x;
       gradients[3 * (first + i)] = results[i].y;
@@ -165,6 +163,13 @@ void CudaPerThreadMlp::evaluateWithGradient(const QueryPoint* points, std::size_
     }
     first = end;
   }
+}
+
+void CudaPerThreadMlp::evaluateWithGradient(const QueryPoint* points, std::size_t n, float* values,
+                                            float* gradients) const {
+  gradientsThroughDevice(impl_->output, points, n, values, gradients, [&](const float4* p, int m, float time, float4* out) {
+    evaluateWithGradientDevice(p, nullptr, m, time, out, nullptr);
+  });
 }
 
 }  // namespace inr

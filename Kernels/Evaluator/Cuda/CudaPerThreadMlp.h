@@ -7,6 +7,7 @@
 // (coalesced: consecutive threads read consecutive words).
 #include <cuda_runtime.h>
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -37,6 +38,13 @@ struct MlpProgram;
 // buffers; no scratch, output mapping at no time yet (view() adds them).
 PerThreadMlpView perThreadMlpBase(const InrModel& model, const MlpProgram& program, const MlpInstr* instrs,
                                   const float* weights);
+
+// FieldEvaluator::evaluateWithGradient's host arrays through a device value + gradient batch:
+// the points staged in chunks of one output-mapping time (runs of equal times where `output`
+// depends on time), launch(devicePoints, m, time, deviceResults) writing (value, d/dx, d/dy,
+// d/dz) per point, on the default stream.
+void gradientsThroughDevice(const OutputMapping& output, const QueryPoint* points, std::size_t n, float* values,
+                            float* gradients, const std::function<void(const float4*, int, float, float4*)>& launch);
 
 class CudaPerThreadMlp final : public FieldEvaluator {
 public:

@@ -14,7 +14,8 @@ namespace inr::cuda {
 std::string configName(const FusedConfig& c) {
   const std::string hash = c.hashGridPairs < 0 ? "" : c.hashGridPairs ? ", hash lane pairs" : ", hash lane per row";
   if (!c.wgmma)
-    return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") + hash;
+    return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
+           (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(kHopperConsumers) + "x" + std::to_string(kHopperRows) + " x N " +
          std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
 }
@@ -84,6 +85,22 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
       both.back().hashGridPairs = pairs;
     }
   return both;
+}
+
+std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vector<FusedConfig>& candidates) const {
+  std::vector<FusedConfig> out;
+  for (FusedConfig c : candidates) {
+    if (c.wgmma) continue;
+    const FusedKernel kernel = mmaSyncTangentKernel(c.tile, c.kc);
+    INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(c.sharedBytes)));
+    int perSm = 0;
+    INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, c.tile * 4, c.sharedBytes));
+    if (perSm < 1) continue;
+    c.tangents = true;
+    c.gridBlocks = perSm * device_.multiprocessors;
+    out.push_back(c);
+  }
+  return out;
 }
 
 FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<FusedConfig>& candidates,

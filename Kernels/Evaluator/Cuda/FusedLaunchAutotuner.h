@@ -36,6 +36,9 @@ struct FusedConfig {
   // A program with a hash grid: its gathers with a pair of lanes per row and level (splitting
   // the corners) or one lane (FusedParams::hashGridPairs); the same bits either way. -1: no grid.
   int hashGridPairs = -1;
+  // The mma.sync kernel with tangent rows (value + gradient; a tile of `tile` rows holds tile / 4
+  // queries).
+  bool tangents = false;
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong", with ", hash lane
@@ -62,6 +65,11 @@ public:
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
                                       bool wgmmaRuns) const;
 
+  // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
+  // (the same shared memory; its own register count, so its own resident blocks), its dynamic
+  // shared-memory limit set. Empty when no candidate is mma.sync (wgmma requested).
+  std::vector<FusedConfig> tangentCandidates(const std::vector<FusedConfig>& candidates) const;
+
   struct Choice {
     FusedConfig large;  // launches of kSmallBatchThreshold queries or more
     FusedConfig small;  // smaller launches
@@ -71,6 +79,8 @@ public:
   // on kSmallBatch random queries in `domain` and keeps the fastest of each; with one candidate
   // or autotuneBatch = 0 the first runs every launch.
   Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch) const;
+  // The large batch choose() times on (options.autotuneBatch).
+  int candidatesBatch() const { return options_.autotuneBatch; }
 
 private:
   CudaDeviceInfo device_;

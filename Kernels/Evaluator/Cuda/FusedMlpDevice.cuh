@@ -65,6 +65,44 @@ __device__ inline void writeOutput(const OutputMap& m, float t, float net, int q
   out[scatter ? scatter[q] : q] = a * net + b;
 }
 
+// Value + gradient: query q's value a * net + b and world gradient (P.gradientScale[k] times
+// the network output's tangent dnet[k]) as one float4 in out (float4 per query, no scatter).
+__device__ inline void writeGradientOutput(const FusedParams& P, float net, const float (&dnet)[3], int q,
+                                           float* __restrict__ out) {
+  reinterpret_cast<float4*>(out)[q] = make_float4(P.output.a * net + P.output.b, P.gradientScale[0] * dnet[0],
+                                                  P.gradientScale[1] * dnet[1], P.gradientScale[2] * dnet[2]);
+}
+
+// The rows of a tile. Values only: row r holds query r. With tangents (value + gradient in one
+// pass): each warp row group's 32 rows hold 8 queries, row 32 (q / 8) + 8 d + q % 8 holding
+// direction d of query q (0 the value, 1..3 its tangents along the inputs P.tangentInput names).
+// An mma.sync accumulator fragment's rows g and g + 8 of a warp's two m16 tiles are then one
+// query's value and three tangents: every thread holds the same (query, column) of all four,
+// so the epilogue's act(z) and act'(z) * dz are thread-local, and the GEMMs run unchanged.
+template <bool kTangents>
+struct TileRows {
+  static constexpr int kDirections = kTangents ? 4 : 1;
+  __device__ static int row(int q, int d) { return kTangents ? ((q >> 3) << 5) | (d << 3) | (q & 7) : q; }
+  __device__ static int query(int r) { return kTangents ? ((r >> 5) << 3) | (r & 7) : r; }
+  __device__ static int direction(int r) { return kTangents ? (r >> 3) & 3 : 0; }
+};
+
+// Query q's output from its final pre-activation, pre(d) for direction d (the network's last
+// layer, activation act): the value through writeOutput, or with tangents the value and
+// gradient, act'(pre(0)) * pre(d) being the output's tangents.
+template <bool kTangents, class Pre>
+__device__ inline void emitOutput(const FusedParams& P, MlpAct act, const Pre& pre, int q, const float4* __restrict__ points,
+                                  float* __restrict__ out, const int* __restrict__ scatter) {
+  const float p0 = pre(0);
+  if constexpr (kTangents) {
+    const float f = activationDerivative<ActMath::FastDevice>(act, p0);
+    const float dnet[3] = {f * pre(1), f * pre(2), f * pre(3)};
+    writeGradientOutput(P, activate<ActMath::FastDevice>(act, p0), dnet, q, out);
+  } else {
+    writeOutput(P.output, points[q].w, activate<ActMath::FastDevice>(act, p0), q, out, scatter);
+  }
+}
+
 // The network inputs of a query at world point p (x, y, z, t): the model's input order and
 // domain mapping, zero past inputDim.
 __device__ inline void networkInputs(const FusedParams& P, float4 p, float* x) {
@@ -75,11 +113,21 @@ __device__ inline void networkInputs(const FusedParams& P, float4 p, float* x) {
 
 // Coordinates of a tile's M rows (network inputs, 4 floats per row; zero rows past `rows`),
 // THREADS threads, tid this thread's index among them; the caller synchronises.
-template <int M, int THREADS>
+// With tangents (TileRows<true>), `rows` counts queries and a tangent row holds its input
+// tangent: P.tangentScale at the input its direction moves, zeros elsewhere.
+template <int M, int THREADS, bool kTangents = false>
 __device__ inline void loadTileCoords(const FusedParams& P, const float4* __restrict__ points, int base, int rows,
                                       float* coords, int tid) {
-  for (int r = tid; r < M; r += THREADS)
-    networkInputs(P, r < rows ? points[base + r] : make_float4(0.f, 0.f, 0.f, 0.f), coords + r * 4);
+  using L = TileRows<kTangents>;
+  for (int r = tid; r < M; r += THREADS) {
+    const int d = L::direction(r), q = L::query(r);
+    if (d > 0) {
+#pragma unroll
+      for (int k = 0; k < 4; ++k) coords[r * 4 + k] = k == P.tangentInput[d - 1] ? P.tangentScale : 0.f;
+    } else {
+      networkInputs(P, q < rows ? points[base + q] : make_float4(0.f, 0.f, 0.f, 0.f), coords + r * 4);
+    }
+  }
 }
 
 __device__ inline unsigned smemAddress(const void* p) { return unsigned(__cvta_generic_to_shared(p)); }
@@ -139,6 +187,22 @@ __device__ inline void mma16816Bias(float (&d)[4], const unsigned (&a)[4], unsig
 #else
   d[0] = d[2] = c.x;
   d[1] = d[3] = c.y;
+  mma16816(d, a, b0, b1);
+#endif
+}
+
+// The same with the bias in rows g only (row g + 8 starts at zero): a tangent tile's first m16
+// tile, whose rows g are values and rows g + 8 tangents (TileRows<true>), which have no bias.
+__device__ inline void mma16816BiasUpperZero(float (&d)[4], const unsigned (&a)[4], unsigned b0, unsigned b1, float2 c) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  asm("mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+      "{%10,%11,%12,%12};\n"
+      : "=f"(d[0]), "=f"(d[1]), "=f"(d[2]), "=f"(d[3])
+      : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b0), "r"(b1), "f"(c.x), "f"(c.y), "f"(0.f));
+#else
+  d[0] = c.x;
+  d[1] = c.y;
+  d[2] = d[3] = 0.f;
   mma16816(d, a, b0, b1);
 #endif
 }

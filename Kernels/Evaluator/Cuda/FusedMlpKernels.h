@@ -16,5 +16,13 @@ FusedKernel hopperKernel(int chunkColumns);
 // The mma.sync kernel for tiles of `tile` queries (128, 64 or 32) and weight K-chunks of `kc`
 // columns (64 or 32).
 FusedKernel mmaSyncKernel(int tile, int kc);
+// The same kernel with tangent rows (value + gradient in one pass; FusedMlpKernel.cu): a tile of
+// `tile` rows holds tile / 4 queries, `out` is a float4 per query (value, d/dx, d/dy, d/dz in
+// world units, FusedParams' tangent fields), no scatter.
+FusedKernel mmaSyncTangentKernel(int tile, int kc);
+// The instantiations behind them, per tangent rows and weight chunk (one translation unit each,
+// FusedMlpKernel.cuh).
+template <bool kTangents, int KC>
+FusedKernel mmaSyncKernelFor(int tile);
 
 }  // namespace inr::cuda

@@ -63,6 +63,13 @@ struct FusedParams {
   int hopperStages = 2;
   int hopperPingPong = 1;
   OutputMap output;
+  // Value + gradient launches (the mma.sync kernel's tangent rows, TileRows<true>): the network
+  // input each world axis x, y, z moves (-1: none), the tangents' power-of-two scale
+  // (MlpProgram::tangentScale; the input tangent rows hold it), and per axis the factor from the
+  // network's scaled tangent to the world gradient: output slope * input slope / tangentScale.
+  int tangentInput[3] = {-1, -1, -1};
+  float tangentScale = 1.f;
+  float gradientScale[3] = {0.f, 0.f, 0.f};
 };
 
 __host__ __device__ constexpr int kcIndex(int kc) { return kc == 64 ? 0 : 1; }

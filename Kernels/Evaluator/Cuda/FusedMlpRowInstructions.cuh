@@ -25,23 +25,146 @@ struct RowTile {
   int rows, base;
 };
 
-// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
-// threads (tid: this thread's index among them); the caller synchronises afterwards.
+// An instruction's buffers in a tile (null where it has none) and their row strides (halves).
+struct InstrBuffers {
+  __half* dst;
+  const __half* src;
+  const __half* other;
+  int ldDst, ldSrc, ldOther;
+  __device__ InstrBuffers(const MlpInstr& in, const RowTile& t)
+      : dst(in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr),
+        src(in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr),
+        other(in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr),
+        ldDst(in.dst >= 0 ? t.bufferLd[in.dst] : 0),
+        ldSrc(in.src >= 0 ? t.bufferLd[in.src] : 0),
+        ldOther(in.other >= 0 ? t.bufferLd[in.other] : 0) {}
+};
+
+// With tangents (TileRows<true>: t.rows counts queries), the instructions whose tangent rows
+// need their query's value row (the derivative of a nonlinearity at the value; an in-place
+// activation; the output): one thread per (query, column) computes the value and its three
+// tangents, as emulateFusedTangents does (MlpProgramEmulation.cpp). LoadInput and Combine treat
+// every row alike (linear), so runRowInstr runs them for tangent rows too.
 template <int M, int THREADS>
+__device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+                                          float* __restrict__ out) {
+  using L = TileRows<true>;
+  constexpr int Q = M / 4;
+  const InstrBuffers b(in, t);
+  // Input k of direction d of query q (a coordinate row holds the input tangent).
+  auto x = [&](int q, int d, int k) -> float {
+    const int r = L::row(q, d);
+    return in.src < 0 ? t.coords[r * 4 + k] : __half2float(b.src[r * b.ldSrc + k]);
+  };
+  auto store = [&](int q, int d, int c, float v) { b.dst[L::row(q, d) * b.ldDst + c] = __float2half(v); };
+  switch (in.op) {
+    case MlpOp::HashGrid: {
+      // The value row from the fp16 tables with the value kernels' arithmetic (hashGridLevelFused,
+      // as FusedHashGrid.cuh gathers): a shaded sample's value is its unshaded value, bit for bit.
+      // The other columns (included inputs, padding) and the tangents below, element by element
+      // from the fp32 tables.
+      const HashGridView g{P.floatWeights + in.floatOffset};
+      const HashGridColumns cols(in);
+      const int levels = g.levels(), F = g.features();
+      for (int idx = tid; idx < Q * levels; idx += THREADS) {
+        const int q = idx / levels, l = idx - q * levels;
+        auto input = [&](int k) { return x(q, 0, k); };
+        const __half* table = P.hashTables + in.halfOffset + std::size_t(g.firstEntry(l)) * F;
+        auto value = [&](std::uint32_t e, int j) { return __half2float(table[std::size_t(e) * F + j]); };
+        float v[8];
+        if (in.inWidth == 3)
+          hashGridLevelFused<3>(g, l, input, value, v);
+        else
+          hashGridLevelFused<4>(g, l, input, value, v);
+        for (int j = 0; j < F; ++j) store(q, 0, cols.featureAt + l * F + j, v[j]);
+      }
+      for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
+        const int q = idx / in.nPad, c = idx - q * in.nPad;
+        auto input = [&](int k) { return x(q, 0, k); };
+        const bool live = c < in.outWidth, feature = c >= cols.featureAt && c < cols.featureAt + levels * F;
+        if (!feature) store(q, 0, c, live ? encodingElement<ActMath::FastDevice>(in, P.floatWeights, input, c) : 0.f);
+        for (int d = 1; d < 4; ++d) {
+          auto tangent = [&](int k) { return x(q, d, k); };
+          store(q, d, c, live ? encodingElementTangent(in, P.floatWeights, input, tangent, c) : 0.f);
+        }
+      }
+      break;
+    }
+    case MlpOp::Fourier:  // every encoding, element by element (Evaluator/Encodings.h)
+      for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
+        const int q = idx / in.nPad, c = idx - q * in.nPad;
+        auto input = [&](int k) { return x(q, 0, k); };
+        const bool live = c < in.outWidth;
+        store(q, 0, c, live ? encodingElement<ActMath::FastDevice>(in, P.floatWeights, input, c) : 0.f);
+        for (int d = 1; d < 4; ++d) {
+          auto tangent = [&](int k) { return x(q, d, k); };
+          store(q, d, c, live ? encodingElementTangent(in, P.floatWeights, input, tangent, c) : 0.f);
+        }
+      }
+      break;
+    case MlpOp::DenseFp32:
+      for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
+        const int q = idx / in.nPad, o = idx - q * in.nPad;
+        float v[4] = {0.f, 0.f, 0.f, 0.f};  // zero padding columns
+        if (o < in.outWidth) {
+          const float* W = P.floatWeights + in.floatOffset + o * in.inWidth;
+          v[0] = __ldg(P.floatWeights + in.biasOffset + o);
+          for (int k = 0; k < in.inWidth; ++k)
+            for (int d = 0; d < 4; ++d) v[d] = fmaf(__ldg(W + k), x(q, d, k), v[d]);
+          const float pre = v[0], f = activationDerivative<ActMath::FastDevice>(in.act, pre);
+          for (int d = 0; d < 4; ++d) {
+            v[d] = d == 0 ? applyActivation(in.act, pre) : f * v[d];
+            if (b.other) v[d] = in.combineScale * (v[d] + __half2float(b.other[L::row(q, d) * b.ldOther + o]));
+          }
+        }
+        for (int d = 0; d < 4; ++d) store(q, d, o, v[d]);
+      }
+      break;
+    case MlpOp::Activation:  // in place: the value row is read before it is overwritten
+      for (int idx = tid; idx < Q * in.outWidth; idx += THREADS) {
+        const int q = idx / in.outWidth, c = idx - q * in.outWidth;
+        const float pre = in.actScale * __half2float(b.dst[L::row(q, 0) * b.ldDst + c]);
+        const float f = activationDerivative<ActMath::FastDevice>(in.act, pre) * in.actScale;
+        for (int d = 1; d < 4; ++d) store(q, d, c, f * __half2float(b.dst[L::row(q, d) * b.ldDst + c]));
+        store(q, 0, c, applyActivation(in.act, pre));
+      }
+      break;
+    case MlpOp::OutputDot:
+    case MlpOp::Output:
+      for (int q = tid; q < t.rows; q += THREADS) {
+        const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
+        float pre[4] = {0.f, 0.f, 0.f, 0.f};
+        for (int d = 0; d < 4; ++d) {
+          if (!W) pre[d] = x(q, d, 0);
+          for (int k = 0; W && k < in.inWidth; ++k) pre[d] = fmaf(__ldg(W + k), x(q, d, k), pre[d]);
+        }
+        if (W) pre[0] += P.floatWeights[in.biasOffset];
+        emitOutput<true>(P, W ? in.act : MlpAct::None, [&](int d) { return pre[d]; }, t.base + q, nullptr, out, nullptr);
+      }
+      break;
+    default: break;  // LoadInput, Combine: runRowInstr; Gemm: the kernel's own code
+  }
+}
+
+// LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
+// threads (tid: this thread's index among them); the caller synchronises afterwards. With
+// kTangents (the rows of TileRows<true>), runTangentRowInstr runs what needs a query's rows together.
+template <int M, int THREADS, bool kTangents = false>
 __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                    const float4* __restrict__ points, float* __restrict__ out,
                                    const int* __restrict__ scatter) {
+  if constexpr (kTangents) {
+    if (in.op != MlpOp::LoadInput && in.op != MlpOp::Combine) {
+      runTangentRowInstr<M, THREADS>(P, in, t, tid, out);
+      return;
+    }
+  }
   constexpr int WARPS = THREADS / 32;
   const int warp = tid >> 5, lane = tid & 31;
   const int rows = t.rows, base = t.base;
   const float* const coords = t.coords;
-  const int ldDst = in.dst >= 0 ? t.bufferLd[in.dst] : 0;
-  const int ldSrc = in.src >= 0 ? t.bufferLd[in.src] : 0;
-  __half* dst = in.dst >= 0 ? t.act + t.bufferStart[in.dst] : nullptr;
-  const __half* src = in.src >= 0 ? t.act + t.bufferStart[in.src] : nullptr;
-  const __half* other = in.other >= 0 ? t.act + t.bufferStart[in.other] : nullptr;
-  const int ldOther = in.other >= 0 ? t.bufferLd[in.other] : 0;
-  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(src[r * ldSrc + k]); };
+  const InstrBuffers b(in, t);
+  auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(b.src[r * b.ldSrc + k]); };
   switch (in.op) {
     case MlpOp::LoadInput:
       if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
@@ -49,7 +172,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           const int r = idx >> 2, c = idx & 3;
           const float x = c < P.inputDim ? coords[r * 4 + c] : 0.f;
           const __half hi = __float2half(x);
-          __half* d = dst + r * ldDst + c;
+          __half* d = b.dst + r * b.ldDst + c;
           d[0] = hi;
           d[4] = __float2half(x - __half2float(hi));
           d[8] = hi;
@@ -57,7 +180,7 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
         }
       } else {
         for (int r = warp; r < M; r += WARPS)
-          for (int c = lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
+          for (int c = lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(c < P.inputDim ? coords[r * 4 + c] : 0.f);
       }
       break;
     case MlpOp::DenseFp32:
@@ -99,23 +222,23 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           for (int r = rStart; r < M; r += rowsPerPass) {
             float sn, cs;
             __sincosf(dot(r), &sn, &cs);
-            dst[r * ldDst + sinBase + o] = __float2half(sn);
-            dst[r * ldDst + sinBase + m + o] = __float2half(cs);
+            b.dst[r * b.ldDst + sinBase + o] = __float2half(sn);
+            b.dst[r * b.ldDst + sinBase + m + o] = __float2half(cs);
           }
         } else {
           dispatchActivation(in.act, [&](auto A) {
             for (int r = rStart; r < M; r += rowsPerPass) {
               float v = applyActivation(decltype(A)::value, dot(r));
-              if (other) v = in.combineScale * (v + __half2float(other[r * ldOther + o]));
-              dst[r * ldDst + o] = __float2half(v);
+              if (b.other) v = in.combineScale * (v + __half2float(b.other[r * b.ldOther + o]));
+              b.dst[r * b.ldDst + o] = __float2half(v);
             }
           });
         }
       }
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < inc; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
-        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+        for (int c = lane; c < inc; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
       }
       break;
     }
@@ -123,24 +246,24 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       // The features from the fp16 tables (FusedHashGrid.cuh), rounded to fp16 like every buffer.
       const HashGridColumns cols(in);
       hashGridRows<M, THREADS>(HashGridView{P.floatWeights + in.floatOffset}, P.hashTables + in.halfOffset, in.inWidth,
-                               P.hashGridPairs != 0, coords, src, ldSrc, dst, ldDst, cols.featureAt, tid);
+                               P.hashGridPairs != 0, coords, b.src, b.ldSrc, b.dst, b.ldDst, cols.featureAt, tid);
       // Included inputs and zero padding: only those columns.
       for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < cols.inputs; c += 32) dst[r * ldDst + cols.inputAt + c] = __float2half(input(r, c));
-        for (int c = in.outWidth + lane; c < in.nPad; c += 32) dst[r * ldDst + c] = __float2half(0.f);
+        for (int c = lane; c < cols.inputs; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
+        for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
       }
       break;
     }
     case MlpOp::Activation:
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.outWidth; c += 32)
-          dst[r * ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(dst[r * ldDst + c])));
+          b.dst[r * b.ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(b.dst[r * b.ldDst + c])));
       break;
     case MlpOp::Combine: {
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.nPad; c += 32) {
-          const float v = __half2float(src[r * ldSrc + c]) + (other ? __half2float(other[r * ldOther + c]) : 0.f);
-          dst[r * ldDst + c] = __float2half(in.combineScale * v);
+          const float v = __half2float(b.src[r * b.ldSrc + c]) + (b.other ? __half2float(b.other[r * b.ldOther + c]) : 0.f);
+          b.dst[r * b.ldDst + c] = __float2half(in.combineScale * v);
         }
       break;
     }
@@ -155,8 +278,8 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
           for (int off = 16; off > 0; off >>= 1) acc += __shfl_xor_sync(0xffffffffu, acc, off);
         }
         if (lane == 0) {
-          const float net = W ? applyActivation(in.act, acc + P.floatWeights[in.biasOffset]) : input(r, 0);
-          writeOutput(P.output, points[base + r].w, net, base + r, out, scatter);
+          const float pre = W ? acc + P.floatWeights[in.biasOffset] : input(r, 0);
+          emitOutput<false>(P, W ? in.act : MlpAct::None, [&](int) { return pre; }, base + r, points, out, scatter);
         }
       }
       break;

@@ -1,14 +1,19 @@
 // Gradient shading on the GPU (ctest label `cuda`; skipped, with the reason, without a usable
-// GPU): the per-thread network's fp32 forward-mode gradient against the CPU reference's, and the
-// shaded GPU wavefront image against the shaded CPU image of the same shipped networks.
+// GPU): the per-thread network's fp32 forward-mode gradient and the fused kernel's fp16 tangent
+// rows against the CPU reference's gradient (the latter also against its CPU emulation), and
+// the shaded GPU wavefront image (tangent rows where the model runs fused) against the shaded
+// CPU image of the same shipped networks.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <stdexcept>
 #include <vector>
 
+#include "Common/Cuda/CudaCheck.h"
+#include "Common/Cuda/DeviceBuffer.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.cuh"
@@ -19,6 +24,9 @@
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
+#include "TestSupport/DevicePoints.h"
+#include "TestSupport/FusedTangents.h"
+#include "TestSupport/GradientErrors.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/ShippedModels.h"
 #include "TestSupport/TestScene.h"
@@ -69,15 +77,19 @@ TEST(CudaShading, PerThreadForwardModeOnTheHostMatchesCpuGradient) {
   }
 }
 
-// Both sides are fp32 forward mode over the same graph (the GPU through the compiled program, the
-// CPU through Eigen), so they differ by summation order: relative to the gradient's typical
-// size over the sample, within the 1e-3 for fp32.
+// The per-thread path (CudaGradientPath::PerThread; the fallback where the tangent rows cannot
+// run). Both sides are fp32 forward mode over the same graph (the GPU through the compiled
+// program, the CPU through Eigen), so they differ by summation order: relative to the
+// gradient's typical size over the sample, within the 1e-3 for fp32.
 TEST(CudaShading, GpuGradientMatchesCpuGradient) {
   REQUIRE_GPU();
   for (const auto& path : test::shippedModels()) {
     const InrModel model = InrModel::loadFile(path);
     const CpuInrEvaluator cpu(model);
-    const CudaInrEvaluator gpu(model);
+    CudaEvaluatorOptions perThread;
+    perThread.gradientPath = CudaGradientPath::PerThread;
+    const CudaInrEvaluator gpu(model, perThread);
+    ASSERT_FALSE(gpu.usesFusedTangents()) << gpu.gradientPath();
     ASSERT_TRUE(gpu.providesGradient());
     ASSERT_TRUE(gpu.providesDeviceGradient());
     const std::vector<QueryPoint> points = test::randomQueryPoints(model, 4096, 17);
@@ -105,6 +117,96 @@ TEST(CudaShading, GpuGradientMatchesCpuGradient) {
     EXPECT_LE(worst, 1e-3) << path;
     EXPECT_LE(worstValue, 1e-4) << path;
   }
+}
+
+// The fused kernel's tangent rows on every family: against the fp32 CPU reference within the
+// fp16 bounds its emulation is held to on the CPU (TestSupport/FusedTangents.h), and against
+// that emulation (the same arithmetic but for summation order and the special-function forms,
+// so a quarter of those bounds). 4099 points: not a multiple of any tile's queries.
+TEST(CudaShading, FusedTangentGradientMatchesCpuAndEmulation) {
+  REQUIRE_GPU();
+  for (const test::NamedModel& m : test::tangentTestModels()) {
+    SCOPED_TRACE(m.name);
+    const CudaInrEvaluator gpu(m.model);
+    MlpProgram program = MlpProgram::compile(m.model.architecture);
+    if (!program.fusable) {
+      EXPECT_FALSE(gpu.usesFusedTangents());
+      std::printf("%-40s %s\n", m.name.c_str(), gpu.gradientPath().c_str());
+      continue;
+    }
+    ASSERT_TRUE(gpu.usesFusedTangents()) << gpu.gradientPath();
+    program.tangentScale = gpu.tangentScale();
+    const float time = float(0.5 * (m.model.domain.timeBegin + m.model.domain.timeEnd));
+    const std::vector<QueryPoint> pts = test::randomQueryPoints(m.model, 4099, 31, time);
+    const test::ValuesAndWorldGradients got = test::referenceWorldGradients(gpu, pts);
+    const test::ValuesAndWorldGradients ref = test::referenceWorldGradients(CpuInrEvaluator(m.model), pts);
+    // The emulation is slow (scalar, four directions): its first 512 points.
+    const std::vector<QueryPoint> few(pts.begin(), pts.begin() + 512);
+    const test::ValuesAndWorldGradients emu = test::emulatedWorldGradients(m.model, program, few);
+    const auto asDouble = [](const std::vector<float>& v) { return std::vector<double>(v.begin(), v.end()); };
+    const test::GradientError vsCpu = test::relativeErrors(got.gradients, asDouble(ref.gradients));
+    const test::GradientError vsEmu = test::relativeErrors(
+        std::vector<float>(got.gradients.begin(), got.gradients.begin() + 3 * few.size()), asDouble(emu.gradients));
+    double valueErr = 0, range = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      ASSERT_TRUE(std::isfinite(got.values[i]) && std::isfinite(got.gradients[3 * i]) && std::isfinite(got.gradients[3 * i + 1]) &&
+                  std::isfinite(got.gradients[3 * i + 2]))
+          << "point " << i;
+      valueErr = std::max(valueErr, std::fabs(double(got.values[i]) - ref.values[i]));
+      range = std::max(range, std::fabs(double(ref.values[i])));
+    }
+    std::printf("%-40s tangent rows vs fp32: median %.3g p90 %.3g max %.3g; vs emulation: median %.3g p90 %.3g; value max "
+                "abs %.3g; %s\n",
+                m.name.c_str(), vsCpu.median, vsCpu.quantile90, vsCpu.maxRelative, vsEmu.median, vsEmu.quantile90, valueErr,
+                gpu.gradientPath().c_str());
+    EXPECT_LE(vsCpu.median, test::kTangentMedianBound);
+    EXPECT_LE(vsCpu.quantile90, test::kTangentQuantile90Bound);
+    EXPECT_LE(vsEmu.median, test::kTangentMedianBound / 4);
+    EXPECT_LE(vsEmu.quantile90, test::kTangentQuantile90Bound / 4);
+    EXPECT_LT(valueErr, 3e-2 * std::max(1.0, range));
+  }
+}
+
+// The device interface of the tangent rows: a device-side count below maxN (the renderer's
+// shading batch) writes exactly that many results, a batch of one works, and the generic path's
+// models fall back to the per-thread forward mode (a request for tangent rows there throws).
+TEST(CudaShading, FusedTangentsTakeTheDeviceCountAndFallBackOffTheFusedPath) {
+  REQUIRE_GPU();
+  const InrModel model = InrModel::loadFile(test::shippedModels().front());
+  const CudaInrEvaluator gpu(model);
+  ASSERT_TRUE(gpu.usesFusedTangents()) << gpu.gradientPath();
+  const float time = float(model.domain.timeBegin);
+  const std::vector<QueryPoint> pts = test::randomQueryPoints(model, 1000, 5, time);
+  cuda::DeviceBuffer<float4> points = test::devicePoints(pts);
+  cuda::DeviceBuffer<float4> out(pts.size());
+  INR_CUDA_CHECK(cudaMemset(out.get(), 0xff, pts.size() * sizeof(float4)));  // NaN sentinels
+  const unsigned count = 777;
+  cuda::DeviceBuffer<unsigned> deviceCount(1);
+  INR_CUDA_CHECK(cudaMemcpy(deviceCount.get(), &count, sizeof count, cudaMemcpyHostToDevice));
+  gpu.evaluateWithGradientDevice(points.get(), deviceCount.get(), int(pts.size()), time, out.get(), nullptr);
+  const std::vector<float4> results = out.download(nullptr);
+  std::vector<float> values(pts.size()), gradients(3 * pts.size());
+  gpu.evaluateWithGradient(pts.data(), pts.size(), values.data(), gradients.data());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (i < count) {
+      EXPECT_EQ(results[i].x, values[i]) << i;
+      EXPECT_EQ(results[i].y, gradients[3 * i]) << i;
+    } else {
+      EXPECT_TRUE(std::isnan(results[i].x) && std::isnan(results[i].w)) << i << ": past the device count";
+    }
+  }
+  float one, oneGradient[3];
+  gpu.evaluateWithGradient(pts.data() + 3, 1, &one, oneGradient);
+  EXPECT_EQ(one, values[3]);
+  EXPECT_EQ(oneGradient[2], gradients[11]);
+
+  CudaEvaluatorOptions generic;
+  generic.path = CudaEvaluatorPath::Generic;
+  const CudaInrEvaluator fallback(model, generic);
+  EXPECT_FALSE(fallback.usesFusedTangents());
+  EXPECT_EQ(fallback.gradientPath().rfind("per-thread", 0), 0u) << fallback.gradientPath();
+  generic.gradientPath = CudaGradientPath::FusedTangents;
+  EXPECT_THROW(CudaInrEvaluator(model, generic), std::runtime_error);
 }
 
 struct ShadedRun {

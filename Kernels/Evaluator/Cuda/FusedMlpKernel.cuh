@@ -1,0 +1,355 @@
+#pragma once
+// The fused INR evaluation kernel: a persistent grid of blocks of 4*WR warps; each block takes
+// tiles of M = 32*WR queries and runs the whole MlpProgram on them without leaving the SM.
+// Activations live in shared memory as fp16 rows (one per query, per-buffer stride). GEMM layers
+// run on tensor cores with mma.sync m16n8k16 (fp16 in, fp32 accumulate), operands fetched with
+// ldmatrix, weights streamed through a double-buffered shared-memory stage in K chunks of KC
+// (cp.async). The accumulator layout of mma.sync is documented, so epilogues (activation,
+// residual sum, and the network's final dot product) run in registers and store half2 straight
+// into the destination buffer; accumulators start at the bias.
+// Each warp owns 32 rows and the 16-column blocks colGroup + 4j (j < NB). NB is a template
+// parameter, the same for every warp of a layer: warps whose last block lies past the layer's
+// width compute it on whatever the (64-row aligned) weight stage holds and discard it, so the
+// tensor-core loop has no per-warp branches (which would make every ldmatrix/mma reconverge).
+// Coordinates, Fourier encodings and DenseFp32 layers stay fp32.
+// kTangents: value and gradient in one pass (forward mode, gradient shading). A tile's rows are
+// then M / 4 queries' values and three tangents each (TileRows<true>, FusedMlpDevice.cuh), so
+// the tangents ride as extra rows of the same GEMMs, through the same weight fragments; the
+// epilogue computes act(z) for a value and act'(z) * (W dx) for a tangent (no bias: the
+// accumulators of tangent rows start at zero), residual sums add the tangents' own rows, and
+// the output is the value with its world gradient (float4 per query). Tangents are stored in
+// fp16 like the values, scaled by MlpProgram::tangentScale (a power of two: fp16's range).
+// The kernel's instantiations (tile x weight chunk x tangent rows) live in four translation
+// units, FusedMlpKernel{Values,Tangents}K{64,32}.cu, one mmaSyncKernelFor each, so they compile
+// in parallel; the evaluator reaches them through mmaSyncKernel() and mmaSyncTangentKernel()
+// (FusedMlpKernels.h, FusedMlpKernel.cu). Include this header in those files only.
+#include <cuda_fp16.h>
+#include <cuda_pipeline.h>
+
+#include "Evaluator/Cuda/FusedMlpDevice.cuh"
+#include "Evaluator/Cuda/FusedMlpKernels.h"
+#include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Cuda/FusedMlpRowInstructions.cuh"
+
+namespace inr::cuda {
+
+// Starts the asynchronous copy of K-chunk `chunk` of GEMM instruction `ip`'s weights into stage
+// buffer (chunk & 1): one contiguous block (packStagedWeights), 16-byte cp.async per thread, one
+// commit group.
+template <int THREADS, int KC>
+__device__ inline void stageWeightChunk(const FusedParams& P, int ip, int nPad, __half* wstage, int stageHalves,
+                                        int chunk, int tid) {
+  const int blockHalves = nPad * (KC + 8);
+  const int4* src = reinterpret_cast<const int4*>(P.stagedWeights[kcIndex(KC)] + P.stagedOffset[kcIndex(KC)][ip] +
+                                                  std::size_t(chunk) * blockHalves);
+  int4* dst = reinterpret_cast<int4*>(wstage + (chunk & 1) * stageHalves);
+  const int segs = blockHalves / 8;
+  for (int i = tid; i < segs; i += THREADS) __pipeline_memcpy_async(dst + i, src + i, 16);
+  __pipeline_commit();
+}
+
+// At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
+// exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
+template <int WR, int KC, bool kTangents>
+__global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+                                                                  const unsigned* __restrict__ deviceCount,
+                                                                  float* __restrict__ out, const int* __restrict__ scatter) {
+  // deviceCount: the batch size as written by an earlier kernel (n is then its upper bound), so
+  // a producer-consumer loop needs no host round trip per batch.
+  if (deviceCount) n = min(n, int(*deviceCount));
+  constexpr int M = 32 * WR;  // rows per tile
+  using Rows = TileRows<kTangents>;
+  constexpr int Q = M / Rows::kDirections;  // queries per tile
+  constexpr int THREADS = WR * 128;
+  constexpr int kStride = KC + 8;  // halves per staged weight row
+  extern __shared__ __align__(128) unsigned char smem[];
+  // The program and the buffer layout are read from shared memory (uniform, indexable without
+  // local-memory spills), loaded once per block.
+  __shared__ MlpInstr program[kMaxFusedInstrs];
+  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
+  __half* const actBase = reinterpret_cast<__half*>(smem);
+  for (int i = threadIdx.x; i < P.numInstrs; i += THREADS) program[i] = P.instrs[i];
+  if (threadIdx.x == 0) {
+    int at = 0;
+    for (int b = 0; b < kMaxBuffers; ++b) {
+      bufferStart[b] = at;
+      bufferLd[b] = P.bufferLd[b];
+      if (b < P.numBuffers) at += M * P.bufferLd[b];
+    }
+  }
+  int actHalves = 0;
+  for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
+  const int stageHalves = stageRows(P) * kStride;
+  __half* const wstage = actBase + actHalves;
+  __half* const encStage = wstage + 2 * stageHalves;  // a fused Fourier encoding's chunk, if any
+  float* const coords = reinterpret_cast<float*>(encStage + encodingStageHalves(M, KC, P));
+  float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
+  float* const dotWeights = dotPart + M * 4;  // the final dot's weights (zero-padded), if any
+  for (int ip = 0; ip < P.numInstrs; ++ip)
+    if (P.instrs[ip].dotNext)
+      for (int c = threadIdx.x; c < P.instrs[ip].nPad; c += THREADS)
+        dotWeights[c] = P.floatWeights[P.instrs[ip].dotOffset + c];
+  __syncthreads();
+
+  const int tid = threadIdx.x;
+  const int warp = tid >> 5, lane = tid & 31;
+  const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
+  const int rowGroup = warp >> 2, colGroup = warp & 3;
+
+  const int numTiles = (n + Q - 1) / Q;
+  bool firstChunkStaged = false;  // the coming GEMM's chunk 0 is already in flight
+  for (int tile = blockIdx.x; tile < numTiles; tile += gridDim.x) {
+    const int base = tile * Q;
+    const int rows = min(Q, n - base);  // queries of this tile
+    loadTileCoords<M, THREADS, kTangents>(P, points, base, rows, coords, tid);
+    __syncthreads();
+
+    for (int ip = 0; ip < P.numInstrs; ++ip) {
+      const MlpInstr in = program[ip];  // a copy: fields stay in registers inside the loops
+      // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
+      if (in.fusedIntoPrevious || in.fusedIntoNext) continue;  // uniform
+      if (in.op != MlpOp::Gemm) {
+        runRowInstr<M, THREADS, kTangents>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out,
+                                           scatter);
+        __syncthreads();
+        continue;
+      }
+      const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
+      __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
+      const __half* other = in.other >= 0 ? actBase + bufferStart[in.other] : nullptr;
+      const int ldOther = in.other >= 0 ? bufferLd[in.other] : 0;
+      // A fused Fourier encoding is computed chunk by chunk into encStage (below), read like a
+      // buffer whose column 0 is the chunk's first.
+      const bool encoded = in.fourierInput >= 0;
+      const int ldSrc = encoded ? KC + 8 : bufferLd[in.src];
+      const __half* src = encoded ? encStage : actBase + bufferStart[in.src];
+      {
+          const int c16Count = in.nPad / 16;
+          const int numChunks = (in.kPad + KC - 1) / KC;
+          const float* bias = P.floatWeights + in.biasOffset;
+          const int rowBase = rowGroup * 32;
+          const bool prefetchNext = in.nextGemm >= 0 && (in.nextGemm > ip || tile + int(gridDim.x) < numTiles);
+          auto gemm = [&](auto nbTag) __attribute__((always_inline)) {
+            constexpr int NB = decltype(nbTag)::value;
+            // Accumulators [m16 tile][16-column block][n8 half][fragment]: the first k step
+            // writes them as A*B + bias (mma's C operand), so they need no initialisation.
+            float acc[2][NB][2][4];
+            float2 biasPair[NB][2];
+#pragma unroll
+            for (int j = 0; j < NB; ++j)
+#pragma unroll
+              for (int h = 0; h < 2; ++h) {
+                const int col = (colGroup + 4 * j) * 16 + h * 8 + 2 * t4;
+                biasPair[j][h] = colGroup + 4 * j < c16Count ? *reinterpret_cast<const float2*>(bias + col)
+                                                             : make_float2(0.f, 0.f);
+              }
+            // Per-lane shared-memory byte addresses for ldmatrix, computed once per layer; the k
+            // steps inside a chunk only add immediates.
+            unsigned aAddr[2];
+#pragma unroll
+            for (int mt = 0; mt < 2; ++mt) {
+              const int r = rowBase + mt * 16 + ((lane >> 3) & 1) * 8 + (lane & 7);
+              aAddr[mt] = smemAddress(src + r * ldSrc + (lane >> 4) * 8);
+            }
+            const unsigned bBase =
+                smemAddress(wstage + (colGroup * 16 + (lane >> 4) * 8 + (lane & 7)) * kStride + ((lane >> 3) & 1) * 8);
+            auto kStep = [&](unsigned aOff, unsigned bOff, auto firstTag) {
+              constexpr bool kFirst = decltype(firstTag)::value;
+              unsigned a[2][4];
+#pragma unroll
+              for (int mt = 0; mt < 2; ++mt) ldmatrixX4(a[mt], aAddr[mt] + aOff);
+#pragma unroll
+              for (int j = 0; j < NB; ++j) {
+                unsigned b[4];  // b[0], b[1]: n8 tile 0 (k lo, k hi); b[2], b[3]: n8 tile 1
+                ldmatrixX4(b, bBase + bOff + unsigned(j * 64 * kStride * 2));
+#pragma unroll
+                for (int mt = 0; mt < 2; ++mt) {
+                  if constexpr (kFirst && kTangents) {  // bias in the value rows only
+                    const float2 zero = make_float2(0.f, 0.f);
+                    mma16816BiasUpperZero(acc[mt][j][0], a[mt], b[0], b[1], mt == 0 ? biasPair[j][0] : zero);
+                    mma16816BiasUpperZero(acc[mt][j][1], a[mt], b[2], b[3], mt == 0 ? biasPair[j][1] : zero);
+                  } else if constexpr (kFirst) {
+                    mma16816Bias(acc[mt][j][0], a[mt], b[0], b[1], biasPair[j][0]);
+                    mma16816Bias(acc[mt][j][1], a[mt], b[2], b[3], biasPair[j][1]);
+                  } else {
+                    mma16816(acc[mt][j][0], a[mt], b[0], b[1]);
+                    mma16816(acc[mt][j][1], a[mt], b[2], b[3]);
+                  }
+                }
+              }
+            };
+            auto stage = [&](int gemm, int chunk) {
+              stageWeightChunk<THREADS, KC>(P, gemm, program[gemm].nPad, wstage, stageHalves, chunk, tid);
+            };
+            if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
+            firstChunkStaged = false;
+            auto runChunk = [&](int chunk, auto firstTag) {
+              if (chunk + 1 < numChunks) {
+                stage(ip, chunk + 1);
+                __pipeline_wait_prior(1);
+              } else {
+                __pipeline_wait_prior(0);
+              }
+              if (encoded) {  // this chunk's columns of the encoding, two per thread and step
+                const MlpInstr& f = program[in.fourierInput];
+                for (int idx = tid; idx < M * (KC / 2); idx += THREADS) {
+                  const int r = idx / (KC / 2), k = 2 * (idx % (KC / 2)), col = chunk * KC + k;
+                  // A tangent row: the element's derivative at its query's value row's inputs.
+                  const float* x = coords + Rows::row(Rows::query(r), 0) * 4;
+                  const float* dx = coords + r * 4;
+                  auto input = [x](int i) { return x[i]; };
+                  auto tangent = [dx](int i) { return dx[i]; };
+                  auto element = [&](int c) {
+                    return Rows::direction(r) == 0 ? fourierElement<ActMath::FastDevice>(f, P.floatWeights + f.floatOffset, input, c)
+                                                   : encodingElementTangent(f, P.floatWeights, input, tangent, c);
+                  };
+                  *reinterpret_cast<__half2*>(encStage + r * (KC + 8) + k) = __floats2half2_rn(element(col), element(col + 1));
+                }
+              }
+              __syncthreads();
+              const unsigned aChunk = encoded ? 0u : unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
+              const int kLen = min(KC, in.kPad - chunk * KC);
+              kStep(aChunk, bChunk, firstTag);  // every chunk holds at least one k step of 16
+              if (kLen == KC) {
+#pragma unroll
+                for (int kk = 16; kk < KC; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2, BoolTag<false>{});
+              } else {
+                for (int kk = 16; kk < kLen; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2, BoolTag<false>{});
+              }
+              __syncthreads();  // the next stage() overwrites this buffer
+            };
+            runChunk(0, BoolTag<true>{});
+            for (int chunk = 1; chunk < numChunks; ++chunk) runChunk(chunk, BoolTag<false>{});
+            // Both stage buffers are free now: start fetching the next GEMM's first chunk (the
+            // next tile's first GEMM after the last one) while the epilogue and the cheap ops run.
+            if (prefetchNext) {
+              stage(in.nextGemm, 0);
+              firstChunkStaged = true;
+            }
+            // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
+            if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
+              if (colGroup == 0 && t4 == 0) {
+                if constexpr (kTangents) {  // this lane's four rows: query g's value and tangents
+                  const int q = rowGroup * 8 + g;
+                  if (q < rows)
+                    emitOutput<true>(P, in.act, [&](int d) { return acc[d >> 1][0][0][2 * (d & 1)]; }, base + q, points, out,
+                                     scatter);
+                } else {
+#pragma unroll
+                  for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                    for (int half = 0; half < 2; ++half) {
+                      const int row = rowBase + mt * 16 + g + half * 8;
+                      if (row < rows)
+                        emitOutput<false>(P, in.act, [&](int) { return acc[mt][0][0][2 * half]; }, base + row, points, out,
+                                          scatter);
+                    }
+                }
+              }
+              return;
+            }
+            const int laneCol = colGroup * 16 + 2 * t4;
+            dispatchActivation(in.act, [&](auto A) {
+              constexpr MlpAct kAct = decltype(A)::value;
+              // act(acc) [+ residual], fp32; sigmoid(0) != 0, so its padding columns are masked.
+              // A tangent row (kTangents: m16 tile 1, or rows g + 8 of tile 0) gets act'(z) times
+              // its accumulator, z being the value row's (tile 0, fragment f & 1) pre-activation.
+              auto value = [&](int mt, int j, int h, int f, int col) {
+                if (kTangents && (mt > 0 || f >= 2))
+                  return activationDerivative<ActMath::FastDevice>(kAct, acc[0][j][h][f & 1]) * acc[mt][j][h][f];
+                float v = applyActivation(kAct, acc[mt][j][h][f]);
+                if (kAct == MlpAct::Sigmoid && col >= in.outWidth) v = 0.f;
+                return v;
+              };
+              // Calls f(mt, half, j, h, col, v0, v1) per owned fragment pair: the finished fp32
+              // values of row (mt, half) at columns col, col + 1. The residual
+              // sum is a template branch: a runtime one inside the unrolled loops is if-converted
+              // into predicated loads and arithmetic that every layer pays for.
+              const __half* const oRow = other ? other + (rowBase + g) * ldOther + laneCol : nullptr;
+              auto forEachPair = [&](auto f) {
+                auto loop = [&](auto residual) {
+                  constexpr bool kResidual = decltype(residual)::value;
+#pragma unroll
+                  for (int j = 0; j < NB; ++j) {
+                    if (colGroup + 4 * j >= c16Count) continue;
+#pragma unroll
+                    for (int h = 0; h < 2; ++h) {
+                      const int col = laneCol + j * 64 + h * 8;
+#pragma unroll
+                      for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                        for (int half = 0; half < 2; ++half) {
+                          float v0 = value(mt, j, h, 2 * half, col), v1 = value(mt, j, h, 2 * half + 1, col + 1);
+                          if (kResidual && oRow) {
+                            const float2 o = ldsHalf2AsFloat2InPlace(oRow + (mt * 16 + half * 8) * ldOther + j * 64 + h * 8);
+                            v0 = in.combineScale * (v0 + o.x);
+                            v1 = in.combineScale * (v1 + o.y);
+                          }
+                          f(mt, half, j, h, col, v0, v1);
+                        }
+                    }
+                  }
+                };
+                if (oRow)
+                  loop(BoolTag<true>{});
+                else
+                  loop(BoolTag<false>{});
+              };
+              if (in.dotNext) {
+                // The network's final linear (next instruction): dot of the fp32 activations with
+                // its weights, reduced over the quad's lanes, then over the 4 column warps.
+                const MlpInstr& fin = program[ip + 1];
+                float part[2][2] = {{0.f, 0.f}, {0.f, 0.f}};
+                forEachPair([&](int mt, int half, int, int, int col, float v0, float v1) {
+                  const float2 w = ldsFloat2InPlace(dotWeights + col);
+                  part[mt][half] = fmaf(v0, w.x, fmaf(v1, w.y, part[mt][half]));
+                });
+#pragma unroll
+                for (int mt = 0; mt < 2; ++mt)
+#pragma unroll
+                  for (int half = 0; half < 2; ++half) {
+                    float v = part[mt][half];
+                    v += __shfl_xor_sync(0xffffffffu, v, 1);
+                    v += __shfl_xor_sync(0xffffffffu, v, 2);
+                    if (t4 == 0) dotPart[colGroup * M + rowBase + mt * 16 + g + half * 8] = v;
+                  }
+                __syncthreads();
+                const float dotBias = P.floatWeights[fin.biasOffset];
+                for (int q = tid; q < rows; q += THREADS) {
+                  auto pre = [&](int d) {  // direction d's dot product (the value's with the bias)
+                    const int r = Rows::row(q, d);
+                    return dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + (d == 0 ? dotBias : 0.f);
+                  };
+                  emitOutput<kTangents>(P, fin.act, pre, base + q, points, out, scatter);
+                }
+                return;
+              }
+              __half* const dRow = dst + (rowBase + g) * ldDst + laneCol;
+              forEachPair([&](int mt, int half, int j, int h, int, float v0, float v1) {
+                *reinterpret_cast<__half2*>(dRow + (mt * 16 + half * 8) * ldDst + j * 64 + h * 8) = __floats2half2_rn(v0, v1);
+              });
+            });
+          };
+          switch ((c16Count + 3) / 4) {  // the same for every warp of the block
+            case 1: gemm(IntTag<1>{}); break;
+            case 2: gemm(IntTag<2>{}); break;
+            case 3: gemm(IntTag<3>{}); break;
+            default: gemm(IntTag<4>{}); break;
+          }
+      }
+      __syncthreads();
+    }
+  }
+}
+
+// Tile of 32*WR rows, 4*WR warps; weight chunks of KC columns (declared in FusedMlpKernels.h).
+template <bool kTangents, int KC>
+FusedKernel mmaSyncKernelFor(int tile) {
+  switch (tile) {
+    case 128: return fusedMlpKernel<4, KC, kTangents>;
+    case 64: return fusedMlpKernel<2, KC, kTangents>;
+    default: return fusedMlpKernel<1, KC, kTangents>;
+  }
+}
+
+}  // namespace inr::cuda
