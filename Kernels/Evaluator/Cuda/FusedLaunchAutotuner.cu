@@ -23,16 +23,21 @@ std::string configName(const FusedConfig& c) {
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
     : device_(device), options_(options) {}
 
+namespace {
+
+// Dynamic shared memory `kernel` may have beside its static shared memory on `device`.
+std::size_t sharedLimit(const CudaDeviceInfo& device, FusedKernel kernel) {
+  cudaFuncAttributes attr{};
+  INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
+  return device.sharedMemPerBlockOptin - std::min(device.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
+}
+
+}  // namespace
+
 std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
                                                           bool wgmmaRuns) const {
   const CudaEvaluatorOptions& options = options_;
   std::vector<FusedConfig> candidates;
-  // Dynamic shared memory a kernel may have beside its static shared memory.
-  auto sharedLimit = [&](FusedKernel kernel) {
-    cudaFuncAttributes attr{};
-    INR_CUDA_CHECK(cudaFuncGetAttributes(&attr, kernel));
-    return device_.sharedMemPerBlockOptin - std::min(device_.sharedMemPerBlockOptin, std::size_t(attr.sharedSizeBytes));
-  };
   // mma.sync candidates first: without autotuning the first that fits runs, and that stays
   // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
   if (options.mma != FusedMma::Wgmma)
@@ -42,7 +47,7 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
         const FusedKernel kernel = mmaSyncKernel(t, kc);
         // the fused and the stored encoding (where the program has one), each if it fits (one
         // kernel, two shared-memory sizes: its limit allows either at launch)
-        const std::size_t limit = sharedLimit(kernel);
+        const std::size_t limit = sharedLimit(device_, kernel);
         INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
         for (const bool storedEncoding : {true, false}) {  // stored first: the kernel of earlier versions
           if (storedEncoding && !P.fusedFourier) continue;
@@ -60,7 +65,7 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
     for (const int nc : {128, 64}) {
       if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
       const FusedKernel kernel = hopperKernel(nc);
-      const std::size_t limit = sharedLimit(kernel);
+      const std::size_t limit = sharedLimit(device_, kernel);
       int stages = 0;
       for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
         if (hopperSharedBytes(nc, s, P) <= limit) stages = s;
@@ -92,7 +97,11 @@ std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vect
   for (FusedConfig c : candidates) {
     if (c.wgmma) continue;
     const FusedKernel kernel = mmaSyncTangentKernel(c.tile, c.kc);
-    INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(c.sharedBytes)));
+    // Its limit, not this candidate's size: the stored and the fused encoding share the kernel
+    // with two sizes, and the larger must still launch after the smaller was set.
+    const std::size_t limit = sharedLimit(device_, kernel);
+    if (c.sharedBytes > limit) continue;
+    INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
     int perSm = 0;
     INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, c.tile * 4, c.sharedBytes));
     if (perSm < 1) continue;
