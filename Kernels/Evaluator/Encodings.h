@@ -251,6 +251,16 @@ INR_HD void hashGridLevelFused(const HashGridView& g, int level, const Input& x,
   for (int j = 0; j < F; ++j) out[j] = half[0][j] + half[1][j];
 }
 
+// hashGridLevelFused for a grid of `dims` (3 or 4) inputs.
+template <class Input, class Value>
+INR_HD void hashGridLevelFusedDims(const HashGridView& g, int level, int dims, const Input& x, const Value& value,
+                                   float* out) {
+  if (dims == 3)
+    hashGridLevelFused<3>(g, level, x, value, out);
+  else
+    hashGridLevelFused<4>(g, level, x, value, out);
+}
+
 // Column k of hash-grid instruction f of the inputs x; grid: f's packed weights.
 template <class Input>
 INR_HD float hashGridElement(const MlpInstr& f, const float* grid, const Input& x, int k) {

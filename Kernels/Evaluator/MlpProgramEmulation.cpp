@@ -26,10 +26,7 @@ void hashGridRowAsFused(const MlpProgram& p, const MlpInstr& f, const Input& x, 
     const std::uint16_t* table = p.halfWeights.data() + f.halfOffset + std::size_t(g.firstEntry(l)) * F;
     auto value = [&](std::uint32_t e, int j) { return halfBitsToFloat(table[std::size_t(e) * F + j]); };
     float v[8];
-    if (f.inWidth == 3)
-      hashGridLevelFused<3>(g, l, x, value, v);
-    else
-      hashGridLevelFused<4>(g, l, x, value, v);
+    hashGridLevelFusedDims(g, l, f.inWidth, x, value, v);
     for (int j = 0; j < F; ++j) row[cols.featureAt + l * F + j] = roundToHalf(v[j]);
   }
 }

@@ -72,10 +72,7 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
         const __half* table = P.hashTables + in.halfOffset + std::size_t(g.firstEntry(l)) * F;
         auto value = [&](std::uint32_t e, int j) { return __half2float(table[std::size_t(e) * F + j]); };
         float v[8];
-        if (in.inWidth == 3)
-          hashGridLevelFused<3>(g, l, input, value, v);
-        else
-          hashGridLevelFused<4>(g, l, input, value, v);
+        hashGridLevelFusedDims(g, l, in.inWidth, input, value, v);
         for (int j = 0; j < F; ++j) store(q, 0, cols.featureAt + l * F + j, v[j]);
       }
       for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
