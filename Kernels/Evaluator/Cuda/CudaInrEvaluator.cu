@@ -162,8 +162,8 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kGenericChunk = 1 << 16;
   // Gradient shading's value + gradient queries: the fused kernel's tangent rows (tangentConfig
   // for launches of kSmallBatchThreshold queries or more, smallTangentConfig below) where
-  // fusedTangents, else fp32 forward mode, one thread per query (gradientNetwork; why not fused:
-  // whyNoFusedTangents).
+  // fusedTangents, else fp32 forward mode, one thread per query (gradientNetwork, built only
+  // then; why not fused: whyNoFusedTangents).
   std::unique_ptr<CudaPerThreadMlp> gradientNetwork;
   bool fusedTangents = false;
   std::string whyNoFusedTangents;
@@ -361,6 +361,9 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
   if (!whyNoFusedTangents.empty()) {
     if (options.gradientPath == CudaGradientPath::FusedTangents)
       throw std::runtime_error("fused tangent rows requested but impossible for this model: " + whyNoFusedTangents);
+    // The per-thread network (its own compiled program and fp32 weights on the device) only
+    // where it is the gradient path.
+    gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
     return;
   }
   for (int axis = 0; axis < 3; ++axis) this->tangentInput[axis] = tangentInput[axis];
@@ -398,7 +401,6 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
   I.prepareParams(model);
   const std::string persistence = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
-  I.gradientNetwork = std::make_unique<CudaPerThreadMlp>(model);
   I.output = model.output;
 
   // The path: fused where the program and a configuration fit, else generic.

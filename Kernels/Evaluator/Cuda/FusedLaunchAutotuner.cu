@@ -96,6 +96,13 @@ std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vect
   std::vector<FusedConfig> out;
   for (FusedConfig c : candidates) {
     if (c.wgmma) continue;
+    // A hash grid's value candidates come twice, once per gather lane arrangement; the tangent
+    // rows gather query by query (runTangentRowInstr) whatever it is, so each is taken once.
+    c.hashGridPairs = -1;
+    const auto same = [&](const FusedConfig& o) {
+      return o.tile == c.tile && o.kc == c.kc && o.storedEncoding == c.storedEncoding;
+    };
+    if (std::any_of(out.begin(), out.end(), same)) continue;
     const FusedKernel kernel = mmaSyncTangentKernel(c.tile, c.kc);
     // Its limit, not this candidate's size: the stored and the fused encoding share the kernel
     // with two sizes, and the larger must still launch after the smaller was set.

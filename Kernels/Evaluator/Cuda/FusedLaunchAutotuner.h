@@ -67,7 +67,9 @@ public:
 
   // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
   // (the same shared memory; its own register count, so its own resident blocks), its dynamic
-  // shared-memory limit set. Empty when no candidate is mma.sync (wgmma requested).
+  // shared-memory limit set; once per tile, chunk and encoding (a hash grid's two gather lane
+  // arrangements are one for the tangent rows). Empty when no candidate is mma.sync (wgmma
+  // requested).
   std::vector<FusedConfig> tangentCandidates(const std::vector<FusedConfig>& candidates) const;
 
   struct Choice {
