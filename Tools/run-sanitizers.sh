@@ -15,7 +15,10 @@
 # fingerprints of RenderRegression (recorded for the release flags; instrumented code contracts and
 # vectorises floating point differently, so its images differ in the last bits); and
 # cli.every_shipped_model (over 5 minutes instrumented; ModelRender.ShippedModels* renders the
-# same models).
+# same models); and cli.brick_composite_{2,4}_shadows (110-120 s each instrumented, a third of
+# the sanitizer run: 1400+ frames per render to converge; the brick and shadow code they reach is
+# instrumented in BrickDecomposition.BricksCompositeToTheWholeImageWithAndWithoutShadows, and the
+# CLI's --brick path in cli.brick_composite_{2,4}).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${INR_SANITIZE_BUILD_DIR:-build-asan}
@@ -24,7 +27,7 @@ JOBS=${INR_SANITIZE_JOBS:-$(nproc)}
 PHASE=all
 case "${1:-}" in --build-only) PHASE=build; shift ;; --no-build) PHASE=test; shift ;; esac
 start=$(date +%s)
-EXCLUDE='^(RenderRegression\.|cli\.every_shipped_model$)'
+EXCLUDE='^(RenderRegression\.|cli\.every_shipped_model$|cli\.brick_composite_[0-9]+_shadows$)'
 if [ "$PHASE" != test ]; then
   # -g1: line tables for the reports at a fraction of -g's compile time.
   cmake -S . -B "$BUILD_DIR" -G Ninja -DINR_SANITIZE="$SANITIZERS" -DINR_ENABLE_CUDA=OFF \
