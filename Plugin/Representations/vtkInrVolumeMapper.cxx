@@ -281,6 +281,9 @@ struct vtkInrVolumeMapper::Internals
   // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
   // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
   bool BuildsInBackground(vtkInrVolumeMapper* self) const;
+  // Whether this render is the GUI's first of this mapper, put off to the next one
+  // (firstRender).
+  bool DefersFirstRender(vtkInrVolumeMapper* self) const;
   // The GUI's still renders of the fine session refine it on that worker too, one refinement
   // step at a time (InrEngines::StartFineRefine): a render joins a finished step, hands the
   // scene over, draws the image so far and starts the next step, so no render waits for a whole
@@ -343,6 +346,9 @@ struct vtkInrVolumeMapper::Internals
   double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
                          // of the window's frames: left out of the window's fixed cost)
   bool renderedInWindow = false;
+  // The GUI's first render of this mapper is put off to the next turn of the event loop
+  // (DefersFirstRender): 0 not yet reached, 1 put off (the next render does the work), 2 done.
+  int firstRender = 0;
   // The refinement budget is for the view's whole render: where it began (the view's update, when
   // MarkViewUpdate came after the last render, else the window's render) and what the window
   // spends after this mapper's Render (measured: drawing, swap).
@@ -477,6 +483,10 @@ int vtkInrVolumeMapper::GetLocalConverged()
   // A reduced interactive image is never the final one: a still render must follow.
   // A refinement step running on the worker: not converged yet.
   const Internals& I = *this->Internal;
+  if (I.firstRender == 1)
+  {
+    return 0;  // the first render was put off: the refinement behaviour renders again
+  }
   return !this->ProgressiveRefinement ||
       (!I.lod.LastInteractive() && !I.engines.FineRefining() && I.engines.fine.refinement.converged())
     ? 1
@@ -784,6 +794,10 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     return;
   }
   I.quietRenders = true;
+  if (I.DefersFirstRender(this))
+  {
+    return;  // Render puts it off
+  }
   if (I.engines.BuildDone())
   {
     I.engines.FinishBackgroundBuild();  // finished on the worker: join it
@@ -928,6 +942,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // e.g. an empty piece in a parallel run: nothing to draw here
   }
+  if (I.DefersFirstRender(this))
+  {
+    // The render inside Apply (ParaView's own work there, pipeline update, representation and
+    // panel, holds the event loop 0.5-0.6 s already): the engine, the coarse macrocells and the
+    // first frame (~180 ms for a paper-size SIREN on 2 cores) come with the refinement
+    // behaviour's render, a turn of the event loop later (the converged state says "not yet").
+    I.firstRender = 1;
+    return;
+  }
+  I.firstRender = 2;
   if (!I.UpdateModel(bytes) || !I.UpdateEngine(this))
   {
     return;
@@ -1167,6 +1191,14 @@ bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self)
   return backgroundBuilds && this->engines.fine.session &&
     InrLevelOfDetail::BuildsFineInBackground(
       this->LodSettings(self), this->engines.fine.session->backend() == inr::RenderBackend::Cpu);
+}
+
+bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) const
+{
+  // Only where something renders again by itself (the GUI's refinement behaviour, which turns
+  // background builds on; it renders while the state is not converged), never for a capture or
+  // a tile of a larger picture (captures too: they must draw now), and once per mapper.
+  return this->firstRender == 0 && backgroundBuilds && !self->Capturing && this->ranks.count <= 1;
 }
 
 bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)

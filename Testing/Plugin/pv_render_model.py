@@ -43,6 +43,18 @@ trange = list(reader.GetProperty("TimeRange"))
 check(abs(trange[0] - 0.0) < 1e-9 and abs(trange[1] - 10.0) < 1e-9,
       f"continuous TimeRange {trange}")
 check(len(reader.GetProperty("TimestepValues")) == 0, "no TIME_STEPS (continuous time)")
+# The model's bytes travel as the field array "InrModel"; the reader stores their range in VTK's
+# range cache (ParaView's data information would otherwise scan them on Apply): it must be the
+# bytes' true range.
+model_bytes = open(args.model, "rb").read()
+reader.UpdatePipeline()
+info = reader.GetDataInformation().GetFieldDataInformation().GetArrayInformation("InrModel")
+check(info is not None and info.GetNumberOfTuples() == len(model_bytes),
+      "the field array InrModel holds the model file's bytes")
+if info is not None:
+    got = info.GetComponentRange(0)
+    check(tuple(got) == (float(min(model_bytes)), float(max(model_bytes))),
+          f"InrModel's range in the data information is the bytes' range ({tuple(got)})")
 
 view = C.setup_view(args.size)
 scene = simple.GetAnimationScene()
