@@ -68,11 +68,11 @@ struct vtkInrVolumeReader::Internals
 namespace
 {
 // ParaView's data information (on Apply, in the GUI's event loop) takes the range and the finite
-// range of every array, the model's bytes included: VTK's generic scan of a 1-2 MB byte array
-// took 43-88 ms for the paper-size models. The range of bytes is found in well under a
-// millisecond; it is stored where vtkDataArray caches its ranges (per component, valid while the
-// array is not modified after it), so the scan finds it. Were VTK's cache to change, the scan
-// simply runs.
+// range of every array, the model's bytes included, with VTK's generic scan: tens of ms for the
+// paper-size models (RESULTS.md, "Apply: the plugin's part of the event-loop stall"), where
+// std::minmax_element over the bytes takes a fraction of a millisecond. The range is stored where
+// vtkDataArray caches its ranges (per component, valid while the array is not modified after
+// it), so the scan finds it. Were VTK's cache to change, the scan simply runs.
 void CacheByteRange(vtkUnsignedCharArray* array)
 {
   const vtkIdType n = array->GetNumberOfValues();

@@ -945,9 +945,10 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   if (I.DefersFirstRender(this))
   {
     // The render inside Apply (ParaView's own work there, pipeline update, representation and
-    // panel, holds the event loop 0.5-0.6 s already): the engine, the coarse macrocells and the
-    // first frame (~180 ms for a paper-size SIREN on 2 cores) come with the refinement
-    // behaviour's render, a turn of the event loop later (the converged state says "not yet").
+    // panel, already holds the event loop for a long while): the engine, the coarse macrocells
+    // and the first frame come with the refinement behaviour's render, a turn of the event loop
+    // later (the converged state says "not yet"). Figures: RESULTS.md, "Apply: the plugin's part
+    // of the event-loop stall".
     I.firstRender = 1;
     return;
   }
