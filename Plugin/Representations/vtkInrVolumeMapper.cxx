@@ -1196,10 +1196,12 @@ bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self)
 
 bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) const
 {
-  // Only where something renders again by itself (the GUI's refinement behaviour, which turns
-  // background builds on; it renders while the state is not converged), never for a capture or
-  // a tile of a larger picture (captures too: they must draw now), and once per mapper.
-  return this->firstRender == 0 && backgroundBuilds && !self->Capturing && this->ranks.count <= 1;
+  // Only where something renders again by itself: the GUI's refinement behaviour (it turns
+  // background builds on) renders while the state is not converged, and only with progressive
+  // refinement on. Never for a capture or a tile of a larger picture (they must draw now), and
+  // once per mapper.
+  return this->firstRender == 0 && backgroundBuilds && self->ProgressiveRefinement &&
+    !self->Capturing && this->ranks.count <= 1;
 }
 
 bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
