@@ -11,18 +11,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash Tools/install-deps.sh
-# Without a usable GPU the GPU tests skip, so the CUDA code only has to compile: a compile check,
-# PTX for Hopper (90-virtual; the wgmma kernel compute_90a) with NVVM's optimiser off
-# (-Xcicc -O0). The front end (types, templates, static_asserts) and NVVM see every kernel;
-# ptxas (register allocation, inline-PTX operands) runs only where a GPU is (the device machine's
-# builds). Optimised device code took ~660 s of a 2-core build's ~1000 s of compiler time, the
-# check takes a few seconds per file (Docs/testing.md). Nothing of such a build can run a kernel
-# well (its PTX would be JIT-compiled unoptimised): build with a GPU, or give
-# CMAKE_CUDA_ARCHITECTURES here, for GPU work.
+# Without a usable GPU the GPU tests skip, so the CUDA code only has to compile: a compile check
+# (INR_CUDA_COMPILE_CHECK: PTX for sm_90, the wgmma kernel compute_90a, NVVM's optimiser off).
+# The front end (types, templates, static_asserts) and NVVM see every kernel; ptxas (register
+# allocation, inline-PTX operands) runs only where a GPU is. Optimised device code was about two
+# thirds of a 2-core build's compiler time (Docs/testing.md). The option is passed either way, so
+# a build folder first made without a GPU builds optimised kernels once one is there; giving
+# CMAKE_CUDA_ARCHITECTURES or INR_CUDA_COMPILE_CHECK here decides instead.
 cuda_archs=()
-if ! nvidia-smi -L >/dev/null 2>&1 && [[ " $* " != *CMAKE_CUDA_ARCHITECTURES* ]]; then
-  cuda_archs=("-DCMAKE_CUDA_ARCHITECTURES=90-virtual" "-DCMAKE_CUDA_FLAGS=-Xcicc -O0")
-  echo "run-tests: no usable GPU: CUDA code (if nvcc is found) is only compile-checked (PTX for sm_90, device optimiser off)"
+if [[ " $* " != *CMAKE_CUDA_ARCHITECTURES* && " $* " != *INR_CUDA_COMPILE_CHECK* ]]; then
+  if nvidia-smi -L >/dev/null 2>&1; then
+    cuda_archs=("-DINR_CUDA_COMPILE_CHECK=OFF")
+  else
+    cuda_archs=("-DINR_CUDA_COMPILE_CHECK=ON")
+    echo "run-tests: no usable GPU: CUDA code (if nvcc is found) is only compile-checked (PTX for sm_90, device optimiser off)"
+  fi
 fi
 bash Tools/build.sh "${cuda_archs[@]}" "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}

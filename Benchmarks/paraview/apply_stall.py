@@ -22,6 +22,7 @@ INR Volume's stall that the plugin cannot remove.
 import argparse
 import csv
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -55,21 +56,36 @@ if args.grid < 2:
     sys.exit(f"apply_stall.py: --grid {args.grid}: must be at least 2")
 if not os.path.exists(os.path.join(args.plugin_dir, "InrVolume.so")):
     sys.exit(f"apply_stall.py: --plugin-dir {args.plugin_dir}: no InrVolume.so there")
+if "grid" in args.cases and not shutil.which("xdotool"):
+    sys.exit("apply_stall.py: the grid case needs xdotool (to answer ParaView's volume-rendering "
+             "prompt): apt install xdotool, or leave it out with --cases inr outline")
 out = args.out or tempfile.mkdtemp(prefix="apply_stall_")
 os.makedirs(out, exist_ok=True)
 env = dict(os.environ, PV_PLUGIN_PATH=os.path.abspath(args.plugin_dir))
 
-# The grid: the plugin's reader resamples the network (its preview output at --grid per axis).
-grid_path = os.path.join(out, f"resampled_{args.grid}.vti")
+# The grid: the plugin's reader resamples the network (its preview output at --grid per axis),
+# saved with the point array only (the reader's field arrays, the model's bytes among them, are
+# no part of a plain grid's Apply).
+model_name = os.path.splitext(os.path.basename(args.model))[0]
+grid_path = os.path.join(out, f"{model_name}_resampled_{args.grid}.vti")
+pvpython = os.path.join(os.path.dirname(shutil.which(args.paraview) or args.paraview), "pvpython")
+if not os.path.exists(pvpython):
+    pvpython = shutil.which("pvpython") or "pvpython"
 if not os.path.exists(grid_path):
     script = f"""
-from paraview import simple
+from paraview import simple, servermanager
+from vtkmodules.vtkIOXML import vtkXMLImageDataWriter
 r = simple.OpenDataFile({os.path.abspath(args.model)!r})
 r.PreviewResolution = {args.grid}
 r.UpdatePipeline()
-simple.SaveData({grid_path!r}, proxy=r)
+image = servermanager.Fetch(r)
+image.GetFieldData().Initialize()
+w = vtkXMLImageDataWriter()
+w.SetFileName({grid_path!r})
+w.SetInputData(image)
+w.Write()
 """
-    p = subprocess.run(["pvpython", "-c", script], env=env, capture_output=True, text=True)
+    p = subprocess.run([pvpython, "-c", script], env=env, capture_output=True, text=True)
     if p.returncode != 0 or not os.path.exists(grid_path):
         sys.exit(f"apply_stall.py: resampling {args.model} to {grid_path} failed:\n{p.stdout}{p.stderr}")
 
@@ -128,29 +144,40 @@ def run_case(name, path, representation, k):
         f.write(p.stdout)
     if p.returncode != 0:
         sys.exit(f"apply_stall.py: paraview failed on case {name} (exit {p.returncode}); log in {out}")
-    stalls = []
-    for line in open(log_path) if os.path.exists(log_path) else []:
-        kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
-        stalls.append((float(kv["end"]) - float(kv["block_ms"]) / 1000.0, float(kv["block_ms"])))
-    # Apply's stalls: those after the first quiet gap of >= 2.5 s (the pause between File > Open
-    # and Apply; the one before File > Open is 1.5 s) up to the next such gap (the settle pause
-    # of a case whose view does not refine by itself) or the end. A prompt's time on screen (the
-    # answer comes within 0.2 s) is not a stall: its dialog runs the event loop.
-    gaps = [i for i in range(1, len(stalls))
-            if stalls[i][0] - (stalls[i - 1][0] + stalls[i - 1][1] / 1000.0) >= QUIET_GAP_S]
-    if not gaps:
-        sys.exit(f"apply_stall.py: case {name}: no quiet pause before Apply in {log_path}")
-    end = gaps[1] if len(gaps) > 1 else len(stalls)
-    after = [ms for _, ms in stalls[gaps[0]:end]]
-    # The view's renders (the setup script's log: start, and how long each held the loop) inside
-    # Apply's longest stall: the part of it that is drawing, the rest is ParaView's Apply.
-    longest = max(stalls[gaps[0]:end], key=lambda st: st[1], default=(0.0, 0.0))
-    renders = []
-    for line in open(os.path.join(gui_out, "gui_session_renders.txt")):
+    renders, observer = [], []  # the setup script's log: each render (start, time held) and
+    # what its own observer cost (end, ms; screenshots and state reads, in the INR case only)
+    renders_log = os.path.join(gui_out, "gui_session_renders.txt")
+    if not os.path.exists(renders_log):
+        sys.exit(f"apply_stall.py: case {name}: no render log {renders_log} (did {SETUP} run?)")
+    for line in open(renders_log):
         kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
         if line.startswith("render") and "start" in kv:
             renders.append((float(kv["start"]), float(kv["block_ms"])))
-    in_longest = [ms for t, ms in renders if longest[0] <= t <= longest[0] + longest[1] / 1000.0]
+        elif line.startswith("observer"):
+            observer.append((float(kv["end"]), float(kv["log_ms"])))
+    stalls = []
+    for line in open(log_path) if os.path.exists(log_path) else []:
+        kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
+        end, ms = float(kv["end"]), float(kv["block_ms"])
+        begin = end - ms / 1000.0
+        ms -= sum(cost for t, cost in observer if begin <= t <= end)  # the test's own work
+        stalls.append((begin, ms, end))
+    # Apply's stalls: those after the first quiet gap of >= 2.5 s (the pause between File > Open
+    # and Apply; the one before File > Open is 1.5 s), up to the next such gap (the settle pause
+    # of a case whose view does not refine by itself) and no later than the settle pause's end
+    # (ParaView's exit). A prompt's time on screen (the answer comes within 0.2 s) is not a
+    # stall: its dialog runs the event loop.
+    gaps = [i for i in range(1, len(stalls)) if stalls[i][0] - stalls[i - 1][2] >= QUIET_GAP_S]
+    if not gaps:
+        sys.exit(f"apply_stall.py: case {name}: no quiet pause before Apply in {log_path}")
+    last = stalls[gaps[0]][0] + args.settle_ms / 1000.0
+    end = gaps[1] if len(gaps) > 1 else len(stalls)
+    window = [st for st in stalls[gaps[0]:end] if st[0] <= last]
+    after = [ms for _, ms, _ in window]
+    # The view's renders inside Apply's longest stall: the part of it that is drawing, the rest is
+    # ParaView's Apply.
+    longest = max(window, key=lambda st: st[1], default=(0.0, 0.0, 0.0))
+    in_longest = [ms for t, ms in renders if longest[0] <= t <= longest[2]]
     return dict(case=name, run=k, longest_ms=max(after, default=0.0),
                 freeze_ms=sum(ms for ms in after if ms > STALL_BOUND_MS), stalls=len(after),
                 renders_in_longest=len(in_longest), render_ms_in_longest=sum(in_longest),

@@ -950,6 +950,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     // later (the converged state says "not yet"). Figures: RESULTS.md, "Apply: the plugin's part
     // of the event-loop stall".
     I.firstRender = 1;
+    // Apply's pipeline update is no part of the next render's budget (the window observer that
+    // clears this after each window render is attached by the first render that draws).
+    I.viewUpdatePending = false;
     return;
   }
   I.firstRender = 2;

@@ -15,7 +15,8 @@ script logs each render's state and keeps screenshots. Checks:
     meet the target: median <= target, 90th percentile <= 1.5 x target. These time checks are
     printed as measured and judged only with --judge-times (a quiet machine; CI's is shared and
     Benchmarks/paraview/interactive_lod.py measures properly); always judged: drag frames cost
-    at most half a full-resolution frame;
+    at most half a full-resolution frame; no full-resolution render mid-drag is judged unless the
+    machine is loaded beyond twice its cores;
   - playback rendered time changes as interactive frames and their times meet the same target,
     first visits of a time included: the coarse interactive macrocell slices were built ahead
     (InrInteractiveMacrocellsAhead, in the first still render), so no playback frame builds
@@ -151,7 +152,11 @@ if first_drag is not None:
     # reduced image there instead of rendering a full-resolution frame that the resumed drag
     # would wait for.
     between = [r for r in renders[first_drag:last_drag + 1] if not r["interactive"]]
-    timed(not between, f"no full-resolution render during the drag, its pause included ({len(between)})")
+    # What the refinement behaviour decides, not a time: judged unless the machine is loaded
+    # beyond twice its cores (there GUI events arrive late enough for the refinement timer to fire
+    # between them), or with --judge-times.
+    (check if args.judge_times or load <= 2.0 * cores else timed)(
+        not between, f"no full-resolution render during the drag, its pause included ({len(between)})")
     blocks = [r["block"] for r in renders[first_drag:last_drag + 1]]
     print("window renders during the drag:", describe(blocks))
     timed(max(blocks) <= DRAG_BLOCK_BOUND_MS,

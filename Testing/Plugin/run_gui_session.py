@@ -22,8 +22,8 @@ window pops up for) and every render. Checks:
   - the model's own colours: the *.tf.json preset beside the model is the colour and opacity
     map from the first INR Volume render on (no restart: frames 1, 2, 3, ... after Apply);
   - the last still image is not empty;
-  - Apply's longest event-loop stall holds no INR Volume frame (the first image is drawn in a
-    turn of the event loop of its own);
+  - Apply's event-loop stall (the one the first INR Volume render starts in) holds no INR Volume
+    frame (the first image is drawn in a turn of the event loop of its own);
   - what the user waits for (issue 28): per step, the longest render (from the view's StartEvent
     to its EndEvent: pipeline update, preparation and drawing, during which the event loop is
     blocked) after Apply, each time step and the renderer rebuild is at most 250 ms; the first
@@ -245,15 +245,17 @@ for k, ((name, start), (_, end)) in enumerate(zip(marks, marks[1:] + [("end", le
 # Volume frame: the GUI's first render of the mapper is put off one turn of the event loop, so the
 # first image is drawn in a turn of its own (before: the engine, the macrocells and the first
 # frame ran inside Apply's stall, 0.8-1 s in all).
-apply_end = float(inr[marks[1][1]]["start"]) if len(marks) > 1 and marks[1][1] < len(inr) else float("inf")
-apply_stalls = [(b, e) for b, e in raw_stalls if first_start <= e < apply_end]
-if apply_stalls:
-    b, e = max(apply_stalls, key=lambda st: st[1] - st[0])
+# Apply's stall: the one in which the first INR Volume render started (the representation
+# change, in Apply's turn of the event loop); none (a stall under the watch's 40 ms) holds nothing.
+first_inr = float(inr[0]["start"]) if inr else None
+apply_stall = next(((b, e) for b, e in raw_stalls if first_inr is not None and b <= first_inr <= e), None)
+if apply_stall:
+    b, e = apply_stall
     drawn = [r for r in inr if b <= float(r["start"]) <= e and int(r["frames"]) > 0]
-    check(not drawn, f"Apply's longest event-loop stall ({1000 * (e - b):.0f} ms) holds no INR Volume "
-          f"frame ({len(drawn)} render(s) with frames in it)")
+    check(not drawn, f"Apply's event-loop stall ({1000 * (e - b):.0f} ms) holds no INR Volume frame "
+          f"({len(drawn)} render(s) with frames in it)")
 else:
-    check(False, "Apply's event-loop stalls were logged")
+    print("Apply's first INR Volume render was in no logged event-loop stall (none over 40 ms)")
 
 # What a user waits for (issue 28): no render and no other stall of the event loop longer than
 # the bound while Apply, a time step or a renderer rebuild settles (the long macrocell builds run
