@@ -35,8 +35,11 @@ ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 TOOLBAR = "pqClientMainWindow/representationToolbar/displayRepresentation/comboBox"
 STALL_BOUND_MS = 250.0
 QUIET_GAP_S = 2.5
-# Logs every render of the view (start, time held) and sets the view's size: the GUI tests' own.
+# Logs every render of the view (start, time held) and sets the view's size: the GUI tests' own,
+# whose log readers (inr_pv_common) this script shares.
 SETUP = os.path.join(ROOT, "Testing", "Plugin", "gui_session_setup.py")
+sys.path.insert(0, os.path.dirname(SETUP))
+import inr_pv_common as C  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 ap.add_argument("--plugin-dir", required=True, help="the folder of InrVolume.so (PV_PLUGIN_PATH)")
@@ -139,45 +142,34 @@ def run_case(name, path, representation, k):
     except subprocess.TimeoutExpired:
         proc.kill()
         sys.exit(f"apply_stall.py: paraview ran past 300 s on case {name}; logs in {out}")
-    p = subprocess.CompletedProcess(proc.args, proc.returncode, stdout)
     with open(os.path.join(out, f"{name}_{k}_paraview.log"), "w") as f:
-        f.write(p.stdout)
-    if p.returncode != 0:
-        sys.exit(f"apply_stall.py: paraview failed on case {name} (exit {p.returncode}); log in {out}")
-    renders, observer = [], []  # the setup script's log: each render (start, time held) and
-    # what its own observer cost (end, ms; screenshots and state reads, in the INR case only)
+        f.write(stdout)
+    if proc.returncode != 0:
+        sys.exit(f"apply_stall.py: paraview failed on case {name} (exit {proc.returncode}); log in {out}")
+    # The setup script's log: each render, and what its own observer cost (screenshots and state
+    # reads, in the INR case only), taken out of the stalls.
     renders_log = os.path.join(gui_out, "gui_session_renders.txt")
     if not os.path.exists(renders_log):
         sys.exit(f"apply_stall.py: case {name}: no render log {renders_log} (did {SETUP} run?)")
-    for line in open(renders_log):
-        kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
-        if line.startswith("render") and "start" in kv:
-            renders.append((float(kv["start"]), float(kv["block_ms"])))
-        elif line.startswith("observer"):
-            observer.append((float(kv["end"]), float(kv["log_ms"])))
-    stalls = []
-    for line in open(log_path) if os.path.exists(log_path) else []:
-        kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
-        end, ms = float(kv["end"]), float(kv["block_ms"])
-        begin = end - ms / 1000.0
-        ms -= sum(cost for t, cost in observer if begin <= t <= end)  # the test's own work
-        stalls.append((begin, ms, end))
+    renders, observer = C.read_render_log(renders_log)
+    renders = [(float(r["start"]), float(r["block_ms"])) for r in renders if "start" in r]
+    stalls = C.read_event_loop_stalls(log_path, observer)  # (begin, end, ms)
     # Apply's stalls: those after the first quiet gap of >= 2.5 s (the pause between File > Open
     # and Apply; the one before File > Open is 1.5 s), up to the next such gap (the settle pause
     # of a case whose view does not refine by itself) and no later than the settle pause's end
     # (ParaView's exit). A prompt's time on screen (the answer comes within 0.2 s) is not a
     # stall: its dialog runs the event loop.
-    gaps = [i for i in range(1, len(stalls)) if stalls[i][0] - stalls[i - 1][2] >= QUIET_GAP_S]
+    gaps = [i for i in range(1, len(stalls)) if stalls[i][0] - stalls[i - 1][1] >= QUIET_GAP_S]
     if not gaps:
         sys.exit(f"apply_stall.py: case {name}: no quiet pause before Apply in {log_path}")
     last = stalls[gaps[0]][0] + args.settle_ms / 1000.0
     end = gaps[1] if len(gaps) > 1 else len(stalls)
     window = [st for st in stalls[gaps[0]:end] if st[0] <= last]
-    after = [ms for _, ms, _ in window]
+    after = [ms for _, _, ms in window]
     # The view's renders inside Apply's longest stall: the part of it that is drawing, the rest is
     # ParaView's Apply.
-    longest = max(window, key=lambda st: st[1], default=(0.0, 0.0, 0.0))
-    in_longest = [ms for t, ms in renders if longest[0] <= t <= longest[2]]
+    longest = max(window, key=lambda st: st[2], default=(0.0, 0.0, 0.0))
+    in_longest = [ms for t, ms in renders if longest[0] <= t <= longest[1]]
     return dict(case=name, run=k, longest_ms=max(after, default=0.0),
                 freeze_ms=sum(ms for ms in after if ms > STALL_BOUND_MS), stalls=len(after),
                 renders_in_longest=len(in_longest), render_ms_in_longest=sum(in_longest),

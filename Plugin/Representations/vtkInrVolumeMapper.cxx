@@ -347,8 +347,14 @@ struct vtkInrVolumeMapper::Internals
                          // of the window's frames: left out of the window's fixed cost)
   bool renderedInWindow = false;
   // The GUI's first render of this mapper is put off to the next turn of the event loop
-  // (DefersFirstRender): 0 not yet reached, 1 put off (the next render does the work), 2 done.
-  int firstRender = 0;
+  // (DefersFirstRender): not reached yet, put off (the next render does the work), or done.
+  enum class FirstRender
+  {
+    NotReached,
+    PutOff,
+    Done
+  };
+  FirstRender firstRender = FirstRender::NotReached;
   // The refinement budget is for the view's whole render: where it began (the view's update, when
   // MarkViewUpdate came after the last render, else the window's render) and what the window
   // spends after this mapper's Render (measured: drawing, swap).
@@ -483,7 +489,7 @@ int vtkInrVolumeMapper::GetLocalConverged()
   // A reduced interactive image is never the final one: a still render must follow.
   // A refinement step running on the worker: not converged yet.
   const Internals& I = *this->Internal;
-  if (I.firstRender == 1)
+  if (I.firstRender == Internals::FirstRender::PutOff)
   {
     return 0;  // the first render was put off: the refinement behaviour renders again
   }
@@ -949,13 +955,13 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     // and the first frame come with the refinement behaviour's render, a turn of the event loop
     // later (the converged state says "not yet"). Figures: RESULTS.md, "Apply: the plugin's part
     // of the event-loop stall".
-    I.firstRender = 1;
-    // Apply's pipeline update is no part of the next render's budget (the window observer that
-    // clears this after each window render is attached by the first render that draws).
-    I.viewUpdatePending = false;
+    I.firstRender = Internals::FirstRender::PutOff;
+    // Observed from this window render on: its end clears the view-update mark, so Apply's
+    // pipeline update is no part of the next render's budget.
+    I.ObserveWindow(ren->GetRenderWindow());
     return;
   }
-  I.firstRender = 2;
+  I.firstRender = Internals::FirstRender::Done;
   if (!I.UpdateModel(bytes) || !I.UpdateEngine(this))
   {
     return;
@@ -1203,7 +1209,7 @@ bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) 
   // background builds on) renders while the state is not converged, and only with progressive
   // refinement on. Never for a capture or a tile of a larger picture (they must draw now), and
   // once per mapper.
-  return this->firstRender == 0 && backgroundBuilds && self->ProgressiveRefinement &&
+  return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
     !self->Capturing && this->ranks.count <= 1;
 }
 

@@ -58,6 +58,33 @@ class TimedChecks:
                   flush=True)
 
 
+def read_render_log(path):
+    """The GUI setup script's render log (gui_session_setup.py, INR_GUI_OUT): a list of each
+    render's key=value fields, and (end, ms) of what the script's own observer cost after each
+    (screenshots, state reads). Empty when the file is missing."""
+    renders, observer = [], []
+    for line in open(path) if os.path.exists(path) else []:
+        kv = dict(item.split("=", 1) for item in line.split()[1:] if "=" in item)
+        if line.startswith("observer"):
+            observer.append((float(kv["end"]), float(kv["log_ms"])))
+        elif line.startswith("render"):
+            renders.append(kv)
+    return renders, observer
+
+
+def read_event_loop_stalls(path, observer=()):
+    """The plugin's event-loop watch (INR_VOLUME_EVENT_LOOP_LOG): (begin, end, ms) per stall on
+    CLOCK_MONOTONIC, ms less what the setup script's observer (read_render_log) spent inside it.
+    Empty when the file is missing."""
+    stalls = []
+    for line in open(path) if os.path.exists(path) else []:
+        kv = dict(item.split("=", 1) for item in line.split() if "=" in item)
+        end, ms = float(kv["end"]), float(kv["block_ms"])
+        begin = end - ms / 1000.0
+        stalls.append((begin, end, ms - sum(cost for t, cost in observer if begin <= t <= end)))
+    return stalls
+
+
 def load_plugin(path, remote):
     """Loads the plugin on the client (and the server); already loaded (PV_PLUGIN_PATH) is fine."""
     from paraview import simple
