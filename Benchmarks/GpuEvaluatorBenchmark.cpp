@@ -3,13 +3,22 @@
 // launches over one batch of N random world points already on the device).
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
-//                           [--wgmma-columns 64|128]
+//                           [--wgmma-columns 64|128] [--wgmma-consumers 1|2]
+//                           [--batches N1,N2,...] [--points random|rays]
 //                           [--hash-pairs 0|1] [--l2-persist]
 //                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
 // the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel;
+// --wgmma-consumers fixes the wgmma kernel's consumer warpgroups per block (2: 128 queries per
+// round; 1: 64, twice the blocks on a small batch).
+// --batches measures each model's autotuned fused evaluator (one construction) at every batch
+// size of the list, on the first N of the same points, and prints each rate's share of the
+// largest batch's (issue 30: the few-thousand-query launches of a frame's late iterations).
+// --points rays draws the points in the order of a frame's wavefront iterations (rays of an
+// image, neighbouring pixels at nearby depths: test::rayOrderedQueryPoints, at the middle of the
+// time range) instead of uniformly at random; a hash grid's table reads feel the difference.
 // --hash-pairs fixes a hash grid's gather (lane pairs 1, a lane per row 0), and --l2-persist
 // keeps its fp16 tables in L2 with a persisting access-policy window (hashTablesPersistInL2).
 // --checksum prints a hash of each row's output bits (the last launch over the batch, seed 1):
@@ -28,6 +37,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,12 +76,20 @@ std::uint64_t hashBits(const float* v, std::size_t n) {
 
 // mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
 // where the autotuned "fused-fp16" runs the wgmma kernel).
+// The benchmark's query points: uniform in the model's box and time range (seed 1), or
+// (rayOrdered) in a frame's order at the middle of the time range.
+std::vector<QueryPoint> benchmarkPoints(const InrModel& model, int n, bool rayOrdered) {
+  if (rayOrdered)
+    return test::rayOrderedQueryPoints(model, std::size_t(n), 1, float(0.5 * (model.domain.timeBegin + model.domain.timeEnd)));
+  return test::randomQueryPoints(model, std::size_t(n), 1);
+}
+
 Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath path, int batch, int reps,
-            CudaEvaluatorOptions o) {
+            CudaEvaluatorOptions o, bool rayOrdered) {
   o.path = path;
   const FusedMma mma = o.mma;
   const CudaInrEvaluator eval(model, o);
-  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1));
+  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, batch, rayOrdered));
   cuda::DeviceBuffer<float> dOut(batch);
   Row r{name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
         eval.launchReport(), model.architecture.parameterCount(),
@@ -98,6 +116,22 @@ Row measureGradient(const InrModel& model, const std::string& name, CudaGradient
   return r;
 }
 
+// The autotuned fused evaluator at each batch size in `batches` (ascending), one construction,
+// on the first n of the same points: a row per size (path "fused-fp16").
+std::vector<Row> measureBatches(const InrModel& model, const std::string& name, const std::vector<int>& batches, int reps,
+                                CudaEvaluatorOptions o, bool rayOrdered) {
+  o.path = CudaEvaluatorPath::Auto;
+  const CudaInrEvaluator eval(model, o);
+  const int largest = batches.back();
+  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, largest, rayOrdered));
+  cuda::DeviceBuffer<float> dOut(largest);
+  std::vector<Row> rows;
+  for (const int n : batches)
+    rows.push_back({name, "fused-fp16", eval.launchReport(), model.architecture.parameterCount(),
+                    spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps)), 0, n});
+  return rows;
+}
+
 void printRow(const Row& r, bool checksum) {
   std::printf("%-28s %-16s %9zu %12.4f %12.4f %12.4f\n", r.model.c_str(), r.path.c_str(), r.params, r.qps.median / 1e9,
               r.qps.lo / 1e9, r.qps.hi / 1e9);
@@ -107,10 +141,20 @@ void printRow(const Row& r, bool checksum) {
   std::fflush(stdout);
 }
 
+void writeCsv(const std::string& path, const std::vector<Row>& rows, const std::string& device) {
+  std::ofstream o(path);
+  o << "model,path,parameters,batch,median_qps,min_qps,max_qps,device\n";
+  for (const auto& r : rows)
+    o << r.model << ',' << r.path << ',' << r.params << ',' << r.batch << ',' << r.qps.median << ',' << r.qps.lo << ',' << r.qps.hi
+      << ",\"" << device << "\"\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int batch = 1 << 21, reps = 20, gradientBatch = 1 << 16;
+  std::vector<int> batches;
+  bool rayOrdered = false;
   std::string csv, writeDir, only;
   bool checksum = false, gradient = false;
   std::vector<std::string> files;
@@ -126,6 +170,19 @@ int main(int argc, char** argv) {
     else if (a == "--tile") fixed.tileQueries = std::stoi(cl.value());
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
+    else if (a == "--wgmma-consumers") fixed.wgmmaConsumers = std::stoi(cl.value());
+    else if (a == "--batches") {
+      std::stringstream list(cl.value());
+      for (std::string item; std::getline(list, item, ',');) batches.push_back(std::max(1, std::stoi(item)));
+      std::sort(batches.begin(), batches.end());
+    } else if (a == "--points") {
+      const std::string m = cl.value();
+      if (m != "random" && m != "rays") {
+        std::fprintf(stderr, "gpu_evaluator_benchmark: --points takes random or rays, not '%s'\n", m.c_str());
+        return 2;
+      }
+      rayOrdered = m == "rays";
+    }
     else if (a == "--no-autotune") fixed.autotuneBatch = 0;
     else if (a == "--hash-pairs") fixed.hashGridPairs = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--l2-persist") fixed.hashTablesPersistInL2 = true;
@@ -169,10 +226,36 @@ int main(int argc, char** argv) {
   }
   for (auto& m : loadModelFiles(files)) models.push_back(std::move(m));
 
-  std::printf("GPU evaluator on %s, batch %d, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch, reps);
+  const char* pointsName = rayOrdered ? "ray-ordered points" : "random points";
+  if (!batches.empty()) {  // the batch-size sweep alone
+    std::printf("GPU evaluator on %s, batch sizes swept, %s, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(),
+                pointsName, reps);
+    std::printf("%-28s %9s %12s %12s %12s %16s\n", "model", "batch", "median Gq/s", "min", "max", "of the largest");
+    std::vector<Row> rows;
+    for (const auto& [name, model] : models) {
+      if (!only.empty() && name.find(only) == std::string::npos) continue;
+      std::vector<Row> sweep;
+      try {
+        sweep = measureBatches(model, name, batches, reps, fixed, rayOrdered);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
+        continue;
+      }
+      for (const Row& r : sweep)
+        std::printf("%-28s %9d %12.4f %12.4f %12.4f %15.0f%%\n", r.model.c_str(), r.batch, r.qps.median / 1e9, r.qps.lo / 1e9,
+                    r.qps.hi / 1e9, 100.0 * r.qps.median / sweep.back().qps.median);
+      std::printf("    fused launch autotuning: %s\n", sweep.front().launch.c_str());
+      std::fflush(stdout);
+      rows.insert(rows.end(), sweep.begin(), sweep.end());
+    }
+    if (!csv.empty()) writeCsv(csv, rows, dev.name);
+    return 0;
+  }
+  std::printf("GPU evaluator on %s, batch %d, %s, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(), batch,
+              pointsName, reps);
   std::printf("%-28s %-16s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
-  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || !fixed.autotuneBatch ||
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || !fixed.autotuneBatch ||
                           fixed.hashGridPairs >= 0;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 5; ++variant) {
@@ -201,7 +284,7 @@ int main(int argc, char** argv) {
       if (variant == 2 && fixedConfig) continue;
       Row r;
       try {
-        r = measure(model, name, p, batch, reps, o);
+        r = measure(model, name, p, batch, reps, o, rayOrdered);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
         continue;
@@ -209,12 +292,6 @@ int main(int argc, char** argv) {
       printRow(r, checksum);
       rows.push_back(r);
     }
-  if (!csv.empty()) {
-    std::ofstream o(csv);
-    o << "model,path,parameters,batch,median_qps,min_qps,max_qps,device\n";
-    for (const auto& r : rows)
-      o << r.model << ',' << r.path << ',' << r.params << ',' << r.batch << ',' << r.qps.median << ',' << r.qps.lo << ',' << r.qps.hi
-        << ",\"" << dev.name << "\"\n";
-  }
+  if (!csv.empty()) writeCsv(csv, rows, dev.name);
   return 0;
 }

@@ -102,7 +102,7 @@ using cuda::configName;
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-FusedKernel hopperKernel(int) { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernel(int, int) { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
@@ -111,10 +111,10 @@ namespace {
 // only on a compute capability 9.0 device.
 std::string whyNoWgmmaKernel(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options) {
   if (options.mma == FusedMma::MmaSync) return "not requested";
-  if (!cuda::hopperKernel(64)) return "not built (no CUDA architecture 90)";
+  if (!cuda::hopperKernel(64, 2)) return "not built (no CUDA architecture 90)";
   if (device.major != 9 || device.minor != 0) return "needs compute capability 9.0";
   cudaFuncAttributes attr{};
-  const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64));
+  const cudaError_t e = cudaFuncGetAttributes(&attr, cuda::hopperKernel(64, 2));
   if (e != cudaSuccess) {
     cudaGetLastError();
     return std::string("sm_90a code does not load: ") + cudaGetErrorString(e);
@@ -302,7 +302,7 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   // grid-strided, so extra blocks just exit).
   const int tiles = (n + c.tile - 1) / c.tile;
   const int grid = std::min(tiles, c.gridBlocks);
-  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc) : cuda::mmaSyncKernel(c.tile, c.kc);
+  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc, c.consumers) : cuda::mmaSyncKernel(c.tile, c.kc);
   cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
   if (c.wgmma) {
     P.hopperStages = c.stages;
@@ -311,7 +311,7 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   P.hashGridPairs = c.hashGridPairs != 0 ? 1 : 0;
   cudaLaunchConfig_t launch{};
   launch.gridDim = dim3(unsigned(grid));
-  launch.blockDim = dim3(unsigned(c.wgmma ? cuda::kHopperThreads : c.tile * 4));
+  launch.blockDim = dim3(unsigned(c.wgmma ? cuda::hopperThreads(c.consumers) : c.tile * 4));
   launch.dynamicSmemBytes = c.sharedBytes;
   launch.stream = stream;
   cudaLaunchAttribute window{};

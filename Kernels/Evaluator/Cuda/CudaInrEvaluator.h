@@ -44,13 +44,16 @@ struct CudaEvaluatorOptions {
   // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
   // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
   // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
-  // only (the wgmma kernel runs 2 x 64 queries per round, its weights in chunks of
+  // only (the wgmma kernel runs wgmmaConsumers x 64 queries per round, its weights in chunks of
   // wgmmaChunkColumns output columns: 64 or 128, 0 = both autotuned).
   FusedMma mma = FusedMma::Auto;
   // wgmma kernel: its two consumer warpgroups take turns issuing each weight chunk's MMAs (1),
   // never (0), or both are autotuned (-1).
   int wgmmaPingPong = -1;
   int wgmmaChunkColumns = 0;
+  // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1
+  // (64 queries per round: twice the blocks on a small batch); 0 = both autotuned.
+  int wgmmaConsumers = 0;
   // Hash-grid networks: keep the fp16 tables in L2 with a persisting access-policy window on the
   // fused launches (cudaLaunchAttributeAccessPolicyWindow; sets the device's persisting L2 limit
   // to the tables' size, at most what the device allows). Off by default: it changes a

@@ -162,13 +162,16 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     const std::vector<float> emu = emulated(model, pts, kEmulated);
     const float lo = *std::min_element(ref.begin(), ref.end()), hi = *std::max_element(ref.begin(), ref.end());
     const double scale = std::max(1.0, double(hi - lo));
-    // Both chunk widths, with and without turns; 20011 points = 313 tiles of 64, so the last round leaves one
-    // consumer without queries (it must keep the pace and write nothing).
-    for (const int config : {0, 1, 2, 3}) {
-      const int pingPong = config & 1, columns = config < 2 ? 128 : 64;
+    // Both chunk widths: two consumers with and without turns, then one consumer; 20011 points =
+    // 313 tiles of 64, so with two consumers the last round leaves one without queries (it must
+    // keep the pace and write nothing), and the last tile is partial.
+    for (const int config : {0, 1, 2, 3, 4, 5}) {
+      const int consumers = config < 4 ? 2 : 1;
+      const int pingPong = consumers == 2 ? config & 1 : 0, columns = config < 2 || config == 4 ? 128 : 64;
       CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
       o.wgmmaPingPong = pingPong;
       o.wgmmaChunkColumns = columns;
+      o.wgmmaConsumers = consumers;
       std::unique_ptr<CudaInrEvaluator> made;
       try {
         made = std::make_unique<CudaInrEvaluator>(model, o);
@@ -179,14 +182,16 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       }
       const CudaInrEvaluator& gpu = *made;
       ASSERT_TRUE(gpu.usesWgmma()) << name << ": " << gpu.launchReport();
+      ASSERT_NE(gpu.launchReport().find("wgmma " + std::to_string(consumers) + "x64"), std::string::npos) << gpu.launchReport();
       std::vector<float> got(pts.size(), NAN);
       gpu.evaluate(pts.data(), pts.size(), got.data());
       const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
       std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                   gpu.launchReport().c_str(), e.maxAbs, e.meanAbs, em.meanAbs);
-      EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << " turns " << pingPong << " N " << columns;
-      EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << " turns " << pingPong << " N " << columns;
-      EXPECT_LT(em.meanAbs, 5e-4) << name << " turns " << pingPong << " N " << columns;
+      const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " + std::to_string(columns);
+      EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
+      EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
+      EXPECT_LT(em.meanAbs, 5e-4) << name << which;
     }
   }
 }

@@ -16,7 +16,7 @@ std::string configName(const FusedConfig& c) {
   if (!c.wgmma)
     return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
            (c.tangents ? ", tangent rows" : "") + hash;
-  return "wgmma " + std::to_string(kHopperConsumers) + "x" + std::to_string(kHopperRows) + " x N " +
+  return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
          std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
 }
 
@@ -59,26 +59,32 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           candidates.push_back({false, t, kc, 0, false, storedEncoding, b, perSm * device_.multiprocessors, 0.0});
         }
       }
-  // wgmma (2 x 64 queries per round): per chunk width (widest first), as many ring slots as
-  // fit (2 at least), with and without turns
+  // wgmma (consumers x 64 queries per round): two consumers, then one; per chunk width (widest
+  // first), as many ring slots as fit (2 at least); two consumers with and without turns
   if (wgmmaRuns)
-    for (const int nc : {128, 64}) {
-      if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
-      const FusedKernel kernel = hopperKernel(nc);
-      const std::size_t limit = sharedLimit(device_, kernel);
-      int stages = 0;
-      for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
-        if (hopperSharedBytes(nc, s, P) <= limit) stages = s;
-      if (!stages) continue;
-      const std::size_t bytes = hopperSharedBytes(nc, stages, P);
-      INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
-      int perSm = 0;
-      INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, kHopperThreads, bytes));
-      if (perSm < 1) continue;
-      for (const bool pingPong : {true, false})
-        if (options.wgmmaPingPong < 0 || options.wgmmaPingPong == int(pingPong))
-          candidates.push_back({true, kHopperQueriesPerRound, nc, stages, pingPong, false, bytes,
-                                perSm * device_.multiprocessors, 0.0});
+    for (const int consumers : {2, 1}) {
+      if (options.wgmmaConsumers && options.wgmmaConsumers != consumers) continue;
+      for (const int nc : {128, 64}) {
+        if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
+        const FusedKernel kernel = hopperKernel(nc, consumers);
+        const std::size_t limit = sharedLimit(device_, kernel);
+        int stages = 0;
+        for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
+          if (hopperSharedBytes(nc, s, consumers, P) <= limit) stages = s;
+        if (!stages) continue;
+        const std::size_t bytes = hopperSharedBytes(nc, stages, consumers, P);
+        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
+        int perSm = 0;
+        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, hopperThreads(consumers), bytes));
+        if (perSm < 1) continue;
+        for (const bool pingPong : {true, false}) {
+          if (pingPong && consumers == 1) continue;  // turns need two consumers
+          if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
+          FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, false, bytes, perSm * device_.multiprocessors, 0.0};
+          c.consumers = consumers;
+          candidates.push_back(c);
+        }
+      }
     }
   if (!P.hashTables) return candidates;
   // A hash grid's gather both ways (FusedParams::hashGridPairs): lane pairs first.

@@ -2,7 +2,8 @@
 // Which fused-kernel configuration runs a model's launches. The candidates are every mma.sync
 // configuration (tile x weight chunk, a Fourier encoding fused into the GEMM or stored in a
 // buffer) whose shared memory fits the device, then on Hopper every wgmma configuration (chunk
-// width, as many ring slots as fit, with and without ping-pong turns). Each is timed on the same
+// width, as many ring slots as fit, two consumers with and without ping-pong turns, one
+// consumer). Each is timed on the same
 // random queries in the model's domain, on a large batch (throughput) and on a small one
 // (latency: the pipeline's late traverse-evaluate iterations hold a few thousand queries, where a
 // 128-query tile leaves most SMs idle); the fastest of each runs launches of its size.
@@ -21,7 +22,7 @@
 namespace inr::cuda {
 
 struct FusedConfig {
-  bool wgmma = false;  // the Hopper kernel (128 queries per round: two consumers of 64)
+  bool wgmma = false;  // the Hopper kernel (consumers x 64 queries per round)
   int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
   int stages = 0;         // wgmma: weight ring slots
   bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
@@ -39,9 +40,10 @@ struct FusedConfig {
   // The mma.sync kernel with tangent rows (value + gradient; a tile of `tile` rows holds tile / 4
   // queries).
   bool tangents = false;
+  int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers)
 };
 
-// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong", with ", hash lane
+// "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane
 // pairs" or ", hash lane per row" for a program with a hash grid.
 std::string configName(const FusedConfig& config);
 

@@ -167,9 +167,9 @@ __device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpIn
   });
 }
 
-// Consumer c = warpgroup - 1 (warpgroups 1 and 2): per round its tile of 64 queries through the whole program,
-// the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
-template <int NC>
+// Consumer c = warpgroup - 1 (warpgroups 1 .. CONSUMERS): per round its tile of 64 queries through the whole
+// program, the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
+template <int NC, int CONSUMERS>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
                                                const float4* __restrict__ points, int n, float* __restrict__ out,
                                                const int* __restrict__ scatter) {
@@ -204,13 +204,13 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   int lastGemm = -1;
   for (int ip = 0; ip < P.numInstrs; ++ip)
     if (isStreamedGemm(program[ip])) lastGemm = ip;
-  const bool turns = P.hopperPingPong && lastGemm >= 0;
+  const bool turns = CONSUMERS == 2 && P.hopperPingPong && lastGemm >= 0;
   if (turns && c == 1 && int(blockIdx.x) < numRounds) namedBarrierArrive(kTurnBarrier + 0, 256);
 
   int slot = 0;
   unsigned phase = 0;
   for (int round = blockIdx.x; round < numRounds; round += gridDim.x) {
-    const int base = (round * kHopperConsumers + c) * kHopperRows;
+    const int base = (round * CONSUMERS + c) * kHopperRows;
     const int rows = max(0, min(kHopperRows, n - base));  // 0: this consumer only keeps the pace
     consumerSync();  // the previous round's last reads of the coordinates are done
     loadTileCoords<kHopperRows, 128>(P, points, base, rows, coords, tid);
@@ -331,8 +331,8 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
 }
 #endif  // INR_HAVE_WGMMA
 
-template <int NC>
-__global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+template <int NC, int CONSUMERS>
+__global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                    const unsigned* __restrict__ deviceCount,
                                                                    float* __restrict__ out, const int* __restrict__ scatter) {
 #if INR_HAVE_WGMMA
@@ -347,15 +347,16 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
   const int actHalves = hopperActHalves(P);
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
   const std::size_t consumerBytes = std::size_t(actHalves) * 2 + kHopperRows * 4 * 4;
-  float* const dotWeights = reinterpret_cast<float*>(consumerBase + kHopperConsumers * consumerBytes);
+  constexpr int kThreads = hopperThreads(CONSUMERS);
+  float* const dotWeights = reinterpret_cast<float*>(consumerBase + CONSUMERS * consumerBytes);
   float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
-  for (int i = threadIdx.x; i < P.numInstrs; i += kHopperThreads) program[i] = P.hopperInstrs[i];
+  for (int i = threadIdx.x; i < P.numInstrs; i += kThreads) program[i] = P.hopperInstrs[i];
   for (int ip = 0; ip < P.numInstrs; ++ip) {
     const MlpInstr& in = P.hopperInstrs[ip];
     if (in.dotNext)
-      for (int c = threadIdx.x; c < in.nPad; c += kHopperThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
+      for (int c = threadIdx.x; c < in.nPad; c += kThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
     if (isStreamedGemm(in))
-      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kHopperThreads)
+      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kThreads)
         biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
   }
   if (threadIdx.x == 0) {
@@ -367,30 +368,35 @@ __global__ void __launch_bounds__(kHopperThreads, 1) hopperMlpKernel(FusedParams
     }
     for (int s = 0; s < stages; ++s) {
       mbarrierInit(&fullBar[s], 1);                      // the producer's arrive (+ the copy's bytes)
-      mbarrierInit(&emptyBar[s], 4 * kHopperConsumers);  // one arrive per consumer warp
+      mbarrierInit(&emptyBar[s], 4 * CONSUMERS);  // one arrive per consumer warp
     }
     fenceBarrierInit();
   }
   __syncthreads();  // the last block-wide barrier: the producer leaves early
 
   const int numTiles = (n + kHopperRows - 1) / kHopperRows;
-  const int numRounds = (numTiles + kHopperConsumers - 1) / kHopperConsumers;
+  const int numRounds = (numTiles + CONSUMERS - 1) / CONSUMERS;
   const int wg = threadIdx.x / 128;
   const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
                           actHalves, consumerBase, consumerBytes, dotWeights, biases};
+  // Two consumers share 168 registers a thread at launch: the producer's go to them. One consumer
+  // has 255 from the start (256 threads), so nothing moves.
   if (wg == 0) {
-    setMaxRegistersDec<kHopperProducerRegisters>();
+    if constexpr (CONSUMERS == 2) setMaxRegistersDec<kHopperProducerRegisters>();
     if (threadIdx.x != 0) return;
     hopperProducer<NC>(P, block, numRounds);
     return;
   }
-  setMaxRegistersInc<kHopperConsumerRegisters>();
-  hopperConsumer<NC>(P, block, numRounds, points, n, out, scatter);
+  if constexpr (CONSUMERS == 2) setMaxRegistersInc<kHopperConsumerRegisters>();
+  hopperConsumer<NC, CONSUMERS>(P, block, numRounds, points, n, out, scatter);
 #else
   (void)P, (void)points, (void)n, (void)deviceCount, (void)out, (void)scatter;
 #endif
 }
 
-FusedKernel hopperKernel(int chunkColumns) { return chunkColumns == 128 ? hopperMlpKernel<128> : hopperMlpKernel<64>; }
+FusedKernel hopperKernel(int chunkColumns, int consumers) {
+  if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1> : hopperMlpKernel<64, 1>;
+  return chunkColumns == 128 ? hopperMlpKernel<128, 2> : hopperMlpKernel<64, 2>;
+}
 
 }  // namespace inr::cuda

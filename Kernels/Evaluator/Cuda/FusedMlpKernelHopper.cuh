@@ -24,13 +24,14 @@
 // no barrier between the consumer's warps.
 // Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
 // barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
+// A block of one consumer (kHopperMaxConsumers above) runs the same code without turns.
 // One instruction shape and one epilogue per activation keep the kernel small: ptxas compiles
 // it quickly (a variant with 48 shape x activation x residual instantiations took many times
 // longer; compile times in Benchmarks/RESULTS.md), and the instruction cache holds it.
 // ptxas allocates registers for the kernel's launch bound (65536 / 384 threads, rounded down to
 // a multiple of 8: 168) whatever
 // setmaxnreg later grants, so the consumer's working set is sized for 168: A 64, accumulators
-// 32 or 64.
+// 32 or 64. (A block of one consumer, 256 threads, has 255 per thread and no setmaxnreg.)
 // The wgmma/mbarrier/bulk-copy instructions exist only in sm_90a code (__CUDA_ARCH_FEAT_SM90_ALL);
 // other targets compile the kernel body away and the host never launches it there (it asks the
 // loaded code with hopperKernel() and cudaFuncGetAttributes).
@@ -54,10 +55,13 @@ namespace inr::cuda {
 #define INR_HAVE_WGMMA 0
 #endif
 
-constexpr int kHopperConsumers = 2;
+// Consumer warpgroups per block: two (their turns overlap one's epilogue with the other's
+// MMAs: the throughput choice), or one (64 queries per round, so a small batch spreads over twice
+// the blocks: the pipeline's late iterations hold a few thousand queries, and 128-query rounds
+// leave half the SMs idle there). The autotuner times both (FusedLaunchAutotuner).
+constexpr int kHopperMaxConsumers = 2;
 constexpr int kHopperRows = 64;  // queries per consumer tile (wgmma's M)
-constexpr int kHopperThreads = 128 * (1 + kHopperConsumers);
-constexpr int kHopperQueriesPerRound = kHopperRows * kHopperConsumers;
+__host__ __device__ constexpr int hopperThreads(int consumers) { return 128 * (1 + consumers); }
 constexpr int kHopperMaxStages = 8;
 constexpr int kHopperChunkWidths[2] = {64, 128};  // output columns per weight chunk (wgmma's N), autotuned
 constexpr int kHopperBiasPad = 128;               // each GEMM's biases padded to whole chunks of either width
@@ -134,9 +138,9 @@ __host__ __device__ inline int hopperActHalves(const FusedParams& P) {
   for (int b = 0; b < P.hopperNumBuffers; ++b) halves += kHopperRows * P.hopperBufferLd[b];
   return (halves + 63) / 64 * 64;  // keeps every consumer region 128-byte aligned
 }
-__host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, const FusedParams& P) {
+__host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, int consumers, const FusedParams& P) {
   return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 +
-         std::size_t(kHopperConsumers) * (std::size_t(hopperActHalves(P)) * 2 + kHopperRows * 4 * 4) +
+         std::size_t(consumers) * (std::size_t(hopperActHalves(P)) * 2 + kHopperRows * 4 * 4) +
          (MlpProgram::kMaxFusedGemmOut + std::size_t(P.hopperBiasFloats)) * 4;
 }
 

@@ -10,9 +10,9 @@ namespace inr::cuda {
 
 using FusedKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
 // The Hopper kernel (FusedMlpKernelHopper.cuh) for weight chunks of 64 or 128 output columns
-// (128 queries per round; FusedMlpKernelHopper.cu, built for sm_90a when the CUDA architectures
-// include 90); nullptr when not built.
-FusedKernel hopperKernel(int chunkColumns);
+// with one or two consumer warpgroups (64 queries per consumer and round; FusedMlpKernelHopper.cu,
+// built for sm_90a when the CUDA architectures include 90); nullptr when not built.
+FusedKernel hopperKernel(int chunkColumns, int consumers);
 // The mma.sync kernel for tiles of `tile` queries (128, 64 or 32) and weight K-chunks of `kc`
 // columns (64 or 32).
 FusedKernel mmaSyncKernel(int tile, int kc);
