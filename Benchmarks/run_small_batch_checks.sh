@@ -2,65 +2,100 @@
 # Issue 30's small-batch checks on one GPU machine (an H100 or H200), from the repository root:
 # builds the engine with CUDA for sm_90 (only the targets below), runs the GPU evaluator tests
 # (every fused kernel configuration against the CPU reference and the fp16 emulation), then, side
-# by side in one run, the evaluator at batch sizes 2 k .. 2 M with the wgmma kernel's blocks of
-# two consumers only (the candidates before one-consumer blocks) and autotuned over both, the
-# hash-grid network on ray-ordered against random points, and the frame rows of the shipped real
-# models with both candidate sets.
-# Logs and CSV go to $OUT (default ./out); about 9 minutes (the build takes half).
-#   bash Benchmarks/run_small_batch_checks.sh
+# by side in one run:
+#   - the evaluator at batch sizes 2 k .. 2 M, autotuned, and with the wgmma candidates of before
+#     (blocks of two consumers, no FMA sines); with BEFORE=<commit>, also that commit's evaluator
+#     (built from `git archive` beside this one) at the same sizes;
+#   - the sine epilogues with and without a third of their sines on the FP32 pipe, one fixed
+#     wgmma configuration (the SIREN's autotuned one);
+#   - the hash-grid network on ray-ordered against random points;
+#   - the frame rows of the shipped real models, autotuned and with the candidates of before.
+# Logs and CSV go to $OUT (default ./out), and all of them in $OUT/small_batch_checks.tar.gz;
+# about 10 minutes (the build takes half).
+#   BEFORE=a1840c4 bash Benchmarks/run_small_batch_checks.sh
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-./out}
 BUILD=${INR_BUILD_DIR:-/tmp/bsb}
-mkdir -p "$OUT"
+BEFORE=${BEFORE:-}
+mkdir -p "$OUT/logs"
+L="$OUT/logs"
 start=$(date +%s)
 stamp() { echo "== $1 ($(($(date +%s) - start)) s)"; }
 status=0
+configure() {  # source dir, build dir
+  cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
+    -DCMAKE_CUDA_ARCHITECTURES=90
+}
 
-nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1
+nvidia-smi > "$L/nvidia-smi.txt" 2>&1
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
-git log -1 --format='%H %s' > "$OUT/commit.txt" 2>/dev/null
+git log -1 --format='%H %s' > "$L/commit.txt" 2>/dev/null
 
-stamp configure
-cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
-  -DCMAKE_CUDA_ARCHITECTURES=90 > "$OUT/configure.log" 2>&1 || { tail -30 "$OUT/configure.log"; exit 1; }
-stamp build
-timeout 360 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark gpu_render_benchmark \
-  > "$OUT/build.log" 2>&1 || { grep -E "error|FAILED" "$OUT/build.log" | head -30; exit 1; }
-grep -iE "spill" "$OUT/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
+stamp "configure and build (this tree${BEFORE:+ and $BEFORE, side by side})"
+configure . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
+if [ -n "$BEFORE" ]; then
+  rm -rf /tmp/before-src && mkdir -p /tmp/before-src && git archive "$BEFORE" | tar -x -C /tmp/before-src
+  configure /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
+  timeout 420 ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1 &
+  before_pid=$!
+fi
+timeout 420 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark gpu_render_benchmark \
+  > "$L/build.log" 2>&1 || { grep -E "error|FAILED" "$L/build.log" | head -30; exit 1; }
+[ -n "$BEFORE" ] && { wait "$before_pid" || { grep -E "error|FAILED" "$L/build_before.log" | head; exit 1; }; }
+grep -iE "spill" "$L/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
 
 stamp "GPU evaluator tests"
-timeout 200 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." --output-on-failure > "$OUT/ctest_cuda.log" 2>&1
-grep -E "tests passed|Failed|\*\*\*" "$OUT/ctest_cuda.log" | head -10
-grep -q "100% tests passed" "$OUT/ctest_cuda.log" || status=1
-"$BUILD/Kernels/Evaluator/Cuda/cuda_evaluator_tests" --gtest_filter='*Wgmma*' 2>&1 | grep -E "consumers|1x64|2x64|OK|FAILED" \
-  | grep -E "paper|FAILED|OK" | cut -c1-200 | head -24
+timeout 240 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." --output-on-failure > "$L/ctest_cuda.log" 2>&1
+grep -E "tests passed|Failed|\*\*\*" "$L/ctest_cuda.log" | head -10
+grep -q "100% tests passed" "$L/ctest_cuda.log" || status=1
+grep -E "paper_siren.*(1x64|FMA)" "$L/ctest_cuda.log" | cut -c1-220 | head -6
 
 bench="$BUILD/Benchmarks/gpu_evaluator_benchmark"
 real=(Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr)
-sizes=2048,8192,32768,262144,2097152
-for consumers in 2 0; do
-  stamp "evaluator at batch sizes $sizes, wgmma consumers ${consumers/0/autotuned (1 or 2)}"
-  timeout 240 "$bench" --batches "$sizes" --wgmma-consumers "$consumers" --csv "$OUT/batches_consumers$consumers.csv" \
-    "${real[@]}" > "$OUT/batches_consumers$consumers.txt" 2>&1
-  grep -vE "^\s+fused launch" "$OUT/batches_consumers$consumers.txt"
-  grep -E "^\s+fused launch" "$OUT/batches_consumers$consumers.txt" | sed 's/.*-> /    -> /' | cut -c1-220
+sizes="2048 8192 32768 262144 2097152"
+show() { grep -vE "^\s+fused launch" "$1"; grep -E "^\s+fused launch" "$1" | sed 's/.*-> /    -> /' | cut -c1-200; }
+stamp "evaluator at batch sizes $sizes: autotuned"
+timeout 240 "$bench" --batches "${sizes// /,}" --csv "$L/batches_auto.csv" "${real[@]}" > "$L/batches_auto.txt" 2>&1
+show "$L/batches_auto.txt"
+stamp "the same, the wgmma candidates of before (two consumers, no FMA sines)"
+timeout 240 "$bench" --batches "${sizes// /,}" --wgmma-consumers 2 --sine-on-fma 0 --csv "$L/batches_before_candidates.csv" \
+  "${real[@]}" > "$L/batches_before_candidates.txt" 2>&1
+show "$L/batches_before_candidates.txt"
+if [ -n "$BEFORE" ]; then
+  stamp "the same sizes, $BEFORE's evaluator (one run per size: fused-fp16 rows)"
+  for b in $sizes; do
+    timeout 120 /tmp/before-build/Benchmarks/gpu_evaluator_benchmark --batch "$b" --csv "$L/before_$b.csv" "${real[@]}" \
+      > "$L/before_$b.txt" 2>&1
+    grep -E "fused-fp16" "$L/before_$b.txt" | sed "s/^/batch $b: /"
+  done
+fi
+
+stamp "sine epilogues, FP32-pipe sines off / on (wgmma 2x64 x N 128, turns; batch 2^21 and 8192)"
+for f in 0 1; do
+  for m in paper_siren siren_cylinder; do
+    timeout 60 "$bench" --only "$m" --mma wgmma --wgmma-consumers 2 --ping-pong 1 --wgmma-columns 128 --sine-on-fma "$f" \
+      --batches 8192,2097152 "${real[0]}" > "$L/sine_fma${f}_$m.txt" 2>&1
+    grep -E "^(paper|siren)" "$L/sine_fma${f}_$m.txt" | sed "s/^/FMA sines $f: /"
+  done
 done
 
-stamp "hash-grid network, ray-ordered against random points (batch 2^21 and 8192)"
+stamp "hash-grid network, ray-ordered against random points (batch 8192 and 2^21)"
 for pts in random rays; do
-  timeout 90 "$bench" --only hashgrid --points "$pts" --batches 8192,2097152 --csv "$OUT/hashgrid_$pts.csv" \
-    > "$OUT/hashgrid_$pts.txt" 2>&1
-  grep -vE "^\s+fused launch" "$OUT/hashgrid_$pts.txt"
+  timeout 90 "$bench" --only hashgrid --points "$pts" --batches 8192,2097152 --csv "$L/hashgrid_$pts.csv" \
+    > "$L/hashgrid_$pts.txt" 2>&1
+  grep -E "^paper" "$L/hashgrid_$pts.txt" | sed "s/^/$pts: /"
 done
 
 render="$BUILD/Benchmarks/gpu_render_benchmark"
-for consumers in 2 0; do
-  stamp "frames, shipped real models, 1024^2, wgmma consumers ${consumers/0/autotuned}"
-  timeout 200 "$render" --no-paper --no-baselines --frames 30 --wgmma-consumers "$consumers" \
-    --csv "$OUT/render_consumers$consumers.csv" "${real[@]}" > "$OUT/render_consumers$consumers.txt" 2>&1
-  grep -E "^==|evaluator|ms/frame|^4b|^group" "$OUT/render_consumers$consumers.txt" | cut -c1-160 | head -30
+for c in "0 -1" "2 0"; do
+  set -- $c
+  stamp "frames, shipped real models, 1024^2 (wgmma consumers $1, FMA sines $2; 0 / -1: autotuned)"
+  timeout 200 "$render" --no-paper --no-baselines --frames 30 --wgmma-consumers "$1" --sine-on-fma "$2" \
+    --csv "$L/render_c$1_f$2.csv" "${real[@]}" > "$L/render_c$1_f$2.txt" 2>&1
+  grep -E "^== .*inr|^4b" "$L/render_c$1_f$2.txt" | cut -c1-190
 done
 
+tar -czf "$OUT/small_batch_checks.tar.gz" -C "$OUT" logs
 stamp "done (status $status)"
 exit $status

@@ -17,7 +17,8 @@ std::string configName(const FusedConfig& c) {
     return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
            (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") +
+         (c.sineOnFma ? ", FMA sines" : "") + hash;
 }
 
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
@@ -35,7 +36,7 @@ std::size_t sharedLimit(const CudaDeviceInfo& device, FusedKernel kernel) {
 }  // namespace
 
 std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
-                                                          bool wgmmaRuns) const {
+                                                          bool wgmmaRuns, bool sineEpilogues) const {
   const CudaEvaluatorOptions& options = options_;
   std::vector<FusedConfig> candidates;
   // mma.sync candidates first: without autotuning the first that fits runs, and that stays
@@ -82,7 +83,12 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
           FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, false, bytes, perSm * device_.multiprocessors, 0.0};
           c.consumers = consumers;
-          candidates.push_back(c);
+          for (const bool fmaSines : {false, true}) {
+            if (fmaSines && !sineEpilogues) continue;
+            if (options.wgmmaSineOnFma >= 0 && options.wgmmaSineOnFma != int(fmaSines)) continue;
+            c.sineOnFma = fmaSines;
+            candidates.push_back(c);
+          }
         }
       }
     }

@@ -41,6 +41,7 @@ struct FusedConfig {
   // queries).
   bool tangents = false;
   int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers)
+  bool sineOnFma = false;  // wgmma: part of the sine epilogues on the FP32 pipe (FusedParams::hopperSineOnFma)
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane
@@ -64,8 +65,10 @@ public:
   // versions), then wgmma when `wgmmaRuns`; each twice for a program with a hash grid (lane pairs
   // first, then a lane per row). `params`: the program as compiled; `storedParams`:
   // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
+  // `sineEpilogues`: the program has a GEMM with a sine activation (the wgmma candidates come
+  // with and without sineOnFma then).
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
-                                      bool wgmmaRuns) const;
+                                      bool wgmmaRuns, bool sineEpilogues = false) const;
 
   // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
   // (the same shared memory; its own register count, so its own resident blocks), its dynamic
