@@ -3,7 +3,7 @@
 // launches over one batch of N random world points already on the device).
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
-//                           [--wgmma-columns 64|128] [--wgmma-consumers 1|2] [--sine-on-fma 0|1]
+//                           [--wgmma-columns 64|128] [--wgmma-consumers 1|2]
 //                           [--batches N1,N2,...] [--points random|rays]
 //                           [--hash-pairs 0|1] [--l2-persist]
 //                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N] [MODEL.inr ...]
@@ -12,8 +12,7 @@
 // chunk) and --no-autotune fix
 // the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel;
 // --wgmma-consumers fixes the wgmma kernel's consumer warpgroups per block (2: 128 queries per
-// round; 1: 64, twice the blocks on a small batch); --sine-on-fma fixes whether a sine
-// network's wgmma epilogues put every third group of columns' sines on the FP32 pipe.
+// round; 1: 64, twice the blocks on a small batch).
 // --batches measures each model's autotuned fused evaluator (one construction) at every batch
 // size of the list, on the first N of the same points, and prints each rate's share of the
 // largest batch's (issue 30: the few-thousand-query launches of a frame's late iterations).
@@ -172,7 +171,6 @@ int main(int argc, char** argv) {
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--wgmma-consumers") fixed.wgmmaConsumers = std::stoi(cl.value());
-    else if (a == "--sine-on-fma") fixed.wgmmaSineOnFma = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--batches") {
       std::stringstream list(cl.value());
       for (std::string item; std::getline(list, item, ',');) batches.push_back(std::max(1, std::stoi(item)));
@@ -257,7 +255,7 @@ int main(int argc, char** argv) {
               pointsName, reps);
   std::printf("%-28s %-16s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
-  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || fixed.wgmmaSineOnFma >= 0 || !fixed.autotuneBatch ||
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || !fixed.autotuneBatch ||
                           fixed.hashGridPairs >= 0;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 5; ++variant) {

@@ -12,15 +12,13 @@
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
 //                        [--traversal auto|dda|optix] [--per-thread-gradient] [--wgmma-consumers 1|2]
-//                        [--sine-on-fma 0|1]
 //                        [--csv FILE] [MODEL.inr ...]
 // The shaded row's value + gradient queries run on the fused kernel's tangent rows where the
 // model runs fused (the header line says which path), or with --per-thread-gradient on the
 // per-thread fp32 forward mode (the path before the tangent rows, for comparison).
 // --wgmma-consumers keeps the evaluator's wgmma candidates to blocks of that many consumer
 // warpgroups (CudaEvaluatorOptions::wgmmaConsumers; 2 = the candidates before one-consumer
-// blocks existed), and --sine-on-fma fixes CudaEvaluatorOptions::wgmmaSineOnFma (0 = as
-// before), for a before/after in one run.
+// blocks existed), for a before/after in one run.
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -59,7 +57,7 @@ namespace {
 struct Options {
   int size = 1024, frames = 20, warmup = 5, naiveSize = 256, marchSize = 256, macrocells = 64, slices = 16;
   bool paper = true, baselines = true, perThreadGradient = false;
-  int wgmmaConsumers = 0, wgmmaSineOnFma = -1;
+  int wgmmaConsumers = 0;
   TraversalKind traversal = TraversalKind::Dda;  // --traversal: the wavefront rows' GPU traversal
   std::string csv;
   std::vector<std::string> models;
@@ -115,7 +113,6 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   CudaEvaluatorOptions evalOptions;
   if (o.perThreadGradient) evalOptions.gradientPath = CudaGradientPath::PerThread;
   evalOptions.wgmmaConsumers = o.wgmmaConsumers;
-  evalOptions.wgmmaSineOnFma = o.wgmmaSineOnFma;
   const CudaInrEvaluator eval(model, evalOptions);
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const double gqps = evaluatorGqps(eval, model, time);
@@ -312,7 +309,6 @@ int main(int argc, char** argv) {
     else if (a == "--no-baselines") o.baselines = false;
     else if (a == "--per-thread-gradient") o.perThreadGradient = true;
     else if (a == "--wgmma-consumers") o.wgmmaConsumers = std::stoi(cl.value());
-    else if (a == "--sine-on-fma") o.wgmmaSineOnFma = std::stoi(cl.value());
     else if (a == "--csv") o.csv = cl.value();
     else if (a == "--traversal") o.traversal = parseTraversalKind(cl.value());
     else if (a == "-h" || a == "--help") {

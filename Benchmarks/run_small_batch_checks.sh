@@ -4,10 +4,8 @@
 # (every fused kernel configuration against the CPU reference and the fp16 emulation), then, side
 # by side in one run:
 #   - the evaluator at batch sizes 2 k .. 2 M, autotuned, and with the wgmma candidates of before
-#     (blocks of two consumers, no FMA sines); with BEFORE=<commit>, also that commit's evaluator
-#     (built from `git archive` beside this one) at the same sizes;
-#   - the sine epilogues with and without a third of their sines on the FP32 pipe, one fixed
-#     wgmma configuration (the SIREN's autotuned one);
+#     (blocks of two consumers); with BEFORE=<commit>, also that commit's evaluator (built from
+#     `git archive` beside this one) at the same sizes;
 #   - the hash-grid network on ray-ordered against random points;
 #   - the frame rows of the shipped real models, autotuned and with the candidates of before.
 # Logs and CSV go to $OUT (default ./out), and all of them in $OUT/small_batch_checks.tar.gz;
@@ -49,7 +47,7 @@ stamp "GPU evaluator tests"
 timeout 240 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." --output-on-failure > "$L/ctest_cuda.log" 2>&1
 grep -E "tests passed|Failed|\*\*\*" "$L/ctest_cuda.log" | head -10
 grep -q "100% tests passed" "$L/ctest_cuda.log" || status=1
-grep -E "paper_siren.*(1x64|FMA)" "$L/ctest_cuda.log" | cut -c1-220 | head -6
+grep -E "paper_siren.*1x64" "$L/ctest_cuda.log" | cut -c1-220 | head -6
 
 bench="$BUILD/Benchmarks/gpu_evaluator_benchmark"
 real=(Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr)
@@ -58,8 +56,8 @@ show() { grep -vE "^\s+fused launch" "$1"; grep -E "^\s+fused launch" "$1" | sed
 stamp "evaluator at batch sizes $sizes: autotuned"
 timeout 240 "$bench" --batches "${sizes// /,}" --csv "$L/batches_auto.csv" "${real[@]}" > "$L/batches_auto.txt" 2>&1
 show "$L/batches_auto.txt"
-stamp "the same, the wgmma candidates of before (two consumers, no FMA sines)"
-timeout 240 "$bench" --batches "${sizes// /,}" --wgmma-consumers 2 --sine-on-fma 0 --csv "$L/batches_before_candidates.csv" \
+stamp "the same, the wgmma candidates of before (two consumers)"
+timeout 240 "$bench" --batches "${sizes// /,}" --wgmma-consumers 2 --csv "$L/batches_before_candidates.csv" \
   "${real[@]}" > "$L/batches_before_candidates.txt" 2>&1
 show "$L/batches_before_candidates.txt"
 if [ -n "$BEFORE" ]; then
@@ -71,15 +69,6 @@ if [ -n "$BEFORE" ]; then
   done
 fi
 
-stamp "sine epilogues, FP32-pipe sines off / on (wgmma 2x64 x N 128, turns; batch 2^21 and 8192)"
-for f in 0 1; do
-  for m in paper_siren siren_cylinder; do
-    timeout 60 "$bench" --only "$m" --mma wgmma --wgmma-consumers 2 --ping-pong 1 --wgmma-columns 128 --sine-on-fma "$f" \
-      --batches 8192,2097152 "${real[0]}" > "$L/sine_fma${f}_$m.txt" 2>&1
-    grep -E "^(paper|siren)" "$L/sine_fma${f}_$m.txt" | sed "s/^/FMA sines $f: /"
-  done
-done
-
 stamp "hash-grid network, ray-ordered against random points (batch 8192 and 2^21)"
 for pts in random rays; do
   timeout 90 "$bench" --only hashgrid --points "$pts" --batches 8192,2097152 --csv "$L/hashgrid_$pts.csv" \
@@ -88,12 +77,11 @@ for pts in random rays; do
 done
 
 render="$BUILD/Benchmarks/gpu_render_benchmark"
-for c in "0 -1" "2 0"; do
-  set -- $c
-  stamp "frames, shipped real models, 1024^2 (wgmma consumers $1, FMA sines $2; 0 / -1: autotuned)"
-  timeout 200 "$render" --no-paper --no-baselines --frames 30 --wgmma-consumers "$1" --sine-on-fma "$2" \
-    --csv "$L/render_c$1_f$2.csv" "${real[@]}" > "$L/render_c$1_f$2.txt" 2>&1
-  grep -E "^== .*inr|^4b" "$L/render_c$1_f$2.txt" | cut -c1-190
+for c in 0 2; do
+  stamp "frames, shipped real models, 1024^2 (wgmma consumers $c; 0: autotuned)"
+  timeout 200 "$render" --no-paper --no-baselines --frames 30 --wgmma-consumers "$c" \
+    --csv "$L/render_c$c.csv" "${real[@]}" > "$L/render_c$c.txt" 2>&1
+  grep -E "^== .*inr|^4b" "$L/render_c$c.txt" | cut -c1-190
 done
 
 tar -czf "$OUT/small_batch_checks.tar.gz" -C "$OUT" logs

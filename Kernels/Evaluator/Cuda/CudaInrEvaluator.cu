@@ -307,7 +307,6 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   if (c.wgmma) {
     P.hopperStages = c.stages;
     P.hopperPingPong = c.pingPong ? 1 : 0;
-    P.hopperSineOnFma = c.sineOnFma ? 1 : 0;
   }
   P.hashGridPairs = c.hashGridPairs != 0 ? 1 : 0;
   cudaLaunchConfig_t launch{};
@@ -420,10 +419,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   const FusedLaunchAutotuner tuner(I.device, options);
   std::vector<FusedConfig> candidates;
   if (fused) {
-    const bool sineEpilogues = std::any_of(prog.instrs.begin(), prog.instrs.end(), [](const MlpInstr& in) {
-      return in.op == MlpOp::Gemm && in.act == MlpAct::Sine;
-    });
-    candidates = tuner.candidates(I.params, I.paramsStored, I.whyNoWgmma.empty(), sineEpilogues);
+    candidates = tuner.candidates(I.params, I.paramsStored, I.whyNoWgmma.empty());
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";

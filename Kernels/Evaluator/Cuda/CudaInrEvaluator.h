@@ -54,9 +54,6 @@ struct CudaEvaluatorOptions {
   // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1
   // (64 queries per round: twice the blocks on a small batch); 0 = both autotuned.
   int wgmmaConsumers = 0;
-  // wgmma kernel, sine networks: every third group of a sine epilogue's columns on the FP32 pipe
-  // instead of MUFU (1), never (0), or both autotuned (-1).
-  int wgmmaSineOnFma = -1;
   // Hash-grid networks: keep the fp16 tables in L2 with a persisting access-policy window on the
   // fused launches (cudaLaunchAttributeAccessPolicyWindow; sets the device's persisting L2 limit
   // to the tables' size, at most what the device allows). Off by default: it changes a

@@ -165,23 +165,16 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     // Both chunk widths: two consumers with and without turns, then one consumer; 20011 points =
     // 313 tiles of 64, so with two consumers the last round leaves one without queries (it must
     // keep the pace and write nothing), and the last tile is partial.
-    // Sine networks again with a third of their sines on the FP32 pipe (sineOnFmaPipe).
-    const bool sine = std::any_of(program.instrs.begin(), program.instrs.end(),
-                                  [](const MlpInstr& in) { return in.op == MlpOp::Gemm && in.act == MlpAct::Sine; });
     struct Case {
       int consumers, pingPong, columns;
-      bool fmaSines;
     };
-    const Case cases[] = {{2, 0, 128, false}, {2, 1, 128, false}, {2, 0, 64, false}, {2, 1, 64, false},
-                          {1, 0, 128, false}, {1, 0, 64, false},  {2, 1, 128, true},  {1, 0, 128, true}};
+    const Case cases[] = {{2, 0, 128}, {2, 1, 128}, {2, 0, 64}, {2, 1, 64}, {1, 0, 128}, {1, 0, 64}};
     for (const Case& k : cases) {
-      const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns, fmaSines = k.fmaSines;
-      if (fmaSines && !sine) continue;
+      const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns;
       CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
       o.wgmmaPingPong = pingPong;
       o.wgmmaChunkColumns = columns;
       o.wgmmaConsumers = consumers;
-      o.wgmmaSineOnFma = fmaSines;
       std::unique_ptr<CudaInrEvaluator> made;
       try {
         made = std::make_unique<CudaInrEvaluator>(model, o);
@@ -193,14 +186,13 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       const CudaInrEvaluator& gpu = *made;
       ASSERT_TRUE(gpu.usesWgmma()) << name << ": " << gpu.launchReport();
       ASSERT_NE(gpu.launchReport().find("wgmma " + std::to_string(consumers) + "x64"), std::string::npos) << gpu.launchReport();
-      ASSERT_EQ(gpu.launchReport().find("FMA sines") != std::string::npos, bool(fmaSines)) << gpu.launchReport();
       std::vector<float> got(pts.size(), NAN);
       gpu.evaluate(pts.data(), pts.size(), got.data());
       const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
       std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                   gpu.launchReport().c_str(), e.maxAbs, e.meanAbs, em.meanAbs);
-      const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " +
-                                std::to_string(columns) + (fmaSines ? " FMA sines" : "");
+      const std::string which =
+          " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " + std::to_string(columns);
       EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
       EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
       EXPECT_LT(em.meanAbs, 5e-4) << name << which;

@@ -17,8 +17,7 @@ std::string configName(const FusedConfig& c) {
     return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
            (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") +
-         (c.sineOnFma ? ", FMA sines" : "") + hash;
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
 }
 
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
@@ -36,7 +35,7 @@ std::size_t sharedLimit(const CudaDeviceInfo& device, FusedKernel kernel) {
 }  // namespace
 
 std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
-                                                          bool wgmmaRuns, bool sineEpilogues) const {
+                                                          bool wgmmaRuns) const {
   const CudaEvaluatorOptions& options = options_;
   std::vector<FusedConfig> candidates;
   // mma.sync candidates first: without autotuning the first that fits runs, and that stays
@@ -83,12 +82,7 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
           FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, false, bytes, perSm * device_.multiprocessors, 0.0};
           c.consumers = consumers;
-          for (const bool fmaSines : {false, true}) {
-            if (fmaSines && !sineEpilogues) continue;
-            if (options.wgmmaSineOnFma >= 0 && options.wgmmaSineOnFma != int(fmaSines)) continue;
-            c.sineOnFma = fmaSines;
-            candidates.push_back(c);
-          }
+          candidates.push_back(c);
         }
       }
     }
@@ -161,23 +155,26 @@ FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<Fuse
   cudaEvent_t e0, e1;
   INR_CUDA_CHECK(cudaEventCreate(&e0));
   INR_CUDA_CHECK(cudaEventCreate(&e1));
-  auto rate = [&](const FusedConfig& config, int n) {  // best of 3 after a warm-up, queries per second
+  // Queries per second: the best of 3 timings after a warm-up, each over `launches` launches in
+  // a row (the small batch's: a single launch of a few tens of microseconds times as much launch
+  // jitter as kernel, and its choice flipped between runs; in a frame they queue in a row too).
+  auto rate = [&](const FusedConfig& config, int n, int launches) {
     float best = 0.f;
     for (int r = -1; r < 3; ++r) {
       INR_CUDA_CHECK(cudaEventRecord(e0));
-      launch(config, points.get(), n, values.get());
+      for (int l = 0; l < launches; ++l) launch(config, points.get(), n, values.get());
       INR_CUDA_CHECK(cudaEventRecord(e1));
       INR_CUDA_CHECK(cudaEventSynchronize(e1));
       float ms = 0.f;
       INR_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
       if (r == 0 || (r > 0 && ms < best)) best = ms;
     }
-    return n / (double(best) * 1e-3);
+    return double(n) * launches / (double(best) * 1e-3);
   };
   std::string report;
   double bestLarge = 0.0, bestSmall = 0.0;
   for (const FusedConfig& c : candidates) {
-    const double large = rate(c, batch), small = rate(c, smallBatch);
+    const double large = rate(c, batch, 1), small = rate(c, smallBatch, kSmallBatchLaunches);
     if (large > bestLarge) bestLarge = large, choice.large = c;
     if (small > bestSmall) bestSmall = small, choice.small = c;
     char line[128];

@@ -41,7 +41,6 @@ struct FusedConfig {
   // queries).
   bool tangents = false;
   int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers)
-  bool sineOnFma = false;  // wgmma: part of the sine epilogues on the FP32 pipe (FusedParams::hopperSineOnFma)
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane
@@ -52,8 +51,9 @@ class FusedLaunchAutotuner {
 public:
   // Launches under this many queries run the small-batch choice.
   static constexpr int kSmallBatchThreshold = 1 << 15;
-  // The small batch the candidates are timed on.
+  // The small batch the candidates are timed on, in runs of this many launches.
   static constexpr int kSmallBatch = 1 << 13;
+  static constexpr int kSmallBatchLaunches = 10;
 
   // Runs `config` on n points into out (device memory), on the default stream.
   using Launch = std::function<void(const FusedConfig& config, const float4* points, int n, float* out)>;
@@ -65,10 +65,8 @@ public:
   // versions), then wgmma when `wgmmaRuns`; each twice for a program with a hash grid (lane pairs
   // first, then a lane per row). `params`: the program as compiled; `storedParams`:
   // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
-  // `sineEpilogues`: the program has a GEMM with a sine activation (the wgmma candidates come
-  // with and without sineOnFma then).
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
-                                      bool wgmmaRuns, bool sineEpilogues = false) const;
+                                      bool wgmmaRuns) const;
 
   // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
   // (the same shared memory; its own register count, so its own resident blocks), its dynamic
@@ -83,7 +81,8 @@ public:
     std::string report;  // what launchReport() says
   };
   // Times every candidate (best of 3 after a warm-up, CUDA events) on options.autotuneBatch and
-  // on kSmallBatch random queries in `domain` and keeps the fastest of each; with one candidate
+  // on kSmallBatch random queries in `domain` (kSmallBatchLaunches in a row per timing) and keeps
+  // the fastest of each; with one candidate
   // or autotuneBatch = 0 the first runs every launch.
   Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch) const;
   // The large batch choose() times on (options.autotuneBatch).

@@ -14,24 +14,6 @@ namespace inr::cuda {
 // The fused kernel's activations: the special-function forms of Common/Activation.h.
 __device__ inline float applyActivation(MlpAct a, float v) { return activate<ActMath::FastDevice>(a, v); }
 
-// sin(v) on the FP32 pipe, for part of an epilogue's sines (MUFU, which __sinf uses, runs at a
-// quarter of the FP32 pipe's rate per sub-partition, so a chunk's sines queue there): v reduced
-// to r in [-pi, pi] by the nearest multiple of 2 pi (the rounding by adding and taking away
-// 1.5 * 2^23, written with __fadd_rn/__fsub_rn so nothing folds it away; 2 pi in two parts, the
-// first exact in 8 bits), then an odd polynomial of degree 9 fitted on [-pi, pi] (max. error
-// 6e-6, below the fp16 rounding the activations get).
-__device__ __forceinline__ float sineOnFmaPipe(float v) {
-  const float k = __fsub_rn(__fadd_rn(v * 0.15915494309189535f, 12582912.f), 12582912.f);
-  float r = fmaf(k, -6.28125f, v);
-  r = fmaf(k, -1.9353071795864769e-3f, r);
-  const float r2 = r * r;
-  float p = fmaf(r2, 2.1478708731592633e-6f, -1.9264992442913353e-4f);
-  p = fmaf(p, r2, 8.308984339237213e-3f);
-  p = fmaf(p, r2, -0.16662438213825226f);
-  p = fmaf(p, r2, 0.9999793767929077f);
-  return r * p;
-}
-
 template <MlpAct A>
 struct ActTag {
   static constexpr MlpAct value = A;

@@ -12,9 +12,8 @@
 namespace inr::cuda {
 
 // Named barriers: 1 + c = consumer c's own (128 threads); 3 + c = consumer c's turn to issue a
-// GEMM (256 threads: c waits, the other consumer arrives); 5 = every consumer thread, in the
-// prologue (the shared copies of the program and biases). 0 is __syncthreads.
-constexpr int kConsumerBarrier = 1, kTurnBarrier = 3, kPrologueBarrier = 5;
+// GEMM (256 threads: c waits, the other consumer arrives). 0 is __syncthreads.
+constexpr int kConsumerBarrier = 1, kTurnBarrier = 3;
 
 #if INR_HAVE_WGMMA
 // What the kernel lays out in shared memory for its roles: the program and buffer layout, the
@@ -118,19 +117,12 @@ __device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpIn
   const int width = min(NC, in.nPad - j * NC);  // a multiple of 16
   dispatchActivation(in.act, [&](auto A) {
     constexpr MlpAct kAct = decltype(A)::value;
-    // The pair of columns (col, col + 1) of row g + 8*half from fragments 4*jj + 2*half, +1;
-    // fmaSine: a sine on the FP32 pipe.
-    auto pair = [&](int jj, int half, bool residual, bool dot, bool fmaSine) __attribute__((always_inline)) {
+    // The pair of columns (col, col + 1) of row g + 8*half from fragments 4*jj + 2*half, +1.
+    auto pair = [&](int jj, int half, bool residual, bool dot) __attribute__((always_inline)) {
       const int col = j * NC + 8 * jj + 2 * t4;
       const float2 b = chunkBias[jj];
-      float v0, v1;
-      if (kAct == MlpAct::Sine && fmaSine) {
-        v0 = sineOnFmaPipe(acc[4 * jj + 2 * half] + b.x);
-        v1 = sineOnFmaPipe(acc[4 * jj + 2 * half + 1] + b.y);
-      } else {
-        v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
-        v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
-      }
+      float v0 = applyActivation(kAct, acc[4 * jj + 2 * half] + b.x);
+      float v1 = applyActivation(kAct, acc[4 * jj + 2 * half + 1] + b.y);
       if (kAct == MlpAct::Sigmoid) {  // sigmoid(0) != 0: keep padding columns zero
         if (col >= in.outWidth) v0 = 0.f;
         if (col + 1 >= in.outWidth) v1 = 0.f;
@@ -150,27 +142,19 @@ __device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpIn
     };
     // A whole chunk: no test inside the unrolled loop, so ptxas interleaves all its pairs
     // (a branch per 8 columns left 4 sines in flight; MUFU latency showed as stalls).
-    // With sines on the FMA pipe (FusedParams::hopperSineOnFma), every third group of 8 columns
-    // takes them: MUFU then has ~2/3 of the sines and the FP32 pipe the rest, about even.
-    auto whole = [&](auto residual, auto dot, auto fmaSines) __attribute__((always_inline)) {
+    auto whole = [&](auto residual, auto dot) __attribute__((always_inline)) {
 #pragma unroll
       for (int jj = 0; jj < NC / 8; ++jj)
 #pragma unroll
-        for (int half = 0; half < 2; ++half)
-          pair(jj, half, decltype(residual)::value, decltype(dot)::value, decltype(fmaSines)::value && jj % 3 == 2);
+        for (int half = 0; half < 2; ++half) pair(jj, half, decltype(residual)::value, decltype(dot)::value);
     };
     if (width == NC) {
-      if constexpr (kAct == MlpAct::Sine)
-        if (P.hopperSineOnFma && !other && !in.dotNext) {  // SIREN's hidden layers
-          whole(BoolTag<false>{}, BoolTag<false>{}, BoolTag<true>{});
-          return;
-        }
       if (other) {
-        if (in.dotNext) whole(BoolTag<true>{}, BoolTag<true>{}, BoolTag<false>{});
-        else whole(BoolTag<true>{}, BoolTag<false>{}, BoolTag<false>{});
+        if (in.dotNext) whole(BoolTag<true>{}, BoolTag<true>{});
+        else whole(BoolTag<true>{}, BoolTag<false>{});
       } else {
-        if (in.dotNext) whole(BoolTag<false>{}, BoolTag<true>{}, BoolTag<false>{});
-        else whole(BoolTag<false>{}, BoolTag<false>{}, BoolTag<false>{});
+        if (in.dotNext) whole(BoolTag<false>{}, BoolTag<true>{});
+        else whole(BoolTag<false>{}, BoolTag<false>{});
       }
       return;
     }
@@ -178,7 +162,7 @@ __device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpIn
     for (int jj = 0; jj < NC / 8; ++jj) {  // the last chunk of a layer narrower than NC
       if (8 * jj >= width) break;           // the same for the whole warpgroup
 #pragma unroll
-      for (int half = 0; half < 2; ++half) pair(jj, half, other != nullptr, in.dotNext != 0, false);
+      for (int half = 0; half < 2; ++half) pair(jj, half, other != nullptr, in.dotNext != 0);
     }
   });
 }
@@ -363,12 +347,18 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   const int actHalves = hopperActHalves(P);
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
   const std::size_t consumerBytes = std::size_t(actHalves) * 2 + kHopperRows * 4 * 4;
+  constexpr int kThreads = hopperThreads(CONSUMERS);
   float* const dotWeights = reinterpret_cast<float*>(consumerBase + CONSUMERS * consumerBytes);
   float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
-  // First the ring's barriers and the buffer layout (from the kernel's parameters: no memory
-  // reads), so the producer streams the first weights while the consumers copy the program, the
-  // biases and the final dot's weights, which only they read (a small batch is a round or two
-  // per block: what comes before the first MMA is much of its time).
+  for (int i = threadIdx.x; i < P.numInstrs; i += kThreads) program[i] = P.hopperInstrs[i];
+  for (int ip = 0; ip < P.numInstrs; ++ip) {
+    const MlpInstr& in = P.hopperInstrs[ip];
+    if (in.dotNext)
+      for (int c = threadIdx.x; c < in.nPad; c += kThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
+    if (isStreamedGemm(in))
+      for (int c = threadIdx.x; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kThreads)
+        biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
+  }
   if (threadIdx.x == 0) {
     int at = 0;
     for (int b = 0; b < kMaxBuffers; ++b) {
@@ -387,33 +377,17 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   const int numTiles = (n + kHopperRows - 1) / kHopperRows;
   const int numRounds = (numTiles + CONSUMERS - 1) / CONSUMERS;
   const int wg = threadIdx.x / 128;
+  const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
+                          actHalves, consumerBase, consumerBytes, dotWeights, biases};
   // Two consumers share 168 registers a thread at launch: the producer's go to them. One consumer
   // has 255 from the start (256 threads), so nothing moves.
   if (wg == 0) {
     if constexpr (CONSUMERS == 2) setMaxRegistersDec<kHopperProducerRegisters>();
     if (threadIdx.x != 0) return;
-    // The producer walks the program in global memory (cached): the shared copy is not made yet.
-    const HopperBlock block{P.hopperInstrs, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
-                            actHalves, consumerBase, consumerBytes, dotWeights, biases};
     hopperProducer<NC>(P, block, numRounds);
     return;
   }
   if constexpr (CONSUMERS == 2) setMaxRegistersInc<kHopperConsumerRegisters>();
-  constexpr int kConsumerThreads = 128 * CONSUMERS;
-  const int ct = threadIdx.x - 128;
-  for (int i = ct; i < P.numInstrs; i += kConsumerThreads) program[i] = P.hopperInstrs[i];
-  namedBarrierSync(kPrologueBarrier, kConsumerThreads);
-  for (int ip = 0; ip < P.numInstrs; ++ip) {
-    const MlpInstr& in = program[ip];
-    if (in.dotNext)
-      for (int c = ct; c < in.nPad; c += kConsumerThreads) dotWeights[c] = P.floatWeights[in.dotOffset + c];
-    if (isStreamedGemm(in))
-      for (int c = ct; c < (in.nPad + kHopperBiasPad - 1) / kHopperBiasPad * kHopperBiasPad; c += kConsumerThreads)
-        biases[P.hopperBiasStart[ip] + c] = c < in.nPad ? P.floatWeights[in.biasOffset + c] : 0.f;
-  }
-  namedBarrierSync(kPrologueBarrier, kConsumerThreads);
-  const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
-                          actHalves, consumerBase, consumerBytes, dotWeights, biases};
   hopperConsumer<NC, CONSUMERS>(P, block, numRounds, points, n, out, scatter);
 #else
   (void)P, (void)points, (void)n, (void)deviceCount, (void)out, (void)scatter;

@@ -62,9 +62,6 @@ struct FusedParams {
   int hopperStageHalves[2] = {1024, 2048};
   int hopperStages = 2;
   int hopperPingPong = 1;
-  // Sine epilogues compute every third group of 8 columns on the FMA pipe (sineOnFmaPipe) instead
-  // of MUFU, where a chunk's sines otherwise all queue (FusedConfig::sineOnFma).
-  int hopperSineOnFma = 0;
   OutputMap output;
   // Value + gradient launches (the mma.sync kernel's tangent rows, TileRows<true>): the network
   // input each world axis x, y, z moves (-1: none), the tangents' power-of-two scale
