@@ -38,19 +38,12 @@ private:
 }  // namespace
 
 std::unique_ptr<SessionRayMarcher> SessionRayMarcher::create(const RenderSession& session, const Box3f& box,
-                                                             const RayMarchOptions& options, const RenderScene& scene) {
+                                                             const RayMarchOptions& options) {
 #ifdef INR_HAVE_CUDA
   if (session.backend() == RenderBackend::Cuda) {
-    const auto* gpuEvaluator = dynamic_cast<const CudaInrEvaluator*>(&session.evaluator());
-    if (gpuEvaluator && !scene.shading.enabled)
+    if (const auto* gpuEvaluator = dynamic_cast<const CudaInrEvaluator*>(&session.evaluator()))
       return std::make_unique<MarcherAdapter<CudaRayMarcher>>("GPU ray marcher", *gpuEvaluator, box, options, true);
-    if (gpuEvaluator)
-      return std::make_unique<MarcherAdapter<RayMarchRenderer>>(
-          "CPU ray marcher on the GPU evaluator (ray-marched shading runs on the CPU only)", session.evaluator(), box,
-          options, false);
   }
-#else
-  (void)scene;
 #endif
   return std::make_unique<MarcherAdapter<RayMarchRenderer>>("CPU ray marcher", session.evaluator(), box, options,
                                                             false);

@@ -12,11 +12,10 @@ namespace inr {
 
 class SessionRayMarcher {
 public:
-  // The marcher for `session`'s backend over `box` with session.evaluator(), for scenes like
-  // `scene`. Shadows and gradient shading are marched on the CPU only: a CUDA session rendering
-  // either gets the CPU marcher on its GPU evaluator, and description() says so.
+  // The marcher for `session`'s backend over `box` with session.evaluator(); both march shadows
+  // and gradient shading.
   static std::unique_ptr<SessionRayMarcher> create(const RenderSession& session, const Box3f& box,
-                                                   const RayMarchOptions& options, const RenderScene& scene);
+                                                   const RayMarchOptions& options);
   virtual ~SessionRayMarcher() = default;
 
   virtual std::string description() const = 0;  // which marcher runs where, and why

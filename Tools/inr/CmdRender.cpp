@@ -154,7 +154,7 @@ void printFrameLine(const RenderJob& job, const FrameStats& st, long k) {
 // job.frames frames (no split: parseRenderJob refuses one, so job.settings are the run's).
 RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session, const Box3f& box,
                              const RenderScene& scene, nlohmann::json& report) {
-  const std::unique_ptr<SessionRayMarcher> renderer = SessionRayMarcher::create(session, box, job.rayMarch, scene);
+  const std::unique_ptr<SessionRayMarcher> renderer = SessionRayMarcher::create(session, box, job.rayMarch);
   if (!job.quiet) std::printf("ray marcher: %s\n", renderer->description().c_str());
   renderer->setSettings(job.settings);
   renderer->setScene(scene);

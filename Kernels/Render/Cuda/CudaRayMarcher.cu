@@ -13,6 +13,8 @@
 #include "Render/Cuda/DeviceTransferFunction.h"
 #include "Render/Finalize.h"
 #include "Render/RayMarch.h"
+#include "Render/SceneInputs.h"
+#include "Render/Shading.h"
 
 namespace inr {
 
@@ -128,17 +130,40 @@ __global__ void shadowDepthKernel(int first, int n, int total, const float4* pri
   tau[j] = sum;
 }
 
+// Gradient shading: each sample's value out of its (value, gradient) for the shadow and
+// compositing kernels, which read values.
+__global__ void valuesOfGradientsKernel(int total, const float4* valueGradients, float* values) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j < total) values[j] = valueGradients[j].x;
+}
+
+// The shaded composite's inputs (as the CPU marcher lights its samples): each sample's point and
+// (value, gradient), the shading constants and the unit model-space direction towards the light.
+struct MarchShading {
+  const float4* points = nullptr;
+  const float4* valueGradients = nullptr;  // null: no shading
+  ShadingConstants constants;
+  Vec3f toLight;
+};
+
 // tau: each sample's optical depth towards the light, or null without shadows.
 __global__ void compositeKernel(MarchParams p, const MarchRay* rays, const int* offsets, const float* values,
-                                const float* tau, float ambient, TransferFunctionView tf, Vec4f* accum,
-                                int frameIndex) {
+                                const float* tau, float ambient, MarchShading shading, TransferFunctionView tf,
+                                Vec4f* accum, int frameIndex) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= p.chunkN) return;
   const MarchRay r = rays[k];
   MarchCompositor<float> ray;
   for (int j = 0; j < r.count; ++j) {
     const int sample = offsets[k] + j;
-    ray.add(tf, values[sample], r.ds, tau ? marchLightFactor<float>(ambient, expf(-tau[sample])) : 1.f);
+    if (shading.valueGradients) {
+      const float4 q = shading.points[sample], vg = shading.valueGradients[sample];
+      const SampleLight light =
+          sampleLightAt(p.cam, shading.constants, shading.toLight, Vec3f{q.x, q.y, q.z}, Vec3f{vg.y, vg.z, vg.w});
+      ray.addLit(tf, values[sample], r.ds, ambient, light, tau ? expf(-tau[sample]) : 1.f);
+    } else {
+      ray.add(tf, values[sample], r.ds, tau ? marchLightFactor<float>(ambient, expf(-tau[sample])) : 1.f);
+    }
   }
   const int i = p.chunk0 + k;
   accum[i] = accumulateMean(accum[i], ray.estimate(), frameIndex);
@@ -157,6 +182,7 @@ struct CudaRayMarcher::Impl {
   cuda::DeviceBuffer<unsigned char> scanTemp;
   cuda::DeviceBuffer<float4> points;
   cuda::DeviceBuffer<float> values;
+  cuda::DeviceBuffer<float4> valueGradients;  // gradient shading: (value, gradient) per sample
   cuda::DeviceBuffer<int> hitRays;
   cuda::PinnedHost<int> total{1};
   cuda::PinnedHost<int> hitRaysHost{1};
@@ -190,9 +216,6 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 }
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
-  // Its samples take no gradients: SessionRayMarcher gives shaded scenes the CPU marcher.
-  if (scene.shading.enabled)
-    throw std::invalid_argument("shading: the GPU ray marcher does not shade (the CPU marcher does)");
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");
@@ -265,6 +288,10 @@ FrameStats CudaRayMarcher::renderFrame() {
     I.shadowRays.resize(1);
     I.shadowRays.zero(s);
   }
+  // Gradient shading: every sample's value comes with its gradient, as in the CPU marcher.
+  MarchShading shading;
+  shading.constants = shadingConstants(scene_.shading);
+  shading.toLight = sp.toLight;
   for (int c0 = 0; c0 < n; c0 += chunk) {
     p.chunk0 = c0;
     p.chunkN = std::min(chunk, n - c0);
@@ -284,14 +311,24 @@ FrameStats CudaRayMarcher::renderFrame() {
       }
       pointsKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.points.get());
       INR_CUDA_CHECK_LAUNCH("pointsKernel");
-      evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
+      if (shading.constants.enabled) {
+        if (I.valueGradients.size() < std::size_t(total)) I.valueGradients.resize(std::size_t(total));
+        evaluator_.evaluateWithGradientDevice(I.points.get(), nullptr, total, p.time, I.valueGradients.get(), s);
+        valuesOfGradientsKernel<<<(total + 127) / 128, 128, 0, s>>>(total, I.valueGradients.get(), I.values.get());
+        INR_CUDA_CHECK_LAUNCH("valuesOfGradientsKernel");
+        shading.points = I.points.get();
+        shading.valueGradients = I.valueGradients.get();
+      } else {
+        evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
+      }
       st.queries += std::size_t(total);
       st.iterations += 1;
     }
     const bool shadows = scene_.shadows && total > 0;
     if (shadows) castShadows(total, tf, sp, st);
     compositeKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.values.get(),
-                                           shadows ? I.tau.get() : nullptr, sp.ambient, tf, I.accum.get(), frameIndex_);
+                                           shadows ? I.tau.get() : nullptr, sp.ambient, shading, tf, I.accum.get(),
+                                           frameIndex_);
     INR_CUDA_CHECK_LAUNCH("compositeKernel");
   }
   INR_CUDA_CHECK(cudaMemcpyAsync(I.hitRaysHost.get(), I.hitRays.get(), sizeof(int), cudaMemcpyDeviceToHost, s));

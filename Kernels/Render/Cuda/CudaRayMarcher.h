@@ -6,8 +6,9 @@
 // kernel writes the points, the evaluator fills the values, a kernel composites and accumulates.
 // Shadows as the CPU marcher casts them: per chunk, each emitting sample's shadow points are
 // counted and placed by a second prefix sum, evaluated in calls of at most maxShadowBatch points,
-// and summed per sample in the order of its points. Gradient shading is the CPU marcher's only
-// (setScene refuses it by name).
+// and summed per sample in the order of its points. Gradient shading as the CPU marcher lights
+// its samples: every sample's value and gradient in one pass (evaluateWithGradientDevice: the
+// fused kernel's tangent rows), each sample lit by Render/Shading.h's sampleLightAt.
 #include <memory>
 #include <vector>
 

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# Every GPU test on one GPU machine (an H100 or H200), from the repository root, and the GPU ray
+# marcher's gradient shading against the marcher it replaces: builds the whole engine with CUDA
+# for sm_90 (OptiX where $OptiX_INSTALL_DIR or ./.optix holds its headers), runs
+# `ctest -L "cuda|optix"` and the CLI's marcher check (cli.raymarch_backend), then times
+# `inr render --method raymarch --backend cuda --shade` on shipped real models, this tree (the GPU
+# marcher) against BEFORE=<commit> (default a1840c4: the CPU marcher on the GPU evaluator), built
+# beside it from `git archive`.
+# Logs go to $OUT/gpu_checks.tar.gz (and the summary to stdout); about 10 minutes.
+#   OUT=dir bash Benchmarks/run_gpu_checks.sh
+set -uo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+OUT=${OUT:-./out}
+BUILD=${INR_BUILD_DIR:-/tmp/bg}
+BEFORE=${BEFORE:-a1840c4}
+OPTIX=${OptiX_INSTALL_DIR:-$PWD/.optix}
+mkdir -p "$OUT/logs"
+L="$OUT/logs"
+start=$(date +%s)
+stamp() { echo "== $1 ($(($(date +%s) - start)) s)"; }
+status=0
+configure() {  # source dir, build dir
+  cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
+    -DCMAKE_CUDA_ARCHITECTURES=90 -DOptiX_INSTALL_DIR="$OPTIX"
+}
+nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$L/gpu.txt"
+
+stamp "configure and build (this tree, and $BEFORE's inr beside it)"
+configure . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
+rm -rf /tmp/before-src && mkdir -p /tmp/before-src && git archive "$BEFORE" | tar -x -C /tmp/before-src
+configure /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
+timeout 500 ninja -C /tmp/before-build -j4 inr > "$L/build_before.log" 2>&1 &
+before_pid=$!
+timeout 500 ninja -C "$BUILD" -j16 > "$L/build.log" 2>&1 || { grep -E "error|FAILED" "$L/build.log" | head -30; exit 1; }
+wait "$before_pid" || { grep -E "error|FAILED" "$L/build_before.log" | head; exit 1; }
+grep -iE "spill" "$L/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
+
+stamp "GPU tests"
+timeout 420 ctest --test-dir "$BUILD" -L "cuda|optix" -j4 --output-on-failure > "$L/ctest_gpu.log" 2>&1
+grep -E "tests passed|Failed|\*\*\*|Not Run" "$L/ctest_gpu.log" | head -20
+grep -q "100% tests passed" "$L/ctest_gpu.log" || status=1
+grep -E "shaded GPU vs CPU ray marcher" "$L/ctest_gpu.log" | head -12
+timeout 120 ctest --test-dir "$BUILD" -R "cli.raymarch_backend" --output-on-failure > "$L/ctest_cli_raymarch.log" 2>&1
+grep -E "tests passed|Failed" "$L/ctest_cli_raymarch.log"
+grep -q "100% tests passed" "$L/ctest_cli_raymarch.log" || status=1
+
+stamp "ray-marched shading, 512^2, 4 frames: this tree (GPU marcher) against $BEFORE"
+for m in siren_cylinder_vorticity ffn_mri_head coordnet_cylinder_u; do
+  model=Testing/Data/real/$m
+  for which in now before; do
+    bin="$BUILD/bin/inr"
+    [ "$which" = before ] && bin=/tmp/before-build/bin/inr
+    timeout 300 "$bin" render "$model.inr" --tf "$model.tf.json" --method raymarch --backend cuda --shade --size 512x512 \
+      --frames 4 -o "$L/march_${m}_$which.png" --stats-json "$L/march_${m}_$which.json" > "$L/march_${m}_$which.txt" 2>&1
+    echo "$m $which: $(grep -E '^ray marcher' "$L/march_${m}_$which.txt"); $(grep -E '^frame 4/4' "$L/march_${m}_$which.txt")"
+  done
+done
+
+tar -czf "$OUT/gpu_checks.tar.gz" -C "$OUT" logs
+stamp "done (status $status)"
+exit $status
