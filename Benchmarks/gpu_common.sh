@@ -1,7 +1,10 @@
-# Sourced by run_gpu.sh and run_gpu_pipeline.sh: works from the repository root, results in
+# Sourced by the run_*.sh scripts of this folder: works from the repository root, results in
 # $OUT (default gpu-results), build in $BUILD (INR_BUILD_DIR, default build-gpu), and
 #   gpu_configure [extra CMake args]  configures for this machine's GPU (log in $OUT/configure.log)
 #   gpu_ctest [extra ctest args]      runs the GPU tests (ctest -L cuda, log in $OUT/ctest_cuda.log)
+#   gpu_configure_release SRC BUILD [extra CMake args]  an sm_90 Release build of SRC's engine
+#   gpu_source_of COMMIT DIR          that commit's tree in DIR (git archive), built beside this one
+#   stamp MESSAGE                     a step's heading with the seconds since the script began
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-gpu-results}
@@ -19,4 +22,18 @@ gpu_ctest() {
   echo "== GPU tests"
   ctest --test-dir "$BUILD" -L cuda --output-on-failure "$@" 2>&1 | tee "$OUT/ctest_cuda.log" \
     | grep -vE "^\s*(Start|Test command)" | tail -40
+}
+
+gpu_start=$(date +%s)
+stamp() { echo "== $1 ($(($(date +%s) - gpu_start)) s)"; }
+
+gpu_configure_release() {
+  local src=$1 build=$2
+  shift 2
+  cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
+    -DCMAKE_CUDA_ARCHITECTURES=90 "$@"
+}
+
+gpu_source_of() {
+  rm -rf "$2" && mkdir -p "$2" && git archive "$1" | tar -x -C "$2"
 }

@@ -8,27 +8,20 @@
 # beside it from `git archive`.
 # Logs go to $OUT/gpu_checks.tar.gz (and the summary to stdout); about 10 minutes.
 #   OUT=dir bash Benchmarks/run_gpu_checks.sh
-set -uo pipefail
-cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-./out}
+source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
 BUILD=${INR_BUILD_DIR:-/tmp/bg}
 BEFORE=${BEFORE:-a1840c4}
 OPTIX=${OptiX_INSTALL_DIR:-$PWD/.optix}
 mkdir -p "$OUT/logs"
 L="$OUT/logs"
-start=$(date +%s)
-stamp() { echo "== $1 ($(($(date +%s) - start)) s)"; }
 status=0
-configure() {  # source dir, build dir
-  cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
-    -DCMAKE_CUDA_ARCHITECTURES=90 -DOptiX_INSTALL_DIR="$OPTIX"
-}
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$L/gpu.txt"
 
 stamp "configure and build (this tree, and $BEFORE's inr beside it)"
-configure . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
-rm -rf /tmp/before-src && mkdir -p /tmp/before-src && git archive "$BEFORE" | tar -x -C /tmp/before-src
-configure /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
+gpu_configure_release . "$BUILD" -DOptiX_INSTALL_DIR="$OPTIX" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
+gpu_source_of "$BEFORE" /tmp/before-src
+gpu_configure_release /tmp/before-src /tmp/before-build -DOptiX_INSTALL_DIR="$OPTIX" > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
 timeout 500 ninja -C /tmp/before-build -j4 inr > "$L/build_before.log" 2>&1 &
 before_pid=$!
 timeout 500 ninja -C "$BUILD" -j16 > "$L/build.log" 2>&1 || { grep -E "error|FAILED" "$L/build.log" | head -30; exit 1; }

@@ -11,30 +11,23 @@
 # Logs and CSV go to $OUT (default ./out), and all of them in $OUT/small_batch_checks.tar.gz;
 # about 10 minutes (the build takes half).
 #   BEFORE=a1840c4 bash Benchmarks/run_small_batch_checks.sh
-set -uo pipefail
-cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-./out}
+source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
 BUILD=${INR_BUILD_DIR:-/tmp/bsb}
 BEFORE=${BEFORE:-}
 mkdir -p "$OUT/logs"
 L="$OUT/logs"
-start=$(date +%s)
-stamp() { echo "== $1 ($(($(date +%s) - start)) s)"; }
 status=0
-configure() {  # source dir, build dir
-  cmake -S "$1" -B "$2" -G Ninja -DCMAKE_BUILD_TYPE=Release -DINR_ENABLE_PARAVIEW=OFF -DINR_ENABLE_CUDA=ON \
-    -DCMAKE_CUDA_ARCHITECTURES=90
-}
 
 nvidia-smi > "$L/nvidia-smi.txt" 2>&1
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
 git log -1 --format='%H %s' > "$L/commit.txt" 2>/dev/null
 
 stamp "configure and build (this tree${BEFORE:+ and $BEFORE, side by side})"
-configure . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
+gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
 if [ -n "$BEFORE" ]; then
-  rm -rf /tmp/before-src && mkdir -p /tmp/before-src && git archive "$BEFORE" | tar -x -C /tmp/before-src
-  configure /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
+  gpu_source_of "$BEFORE" /tmp/before-src
+  gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
   timeout 420 ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1 &
   before_pid=$!
 fi

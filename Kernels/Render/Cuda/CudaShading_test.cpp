@@ -22,10 +22,8 @@
 #include "Model/InrModel.h"
 #include "Render/Cuda/CudaDeltaTrackingRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
-#include "Render/Cuda/CudaRayMarcher.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
-#include "Render/RayMarcher.h"
 #include "TestSupport/DevicePoints.h"
 #include "TestSupport/FusedTangents.h"
 #include "TestSupport/GradientErrors.h"
@@ -273,61 +271,6 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
       EXPECT_LE(gpu.stats.shadingQueries, gpu.stats.rays) << path;  // at most one per ray
       EXPECT_EQ(flat.stats.shadingQueries, 0u) << path;
       EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u) << path;
-    }
-  }
-}
-
-// The GPU marcher lights its samples as the CPU marcher does (Render/RayMarch.h, Shading.h): on
-// one evaluator (one fused tangent configuration for every batch size, so each sample gets the
-// same value and gradient in either marcher) the two differ by compositing in float instead of
-// double and by the device's fast-math lighting. Over the pixels the volume covers: the same
-// queries and shadow queries, every channel within 1e-3, without and with shadows (batches of
-// 4096 shadow points); the unshaded GPU march differs by far more (shading is on).
-TEST(CudaShading, GpuRayMarcherShadesAsTheCpuMarcher) {
-  REQUIRE_GPU();
-  for (const auto& path : test::shippedModels()) {
-    const InrModel model = InrModel::loadFile(path);
-    CudaEvaluatorOptions evalOptions;
-    evalOptions.autotuneBatch = 0;
-    const CudaInrEvaluator eval(model, evalOptions);
-    const auto range = valueRangeFor(model, eval);
-    const Box3f box = modelWorldBox(model);
-    RayMarchOptions o;
-    o.step = length(box.hi - box.lo) / 200.f;
-    o.maxShadowBatch = 4096;
-    for (const bool shadows : {false, true}) {
-      RenderSettings settings;
-      settings.width = 36;
-      settings.height = 28;
-      RenderScene scene = shadedScene(model, range, true);
-      scene.shadows = shadows;
-      RenderScene flatScene = scene;
-      flatScene.shading.enabled = false;
-      RayMarchRenderer cpu(eval, box, o);
-      CudaRayMarcher gpu(eval, box, o), flat(eval, box, o);
-      const FrameStats a = test::renderFrames(cpu, settings, scene, 2), b = test::renderFrames(gpu, settings, scene, 2);
-      test::renderFrames(flat, settings, flatScene, 2);
-      EXPECT_EQ(a.queries, b.queries) << path;
-      EXPECT_EQ(a.shadowQueries, b.shadowQueries) << path;
-      EXPECT_EQ(shadows, b.shadowQueries > 0) << path;
-      const ImageRGBA ci = cpu.image(), gi = gpu.image(), fi = flat.image();
-      std::size_t covered = 0;
-      double maxError = 0.0, flatDifference = 0.0;
-      for (std::size_t i = 0; i < std::size_t(settings.width) * settings.height; ++i) {
-        if (!(ci.data[4 * i + 3] > 0.f)) continue;
-        ++covered;
-        for (int c = 0; c < 4; ++c) {
-          maxError = std::max(maxError, double(std::fabs(ci.data[4 * i + c] - gi.data[4 * i + c])));
-          flatDifference = std::max(flatDifference, double(std::fabs(ci.data[4 * i + c] - fi.data[4 * i + c])));
-        }
-      }
-      std::printf("%-32s%s: shaded GPU vs CPU ray marcher on one evaluator: %zu covered pixels, max error %.2e "
-                  "(unshaded GPU march: %.3f)\n",
-                  fs::path(path).filename().c_str(), shadows ? ", shadows" : "", covered, maxError, flatDifference);
-      EXPECT_GT(covered, std::size_t(settings.width * settings.height / 10)) << path;
-      EXPECT_LE(maxError, 1e-3) << path;
-      EXPECT_GT(flatDifference, 0.02) << path << ": shading changed too little to tell";
-      EXPECT_EQ(test::nonFinitePixels(gi), 0u) << path;
     }
   }
 }
