@@ -117,7 +117,8 @@ Row measureGradient(const InrModel& model, const std::string& name, CudaGradient
 }
 
 // The autotuned fused evaluator at each batch size in `batches` (ascending), one construction,
-// on the first n of the same points: a row per size (path "fused-fp16").
+// on the first n of the same points: a row per size (path "fused-fp16", or "generic-fp32" for a
+// model the fused kernels cannot hold).
 std::vector<Row> measureBatches(const InrModel& model, const std::string& name, const std::vector<int>& batches, int reps,
                                 CudaEvaluatorOptions o, bool rayOrdered) {
   o.path = CudaEvaluatorPath::Auto;
@@ -126,8 +127,9 @@ std::vector<Row> measureBatches(const InrModel& model, const std::string& name, 
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, largest, rayOrdered));
   cuda::DeviceBuffer<float> dOut(largest);
   std::vector<Row> rows;
+  const char* path = eval.path() == CudaEvaluatorPath::Fused ? "fused-fp16" : "generic-fp32";
   for (const int n : batches)
-    rows.push_back({name, "fused-fp16", eval.launchReport(), model.architecture.parameterCount(),
+    rows.push_back({name, path, eval.launchReport(), model.architecture.parameterCount(),
                     spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps)), 0, n});
   return rows;
 }

@@ -12,27 +12,21 @@ OUT=${OUT:-./out}
 source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
 BUILD=${INR_BUILD_DIR:-/tmp/bg}
 BEFORE=${BEFORE:-a1840c4}
-OPTIX=${OptiX_INSTALL_DIR:-$PWD/.optix}
+export OptiX_INSTALL_DIR=${OptiX_INSTALL_DIR:-$PWD/.optix}
 mkdir -p "$OUT/logs"
 L="$OUT/logs"
 status=0
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$L/gpu.txt"
 
 stamp "configure and build (this tree, and $BEFORE's inr beside it)"
-gpu_configure_release . "$BUILD" -DOptiX_INSTALL_DIR="$OPTIX" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
-gpu_source_of "$BEFORE" /tmp/before-src
-gpu_configure_release /tmp/before-src /tmp/before-build -DOptiX_INSTALL_DIR="$OPTIX" > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
-timeout 500 ninja -C /tmp/before-build -j4 inr > "$L/build_before.log" 2>&1 &
-before_pid=$!
-timeout 500 ninja -C "$BUILD" -j16 > "$L/build.log" 2>&1 || { grep -E "error|FAILED" "$L/build.log" | head -30; exit 1; }
-wait "$before_pid" || { grep -E "error|FAILED" "$L/build_before.log" | head; exit 1; }
-grep -iE "spill" "$L/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
+gpu_build_with_before "$L" inr --
 
 stamp "GPU tests"
 timeout 420 ctest --test-dir "$BUILD" -L "cuda|optix" -j4 --output-on-failure > "$L/ctest_gpu.log" 2>&1
 grep -E "tests passed|Failed|\*\*\*|Not Run" "$L/ctest_gpu.log" | head -20
 grep -q "100% tests passed" "$L/ctest_gpu.log" || status=1
-grep -E "shaded GPU vs CPU ray marcher" "$L/ctest_gpu.log" | head -12
+"$BUILD/Kernels/Render/Cuda/cuda_pipeline_tests" --gtest_filter='*GpuRayMarcherRunsTheCpuMarchersRays*' 2>&1 \
+  | grep -E "shaded" | cut -c1-200 | head -12
 timeout 120 ctest --test-dir "$BUILD" -R "cli.raymarch_backend" --output-on-failure > "$L/ctest_cli_raymarch.log" 2>&1
 grep -E "tests passed|Failed" "$L/ctest_cli_raymarch.log"
 grep -q "100% tests passed" "$L/ctest_cli_raymarch.log" || status=1

@@ -24,23 +24,14 @@ nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
 git log -1 --format='%H %s' > "$L/commit.txt" 2>/dev/null
 
 stamp "configure and build (this tree${BEFORE:+ and $BEFORE, side by side})"
-gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; exit 1; }
-if [ -n "$BEFORE" ]; then
-  gpu_source_of "$BEFORE" /tmp/before-src
-  gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 || { tail -30 "$L/configure_before.log"; exit 1; }
-  timeout 420 ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1 &
-  before_pid=$!
-fi
-timeout 420 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark gpu_render_benchmark \
-  > "$L/build.log" 2>&1 || { grep -E "error|FAILED" "$L/build.log" | head -30; exit 1; }
-[ -n "$BEFORE" ] && { wait "$before_pid" || { grep -E "error|FAILED" "$L/build_before.log" | head; exit 1; }; }
-grep -iE "spill" "$L/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
+gpu_build_with_before "$L" gpu_evaluator_benchmark -- cuda_evaluator_tests gpu_evaluator_benchmark gpu_render_benchmark
 
 stamp "GPU evaluator tests"
 timeout 240 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." --output-on-failure > "$L/ctest_cuda.log" 2>&1
 grep -E "tests passed|Failed|\*\*\*" "$L/ctest_cuda.log" | head -10
 grep -q "100% tests passed" "$L/ctest_cuda.log" || status=1
-grep -E "paper_siren.*1x64" "$L/ctest_cuda.log" | cut -c1-220 | head -6
+"$BUILD/Kernels/Evaluator/Cuda/cuda_evaluator_tests" --gtest_filter='*WgmmaKernel*' 2>&1 | grep -E "paper_siren.*1x64" \
+  | cut -c1-220 | head -6
 
 bench="$BUILD/Benchmarks/gpu_evaluator_benchmark"
 real=(Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr)

@@ -393,6 +393,12 @@ void CudaInrEvaluator::Impl::tuneTangents() const {
 
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
     : impl_(std::make_unique<Impl>()) {
+  if (options.wgmmaConsumers < 0 || options.wgmmaConsumers > 2)
+    throw std::invalid_argument("CudaEvaluatorOptions::wgmmaConsumers must be 0 (both autotuned), 1 or 2, not " +
+                                std::to_string(options.wgmmaConsumers));
+  if (options.wgmmaConsumers == 1 && options.wgmmaPingPong == 1)
+    throw std::invalid_argument("CudaEvaluatorOptions: wgmmaPingPong = 1 (turns) needs two consumers; set "
+                                "wgmmaConsumers to 2 or 0, or wgmmaPingPong to 0 or -1");
   Impl& I = *impl_;
   I.device = queryCudaDevice(options.device);
   if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);

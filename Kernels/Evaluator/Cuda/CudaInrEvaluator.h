@@ -47,8 +47,8 @@ struct CudaEvaluatorOptions {
   // only (the wgmma kernel runs wgmmaConsumers x 64 queries per round, its weights in chunks of
   // wgmmaChunkColumns output columns: 64 or 128, 0 = both autotuned).
   FusedMma mma = FusedMma::Auto;
-  // wgmma kernel: its two consumer warpgroups take turns issuing each weight chunk's MMAs (1),
-  // never (0), or both are autotuned (-1).
+  // wgmma kernel, blocks of two consumers: the consumer warpgroups take turns issuing each weight
+  // chunk's MMAs (1), never (0), or both are autotuned (-1). 1 rules out one-consumer blocks.
   int wgmmaPingPong = -1;
   int wgmmaChunkColumns = 0;
   // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1

@@ -156,8 +156,8 @@ FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<Fuse
   INR_CUDA_CHECK(cudaEventCreate(&e0));
   INR_CUDA_CHECK(cudaEventCreate(&e1));
   // Queries per second: the best of 3 timings after a warm-up, each over `launches` launches in
-  // a row (the small batch's: a single launch of a few tens of microseconds times as much launch
-  // jitter as kernel, and its choice flipped between runs; in a frame they queue in a row too).
+  // a row (the small batch's: one short launch times launch jitter about as much as the kernel,
+  // and the choice flipped between runs; in a frame such launches queue in a row too).
   auto rate = [&](const FusedConfig& config, int n, int launches) {
     float best = 0.f;
     for (int r = -1; r < 3; ++r) {

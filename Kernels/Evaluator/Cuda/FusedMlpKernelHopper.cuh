@@ -1,12 +1,14 @@
 #pragma once
 // The fused kernel on Hopper (sm_90a): warp-specialised, warpgroup MMA.
 //
-// A block is three warpgroups. Warpgroup 0 is the producer: one thread streams every GEMM's
+// A block is a producer warpgroup and one or two consumers (kHopperMaxConsumers below; the
+// register hand-over described here is the two-consumer block's). Warpgroup 0 is the producer:
+// one thread streams every GEMM's
 // weights, chunk after chunk in program order, into a ring of `stages` shared-memory slots with
 // the bulk copy engine (cp.async.bulk, one copy per chunk: the weights are pre-packed chunk by
 // chunk in the wgmma core-matrix layout), each slot guarded by a "full" mbarrier (the copy's
 // bytes complete it) and an "empty" one (the consumers' warps arrive once their wgmma has read
-// it). It gives its registers away (setmaxnreg.dec) to warpgroups 1 and 2, the consumers
+// it). It gives its registers away (setmaxnreg.dec) to the consumers, warpgroups 1 and 2
 // (setmaxnreg.inc), which each run the whole program on their own tile of 64 queries: a warp
 // owns 16 rows and every column of them, so a consumer synchronises only with itself (named
 // barrier) and the final dot product reduces within a quad.

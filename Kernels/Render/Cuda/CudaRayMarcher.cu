@@ -216,6 +216,7 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 }
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
+  scene.shading.validate();
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");

@@ -8,7 +8,8 @@
 // counted and placed by a second prefix sum, evaluated in calls of at most maxShadowBatch points,
 // and summed per sample in the order of its points. Gradient shading as the CPU marcher lights
 // its samples: every sample's value and gradient in one pass (evaluateWithGradientDevice: the
-// fused kernel's tangent rows), each sample lit by Render/Shading.h's sampleLightAt.
+// fused kernel's tangent rows, or the per-thread fp32 forward mode for a model off the fused
+// path), each sample lit by Render/Shading.h's sampleLightAt.
 #include <memory>
 #include <vector>
 
