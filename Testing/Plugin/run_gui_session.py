@@ -55,7 +55,7 @@ ap.add_argument("--paraview", required=True)
 ap.add_argument("--model", required=True)
 ap.add_argument("--out", required=True)
 ap.add_argument("--view-size", default="960x600")
-ap.add_argument("--settle-ms", type=int, default=9000, help="pause after each step")
+ap.add_argument("--settle-ms", type=int, default=7000, help="pause after each step")
 ap.add_argument("--drag-steps", type=int, default=10)
 ap.add_argument("--timeout", type=float, default=400, help="seconds paraview may run")
 ap.add_argument("--judge-times", action="store_true",
