@@ -74,8 +74,6 @@ std::uint64_t hashBits(const float* v, std::size_t n) {
   return h;
 }
 
-// mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
-// where the autotuned "fused-fp16" runs the wgmma kernel).
 // The benchmark's query points: uniform in the model's box and time range (seed 1), or
 // (rayOrdered) in a frame's order at the middle of the time range.
 std::vector<QueryPoint> benchmarkPoints(const InrModel& model, int n, bool rayOrdered) {
@@ -84,6 +82,8 @@ std::vector<QueryPoint> benchmarkPoints(const InrModel& model, int n, bool rayOr
   return test::randomQueryPoints(model, std::size_t(n), 1);
 }
 
+// mma: FusedMma::MmaSync gives the row "fused-mma.sync" (the pre-Hopper kernel, for comparison
+// where the autotuned "fused-fp16" runs the wgmma kernel).
 Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath path, int batch, int reps,
             CudaEvaluatorOptions o, bool rayOrdered) {
   o.path = path;

@@ -13,6 +13,8 @@
 
 #include "Evaluator/FieldEvaluator.h"
 #include "Model/InrModel.h"
+#include "Render/ModelBox.h"
+#include "Render/RenderMath.h"
 
 namespace inr::test {
 
@@ -51,40 +53,25 @@ inline std::vector<QueryPoint> randomQueryPoints(const InrModel& m, std::size_t 
 // [k/K, (k+1)/K) of it). Neighbouring queries are neighbouring pixels at nearby depths, as in a
 // render; randomQueryPoints' neighbours share nothing (what a hash grid's table reads feel).
 inline std::vector<QueryPoint> rayOrderedQueryPoints(const InrModel& m, std::size_t n, unsigned seed, float time) {
-  const auto& b = m.domain.bounds;
-  const double lo[3] = {b[0], b[2], b[4]}, hi[3] = {b[1], b[3], b[5]};
-  double c[3], d = 0;
-  for (int i = 0; i < 3; ++i) c[i] = 0.5 * (lo[i] + hi[i]), d += (hi[i] - lo[i]) * (hi[i] - lo[i]);
-  d = std::sqrt(d);
+  const Box3f box = modelWorldBox(m);
+  const Vec3f centre = (box.lo + box.hi) * 0.5f;
   // eye 1.6 diagonals from the centre, off every axis; the box's bounding sphere fills the view
-  const double dir[3] = {0.55, 0.45, 0.70};
-  const double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-  double eye[3], fwd[3];
-  for (int i = 0; i < 3; ++i) fwd[i] = -dir[i] / len, eye[i] = c[i] - 1.6 * d * fwd[i];
-  double right[3] = {-fwd[2], 0.0, fwd[0]};  // fwd x (0, 1, 0)
-  const double rl = std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]);
-  for (double& v : right) v /= rl;
-  const double up[3] = {right[1] * fwd[2] - right[2] * fwd[1], right[2] * fwd[0] - right[0] * fwd[2],
-                        right[0] * fwd[1] - right[1] * fwd[0]};
-  const double halfTan = 0.5 / 1.6 * 1.05;
+  const Vec3f fwd = normalize(Vec3f{-0.55f, -0.45f, -0.70f});
+  const Vec3f eye = centre - fwd * (1.6f * length(box.hi - box.lo));
+  const Vec3f right = normalize(cross(fwd, Vec3f{0.f, 1.f, 0.f}));
+  const Vec3f up = cross(right, fwd);
+  const float halfTan = 0.5f / 1.6f * 1.05f;
   const int side = int(std::min<double>(1024.0, std::ceil(std::sqrt(double(std::max<std::size_t>(n, 1))))));
-  struct Span { double o[3], v[3], t0, t1; };
+  struct Span {
+    Vec3f dir;
+    float t0, t1;
+  };
   std::vector<Span> rays;
   for (int py = 0; py < side; ++py)
     for (int px = 0; px < side; ++px) {
-      Span r{};
-      const double sx = (2.0 * (px + 0.5) / side - 1.0) * halfTan, sy = (2.0 * (py + 0.5) / side - 1.0) * halfTan;
-      double t0 = 0, t1 = 1e30;
-      for (int i = 0; i < 3; ++i) {
-        r.o[i] = eye[i];
-        r.v[i] = fwd[i] + sx * right[i] + sy * up[i];
-        const double a = (lo[i] - eye[i]) / r.v[i], e = (hi[i] - eye[i]) / r.v[i];
-        t0 = std::max(t0, std::min(a, e));
-        t1 = std::min(t1, std::max(a, e));
-      }
-      if (t1 <= t0) continue;
-      r.t0 = t0, r.t1 = t1;
-      rays.push_back(r);
+      const float sx = (2.f * (px + 0.5f) / side - 1.f) * halfTan, sy = (2.f * (py + 0.5f) / side - 1.f) * halfTan;
+      Span r{fwd + right * sx + up * sy, 0.f, 0.f};
+      if (intersectBox(box, eye, r.dir, r.t0, r.t1)) rays.push_back(r);
     }
   if (rays.empty()) throw std::logic_error("rayOrderedQueryPoints: no ray meets the box");
   const std::size_t iterations = (n + rays.size() - 1) / rays.size();
@@ -93,10 +80,10 @@ inline std::vector<QueryPoint> rayOrderedQueryPoints(const InrModel& m, std::siz
   std::vector<QueryPoint> pts(n);
   for (std::size_t q = 0; q < n; ++q) {
     const Span& r = rays[q % rays.size()];
-    const double t = r.t0 + (r.t1 - r.t0) * (double(q / rays.size()) + u01(rng)) / double(iterations);
-    float x[3];
-    for (int i = 0; i < 3; ++i) x[i] = float(std::clamp(r.o[i] + t * r.v[i], lo[i], hi[i]));
-    pts[q] = {x[0], x[1], x[2], time};
+    const float t = float(r.t0 + (r.t1 - r.t0) * (double(q / rays.size()) + u01(rng)) / double(iterations));
+    const Vec3f x = eye + r.dir * t;
+    pts[q] = {std::clamp(x.x, box.lo.x, box.hi.x), std::clamp(x.y, box.lo.y, box.hi.y),
+              std::clamp(x.z, box.lo.z, box.hi.z), time};
   }
   return pts;
 }

@@ -1,8 +1,8 @@
 #pragma once
 // The fused kernel on Hopper (sm_90a): warp-specialised, warpgroup MMA.
 //
-// A block is a producer warpgroup and one or two consumers (kHopperMaxConsumers below; the
-// register hand-over described here is the two-consumer block's). Warpgroup 0 is the producer:
+// A block is a producer warpgroup and one or two consumers (hopperThreads below; the register
+// hand-over described here is the two-consumer block's). Warpgroup 0 is the producer:
 // one thread streams every GEMM's
 // weights, chunk after chunk in program order, into a ring of `stages` shared-memory slots with
 // the bulk copy engine (cp.async.bulk, one copy per chunk: the weights are pre-packed chunk by
@@ -26,7 +26,7 @@
 // no barrier between the consumer's warps.
 // Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
 // barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
-// A block of one consumer (kHopperMaxConsumers above) runs the same code without turns.
+// A block of one consumer (hopperThreads below) runs the same code without turns.
 // One instruction shape and one epilogue per activation keep the kernel small: ptxas compiles
 // it quickly (a variant with 48 shape x activation x residual instantiations took many times
 // longer; compile times in Benchmarks/RESULTS.md), and the instruction cache holds it.
@@ -61,9 +61,8 @@ namespace inr::cuda {
 // MMAs: the throughput choice), or one (64 queries per round, so a small batch spreads over twice
 // the blocks: the pipeline's late iterations hold a few thousand queries, and 128-query rounds
 // leave half the SMs idle there). The autotuner times both (FusedLaunchAutotuner).
-constexpr int kHopperMaxConsumers = 2;
-constexpr int kHopperRows = 64;  // queries per consumer tile (wgmma's M)
 __host__ __device__ constexpr int hopperThreads(int consumers) { return 128 * (1 + consumers); }
+constexpr int kHopperRows = 64;  // queries per consumer tile (wgmma's M)
 constexpr int kHopperMaxStages = 8;
 constexpr int kHopperChunkWidths[2] = {64, 128};  // output columns per weight chunk (wgmma's N), autotuned
 constexpr int kHopperBiasPad = 128;               // each GEMM's biases padded to whole chunks of either width
