@@ -38,7 +38,7 @@ void RayMarchRenderer::setScene(const RenderScene& scene) {
     throw std::invalid_argument("depth limit must have one value per pixel");
   }
   scene.camera.view(settings_.width, settings_.height);  // validates
-  scene.shading.validate();
+  validateLighting(scene);
   if (scene.shading.enabled && !evaluator_.providesGradient())
     throw std::invalid_argument("shading: the evaluator " + evaluator_.name() + " computes no gradients");
   scene_ = scene;
@@ -68,7 +68,7 @@ FrameStats RayMarchRenderer::renderFrame() {
   const bool shadows = scene_.shadows;
   const float ambient = scene_.ambient;
   // Gradient shading: every sample's value comes with its gradient (Shading.h).
-  const ShadingConstants shading = shadingConstants(scene_.shading);
+  const ShadingConstants shading = shadingConstants(scene_.shading, cam);
   st.pixels = std::size_t(n);
   std::vector<float> gradients;
 

@@ -72,9 +72,10 @@ SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {
   // The light only shades through shadows: without them its direction, ambient term and
   // estimator change nothing (ParaView's light follows the camera, so counting it made every
   // camera move a light change, which restarts accumulation and so defeated reprojection).
-  // Shading uses the direction unless it has a headlight, and the ambient term.
+  // Shading uses the direction unless it has a headlight or a list of lights, and the ambient
+  // term. (A camera light of the list turns with the camera: that is a camera change.)
   const bool shaded = after.shading.enabled;
-  const bool directionUsed = after.shadows || (shaded && !after.shading.headlight);
+  const bool directionUsed = after.shadows || (shaded && !after.shading.headlight && !after.shading.lightList);
   c.light = b.shadows != after.shadows || b.shading != after.shading ||
             (directionUsed && b.toLight != after.toLight) ||
             ((after.shadows || shaded) && b.ambient != after.ambient) ||
@@ -92,8 +93,9 @@ CameraView validateScene(const RenderScene& scene, const RenderSettings& setting
   for (float c : scene.background) {
     if (!std::isfinite(c)) throw std::invalid_argument("background colour must be finite");
   }
-  scene.shading.validate();
-  if ((scene.shadows || (scene.shading.enabled && !scene.shading.headlight)) && !(length(toVec3(scene.toLight)) > 0.f)) {
+  validateLighting(scene);
+  if ((scene.shadows || (scene.shading.enabled && !scene.shading.headlight && !scene.shading.lightList)) &&
+      !(length(toVec3(scene.toLight)) > 0.f)) {
     throw std::invalid_argument("light direction must be non-zero");
   }
   return scene.camera.view(settings.width, settings.height);  // validates the camera

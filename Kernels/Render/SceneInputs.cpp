@@ -445,15 +445,49 @@ void ShadingOptions::validate() const {
     throw std::invalid_argument("shading: specular must be finite and >= 0, got " + std::to_string(specular));
   if (!(specularPower >= 0.f && specularPower <= 128.f))
     throw std::invalid_argument("shading: specular power must be in [0, 128], got " + std::to_string(specularPower));
+  if (!lightList) return;
+  if (lights.size() > std::size_t(kMaxShadingLights))
+    throw std::invalid_argument("shading: at most " + std::to_string(kMaxShadingLights) + " lights, got " +
+                                std::to_string(lights.size()));
+  for (std::size_t i = 0; i < lights.size(); ++i) {
+    const SceneLight& l = lights[i];
+    const std::string which = "shading: light " + std::to_string(i) + "'s ";
+    const double len = std::hypot(l.toLight[0], l.toLight[1], l.toLight[2]);
+    if (!(len > 0.0 && len < INFINITY)) throw std::invalid_argument(which + "direction must be finite and non-zero");
+    for (const auto* colour : {&l.ambient, &l.diffuse, &l.specular})
+      for (float c : *colour)
+        if (!(c >= 0.f && c < INFINITY))
+          throw std::invalid_argument(which + "colours must be finite and >= 0, got " + std::to_string(c));
+  }
 }
 
-ShadingConstants shadingConstants(const ShadingOptions& shading) {
+void validateLighting(const RenderScene& scene) {
+  scene.shading.validate();
+  if (scene.shadows && scene.shading.enabled && scene.shading.lightList)
+    throw std::invalid_argument("shading: a list of lights does not combine with shadows (shadows follow the one light "
+                                "direction RenderScene::toLight); turn shadows off or shade with that one light");
+}
+
+ShadingConstants shadingConstants(const ShadingOptions& shading, const CameraView& camera) {
   ShadingConstants sc;
   sc.enabled = shading.enabled ? 1 : 0;
   sc.diffuse = shading.diffuse;
   sc.specular = shading.specular;
   sc.specularPower = shading.specularPower;
   sc.headlight = shading.headlight ? 1 : 0;
+  sc.lightList = shading.lightList ? 1 : 0;
+  if (!shading.lightList) return sc;
+  const auto vec = [](const std::array<float, 3>& c) { return Vec3f{c[0], c[1], c[2]}; };
+  for (const SceneLight& l : shading.lights) {
+    if (sc.numLights == kMaxShadingLights) break;  // validate() refuses more
+    ShadingLight& out = sc.lights[sc.numLights++];
+    const Vec3f d = unitInDouble(l.toLight);
+    // camera coordinates: x right, y up, z back towards the viewer
+    out.toLight = l.cameraLight ? normalize(camera.right * d.x + camera.up * d.y - camera.forward * d.z) : d;
+    out.diffuse = vec(l.diffuse);
+    out.specular = vec(l.specular);
+    sc.lightAmbient = sc.lightAmbient + vec(l.ambient);
+  }
   return sc;
 }
 
@@ -492,7 +526,7 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
   }
   fc.background = Vec3f{scene.background[0], scene.background[1], scene.background[2]};
   fc.shadowEstimator = scene.shadowEstimator;
-  fc.shading = shadingConstants(scene.shading);
+  fc.shading = shadingConstants(scene.shading, camera);
   return fc;
 }
 

@@ -94,22 +94,45 @@ private:
   float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
 };
 
+// One light of ShadingOptions::lights, as VTK's vtkLight describes it: the direction towards it
+// (position minus focal point; any length but zero) and its colours times its intensity. A camera
+// light's direction is in camera coordinates (x right, y up, z back towards the viewer: vtkLight's
+// camera lights, ParaView's light kit), a scene light's in world coordinates.
+struct SceneLight {
+  std::array<double, 3> toLight{0.0, 0.0, 1.0};
+  bool cameraLight = false;
+  std::array<float, 3> ambient{0.f, 0.f, 0.f};  // vtkLight's default: black
+  std::array<float, 3> diffuse{1.f, 1.f, 1.f};
+  std::array<float, 3> specular{1.f, 1.f, 1.f};
+  bool operator==(const SceneLight& o) const {
+    return toLight == o.toLight && cameraLight == o.cameraLight && ambient == o.ambient && diffuse == o.diffuse &&
+           specular == o.specular;
+  }
+};
+
 // Gradient shading (Render/Shading.h): ParaView's Shade with vtkVolumeProperty's Diffuse,
 // Specular and SpecularPower; its Ambient is RenderScene::ambient, shared with shadows. The
 // defaults make a sample facing the light keep its colour (ambient 0.2 + diffuse 0.8) with VTK's
 // specular highlight (0.2, power 10). headlight: the light sits at the eye, as ParaView's
 // headlight (RenderScene::toLight is then not used for shading; shadows still use it).
+// lightList: the lights of `lights` (at most kMaxShadingLights; none: the ambient term alone) lit
+// by VTK's light-list formula, as VTK lights a volume under ParaView's light kit or any lights but
+// one white headlight; toLight and headlight are then not used for shading, and shadows are
+// refused (they follow the one direction RenderScene::toLight).
 struct ShadingOptions {
   bool enabled = false;
   float diffuse = 0.8f;        // >= 0
   float specular = 0.2f;       // >= 0
   float specularPower = 10.f;  // in [0, 128] (vtkVolumeProperty's range)
   bool headlight = false;
+  bool lightList = false;
+  std::vector<SceneLight> lights;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
   bool operator==(const ShadingOptions& o) const {
     return enabled == o.enabled && diffuse == o.diffuse && specular == o.specular &&
-           specularPower == o.specularPower && headlight == o.headlight;
+           specularPower == o.specularPower && headlight == o.headlight && lightList == o.lightList &&
+           lights == o.lights;
   }
   bool operator!=(const ShadingOptions& o) const { return !(*this == o); }
 };
@@ -207,7 +230,10 @@ FrameConstants makeFrameConstants(const CameraView& camera, const Box3f& box, co
                                   const RenderSettings& settings, const float* depthLimit, std::uint32_t frame);
 
 // The stages' form of the shading options.
-ShadingConstants shadingConstants(const ShadingOptions& shading);
+ShadingConstants shadingConstants(const ShadingOptions& shading, const CameraView& camera);
+// The shading options (ShadingOptions::validate) and how they combine with shadows; throws
+// std::invalid_argument naming the problem. Every renderer's setScene calls it.
+void validateLighting(const RenderScene& scene);
 
 inline Vec3f toVec3(const std::array<double, 3>& a) { return Vec3f{float(a[0]), float(a[1]), float(a[2])}; }
 

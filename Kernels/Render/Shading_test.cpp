@@ -7,6 +7,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/RayMarcher.h"
@@ -34,8 +36,8 @@ const Vec3f kUp{0.f, 0.f, 1.f};
 TEST(Shading, LightAlongTheNormalGivesAmbientPlusDiffusePlusSpecular) {
   const ShadingConstants s = shadingOf(0.6f, 0.25f, 10.f);
   const SampleLight l = phongLight(s, Vec3f{0.f, 0.f, -3.f}, kUp, kUp);
-  EXPECT_FLOAT_EQ(l.diffuse, 0.6f);
-  EXPECT_FLOAT_EQ(l.specular, 0.25f);
+  EXPECT_FLOAT_EQ(l.diffuse.x, 0.6f);
+  EXPECT_FLOAT_EQ(l.specular.x, 0.25f);
   const Vec3f c = litColour(Vec3f{0.5f, 0.25f, 0.f}, 0.1f, l, 1.f);
   EXPECT_FLOAT_EQ(c.x, 0.5f * 0.7f + 0.25f);
   EXPECT_FLOAT_EQ(c.y, 0.25f * 0.7f + 0.25f);
@@ -47,8 +49,8 @@ TEST(Shading, BackFacingSamplesAreLitTwoSided) {
   const ShadingConstants s = shadingOf(0.6f, 0.25f, 10.f);
   const SampleLight front = phongLight(s, Vec3f{0.f, 0.f, -3.f}, kUp, kUp);
   const SampleLight back = phongLight(s, Vec3f{0.f, 0.f, 3.f}, kUp, kUp);
-  EXPECT_FLOAT_EQ(back.diffuse, front.diffuse);
-  EXPECT_FLOAT_EQ(back.specular, front.specular);
+  EXPECT_FLOAT_EQ(back.diffuse.x, front.diffuse.x);
+  EXPECT_FLOAT_EQ(back.specular.x, front.specular.x);
 }
 
 TEST(Shading, ObliqueLightFollowsCosineAndMirrorDirection) {
@@ -57,15 +59,15 @@ TEST(Shading, ObliqueLightFollowsCosineAndMirrorDirection) {
   const ShadingConstants s = shadingOf(0.8f, 0.5f, 3.f);
   const float sin60 = std::sqrt(3.f) / 2.f;
   const SampleLight l = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{sin60, 0.f, 0.5f}, kUp);
-  EXPECT_NEAR(l.diffuse, 0.8f * 0.5f, 1e-6f);
-  EXPECT_NEAR(l.specular, 0.5f * 0.125f, 1e-6f);
+  EXPECT_NEAR(l.diffuse.x, 0.8f * 0.5f, 1e-6f);
+  EXPECT_NEAR(l.specular.x, 0.5f * 0.125f, 1e-6f);
   // The eye on the mirror side gets the full highlight.
   const SampleLight m = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{sin60, 0.f, 0.5f}, Vec3f{-sin60, 0.f, 0.5f});
-  EXPECT_NEAR(m.specular, 0.5f, 1e-6f);
+  EXPECT_NEAR(m.specular.x, 0.5f, 1e-6f);
   // Grazing light: nothing but ambient.
   const SampleLight g = phongLight(s, Vec3f{0.f, 0.f, -1.f}, Vec3f{1.f, 0.f, 0.f}, kUp);
-  EXPECT_EQ(g.diffuse, 0.f);
-  EXPECT_EQ(g.specular, 0.f);
+  EXPECT_EQ(g.diffuse.x, 0.f);
+  EXPECT_EQ(g.specular.x, 0.f);
 }
 
 TEST(Shading, NoGradientMeansAmbientOnly) {
@@ -74,19 +76,21 @@ TEST(Shading, NoGradientMeansAmbientOnly) {
   const ShadingConstants s = shadingOf(0.8f, 0.5f, 3.f);
   for (const Vec3f g : {Vec3f{0.f, 0.f, 0.f}, Vec3f{NAN, 0.f, 1.f}, Vec3f{INFINITY, 0.f, 0.f}}) {
     const SampleLight l = phongLight(s, g, kUp, kUp);
-    EXPECT_EQ(l.diffuse, 0.f);
-    EXPECT_EQ(l.specular, 0.f);
+    EXPECT_EQ(l.diffuse.x, 0.f);
+    EXPECT_EQ(l.specular.x, 0.f);
     const Vec3f c = litColour(Vec3f{0.5f, 1.f, 0.2f}, 0.3f, l, 1.f);
     EXPECT_FLOAT_EQ(c.x, 0.15f);
     EXPECT_FLOAT_EQ(c.y, 0.3f);
   }
   // A gradient too large to square still has a direction.
   const SampleLight big = phongLight(s, Vec3f{0.f, 0.f, -1e30f}, kUp, kUp);
-  EXPECT_FLOAT_EQ(big.diffuse, 0.8f);
+  EXPECT_FLOAT_EQ(big.diffuse.x, 0.8f);
 }
 
 TEST(Shading, VisibilityDimsOnlyTheDirectLightAndColourIsClamped) {
-  const SampleLight l{0.7f, 0.4f};
+  SampleLight l;
+  l.diffuse = grey(0.7f);
+  l.specular = grey(0.4f);
   const Vec3f shadowed = litColour(Vec3f{0.5f, 0.5f, 0.5f}, 0.2f, l, 0.f);
   EXPECT_FLOAT_EQ(shadowed.x, 0.1f);
   const Vec3f half = litColour(Vec3f{0.5f, 0.5f, 0.5f}, 0.2f, l, 0.5f);
@@ -117,9 +121,118 @@ TEST(Shading, HeadlightLightsFromTheEye) {
   s.headlight = 1;
   // The given light direction (+x, grazing for a +z normal) is ignored with the headlight.
   const SampleLight l = sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f});
-  EXPECT_NEAR(l.diffuse, 1.f, 1e-6f);
+  EXPECT_NEAR(l.diffuse.x, 1.f, 1e-6f);
   s.headlight = 0;
-  EXPECT_EQ(sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f}).diffuse, 0.f);
+  EXPECT_EQ(sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f}).diffuse.x, 0.f);
+}
+
+// VTK's light-list lighting (any lights but one white headlight: ParaView's light kit): each
+// light's colour times intensity weighs its diffuse and specular terms, and the ambient term is
+// the lights' ambient colours, not the sample's colour.
+ShadingConstants lightListOf(std::initializer_list<ShadingLight> lights, Vec3f ambient) {
+  ShadingConstants s = shadingOf(0.8f, 0.2f, 4.f);
+  s.lightList = 1;
+  for (const ShadingLight& l : lights) s.lights[s.numLights++] = l;
+  s.lightAmbient = ambient;
+  return s;
+}
+
+TEST(Shading, LightListSumsTheLightsAsVtksShaderDoes) {
+  const float sin60 = std::sqrt(3.f) / 2.f;
+  const ShadingLight white{kUp, grey(0.75f), grey(0.75f)};
+  const ShadingLight red{Vec3f{sin60, 0.f, 0.5f}, Vec3f{0.5f, 0.f, 0.f}, Vec3f{0.5f, 0.f, 0.f}};
+  const ShadingConstants s = lightListOf({white, red}, grey(0.1f));
+  RenderScene scene;
+  scene.camera = Camera::framing(test::kCubeBox);  // on +z: the eye is straight above the point
+  scene.camera.parallelProjection = true;
+  const CameraView cam = scene.camera.view(16, 16);
+  // Normal +z; the model's light direction (+x) is ignored with a list.
+  const SampleLight l = sampleLightAt(cam, s, Vec3f{1.f, 0.f, 0.f}, Vec3f{0.f, 0.f, 0.5f}, Vec3f{0.f, 0.f, -2.f});
+  // white: N.L 1, R = N, R.E 1; red: N.L 1/2, R 60 degrees off the eye, R.E 1/2.
+  EXPECT_NEAR(l.diffuse.x, 0.8f * (0.75f + 0.5f * 0.5f), 1e-6f);
+  EXPECT_NEAR(l.diffuse.y, 0.8f * 0.75f, 1e-6f);
+  EXPECT_NEAR(l.specular.x, 0.2f * (0.75f + 0.5f * std::pow(0.5f, 4.f)), 1e-6f);
+  EXPECT_NEAR(l.specular.z, 0.2f * 0.75f, 1e-6f);
+  const Vec3f c = litColour(Vec3f{0.5f, 0.25f, 0.f}, 0.3f, l, 1.f);
+  // ambient 0.3 x the lights' ambient 0.1, whatever the colour
+  EXPECT_NEAR(c.z, 0.03f + l.specular.z, 1e-6f);
+  EXPECT_NEAR(c.y, 0.03f + 0.25f * l.diffuse.y + l.specular.y, 1e-6f);
+  // No lights: the ambient term alone (VTK's shader with Shade on and every light off gives black).
+  const SampleLight none = lightListLight(lightListOf({}, grey(0.f)), Vec3f{0.f, 0.f, -1.f}, kUp);
+  const Vec3f dark = litColour(Vec3f{0.5f, 0.25f, 1.f}, 0.3f, none, 1.f);
+  EXPECT_EQ(dark.x, 0.f);
+  EXPECT_EQ(dark.z, 0.f);
+}
+
+TEST(Shading, LightListHighlightOfALightBehindTheNormalIsVtks) {
+  // VTK's light-list branch flips the cosine for two-sided lighting but not the normal, so its
+  // "mirror" direction for a light behind the surface is normalize(2 |N.L| N - L): a light from
+  // below at 60 degrees off -N still gives a highlight to an eye above. (The one-light branch
+  // mirrors with the signed cosine and gives none: Shading.ObliqueLight... above.)
+  const float sin60 = std::sqrt(3.f) / 2.f;
+  const Vec3f below{sin60, 0.f, -0.5f};
+  const ShadingConstants s = lightListOf({ShadingLight{below, grey(1.f), grey(1.f)}}, grey(0.f));
+  const SampleLight l = lightListLight(s, Vec3f{0.f, 0.f, -1.f}, kUp);
+  EXPECT_NEAR(l.diffuse.x, 0.8f * 0.5f, 1e-6f);
+  const float rDotE = 1.5f / std::sqrt(3.f);  // normalize((-sin60, 0, 1.5)).z
+  EXPECT_NEAR(l.specular.x, 0.2f * std::pow(rDotE, 4.f), 1e-5f);
+  EXPECT_EQ(phongLight(s, Vec3f{0.f, 0.f, -1.f}, below, kUp).specular.x, 0.f);
+}
+
+TEST(Shading, CameraLightsTurnWithTheCamera) {
+  Camera camera = Camera::framing(test::kCubeBox);
+  ShadingOptions o;
+  o.enabled = o.lightList = true;
+  SceneLight towardsViewer;  // camera coordinates: +z points back at the viewer
+  towardsViewer.cameraLight = true;
+  towardsViewer.toLight = {0.0, 0.0, 2.0};
+  SceneLight right = towardsViewer;
+  right.toLight = {1.0, 0.0, 0.0};
+  SceneLight world;
+  world.toLight = {0.0, 3.0, 4.0};
+  world.ambient = {0.1f, 0.2f, 0.3f};
+  o.lights = {towardsViewer, right, world};
+  for (const std::array<double, 3>& eye : {std::array<double, 3>{0.0, 0.0, 4.0}, std::array<double, 3>{4.0, 0.0, 0.0}}) {
+    camera.position = eye;
+    const CameraView cam = camera.view(8, 8);
+    const ShadingConstants s = shadingConstants(o, cam);
+    ASSERT_EQ(s.numLights, 3);
+    for (const auto& [got, want] : {std::pair<Vec3f, Vec3f>{s.lights[0].toLight, cam.forward * -1.f},
+                                    std::pair<Vec3f, Vec3f>{s.lights[1].toLight, cam.right},
+                                    std::pair<Vec3f, Vec3f>{s.lights[2].toLight, Vec3f{0.f, 0.6f, 0.8f}}}) {
+      EXPECT_NEAR(got.x, want.x, 1e-6f);
+      EXPECT_NEAR(got.y, want.y, 1e-6f);
+      EXPECT_NEAR(got.z, want.z, 1e-6f);
+    }
+    EXPECT_FLOAT_EQ(s.lightAmbient.z, 0.3f);
+  }
+}
+
+TEST(Shading, LightListsOutOfBoundsAreRefusedByName) {
+  const auto message = [](const RenderScene& scene) -> std::string {
+    try {
+      validateLighting(scene);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  RenderScene scene;
+  scene.shading.enabled = scene.shading.lightList = true;
+  EXPECT_EQ(message(scene), "");  // no lights: valid (ambient only)
+  scene.shading.lights.assign(kMaxShadingLights, SceneLight{});
+  EXPECT_EQ(message(scene), "");
+  scene.shading.lights.push_back(SceneLight{});
+  EXPECT_NE(message(scene).find("at most 8 lights"), std::string::npos);
+  scene.shading.lights.assign(2, SceneLight{});
+  scene.shading.lights[1].toLight = {0.0, 0.0, 0.0};
+  EXPECT_NE(message(scene).find("light 1's direction"), std::string::npos);
+  scene.shading.lights[1].toLight = {0.0, 1.0, 0.0};
+  scene.shading.lights[0].diffuse = {1.f, -0.5f, 1.f};
+  EXPECT_NE(message(scene).find("light 0's colours"), std::string::npos);
+  scene.shading.lights[0].diffuse = {1.f, 1.f, 1.f};
+  scene.shadows = true;
+  EXPECT_NE(message(scene).find("does not combine with shadows"), std::string::npos);
 }
 
 TEST(Shading, OptionsOutOfRangeAreRefusedByName) {
@@ -161,6 +274,16 @@ TEST(SceneChange, ShadingOptionsRestartAccumulation) {
   b.toLight = {0.3, 0.4, 0.8};
   EXPECT_FALSE(diffScenes(&a, b).light);
   a.shading.headlight = b.shading.headlight = false;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  // A list of lights: the scene's direction is unused; the lights are the change. Camera lights
+  // turning with the camera are a camera change only.
+  a.shading.lightList = b.shading.lightList = true;
+  a.shading.lights = b.shading.lights = {SceneLight{{0.0, 0.0, 1.0}, true}};
+  EXPECT_FALSE(diffScenes(&a, b).light);
+  b.camera.position = {1.0, 2.0, 3.0};
+  EXPECT_FALSE(diffScenes(&a, b).light);
+  EXPECT_TRUE(diffScenes(&a, b).camera);
+  b.shading.lights[0].diffuse = {0.5f, 0.5f, 0.5f};
   EXPECT_TRUE(diffScenes(&a, b).light);
 }
 
@@ -319,6 +442,42 @@ TEST(ShadedRender, RatioTrackingConvergesToShadedRayMarching) {
 
 TEST(ShadedRender, ShadowsMultiplyTheDirectLight) {
   expectConvergesToMarcher(highlightScene(true), test::ratioTracking(4.0), 150, 34.0);
+}
+
+TEST(ShadedRender, LightListReachesEveryRenderer) {
+  // One light with a white ambient colour and no direct terms, ambient 1: every lit colour is
+  // white whatever the transfer function's colour (the light list's ambient term, which the
+  // one-light model cannot give), so each renderer's premultiplied colour equals its alpha.
+  test::SceneSetup setup = blobScene(24, true);
+  setup.scene.ambient = 1.f;
+  setup.scene.shading.headlight = false;
+  setup.scene.shading.lightList = true;
+  SceneLight ambientOnly;
+  ambientOnly.ambient = {1.f, 1.f, 1.f};
+  ambientOnly.diffuse = ambientOnly.specular = {0.f, 0.f, 0.f};
+  setup.scene.shading.lights = {ambientOnly};
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  RayMarchRenderer marcher(f, test::kCubeBox, RayMarchOptions{});
+  test::renderFrames(marcher, setup.settings, setup.scene, 1);
+  const std::vector<std::pair<const char*, ImageRGBA>> images = {
+      {"delta tracking", renderBlob(setup, TrackingOptions{}, 4).premultiplied},
+      {"ratio tracking", renderBlob(setup, test::ratioTracking(4.0), 4).premultiplied},
+      {"ray marching", marcher.premultipliedImage()}};
+  for (const auto& [name, image] : images) {
+    std::size_t covered = 0;
+    for (int i = 0; i < 24 * 24; ++i) {
+      const float alpha = image.data[4 * i + 3];
+      if (alpha > 0.f) ++covered;
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(image.data[4 * i + c], alpha, 2e-5f) << name << ", pixel " << i;
+    }
+    EXPECT_GT(covered, std::size_t(24 * 24 / 8)) << name;
+  }
+  // The TF colour (0.9, 0.6, 0.3) would show without the list: the check can fail.
+  setup.scene.shading.lightList = false;
+  const ImageRGBA unlisted = renderBlob(setup, TrackingOptions{}, 4).premultiplied;
+  bool differs = false;
+  for (int i = 0; i < 24 * 24; ++i) differs |= std::fabs(unlisted.data[4 * i + 2] - unlisted.data[4 * i + 3]) > 0.05f;
+  EXPECT_TRUE(differs);
 }
 
 TEST(ShadedRender, NaiveTrackerShadesTheSame) {

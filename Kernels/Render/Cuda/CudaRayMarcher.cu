@@ -216,7 +216,7 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 }
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
-  scene.shading.validate();
+  validateLighting(scene);
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");
@@ -291,7 +291,7 @@ FrameStats CudaRayMarcher::renderFrame() {
   }
   // Gradient shading: every sample's value comes with its gradient, as in the CPU marcher.
   MarchShading shading;
-  shading.constants = shadingConstants(scene_.shading);
+  shading.constants = shadingConstants(scene_.shading, p.cam);
   shading.toLight = sp.toLight;
   for (int c0 = 0; c0 < n; c0 += chunk) {
     p.chunk0 = c0;
