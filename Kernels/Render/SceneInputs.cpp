@@ -461,6 +461,35 @@ void ShadingOptions::validate() const {
   }
 }
 
+std::vector<SceneLight> paraviewLightKit() {
+  // vtkLightKit's defaults: each light at (elevation, azimuth) degrees in camera coordinates, its
+  // intensity the key's 0.75 over the light's ratio, its colour from its warmth (0.5 is white);
+  // the colours as ParaView 5.11 sets them (read back from its renderer).
+  struct KitLight {
+    double elevation, azimuth, intensity;
+    std::array<float, 3> colour;
+    bool headlight;
+  };
+  const std::array<float, 3> white{0.9998f, 0.9998f, 0.9998f};
+  const KitLight kit[] = {{0.0, 0.0, 0.75 / 3.0, white, true},
+                          {50.0, 10.0, 0.75, {1.f, 0.97232f, 0.90222f}, false},
+                          {-75.0, -10.0, 0.75 / 3.0, {0.90824f, 0.93314f, 1.f}, false},
+                          {0.0, 110.0, 0.75 / 3.5, white, false},
+                          {0.0, -110.0, 0.75 / 3.5, white, false}};
+  std::vector<SceneLight> lights;
+  const double rad = 3.14159265358979323846 / 180.0;
+  for (const KitLight& k : kit) {
+    SceneLight l;
+    l.cameraLight = true;
+    const double e = k.elevation * rad, a = k.azimuth * rad;
+    l.toLight = k.headlight ? std::array<double, 3>{0.0, 0.0, 1.0}
+                            : std::array<double, 3>{std::cos(e) * std::sin(a), std::sin(e), std::cos(e) * std::cos(a)};
+    for (int c = 0; c < 3; ++c) l.diffuse[c] = l.specular[c] = float(k.colour[c] * k.intensity);
+    lights.push_back(l);
+  }
+  return lights;
+}
+
 void validateLighting(const RenderScene& scene) {
   scene.shading.validate();
   if (scene.shadows && scene.shading.enabled && scene.shading.lightList)

@@ -110,6 +110,11 @@ struct SceneLight {
   }
 };
 
+// The lights of ParaView's render view by default (5.11: its light kit, vtkLightKit's defaults):
+// the kit's headlight, key, fill and two back lights, all camera lights, warm to cool colours.
+// What `inr render --shade --light-kit` lights with, to compare with ParaView's own pictures.
+std::vector<SceneLight> paraviewLightKit();
+
 // Gradient shading (Render/Shading.h): ParaView's Shade with vtkVolumeProperty's Diffuse,
 // Specular and SpecularPower; its Ambient is RenderScene::ambient, shared with shadows. The
 // defaults make a sample facing the light keep its colour (ambient 0.2 + diffuse 0.8) with VTK's

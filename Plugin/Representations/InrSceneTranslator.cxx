@@ -7,11 +7,14 @@
 #include "vtkDataSet.h"
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
+#include "vtkLight.h"
+#include "vtkLightCollection.h"
 #include "vtkMatrix4x4.h"
 #include "vtkNew.h"
 #include "vtkPiecewiseFunction.h"
 #include "vtkProp3D.h"
 #include "vtkRenderWindow.h"
+#include "vtkRenderer.h"
 #include "vtkVolumeProperty.h"
 
 #include <algorithm>
@@ -321,13 +324,13 @@ const inr::TransferFunction& InrSceneTranslator::UpdateTransferFunction(
   return this->TF;
 }
 
-void InrSceneTranslator::TranslateShading(
-  vtkVolumeProperty* property, bool headlight, inr::RenderScene& scene)
+int InrSceneTranslator::TranslateShading(
+  vtkVolumeProperty* property, vtkRenderer* viewLights, inr::RenderScene& scene)
 {
   scene.shading = inr::ShadingOptions{};
   if (!property || !property->GetShade(0))
   {
-    return;
+    return 0;
   }
   // VTK clamps these to the ranges the engine accepts (Ambient, Diffuse, Specular in [0, 1],
   // SpecularPower in [0, 128]).
@@ -335,6 +338,68 @@ void InrSceneTranslator::TranslateShading(
   scene.shading.diffuse = static_cast<float>(property->GetDiffuse(0));
   scene.shading.specular = static_cast<float>(property->GetSpecular(0));
   scene.shading.specularPower = static_cast<float>(property->GetSpecularPower(0));
-  scene.shading.headlight = headlight;
   scene.ambient = static_cast<float>(property->GetAmbient(0));
+  if (!viewLights)
+  {
+    return 0;
+  }
+  std::vector<vtkLight*> on;
+  vtkLightCollection* lights = viewLights->GetLights();
+  vtkCollectionSimpleIterator it;
+  lights->InitTraversal(it);
+  while (vtkLight* light = lights->GetNextLight(it))
+  {
+    if (light->GetSwitch())
+    {
+      on.push_back(light);
+    }
+  }
+  // vtkOpenGLGPUVolumeRayCastMapper's choice: its default lighting for exactly one switched-on
+  // headlight of intensity 1, its light-list lighting for anything else.
+  if (on.size() == 1 && on[0]->LightTypeIsHeadlight() && on[0]->GetIntensity() == 1.0)
+  {
+    scene.shading.headlight = true;
+    return 0;
+  }
+  scene.shading.lightList = true;
+  const auto times = [](const double* colour, double intensity) {
+    return std::array<float, 3>{ static_cast<float>(colour[0] * intensity),
+      static_cast<float>(colour[1] * intensity), static_cast<float>(colour[2] * intensity) };
+  };
+  int left = 0;
+  for (vtkLight* light : on)
+  {
+    if (scene.shading.lights.size() == static_cast<std::size_t>(inr::kMaxShadingLights))
+    {
+      ++left;
+      continue;
+    }
+    inr::SceneLight l;
+    const double intensity = light->GetIntensity();
+    l.ambient = times(light->GetAmbientColor(), intensity);
+    l.diffuse = times(light->GetDiffuseColor(), intensity);
+    l.specular = times(light->GetSpecularColor(), intensity);
+    // A headlight sits at the eye and a camera light is placed in camera coordinates (x right,
+    // y up, z back towards the viewer): both stay fixed in those coordinates, so a camera move
+    // changes only the camera. A scene light's position and focal point are world points.
+    if (light->LightTypeIsHeadlight())
+    {
+      l.cameraLight = true;
+      l.toLight = { 0.0, 0.0, 1.0 };
+    }
+    else
+    {
+      const double* p = light->GetPosition();
+      const double* f = light->GetFocalPoint();
+      l.cameraLight = light->LightTypeIsCameraLight() != 0;
+      l.toLight = { p[0] - f[0], p[1] - f[1], p[2] - f[2] };
+    }
+    if (!(std::hypot(l.toLight[0], l.toLight[1], l.toLight[2]) > 0.0))
+    {
+      ++left;  // no direction (position at the focal point): VTK's shader gets NaN from it
+      continue;
+    }
+    scene.shading.lights.push_back(l);
+  }
+  return left;
 }

@@ -39,6 +39,7 @@ class vtkDataSet;
 class vtkFieldData;
 class vtkProp3D;
 class vtkRenderWindow;
+class vtkRenderer;
 class vtkVolumeProperty;
 
 class InrSceneTranslator
@@ -126,10 +127,14 @@ public:
   ///@{
   /// Shading. The property's Shade, Diffuse, Specular and SpecularPower (component 0) become
   /// scene.shading; with Shade on its Ambient becomes scene.ambient, the engine's one ambient
-  /// (shadows included), as vtkVolumeProperty has one. `headlight`: the light follows the camera
-  /// (ParaView's headlight) rather than scene.toLight. Shade off or no property: shading off,
-  /// scene.ambient untouched.
-  static void TranslateShading(vtkVolumeProperty* property, bool headlight, inr::RenderScene& scene);
+  /// (shadows included), as vtkVolumeProperty has one. `viewLights`: the renderer whose lights
+  /// light the volume, as VTK's GPU ray-cast mapper takes them (its switched-on lights; one white
+  /// headlight of intensity 1 is VTK's default lighting, anything else its light-list lighting:
+  /// ParaView's light kit, additional lights); null: the one light of scene.toLight. Shade off or
+  /// no property: shading off, scene.ambient untouched. Returns how many switched-on lights were
+  /// left out (beyond inr::kMaxShadingLights; a positional light counts as directional, along
+  /// its axis).
+  static int TranslateShading(vtkVolumeProperty* property, vtkRenderer* viewLights, inr::RenderScene& scene);
   ///@}
 
 private:

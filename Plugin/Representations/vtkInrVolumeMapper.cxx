@@ -236,6 +236,7 @@ struct vtkInrVolumeMapper::Internals
   std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
   std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
   bool shownCoarse = false;     // the last Render drew the coarse session's image
+  bool warnedLightsLeftOut = false;  // Shade's lights beyond the engine's bound: said once
   bool shownStandIn = false;    // ... on the stand-in of the network (InteractiveStandIn)
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   inr::RenderSession* Shown() const
@@ -1425,9 +1426,19 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   scene.ambient = static_cast<float>(self->Ambient);
   scene.shadowEstimator =
     self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
-  // The automatic light with shading alone is ParaView's headlight; shadows need a direction.
+  // The automatic light with shading alone is the view's lights (its light kit, headlight,
+  // additional lights), taken as VTK's volume mapper takes them; shadows and a set
+  // LightDirection light along that one direction.
   const bool automaticLight = l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0;
-  InrSceneTranslator::TranslateShading(vol->GetProperty(), automaticLight && !scene.shadows, scene);
+  const int left = InrSceneTranslator::TranslateShading(
+    vol->GetProperty(), automaticLight && !scene.shadows ? ren : nullptr, scene);
+  if (left > 0 && !this->warnedLightsLeftOut)
+  {
+    this->warnedLightsLeftOut = true;
+    this->engines.warning("INR Volume: Shade lights the volume with the view's first " +
+      std::to_string(inr::kMaxShadingLights) + " lights with a direction; " + std::to_string(left) +
+      " more are left out. Turn lights off in the view's Light Inspector to choose.");
+  }
   return scene;
 }
 

@@ -18,9 +18,14 @@
 #include "vtkFieldData.h"
 #include "vtkImageData.h"
 #include "vtkInformation.h"
+#include "vtkLight.h"
+#include "vtkLightCollection.h"
+#include "vtkLightKit.h"
 #include "vtkMatrix4x4.h"
 #include "vtkNew.h"
 #include "vtkPiecewiseFunction.h"
+#include "vtkRenderer.h"
+#include "vtkSmartPointer.h"
 #include "vtkVolume.h"
 #include "vtkVolumeProperty.h"
 
@@ -28,6 +33,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -540,10 +546,14 @@ TEST(InrSceneTranslator, ShadingFromTheVolumeProperty)
   vtkNew<vtkVolumeProperty> prop;
   inr::RenderScene scene;
   scene.ambient = 0.35f;  // the shadows' ambient (the mapper's Ambient)
-  InrSceneTranslator::TranslateShading(prop, true, scene);
+  vtkNew<vtkRenderer> headlightOnly;  // one white headlight of intensity 1: VTK's default lighting
+  vtkNew<vtkLight> headlight;
+  headlight->SetLightTypeToHeadlight();
+  headlightOnly->AddLight(headlight);
+  InrSceneTranslator::TranslateShading(prop, headlightOnly, scene);
   EXPECT_FALSE(scene.shading.enabled);  // Shade off: nothing changes
   EXPECT_EQ(scene.ambient, 0.35f);
-  InrSceneTranslator::TranslateShading(nullptr, true, scene);
+  InrSceneTranslator::TranslateShading(nullptr, headlightOnly, scene);
   EXPECT_FALSE(scene.shading.enabled);
 
   prop->ShadeOn();
@@ -551,19 +561,114 @@ TEST(InrSceneTranslator, ShadingFromTheVolumeProperty)
   prop->SetDiffuse(0.6);
   prop->SetSpecular(0.3);
   prop->SetSpecularPower(40.0);
-  InrSceneTranslator::TranslateShading(prop, true, scene);
+  InrSceneTranslator::TranslateShading(prop, headlightOnly, scene);
   EXPECT_TRUE(scene.shading.enabled);
   EXPECT_TRUE(scene.shading.headlight);
+  EXPECT_FALSE(scene.shading.lightList);
   EXPECT_FLOAT_EQ(scene.ambient, 0.1f);
   EXPECT_FLOAT_EQ(scene.shading.diffuse, 0.6f);
   EXPECT_FLOAT_EQ(scene.shading.specular, 0.3f);
   EXPECT_FLOAT_EQ(scene.shading.specularPower, 40.f);
   EXPECT_NO_THROW(scene.shading.validate());
-  InrSceneTranslator::TranslateShading(prop, false, scene);
+  InrSceneTranslator::TranslateShading(prop, nullptr, scene);  // the one light of scene.toLight
   EXPECT_FALSE(scene.shading.headlight);
+  EXPECT_FALSE(scene.shading.lightList);
 
   // Turning Shade off again leaves shading off (the scene is rebuilt per render).
   prop->ShadeOff();
-  InrSceneTranslator::TranslateShading(prop, true, scene);
+  InrSceneTranslator::TranslateShading(prop, headlightOnly, scene);
   EXPECT_FALSE(scene.shading.enabled);
+}
+
+// Any other lights take VTK's light-list lighting, each light as the GPU ray-cast mapper reads
+// it: switched-on lights only, colours times intensity, camera lights in camera coordinates.
+TEST(InrSceneTranslator, ViewLightsBecomeTheEnginesLightList)
+{
+  vtkNew<vtkVolumeProperty> prop;
+  prop->ShadeOn();
+  inr::RenderScene scene;
+
+  vtkNew<vtkRenderer> dimmed;  // a headlight of intensity 0.5 is no longer VTK's default lighting
+  vtkNew<vtkLight> headlight;
+  headlight->SetLightTypeToHeadlight();
+  headlight->SetIntensity(0.5);
+  dimmed->AddLight(headlight);
+  EXPECT_EQ(InrSceneTranslator::TranslateShading(prop, dimmed, scene), 0);
+  ASSERT_TRUE(scene.shading.lightList);
+  ASSERT_EQ(scene.shading.lights.size(), 1u);
+  EXPECT_TRUE(scene.shading.lights[0].cameraLight);
+  EXPECT_EQ(scene.shading.lights[0].toLight, (std::array<double, 3>{ 0.0, 0.0, 1.0 }));
+  EXPECT_EQ(scene.shading.lights[0].diffuse, (std::array<float, 3>{ 0.5f, 0.5f, 0.5f }));
+  EXPECT_EQ(scene.shading.lights[0].ambient, (std::array<float, 3>{ 0.f, 0.f, 0.f }));
+
+  // ParaView's light kit: key, fill and two back lights (camera lights, warm and cool colours)
+  // and its headlight; one scene light beside them, coloured, and one switched off.
+  vtkNew<vtkRenderer> kitView;
+  vtkNew<vtkLightKit> kit;
+  kit->AddLightsToRenderer(kitView);
+  const int kitLights = kitView->GetLights()->GetNumberOfItems();
+  vtkNew<vtkLight> scenic, off;
+  scenic->SetLightTypeToSceneLight();
+  scenic->SetPosition(1.0, 2.0, 3.0);
+  scenic->SetFocalPoint(1.0, 2.0, 0.0);
+  scenic->SetDiffuseColor(1.0, 0.5, 0.25);
+  scenic->SetAmbientColor(0.2, 0.2, 0.2);
+  scenic->SetIntensity(0.8);
+  off->SwitchOff();
+  kitView->AddLight(scenic);
+  kitView->AddLight(off);
+  EXPECT_EQ(InrSceneTranslator::TranslateShading(prop, kitView, scene), 0);
+  ASSERT_TRUE(scene.shading.lightList);
+  ASSERT_EQ(scene.shading.lights.size(), static_cast<std::size_t>(kitLights + 1));
+  EXPECT_NO_THROW(inr::validateLighting(scene));
+  int cameraLights = 0;
+  for (int i = 0; i < kitLights; ++i)
+  {
+    cameraLights += scene.shading.lights[i].cameraLight;
+  }
+  EXPECT_EQ(cameraLights, kitLights);
+  // The key light is the brightest: above and to the side of the viewer, towards it (z > 0),
+  // with the kit's intensity (0.75 by default) in its warm colour; the kit's headlight sits at
+  // the eye.
+  const auto brightness = [](const inr::SceneLight& l)
+  { return std::max({ l.diffuse[0], l.diffuse[1], l.diffuse[2] }); };
+  const inr::SceneLight* key = &scene.shading.lights[0];
+  int atTheEye = 0;
+  for (int i = 0; i < kitLights; ++i)
+  {
+    const inr::SceneLight& l = scene.shading.lights[i];
+    key = brightness(l) > brightness(*key) ? &l : key;
+    atTheEye += l.toLight == std::array<double, 3>{ 0.0, 0.0, 1.0 };
+  }
+  EXPECT_EQ(atTheEye, 1);
+  EXPECT_GT(key->toLight[1], 0.0);
+  EXPECT_GT(key->toLight[2], 0.0);
+  EXPECT_NEAR(brightness(*key), 0.75f, 0.1f);
+  EXPECT_GT(key->diffuse[0], key->diffuse[2]);  // warm
+  const inr::SceneLight& last = scene.shading.lights.back();
+  EXPECT_FALSE(last.cameraLight);
+  EXPECT_EQ(last.toLight, (std::array<double, 3>{ 0.0, 0.0, 3.0 }));
+  EXPECT_FLOAT_EQ(last.diffuse[1], 0.4f);
+  EXPECT_FLOAT_EQ(last.ambient[0], 0.16f);
+
+  // More lights than the engine takes: the first kMaxShadingLights, the rest counted.
+  vtkNew<vtkRenderer> crowded;
+  std::vector<vtkSmartPointer<vtkLight>> many;
+  for (int i = 0; i < inr::kMaxShadingLights + 3; ++i)
+  {
+    many.push_back(vtkSmartPointer<vtkLight>::New());
+    crowded->AddLight(many.back());
+  }
+  EXPECT_EQ(InrSceneTranslator::TranslateShading(prop, crowded, scene), 3);
+  EXPECT_EQ(scene.shading.lights.size(), static_cast<std::size_t>(inr::kMaxShadingLights));
+  EXPECT_NO_THROW(inr::validateLighting(scene));
+
+  // Every light off: Shade with no light, as VTK's shader then has it (ambient term only).
+  vtkNew<vtkRenderer> dark;
+  vtkNew<vtkLight> unlit;
+  unlit->SwitchOff();
+  dark->AddLight(unlit);
+  InrSceneTranslator::TranslateShading(prop, dark, scene);
+  EXPECT_TRUE(scene.shading.lightList);
+  EXPECT_TRUE(scene.shading.lights.empty());
 }

@@ -2,9 +2,11 @@
 the same model resampled at 128^3 (the reader's preview grid), same colour map, opacity, unit
 distance and camera. Prints the PSNR over the pixels either image covers (the background would
 dilute it) and fails below the bound. With --shade both are shaded (Shade,
-Ambient, Diffuse, Specular, SpecularPower of the representation) under ParaView's headlight alone
-(the light kit off: VTK's default-lighting path, the light the engine's headlight reproduces).
-  pvpython pv_consistency.py --model M.inr --plugin InrVolume.so --out DIR [--shade]"""
+Ambient, Diffuse, Specular, SpecularPower of the representation), by default under ParaView's
+headlight alone (the light kit off: VTK's default-lighting path, the light the engine's headlight
+reproduces); with --lights kit under the view's default lights, ParaView's light kit (VTK's
+light-list path, which the engine takes from the view's lights).
+  pvpython pv_consistency.py --model M.inr --plugin InrVolume.so --out DIR [--shade [--lights kit]]"""
 import os
 import sys
 
@@ -16,8 +18,9 @@ ap.add_argument("--frames", type=int, default=256)
 ap.add_argument("--resolution", type=int, default=128)
 ap.add_argument("--min-psnr", type=float, default=38.0)  # measured 47.7 (shaded 41.5) dB over the volume
 ap.add_argument("--shade", action="store_true")
+ap.add_argument("--lights", choices=("headlight", "kit"), default="headlight")
 args = ap.parse_args()
-suffix = "_shaded" if args.shade else ""
+suffix = ("_shaded" + ("_kit" if args.lights == "kit" else "")) if args.shade else ""
 
 from paraview import simple  # noqa: E402
 C.load_plugin(args.plugin, remote=False)
@@ -29,11 +32,14 @@ scene = simple.GetAnimationScene()
 scene.UpdateAnimationUsingDataTimeSteps()
 display = simple.Show(reader, view)
 C.apply_colormap(display, view)
-if args.shade:
+if args.shade and args.lights == "headlight":
     view.UseLight = 0  # the light kit off; one headlight of intensity 1 instead
     light = simple.AddLight(view=view)
     light.Coords = "Headlight"
     light.Intensity = 1.0
+elif args.shade:
+    view.UseLight = 1  # the view's default: ParaView's light kit
+if args.shade:
     for name, value in (("Shade", 1), ("Ambient", 0.2), ("Diffuse", 0.8), ("Specular", 0.2), ("SpecularPower", 10.0)):
         display.SetPropertyWithName(name, value)
 display.InrSeed = 3
@@ -54,13 +60,13 @@ p = C.psnr_over_volume(a, b)
 unshaded = None
 if args.shade:  # the comparison can fail: shading must change ParaView's own picture clearly
     display.Shade = 0
-    flat_png = os.path.join(args.out, "consistency_shaded_paraview_volume_unshaded.png")
+    flat_png = os.path.join(args.out, f"consistency{suffix}_paraview_volume_unshaded.png")
     simple.SaveScreenshot(flat_png, view, ImageResolution=size)
     unshaded = C.psnr_over_volume(a, C.read_png(flat_png))
 import numpy as np  # noqa: E402
 bg = np.array(C.BACKGROUND) * 255.0
 covered = np.mean(np.any(np.abs(a - bg) > 8, axis=2))
-msg = (f"{'shaded ' if args.shade else ''}INR Volume ({args.frames} frames) vs ParaView Volume ({args.resolution}^3 resampled): "
+msg = (f"{('shaded (' + args.lights + ') ') if args.shade else ''}INR Volume ({args.frames} frames) vs ParaView Volume ({args.resolution}^3 resampled): "
        f"PSNR {p:.2f} dB over the volume's pixels (bound >= {args.min_psnr}); volume covers {100 * covered:.0f}% of the image"
        + (f"; against ParaView's unshaded Volume {unshaded:.2f} dB" if unshaded is not None else ""))
 print(msg, flush=True)

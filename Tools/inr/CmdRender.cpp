@@ -126,9 +126,9 @@ RenderScene sceneFor(const RenderJob& job, const InrModel& model, const Box3f& b
   scene.ambient = job.ambient;
   scene.shadowEstimator = job.shadowEstimator;
   scene.shading = job.shading;
-  // ParaView's headlight where no light is named: shadows need a direction, so with them shading
-  // takes their (default) light.
-  scene.shading.headlight = !job.toLight && !job.shadows;
+  // ParaView's headlight where no light is named (nor the light kit): shadows need a direction,
+  // so with them shading takes their (default) light.
+  scene.shading.headlight = !job.toLight && !job.shadows && !job.shading.lightList;
   return scene;
 }
 

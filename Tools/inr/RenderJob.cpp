@@ -33,6 +33,9 @@ const char* kRenderUsageHead =
     "  --shade                  gradient shading from the network's own gradient, as ParaView's\n"
     "                           Shade: ambient + diffuse |N.L| + specular (R.V)^power; the light is\n"
     "                           --light, else with --shadows their default light, else a headlight\n"
+    "  --light-kit              with --shade: light as ParaView's render view does by default, its\n"
+    "                           light kit (key, fill, back and head lights, VTK's light-list\n"
+    "                           lighting); not with --light or --shadows\n"
     "  --diffuse D              with --shade: diffuse coefficient (default 0.8)\n"
     "  --specular S             with --shade: specular coefficient (default 0.2)\n"
     "  --specular-power P       with --shade: specular power in [0, 128] (default 10)\n"
@@ -380,6 +383,13 @@ void parseScene(const Args& args, RenderJob& job) {
   job.ambient = float(args.getDouble("ambient", 0.2));
   if (job.ambient < 0.f || job.ambient > 1.f) throw UsageError("--ambient must be in [0, 1]");
   job.shading.enabled = args.has("shade");
+  if (args.has("light-kit")) {
+    if (!job.shading.enabled) throw UsageError("--light-kit needs --shade");
+    if (job.shadows || job.toLight)
+      throw UsageError("--light-kit lights with several lights; --light and --shadows take one: use one or the other");
+    job.shading.lightList = true;
+    job.shading.lights = paraviewLightKit();
+  }
   struct Coefficient {
     const char* name;
     float* value;
@@ -439,7 +449,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
                    "roulette-threshold", "diffuse", "specular", "specular-power"},
-                  {"help", "shadows", "shade", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
+                  {"help", "shadows", "shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
   RenderJob job;
   if (args.has("help")) {
     job.help = true;

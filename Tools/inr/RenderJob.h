@@ -63,7 +63,7 @@ struct RenderJob {
   std::optional<std::array<double, 3>> toLight;  // default: defaultLightDirection(camera)
   float ambient = 0.2f;  // shadows' and shading's one ambient (Render/Shading.h)
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
-  ShadingOptions shading;  // --shade, --diffuse, --specular, --specular-power (headlight: the runner)
+  ShadingOptions shading;  // --shade, --diffuse, --specular, --specular-power, --light-kit (headlight: the runner)
 
   bool splitIntoBricks() const { return split == SplitKind::Brick; }
   bool writesNpy() const { return split != SplitKind::None; }

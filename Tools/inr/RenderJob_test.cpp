@@ -70,6 +70,15 @@ TEST(RenderJob, ShadingOptionsReachTheScene) {
   EXPECT_EQ(job.shading.diffuse, 0.7f);
   EXPECT_EQ(job.shading.specular, 0.3f);
   EXPECT_EQ(job.shading.specularPower, 24.f);
+  EXPECT_FALSE(job.shading.lightList);
+  // ParaView's default view lights: its light kit, five camera lights.
+  const RenderJob kit = parseRenderJob(withModel({"--shade", "--light-kit"}));
+  EXPECT_TRUE(kit.shading.lightList);
+  EXPECT_EQ(kit.shading.lights, paraviewLightKit());
+  EXPECT_EQ(kit.shading.lights.size(), 5u);
+  EXPECT_THROW(parseRenderJob(withModel({"--light-kit"})), UsageError);
+  EXPECT_THROW(parseRenderJob(withModel({"--shade", "--light-kit", "--shadows"})), UsageError);
+  EXPECT_THROW(parseRenderJob(withModel({"--shade", "--light-kit", "--light", "0,1,0"})), UsageError);
 }
 
 TEST(RenderJob, OptionsReachTheirFields) {

@@ -384,16 +384,19 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
     o.step = length(box.hi - box.lo) / 200.f;
     o.maxShadowBatch = 4096;
     struct Case {
-      bool parallel, shadows, shade;
+      bool parallel, shadows, shade, lightKit = false;
     };
     for (const Case& k : {Case{false, false, false}, Case{true, false, false}, Case{false, true, false},
-                          Case{true, true, false}, Case{false, false, true}, Case{true, true, true}}) {
+                          Case{true, true, false}, Case{false, false, true}, Case{true, true, true},
+                          Case{false, false, true, true}}) {
       const bool parallel = k.parallel, shadows = k.shadows;
       RenderSettings settings;
       settings.width = 36;
       settings.height = 28;
       RenderScene scene = testScene(model, range, shadows);
       scene.shading.enabled = k.shade;
+      scene.shading.lightList = k.lightKit;  // ParaView's default view lights (VTK's light-list lighting)
+      if (k.lightKit) scene.shading.lights = paraviewLightKit();
       if (parallel) {
         scene.camera.parallelProjection = true;
         scene.camera.parallelScale = 0.6 * length(box.hi - box.lo);
@@ -430,7 +433,7 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
       std::printf("%-24s %s%s%s: GPU vs CPU ray marcher on one evaluator: %zu covered pixels, %zu shadow queries, "
                   "max error %.2e%s\n",
                   fs::path(path).filename().c_str(), parallel ? "parallel" : "perspective", shadows ? ", shadows" : "",
-                  k.shade ? ", shaded" : "", covered, b.shadowQueries, maxError,
+                  k.shade ? (k.lightKit ? ", shaded (light kit)" : ", shaded") : "", covered, b.shadowQueries, maxError,
                   k.shade ? (" (unshaded: " + std::to_string(shadingChange) + ")").c_str() : "");
       EXPECT_GT(covered, std::size_t(settings.width * settings.height / 10)) << path;
       EXPECT_EQ(coverageMismatch, 0u) << path;

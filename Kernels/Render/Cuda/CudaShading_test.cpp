@@ -214,11 +214,14 @@ struct ShadedRun {
   FrameStats stats;
 };
 
-// A headlight with a highlight: every term of the lighting in the picture.
-RenderScene shadedScene(const InrModel& model, const std::array<float, 2>& range, bool shade) {
+// A headlight with a highlight: every term of the lighting in the picture. lightKit: ParaView's
+// default view lights instead (VTK's light-list lighting, coloured camera lights).
+RenderScene shadedScene(const InrModel& model, const std::array<float, 2>& range, bool shade, bool lightKit = false) {
   RenderScene scene = test::testScene(model, range, false);
   scene.shading.enabled = shade;
-  scene.shading.headlight = true;
+  scene.shading.headlight = !lightKit;
+  scene.shading.lightList = lightKit;
+  if (lightKit) scene.shading.lights = paraviewLightKit();
   scene.shading.specular = 0.3f;
   scene.ambient = 0.2f;
   return scene;
@@ -251,8 +254,9 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
     const CpuInrEvaluator cpuEval(model);
     const CudaInrEvaluator gpuEval(model);
     const auto range = valueRangeFor(model, cpuEval);
-    for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)}) {
-      const RenderScene scene = shadedScene(model, range, true);
+    for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)})
+    for (const bool kit : {false, true}) {
+      const RenderScene scene = shadedScene(model, range, true, kit);
       const ShadedRun cpu =
           renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
       const ShadedRun gpu =
@@ -261,9 +265,10 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
           gpuEval, model, shadedScene(model, range, false), options, size, frames);
       const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
       const double flatPsnr = test::psnrOverCoverage(flat.image, cpu.image, cpu.premultiplied);
-      std::printf("%-32s %s, shaded, %dx%d, %d frames: GPU vs CPU %.2f dB (unshaded GPU vs shaded CPU %.2f dB); "
+      std::printf("%-32s %s, shaded (%s), %dx%d, %d frames: GPU vs CPU %.2f dB (unshaded GPU vs shaded CPU %.2f dB); "
                   "shading queries GPU %zu CPU %zu, rays %zu\n",
-                  fs::path(path).filename().c_str(), primaryEstimatorName(options.estimator), size, size, frames, psnr,
+                  fs::path(path).filename().c_str(), primaryEstimatorName(options.estimator),
+                  kit ? "light kit" : "headlight", size, size, frames, psnr,
                   flatPsnr, gpu.stats.shadingQueries, cpu.stats.shadingQueries, gpu.stats.rays);
       EXPECT_GE(psnr, 36.0) << path;
       EXPECT_LT(flatPsnr, psnr - 6.0) << path << ": shading changed too little to tell";
