@@ -5,20 +5,22 @@
 # `ctest -L "cuda|optix"` and the CLI's marcher check (cli.raymarch_backend), then times
 # `inr render --method raymarch --backend cuda --shade` on shipped real models, this tree (the GPU
 # marcher) against BEFORE=<commit> (default a1840c4: the CPU marcher on the GPU evaluator), built
-# beside it from `git archive`.
+# beside it from `git archive` (BEFORE= empty: no comparison, no second build); and the shaded
+# wavefront frame under a headlight against ParaView's light kit (`--light-kit`: five lights per
+# lit sample) on the same models.
 # Logs go to $OUT/gpu_checks.tar.gz (and the summary to stdout); about 10 minutes.
-#   OUT=dir bash Benchmarks/run_gpu_checks.sh
+#   OUT=dir bash Benchmarks/run_gpu_checks.sh          (BEFORE= OUT=dir ...: this tree only)
 OUT=${OUT:-./out}
 source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
 BUILD=${INR_BUILD_DIR:-/tmp/bg}
-BEFORE=${BEFORE:-a1840c4}
+BEFORE=${BEFORE-a1840c4}
 export OptiX_INSTALL_DIR=${OptiX_INSTALL_DIR:-$PWD/.optix}
 mkdir -p "$OUT/logs"
 L="$OUT/logs"
 status=0
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$L/gpu.txt"
 
-stamp "configure and build (this tree, and $BEFORE's inr beside it)"
+stamp "configure and build (this tree${BEFORE:+, and the inr of $BEFORE beside it})"
 gpu_build_with_before "$L" inr --
 
 stamp "GPU tests"
@@ -31,15 +33,27 @@ timeout 120 ctest --test-dir "$BUILD" -R "cli.raymarch_backend" --output-on-fail
 grep -E "tests passed|Failed" "$L/ctest_cli_raymarch.log"
 grep -q "100% tests passed" "$L/ctest_cli_raymarch.log" || status=1
 
-stamp "ray-marched shading, 512^2, 4 frames: this tree (GPU marcher) against $BEFORE"
-for m in siren_cylinder_vorticity ffn_mri_head coordnet_cylinder_u; do
+models=(siren_cylinder_vorticity ffn_mri_head coordnet_cylinder_u)
+stamp "ray-marched shading, 512^2, 4 frames: this tree (GPU marcher)${BEFORE:+ against $BEFORE}"
+for m in "${models[@]}"; do
   model=Testing/Data/real/$m
-  for which in now before; do
+  for which in now ${BEFORE:+before}; do
     bin="$BUILD/bin/inr"
     [ "$which" = before ] && bin=/tmp/before-build/bin/inr
     timeout 300 "$bin" render "$model.inr" --tf "$model.tf.json" --method raymarch --backend cuda --shade --size 512x512 \
       --frames 4 -o "$L/march_${m}_$which.png" --stats-json "$L/march_${m}_$which.json" > "$L/march_${m}_$which.txt" 2>&1
     echo "$m $which: $(grep -E '^ray marcher' "$L/march_${m}_$which.txt"); $(grep -E '^frame 4/4' "$L/march_${m}_$which.txt")"
+  done
+done
+
+stamp "shaded wavefront frames, 1024^2, 48 frames: headlight against the light kit"
+for m in "${models[@]}"; do
+  model=Testing/Data/real/$m
+  for lights in "" --light-kit; do
+    name=${lights:-headlight}
+    timeout 120 "$BUILD/bin/inr" render "$model.inr" --tf "$model.tf.json" --backend cuda --shade $lights \
+      --size 1024x1024 --frames 48 -o "$L/shade_${m}_${name#--}.png" > "$L/shade_${m}_${name#--}.txt" 2>&1
+    echo "$m ${name#--}: $(grep -oE '[0-9.]+ ms per frame' "$L/shade_${m}_${name#--}.txt" | head -1)"
   done
 done
 
