@@ -1013,6 +1013,40 @@ TEST_F(Stress, NonFiniteAndAbsurdSceneInputs) {
          sc.shading.headlight = true;
        },
        {"shading"}, true},
+      {"light list: 8 lights, colours 1e6, denormal and 1e300 directions (lit colour clamped)",
+       [&](RenderScene& sc) {
+         sc.shadows = false;
+         sc.shading.enabled = sc.shading.lightList = true;
+         const std::array<double, 3> dirs[] = {{1e-45, 0, 0}, {1e300, 1e300, 0}, {0, 0, 1}, {0, -1e-300, 0}};
+         for (int i = 0; i < kMaxShadingLights; ++i) {
+           SceneLight l;
+           l.toLight = dirs[i % 4];
+           l.cameraLight = i % 2 == 1;
+           l.ambient = l.diffuse = l.specular = {1e6f, 1e6f, 1e6f};
+           sc.shading.lights.push_back(l);
+         }
+       },
+       {"light"}, true},
+      {"light list: a NaN direction",
+       [&](RenderScene& sc) {
+         sc.shadows = false;
+         sc.shading.enabled = sc.shading.lightList = true;
+         sc.shading.lights = {SceneLight{{nan, 0.0, 1.0}}};
+       },
+       {"light"}, true},
+      {"light list: 9 lights",
+       [&](RenderScene& sc) {
+         sc.shadows = false;
+         sc.shading.enabled = sc.shading.lightList = true;
+         sc.shading.lights.assign(kMaxShadingLights + 1, SceneLight{});
+       },
+       {"lights"}, true},
+      {"light list with shadows",
+       [&](RenderScene& sc) {
+         sc.shading.enabled = sc.shading.lightList = true;
+         sc.shading.lights = paraviewLightKit();
+       },
+       {"shadows"}, true},
       {"light inf", [&](RenderScene& sc) { sc.toLight = {0, -inf, 0}; }, {"light"}, true},
       {"background NaN", [&](RenderScene& sc) { sc.background = {NAN, 0.f, 0.f}; }, {"background"}, true},
       {"background inf", [&](RenderScene& sc) { sc.background = {INFINITY, 0.f, 0.f}; }, {"background"}, false},

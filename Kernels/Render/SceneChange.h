@@ -5,7 +5,8 @@
 //   transfer function  table + majorants + accumulation reset
 //   camera, depth limit, light (shadows on/off; with shadows on: direction, ambient,
 //                      estimator; shading options; with shading on: ambient, and the
-//                      direction unless it has a headlight), background
+//                      direction unless it has a headlight or a list of lights, whose
+//                      lights are then compared), background
 //                      accumulation reset only (a camera-only move reprojects instead when
 //                      QueryReductionSettings::reproject is on)
 //   nothing            nothing: a host re-sending an identical scene keeps accumulating

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <initializer_list>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -445,6 +446,15 @@ void ShadingOptions::validate() const {
     throw std::invalid_argument("shading: specular must be finite and >= 0, got " + std::to_string(specular));
   if (!(specularPower >= 0.f && specularPower <= 128.f))
     throw std::invalid_argument("shading: specular power must be in [0, 128], got " + std::to_string(specularPower));
+  // Colours beyond this would overflow when summed over the lights (and NaN through inf * 0).
+  constexpr float kMaxColour = 1e6f;
+  const auto checkColours = [&](const std::string& which, std::initializer_list<const std::array<float, 3>*> colours) {
+    for (const auto* colour : colours)
+      for (float c : *colour)
+        if (!(c >= 0.f && c <= kMaxColour))
+          throw std::invalid_argument(which + "colours must be in [0, 1e6], got " + std::to_string(c));
+  };
+  checkColours("shading: the light's ", {&oneLightDiffuse, &oneLightSpecular});
   if (!lightList) return;
   if (lights.size() > std::size_t(kMaxShadingLights))
     throw std::invalid_argument("shading: at most " + std::to_string(kMaxShadingLights) + " lights, got " +
@@ -454,10 +464,7 @@ void ShadingOptions::validate() const {
     const std::string which = "shading: light " + std::to_string(i) + "'s ";
     const double len = std::hypot(l.toLight[0], l.toLight[1], l.toLight[2]);
     if (!(len > 0.0 && len < INFINITY)) throw std::invalid_argument(which + "direction must be finite and non-zero");
-    for (const auto* colour : {&l.ambient, &l.diffuse, &l.specular})
-      for (float c : *colour)
-        if (!(c >= 0.f && c < INFINITY))
-          throw std::invalid_argument(which + "colours must be finite and >= 0, got " + std::to_string(c));
+    checkColours(which, {&l.ambient, &l.diffuse, &l.specular});
   }
 }
 
@@ -504,9 +511,11 @@ ShadingConstants shadingConstants(const ShadingOptions& shading, const CameraVie
   sc.specular = shading.specular;
   sc.specularPower = shading.specularPower;
   sc.headlight = shading.headlight ? 1 : 0;
+  const auto vec = [](const std::array<float, 3>& c) { return Vec3f{c[0], c[1], c[2]}; };
+  sc.oneLightDiffuse = vec(shading.oneLightDiffuse);
+  sc.oneLightSpecular = vec(shading.oneLightSpecular);
   sc.lightList = shading.lightList ? 1 : 0;
   if (!shading.lightList) return sc;
-  const auto vec = [](const std::array<float, 3>& c) { return Vec3f{c[0], c[1], c[2]}; };
   for (const SceneLight& l : shading.lights) {
     if (sc.numLights == kMaxShadingLights) break;  // validate() refuses more
     ShadingLight& out = sc.lights[sc.numLights++];

@@ -120,9 +120,10 @@ std::vector<SceneLight> paraviewLightKit();
 // defaults make a sample facing the light keep its colour (ambient 0.2 + diffuse 0.8) with VTK's
 // specular highlight (0.2, power 10). headlight: the light sits at the eye, as ParaView's
 // headlight (RenderScene::toLight is then not used for shading; shadows still use it).
-// lightList: the lights of `lights` (at most kMaxShadingLights; none: the ambient term alone) lit
+// oneLightDiffuse / oneLightSpecular: that one light's colours times its intensity (VTK's default
+// lighting takes a headlight of intensity 1 whatever its colour). lightList: the lights of `lights` (at most kMaxShadingLights; none: the ambient term alone) lit
 // by VTK's light-list formula, as VTK lights a volume under ParaView's light kit or any lights but
-// one white headlight; toLight and headlight are then not used for shading, and shadows are
+// one headlight of intensity 1; toLight and headlight are then not used for shading, and shadows are
 // refused (they follow the one direction RenderScene::toLight).
 struct ShadingOptions {
   bool enabled = false;
@@ -130,14 +131,16 @@ struct ShadingOptions {
   float specular = 0.2f;       // >= 0
   float specularPower = 10.f;  // in [0, 128] (vtkVolumeProperty's range)
   bool headlight = false;
+  std::array<float, 3> oneLightDiffuse{1.f, 1.f, 1.f}, oneLightSpecular{1.f, 1.f, 1.f};
   bool lightList = false;
   std::vector<SceneLight> lights;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
   bool operator==(const ShadingOptions& o) const {
     return enabled == o.enabled && diffuse == o.diffuse && specular == o.specular &&
-           specularPower == o.specularPower && headlight == o.headlight && lightList == o.lightList &&
-           lights == o.lights;
+           specularPower == o.specularPower && headlight == o.headlight &&
+           oneLightDiffuse == o.oneLightDiffuse && oneLightSpecular == o.oneLightSpecular &&
+           lightList == o.lightList && lights == o.lights;
   }
   bool operator!=(const ShadingOptions& o) const { return !(*this == o); }
 };

@@ -14,8 +14,9 @@
 // VTK takes the ambient term alone: so do we (a flat region neither faces nor turns from the
 // light).
 //
-// That is VTK's "default lighting": one white light of intensity 1 (the headlight, or here also
-// the one direction of RenderScene::toLight). With any other set of lights (ParaView's light kit,
+// That is VTK's "default lighting" for one headlight of intensity 1 (here also the one direction
+// of RenderScene::toLight), with the light's colour multiplying the diffuse and specular terms
+// (white by default). With any other set of lights (ParaView's light kit,
 // several lights, coloured or dimmed ones) VTK's shader takes its light-list branch instead, and
 // so do we when the scene carries a list of lights (ShadingOptions::lights):
 //     lit = ambient * sum_i a_i + sum_i (diffuse * f_i * d_i * c + specular * max(0, R_i.E)^p * s_i),
@@ -55,8 +56,9 @@ struct ShadingConstants {
   int enabled = 0;
   float diffuse = 0.8f, specular = 0.2f, specularPower = 10.f;
   int headlight = 0;  // the light sits at the eye (VTK's headlight): L = E at every sample
+  Vec3f oneLightDiffuse{1.f, 1.f, 1.f}, oneLightSpecular{1.f, 1.f, 1.f};  // the one light's colours
   // VTK's light-list lighting over lights[0, numLights) (0 lights: only the ambient term), in
-  // place of the one white light; lightAmbient is the sum of the lights' ambient colours.
+  // place of the one light; lightAmbient is the sum of the lights' ambient colours.
   int lightList = 0;
   int numLights = 0;
   Vec3f lightAmbient{0.f, 0.f, 0.f};
@@ -64,7 +66,7 @@ struct ShadingConstants {
 };
 
 // The lights' factors at a sample: lit = A + V (diffuse * c + specular), per channel, where the
-// ambient part A is ambient * c with the one white light and ambient * lightAmbient with a list.
+// ambient part A is ambient * c with the one light and ambient * lightAmbient with a list.
 struct SampleLight {
   Vec3f diffuse{0.f, 0.f, 0.f}, specular{0.f, 0.f, 0.f};
   int ambientFromLights = 0;
@@ -98,11 +100,11 @@ INR_HD SampleLight phongLight(const ShadingConstants& s, Vec3f g, Vec3f toLight,
   const float nDotL = dot(n, toLight);
   const float facing = fabsf(nDotL);
   if (!(facing > 0.f)) return out;
-  out.diffuse = grey(s.diffuse * facing);
+  out.diffuse = s.oneLightDiffuse * (s.diffuse * facing);
   const Vec3f r = n * (2.f * nDotL) - toLight;
   const float rDotE = maxf(0.f, dot(r, toEye));
   // pow(0, 0) is 1 in VTK's shader too: a power of 0 makes the highlight uniform.
-  out.specular = grey(s.specular * powf(rDotE, s.specularPower));
+  out.specular = s.oneLightSpecular * (s.specular * powf(rDotE, s.specularPower));
   return out;
 }
 

@@ -179,6 +179,19 @@ TEST(Shading, LightListHighlightOfALightBehindTheNormalIsVtks) {
   EXPECT_EQ(phongLight(s, Vec3f{0.f, 0.f, -1.f}, below, kUp).specular.x, 0.f);
 }
 
+TEST(Shading, TheOneLightsColourTintsDiffuseAndSpecular) {
+  // VTK's default lighting multiplies both terms by the headlight's colour, not the ambient one.
+  ShadingConstants s = shadingOf(0.6f, 0.25f, 10.f);
+  s.oneLightDiffuse = Vec3f{1.f, 0.5f, 0.f};
+  s.oneLightSpecular = Vec3f{0.f, 1.f, 1.f};
+  const SampleLight l = phongLight(s, Vec3f{0.f, 0.f, -3.f}, kUp, kUp);
+  EXPECT_FLOAT_EQ(l.diffuse.y, 0.3f);
+  EXPECT_EQ(l.diffuse.z, 0.f);
+  EXPECT_EQ(l.specular.x, 0.f);
+  EXPECT_FLOAT_EQ(l.specular.z, 0.25f);
+  EXPECT_FLOAT_EQ(litColour(Vec3f{0.5f, 0.5f, 0.5f}, 0.2f, l, 1.f).z, 0.1f + 0.25f);
+}
+
 TEST(Shading, CameraLightsTurnWithTheCamera) {
   Camera camera = Camera::framing(test::kCubeBox);
   ShadingOptions o;
@@ -191,14 +204,24 @@ TEST(Shading, CameraLightsTurnWithTheCamera) {
   SceneLight world;
   world.toLight = {0.0, 3.0, 4.0};
   world.ambient = {0.1f, 0.2f, 0.3f};
-  o.lights = {towardsViewer, right, world};
+  SceneLight above = towardsViewer;
+  above.toLight = {0.0, 5.0, 0.0};
+  o.lights = {towardsViewer, right, world, above};
+  // Absolute: the framing camera looks down -z with +y up, so camera x is world +x and y is +y.
+  {
+    const ShadingConstants s = shadingConstants(o, camera.view(8, 8));
+    EXPECT_NEAR(s.lights[1].toLight.x, 1.f, 1e-6f);
+    EXPECT_NEAR(s.lights[3].toLight.y, 1.f, 1e-6f);
+    EXPECT_NEAR(s.lights[0].toLight.z, 1.f, 1e-6f);
+  }
   for (const std::array<double, 3>& eye : {std::array<double, 3>{0.0, 0.0, 4.0}, std::array<double, 3>{4.0, 0.0, 0.0}}) {
     camera.position = eye;
     const CameraView cam = camera.view(8, 8);
     const ShadingConstants s = shadingConstants(o, cam);
-    ASSERT_EQ(s.numLights, 3);
+    ASSERT_EQ(s.numLights, 4);
     for (const auto& [got, want] : {std::pair<Vec3f, Vec3f>{s.lights[0].toLight, cam.forward * -1.f},
                                     std::pair<Vec3f, Vec3f>{s.lights[1].toLight, cam.right},
+                                    std::pair<Vec3f, Vec3f>{s.lights[3].toLight, cam.up},
                                     std::pair<Vec3f, Vec3f>{s.lights[2].toLight, Vec3f{0.f, 0.6f, 0.8f}}}) {
       EXPECT_NEAR(got.x, want.x, 1e-6f);
       EXPECT_NEAR(got.y, want.y, 1e-6f);
@@ -229,6 +252,8 @@ TEST(Shading, LightListsOutOfBoundsAreRefusedByName) {
   EXPECT_NE(message(scene).find("light 1's direction"), std::string::npos);
   scene.shading.lights[1].toLight = {0.0, 1.0, 0.0};
   scene.shading.lights[0].diffuse = {1.f, -0.5f, 1.f};
+  EXPECT_NE(message(scene).find("light 0's colours"), std::string::npos);
+  scene.shading.lights[0].diffuse = {1.f, 1e30f, 1.f};  // would overflow once summed
   EXPECT_NE(message(scene).find("light 0's colours"), std::string::npos);
   scene.shading.lights[0].diffuse = {1.f, 1.f, 1.f};
   scene.shadows = true;
@@ -284,6 +309,15 @@ TEST(SceneChange, ShadingOptionsRestartAccumulation) {
   EXPECT_FALSE(diffScenes(&a, b).light);
   EXPECT_TRUE(diffScenes(&a, b).camera);
   b.shading.lights[0].diffuse = {0.5f, 0.5f, 0.5f};
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  b.shading.lights = a.shading.lights;
+  b.shading.lights[0].toLight = {0.0, 1.0, 1.0};
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  b.shading.lights = a.shading.lights;
+  b.shading.lights[0].cameraLight = false;
+  EXPECT_TRUE(diffScenes(&a, b).light);
+  b.shading.lights = a.shading.lights;
+  b.shading.oneLightDiffuse = {1.f, 0.f, 0.f};
   EXPECT_TRUE(diffScenes(&a, b).light);
 }
 

@@ -18,6 +18,7 @@
 #include "vtkVolumeProperty.h"
 
 #include <algorithm>
+#include <stdexcept>
 #include <cmath>
 #include <limits>
 
@@ -343,7 +344,11 @@ int InrSceneTranslator::TranslateShading(
   {
     return 0;
   }
+  // vtkOpenGLGPUVolumeRayCastMapper's choice, its loop mirrored (switched-off lights after the
+  // first switched-on one count too): its default lighting for one switched-on headlight of
+  // intensity 1, its light-list lighting for anything else.
   std::vector<vtkLight*> on;
+  bool defaultLighting = false;
   vtkLightCollection* lights = viewLights->GetLights();
   vtkCollectionSimpleIterator it;
   lights->InitTraversal(it);
@@ -351,21 +356,50 @@ int InrSceneTranslator::TranslateShading(
   {
     if (light->GetSwitch())
     {
+      defaultLighting = defaultLighting || on.empty();
       on.push_back(light);
     }
+    if (defaultLighting &&
+      (on.size() > 1 || light->GetIntensity() != 1.0 || !light->LightTypeIsHeadlight()))
+    {
+      defaultLighting = false;
+    }
   }
-  // vtkOpenGLGPUVolumeRayCastMapper's choice: its default lighting for exactly one switched-on
-  // headlight of intensity 1, its light-list lighting for anything else.
-  if (on.size() == 1 && on[0]->LightTypeIsHeadlight() && on[0]->GetIntensity() == 1.0)
-  {
-    scene.shading.headlight = true;
-    return 0;
-  }
-  scene.shading.lightList = true;
   const auto times = [](const double* colour, double intensity) {
     return std::array<float, 3>{ static_cast<float>(colour[0] * intensity),
       static_cast<float>(colour[1] * intensity), static_cast<float>(colour[2] * intensity) };
   };
+  // Lights the engine refuses (validateLighting) are left out and counted, not failed on.
+  const auto usable = [](const inr::SceneLight& l) {
+    inr::ShadingOptions one;
+    one.lightList = true;
+    one.lights = { l };
+    try
+    {
+      one.validate();
+      return true;
+    }
+    catch (const std::invalid_argument&)
+    {
+      return false;
+    }
+  };
+  if (defaultLighting)
+  {
+    scene.shading.headlight = true;
+    scene.shading.oneLightDiffuse = times(on[0]->GetDiffuseColor(), 1.0);
+    scene.shading.oneLightSpecular = times(on[0]->GetSpecularColor(), 1.0);
+    inr::SceneLight check;
+    check.diffuse = scene.shading.oneLightDiffuse;
+    check.specular = scene.shading.oneLightSpecular;
+    if (usable(check))
+    {
+      return 0;
+    }
+    scene.shading.oneLightDiffuse = scene.shading.oneLightSpecular = { 1.f, 1.f, 1.f };
+    return 1;  // its colour refused: lit white
+  }
+  scene.shading.lightList = true;
   int left = 0;
   for (vtkLight* light : on)
   {
@@ -381,7 +415,8 @@ int InrSceneTranslator::TranslateShading(
     l.specular = times(light->GetSpecularColor(), intensity);
     // A headlight sits at the eye and a camera light is placed in camera coordinates (x right,
     // y up, z back towards the viewer): both stay fixed in those coordinates, so a camera move
-    // changes only the camera. A scene light's position and focal point are world points.
+    // changes only the camera. A scene light's transformed position and focal point are world
+    // points.
     if (light->LightTypeIsHeadlight())
     {
       l.cameraLight = true;
@@ -389,14 +424,14 @@ int InrSceneTranslator::TranslateShading(
     }
     else
     {
-      const double* p = light->GetPosition();
-      const double* f = light->GetFocalPoint();
       l.cameraLight = light->LightTypeIsCameraLight() != 0;
+      const double* p = l.cameraLight ? light->GetPosition() : light->GetTransformedPosition();
+      const double* f = l.cameraLight ? light->GetFocalPoint() : light->GetTransformedFocalPoint();
       l.toLight = { p[0] - f[0], p[1] - f[1], p[2] - f[2] };
     }
-    if (!(std::hypot(l.toLight[0], l.toLight[1], l.toLight[2]) > 0.0))
+    if (!usable(l))
     {
-      ++left;  // no direction (position at the focal point): VTK's shader gets NaN from it
+      ++left;  // no direction (position at the focal point), or a negative or huge intensity
       continue;
     }
     scene.shading.lights.push_back(l);

@@ -128,12 +128,13 @@ public:
   /// Shading. The property's Shade, Diffuse, Specular and SpecularPower (component 0) become
   /// scene.shading; with Shade on its Ambient becomes scene.ambient, the engine's one ambient
   /// (shadows included), as vtkVolumeProperty has one. `viewLights`: the renderer whose lights
-  /// light the volume, as VTK's GPU ray-cast mapper takes them (its switched-on lights; one white
-  /// headlight of intensity 1 is VTK's default lighting, anything else its light-list lighting:
-  /// ParaView's light kit, additional lights); null: the one light of scene.toLight. Shade off or
-  /// no property: shading off, scene.ambient untouched. Returns how many switched-on lights were
-  /// left out (beyond inr::kMaxShadingLights; a positional light counts as directional, along
-  /// its axis).
+  /// light the volume, as VTK's GPU ray-cast mapper takes them (its switched-on lights; one
+  /// headlight of intensity 1 is VTK's default lighting, with its colour; anything else its
+  /// light-list lighting: ParaView's light kit, additional lights; a positional light counts as
+  /// directional, along its axis); null: the one light of scene.toLight. Shade off or no
+  /// property: shading off, scene.ambient untouched. Returns how many switched-on lights were
+  /// left out: beyond inr::kMaxShadingLights, or refused by the engine (no direction, a negative
+  /// or huge intensity).
   static int TranslateShading(vtkVolumeProperty* property, vtkRenderer* viewLights, inr::RenderScene& scene);
   ///@}
 

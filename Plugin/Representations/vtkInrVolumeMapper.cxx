@@ -1436,8 +1436,9 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   {
     this->warnedLightsLeftOut = true;
     this->engines.warning("INR Volume: Shade lights the volume with the view's first " +
-      std::to_string(inr::kMaxShadingLights) + " lights with a direction; " + std::to_string(left) +
-      " more are left out. Turn lights off in the view's Light Inspector to choose.");
+      std::to_string(inr::kMaxShadingLights) + " usable lights; " + std::to_string(left) +
+      " are left out (beyond that number, or with no direction, a negative or an over-large "
+      "intensity). Turn lights off or mend them in the view's Light Inspector.");
   }
   return scene;
 }

@@ -648,6 +648,33 @@ TEST(InrSceneTranslator, ViewLightsBecomeTheEnginesLightList)
   const inr::SceneLight& last = scene.shading.lights.back();
   EXPECT_FALSE(last.cameraLight);
   EXPECT_EQ(last.toLight, (std::array<double, 3>{ 0.0, 0.0, 3.0 }));
+  // The CLI's --light-kit (inr::paraviewLightKit) is this kit: each of its lights has a twin here,
+  // same direction and colours.
+  const std::vector<inr::SceneLight> cliKit = inr::paraviewLightKit();
+  ASSERT_EQ(cliKit.size(), static_cast<std::size_t>(kitLights));
+  for (const inr::SceneLight& want : cliKit)
+  {
+    const auto unit = [](const std::array<double, 3>& v)
+    {
+      const double n = std::hypot(v[0], v[1], v[2]);
+      return std::array<double, 3>{ v[0] / n, v[1] / n, v[2] / n };
+    };
+    int twins = 0;
+    for (int i = 0; i < kitLights; ++i)
+    {
+      const inr::SceneLight& got = scene.shading.lights[i];
+      const auto a = unit(got.toLight), b = unit(want.toLight);
+      bool same = got.cameraLight == want.cameraLight;
+      for (int c = 0; c < 3; ++c)
+      {
+        same = same && std::fabs(a[c] - b[c]) < 1e-5 && std::fabs(got.diffuse[c] - want.diffuse[c]) < 1e-3f &&
+          std::fabs(got.specular[c] - want.specular[c]) < 1e-3f && got.ambient[c] == want.ambient[c];
+      }
+      twins += same;
+    }
+    EXPECT_EQ(twins, 1) << "kit light towards " << want.toLight[0] << " " << want.toLight[1] << " "
+                        << want.toLight[2];
+  }
   EXPECT_FLOAT_EQ(last.diffuse[1], 0.4f);
   EXPECT_FLOAT_EQ(last.ambient[0], 0.16f);
 
@@ -662,6 +689,40 @@ TEST(InrSceneTranslator, ViewLightsBecomeTheEnginesLightList)
   EXPECT_EQ(InrSceneTranslator::TranslateShading(prop, crowded, scene), 3);
   EXPECT_EQ(scene.shading.lights.size(), static_cast<std::size_t>(inr::kMaxShadingLights));
   EXPECT_NO_THROW(inr::validateLighting(scene));
+
+  // A light the engine refuses (negative intensity) is left out and counted, not failed on.
+  vtkNew<vtkRenderer> odd;
+  vtkNew<vtkLight> good, negative;
+  negative->SetIntensity(-1.0);
+  odd->AddLight(good);
+  odd->AddLight(negative);
+  EXPECT_EQ(InrSceneTranslator::TranslateShading(prop, odd, scene), 1);
+  EXPECT_EQ(scene.shading.lights.size(), 1u);
+
+  // VTK's choice counts a switched-off light after the first switched-on one: a headlight of
+  // intensity 1 followed by a switched-off scene light takes the light-list branch.
+  vtkNew<vtkRenderer> headThenOff;
+  vtkNew<vtkLight> head1, offScene;
+  head1->SetLightTypeToHeadlight();
+  offScene->SwitchOff();
+  headThenOff->AddLight(head1);
+  headThenOff->AddLight(offScene);
+  InrSceneTranslator::TranslateShading(prop, headThenOff, scene);
+  EXPECT_TRUE(scene.shading.lightList);
+  EXPECT_EQ(scene.shading.lights.size(), 1u);
+
+  // A coloured headlight of intensity 1 stays VTK's default lighting, with its colour.
+  vtkNew<vtkRenderer> redHead;
+  vtkNew<vtkLight> red;
+  red->SetLightTypeToHeadlight();
+  red->SetDiffuseColor(1.0, 0.0, 0.0);
+  red->SetSpecularColor(0.0, 0.0, 1.0);
+  redHead->AddLight(red);
+  InrSceneTranslator::TranslateShading(prop, redHead, scene);
+  EXPECT_TRUE(scene.shading.headlight);
+  EXPECT_FALSE(scene.shading.lightList);
+  EXPECT_EQ(scene.shading.oneLightDiffuse, (std::array<float, 3>{ 1.f, 0.f, 0.f }));
+  EXPECT_EQ(scene.shading.oneLightSpecular, (std::array<float, 3>{ 0.f, 0.f, 1.f }));
 
   // Every light off: Shade with no light, as VTK's shader then has it (ambient term only).
   vtkNew<vtkRenderer> dark;
