@@ -489,6 +489,8 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
+      if (options.storedEncoding == 2 && I.params.fusedFourier)
+        why += " (storedEncoding 2, the split encoding, runs on the wgmma kernel only, for a first layer of K 257..512)";
     }
   }
   if (options.path == CudaEvaluatorPath::Fused && !fused)
