@@ -466,7 +466,7 @@ MlpProgram MlpProgram::withEncodingsStored() const {
   return p;
 }
 
-MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
+MlpProgram MlpProgram::withGemmsInPlace(int maxK, int alsoInPlace) const {
   MlpProgram p = *this;
   std::vector<int> slotOf(std::max(numBuffers, 1), -1);  // buffer -> slot holding its current value
   std::vector<bool> busy;
@@ -497,7 +497,7 @@ MlpProgram MlpProgram::withGemmsInPlace(int maxK) const {
         if (slotOf[in.dst] >= 0) busy[slotOf[in.dst]] = false;
         slotOf[in.dst] = -1;
         // (a Gemm reading a fused encoding never reads its source buffer: any K)
-        d = in.op == MlpOp::Gemm && (in.kPad <= maxK || in.fourierInput >= 0) && srcDies ? s : take();
+        d = in.op == MlpOp::Gemm && (in.kPad <= maxK || in.fourierInput >= 0 || int(i) == alsoInPlace) && srcDies ? s : take();
       }
     }
     to.dst = d;

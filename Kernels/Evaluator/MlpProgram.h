@@ -105,8 +105,10 @@ struct MlpProgram {
   // wherever nothing reads that input afterwards (for a kernel whose warps each hold their A rows,
   // K <= maxK columns, in registers before their epilogue writes those rows; SIREN and FFN then
   // need one buffer, not two; a Gemm reading a fused Fourier encoding reads no buffer: any K).
-  // Same arithmetic: emulateFusedProgram gives identical results.
-  MlpProgram withGemmsInPlace(int maxK) const;
+  // Same arithmetic: emulateFusedProgram gives identical results. `alsoInPlace`: the index of one
+  // more Gemm that may write over its input whatever its K (a kernel that holds that layer's
+  // input otherwise: the wgmma kernel's split encoding), -1 none.
+  MlpProgram withGemmsInPlace(int maxK, int alsoInPlace = -1) const;
   // The same program with every fused Fourier encoding stored in its buffer again (the Fourier
   // instruction writes it, the GEMM reads it; buffers as wide as that needs).
   MlpProgram withEncodingsStored() const;

@@ -171,5 +171,29 @@ TEST(MlpProgram, GemmsInPlaceKeepTheArithmeticAndSaveBuffers) {
   }
 }
 
+// The wgmma kernel's split encoding (FusedParams::hopperSplitGemm): the paper FFN's stored
+// program with its K 512 first GEMM also in place (alsoInPlace) runs on one buffer, the
+// encoding's and the GEMM's, and emulates bit-identically to the stored program.
+TEST(MlpProgram, StoredEncodingGemmInPlaceForTheSplitEncoding) {
+  const MlpProgram p = MlpProgram::compile(bench::ffnPaper().architecture);
+  ASSERT_EQ(p.instrs[1].fourierInput, 0) << p.describe();
+  ASSERT_EQ(p.instrs[1].kPad, 512);
+  const MlpProgram stored = p.withEncodingsStored();
+  const MlpProgram plain = stored.withGemmsInPlace(256), split = stored.withGemmsInPlace(256, 1);
+  EXPECT_EQ(plain.numBuffers, 2) << plain.describe();
+  EXPECT_NE(plain.instrs[1].dst, plain.instrs[1].src) << plain.describe();
+  EXPECT_EQ(split.numBuffers, 1) << split.describe();
+  EXPECT_EQ(split.instrs[0].dst, split.instrs[1].src) << split.describe();
+  EXPECT_EQ(split.instrs[1].dst, split.instrs[1].src) << split.describe();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  constexpr int n = 64;
+  std::vector<float> inputs(std::size_t(n) * p.inputDim), a(n), b(n);
+  for (auto& v : inputs) v = u(rng);
+  emulateFusedProgram(stored, inputs.data(), n, a.data());
+  emulateFusedProgram(split, inputs.data(), n, b.data());
+  for (int i = 0; i < n; ++i) ASSERT_EQ(a[i], b[i]) << "query " << i << "\n" << split.describe();
+}
+
 }  // namespace
 }  // namespace inr

@@ -102,7 +102,7 @@ using cuda::configName;
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-FusedKernel hopperKernel(int, int) { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernel(int, int, bool) { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
@@ -140,10 +140,15 @@ struct CudaInrEvaluator::Impl {
   static constexpr int kSmallBatchThreshold = FusedLaunchAutotuner::kSmallBatchThreshold;
   cuda::FusedParams params;
   cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
+  // The same for the wgmma kernel with the encoding split for its GEMM (FusedConfig::splitEncoding;
+  // hopperSplitGemm -1: the program has no such encoding)
+  cuda::FusedParams paramsSplit;
   cuda::DeviceBuffer<MlpInstr> storedInstrs;
   cuda::DeviceBuffer<MlpInstr> instrs;
   MlpProgram hopperProgram;  // program.withGemmsInPlace(kHopperKSegment)
   cuda::DeviceBuffer<MlpInstr> hopperInstrs;
+  cuda::DeviceBuffer<MlpInstr> hopperStoredInstrs;  // the same with any Fourier encoding stored
+  cuda::DeviceBuffer<MlpInstr> hopperSplitInstrs;   // and with one split (FusedParams::hopperSplitGemm)
   cuda::DeviceBuffer<__half> stagedW[2];  // GEMM weights in the stage layout, weight chunks of 64 / 32
   cuda::DeviceBuffer<__half> hopperW[2];  // the same in the wgmma chunks' core-matrix layout, chunks of 64 / 128 columns
   std::string whyNoWgmma;                 // empty when the wgmma kernel can run here
@@ -248,6 +253,43 @@ void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
   for (const MlpInstr& in : prog.instrs) P.fusedFourier |= in.fourierInput >= 0 ? 1 : 0;
   const MlpProgram storedProgram = prog.withEncodingsStored();
   if (P.fusedFourier) storedInstrs.upload(storedProgram.instrs, nullptr);
+  // The wgmma kernel's form of the stored program: the Fourier instruction writes the encoding
+  // once per tile into its buffer (a row instruction), the first GEMM loads A from there by
+  // ldmatrix, one K segment of 256 at a time, like any wider layer (K > 256: not in place, so its
+  // output goes to a second buffer). The GEMMs, their weights, biases and ring slots are the
+  // fused program's (the same instruction indices): only the buffers differ.
+  MlpProgram hopperStoredProgram, hopperSplitProgram;
+  int splitGemm = -1;
+  std::vector<int> splitLd;
+  if (P.fusedFourier && whyNoWgmma.empty()) {
+    hopperStoredProgram = storedProgram.withGemmsInPlace(cuda::kHopperKSegment);
+    if (hopperStoredProgram.numBuffers <= cuda::kMaxBuffers) hopperStoredInstrs.upload(hopperStoredProgram.instrs, nullptr);
+    // The split form (FusedParams::hopperSplitGemm) for the first GEMM reading a fused encoding
+    // with K 257..512 (two K segments: the first from the operand region, the second from the
+    // registers): that GEMM in place over the encoding's buffer, which then holds the encoding's
+    // columns from 256 on and the values stored there later.
+    for (std::size_t i = 1; i < prog.instrs.size() && i < std::size_t(cuda::kMaxFusedInstrs) && splitGemm < 0; ++i) {
+      const MlpInstr& g = prog.instrs[i];
+      if (g.fourierInput == int(i) - 1 && g.kPad > cuda::kHopperKSegment && g.kPad <= 2 * cuda::kHopperKSegment)
+        splitGemm = int(i);
+    }
+    if (splitGemm >= 0) {
+      hopperSplitProgram = storedProgram.withGemmsInPlace(cuda::kHopperKSegment, splitGemm);
+      const MlpInstr& f = hopperSplitProgram.instrs[std::size_t(splitGemm) - 1];
+      const MlpInstr& g = hopperSplitProgram.instrs[std::size_t(splitGemm)];
+      if (hopperSplitProgram.numBuffers > cuda::kMaxBuffers || g.src < 0 || g.dst != g.src || f.dst != g.src) {
+        splitGemm = -1;  // not in place: no split form
+      } else {
+        splitLd.assign(std::size_t(hopperSplitProgram.numBuffers), 16);
+        for (const MlpInstr& in : hopperSplitProgram.instrs)
+          if (in.dst >= 0) {
+            const int w = &in == &f ? in.nPad - cuda::kHopperKSegment : in.nPad;
+            splitLd[std::size_t(in.dst)] = std::max(splitLd[std::size_t(in.dst)], w);
+          }
+        hopperSplitInstrs.upload(hopperSplitProgram.instrs, nullptr);
+      }
+    }
+  }
   floatW.upload(prog.floatWeights, nullptr);
   for (const MlpInstr& in : prog.instrs)
     if (in.op == MlpOp::HashGrid && !hashTables.get()) hashTables.upload(asHalves(prog.halfWeights), nullptr);
@@ -266,6 +308,21 @@ void CudaInrEvaluator::Impl::prepareParams(const InrModel& model) {
     paramsStored.fusedFourier = 0;
     for (int b = 0; b < P.numBuffers && b < cuda::kMaxBuffers; ++b)
       paramsStored.bufferLd[b] = storedProgram.bufferWidthPad[std::size_t(b)] + 8;
+    if (hopperStoredInstrs.get()) {
+      paramsStored.hopperInstrs = hopperStoredInstrs.get();
+      paramsStored.hopperNumBuffers = std::max(1, hopperStoredProgram.numBuffers);
+      for (int b = 0; b < cuda::kMaxBuffers; ++b)
+        paramsStored.hopperBufferLd[b] = b < paramsStored.hopperNumBuffers ? hopperStoredProgram.bufferWidthPad[b] + 8 : 0;
+    }
+  }
+  paramsSplit = paramsStored;
+  paramsSplit.hopperSplitGemm = -1;
+  if (splitGemm >= 0) {
+    paramsSplit.hopperInstrs = hopperSplitInstrs.get();
+    paramsSplit.hopperSplitGemm = splitGemm;
+    paramsSplit.hopperNumBuffers = std::max(1, hopperSplitProgram.numBuffers);
+    for (int b = 0; b < cuda::kMaxBuffers; ++b)
+      paramsSplit.hopperBufferLd[b] = b < int(splitLd.size()) ? splitLd[std::size_t(b)] + 8 : 0;
   }
 }
 
@@ -302,8 +359,8 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   // grid-strided, so extra blocks just exit).
   const int tiles = (n + c.tile - 1) / c.tile;
   const int grid = std::min(tiles, c.gridBlocks);
-  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc, c.consumers) : cuda::mmaSyncKernel(c.tile, c.kc);
-  cuda::FusedParams P = c.storedEncoding ? paramsStored : params;
+  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc, c.consumers, c.splitEncoding) : cuda::mmaSyncKernel(c.tile, c.kc);
+  cuda::FusedParams P = c.splitEncoding ? paramsSplit : c.storedEncoding ? paramsStored : params;
   if (c.wgmma) {
     P.hopperStages = c.stages;
     P.hopperPingPong = c.pingPong ? 1 : 0;
@@ -396,6 +453,9 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   if (options.wgmmaConsumers < 0 || options.wgmmaConsumers > 2)
     throw std::invalid_argument("CudaEvaluatorOptions::wgmmaConsumers must be 0 (both autotuned), 1 or 2, not " +
                                 std::to_string(options.wgmmaConsumers));
+  if (options.storedEncoding < -1 || options.storedEncoding > 2)
+    throw std::invalid_argument("CudaEvaluatorOptions::storedEncoding must be -1 (all autotuned), 0, 1 or 2, not " +
+                                std::to_string(options.storedEncoding));
   if (options.wgmmaConsumers == 1 && options.wgmmaPingPong == 1)
     throw std::invalid_argument("CudaEvaluatorOptions: wgmmaPingPong = 1 (turns) needs two consumers; set "
                                 "wgmmaConsumers to 2 or 0, or wgmmaPingPong to 0 or -1");
@@ -425,10 +485,12 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   const FusedLaunchAutotuner tuner(I.device, options);
   std::vector<FusedConfig> candidates;
   if (fused) {
-    candidates = tuner.candidates(I.params, I.paramsStored, I.whyNoWgmma.empty());
+    candidates = tuner.candidates(I.params, I.paramsStored, I.paramsSplit, I.whyNoWgmma.empty());
     if (candidates.empty()) {
       fused = false;
       why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
+      if (options.storedEncoding == 2 && I.params.fusedFourier)
+        why += " (storedEncoding 2, the split encoding, runs on the wgmma kernel only, for a first layer of K 257..512)";
     }
   }
   if (options.path == CudaEvaluatorPath::Fused && !fused)

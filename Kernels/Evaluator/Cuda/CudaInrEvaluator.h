@@ -54,6 +54,15 @@ struct CudaEvaluatorOptions {
   // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1
   // (64 queries per round: twice the blocks on a small batch); 0 = both autotuned.
   int wgmmaConsumers = 0;
+  // A program whose Fourier encoding is fused into its first GEMM's operand load (the FFN): run
+  // it fused (0), with the encoding stored once per tile in a shared-memory buffer instead (1),
+  // or, on the wgmma kernel where the GEMM's K is 257..512, stored split (2: the first 256
+  // columns in the MMAs' shared-memory operand layout, the rest in the GEMM's registers, its
+  // output written over them: 32 KB less per consumer than 1), or all that fit autotuned (-1).
+  // The stored forms compute the encoding once per tile, not once per weight chunk; on the wgmma
+  // kernel the paper FFN's 512-wide encoding fits 1 only in one-consumer blocks of 64-column
+  // chunks, 2 also in two-consumer blocks of 64-column chunks. 2 leaves mma.sync no candidate.
+  int storedEncoding = -1;
   // Hash-grid networks: keep the fp16 tables in L2 with a persisting access-policy window on the
   // fused launches (cudaLaunchAttributeAccessPolicyWindow; sets the device's persisting L2 limit
   // to the tables' size, at most what the device allows). Off by default: it changes a

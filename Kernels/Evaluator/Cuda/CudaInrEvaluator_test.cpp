@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "Common/Cuda/CudaCheck.h"
 #include "Common/Cuda/CudaDevice.h"
@@ -164,35 +165,56 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     const double scale = std::max(1.0, double(hi - lo));
     // Both chunk widths: two consumers with and without turns, then one consumer; 20011 points =
     // 313 tiles of 64, so with two consumers the last round leaves one without queries (it must
-    // keep the pace and write nothing), and the last tile is partial.
+    // keep the pace and write nothing), and the last tile is partial. A program with a fused
+    // Fourier encoding (the FFNs) also with the encoding stored once per tile (stored 1) and, where
+    // its GEMM's K is 257..512 (the paper FFN), stored split (2): every case is tried; one
+    // consumer with 64-column chunks must fit stored, two with 64-column chunks split (the
+    // others may not fit).
     struct Case {
-      int consumers, pingPong, columns;
+      int consumers, pingPong, columns, stored;
     };
-    const Case cases[] = {{2, 0, 128}, {2, 1, 128}, {2, 0, 64}, {2, 1, 64}, {1, 0, 128}, {1, 0, 64}};
+    bool fusedFourier = false, splits = false;
+    for (const MlpInstr& in : program.instrs) {
+      fusedFourier |= in.fourierInput >= 0;
+      splits |= in.fourierInput >= 0 && in.kPad > 256 && in.kPad <= 512;
+    }
+    std::vector<Case> cases = {{2, 0, 128, 0}, {2, 1, 128, 0}, {2, 0, 64, 0}, {2, 1, 64, 0}, {1, 0, 128, 0}, {1, 0, 64, 0}};
+    for (const int stored : {1, 2})
+      if (stored == 1 ? fusedFourier : splits)
+        for (int i = 0; i < 6; ++i) cases.push_back({cases[i].consumers, cases[i].pingPong, cases[i].columns, stored});
     for (const Case& k : cases) {
-      const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns;
+      const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns, stored = k.stored;
       CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
       o.wgmmaPingPong = pingPong;
       o.wgmmaChunkColumns = columns;
       o.wgmmaConsumers = consumers;
+      if (fusedFourier) o.storedEncoding = stored;
       std::unique_ptr<CudaInrEvaluator> made;
       try {
         made = std::make_unique<CudaInrEvaluator>(model, o);
       } catch (const std::runtime_error& e) {  // every model fits with 64-column chunks (>= 2 slots)
-        ASSERT_EQ(columns, 128) << name << ": " << e.what();
-        std::printf("%-30s wgmma N 128: does not fit (%s)\n", name.c_str(), e.what());
+        if (stored) {
+          ASSERT_FALSE(columns == 64 && (consumers == 1 || stored == 2)) << name << " (stored encoding " << stored
+                                                                          << "): " << e.what();
+        } else {
+          ASSERT_EQ(columns, 128) << name << ": " << e.what();
+        }
+        std::printf("%-30s wgmma %dx64 N %d%s: does not fit (%s)\n", name.c_str(), consumers, columns,
+                    stored == 2 ? ", stored encoding split" : stored ? ", stored encoding" : "", e.what());
         continue;
       }
       const CudaInrEvaluator& gpu = *made;
       ASSERT_TRUE(gpu.usesWgmma()) << name << ": " << gpu.launchReport();
       ASSERT_NE(gpu.launchReport().find("wgmma " + std::to_string(consumers) + "x64"), std::string::npos) << gpu.launchReport();
+      ASSERT_EQ(gpu.launchReport().find("stored encoding") != std::string::npos, stored > 0) << gpu.launchReport();
+      ASSERT_EQ(gpu.launchReport().find("stored encoding split") != std::string::npos, stored == 2) << gpu.launchReport();
       std::vector<float> got(pts.size(), NAN);
       gpu.evaluate(pts.data(), pts.size(), got.data());
       const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
       std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                   gpu.launchReport().c_str(), e.maxAbs, e.meanAbs, em.meanAbs);
-      const std::string which =
-          " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " + std::to_string(columns);
+      const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " +
+                                std::to_string(columns) + (stored == 2 ? " stored encoding split" : stored ? " stored encoding" : "");
       EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
       EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
       EXPECT_LT(em.meanAbs, 5e-4) << name << which;

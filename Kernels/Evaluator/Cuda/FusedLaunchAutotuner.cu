@@ -17,7 +17,8 @@ std::string configName(const FusedConfig& c) {
     return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
            (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
-         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") + hash;
+         std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") +
+         (c.splitEncoding ? ", stored encoding split" : c.storedEncoding ? ", stored encoding" : "") + hash;
 }
 
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
@@ -35,7 +36,7 @@ std::size_t sharedLimit(const CudaDeviceInfo& device, FusedKernel kernel) {
 }  // namespace
 
 std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
-                                                          bool wgmmaRuns) const {
+                                                          const FusedParams& split, bool wgmmaRuns) const {
   const CudaEvaluatorOptions& options = options_;
   std::vector<FusedConfig> candidates;
   // mma.sync candidates first: without autotuning the first that fits runs, and that stays
@@ -51,38 +52,60 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
         INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
         for (const bool storedEncoding : {true, false}) {  // stored first: the kernel of earlier versions
           if (storedEncoding && !P.fusedFourier) continue;
+          if (P.fusedFourier && options.storedEncoding >= 0 && options.storedEncoding != int(storedEncoding)) continue;
           const std::size_t b = fusedSharedBytes(t, kc, storedEncoding ? stored : P);
           if (b > limit) continue;
           int perSm = 0;
           INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
           if (perSm < 1) continue;
-          candidates.push_back({false, t, kc, 0, false, storedEncoding, b, perSm * device_.multiprocessors, 0.0});
+          candidates.push_back({false, t, kc, 0, false, storedEncoding, false, b, perSm * device_.multiprocessors, 0.0});
         }
       }
   // wgmma (consumers x 64 queries per round): two consumers, then one; per chunk width (widest
-  // first), as many ring slots as fit (2 at least); two consumers with and without turns
+  // first), as many ring slots as fit (2 at least); two consumers with and without turns; a
+  // program with a fused Fourier encoding also with it stored, and stored split where its GEMM
+  // has K 257..512 (after the fused form, so the configuration without autotuning stays the one
+  // of earlier versions). The paper FFN's stored encoding (64 x 512 fp16 per consumer beside its
+  // 256-wide activations) fits one-consumer blocks with 64-column chunks only
+  // (hopperSharedBytes: two consumers' buffers alone take most of the shared memory, and a ring
+  // slot of 128 columns x K 256 is 64 KB); split (32 KB of operand per consumer, the rest over
+  // the activations) also two consumers with 64-column chunks and one with 128. Bounded: at most
+  // 10 wgmma candidates per form, the stored forms only where they fit (the paper FFN: 1 + 4). A
+  // kernel's dynamic shared-memory limit is set to all it may have, as for mma.sync (the fused
+  // and the stored form share a kernel with different sizes, and another evaluator's launches
+  // may need more than this one's; the split form has its own, hopperKernel(nc, consumers, true)).
   if (wgmmaRuns)
     for (const int consumers : {2, 1}) {
       if (options.wgmmaConsumers && options.wgmmaConsumers != consumers) continue;
       for (const int nc : {128, 64}) {
         if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
-        const FusedKernel kernel = hopperKernel(nc, consumers);
-        const std::size_t limit = sharedLimit(device_, kernel);
-        int stages = 0;
-        for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
-          if (hopperSharedBytes(nc, s, consumers, P) <= limit) stages = s;
-        if (!stages) continue;
-        const std::size_t bytes = hopperSharedBytes(nc, stages, consumers, P);
-        INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(bytes)));
-        int perSm = 0;
-        INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, hopperThreads(consumers), bytes));
-        if (perSm < 1) continue;
-        for (const bool pingPong : {true, false}) {
-          if (pingPong && consumers == 1) continue;  // turns need two consumers
-          if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
-          FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, false, bytes, perSm * device_.multiprocessors, 0.0};
-          c.consumers = consumers;
-          candidates.push_back(c);
+        for (const int form : {0, 1, 2}) {  // fused, stored, stored split (CudaEvaluatorOptions::storedEncoding)
+          const bool storedEncoding = form > 0, splitEncoding = form == 2;
+          // (the evaluator gives the stored programs their own wgmma instructions where it has them)
+          if (storedEncoding && (!P.fusedFourier || stored.hopperInstrs == P.hopperInstrs)) continue;
+          if (splitEncoding && split.hopperSplitGemm < 0) continue;
+          if (P.fusedFourier && options.storedEncoding >= 0 && options.storedEncoding != form) continue;
+          const FusedParams& params = splitEncoding ? split : storedEncoding ? stored : P;
+          const FusedKernel kernel = hopperKernel(nc, consumers, splitEncoding);
+          if (!kernel) continue;
+          const std::size_t limit = sharedLimit(device_, kernel);
+          int stages = 0;
+          for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
+            if (hopperSharedBytes(nc, s, consumers, params) <= limit) stages = s;
+          if (!stages) continue;
+          const std::size_t bytes = hopperSharedBytes(nc, stages, consumers, params);
+          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+          int perSm = 0;
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, hopperThreads(consumers), bytes));
+          if (perSm < 1) continue;
+          for (const bool pingPong : {true, false}) {
+            if (pingPong && consumers == 1) continue;  // turns need two consumers
+            if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
+            FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, storedEncoding, splitEncoding, bytes,
+                          perSm * device_.multiprocessors, 0.0};
+            c.consumers = consumers;
+            candidates.push_back(c);
+          }
         }
       }
     }

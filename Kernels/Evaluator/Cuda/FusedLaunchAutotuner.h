@@ -3,7 +3,7 @@
 // configuration (tile x weight chunk, a Fourier encoding fused into the GEMM or stored in a
 // buffer) whose shared memory fits the device, then on Hopper every wgmma configuration (chunk
 // width, as many ring slots as fit, two consumers with and without ping-pong turns, one
-// consumer). Each is timed on the same
+// consumer; a Fourier encoding fused, stored or stored split, where it fits). Each is timed on the same
 // random queries in the model's domain, on a large batch (throughput) and on a small one
 // (latency: the pipeline's late traverse-evaluate iterations hold a few thousand queries, where a
 // 128-query tile leaves most SMs idle); the fastest of each runs launches of its size.
@@ -26,11 +26,14 @@ struct FusedConfig {
   int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
   int stages = 0;         // wgmma: weight ring slots
   bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs
-  // mma.sync with a fused Fourier encoding in the program: run it as a stored buffer instead
-  // (the unfused program: faster where its buffer fits, since the per-chunk encoding of the fused
-  // form sits on the GEMM's critical path; figures: Benchmarks/RESULTS.md, "Warp-specialised
-  // Hopper kernel").
+  // A fused Fourier encoding in the program: run it as a stored buffer instead (the unfused
+  // program, on either kernel: the encoding computed once per tile by a row instruction, where
+  // the fused form computes it in the GEMM's operand load, for every weight chunk on the wgmma
+  // kernel; faster where its buffer fits; figures: Benchmarks/RESULTS.md, "Warp-specialised
+  // Hopper kernel" and "Hopper kernel in column chunks").
   bool storedEncoding = false;
+  // wgmma with storedEncoding: the encoding split for its GEMM (FusedParams::hopperSplitGemm).
+  bool splitEncoding = false;
   std::size_t sharedBytes = 0;
   int gridBlocks = 0;  // resident blocks per SM x SMs (the persistent grid)
   double measuredQps = 0.0;
@@ -62,11 +65,12 @@ public:
 
   // The configurations options allow whose shared memory fits, in the order that runs without
   // timing: mma.sync first (the stored encoding before the fused one: the kernel of earlier
-  // versions), then wgmma when `wgmmaRuns`; each twice for a program with a hash grid (lane pairs
+  // versions), then wgmma when `wgmmaRuns` (the fused encoding, then stored, then stored split); each twice for a program with a hash grid (lane pairs
   // first, then a lane per row). `params`: the program as compiled; `storedParams`:
-  // the same with any Fourier encoding stored. Sets each kernel's dynamic shared-memory limit.
+  // the same with any Fourier encoding stored; `splitParams`: stored with one split for the
+  // wgmma kernel (hopperSplitGemm -1: none). Sets each kernel's dynamic shared-memory limit.
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
-                                      bool wgmmaRuns) const;
+                                      const FusedParams& splitParams, bool wgmmaRuns) const;
 
   // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
   // (the same shared memory; its own register count, so its own resident blocks), its dynamic

@@ -27,7 +27,7 @@ struct HopperBlock {
   std::uint64_t* emptyBar;
   __half* ring;
   int stages, stageHalves;
-  int actHalves;
+  int actHalves, splitHalves;
   unsigned char* consumerBase;
   std::size_t consumerBytes;
   const float* dotWeights;
@@ -167,9 +167,48 @@ __device__ __forceinline__ void hopperEpilogue(const FusedParams& P, const MlpIn
   });
 }
 
+// The MMAs of a split encoding's first K segment, k steps KS .. KSTEPS - 1 (A and B from shared
+// memory; each k step 256 bytes further in both: + 16 in the descriptors' address fields, which
+// never carry), the first overwriting the accumulators.
+template <int NC, int KS, int KSTEPS>
+__device__ __forceinline__ void splitSegmentMmas(float (&acc)[NC / 2], unsigned aLo, unsigned aHi, unsigned bLo, unsigned bHi) {
+  if constexpr (KS < KSTEPS) {
+    wgmmaSS<NC, KS * 16>(acc, aLo, aHi, bLo, bHi, KS > 0);
+    splitSegmentMmas<NC, KS + 1, KSTEPS>(acc, aLo, aHi, bLo, bHi);
+  }
+}
+
+// A stored Fourier encoding split for its GEMM (FusedParams::hopperSplitGemm), by one consumer's
+// 128 threads: columns 0..255 into the operand region (splitOperandIndex), the rest row-major
+// into `rest` (the GEMM's buffer, ldRest halves a row) from its column 0. The same elements as
+// runRowInstr's Fourier case. A warp fills one 8 x 8 core matrix per step (lane: row lane / 4,
+// columns 2 * (lane % 4) + {0, 1}): 128 contiguous bytes in the operand, four 16-byte runs per
+// row of the rest. Then fences its stores for the MMAs' async-proxy reads (the caller's barrier
+// follows).
+__device__ __forceinline__ void writeSplitEncoding(const FusedParams& P, const MlpInstr& f, const float* coords,
+                                                   __half* operand, __half* rest, int ldRest, int tid) {
+  const int warp = tid >> 5, lane = tid & 31;
+  const int groups = f.nPad >> 3;  // core matrices across a row (8 columns each)
+#pragma unroll 1
+  for (int m = warp; m < 8 * groups; m += 4) {
+    const int q = (m & 7) * 8 + (lane >> 2), cg = m >> 3;  // row, column group
+    const int col = cg * 8 + 2 * (lane & 3);
+    const float* x = coords + q * 4;
+    auto input = [x](int i) { return x[i]; };
+    const float v0 = col < f.outWidth ? encodingElement<ActMath::FastDevice>(f, P.floatWeights, input, col) : 0.f;
+    const float v1 = col + 1 < f.outWidth ? encodingElement<ActMath::FastDevice>(f, P.floatWeights, input, col + 1) : 0.f;
+    const __half2 h = __floats2half2_rn(v0, v1);
+    if (col < kHopperKSegment)  // the same for the whole warp
+      *reinterpret_cast<__half2*>(operand + splitOperandIndex(q, col)) = h;
+    else
+      *reinterpret_cast<__half2*>(rest + q * ldRest + col - kHopperKSegment) = h;
+  }
+  fenceProxyAsyncShared();
+}
+
 // Consumer c = warpgroup - 1 (warpgroups 1 .. CONSUMERS): per round its tile of 64 queries through the whole
 // program, the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
-template <int NC, int CONSUMERS>
+template <int NC, int CONSUMERS, bool SPLIT>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
                                                const float4* __restrict__ points, int n, float* __restrict__ out,
                                                const int* __restrict__ scatter) {
@@ -180,7 +219,7 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   std::uint64_t* const fullBar = B.fullBar;
   std::uint64_t* const emptyBar = B.emptyBar;
   __half* const ring = B.ring;
-  const int stages = B.stages, stageHalves = B.stageHalves, actHalves = B.actHalves;
+  const int stages = B.stages, stageHalves = B.stageHalves, actHalves = B.actHalves, splitHalves = B.splitHalves;
   unsigned char* const consumerBase = B.consumerBase;
   const std::size_t consumerBytes = B.consumerBytes;
   const float* const dotWeights = B.dotWeights;
@@ -192,7 +231,8 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
   const int rowBase = warp * 16;           // this warp's rows of the consumer tile
   __half* const act = reinterpret_cast<__half*>(consumerBase + c * consumerBytes);
-  float* const coords = reinterpret_cast<float*>(consumerBase + c * consumerBytes + std::size_t(actHalves) * 2);
+  __half* const operand = act + actHalves;  // a split encoding's first K segment (splitHalves; 128-byte aligned)
+  float* const coords = reinterpret_cast<float*>(consumerBase + c * consumerBytes + std::size_t(actHalves + splitHalves) * 2);
   auto consumerSync = [&]() { namedBarrierSync(kConsumerBarrier + c, 128); };
   // Ping-pong: the consumers take turns issuing a chunk's MMAs (named barriers; consumer 1
   // gives the first turn). A turn passes as soon as the MMAs are issued, so the other
@@ -221,7 +261,10 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       const MlpInstr in = program[ip];
       if (in.fusedIntoPrevious || in.fusedIntoNext) continue;
       if (in.op != MlpOp::Gemm) {
-        runRowInstr<kHopperRows, 128>(P, in, view, tid, points, out, scatter);
+        if (SPLIT && in.op == MlpOp::Fourier && ip + 1 == P.hopperSplitGemm)
+          writeSplitEncoding(P, in, coords, operand, act + bufferStart[in.dst], bufferLd[in.dst], tid);
+        else
+          runRowInstr<kHopperRows, 128>(P, in, view, tid, points, out, scatter);
         consumerSync();
         continue;
       }
@@ -242,7 +285,7 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       // 2*t4 + {0,1} + {0,8} of each k16 step).
       unsigned a[KSTEPS][4];
       auto loadA = [&](int k0, int kLen) {
-        if (fourier < 0) {
+        if (SPLIT || fourier < 0) {  // (a program with a split encoding has every encoding stored)
 #pragma unroll
           for (int ks = 0; ks < KSTEPS; ++ks)
             if (ks * 16 < kLen) ldmatrixX4(a[ks], aAddr + unsigned((k0 + ks * 16) * 2));
@@ -264,7 +307,13 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
           }
         }
       };
+      // A split encoding (K 257..512): its first segment read from shared memory by the MMAs
+      // (wgmmaSS), the second, row-major in src from column 0, held in registers for every chunk,
+      // so the epilogues may write over it (in place).
+      const bool split = SPLIT && ip == P.hopperSplitGemm;
+      const std::uint64_t operandDesc = wgmmaDescriptor(smemAddress(operand), 128, kHopperKSegment * 16);
       if (kSegments == 1) loadA(0, in.kPad);  // before any wait: overlaps the weights' arrival
+      else if (split) loadA(0, in.kPad - kHopperKSegment);
       float part[2] = {0.f, 0.f};             // the final dot's partial sums (rows g, g+8)
       float acc[NC / 2];
       // Chunk j's MMAs, complete on return (slots released): one wgmma per k16 step per K
@@ -279,7 +328,7 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
           chunkBias[jj] = *reinterpret_cast<const float2*>(bias + j * NC + 8 * jj + 2 * t4);
         for (int s = 0; s < kSegments; ++s) {
           const int k0 = s * kHopperKSegment, kLen = min(kHopperKSegment, in.kPad - k0);
-          if (kSegments > 1) loadA(k0, kLen);  // K > 256: A per segment
+          if (kSegments > 1 && !split) loadA(k0, kLen);  // K > 256: A per segment
           mbarrierWait(&fullBar[slot], phase);
           const unsigned chunkBase = ringBase + unsigned(slot * stageHalves * 2);
           // One straight run of wgmma per K length: a wgmma under a condition makes ptxas
@@ -293,8 +342,16 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
             for (int ks = 0; ks < decltype(kSteps)::value; ++ks) wgmmaRS<NC>(acc, a[ks], desc + std::uint64_t(ks * 16), s > 0 || ks > 0);
             wgmmaCommit();
           };
-          if (kLen == kHopperKSegment) mma(IntTag<KSTEPS>{});  // the common case first
-          else dispatchKSteps<1, KSTEPS>(kLen / 16, mma);
+          if (split && s == 0) {  // the split encoding's first segment: a whole one, A from shared memory
+            wgmmaFence();
+            splitSegmentMmas<NC, 0, KSTEPS>(acc, unsigned(operandDesc), unsigned(operandDesc >> 32), unsigned(desc),
+                                            unsigned(desc >> 32));
+            wgmmaCommit();
+          } else if (kLen == kHopperKSegment) {
+            mma(IntTag<KSTEPS>{});  // the common case first
+          } else {
+            dispatchKSteps<1, KSTEPS>(kLen / 16, mma);
+          }
           if (s + 1 == kSegments && turns && !(c == 1 && lastRound && ip == lastGemm && j + 1 == numChunks))
             namedBarrierArrive(kTurnBarrier + (1 - c), 256);
           wgmmaWait<0>();
@@ -331,7 +388,10 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
 }
 #endif  // INR_HAVE_WGMMA
 
-template <int NC, int CONSUMERS>
+// SPLIT: the instantiation for a program with a split encoding (FusedParams::hopperSplitGemm; its
+// own kernel, so the others keep their registers: the split GEMM holds A and reads an operand
+// descriptor across its chunks).
+template <int NC, int CONSUMERS, bool SPLIT>
 __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                    const unsigned* __restrict__ deviceCount,
                                                                    float* __restrict__ out, const int* __restrict__ scatter) {
@@ -344,9 +404,9 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   const int stages = P.hopperStages;
   const int stageHalves = P.hopperStageHalves[chunkIndex(NC)];
   __half* const ring = reinterpret_cast<__half*>(smem);
-  const int actHalves = hopperActHalves(P);
+  const int actHalves = hopperActHalves(P), splitHalves = SPLIT ? hopperSplitHalves(P) : 0;
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
-  const std::size_t consumerBytes = std::size_t(actHalves) * 2 + kHopperRows * 4 * 4;
+  const std::size_t consumerBytes = std::size_t(actHalves + splitHalves) * 2 + kHopperRows * 4 * 4;  // hopperConsumerBytes
   constexpr int kThreads = hopperThreads(CONSUMERS);
   float* const dotWeights = reinterpret_cast<float*>(consumerBase + CONSUMERS * consumerBytes);
   float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
@@ -378,7 +438,7 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   const int numRounds = (numTiles + CONSUMERS - 1) / CONSUMERS;
   const int wg = threadIdx.x / 128;
   const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
-                          actHalves, consumerBase, consumerBytes, dotWeights, biases};
+                          actHalves, splitHalves, consumerBase, consumerBytes, dotWeights, biases};
   // Two consumers share 168 registers a thread at launch: the producer's go to them. One consumer
   // has 255 from the start (256 threads), so nothing moves.
   if (wg == 0) {
@@ -388,15 +448,19 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
     return;
   }
   if constexpr (CONSUMERS == 2) setMaxRegistersInc<kHopperConsumerRegisters>();
-  hopperConsumer<NC, CONSUMERS>(P, block, numRounds, points, n, out, scatter);
+  hopperConsumer<NC, CONSUMERS, SPLIT>(P, block, numRounds, points, n, out, scatter);
 #else
   (void)P, (void)points, (void)n, (void)deviceCount, (void)out, (void)scatter;
 #endif
 }
 
-FusedKernel hopperKernel(int chunkColumns, int consumers) {
-  if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1> : hopperMlpKernel<64, 1>;
-  return chunkColumns == 128 ? hopperMlpKernel<128, 2> : hopperMlpKernel<64, 2>;
+FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding) {
+  if (splitEncoding) {  // two consumers' split operands and activations never fit beside a ring of 128-column slots
+    if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, true> : hopperMlpKernel<64, 1, true>;
+    return chunkColumns == 128 ? nullptr : hopperMlpKernel<64, 2, true>;
+  }
+  if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, false> : hopperMlpKernel<64, 1, false>;
+  return chunkColumns == 128 ? hopperMlpKernel<128, 2, false> : hopperMlpKernel<64, 2, false>;
 }
 
 }  // namespace inr::cuda

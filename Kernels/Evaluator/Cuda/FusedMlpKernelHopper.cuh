@@ -27,6 +27,16 @@
 // Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
 // barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
 // A block of one consumer (hopperThreads below) runs the same code without turns.
+// A Fourier encoding of the coordinates (the FFN) runs in one of three forms (autotuned,
+// CudaEvaluatorOptions::storedEncoding): fused, computed in the first GEMM's operand load for
+// every weight chunk (no buffer); stored, written once per tile by the row instruction into a
+// buffer the GEMM loads like any layer's input (a K > 256 GEMM is then not in place: the paper
+// FFN's 512-wide buffer and its 256-wide output fit one-consumer blocks only); or split
+// (FusedParams::hopperSplitGemm, its own kernel instantiation), for K 257..512: the first 256
+// columns written in the core-matrix layout into a per-consumer operand region that the MMAs read
+// from shared memory (wgmmaSS), the rest row-major into the GEMM's buffer, which the GEMM holds in
+// registers for all its chunks and then overwrites with its output (in place).
+
 // One instruction shape and one epilogue per activation keep the kernel small: ptxas compiles
 // it quickly (a variant with 48 shape x activation x residual instantiations took many times
 // longer; compile times in Benchmarks/RESULTS.md), and the instruction cache holds it.
@@ -133,16 +143,30 @@ inline int hopperBiasLayout(const MlpProgram& prog, int* starts, int maxInstrs) 
 }
 
 // Dynamic shared memory of the Hopper kernel: the ring, then per consumer its activation
-// buffers (64 rows each) and coordinates, then the final dot's weights and the biases.
+// buffers (64 rows each), a split encoding's operand (hopperSplitHalves) and coordinates, then
+// the final dot's weights and the biases.
 __host__ __device__ inline int hopperActHalves(const FusedParams& P) {
   int halves = 0;
   for (int b = 0; b < P.hopperNumBuffers; ++b) halves += kHopperRows * P.hopperBufferLd[b];
   return (halves + 63) / 64 * 64;  // keeps every consumer region 128-byte aligned
 }
+// A stored encoding split for its GEMM (FusedParams::hopperSplitGemm): its first K segment, 64
+// rows x 256 columns in the wgmma core-matrix layout (the packed weights' layout, rows for
+// output columns), per consumer.
+__host__ __device__ inline int hopperSplitHalves(const FusedParams& P) {
+  return P.hopperSplitGemm >= 0 ? kHopperRows * kHopperKSegment : 0;
+}
+__host__ __device__ inline std::size_t hopperConsumerBytes(const FusedParams& P) {
+  return std::size_t(hopperActHalves(P) + hopperSplitHalves(P)) * 2 + kHopperRows * 4 * 4;
+}
 __host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, int consumers, const FusedParams& P) {
-  return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 +
-         std::size_t(consumers) * (std::size_t(hopperActHalves(P)) * 2 + kHopperRows * 4 * 4) +
+  return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 + std::size_t(consumers) * hopperConsumerBytes(P) +
          (MlpProgram::kMaxFusedGemmOut + std::size_t(P.hopperBiasFloats)) * 4;
+}
+// Halves from the start of a split operand to row r, column k (k < 256): core matrices of 8 rows
+// x 8 columns (128 contiguous bytes), the 32 of an 8-row group next to each other.
+__host__ __device__ constexpr int splitOperandIndex(int r, int k) {
+  return (r >> 3) * (kHopperKSegment * 8) + (k >> 3) * 64 + (r & 7) * 8 + (k & 7);
 }
 
 // Shared-memory matrix descriptor, no swizzle: start address, leading byte offset (between the
@@ -231,6 +255,45 @@ __device__ inline void wgmmaRS(float (&d)[N / 2], const unsigned (&a)[4], std::u
           : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "l"(desc), "r"(accumulate));
   }
 }
+
+// The same with A (64 x 16) from shared memory too (descA: K-major, no swizzle, the layout of
+// splitOperandIndex), for a stored encoding's first K segment.
+// The descriptors come as their 32-bit halves and the k step's offset OFF (16-byte units) as an
+// immediate, added to both low halves in the asm: 64-bit descriptors for every k step, held at
+// once, cost registers that the one-consumer kernels spilled.
+template <int N, int OFF>
+__device__ inline void wgmmaSS(float (&d)[N / 2], unsigned descALo, unsigned descAHi, unsigned descBLo, unsigned descBHi,
+                               int accumulate) {
+  if constexpr (N == 64) {
+    asm volatile(
+          "{\n.reg .pred p;\n.reg .b32 la, lb;\n.reg .b64 da, db;\nsetp.ne.b32 p, %36, 0;\nadd.s32 la, %32, %37;\nadd.s32 lb, %34, %37;\nmov.b64 da, {la, %33};\nmov.b64 db, {lb, %35};\n"
+          "wgmma.mma_async.sync.aligned.m64n64k16.f32.f16.f16 {%0, %1, %2, %3, %4, %5, %6, %7, %8, %9, %10, %11, %12, %13, %14, %15, %16, %17, %18, %19, %20, %21, %22, %23, %24, %25, %26, %27, %28, %29, %30, %31}, da, db, p, 1, 1, 0, 0;\n}\n"
+          :
+            "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3]), "+f"(d[4]), "+f"(d[5]), "+f"(d[6]), "+f"(d[7]),
+            "+f"(d[8]), "+f"(d[9]), "+f"(d[10]), "+f"(d[11]), "+f"(d[12]), "+f"(d[13]), "+f"(d[14]), "+f"(d[15]),
+            "+f"(d[16]), "+f"(d[17]), "+f"(d[18]), "+f"(d[19]), "+f"(d[20]), "+f"(d[21]), "+f"(d[22]), "+f"(d[23]),
+            "+f"(d[24]), "+f"(d[25]), "+f"(d[26]), "+f"(d[27]), "+f"(d[28]), "+f"(d[29]), "+f"(d[30]), "+f"(d[31])
+          : "r"(descALo), "r"(descAHi), "r"(descBLo), "r"(descBHi), "r"(accumulate), "n"(OFF));
+  } else {
+    asm volatile(
+          "{\n.reg .pred p;\n.reg .b32 la, lb;\n.reg .b64 da, db;\nsetp.ne.b32 p, %68, 0;\nadd.s32 la, %64, %69;\nadd.s32 lb, %66, %69;\nmov.b64 da, {la, %65};\nmov.b64 db, {lb, %67};\n"
+          "wgmma.mma_async.sync.aligned.m64n128k16.f32.f16.f16 {%0, %1, %2, %3, %4, %5, %6, %7, %8, %9, %10, %11, %12, %13, %14, %15, %16, %17, %18, %19, %20, %21, %22, %23, %24, %25, %26, %27, %28, %29, %30, %31, %32, %33, %34, %35, %36, %37, %38, %39, %40, %41, %42, %43, %44, %45, %46, %47, %48, %49, %50, %51, %52, %53, %54, %55, %56, %57, %58, %59, %60, %61, %62, %63}, da, db, p, 1, 1, 0, 0;\n}\n"
+          :
+            "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3]), "+f"(d[4]), "+f"(d[5]), "+f"(d[6]), "+f"(d[7]),
+            "+f"(d[8]), "+f"(d[9]), "+f"(d[10]), "+f"(d[11]), "+f"(d[12]), "+f"(d[13]), "+f"(d[14]), "+f"(d[15]),
+            "+f"(d[16]), "+f"(d[17]), "+f"(d[18]), "+f"(d[19]), "+f"(d[20]), "+f"(d[21]), "+f"(d[22]), "+f"(d[23]),
+            "+f"(d[24]), "+f"(d[25]), "+f"(d[26]), "+f"(d[27]), "+f"(d[28]), "+f"(d[29]), "+f"(d[30]), "+f"(d[31]),
+            "+f"(d[32]), "+f"(d[33]), "+f"(d[34]), "+f"(d[35]), "+f"(d[36]), "+f"(d[37]), "+f"(d[38]), "+f"(d[39]),
+            "+f"(d[40]), "+f"(d[41]), "+f"(d[42]), "+f"(d[43]), "+f"(d[44]), "+f"(d[45]), "+f"(d[46]), "+f"(d[47]),
+            "+f"(d[48]), "+f"(d[49]), "+f"(d[50]), "+f"(d[51]), "+f"(d[52]), "+f"(d[53]), "+f"(d[54]), "+f"(d[55]),
+            "+f"(d[56]), "+f"(d[57]), "+f"(d[58]), "+f"(d[59]), "+f"(d[60]), "+f"(d[61]), "+f"(d[62]), "+f"(d[63])
+          : "r"(descALo), "r"(descAHi), "r"(descBLo), "r"(descBHi), "r"(accumulate), "n"(OFF));
+  }
+}
+
+// Orders this thread's generic-proxy shared-memory writes before later async-proxy reads (a
+// wgmma reading an operand that threads stored; a barrier follows).
+__device__ inline void fenceProxyAsyncShared() { asm volatile("fence.proxy.async.shared::cta;\n" ::: "memory"); }
 
 // Keeps the compiler from moving reads of an accumulator above the wgmma wait that completes it
 // (the asm of wgmma names the registers, the wait does not).

@@ -62,6 +62,13 @@ struct FusedParams {
   int hopperStageHalves[2] = {1024, 2048};
   int hopperStages = 2;
   int hopperPingPong = 1;
+  // The wgmma kernel's program with a stored Fourier encoding split for the GEMM reading it, K
+  // 257..512 (that GEMM's instruction index; -1: none): the Fourier instruction writes the
+  // encoding's first 256 columns into a per-consumer operand region that the GEMM's MMAs read
+  // from shared memory (hopperSplitHalves), the rest row-major into the GEMM's buffer; the GEMM
+  // holds those in registers for all its chunks and writes its output over them (in place), so
+  // the encoding takes 32 KB more per consumer than the activations, not 64 + 32 KB.
+  int hopperSplitGemm = -1;
   OutputMap output;
   // Value + gradient launches (the mma.sync kernel's tangent rows, TileRows<true>): the network
   // input each world axis x, y, z moves (-1: none), the tangents' power-of-two scale

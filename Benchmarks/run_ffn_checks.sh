@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Issue 30 item 1's checks on one GPU machine (an H100 or H200), from the repository root: the FFN
+# on the wgmma kernel with its Fourier encoding computed once per tile (stored: a row instruction
+# writes it into a shared-memory buffer; stored split: its first 256 columns in the MMAs' shared
+# operand layout, the rest held in registers with the first GEMM's output written over them)
+# against the fused encoding (computed in the operand load for every weight chunk) and the
+# mma.sync kernel. Builds cuda_evaluator_tests and gpu_evaluator_benchmark for sm_90 (prints the
+# Hopper kernel's spills), runs the GPU evaluator tests (every forced wgmma configuration, the
+# stored forms included, against the CPU reference and the fp16 emulation), then per FFN (paper
+# FFN, ffn_mri_head) the autotuned evaluator (its launch report times every candidate) and each
+# form forced, batch 2^21, and the autotuned one at 8 k .. 2 M queries.
+# Logs go to $OUT/ffn_logs (default ./out), all of them in $OUT/ffn_checks.tar.gz; about 6 minutes
+# (the build takes half).
+#   OUT=out bash Benchmarks/run_ffn_checks.sh
+OUT=${OUT:-./out}
+source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
+BUILD=${INR_BUILD_DIR:-/tmp/bffn}
+mkdir -p "$OUT/ffn_logs"
+L="$OUT/ffn_logs"
+status=0
+finish() {
+  tar -czf "$OUT/ffn_checks.tar.gz" -C "$OUT" ffn_logs
+  stamp "done (status $status)"
+  exit $status
+}
+
+nvidia-smi > "$L/nvidia-smi.txt" 2>&1
+nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
+git log -1 --format='%H %s' > "$L/commit.txt" 2>/dev/null
+
+stamp "configure and build"
+gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; status=1; finish; }
+timeout 420 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark > "$L/build.log" 2>&1 \
+  || { tail -40 "$L/build.log"; status=1; finish; }
+grep -E "spill|C75[0-9][0-9]" "$L/build.log" | grep -iE "hopper|C75" | sed 's/.*function //' | cut -c1-200
+
+stamp "GPU evaluator tests"
+timeout 300 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." -V > "$L/ctest_cuda.log" 2>&1
+grep -E "tests passed|Failed|\*\*\*" "$L/ctest_cuda.log" | head -10
+grep -q "100% tests passed" "$L/ctest_cuda.log" || status=1
+grep -iE "ffn.*(stored|does not fit)|FAILED|Failure" "$L/ctest_cuda.log" | sed 's/^[0-9]*: //' | cut -c1-230 | head -40
+
+bench="$BUILD/Benchmarks/gpu_evaluator_benchmark"
+show() { grep -vE "^\s+fused launch" "$1" | grep -vE "^GPU evaluator|^model"; grep -E "^\s+fused launch" "$1" | cut -c1-2000; }
+run() {  # run NAME ARGS...: one benchmark run, its log in $L/NAME.txt
+  local name=$1
+  shift
+  stamp "$name: $*"
+  timeout 90 "$bench" "$@" --csv "$L/$name.csv" > "$L/$name.txt" 2>&1 || echo "($name: exit $?)"
+  show "$L/$name.txt"
+}
+wg=(--mma wgmma --no-autotune)
+for m in paper_ffn Testing/Data/real/ffn_mri_head.inr; do
+  if [ "$m" = paper_ffn ]; then sel=(--only paper_ffn) tag=paper_ffn; else sel=(--only ffn_mri_head.inr "$m") tag=ffn_mri_head; fi
+  run "${tag}_auto" "${sel[@]}"
+  run "${tag}_mmasync" "${sel[@]}" --mma mma.sync
+  run "${tag}_wgmma_fused_2x128" "${sel[@]}" "${wg[@]}" --stored-encoding 0 --wgmma-consumers 2 --wgmma-columns 128 --ping-pong 1
+  if [ "$tag" = paper_ffn ]; then
+    run "${tag}_wgmma_split_2x64" "${sel[@]}" "${wg[@]}" --stored-encoding 2 --wgmma-consumers 2 --wgmma-columns 64 --ping-pong 1
+    run "${tag}_wgmma_split_1x128" "${sel[@]}" "${wg[@]}" --stored-encoding 2 --wgmma-consumers 1 --wgmma-columns 128
+    run "${tag}_wgmma_stored_1x64" "${sel[@]}" "${wg[@]}" --stored-encoding 1 --wgmma-consumers 1 --wgmma-columns 64
+  else
+    run "${tag}_wgmma_stored_2x128" "${sel[@]}" "${wg[@]}" --stored-encoding 1 --wgmma-consumers 2 --wgmma-columns 128 --ping-pong 1
+    run "${tag}_wgmma_stored_2x64" "${sel[@]}" "${wg[@]}" --stored-encoding 1 --wgmma-consumers 2 --wgmma-columns 64 --ping-pong 1
+  fi
+  run "${tag}_batches" "${sel[@]}" --batches 8192,32768,262144,2097152
+done
+finish
