@@ -12,10 +12,13 @@
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
 //                        [--traversal auto|dda|optix] [--per-thread-gradient] [--wgmma-consumers 1|2]
+//                        [--mma wgmma|mma.sync]
 //                        [--csv FILE] [MODEL.inr ...]
 // The shaded row's value + gradient queries run on the fused kernel's tangent rows where the
 // model runs fused (the header line says which path), or with --per-thread-gradient on the
 // per-thread fp32 forward mode (the path before the tangent rows, for comparison).
+// --mma keeps the evaluator's candidates to one kernel (CudaEvaluatorOptions::mma; mma.sync: what
+// the FFNs ran on before the wgmma kernel stored their encoding), for a before/after in one run.
 // --wgmma-consumers keeps the evaluator's wgmma candidates to blocks of that many consumer
 // warpgroups (CudaEvaluatorOptions::wgmmaConsumers; 2 = the candidates before one-consumer
 // blocks existed), for a before/after in one run.
@@ -58,6 +61,7 @@ struct Options {
   int size = 1024, frames = 20, warmup = 5, naiveSize = 256, marchSize = 256, macrocells = 64, slices = 16;
   bool paper = true, baselines = true, perThreadGradient = false;
   int wgmmaConsumers = 0;
+  FusedMma mma = FusedMma::Auto;
   TraversalKind traversal = TraversalKind::Dda;  // --traversal: the wavefront rows' GPU traversal
   std::string csv;
   std::vector<std::string> models;
@@ -113,6 +117,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   CudaEvaluatorOptions evalOptions;
   if (o.perThreadGradient) evalOptions.gradientPath = CudaGradientPath::PerThread;
   evalOptions.wgmmaConsumers = o.wgmmaConsumers;
+  evalOptions.mma = o.mma;
   const CudaInrEvaluator eval(model, evalOptions);
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const double gqps = evaluatorGqps(eval, model, time);
@@ -309,12 +314,20 @@ int main(int argc, char** argv) {
     else if (a == "--no-baselines") o.baselines = false;
     else if (a == "--per-thread-gradient") o.perThreadGradient = true;
     else if (a == "--wgmma-consumers") o.wgmmaConsumers = std::stoi(cl.value());
-    else if (a == "--csv") o.csv = cl.value();
+    else if (a == "--mma") {
+      const std::string m = cl.value();
+      if (m != "wgmma" && m != "mma.sync") {
+        std::fprintf(stderr, "gpu_render_benchmark: --mma takes wgmma or mma.sync, not '%s'\n", m.c_str());
+        return 2;
+      }
+      o.mma = m == "wgmma" ? FusedMma::Wgmma : FusedMma::MmaSync;
+    } else if (a == "--csv") o.csv = cl.value();
     else if (a == "--traversal") o.traversal = parseTraversalKind(cl.value());
     else if (a == "-h" || a == "--help") {
       std::printf("usage: gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] "
                   "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] "
-                  "[--traversal auto|dda|optix (default dda)] [--per-thread-gradient] [--csv FILE] "
+                  "[--traversal auto|dda|optix (default dda)] [--per-thread-gradient] [--wgmma-consumers 1|2] "
+                  "[--mma wgmma|mma.sync] [--csv FILE] "
                   "[MODEL.inr ...]\n");
       return 0;
     } else if (!a.empty() && a[0] == '-') {

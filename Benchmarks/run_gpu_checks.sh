@@ -7,7 +7,9 @@
 # marcher) against BEFORE=<commit> (default a1840c4: the CPU marcher on the GPU evaluator), built
 # beside it from `git archive` (BEFORE= empty: no comparison, no second build); and the shaded
 # wavefront frame under a headlight against ParaView's light kit (`--light-kit`: five lights per
-# lit sample) on the same models.
+# lit sample) on the same models; and gpu_render_benchmark's frames of the same models, autotuned
+# against the mma.sync kernel alone (`--mma mma.sync`: the FFNs' kernel before the wgmma kernel
+# stored their Fourier encoding).
 # Logs go to $OUT/gpu_checks.tar.gz (and the summary to stdout); about 10 minutes.
 #   OUT=dir bash Benchmarks/run_gpu_checks.sh          (BEFORE= OUT=dir ...: this tree only)
 OUT=${OUT:-./out}
@@ -55,6 +57,17 @@ for m in "${models[@]}"; do
       --size 1024x1024 --frames 48 -o "$L/shade_${m}_${name#--}.png" > "$L/shade_${m}_${name#--}.txt" 2>&1
     echo "$m ${name#--}: $(grep -oE '[0-9.]+ ms per frame' "$L/shade_${m}_${name#--}.txt" | head -1)"
   done
+done
+
+stamp "frames, 1024^2 (gpu_render_benchmark): autotuned against --mma mma.sync"
+inrs=()
+for m in "${models[@]}"; do inrs+=("Testing/Data/real/$m.inr"); done
+for mma in auto mma.sync; do
+  args=()
+  [ "$mma" != auto ] && args=(--mma "$mma")
+  timeout 240 "$BUILD/Benchmarks/gpu_render_benchmark" --no-paper --no-baselines "${args[@]}" \
+    --csv "$L/render_$mma.csv" "${inrs[@]}" > "$L/render_$mma.txt" 2>&1
+  echo "-- $mma"; grep -E "^== |evaluator|^   wavefront" "$L/render_$mma.txt" | cut -c1-160 | head -24
 done
 
 tar -czf "$OUT/gpu_checks.tar.gz" -C "$OUT" logs
