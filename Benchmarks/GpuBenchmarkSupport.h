@@ -3,6 +3,8 @@
 // evaluator throughput measurement.
 #include <cuda_runtime.h>
 
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "BenchmarkSupport.h"
@@ -10,6 +12,15 @@
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 
 namespace inr::bench {
+
+// The value of a `--mma` option (wgmma or mma.sync); prints why and returns nothing for another
+// (`program` names the benchmark in the message).
+inline std::optional<FusedMma> parseMmaOption(const std::string& value, const char* program) {
+  if (value == "wgmma") return FusedMma::Wgmma;
+  if (value == "mma.sync") return FusedMma::MmaSync;
+  std::fprintf(stderr, "%s: --mma takes wgmma or mma.sync, not '%s'\n", program, value.c_str());
+  return std::nullopt;
+}
 
 // Milliseconds of GPU work between start() and stop() on one stream, from CUDA events.
 class EventTimer {

@@ -197,12 +197,9 @@ int main(int argc, char** argv) {
     else if (a == "--gradient") gradient = true;
     else if (a == "--gradient-batch") gradientBatch = std::max(1, std::stoi(cl.value()));
     else if (a == "--mma") {
-      const std::string m = cl.value();
-      if (m != "wgmma" && m != "mma.sync") {
-        std::fprintf(stderr, "gpu_evaluator_benchmark: --mma takes wgmma or mma.sync, not '%s'\n", m.c_str());
-        return 2;
-      }
-      fixed.mma = m == "wgmma" ? FusedMma::Wgmma : FusedMma::MmaSync;
+      const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_evaluator_benchmark");
+      if (!m) return 2;
+      fixed.mma = *m;
     }
     else files.push_back(a);
   }

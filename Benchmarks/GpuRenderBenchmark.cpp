@@ -315,12 +315,9 @@ int main(int argc, char** argv) {
     else if (a == "--per-thread-gradient") o.perThreadGradient = true;
     else if (a == "--wgmma-consumers") o.wgmmaConsumers = std::stoi(cl.value());
     else if (a == "--mma") {
-      const std::string m = cl.value();
-      if (m != "wgmma" && m != "mma.sync") {
-        std::fprintf(stderr, "gpu_render_benchmark: --mma takes wgmma or mma.sync, not '%s'\n", m.c_str());
-        return 2;
-      }
-      o.mma = m == "wgmma" ? FusedMma::Wgmma : FusedMma::MmaSync;
+      const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_render_benchmark");
+      if (!m) return 2;
+      o.mma = *m;
     } else if (a == "--csv") o.csv = cl.value();
     else if (a == "--traversal") o.traversal = parseTraversalKind(cl.value());
     else if (a == "-h" || a == "--help") {
