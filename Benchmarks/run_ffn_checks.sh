@@ -9,8 +9,8 @@
 # stored forms included, against the CPU reference and the fp16 emulation), then per FFN (paper
 # FFN, ffn_mri_head) the autotuned evaluator (its launch report times every candidate) and each
 # form forced, batch 2^21, and the autotuned one at 8 k .. 2 M queries.
-# Logs go to $OUT/ffn_logs (default ./out), all of them in $OUT/ffn_checks.tar.gz; about 6 minutes
-# (the build takes half).
+# Logs go to $OUT/ffn_logs (default ./out), all of them in $OUT/ffn_checks.tar.gz; a failed run
+# makes the exit status 1.
 #   OUT=out bash Benchmarks/run_ffn_checks.sh
 OUT=${OUT:-./out}
 source "$(dirname "${BASH_SOURCE[0]}")/gpu_common.sh"
@@ -46,7 +46,7 @@ run() {  # run NAME ARGS...: one benchmark run, its log in $L/NAME.txt
   local name=$1
   shift
   stamp "$name: $*"
-  timeout 90 "$bench" "$@" --csv "$L/$name.csv" > "$L/$name.txt" 2>&1 || echo "($name: exit $?)"
+  timeout 90 "$bench" "$@" --csv "$L/$name.csv" > "$L/$name.txt" 2>&1 || { echo "($name: exit $?)"; status=1; }
   show "$L/$name.txt"
 }
 wg=(--mma wgmma --no-autotune)

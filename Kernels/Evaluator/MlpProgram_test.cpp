@@ -173,7 +173,9 @@ TEST(MlpProgram, GemmsInPlaceKeepTheArithmeticAndSaveBuffers) {
 
 // The wgmma kernel's split encoding (FusedParams::hopperSplitGemm): the paper FFN's stored
 // program with its K 512 first GEMM also in place (alsoInPlace) runs on one buffer, the
-// encoding's and the GEMM's, and emulates bit-identically to the stored program.
+// encoding's and the GEMM's, and emulates bit-identically to the stored program. (The emulation
+// computes each GEMM into a temporary: the kernel's in-place overwrite is checked on the GPU, by
+// CudaInrEvaluator's forced split configurations against the CPU reference.)
 TEST(MlpProgram, StoredEncodingGemmInPlaceForTheSplitEncoding) {
   const MlpProgram p = MlpProgram::compile(bench::ffnPaper().architecture);
   ASSERT_EQ(p.instrs[1].fourierInput, 0) << p.describe();

@@ -61,7 +61,8 @@ struct CudaEvaluatorOptions {
   // output written over them: 32 KB less per consumer than 1), or all that fit autotuned (-1).
   // The stored forms compute the encoding once per tile, not once per weight chunk; on the wgmma
   // kernel the paper FFN's 512-wide encoding fits 1 only in one-consumer blocks of 64-column
-  // chunks, 2 also in two-consumer blocks of 64-column chunks. 2 leaves mma.sync no candidate.
+  // chunks, 2 in one-consumer blocks of either chunk width and two-consumer blocks of 64-column
+  // chunks. 2 leaves mma.sync no candidate.
   int storedEncoding = -1;
   // Hash-grid networks: keep the fp16 tables in L2 with a persisting access-policy window on the
   // fused launches (cudaLaunchAttributeAccessPolicyWindow; sets the device's persisting L2 limit

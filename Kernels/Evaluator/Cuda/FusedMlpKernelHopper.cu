@@ -455,7 +455,7 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
 }
 
 FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding) {
-  if (splitEncoding) {  // two consumers' split operands and activations never fit beside a ring of 128-column slots
+  if (splitEncoding) {  // two consumers with 128-column slots: not instantiated (the paper FFN's 512-wide encoding does not fit them)
     if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, true> : hopperMlpKernel<64, 1, true>;
     return chunkColumns == 128 ? nullptr : hopperMlpKernel<64, 2, true>;
   }

@@ -279,6 +279,10 @@ __device__ inline void wgmmaSS(float (&d)[N / 2], unsigned descALo, unsigned des
   }
 }
 
+#undef INR_WGMMA_ACCUMULATORS_64
+#undef INR_WGMMA_ACCUMULATORS_32
+#undef INR_WGMMA_ACC8
+
 // Orders this thread's generic-proxy shared-memory writes before later async-proxy reads (a
 // wgmma reading an operand that threads stored; a barrier follows).
 __device__ inline void fenceProxyAsyncShared() { asm volatile("fence.proxy.async.shared::cta;\n" ::: "memory"); }

@@ -66,8 +66,9 @@ struct FusedParams {
   // 257..512 (that GEMM's instruction index; -1: none): the Fourier instruction writes the
   // encoding's first 256 columns into a per-consumer operand region that the GEMM's MMAs read
   // from shared memory (hopperSplitHalves), the rest row-major into the GEMM's buffer; the GEMM
-  // holds those in registers for all its chunks and writes its output over them (in place), so
-  // the encoding takes 32 KB more per consumer than the activations, not 64 + 32 KB.
+  // holds those in registers for all its chunks and writes its output over them (in place): per
+  // consumer a 32 KB operand region beside the 32 KB activation buffer, where the stored form
+  // needs the 64 KB encoding and a 32 KB output buffer.
   int hopperSplitGemm = -1;
   OutputMap output;
   // Value + gradient launches (the mma.sync kernel's tangent rows, TileRows<true>): the network
