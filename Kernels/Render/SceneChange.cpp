@@ -75,7 +75,7 @@ SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {
   // Shading uses the direction unless it has a headlight or a list of lights, and the ambient
   // term. (A camera light of the list turns with the camera: that is a camera change.)
   const bool shaded = after.shading.enabled;
-  const bool directionUsed = after.shadows || (shaded && !after.shading.headlight && !after.shading.lightList);
+  const bool directionUsed = after.shadows || after.shading.usesSceneLight();
   c.light = b.shadows != after.shadows || b.shading != after.shading ||
             (directionUsed && b.toLight != after.toLight) ||
             ((after.shadows || shaded) && b.ambient != after.ambient) ||
@@ -94,8 +94,7 @@ CameraView validateScene(const RenderScene& scene, const RenderSettings& setting
     if (!std::isfinite(c)) throw std::invalid_argument("background colour must be finite");
   }
   validateLighting(scene);
-  if ((scene.shadows || (scene.shading.enabled && !scene.shading.headlight && !scene.shading.lightList)) &&
-      !(length(toVec3(scene.toLight)) > 0.f)) {
+  if ((scene.shadows || scene.shading.usesSceneLight()) && !(length(toVec3(scene.toLight)) > 0.f)) {
     throw std::invalid_argument("light direction must be non-zero");
   }
   return scene.camera.view(settings.width, settings.height);  // validates the camera

@@ -446,26 +446,36 @@ void ShadingOptions::validate() const {
     throw std::invalid_argument("shading: specular must be finite and >= 0, got " + std::to_string(specular));
   if (!(specularPower >= 0.f && specularPower <= 128.f))
     throw std::invalid_argument("shading: specular power must be in [0, 128], got " + std::to_string(specularPower));
-  // Colours beyond this would overflow when summed over the lights (and NaN through inf * 0).
-  constexpr float kMaxColour = 1e6f;
-  const auto checkColours = [&](const std::string& which, std::initializer_list<const std::array<float, 3>*> colours) {
-    for (const auto* colour : colours)
-      for (float c : *colour)
-        if (!(c >= 0.f && c <= kMaxColour))
-          throw std::invalid_argument(which + "colours must be in [0, 1e6], got " + std::to_string(c));
-  };
-  checkColours("shading: the light's ", {&oneLightDiffuse, &oneLightSpecular});
+  for (const auto* colour : {&oneLightDiffuse, &oneLightSpecular}) {
+    const std::string problem = lightColourProblem(*colour);
+    if (!problem.empty()) throw std::invalid_argument("shading: the light's " + problem);
+  }
   if (!lightList) return;
   if (lights.size() > std::size_t(kMaxShadingLights))
     throw std::invalid_argument("shading: at most " + std::to_string(kMaxShadingLights) + " lights, got " +
                                 std::to_string(lights.size()));
   for (std::size_t i = 0; i < lights.size(); ++i) {
-    const SceneLight& l = lights[i];
-    const std::string which = "shading: light " + std::to_string(i) + "'s ";
-    const double len = std::hypot(l.toLight[0], l.toLight[1], l.toLight[2]);
-    if (!(len > 0.0 && len < INFINITY)) throw std::invalid_argument(which + "direction must be finite and non-zero");
-    checkColours(which, {&l.ambient, &l.diffuse, &l.specular});
+    const std::string problem = lights[i].problem();
+    if (!problem.empty()) throw std::invalid_argument("shading: light " + std::to_string(i) + "'s " + problem);
   }
+}
+
+std::string lightColourProblem(const std::array<float, 3>& colour) {
+  // Colours beyond this would overflow when summed over the lights (and NaN through inf * 0).
+  constexpr float kMaxColour = 1e6f;
+  for (float c : colour)
+    if (!(c >= 0.f && c <= kMaxColour)) return "colours must be in [0, 1e6], got " + std::to_string(c);
+  return "";
+}
+
+std::string SceneLight::problem() const {
+  const double len = std::hypot(toLight[0], toLight[1], toLight[2]);
+  if (!(len > 0.0 && len < INFINITY)) return "direction must be finite and non-zero";
+  for (const auto* colour : {&ambient, &diffuse, &specular}) {
+    std::string problem = lightColourProblem(*colour);
+    if (!problem.empty()) return problem;
+  }
+  return "";
 }
 
 std::vector<SceneLight> paraviewLightKit() {

@@ -104,11 +104,17 @@ struct SceneLight {
   std::array<float, 3> ambient{0.f, 0.f, 0.f};  // vtkLight's default: black
   std::array<float, 3> diffuse{1.f, 1.f, 1.f};
   std::array<float, 3> specular{1.f, 1.f, 1.f};
+  // Why the engine refuses this light ("direction must be ...", "colours must be ..."), or "".
+  std::string problem() const;
   bool operator==(const SceneLight& o) const {
     return toLight == o.toLight && cameraLight == o.cameraLight && ambient == o.ambient && diffuse == o.diffuse &&
            specular == o.specular;
   }
 };
+
+// Why the engine refuses a light colour (times its intensity), or "": components in [0, 1e6], so
+// that sums over the lights stay finite.
+std::string lightColourProblem(const std::array<float, 3>& colour);
 
 // The lights of ParaView's render view by default (5.11: its light kit, vtkLightKit's defaults):
 // the kit's headlight, key, fill and two back lights, all camera lights, warm to cool colours.
@@ -121,10 +127,11 @@ std::vector<SceneLight> paraviewLightKit();
 // specular highlight (0.2, power 10). headlight: the light sits at the eye, as ParaView's
 // headlight (RenderScene::toLight is then not used for shading; shadows still use it).
 // oneLightDiffuse / oneLightSpecular: that one light's colours times its intensity (VTK's default
-// lighting takes a headlight of intensity 1 whatever its colour). lightList: the lights of `lights` (at most kMaxShadingLights; none: the ambient term alone) lit
-// by VTK's light-list formula, as VTK lights a volume under ParaView's light kit or any lights but
-// one headlight of intensity 1; toLight and headlight are then not used for shading, and shadows are
-// refused (they follow the one direction RenderScene::toLight).
+// lighting takes a headlight of intensity 1 whatever its colour). lightList: the lights of
+// `lights` (at most kMaxShadingLights; none: the ambient term alone) lit by VTK's light-list
+// formula, as VTK lights a volume under ParaView's light kit or any lights but one headlight of
+// intensity 1; toLight and headlight are then not used for shading, and shadows are refused (they
+// follow the one direction RenderScene::toLight).
 struct ShadingOptions {
   bool enabled = false;
   float diffuse = 0.8f;        // >= 0
@@ -136,6 +143,8 @@ struct ShadingOptions {
   std::vector<SceneLight> lights;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
+  // Whether shading lights along RenderScene::toLight (neither the headlight nor a list).
+  bool usesSceneLight() const { return enabled && !headlight && !lightList; }
   bool operator==(const ShadingOptions& o) const {
     return enabled == o.enabled && diffuse == o.diffuse && specular == o.specular &&
            specularPower == o.specularPower && headlight == o.headlight &&

@@ -16,9 +16,9 @@
 //
 // That is VTK's "default lighting" for one headlight of intensity 1 (here also the one direction
 // of RenderScene::toLight), with the light's colour multiplying the diffuse and specular terms
-// (white by default). With any other set of lights (ParaView's light kit,
-// several lights, coloured or dimmed ones) VTK's shader takes its light-list branch instead, and
-// so do we when the scene carries a list of lights (ShadingOptions::lights):
+// (white by default). With any other set of lights (ParaView's light kit, several lights, coloured
+// or dimmed ones) VTK's shader takes its light-list branch instead, and so do we when the scene
+// carries a list of lights (ShadingOptions::lights):
 //     lit = ambient * sum_i a_i + sum_i (diffuse * f_i * d_i * c + specular * max(0, R_i.E)^p * s_i),
 // where a_i, d_i, s_i are light i's ambient, diffuse and specular colours times its intensity,
 // f_i = |N.L_i| (two-sided) and R_i = normalize(2 f_i N - L_i) (the two-sided flip applied to the
@@ -73,7 +73,6 @@ struct SampleLight {
   Vec3f lightAmbient{0.f, 0.f, 0.f};
 };
 
-INR_HD Vec3f grey(float v) { return Vec3f{v, v, v}; }
 INR_HD Vec3f timesEach(Vec3f a, Vec3f b) { return Vec3f{a.x * b.x, a.y * b.y, a.z * b.z}; }
 
 // The outward unit normal for gradient g (any length, any sign convention of the field), or

@@ -20,6 +20,8 @@
 namespace inr {
 namespace {
 
+Vec3f grey(float v) { return Vec3f{v, v, v}; }
+
 ShadingConstants shadingOf(float diffuse, float specular, float power) {
   ShadingConstants s;
   s.enabled = 1;

@@ -18,7 +18,6 @@
 #include "vtkVolumeProperty.h"
 
 #include <algorithm>
-#include <stdexcept>
 #include <cmath>
 #include <limits>
 
@@ -369,35 +368,19 @@ int InrSceneTranslator::TranslateShading(
     return std::array<float, 3>{ static_cast<float>(colour[0] * intensity),
       static_cast<float>(colour[1] * intensity), static_cast<float>(colour[2] * intensity) };
   };
-  // Lights the engine refuses (validateLighting) are left out and counted, not failed on.
-  const auto usable = [](const inr::SceneLight& l) {
-    inr::ShadingOptions one;
-    one.lightList = true;
-    one.lights = { l };
-    try
-    {
-      one.validate();
-      return true;
-    }
-    catch (const std::invalid_argument&)
-    {
-      return false;
-    }
-  };
+  // Lights the engine refuses (SceneLight::problem) are left out and counted, not failed on.
   if (defaultLighting)
   {
     scene.shading.headlight = true;
-    scene.shading.oneLightDiffuse = times(on[0]->GetDiffuseColor(), 1.0);
-    scene.shading.oneLightSpecular = times(on[0]->GetSpecularColor(), 1.0);
-    inr::SceneLight check;
-    check.diffuse = scene.shading.oneLightDiffuse;
-    check.specular = scene.shading.oneLightSpecular;
-    if (usable(check))
+    const auto diffuse = times(on[0]->GetDiffuseColor(), 1.0);
+    const auto specular = times(on[0]->GetSpecularColor(), 1.0);
+    if (!inr::lightColourProblem(diffuse).empty() || !inr::lightColourProblem(specular).empty())
     {
-      return 0;
+      return 1;  // its colour refused: lit white
     }
-    scene.shading.oneLightDiffuse = scene.shading.oneLightSpecular = { 1.f, 1.f, 1.f };
-    return 1;  // its colour refused: lit white
+    scene.shading.oneLightDiffuse = diffuse;
+    scene.shading.oneLightSpecular = specular;
+    return 0;
   }
   scene.shading.lightList = true;
   int left = 0;
@@ -429,7 +412,7 @@ int InrSceneTranslator::TranslateShading(
       const double* f = l.cameraLight ? light->GetFocalPoint() : light->GetTransformedFocalPoint();
       l.toLight = { p[0] - f[0], p[1] - f[1], p[2] - f[2] };
     }
-    if (!usable(l))
+    if (!l.problem().empty())
     {
       ++left;  // no direction (position at the focal point), or a negative or huge intensity
       continue;

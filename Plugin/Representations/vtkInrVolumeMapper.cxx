@@ -236,9 +236,9 @@ struct vtkInrVolumeMapper::Internals
   std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
   std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
   bool shownCoarse = false;     // the last Render drew the coarse session's image
-  bool warnedLightsLeftOut = false;  // Shade's lights beyond the engine's bound: said once
   bool shownStandIn = false;    // ... on the stand-in of the network (InteractiveStandIn)
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
+  bool warnedLightsLeftOut = false;  // Shade's lights the engine left out: said once
   inr::RenderSession* Shown() const
   {
     return this->shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()
