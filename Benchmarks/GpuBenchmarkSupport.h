@@ -1,6 +1,7 @@
 #pragma once
 // What the GPU benchmark programs share on top of BenchmarkSupport.h: CUDA-event timing and the
 // evaluator throughput measurement.
+#include <cuda_profiler_api.h>
 #include <cuda_runtime.h>
 
 #include <optional>
@@ -52,19 +53,24 @@ private:
 };
 
 // Queries per second of launch() over n queries, one value per launch of `reps` after a
-// warm-up launch (CUDA events on the default stream).
+// warm-up launch (CUDA events on the default stream). The timed launches run between
+// cudaProfilerStart and cudaProfilerStop, so a profiler started with collection off (`ncu
+// --profile-from-start off`) sees them and not the autotuner's trial launches before them
+// (Benchmarks/run_evaluator_summary.sh); without a profiler both calls do nothing.
 template <class Launch>
 std::vector<double> launchRates(int n, int reps, const Launch& launch) {
   EventTimer timer;
   launch();  // warm-up
   INR_CUDA_CHECK(cudaDeviceSynchronize());
   std::vector<double> rates;
+  INR_CUDA_CHECK(cudaProfilerStart());
   for (int r = 0; r < reps; ++r) {
     timer.start();
     launch();
     timer.stop();
     rates.push_back(n / (timer.ms() * 1e-3));
   }
+  INR_CUDA_CHECK(cudaProfilerStop());
   return rates;
 }
 

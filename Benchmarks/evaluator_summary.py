@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""Joins what Benchmarks/run_evaluator_summary.sh measured in one run into Markdown tables (stdout)
+and summary.csv in the same folder:
+  - per network: ours autotuned at 2^21 (ours.csv) and the configuration it chose (ours.txt's
+    launch report), PyTorch fp16 eager (torch.csv) and torch.compile (torch_compile.csv) at the
+    same batch, and the ratios;
+  - per network: ours at every swept batch (batches.csv) with its share of the 2^21 rate, and
+    PyTorch eager at 8192 (torch_8k.csv);
+  - per profiled launch (ncu/NAME_BATCH.csv, `ncu --page raw --csv`): time, the speed-of-light
+    throughputs, the tensor pipe, the busiest pipes and the largest warp stall reasons.
+
+usage: evaluator_summary.py LOG_DIR
+"""
+import csv
+import glob
+import os
+import re
+import sys
+
+
+def read_rates(path, want_path=None):
+    """{(model, path, batch): median q/s} from a benchmark or PyTorch CSV (missing file: {})."""
+    out = {}
+    if not os.path.exists(path):
+        return out
+    for r in csv.DictReader(open(path)):
+        if want_path and r["path"] != want_path:
+            continue
+        out[(r["model"], r["path"], int(r["batch"]))] = float(r["median_qps"])
+    return out
+
+
+def choices(path):
+    """{model: the configuration the autotuner chose} from a benchmark's printed launch reports."""
+    out, model = {}, None
+    if not os.path.exists(path):
+        return out
+    for line in open(path):
+        m = re.match(r"^(\S+\.inr)\s+fused-fp16\s", line)
+        if m:
+            model = m.group(1)
+        m = re.search(r"fused launch autotuning: .*? -> (.*)$", line)
+        if m and model:
+            out[model] = m.group(1).strip()
+            model = None
+        elif model and "fused launch autotuning:" in line:
+            out[model] = line.split("fused launch autotuning:", 1)[1].strip()
+            model = None
+    return out
+
+
+def gq(v):
+    return "–" if v is None else "%.3f" % (v / 1e9)
+
+
+def ratio(a, b):
+    return "–" if not a or not b else "%.2f×" % (a / b)
+
+
+def ncu_rows(log):
+    """One dict of metric -> value per profiled launch (first kernel row of each raw CSV)."""
+    rows = []
+    for path in sorted(glob.glob(os.path.join(log, "ncu", "*.csv"))):
+        lines = [l for l in open(path) if l.startswith('"')]
+        if len(lines) < 3:  # header, units, one kernel
+            continue
+        header = next(csv.reader([lines[0]]))
+        values = next(csv.reader([lines[2]]))
+        rows.append((os.path.basename(path)[:-4], dict(zip(header, values))))
+    return rows
+
+
+def num(d, key):
+    try:
+        return float(d.get(key, "").replace(",", ""))
+    except ValueError:
+        return None
+
+
+def main():
+    log = sys.argv[1]
+    ours = read_rates(os.path.join(log, "ours.csv"), "fused-fp16")
+    mma = read_rates(os.path.join(log, "ours.csv"), "fused-mma.sync")
+    eager = read_rates(os.path.join(log, "torch.csv"), "torch-fp16-eager")
+    compiled = read_rates(os.path.join(log, "torch_compile.csv"), "torch-fp16-compile")
+    batches = read_rates(os.path.join(log, "batches.csv"), "fused-fp16")
+    eager8k = read_rates(os.path.join(log, "torch_8k.csv"), "torch-fp16-eager")
+    chosen = choices(os.path.join(log, "ours.txt"))
+    gpu = open(os.path.join(log, "gpu.txt")).read().strip() if os.path.exists(os.path.join(log, "gpu.txt")) else "?"
+    full = 1 << 21
+    models = sorted({m for (m, _, b) in ours}, key=lambda m: (not m.startswith("paper_"), m))
+    csv_rows = [("model", "batch", "ours_qps", "mma_sync_qps", "eager_qps", "compile_qps")]
+
+    print("## Evaluator, batch 2^21, %s\n" % gpu)
+    print("| network | ours (G q/s) | chosen configuration | mma.sync only | PyTorch fp16 eager | torch.compile | ours / eager | ours / compile |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for m in models:
+        o, s = ours.get((m, "fused-fp16", full)), mma.get((m, "fused-mma.sync", full))
+        e, c = eager.get((m, "torch-fp16-eager", full)), compiled.get((m, "torch-fp16-compile", full))
+        print("| %s | %s | %s | %s | %s | %s | %s | %s |" % (m[:-4], gq(o), chosen.get(m, "?"), gq(s), gq(e), gq(c), ratio(o, e), ratio(o, c)))
+        csv_rows.append((m, full, o, s, e, c))
+
+    sizes = sorted({b for (_, _, b) in batches})
+    if sizes:
+        print("\n## Evaluator at small batches (share of the same evaluator's 2^21 rate), %s\n" % gpu)
+        print("| network | " + " | ".join("%d" % b for b in sizes) + " | 8192 / 2^21 | PyTorch eager at 8192 | ours / eager at 8192 |")
+        print("| --- | " + " | ".join("---" for _ in sizes) + " | --- | --- | --- |")
+        for m in models:
+            rates = [batches.get((m, "fused-fp16", b)) for b in sizes]
+            top = batches.get((m, "fused-fp16", full)) or (rates[-1] if rates else None)
+            small = batches.get((m, "fused-fp16", 8192))
+            share = "%.0f%%" % (100 * small / top) if small and top else "–"
+            e8 = eager8k.get((m, "torch-fp16-eager", 8192))
+            print("| %s | %s | %s | %s | %s |" % (m[:-4], " | ".join(gq(r) for r in rates), share, gq(e8), ratio(small, e8)))
+            for b, r in zip(sizes, rates):
+                if b != full:
+                    csv_rows.append((m, b, r, None, e8 if b == 8192 else None, None))
+
+    rows = ncu_rows(log)
+    if rows:
+        print("\n## Profiles (ncu, the first timed launch), %s\n" % gpu)
+        print("| launch | kernel | time (µs) | SM throughput | memory throughput | L2 | DRAM | tensor pipe | busiest pipes | largest stalls (cycles per issued instruction) |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+        for tag, d in rows:
+            kernel = d.get("Kernel Name", "?").split("(")[0].split("<")[0]
+            t = num(d, "gpu__time_duration.sum")
+            unit_ns = "nsecond" in open(os.path.join(log, "ncu", tag + ".csv")).read(4000)
+            t_us = None if t is None else (t / 1e3 if unit_ns else t)
+            pipes = sorted(((num(d, k) or 0, k) for k in d
+                            if re.match(r"sm__inst_executed_pipe_[a-z0-9_]+\.avg\.pct_of_peak_sustained_active$", k)), reverse=True)[:3]
+            pipe_s = ", ".join("%s %.0f%%" % (k.split("pipe_")[1].split(".")[0], v) for v, k in pipes if v > 0)
+            stalls = sorted(((num(d, k) or 0, k) for k in d
+                             if re.match(r"smsp__average_warp_latency_issue_stalled_[a-z_]+\.ratio$", k)
+                             or re.match(r"smsp__average_warps_issue_stalled_[a-z_]+_per_issue_active\.ratio$", k)), reverse=True)[:4]
+            stall_s = ", ".join("%s %.1f" % (re.sub(r"_per_issue_active$", "", k.split("stalled_")[1].split(".")[0]), v) for v, k in stalls if v > 0)
+
+            def pct(key):
+                v = num(d, key)
+                return "–" if v is None else "%.0f%%" % v
+
+            print("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+                tag, kernel, "–" if t_us is None else "%.1f" % t_us,
+                pct("sm__throughput.avg.pct_of_peak_sustained_elapsed"),
+                pct("gpu__compute_memory_throughput.avg.pct_of_peak_sustained_elapsed"),
+                pct("lts__throughput.avg.pct_of_peak_sustained_elapsed"),
+                pct("gpu__dram_throughput.avg.pct_of_peak_sustained_elapsed"),
+                pct("sm__pipe_tensor_op_hmma_cycles_active.avg.pct_of_peak_sustained_active"), pipe_s, stall_s))
+
+    with open(os.path.join(log, "summary.csv"), "w") as f:
+        w = csv.writer(f)
+        for r in csv_rows:
+            w.writerow(["" if v is None else v for v in r])
+
+
+if __name__ == "__main__":
+    main()
