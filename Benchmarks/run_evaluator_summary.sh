@@ -15,7 +15,8 @@
 #      memory workload, warp states, tensor pipe;
 #   then torch.compile at 2^21 on the paper networks;
 #   5. evaluator_summary.py joins it all into summary.md / summary.csv.
-# Logs in $OUT/summary_logs (default ./out), all of them in $OUT/evaluator_summary.tar.gz; a failed
+# Logs in $OUT/summary_logs (default ./out), all of them in $OUT/evaluator_summary.tar.gz (and the
+# tables in $OUT/summary.md); a failed
 # step makes the exit status 1. The whole run keeps within $BUDGET seconds (default 570: a device
 # call's limit is 600): each step's timeout is cut to what is left, the order is the figures'
 # priority (torch.compile, the slowest, last), and a step with under 20 s left is skipped and
@@ -44,7 +45,9 @@ run_step() {
 }
 finish() {
   rm -rf "$L/models"
-  tar -czf "$OUT/evaluator_summary.tar.gz" -C "$OUT" summary_logs
+  # (ncu's reports stay out: several MB each; the raw CSV and details pages hold their figures)
+  tar --exclude='*.ncu-rep' -czf "$OUT/evaluator_summary.tar.gz" -C "$OUT" summary_logs
+  [ -f "$L/summary.md" ] && cp "$L/summary.md" "$OUT/summary.md"
   stamp "done (status $status)"
   exit $status
 }
