@@ -65,8 +65,11 @@ def ncu_rows(log):
         if len(lines) < 3:  # header, units, one kernel
             continue
         header = next(csv.reader([lines[0]]))
+        units = next(csv.reader([lines[1]]))
         values = next(csv.reader([lines[2]]))
-        rows.append((os.path.basename(path)[:-4], dict(zip(header, values))))
+        d = dict(zip(header, values))
+        d["_units"] = dict(zip(header, units))
+        rows.append((os.path.basename(path)[:-4], d))
     return rows
 
 
@@ -122,11 +125,12 @@ def main():
         print("| launch | kernel | time (µs) | SM throughput | memory throughput | L2 | DRAM | tensor pipe | busiest pipes | largest stalls (cycles per issued instruction) |")
         print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
         for tag, d in rows:
-            kernel = d.get("Kernel Name", "?").split("(")[0].split("<")[0]
+            kernel = d.get("Kernel Name", "?").split("(")[0].replace("void ", "")
             t = num(d, "gpu__time_duration.sum")
-            unit_ns = "nsecond" in open(os.path.join(log, "ncu", tag + ".csv")).read(4000)
-            t_us = None if t is None else (t / 1e3 if unit_ns else t)
-            pipes = sorted(((num(d, k) or 0, k) for k in d
+            scale = {"ns": 1e-3, "nsecond": 1e-3, "us": 1.0, "usecond": 1.0, "ms": 1e3, "msecond": 1e3, "s": 1e6, "second": 1e6}
+            unit = d["_units"].get("gpu__time_duration.sum", "")
+            t_us = None if t is None or unit not in scale else t * scale[unit]
+            pipes = sorted(((num(d, k) or 0, k) for k in d if k != "_units"
                             if re.match(r"sm__inst_executed_pipe_[a-z0-9_]+\.avg\.pct_of_peak_sustained_active$", k)), reverse=True)[:3]
             pipe_s = ", ".join("%s %.0f%%" % (k.split("pipe_")[1].split(".")[0], v) for v, k in pipes if v > 0)
             stalls = sorted(((num(d, k) or 0, k) for k in d
