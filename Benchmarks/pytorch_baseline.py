@@ -100,6 +100,9 @@ def bench(path, batch, reps, compile_):
     inr = inr_format.read_inr(path)
     net = Graph(inr.architecture["layers"], inr.tensors, inr.architecture["input_dim"]).cuda().half().eval()
     if compile_:
+        # Every model's module runs the same forward code: without a reset, dynamo counts each
+        # model's compile as a recompile of it and past its recompile limit silently runs eager.
+        torch._dynamo.reset()
         net = torch.compile(net)
     x = (torch.rand(batch, inr.architecture["input_dim"], device="cuda") * 2 - 1).half()
     with torch.inference_mode():

@@ -488,9 +488,17 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     candidates = tuner.candidates(I.params, I.paramsStored, I.paramsSplit, I.whyNoWgmma.empty());
     if (candidates.empty()) {
       fused = false;
-      why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block";
-      if (options.storedEncoding == 2 && I.params.fusedFourier)
-        why += " (storedEncoding 2, the split encoding, runs on the wgmma kernel only, for a first layer of K 257..512)";
+      if (options.storedEncoding == 2 && I.params.fusedFourier && I.paramsSplit.hopperSplitGemm < 0)
+        why = "CudaEvaluatorOptions::storedEncoding 2 (the split encoding) needs the wgmma kernel " +
+              std::string(I.whyNoWgmma.empty() ? "and a first layer reading the Fourier encoding with K 257..512; this "
+                                                 "model's is not one: set storedEncoding to -1, 0 or 1"
+                                               : "(unavailable: " + I.whyNoWgmma + "); set storedEncoding to -1, 0 or 1");
+      else if (options.storedEncoding == 2 && I.params.fusedFourier && options.mma == FusedMma::MmaSync)
+        why = "CudaEvaluatorOptions::storedEncoding 2 (the split encoding) runs on the wgmma kernel only, and mma is "
+              "MmaSync: set mma to Auto or Wgmma, or storedEncoding to -1, 0 or 1";
+      else
+        why = "the fused kernel needs more shared memory than " + I.device.name + " offers per block" +
+              (options.storedEncoding == 2 && I.params.fusedFourier ? " in the split encoding's form (storedEncoding 2)" : "");
     }
   }
   if (options.path == CudaEvaluatorPath::Fused && !fused)

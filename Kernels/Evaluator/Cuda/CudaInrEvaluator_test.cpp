@@ -6,10 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "Common/Cuda/CudaCheck.h"
@@ -182,6 +184,11 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     for (const int stored : {1, 2})
       if (stored == 1 ? fusedFourier : splits)
         for (int i = 0; i < 6; ++i) cases.push_back({cases[i].consumers, cases[i].pingPong, cases[i].columns, stored});
+    // The fused form's output per configuration (consumers, turns, columns), against which the
+    // stored forms of the same configuration are compared element by element: the same fp16
+    // encoding and the same MMAs in the same K order, so they differ by far less than the fp16
+    // error bounds below allow.
+    std::map<std::tuple<int, int, int>, std::vector<float>> fusedOutputs;
     for (const Case& k : cases) {
       const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns, stored = k.stored;
       CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
@@ -218,6 +225,16 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
       EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
       EXPECT_LT(em.meanAbs, 5e-4) << name << which;
+      const auto key = std::make_tuple(consumers, pingPong, columns);
+      if (!fusedFourier) continue;
+      if (stored == 0) {
+        fusedOutputs[key] = got;
+      } else if (fusedOutputs.count(key)) {
+        const Err f = compare(got, fusedOutputs[key]);
+        std::printf("%-30s %s: vs the fused form max %.3g mean %.3g\n", name.c_str(), which.c_str(), f.maxAbs, f.meanAbs);
+        EXPECT_LT(f.maxAbs, 4e-3 * scale) << name << which << " against the fused form";
+        EXPECT_LT(f.meanAbs, 2e-4 * scale) << name << which << " against the fused form";
+      }
     }
   }
 }

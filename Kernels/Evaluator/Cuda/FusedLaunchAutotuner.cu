@@ -81,11 +81,12 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
         if (options.wgmmaChunkColumns && options.wgmmaChunkColumns != nc) continue;
         for (const int form : {0, 1, 2}) {  // fused, stored, stored split (CudaEvaluatorOptions::storedEncoding)
           const bool storedEncoding = form > 0, splitEncoding = form == 2;
-          // (the evaluator gives the stored programs their own wgmma instructions where it has them)
-          if (storedEncoding && (!P.fusedFourier || stored.hopperInstrs == P.hopperInstrs)) continue;
+          const FusedParams& params = splitEncoding ? split : storedEncoding ? stored : P;
+          // (the evaluator gives each stored form its own wgmma instructions where it has one: the
+          // split form may have them where the plain stored one does not fit its buffers)
+          if (storedEncoding && (!P.fusedFourier || params.hopperInstrs == P.hopperInstrs)) continue;
           if (splitEncoding && split.hopperSplitGemm < 0) continue;
           if (P.fusedFourier && options.storedEncoding >= 0 && options.storedEncoding != form) continue;
-          const FusedParams& params = splitEncoding ? split : storedEncoding ? stored : P;
           const FusedKernel kernel = hopperKernel(nc, consumers, splitEncoding);
           if (!kernel) continue;
           const std::size_t limit = sharedLimit(device_, kernel);
