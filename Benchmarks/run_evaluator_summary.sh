@@ -63,7 +63,7 @@ run_step build 400 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_ben
 grep -E "spill|C75[0-9][0-9]" "$L/build.log" | grep -iE "hopper|C75" | sed 's/.*function //' | cut -c1-200
 
 stamp "GPU evaluator tests"
-run_step tests 200 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." > "$L/ctest_cuda.log" 2>&1
+run_step tests 200 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." -V > "$L/ctest_cuda.log" 2>&1
 grep -E "tests passed|Failed|\*\*\*" "$L/ctest_cuda.log" | head -10
 grep -q "100% tests passed" "$L/ctest_cuda.log" || status=1
 
