@@ -3,7 +3,7 @@
 // launches over one batch of N random world points already on the device).
 //   gpu_evaluator_benchmark [--batch N] [--reps R] [--csv FILE] [--write-models DIR]
 //                           [--only NAME] [--mma wgmma|mma.sync] [--tile T] [--weight-chunk KC] [--ping-pong 0|1]
-//                           [--wgmma-columns 64|128] [--wgmma-consumers 1|2]
+//                           [--wgmma-columns 64|128] [--wgmma-consumers 1|2] [--column-split 0|1]
 //                           [--stored-encoding 0|1|2]
 //                           [--batches N1,N2,...] [--points random|rays]
 //                           [--hash-pairs 0|1] [--l2-persist]
@@ -13,7 +13,9 @@
 // chunk) and --no-autotune fix
 // the fused kernel's configuration (CudaEvaluatorOptions) so a profiler (ncu) sees one kernel;
 // --wgmma-consumers fixes the wgmma kernel's consumer warpgroups per block (2: 128 queries per
-// round; 1: 64, twice the blocks on a small batch). --stored-encoding fixes how a fused Fourier
+// round; 1: 64, twice the blocks on a small batch), --column-split whether two consumers share
+// one tile, splitting its columns (1) or each run their own (0) (CudaEvaluatorOptions::
+// wgmmaColumnSplit). --stored-encoding fixes how a fused Fourier
 // encoding (the FFNs) runs: computed in the first GEMM's operand load (0), stored once per tile in
 // a buffer (1), or on the wgmma kernel stored split (2: first 256 columns in shared memory in the
 // MMAs' operand layout, the rest in registers) (CudaEvaluatorOptions::storedEncoding).
@@ -177,6 +179,7 @@ int main(int argc, char** argv) {
     else if (a == "--wgmma-columns") fixed.wgmmaChunkColumns = std::stoi(cl.value());
     else if (a == "--ping-pong") fixed.wgmmaPingPong = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--wgmma-consumers") fixed.wgmmaConsumers = std::stoi(cl.value());
+    else if (a == "--column-split") fixed.wgmmaColumnSplit = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--stored-encoding") fixed.storedEncoding = std::stoi(cl.value());
     else if (a == "--batches") {
       std::stringstream list(cl.value());
@@ -264,7 +267,7 @@ int main(int argc, char** argv) {
               pointsName, reps);
   std::printf("%-28s %-16s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
-  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || !fixed.autotuneBatch ||
+  const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || fixed.wgmmaColumnSplit >= 0 || !fixed.autotuneBatch ||
                           fixed.hashGridPairs >= 0 || fixed.storedEncoding >= 0;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 5; ++variant) {

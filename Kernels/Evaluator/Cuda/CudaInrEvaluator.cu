@@ -102,7 +102,7 @@ using cuda::configName;
 #if !defined(INR_HAVE_HOPPER_KERNEL)
 }  // namespace
 namespace cuda {
-FusedKernel hopperKernel(int, int, bool) { return nullptr; }  // not built: no Hopper architecture
+FusedKernel hopperKernel(int, int, bool, bool) { return nullptr; }  // not built: no Hopper architecture
 }  // namespace cuda
 namespace {
 #endif
@@ -359,7 +359,8 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   // grid-strided, so extra blocks just exit).
   const int tiles = (n + c.tile - 1) / c.tile;
   const int grid = std::min(tiles, c.gridBlocks);
-  const FusedKernel kernel = c.wgmma ? cuda::hopperKernel(c.kc, c.consumers, c.splitEncoding) : cuda::mmaSyncKernel(c.tile, c.kc);
+  const FusedKernel kernel =
+      c.wgmma ? cuda::hopperKernel(c.kc, c.consumers, c.splitEncoding, c.splitColumns) : cuda::mmaSyncKernel(c.tile, c.kc);
   cuda::FusedParams P = c.splitEncoding ? paramsSplit : c.storedEncoding ? paramsStored : params;
   if (c.wgmma) {
     P.hopperStages = c.stages;
@@ -459,6 +460,13 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   if (options.wgmmaConsumers == 1 && options.wgmmaPingPong == 1)
     throw std::invalid_argument("CudaEvaluatorOptions: wgmmaPingPong = 1 (turns) needs two consumers; set "
                                 "wgmmaConsumers to 2 or 0, or wgmmaPingPong to 0 or -1");
+  if (options.wgmmaColumnSplit < -1 || options.wgmmaColumnSplit > 1)
+    throw std::invalid_argument("CudaEvaluatorOptions::wgmmaColumnSplit must be -1 (both autotuned), 0 or 1, not " +
+                                std::to_string(options.wgmmaColumnSplit));
+  if (options.wgmmaColumnSplit == 1 && (options.wgmmaConsumers == 1 || options.wgmmaPingPong == 1))
+    throw std::invalid_argument("CudaEvaluatorOptions: wgmmaColumnSplit = 1 (two consumers on one tile) needs two "
+                                "consumers without turns; set wgmmaConsumers to 2 or 0 and wgmmaPingPong to 0 or -1, "
+                                "or wgmmaColumnSplit to 0 or -1");
   Impl& I = *impl_;
   I.device = queryCudaDevice(options.device);
   if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);

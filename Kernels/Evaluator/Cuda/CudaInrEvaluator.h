@@ -54,6 +54,11 @@ struct CudaEvaluatorOptions {
   // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1
   // (64 queries per round: twice the blocks on a small batch); 0 = both autotuned.
   int wgmmaConsumers = 0;
+  // wgmma kernel, blocks of two consumers: both run one 64-query tile, splitting each layer's
+  // column chunks between them (1: a small batch's block has two warpgroups on its single tile,
+  // each one's epilogues overlapping the other's MMAs; no turns), or each runs a tile of its own
+  // (0), or both are autotuned (-1).
+  int wgmmaColumnSplit = -1;
   // A program whose Fourier encoding is fused into its first GEMM's operand load (the FFN): run
   // it fused (0), with the encoding stored once per tile in a shared-memory buffer instead (1),
   // or, on the wgmma kernel where the GEMM's K is 257..512, stored split (2: the first 256

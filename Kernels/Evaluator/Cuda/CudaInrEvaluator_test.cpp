@@ -173,28 +173,36 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
     // consumer with 64-column chunks must fit stored, two with 64-column chunks split (the
     // others may not fit).
     struct Case {
-      int consumers, pingPong, columns, stored;
+      int consumers, pingPong, columns, stored, columnSplit = 0;
     };
     bool fusedFourier = false, splits = false;
     for (const MlpInstr& in : program.instrs) {
       fusedFourier |= in.fourierInput >= 0;
       splits |= in.fourierInput >= 0 && in.kPad > 256 && in.kPad <= 512;
     }
-    std::vector<Case> cases = {{2, 0, 128, 0}, {2, 1, 128, 0}, {2, 0, 64, 0}, {2, 1, 64, 0}, {1, 0, 128, 0}, {1, 0, 64, 0}};
+    // Two consumers on one tile with its columns split (the last two of the first eight) take
+    // the fused and the stored encoding, not the split one.
+    std::vector<Case> cases = {{2, 0, 128, 0}, {2, 1, 128, 0}, {2, 0, 64, 0}, {2, 1, 64, 0},
+                               {1, 0, 128, 0}, {1, 0, 64, 0},  {2, 0, 128, 0, 1}, {2, 0, 64, 0, 1}};
     for (const int stored : {1, 2})
       if (stored == 1 ? fusedFourier : splits)
-        for (int i = 0; i < 6; ++i) cases.push_back({cases[i].consumers, cases[i].pingPong, cases[i].columns, stored});
-    // The fused form's output per configuration (consumers, turns, columns), against which the
-    // stored forms of the same configuration are compared element by element: the same fp16
-    // encoding and the same MMAs in the same K order, so they differ by far less than the fp16
-    // error bounds below allow.
-    std::map<std::tuple<int, int, int>, std::vector<float>> fusedOutputs;
+        for (int i = 0; i < (stored == 1 ? 8 : 6); ++i)
+          cases.push_back({cases[i].consumers, cases[i].pingPong, cases[i].columns, stored, cases[i].columnSplit});
+    // The fused form's output per configuration (consumers, turns, columns, columns split),
+    // against which the stored forms of the same configuration are compared element by element:
+    // the same fp16 encoding and the same MMAs in the same K order, so they differ by far less than
+    // the fp16 error bounds below allow. And two consumers on two tiles without turns per form and
+    // chunk width, against which the same on one tile with its columns split is compared: the same
+    // arithmetic per element but a final dot's halves summed apart (fp32 reordering only).
+    std::map<std::tuple<int, int, int, int>, std::vector<float>> fusedOutputs;
+    std::map<std::pair<int, int>, std::vector<float>> twoTileOutputs;
     for (const Case& k : cases) {
       const int consumers = k.consumers, pingPong = k.pingPong, columns = k.columns, stored = k.stored;
       CudaEvaluatorOptions o = fixedFused(FusedMma::Wgmma);
       o.wgmmaPingPong = pingPong;
       o.wgmmaChunkColumns = columns;
       o.wgmmaConsumers = consumers;
+      o.wgmmaColumnSplit = k.columnSplit;
       if (fusedFourier) o.storedEncoding = stored;
       std::unique_ptr<CudaInrEvaluator> made;
       try {
@@ -206,7 +214,8 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
         } else {
           ASSERT_EQ(columns, 128) << name << ": " << e.what();
         }
-        std::printf("%-30s wgmma %dx64 N %d%s: does not fit (%s)\n", name.c_str(), consumers, columns,
+        std::printf("%-30s wgmma %dx64 N %d%s%s: does not fit (%s)\n", name.c_str(), consumers, columns,
+                    k.columnSplit ? ", one tile, columns split" : "",
                     stored == 2 ? ", stored encoding split" : stored ? ", stored encoding" : "", e.what());
         continue;
       }
@@ -215,17 +224,27 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       ASSERT_NE(gpu.launchReport().find("wgmma " + std::to_string(consumers) + "x64"), std::string::npos) << gpu.launchReport();
       ASSERT_EQ(gpu.launchReport().find("stored encoding") != std::string::npos, stored > 0) << gpu.launchReport();
       ASSERT_EQ(gpu.launchReport().find("stored encoding split") != std::string::npos, stored == 2) << gpu.launchReport();
+      ASSERT_EQ(gpu.launchReport().find("columns split") != std::string::npos, k.columnSplit == 1) << gpu.launchReport();
       std::vector<float> got(pts.size(), NAN);
       gpu.evaluate(pts.data(), pts.size(), got.data());
       const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
       std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                   gpu.launchReport().c_str(), e.maxAbs, e.meanAbs, em.meanAbs);
       const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " +
-                                std::to_string(columns) + (stored == 2 ? " stored encoding split" : stored ? " stored encoding" : "");
+                                std::to_string(columns) + (k.columnSplit ? " one tile, columns split" : "") +
+                                (stored == 2 ? " stored encoding split" : stored ? " stored encoding" : "");
       EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
       EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
       EXPECT_LT(em.meanAbs, 5e-4) << name << which;
-      const auto key = std::make_tuple(consumers, pingPong, columns);
+      const auto form = std::make_pair(stored, columns);
+      if (consumers == 2 && pingPong == 0 && !k.columnSplit) {
+        twoTileOutputs[form] = got;
+      } else if (k.columnSplit && twoTileOutputs.count(form)) {
+        const Err t = compare(got, twoTileOutputs[form]);
+        std::printf("%-30s %s: vs two tiles max %.3g mean %.3g\n", name.c_str(), which.c_str(), t.maxAbs, t.meanAbs);
+        EXPECT_LT(t.maxAbs, 1e-4 * scale) << name << which << " against two consumers on two tiles";
+      }
+      const auto key = std::make_tuple(consumers, pingPong, columns, k.columnSplit);
       if (!fusedFourier) continue;
       if (stored == 0) {
         fusedOutputs[key] = got;

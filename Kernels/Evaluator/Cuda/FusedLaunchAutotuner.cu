@@ -18,6 +18,7 @@ std::string configName(const FusedConfig& c) {
            (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
          std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") +
+         (c.splitColumns ? ", one tile, columns split" : "") +
          (c.splitEncoding ? ", stored encoding split" : c.storedEncoding ? ", stored encoding" : "") + hash;
 }
 
@@ -62,7 +63,8 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
         }
       }
   // wgmma (consumers x 64 queries per round): two consumers, then one; per chunk width (widest
-  // first), as many ring slots as fit (2 at least); two consumers with and without turns; a
+  // first), as many ring slots as fit (2 at least); two consumers with and without turns, and on
+  // one tile with its columns split (64 queries per round, hopperConsumer's COLUMNS); a
   // program with a fused Fourier encoding also with it stored, and stored split where its GEMM
   // has K 257..512 (after the fused form, so the configuration without autotuning stays the one
   // of earlier versions). The paper FFN's stored encoding (64 x 512 fp16 per consumer beside its
@@ -70,7 +72,7 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
   // (hopperSharedBytes: two consumers' buffers alone take most of the shared memory, and a ring
   // slot of 128 columns x K 256 is 64 KB); split (32 KB of operand per consumer, the rest over
   // the activations) also two consumers with 64-column chunks and one with 128. Bounded: at most
-  // 10 wgmma candidates per form, the stored forms only where they fit (the paper FFN: 1 + 4). A
+  // 14 wgmma candidates per form, the stored forms only where they fit. A
   // kernel's dynamic shared-memory limit is set to all it may have, as for mma.sync (the fused
   // and the stored form share a kernel with different sizes, and another evaluator's launches
   // may need more than this one's; the split form has its own, hopperKernel(nc, consumers, true)).
@@ -87,25 +89,33 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           if (storedEncoding && (!P.fusedFourier || params.hopperInstrs == P.hopperInstrs)) continue;
           if (splitEncoding && split.hopperSplitGemm < 0) continue;
           if (P.fusedFourier && options.storedEncoding >= 0 && options.storedEncoding != form) continue;
-          const FusedKernel kernel = hopperKernel(nc, consumers, splitEncoding);
-          if (!kernel) continue;
-          const std::size_t limit = sharedLimit(device_, kernel);
-          int stages = 0;
-          for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
-            if (hopperSharedBytes(nc, s, consumers, params) <= limit) stages = s;
-          if (!stages) continue;
-          const std::size_t bytes = hopperSharedBytes(nc, stages, consumers, params);
-          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
-          int perSm = 0;
-          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, hopperThreads(consumers), bytes));
-          if (perSm < 1) continue;
-          for (const bool pingPong : {true, false}) {
-            if (pingPong && consumers == 1) continue;  // turns need two consumers
-            if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
-            FusedConfig c{true, kHopperRows * consumers, nc, stages, pingPong, storedEncoding, splitEncoding, bytes,
-                          perSm * device_.multiprocessors, 0.0};
-            c.consumers = consumers;
-            candidates.push_back(c);
+          // Two consumers also on one tile, splitting its column chunks (not with the split
+          // encoding, whose operand region is per consumer; no turns): one tile's region.
+          for (const bool splitColumns : {false, true}) {
+            if (splitColumns && (consumers == 1 || splitEncoding)) continue;
+            if (options.wgmmaColumnSplit >= 0 && options.wgmmaColumnSplit != int(splitColumns)) continue;
+            const FusedKernel kernel = hopperKernel(nc, consumers, splitEncoding, splitColumns);
+            if (!kernel) continue;
+            const int regions = hopperTileRegions(consumers, splitColumns);
+            const std::size_t limit = sharedLimit(device_, kernel);
+            int stages = 0;
+            for (int s = kHopperMaxStages; s >= 2 && !stages; --s)
+              if (hopperSharedBytes(nc, s, regions, params) <= limit) stages = s;
+            if (!stages) continue;
+            const std::size_t bytes = hopperSharedBytes(nc, stages, regions, params);
+            INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+            int perSm = 0;
+            INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, hopperThreads(consumers), bytes));
+            if (perSm < 1) continue;
+            for (const bool pingPong : {true, false}) {
+              if (pingPong && (consumers == 1 || splitColumns)) continue;  // turns need two consumers on two tiles
+              if (options.wgmmaPingPong >= 0 && options.wgmmaPingPong != int(pingPong)) continue;
+              FusedConfig c{true, kHopperRows * regions, nc, stages, pingPong, storedEncoding, splitEncoding, bytes,
+                            perSm * device_.multiprocessors, 0.0};
+              c.consumers = consumers;
+              c.splitColumns = splitColumns;
+              candidates.push_back(c);
+            }
           }
         }
       }

@@ -43,7 +43,8 @@ struct FusedConfig {
   // The mma.sync kernel with tangent rows (value + gradient; a tile of `tile` rows holds tile / 4
   // queries).
   bool tangents = false;
-  int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers)
+  int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers, or 64 with splitColumns)
+  bool splitColumns = false;  // wgmma, two consumers: both on one tile, splitting its column chunks
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane

@@ -11,8 +11,9 @@
 
 namespace inr::cuda {
 
-// Named barriers: 1 + c = consumer c's own (128 threads); 3 + c = consumer c's turn to issue a
-// GEMM (256 threads: c waits, the other consumer arrives). 0 is __syncthreads.
+// Named barriers: 1 + c = consumer c's own (128 threads; with the columns split, 1 is both
+// consumers', 256 threads); 3 + c = consumer c's turn to issue a GEMM (256 threads: c waits, the
+// other consumer arrives). 0 is __syncthreads.
 constexpr int kConsumerBarrier = 1, kTurnBarrier = 3;
 
 #if INR_HAVE_WGMMA
@@ -208,7 +209,14 @@ __device__ __forceinline__ void writeSplitEncoding(const FusedParams& P, const M
 
 // Consumer c = warpgroup - 1 (warpgroups 1 .. CONSUMERS): per round its tile of 64 queries through the whole
 // program, the row-wise instructions by runRowInstr, the GEMMs on wgmma with the weights from the ring.
-template <int NC, int CONSUMERS, bool SPLIT>
+// COLUMNS (two consumers): both run the same tile, splitting each GEMM's column chunks (consumer
+// c takes chunks j with j % 2 == c, and releases the other's slots once they are full, so the
+// ring's protocol is unchanged), so a small batch's single tile per block has two warpgroups'
+// epilogues overlapping each other's MMAs. The tile's buffers are shared: consumer 0 alone loads
+// the coordinates and runs the row-wise instructions, a final dot's halves meet in shared memory,
+// and the two sync (named barrier 1, 256 threads) after each GEMM's A is in registers (its
+// epilogues may write over it) and after its epilogues (the next reads all columns).
+template <int NC, int CONSUMERS, bool SPLIT, bool COLUMNS>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
                                                const float4* __restrict__ points, int n, float* __restrict__ out,
                                                const int* __restrict__ scatter) {
@@ -230,10 +238,16 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   const int warp = tid >> 5, lane = tid & 31;
   const int g = lane >> 2, t4 = lane & 3;  // mma fragment coordinates
   const int rowBase = warp * 16;           // this warp's rows of the consumer tile
-  __half* const act = reinterpret_cast<__half*>(consumerBase + c * consumerBytes);
+  const int region = COLUMNS ? 0 : c;      // the tile's shared-memory region
+  __half* const act = reinterpret_cast<__half*>(consumerBase + region * consumerBytes);
   __half* const operand = act + actHalves;  // a split encoding's first K segment (splitHalves; 128-byte aligned)
-  float* const coords = reinterpret_cast<float*>(consumerBase + c * consumerBytes + std::size_t(actHalves + splitHalves) * 2);
-  auto consumerSync = [&]() { namedBarrierSync(kConsumerBarrier + c, 128); };
+  float* const coords = reinterpret_cast<float*>(consumerBase + region * consumerBytes + std::size_t(actHalves + splitHalves) * 2);
+  auto consumerSync = [&]() {
+    if constexpr (COLUMNS) namedBarrierSync(kConsumerBarrier, 256);
+    else namedBarrierSync(kConsumerBarrier + c, 128);
+  };
+  // The rows of a final dot's other half (COLUMNS: consumer 1's partial sums, read by consumer 0).
+  __shared__ float otherDotHalf[COLUMNS ? kHopperRows : 1];
   // Ping-pong: the consumers take turns issuing a chunk's MMAs (named barriers; consumer 1
   // gives the first turn). A turn passes as soon as the MMAs are issued, so the other
   // consumer's queue behind them while this one waits and runs the chunk's epilogue: the
@@ -244,16 +258,16 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   int lastGemm = -1;
   for (int ip = 0; ip < P.numInstrs; ++ip)
     if (isStreamedGemm(program[ip])) lastGemm = ip;
-  const bool turns = CONSUMERS == 2 && P.hopperPingPong && lastGemm >= 0;
+  const bool turns = CONSUMERS == 2 && !COLUMNS && P.hopperPingPong && lastGemm >= 0;
   if (turns && c == 1 && int(blockIdx.x) < numRounds) namedBarrierArrive(kTurnBarrier + 0, 256);
 
   int slot = 0;
   unsigned phase = 0;
   for (int round = blockIdx.x; round < numRounds; round += gridDim.x) {
-    const int base = (round * CONSUMERS + c) * kHopperRows;
+    const int base = (COLUMNS ? round : round * CONSUMERS + c) * kHopperRows;
     const int rows = max(0, min(kHopperRows, n - base));  // 0: this consumer only keeps the pace
     consumerSync();  // the previous round's last reads of the coordinates are done
-    loadTileCoords<kHopperRows, 128>(P, points, base, rows, coords, tid);
+    if (!COLUMNS || c == 0) loadTileCoords<kHopperRows, 128>(P, points, base, rows, coords, tid);
     consumerSync();
     const bool lastRound = round + int(gridDim.x) >= numRounds;
     const RowTile view{act, bufferStart, bufferLd, coords, rows, base};
@@ -263,7 +277,7 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       if (in.op != MlpOp::Gemm) {
         if (SPLIT && in.op == MlpOp::Fourier && ip + 1 == P.hopperSplitGemm)
           writeSplitEncoding(P, in, coords, operand, act + bufferStart[in.dst], bufferLd[in.dst], tid);
-        else
+        else if (!COLUMNS || c == 0)
           runRowInstr<kHopperRows, 128>(P, in, view, tid, points, out, scatter);
         consumerSync();
         continue;
@@ -314,6 +328,7 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       const std::uint64_t operandDesc = wgmmaDescriptor(smemAddress(operand), 128, kHopperKSegment * 16);
       if (kSegments == 1) loadA(0, in.kPad);  // before any wait: overlaps the weights' arrival
       else if (split) loadA(0, in.kPad - kHopperKSegment);
+      if (COLUMNS) consumerSync();  // both hold A: the epilogues may write over it
       float part[2] = {0.f, 0.f};             // the final dot's partial sums (rows g, g+8)
       float acc[NC / 2];
       // Chunk j's MMAs, complete on return (slots released): one wgmma per k16 step per K
@@ -362,27 +377,46 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       };
       const HopperGemmOutput gemmOut{bias, dst, ldDst, other, ldOther, dotWeights, rowBase, g, t4, rows, base};
       for (int j = 0; j < numChunks; ++j) {
+        if (COLUMNS && (j & 1) != c) {  // the other consumer's chunk: release its slots once full
+          for (int s = 0; s < kSegments; ++s) {
+            mbarrierWait(&fullBar[slot], phase);
+            if (lane == 0) mbarrierArrive(&emptyBar[slot]);
+            if (++slot == stages) slot = 0, phase ^= 1u;
+          }
+          continue;
+        }
         if (turns) namedBarrierSync(kTurnBarrier + c, 256);
         step(j);
         hopperEpilogue<NC>(P, in, gemmOut, j, acc, chunkBias, part, points, out, scatter);
       }
-      if (in.dotNext) {  // this warp holds every column of its 16 rows: reduce over the quad
+      if (in.dotNext) {  // this warp holds every column (COLUMNS: its consumer's half) of its 16 rows: reduce over the quad
         const MlpInstr& fin = program[ip + 1];
         const float dotBias = P.floatWeights[fin.biasOffset];
+        float v[2];
 #pragma unroll
         for (int half = 0; half < 2; ++half) {
-          float v = part[half];
-          v += __shfl_xor_sync(0xffffffffu, v, 1);
-          v += __shfl_xor_sync(0xffffffffu, v, 2);
+          v[half] = part[half];
+          v[half] += __shfl_xor_sync(0xffffffffu, v[half], 1);
+          v[half] += __shfl_xor_sync(0xffffffffu, v[half], 2);
+        }
+        if (COLUMNS) {  // consumer 1's half through shared memory to consumer 0
+          if (c == 1 && t4 == 0) otherDotHalf[rowBase + g] = v[0], otherDotHalf[rowBase + g + 8] = v[1];
+          consumerSync();
+          if (c == 0) v[0] += otherDotHalf[rowBase + g], v[1] += otherDotHalf[rowBase + g + 8];
+        }
+#pragma unroll
+        for (int half = 0; half < 2; ++half) {
           const int row = rowBase + g + 8 * half;
-          if (t4 == 0 && row < rows) writeOutput(P.output, points[base + row].w, applyActivation(fin.act, v + dotBias), base + row, out, scatter);
+          if ((!COLUMNS || c == 0) && t4 == 0 && row < rows)
+            writeOutput(P.output, points[base + row].w, applyActivation(fin.act, v[half] + dotBias), base + row, out, scatter);
         }
       }
       // A warp's GEMM epilogues write only the rows its next GEMM reads: a barrier only before
-      // a row-wise instruction (other warps' rows).
+      // a row-wise instruction (other warps' rows), and with the columns split after every GEMM
+      // (the next reads the other consumer's columns; the final dot's shared half is read).
       int next = ip + 1;
       while (next < P.numInstrs && (program[next].fusedIntoPrevious || program[next].fusedIntoNext)) ++next;
-      if (next < P.numInstrs && program[next].op != MlpOp::Gemm) consumerSync();
+      if (COLUMNS || (next < P.numInstrs && program[next].op != MlpOp::Gemm)) consumerSync();
     }
   }
 }
@@ -390,8 +424,9 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
 
 // SPLIT: the instantiation for a program with a split encoding (FusedParams::hopperSplitGemm; its
 // own kernel, so the others keep their registers: the split GEMM holds A and reads an operand
-// descriptor across its chunks).
-template <int NC, int CONSUMERS, bool SPLIT>
+// descriptor across its chunks). COLUMNS: two consumers on one tile, splitting its columns
+// (hopperConsumer).
+template <int NC, int CONSUMERS, bool SPLIT, bool COLUMNS>
 __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
                                                                    const unsigned* __restrict__ deviceCount,
                                                                    float* __restrict__ out, const int* __restrict__ scatter) {
@@ -408,7 +443,8 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
   const std::size_t consumerBytes = std::size_t(actHalves + splitHalves) * 2 + kHopperRows * 4 * 4;  // hopperConsumerBytes
   constexpr int kThreads = hopperThreads(CONSUMERS);
-  float* const dotWeights = reinterpret_cast<float*>(consumerBase + CONSUMERS * consumerBytes);
+  constexpr int kRegions = COLUMNS ? 1 : CONSUMERS;  // hopperTileRegions
+  float* const dotWeights = reinterpret_cast<float*>(consumerBase + kRegions * consumerBytes);
   float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
   for (int i = threadIdx.x; i < P.numInstrs; i += kThreads) program[i] = P.hopperInstrs[i];
   for (int ip = 0; ip < P.numInstrs; ++ip) {
@@ -435,7 +471,7 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   __syncthreads();  // the last block-wide barrier: the producer leaves early
 
   const int numTiles = (n + kHopperRows - 1) / kHopperRows;
-  const int numRounds = (numTiles + CONSUMERS - 1) / CONSUMERS;
+  const int numRounds = COLUMNS ? numTiles : (numTiles + CONSUMERS - 1) / CONSUMERS;
   const int wg = threadIdx.x / 128;
   const HopperBlock block{program, bufferStart, bufferLd, fullBar, emptyBar, ring, stages, stageHalves,
                           actHalves, splitHalves, consumerBase, consumerBytes, dotWeights, biases};
@@ -448,19 +484,21 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
     return;
   }
   if constexpr (CONSUMERS == 2) setMaxRegistersInc<kHopperConsumerRegisters>();
-  hopperConsumer<NC, CONSUMERS, SPLIT>(P, block, numRounds, points, n, out, scatter);
+  hopperConsumer<NC, CONSUMERS, SPLIT, COLUMNS>(P, block, numRounds, points, n, out, scatter);
 #else
   (void)P, (void)points, (void)n, (void)deviceCount, (void)out, (void)scatter;
 #endif
 }
 
-FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding) {
+FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding, bool splitColumns) {
   if (splitEncoding) {  // two consumers with 128-column slots: not instantiated (the paper FFN's 512-wide encoding does not fit them)
-    if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, true> : hopperMlpKernel<64, 1, true>;
-    return chunkColumns == 128 ? nullptr : hopperMlpKernel<64, 2, true>;
+    if (splitColumns) return nullptr;  // not instantiated either: the split encoding's operand is per consumer
+    if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, true, false> : hopperMlpKernel<64, 1, true, false>;
+    return chunkColumns == 128 ? nullptr : hopperMlpKernel<64, 2, true, false>;
   }
-  if (consumers == 1) return chunkColumns == 128 ? hopperMlpKernel<128, 1, false> : hopperMlpKernel<64, 1, false>;
-  return chunkColumns == 128 ? hopperMlpKernel<128, 2, false> : hopperMlpKernel<64, 2, false>;
+  if (consumers == 1) return splitColumns ? nullptr : chunkColumns == 128 ? hopperMlpKernel<128, 1, false, false> : hopperMlpKernel<64, 1, false, false>;
+  if (splitColumns) return chunkColumns == 128 ? hopperMlpKernel<128, 2, false, true> : hopperMlpKernel<64, 2, false, true>;
+  return chunkColumns == 128 ? hopperMlpKernel<128, 2, false, false> : hopperMlpKernel<64, 2, false, false>;
 }
 
 }  // namespace inr::cuda

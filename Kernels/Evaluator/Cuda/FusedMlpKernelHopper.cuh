@@ -159,8 +159,10 @@ __host__ __device__ inline int hopperSplitHalves(const FusedParams& P) {
 __host__ __device__ inline std::size_t hopperConsumerBytes(const FusedParams& P) {
   return std::size_t(hopperActHalves(P) + hopperSplitHalves(P)) * 2 + kHopperRows * 4 * 4;
 }
-__host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, int consumers, const FusedParams& P) {
-  return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 + std::size_t(consumers) * hopperConsumerBytes(P) +
+// Tiles in a block's shared memory: one per consumer, or one for both with their columns split.
+__host__ __device__ constexpr int hopperTileRegions(int consumers, bool splitColumns) { return splitColumns ? 1 : consumers; }
+__host__ __device__ inline std::size_t hopperSharedBytes(int nc, int stages, int tileRegions, const FusedParams& P) {
+  return std::size_t(stages) * P.hopperStageHalves[chunkIndex(nc)] * 2 + std::size_t(tileRegions) * hopperConsumerBytes(P) +
          (MlpProgram::kMaxFusedGemmOut + std::size_t(P.hopperBiasFloats)) * 4;
 }
 // Halves from the start of a split operand to row r, column k (k < 256): core matrices of 8 rows

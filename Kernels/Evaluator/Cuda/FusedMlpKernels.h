@@ -14,7 +14,7 @@ using FusedKernel = void (*)(FusedParams, const float4*, int, const unsigned*, f
 // built for sm_90a when the CUDA architectures include 90); nullptr when not built. splitEncoding:
 // the instantiation for a program with a split encoding (FusedParams::hopperSplitGemm; nullptr
 // for two consumers with 128-column chunks, which never fit it).
-FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding = false);
+FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding = false, bool splitColumns = false);
 // The mma.sync kernel for tiles of `tile` queries (128, 64 or 32) and weight K-chunks of `kc`
 // columns (64 or 32).
 FusedKernel mmaSyncKernel(int tile, int kc);
