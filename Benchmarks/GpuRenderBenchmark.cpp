@@ -12,7 +12,7 @@
 //   gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] [--march-size N]
 //                        [--macrocells M] [--slices T] [--no-paper] [--no-baselines]
 //                        [--traversal auto|dda|optix] [--per-thread-gradient] [--wgmma-consumers 1|2]
-//                        [--mma wgmma|mma.sync]
+//                        [--column-split 0|1] [--mma wgmma|mma.sync]
 //                        [--csv FILE] [MODEL.inr ...]
 // The shaded row's value + gradient queries run on the fused kernel's tangent rows where the
 // model runs fused (the header line says which path), or with --per-thread-gradient on the
@@ -21,7 +21,8 @@
 // the FFNs ran on before the wgmma kernel stored their encoding), for a before/after in one run.
 // --wgmma-consumers keeps the evaluator's wgmma candidates to blocks of that many consumer
 // warpgroups (CudaEvaluatorOptions::wgmmaConsumers; 2 = the candidates before one-consumer
-// blocks existed), for a before/after in one run.
+// blocks existed), for a before/after in one run; --column-split 0 likewise leaves out two
+// consumers on one tile (CudaEvaluatorOptions::wgmmaColumnSplit).
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -61,6 +62,7 @@ struct Options {
   int size = 1024, frames = 20, warmup = 5, naiveSize = 256, marchSize = 256, macrocells = 64, slices = 16;
   bool paper = true, baselines = true, perThreadGradient = false;
   int wgmmaConsumers = 0;
+  int wgmmaColumnSplit = -1;
   FusedMma mma = FusedMma::Auto;
   TraversalKind traversal = TraversalKind::Dda;  // --traversal: the wavefront rows' GPU traversal
   std::string csv;
@@ -117,6 +119,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   CudaEvaluatorOptions evalOptions;
   if (o.perThreadGradient) evalOptions.gradientPath = CudaGradientPath::PerThread;
   evalOptions.wgmmaConsumers = o.wgmmaConsumers;
+  evalOptions.wgmmaColumnSplit = o.wgmmaColumnSplit;
   evalOptions.mma = o.mma;
   const CudaInrEvaluator eval(model, evalOptions);
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
@@ -314,6 +317,7 @@ int main(int argc, char** argv) {
     else if (a == "--no-baselines") o.baselines = false;
     else if (a == "--per-thread-gradient") o.perThreadGradient = true;
     else if (a == "--wgmma-consumers") o.wgmmaConsumers = std::stoi(cl.value());
+    else if (a == "--column-split") o.wgmmaColumnSplit = std::stoi(cl.value()) ? 1 : 0;
     else if (a == "--mma") {
       const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_render_benchmark");
       if (!m) return 2;
@@ -323,7 +327,7 @@ int main(int argc, char** argv) {
     else if (a == "-h" || a == "--help") {
       std::printf("usage: gpu_render_benchmark [--size N] [--frames F] [--warmup W] [--naive-size N] "
                   "[--march-size N] [--macrocells M] [--slices T] [--no-paper] [--no-baselines] "
-                  "[--traversal auto|dda|optix (default dda)] [--per-thread-gradient] [--wgmma-consumers 1|2] "
+                  "[--traversal auto|dda|optix (default dda)] [--per-thread-gradient] [--wgmma-consumers 1|2] [--column-split 0|1] "
                   "[--mma wgmma|mma.sync] [--csv FILE] "
                   "[MODEL.inr ...]\n");
       return 0;

@@ -8,8 +8,8 @@
 # beside it from `git archive` (BEFORE= empty: no comparison, no second build); and the shaded
 # wavefront frame under a headlight against ParaView's light kit (`--light-kit`: five lights per
 # lit sample) on the same models; and gpu_render_benchmark's frames of the same models, autotuned
-# against the mma.sync kernel alone (`--mma mma.sync`: the FFNs' kernel before the wgmma kernel
-# stored their Fourier encoding).
+# against the evaluator without two consumers on one tile (`--column-split 0`: its candidates
+# before that kernel form).
 # Logs go to $OUT/gpu_checks.tar.gz (and the summary to stdout); about 10 minutes.
 #   OUT=dir bash Benchmarks/run_gpu_checks.sh          (BEFORE= OUT=dir ...: this tree only)
 OUT=${OUT:-./out}
@@ -59,15 +59,15 @@ for m in "${models[@]}"; do
   done
 done
 
-stamp "frames, 1024^2 (gpu_render_benchmark): autotuned against --mma mma.sync"
+stamp "frames, 1024^2 (gpu_render_benchmark): autotuned against --column-split 0"
 inrs=()
 for m in "${models[@]}"; do inrs+=("Testing/Data/real/$m.inr"); done
-for mma in auto mma.sync; do
+for which in auto no-column-split; do
   args=()
-  [ "$mma" != auto ] && args=(--mma "$mma")
+  [ "$which" != auto ] && args=(--column-split 0)
   timeout 240 "$BUILD/Benchmarks/gpu_render_benchmark" --no-paper --no-baselines "${args[@]}" \
-    --csv "$L/render_$mma.csv" "${inrs[@]}" > "$L/render_$mma.txt" 2>&1
-  echo "-- $mma"; grep -E "^== |evaluator|^   wavefront" "$L/render_$mma.txt" | cut -c1-160 | head -24
+    --csv "$L/render_$which.csv" "${inrs[@]}" > "$L/render_$which.txt" 2>&1
+  echo "-- $which"; grep -E "^== |evaluator|^   wavefront" "$L/render_$which.txt" | cut -c1-160 | head -24
 done
 
 tar -czf "$OUT/gpu_checks.tar.gz" -C "$OUT" logs
