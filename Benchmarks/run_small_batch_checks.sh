@@ -40,8 +40,8 @@ show() { grep -vE "^\s+fused launch" "$1"; grep -E "^\s+fused launch" "$1" | sed
 stamp "evaluator at batch sizes $sizes: autotuned"
 timeout 240 "$bench" --batches "${sizes// /,}" --csv "$L/batches_auto.csv" "${real[@]}" > "$L/batches_auto.txt" 2>&1
 show "$L/batches_auto.txt"
-stamp "the same, the wgmma candidates of before (two consumers)"
-timeout 240 "$bench" --batches "${sizes// /,}" --wgmma-consumers 2 --csv "$L/batches_before_candidates.csv" \
+stamp "the same, the wgmma candidates of before one-consumer blocks (two consumers, two tiles)"
+timeout 240 "$bench" --batches "${sizes// /,}" --wgmma-consumers 2 --column-split 0 --csv "$L/batches_before_candidates.csv" \
   "${real[@]}" > "$L/batches_before_candidates.txt" 2>&1
 show "$L/batches_before_candidates.txt"
 if [ -n "$BEFORE" ]; then

@@ -467,6 +467,9 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     throw std::invalid_argument("CudaEvaluatorOptions: wgmmaColumnSplit = 1 (two consumers on one tile) needs two "
                                 "consumers without turns; set wgmmaConsumers to 2 or 0 and wgmmaPingPong to 0 or -1, "
                                 "or wgmmaColumnSplit to 0 or -1");
+  if (options.wgmmaColumnSplit == 1 && options.storedEncoding == 2)
+    throw std::invalid_argument("CudaEvaluatorOptions: wgmmaColumnSplit = 1 (two consumers on one tile) does not run "
+                                "the split encoding (storedEncoding = 2); set one of them to -1 or 0");
   Impl& I = *impl_;
   I.device = queryCudaDevice(options.device);
   if (!I.device.usable) throw std::runtime_error("CUDA backend unavailable: " + I.device.reason);

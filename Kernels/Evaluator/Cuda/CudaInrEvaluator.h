@@ -44,15 +44,18 @@ struct CudaEvaluatorOptions {
   // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
   // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
   // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations
-  // only (the wgmma kernel runs wgmmaConsumers x 64 queries per round, its weights in chunks of
-  // wgmmaChunkColumns output columns: 64 or 128, 0 = both autotuned).
+  // only (the wgmma kernel runs wgmmaConsumers x 64 queries per round, or 64 with the columns
+  // split, its weights in chunks of wgmmaChunkColumns output columns: 64 or 128, 0 = both
+  // autotuned).
   FusedMma mma = FusedMma::Auto;
   // wgmma kernel, blocks of two consumers: the consumer warpgroups take turns issuing each weight
-  // chunk's MMAs (1), never (0), or both are autotuned (-1). 1 rules out one-consumer blocks.
+  // chunk's MMAs (1), never (0), or both are autotuned (-1). 1 rules out one-consumer blocks and
+  // the columns split (wgmmaColumnSplit).
   int wgmmaPingPong = -1;
   int wgmmaChunkColumns = 0;
-  // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible) or 1
-  // (64 queries per round: twice the blocks on a small batch); 0 = both autotuned.
+  // wgmma kernel: consumer warpgroups per block, 2 (128 queries per round, turns possible, or 64
+  // with the columns split) or 1 (64 queries per round: twice the blocks on a small batch); 0 =
+  // both autotuned.
   int wgmmaConsumers = 0;
   // wgmma kernel, blocks of two consumers: both run one 64-query tile, splitting each layer's
   // column chunks between them (1: a small batch's block has two warpgroups on its single tile,

@@ -72,7 +72,8 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
   // (hopperSharedBytes: two consumers' buffers alone take most of the shared memory, and a ring
   // slot of 128 columns x K 256 is 64 KB); split (32 KB of operand per consumer, the rest over
   // the activations) also two consumers with 64-column chunks and one with 128. Bounded: at most
-  // 14 wgmma candidates per form, the stored forms only where they fit. A
+  // 8 wgmma candidates per form (6 split), twice that with a hash grid's two gathers, the stored
+  // forms only where they fit. A
   // kernel's dynamic shared-memory limit is set to all it may have, as for mma.sync (the fused
   // and the stored form share a kernel with different sizes, and another evaluator's launches
   // may need more than this one's; the split form has its own, hopperKernel(nc, consumers, true)).

@@ -2,8 +2,9 @@
 // Which fused-kernel configuration runs a model's launches. The candidates are every mma.sync
 // configuration (tile x weight chunk, a Fourier encoding fused into the GEMM or stored in a
 // buffer) whose shared memory fits the device, then on Hopper every wgmma configuration (chunk
-// width, as many ring slots as fit, two consumers with and without ping-pong turns, one
-// consumer; a Fourier encoding fused, stored or stored split, where it fits). Each is timed on the same
+// width, as many ring slots as fit, two consumers with and without ping-pong turns and on one
+// tile with its columns split, one consumer; a Fourier encoding fused, stored or stored split,
+// where it fits). Each is timed on the same
 // random queries in the model's domain, on a large batch (throughput) and on a small one
 // (latency: the pipeline's late traverse-evaluate iterations hold a few thousand queries, where a
 // 128-query tile leaves most SMs idle); the fastest of each runs launches of its size.
@@ -22,7 +23,7 @@
 namespace inr::cuda {
 
 struct FusedConfig {
-  bool wgmma = false;  // the Hopper kernel (consumers x 64 queries per round)
+  bool wgmma = false;  // the Hopper kernel (`tile` queries per round: consumers x 64, or 64 with splitColumns)
   int tile = 0, kc = 0;  // kc: mma.sync's weight K-chunk; wgmma: output columns per weight chunk
   int stages = 0;         // wgmma: weight ring slots
   bool pingPong = false;  // wgmma: the consumers take turns issuing a chunk's MMAs

@@ -220,6 +220,8 @@ template <int NC, int CONSUMERS, bool SPLIT, bool COLUMNS>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
                                                const float4* __restrict__ points, int n, float* __restrict__ out,
                                                const int* __restrict__ scatter) {
+  // (one consumer would wait at a 256-thread barrier alone; a split encoding's operand is per consumer)
+  static_assert(!COLUMNS || (CONSUMERS == 2 && !SPLIT), "the columns split takes two consumers and no split encoding");
   constexpr int KSTEPS = kHopperKSegment / 16;
   const MlpInstr* const program = B.program;
   const int* const bufferStart = B.bufferStart;
@@ -255,6 +257,9 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
   // coincide. After the last chunk of the block's last round consumer 1 gives no turn (nobody
   // would take it). Deadlock-free with any ring of >= 2 slots: a consumer is at most one chunk
   // ahead of the other, so every slot older than the chunk it waits for has been released.
+  // With the columns split (no turns) each consumer waits for every slot's "full" phase, its own
+  // chunks' and the other's, before arriving on its "empty" barrier: the producer refills a slot
+  // only once both arrived, so neither consumer can run a whole phase ahead of the other on it.
   int lastGemm = -1;
   for (int ip = 0; ip < P.numInstrs; ++ip)
     if (isStreamedGemm(program[ip])) lastGemm = ip;
@@ -443,7 +448,7 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
   const std::size_t consumerBytes = std::size_t(actHalves + splitHalves) * 2 + kHopperRows * 4 * 4;  // hopperConsumerBytes
   constexpr int kThreads = hopperThreads(CONSUMERS);
-  constexpr int kRegions = COLUMNS ? 1 : CONSUMERS;  // hopperTileRegions
+  constexpr int kRegions = hopperTileRegions(CONSUMERS, COLUMNS);
   float* const dotWeights = reinterpret_cast<float*>(consumerBase + kRegions * consumerBytes);
   float* const biases = dotWeights + MlpProgram::kMaxFusedGemmOut;
   for (int i = threadIdx.x; i < P.numInstrs; i += kThreads) program[i] = P.hopperInstrs[i];

@@ -11,7 +11,8 @@
 // it). It gives its registers away (setmaxnreg.dec) to the consumers, warpgroups 1 and 2
 // (setmaxnreg.inc), which each run the whole program on their own tile of 64 queries: a warp
 // owns 16 rows and every column of them, so a consumer synchronises only with itself (named
-// barrier) and the final dot product reduces within a quad.
+// barrier) and the final dot product reduces within a quad. (Two consumers may instead share one
+// tile, splitting its column chunks: "Columns split" below.)
 // GEMM layers: A (the layer's input, K <= 256) goes to registers once per layer (ldmatrix from
 // the row-major buffer, or the Fourier encoding computed in place); the weights arrive in chunks
 // of 64 or 128 output columns (autotuned) x all K (one chunk per segment of 256 for wider K); a
@@ -23,10 +24,16 @@
 // every chunk and measured slower: Benchmarks/RESULTS.md, "Hopper kernel in column chunks".) A warp's GEMM reads only its own 16 rows, all of them before its
 // epilogues write them: a GEMM may write over its input (MlpProgram::withGemmsInPlace(
 // kHopperKSegment): one activation buffer for SIREN and FFN), and consecutive GEMM layers need
-// no barrier between the consumer's warps.
+// no barrier between the consumer's warps (with the columns split, a barrier of both consumers
+// after each GEMM's A is loaded and after its epilogues).
 // Ping-pong (optional, autotuned): the consumers take turns issuing a chunk's MMAs (named
 // barriers), so one's epilogue runs while the other's MMAs keep the tensor cores busy.
 // A block of one consumer (hopperThreads below) runs the same code without turns.
+// Columns split (optional, autotuned; hopperConsumer's COLUMNS): the two consumers run one tile
+// together, consumer c taking the column chunks j with j % 2 == c and releasing the other's ring
+// slots once full, so a small batch's single tile per block has two epilogues overlapping each
+// other's MMAs; consumer 0 alone loads the coordinates and runs row-wise instructions, and a final
+// dot's halves meet in shared memory.
 // A Fourier encoding of the coordinates (the FFN) runs in one of three forms (autotuned,
 // CudaEvaluatorOptions::storedEncoding): fused, computed in the first GEMM's operand load for
 // every weight chunk (no buffer); stored, written once per tile by the row instruction into a
@@ -70,7 +77,8 @@ namespace inr::cuda {
 // Consumer warpgroups per block: two (their turns overlap one's epilogue with the other's
 // MMAs: the throughput choice), or one (64 queries per round, so a small batch spreads over twice
 // the blocks: the pipeline's late iterations hold a few thousand queries, and 128-query rounds
-// leave half the SMs idle there). The autotuner times both (FusedLaunchAutotuner).
+// leave half the SMs idle there), or two on one 64-query tile with its columns split (as many
+// blocks as one consumer, two warpgroups each). The autotuner times them all (FusedLaunchAutotuner).
 __host__ __device__ constexpr int hopperThreads(int consumers) { return 128 * (1 + consumers); }
 constexpr int kHopperRows = 64;  // queries per consumer tile (wgmma's M)
 constexpr int kHopperMaxStages = 8;
@@ -142,9 +150,10 @@ inline int hopperBiasLayout(const MlpProgram& prog, int* starts, int maxInstrs) 
   return at;
 }
 
-// Dynamic shared memory of the Hopper kernel: the ring, then per consumer its activation
-// buffers (64 rows each), a split encoding's operand (hopperSplitHalves) and coordinates, then
-// the final dot's weights and the biases.
+// Dynamic shared memory of the Hopper kernel: the ring, then per tile region (one per consumer,
+// or one for two with the columns split: hopperTileRegions) its activation buffers (64 rows
+// each), a split encoding's operand (hopperSplitHalves) and coordinates, then the final dot's
+// weights and the biases.
 __host__ __device__ inline int hopperActHalves(const FusedParams& P) {
   int halves = 0;
   for (int b = 0; b < P.hopperNumBuffers; ++b) halves += kHopperRows * P.hopperBufferLd[b];

@@ -10,10 +10,12 @@ namespace inr::cuda {
 
 using FusedKernel = void (*)(FusedParams, const float4*, int, const unsigned*, float*, const int*);
 // The Hopper kernel (FusedMlpKernelHopper.cuh) for weight chunks of 64 or 128 output columns
-// with one or two consumer warpgroups (64 queries per consumer and round; FusedMlpKernelHopper.cu,
-// built for sm_90a when the CUDA architectures include 90); nullptr when not built. splitEncoding:
-// the instantiation for a program with a split encoding (FusedParams::hopperSplitGemm; nullptr
-// for two consumers with 128-column chunks, which never fit it).
+// with one or two consumer warpgroups (64 queries per consumer and round, or with splitColumns
+// two consumers on one 64-query tile; FusedMlpKernelHopper.cu, built for sm_90a when the CUDA
+// architectures include 90); nullptr when not built. splitEncoding: the instantiation for a
+// program with a split encoding (FusedParams::hopperSplitGemm). nullptr also for the forms not
+// instantiated: split encoding with two consumers and 128-column chunks (they never fit it) or
+// with the columns split, and one consumer with the columns split.
 FusedKernel hopperKernel(int chunkColumns, int consumers, bool splitEncoding = false, bool splitColumns = false);
 // The mma.sync kernel for tiles of `tile` queries (128, 64 or 32) and weight K-chunks of `kc`
 // columns (64 or 32).
