@@ -67,8 +67,9 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
   // one tile with its columns split (64 queries per round, hopperConsumer's COLUMNS); a
   // program with a fused Fourier encoding also with it stored, and stored split where its GEMM
   // has K 257..512 (after the fused form, so the configuration without autotuning stays the one
-  // of earlier versions). The paper FFN's stored encoding (64 x 512 fp16 per consumer beside its
-  // 256-wide activations) fits one-consumer blocks with 64-column chunks only
+  // of earlier versions). The paper FFN's stored encoding (64 x 512 fp16 per tile beside its
+  // 256-wide activations) fits one tile's region with 64-column chunks only (one consumer, or two
+  // with the columns split)
   // (hopperSharedBytes: two consumers' buffers alone take most of the shared memory, and a ring
   // slot of 128 columns x K 256 is 64 KB); split (32 KB of operand per consumer, the rest over
   // the activations) also two consumers with 64-column chunks and one with 128. Bounded: at most
