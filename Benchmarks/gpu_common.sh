@@ -7,6 +7,8 @@
 #   gpu_build_with_before LOGDIR BEFORE_TARGETS -- TARGETS  builds TARGETS here in $BUILD (16 jobs)
 #                                     and, when $BEFORE names a commit, BEFORE_TARGETS of its tree
 #                                     in /tmp/before-build beside it (4 jobs); prints the spills
+#   gpu_hopper_spills BUILD_LOG       the Hopper kernels' spills and any wgmma serialisation
+#                                     warning (ptxas C75xx) in a build's log
 #   stamp MESSAGE                     a step's heading with the seconds since the script began
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -25,6 +27,10 @@ gpu_ctest() {
   echo "== GPU tests"
   ctest --test-dir "$BUILD" -L cuda --output-on-failure "$@" 2>&1 | tee "$OUT/ctest_cuda.log" \
     | grep -vE "^\s*(Start|Test command)" | tail -40
+}
+
+gpu_hopper_spills() {
+  grep -E "spill|C75[0-9][0-9]" "$1" | grep -iE "hopper|C75" | sed 's/.*function //' | cut -c1-200
 }
 
 gpu_start=$(date +%s)

@@ -32,7 +32,7 @@ stamp "configure and build"
 gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; status=1; finish; }
 timeout 420 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark > "$L/build.log" 2>&1 \
   || { tail -40 "$L/build.log"; status=1; finish; }
-grep -E "spill|C75[0-9][0-9]" "$L/build.log" | grep -iE "hopper|C75" | sed 's/.*function //' | cut -c1-200
+gpu_hopper_spills "$L/build.log"
 
 stamp "GPU evaluator tests"
 timeout 300 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." -V > "$L/ctest_cuda.log" 2>&1

@@ -206,6 +206,9 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       o.wgmmaConsumers = consumers;
       o.wgmmaColumnSplit = k.columnSplit;
       if (fusedFourier) o.storedEncoding = stored;
+      const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " +
+                                std::to_string(columns) + (k.columnSplit ? " one tile, columns split" : "") +
+                                (stored == 2 ? " stored encoding split" : stored ? " stored encoding" : "");
       std::unique_ptr<CudaInrEvaluator> made;
       try {
         made = std::make_unique<CudaInrEvaluator>(model, o);
@@ -217,9 +220,7 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
         } else {
           ASSERT_EQ(columns, 128) << name << ": " << e.what();
         }
-        std::printf("%-30s wgmma %dx64 N %d%s%s: does not fit (%s)\n", name.c_str(), consumers, columns,
-                    k.columnSplit ? ", one tile, columns split" : "",
-                    stored == 2 ? ", stored encoding split" : stored ? ", stored encoding" : "", e.what());
+        std::printf("%-30s%s: does not fit (%s)\n", name.c_str(), which.c_str(), e.what());
         continue;
       }
       const CudaInrEvaluator& gpu = *made;
@@ -233,9 +234,6 @@ TEST(CudaInrEvaluator, WgmmaKernelMatchesCpuReferenceAndEmulation) {
       const Err e = compare(got, ref), em = compare(std::vector<float>(got.begin(), got.begin() + kEmulated), emu);
       std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g\n", name.c_str(),
                   gpu.launchReport().c_str(), e.maxAbs, e.meanAbs, em.meanAbs);
-      const std::string which = " consumers " + std::to_string(consumers) + " turns " + std::to_string(pingPong) + " N " +
-                                std::to_string(columns) + (k.columnSplit ? " one tile, columns split" : "") +
-                                (stored == 2 ? " stored encoding split" : stored ? " stored encoding" : "");
       EXPECT_LT(e.meanAbs, 2e-3 * scale) << name << which;
       EXPECT_LT(e.maxAbs, 3e-2 * scale) << name << which;
       EXPECT_LT(em.meanAbs, 5e-4) << name << which;
