@@ -137,7 +137,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
     }
     ++iterations;
     queries += k;
-    batch_.evaluate(evaluator_);
+    batch_.evaluate(evaluator_, medium.tf);
     if (points)
       batch_.scatterPoints(*points);
     else
@@ -173,7 +173,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.updateMs += applyDirtyMajorants();
 
   const FrameConstants fc = frameConstants(frameKey());
-  const PruneView prune = queryReduction_.pruning() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
+  const PruneView prune = pruningActive() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), prune};
   const RayStateView rs = rays_.view();
   const int n = rs.count;
@@ -266,7 +266,13 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       if (!(rs.flags[i] & kRayPending)) break;
       const QueryPoint q = pendingQuery(rs, i, fc.time);
       float v = 0.f;
-      evaluator_.evaluate(&q, 1, &v);
+      if (medium.tf.gradientOpacity) {
+        float g[3];
+        evaluator_.evaluateWithGradient(&q, 1, &v, g);
+        rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
+      } else {
+        evaluator_.evaluate(&q, 1, &v);
+      }
       storeQueryResult(rs, i, v);
       ++queries;
       st.refinements += macrocells_.refine(linearCellIndex(dims, rs.cell[i]), v) ? 1 : 0;

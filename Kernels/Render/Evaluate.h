@@ -20,6 +20,13 @@ INR_HD void storeQueryResult(const RayStateView& rs, int ray, float value) {
   if (!isFiniteValue(value)) rs.flags[ray] |= kRayBadSample;
 }
 
+// Gradient opacity (TransferFunctionView::gradientOpacity): with it, every query is answered with
+// the network's value and model-space gradient g, and the factor stored beside the value (the
+// ray's or the point's opacityScale) is the function at |g|. The stage code multiplies the
+// sample's scalar opacity by it (sampleOpacity, Render/TransferFunctionTable.h), so the extinction
+// never exceeds the scalar opacity's: the majorants hold as they are.
+INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return gradientOpacityAt(tf, length(g)); }
+
 // Expected-value refinement of homogeneity pruning (Eq. ev_ema, Render/Pruning.h): the evaluated
 // `value` of ray `ray`'s pending query moves the expected scalar of the query's macrocell
 // (rs.cell, the cell the candidate was emitted in), weighted by how central the query point is.

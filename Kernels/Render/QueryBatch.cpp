@@ -75,7 +75,10 @@ std::size_t QueryBatch::gatherPoints(const RayStateView& rs, const PointStateVie
 void QueryBatch::scatterPoints(const PointStateView& pts) const {
   const long long n = (long long)count_;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (long long k = 0; k < n; ++k) pts.sample[rays_[k]] = values_[k];
+  for (long long k = 0; k < n; ++k) {
+    pts.sample[rays_[k]] = values_[k];
+    if (withOpacityScales_) pts.opacityScale[rays_[k]] = opacityScales_[k];
+  }
 }
 
 std::size_t QueryBatch::gatherShading(const FrameConstants& fc, const RayStateView& rs) {
@@ -99,14 +102,29 @@ void QueryBatch::shade(const FieldEvaluator& evaluator, const FrameConstants& fc
   for (long long k = 0; k < n; ++k) shadeRay(fc, rs, rays_[k], Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
 }
 
-void QueryBatch::evaluate(const FieldEvaluator& evaluator) {
-  if (count_ > 0) evaluator.evaluate(points_.data(), count_, values_.data());
+void QueryBatch::evaluate(const FieldEvaluator& evaluator, const TransferFunctionView& tf) {
+  withOpacityScales_ = tf.gradientOpacity != nullptr;
+  if (count_ == 0) return;
+  if (!withOpacityScales_) {
+    evaluator.evaluate(points_.data(), count_, values_.data());
+    return;
+  }
+  gradients_.resize(3 * count_);
+  opacityScales_.resize(count_);
+  evaluator.evaluateWithGradient(points_.data(), count_, values_.data(), gradients_.data());
+  const long long n = (long long)count_;
+  const float* g = gradients_.data();
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (long long k = 0; k < n; ++k) opacityScales_[k] = gradientOpacityOf(tf, Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
 }
 
 void QueryBatch::scatter(const RayStateView& rs) const {
   const long long n = (long long)count_;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (long long k = 0; k < n; ++k) storeQueryResult(rs, rays_[k], values_[k]);
+  for (long long k = 0; k < n; ++k) {
+    storeQueryResult(rs, rays_[k], values_[k]);
+    if (withOpacityScales_) rs.opacityScale[rays_[k]] = opacityScales_[k];
+  }
 }
 
 }  // namespace inr

@@ -15,7 +15,9 @@ class QueryBatch {
 public:
   // Collects the pending rays' queries; returns their number.
   std::size_t gather(const RayStateView& rs, float time);
-  void evaluate(const FieldEvaluator& evaluator);
+  // With tf's gradient opacity the batch is answered with values and gradients, and the scatters
+  // store each query's gradient opacity factor beside its value (Render/Evaluate.h).
+  void evaluate(const FieldEvaluator& evaluator, const TransferFunctionView& tf);
   void scatter(const RayStateView& rs) const;
   // Ratio tracking (RatioTracking.h): the pending points that need the network (majorant > 0),
   // in ray order, then point order; rayIndices() then holds their slots.
@@ -38,7 +40,9 @@ private:
   std::vector<QueryPoint> points_;
   std::vector<int> rays_;
   std::vector<float> values_;
-  std::vector<float> gradients_;  // gradient shading: 3 per query
+  std::vector<float> gradients_;  // gradient shading and gradient opacity: 3 per query
+  std::vector<float> opacityScales_;  // gradient opacity: the factor per query
+  bool withOpacityScales_ = false;    // the last evaluate computed opacityScales_
   std::vector<std::size_t> chunkOffsets_;
   std::size_t count_ = 0;
 };

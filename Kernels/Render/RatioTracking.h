@@ -71,6 +71,7 @@ namespace inr {
 //   gap       march: length of non-empty macrocells between the previous point and this one
 //             (where the control extinction applies)
 //   sample    the network's value there (or the pruned estimate); NaN while pending
+//   opacityScale  the gradient opacity factor there (RayStateView::opacityScale)
 //   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
 //   kind      PointKind bits
 #define INR_POINT_STATE_FIELDS(X) \
@@ -78,6 +79,7 @@ namespace inr {
   X(float, majorant)              \
   X(float, gap)                   \
   X(float, sample)                \
+  X(float, opacityScale)          \
   X(int, cell)                    \
   X(std::uint8_t, kind)
 
@@ -152,7 +154,7 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
     if (ended) continue;  // (the remaining points still refine)
     const float t = pts.t[slot];
     const Vec4f c = isFiniteValue(s) ? lookupTransferFunction(medium.tf, s) : Vec4f{0.f, 0.f, 0.f, 0.f};
-    const float sigma = opacityToExtinction(c.w, medium.tf.invUnitDistance);
+    const float sigma = opacityToExtinction(sampleOpacity(medium.tf, c.w, pts.opacityScale, slot), medium.tf.invUnitDistance);
     RngStream pointRng = ratioPointStream(ray, t);
     const float pick = pointRng.next();
     float w = 0.f;  // this point's emission weight

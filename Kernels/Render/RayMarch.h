@@ -77,9 +77,17 @@ INR_HD Vec3f marchShadowSample(Vec3f p, Vec3f toLight, const MarchShadowRay& r, 
   return p + toLight * ((float(q) + 0.5f) * r.ds);
 }
 
-// Whether a sample of value v can contribute (and so needs a shadow ray).
-INR_HD bool marchSampleEmits(const TransferFunctionView& tf, float v) {
-  return isFiniteValue(v) && extinctionAt(tf, v) > 0.f;
+// Whether a sample of value v with gradient opacity factor opacityScale can contribute (and so
+// needs a shadow ray).
+INR_HD bool marchSampleEmits(const TransferFunctionView& tf, float v, float opacityScale = 1.f) {
+  return isFiniteValue(v) && opacityScale > 0.f && extinctionAt(tf, v) > 0.f;
+}
+
+// The extinction of a shadow-ray sample of value v with gradient opacity factor opacityScale (0
+// for a NaN output: empty space).
+INR_HD float marchExtinction(const TransferFunctionView& tf, float v, float opacityScale = 1.f) {
+  if (!isFiniteValue(v)) return 0.f;
+  return opacityToExtinction(lookupTransferFunction(tf, v).w * opacityScale, tf.invUnitDistance);
 }
 
 INR_HD float expm1Of(float x) { return expm1f(x); }
@@ -92,19 +100,22 @@ struct MarchCompositor {
   Real T = 1, r = 0, g = 0, b = 0;
 
   // A sample of value v over ds; lightFactor: the share of its emission that reaches the eye's
-  // side of the light (1 without shadows). NaN outputs are empty space, as in the delta tracker.
-  INR_HD void add(const TransferFunctionView& tf, float v, float ds, Real lightFactor) {
+  // side of the light (1 without shadows); opacityScale: its gradient opacity factor (1 without,
+  // Render/Evaluate.h). NaN outputs are empty space, as in the delta tracker.
+  INR_HD void add(const TransferFunctionView& tf, float v, float ds, Real lightFactor, float opacityScale = 1.f) {
     if (!isFiniteValue(v)) return;
-    const Vec4f c = lookupTransferFunction(tf, v);
+    Vec4f c = lookupTransferFunction(tf, v);
+    c.w *= opacityScale;
     emit(c, tf, ds, lightFactor, Vec3f{c.x, c.y, c.z});
   }
 
   // The same with gradient shading (Shading.h): the sample's colour lit by `light` with the
   // light's visibility lightT (1 without shadows).
   INR_HD void addLit(const TransferFunctionView& tf, float v, float ds, float ambient, const SampleLight& light,
-                     float lightT) {
+                     float lightT, float opacityScale = 1.f) {
     if (!isFiniteValue(v)) return;
-    const Vec4f c = lookupTransferFunction(tf, v);
+    Vec4f c = lookupTransferFunction(tf, v);
+    c.w *= opacityScale;
     emit(c, tf, ds, Real(1), litColour(Vec3f{c.x, c.y, c.z}, ambient, light, lightT));
   }
 

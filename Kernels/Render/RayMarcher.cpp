@@ -7,6 +7,7 @@
 
 #include "Render/CpuParallel.h"
 #include "Render/CounterRng.h"
+#include "Render/Evaluate.h"
 #include "Render/RayMarch.h"
 #include "Render/Finalize.h"
 #include "Render/AccumulationImage.h"
@@ -41,6 +42,8 @@ void RayMarchRenderer::setScene(const RenderScene& scene) {
   validateLighting(scene);
   if (scene.shading.enabled && !evaluator_.providesGradient())
     throw std::invalid_argument("shading: the evaluator " + evaluator_.name() + " computes no gradients");
+  if (scene.transferFunction.usesGradientOpacity() && !evaluator_.providesGradient())
+    throw std::invalid_argument("gradient opacity: the evaluator " + evaluator_.name() + " computes no gradients");
   scene_ = scene;
   tfTable_ = std::make_unique<TransferFunctionTable>(scene.transferFunction);
   haveScene_ = true;
@@ -67,10 +70,17 @@ FrameStats RayMarchRenderer::renderFrame() {
   if (cam.transformed) toLight = normalize(applyLinear(cam.modelFromWorld, toLight));  // model space
   const bool shadows = scene_.shadows;
   const float ambient = scene_.ambient;
-  // Gradient shading: every sample's value comes with its gradient (Shading.h).
+  // Gradient shading and gradient opacity: every sample's value comes with its gradient
+  // (Shading.h, Evaluate.h); shadow samples too with gradient opacity.
   const ShadingConstants shading = shadingConstants(scene_.shading, cam);
+  const bool gradientOpacity = tf.gradientOpacity != nullptr;
+  const bool withGradients = shading.enabled || gradientOpacity;
   st.pixels = std::size_t(n);
-  std::vector<float> gradients;
+  std::vector<float> gradients, shadowGradients;
+  // Sample k's gradient opacity factor from its gradient in g (1 without gradient opacity).
+  auto opacityScaleAt = [&](const std::vector<float>& g, std::size_t k) {
+    return gradientOpacity ? gradientOpacityOf(tf, Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]}) : 1.f;
+  };
 
   std::vector<MarchRay> segs;
   std::vector<QueryPoint> points;
@@ -114,7 +124,7 @@ FrameStats RayMarchRenderer::renderFrame() {
     }
     st.initMs += msSince(t0);
     t0 = Clock::now();
-    if (total > 0 && shading.enabled) {
+    if (total > 0 && withGradients) {
       gradients.resize(3 * std::size_t(total));
       evaluator_.evaluateWithGradient(points.data(), std::size_t(total), values.data(), gradients.data());
     } else if (total > 0) {
@@ -134,15 +144,20 @@ FrameStats RayMarchRenderer::renderFrame() {
         if (jobs.empty()) return;
         const auto te = Clock::now();
         shadowValues.resize(pending);
-        evaluator_.evaluate(shadowPoints.data(), pending, shadowValues.data());
+        if (gradientOpacity) {
+          shadowGradients.resize(3 * pending);
+          evaluator_.evaluateWithGradient(shadowPoints.data(), pending, shadowValues.data(), shadowGradients.data());
+        } else {
+          evaluator_.evaluate(shadowPoints.data(), pending, shadowValues.data());
+        }
         st.shadowQueries += pending;
         st.shadowIterations += 1;
         st.shadowEvaluateMs += msSince(te);
         for (const ShadowJob& j : jobs) {
           double tau = 0.0;
           for (int q = 0; q < j.count; ++q) {
-            const float v = shadowValues[j.first + q];
-            if (isFiniteValue(v)) tau += extinctionAt(tf, v) * j.ds;
+            const std::size_t sq = std::size_t(j.first + q);
+            tau += marchExtinction(tf, shadowValues[sq], opacityScaleAt(shadowGradients, sq)) * j.ds;
           }
           lightT[j.sample] = float(std::exp(-tau));
         }
@@ -153,7 +168,7 @@ FrameStats RayMarchRenderer::renderFrame() {
       for (int k = 0; k < chunkN; ++k) {
         for (int j = 0; j < segs[k].count; ++j) {
           const int sample = firstSample[k] + j;
-          if (!marchSampleEmits(tf, values[sample])) continue;
+          if (!marchSampleEmits(tf, values[sample], opacityScaleAt(gradients, std::size_t(sample)))) continue;
           const QueryPoint& q0 = points[sample];
           const Vec3f p{q0.x, q0.y, q0.z};
           const MarchShadowRay ray = marchShadowRay(box_, p, toLight, shadowStep_);
@@ -180,14 +195,15 @@ FrameStats RayMarchRenderer::renderFrame() {
       MarchCompositor<double> ray;
       for (int j = 0; j < s.count; ++j) {
         const int sample = firstSample[k] + j;
+        const float scale = opacityScaleAt(gradients, std::size_t(sample));
         if (shading.enabled) {
           const float* g = &gradients[3 * std::size_t(sample)];
           const QueryPoint& q = points[sample];
           const SampleLight light =
               sampleLightAt(cam, shading, toLight, Vec3f{q.x, q.y, q.z}, Vec3f{g[0], g[1], g[2]});
-          ray.addLit(tf, values[sample], s.ds, ambient, light, shadows ? lightT[sample] : 1.f);
+          ray.addLit(tf, values[sample], s.ds, ambient, light, shadows ? lightT[sample] : 1.f, scale);
         } else {
-          ray.add(tf, values[sample], s.ds, shadows ? marchLightFactor<double>(ambient, lightT[sample]) : 1.0);
+          ray.add(tf, values[sample], s.ds, shadows ? marchLightFactor<double>(ambient, lightT[sample]) : 1.0, scale);
         }
       }
       const int i = chunk0 + k;

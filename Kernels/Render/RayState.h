@@ -51,6 +51,9 @@ enum class ShadowEstimator : int {
 //   tEnd               end of the segment: box exit, depth limit or light exit
 //   rngCounter         draw index of the ray's counter-based stream
 //   sample             scalar returned by the evaluator for the pending query; NaN while pending
+//   opacityScale       the gradient opacity factor at the pending query (TransferFunctionView::
+//                      gradientOpacity), written with `sample`; only written and read when the TF
+//                      has a gradient opacity function
 //   collisionProduct   delta tracking: xi * majorant, drawn when the candidate is emitted, so the
 //                      acceptance test after evaluation is `collisionProduct < sigma(sample)` and
 //                      neither xi nor the majorant has to be stored; ratio-tracked shadow rays
@@ -81,6 +84,7 @@ enum class ShadowEstimator : int {
   X(std::uint32_t, rngCounter)  \
   X(std::uint8_t, flags)        \
   X(float, sample)              \
+  X(float, opacityScale)        \
   X(float, collisionProduct)    \
   X(Int3, cell)                 \
   X(Vec3f, tNext)               \

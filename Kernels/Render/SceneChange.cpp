@@ -49,13 +49,16 @@ bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) 
     const auto &p = a.color[i], &q = b.color[i];
     if (p.x != q.x || p.r != q.r || p.g != q.g || p.b != q.b) return false;
   }
-  for (std::size_t i = 0; i < a.opacity.size(); ++i) {
-    const auto &p = a.opacity[i], &q = b.opacity[i];
-    if (p.x != q.x || p.alpha != q.alpha || p.midpoint != q.midpoint || p.sharpness != q.sharpness) {
-      return false;
+  auto samePiecewise = [](const std::vector<TransferFunction::OpacityPoint>& u,
+                          const std::vector<TransferFunction::OpacityPoint>& v) {
+    if (u.size() != v.size()) return false;
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      const auto &p = u[i], &q = v[i];
+      if (p.x != q.x || p.alpha != q.alpha || p.midpoint != q.midpoint || p.sharpness != q.sharpness) return false;
     }
-  }
-  return true;
+    return true;
+  };
+  return samePiecewise(a.opacity, b.opacity) && samePiecewise(a.gradientOpacity, b.gradientOpacity);
 }
 
 SceneChange diffScenes(const RenderScene* before, const RenderScene& after) {

@@ -326,7 +326,7 @@ void TransferFunction::rescale(double lo, double hi) {
   const double span = r[1] - r[0];
   auto map = [&](double x) { return span > 0 ? lo + (x - r[0]) / span * (hi - lo) : lo; };
   for (auto& p : color) p.x = map(p.x);
-  for (auto& p : opacity) p.x = map(p.x);
+  for (auto& p : opacity) p.x = map(p.x);  // (the gradient opacity is over magnitudes: kept)
 }
 
 std::array<double, 2> TransferFunction::range() const {
@@ -344,19 +344,39 @@ std::string TransferFunction::colorSpaceWarning() const {
          "from ParaView's";
 }
 
-double TransferFunction::opacityAt(double x) const {
-  if (opacity.empty()) return 0.0;
-  if (x <= opacity.front().x) return opacity.front().alpha;
-  if (x >= opacity.back().x) return opacity.back().alpha;
-  for (std::size_t k = 1; k < opacity.size(); ++k) {
-    if (x <= opacity[k].x) {
-      const auto& a = opacity[k - 1];
-      const auto& b = opacity[k];
+namespace {
+// A vtkPiecewiseFunction's value at x (midpoint and sharpness per node), clamped to the end nodes.
+double piecewiseAt(const std::vector<TransferFunction::OpacityPoint>& points, double x) {
+  if (x <= points.front().x) return points.front().alpha;
+  if (x >= points.back().x) return points.back().alpha;
+  for (std::size_t k = 1; k < points.size(); ++k) {
+    if (x <= points[k].x) {
+      const auto& a = points[k - 1];
+      const auto& b = points[k];
       if (b.x <= a.x) return b.alpha;
       return piecewiseSegment((x - a.x) / (b.x - a.x), a.alpha, b.alpha, a.midpoint, a.sharpness);
     }
   }
-  return opacity.back().alpha;
+  return points.back().alpha;
+}
+
+// Refuses a piecewise function's non-finite node, naming the function (`what`) and the node.
+void checkPiecewiseFinite(const std::vector<TransferFunction::OpacityPoint>& points, const char* what) {
+  const double fmax = double(std::numeric_limits<float>::max());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const auto& p = points[k];
+    if (!(std::abs(p.x) <= fmax && std::isfinite(p.alpha) && std::isfinite(p.midpoint) && std::isfinite(p.sharpness))) {
+      throw std::invalid_argument(std::string("transfer function: ") + what + " point " + std::to_string(k) +
+                                  " is not finite (or beyond float range)");
+    }
+  }
+}
+}  // namespace
+
+double TransferFunction::opacityAt(double x) const { return opacity.empty() ? 0.0 : piecewiseAt(opacity, x); }
+
+double TransferFunction::gradientOpacityAt(double gradientNorm) const {
+  return gradientOpacity.empty() ? 1.0 : piecewiseAt(gradientOpacity, gradientNorm);
 }
 
 std::array<double, 3> TransferFunction::colorAt(double x) const {
@@ -390,13 +410,8 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
                                   " is not finite (or beyond float range)");
     }
   }
-  for (std::size_t k = 0; k < tf.opacity.size(); ++k) {
-    const auto& p = tf.opacity[k];
-    if (!(std::abs(p.x) <= fmax && std::isfinite(p.alpha) && std::isfinite(p.midpoint) && std::isfinite(p.sharpness))) {
-      throw std::invalid_argument("transfer function: opacity point " + std::to_string(k) +
-                                  " is not finite (or beyond float range)");
-    }
-  }
+  checkPiecewiseFinite(tf.opacity, "opacity");
+  checkPiecewiseFinite(tf.gradientOpacity, "gradient opacity");
   const auto r = tf.range();
   size_ = size;
   lo_ = float(r[0]);
@@ -425,6 +440,17 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
       opacityMax_[std::size_t(L) * size + i] = std::max(a, b);
     }
   }
+  // Gradient opacity over [0, the last node's magnitude] (beyond it the function is constant);
+  // a function whose nodes all lie at or below 0 is constant over every magnitude.
+  if (tf.usesGradientOpacity()) {
+    gradientOpacityHi_ = float(std::max(tf.gradientOpacity.back().x, 0.0));
+    if (!(gradientOpacityHi_ > 0.f)) gradientOpacityHi_ = 1.f;
+    gradientOpacity_.resize(kGradientOpacitySize);
+    for (int i = 0; i < kGradientOpacitySize; ++i) {
+      const double g = double(gradientOpacityHi_) * i / (kGradientOpacitySize - 1);
+      gradientOpacity_[i] = float(std::clamp(tf.gradientOpacityAt(g), 0.0, 1.0));
+    }
+  }
 }
 
 TransferFunctionView TransferFunctionTable::view() const {
@@ -436,6 +462,11 @@ TransferFunctionView TransferFunctionTable::view() const {
   v.lo = lo_;
   v.hi = hi_;
   v.invUnitDistance = invUnitDistance_;
+  if (!gradientOpacity_.empty()) {
+    v.gradientOpacity = gradientOpacity_.data();
+    v.gradientOpacitySize = int(gradientOpacity_.size());
+    v.gradientOpacityHi = gradientOpacityHi_;
+  }
   return v;
 }
 

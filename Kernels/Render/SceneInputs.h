@@ -51,6 +51,13 @@ struct TransferFunction {
   };
   std::vector<ColorPoint> color;
   std::vector<OpacityPoint> opacity;
+  // Gradient opacity (vtkVolumeProperty's gradient opacity function): a piecewise function of the
+  // gradient magnitude |grad f| (scalar units per model-space unit: the data's own coordinates,
+  // whatever the actor's transform), with values in [0, 1] that multiply the scalar opacity at
+  // each sample, so flat regions fade. Empty: off (VTK's DisableGradientOpacity), no gradient is
+  // asked for. On, every sample the renderers take needs the network's gradient as well as its
+  // value (Render/Evaluate.h), and homogeneity pruning stands down (its estimates carry no gradient).
+  std::vector<OpacityPoint> gradientOpacity;
   double unitDistance = 1.0;
   // ParaView's "ColorSpace" (RGB, Lab, Diverging, HSV...). Only RGB interpolation is
   // implemented; others are interpolated in RGB and `colorSpaceWarning` says so.
@@ -76,6 +83,8 @@ struct TransferFunction {
   std::array<double, 2> range() const;
   std::string colorSpaceWarning() const;  // empty when the colour space is interpolated exactly
   double opacityAt(double x) const;       // the piecewise (midpoint/sharpness) function
+  double gradientOpacityAt(double gradientNorm) const;  // 1 without a gradient opacity function
+  bool usesGradientOpacity() const { return !gradientOpacity.empty(); }
   std::array<double, 3> colorAt(double x) const;
 };
 
@@ -83,13 +92,20 @@ struct TransferFunction {
 // is the whole cost of a TF edit besides the majorant update.
 class TransferFunctionTable {
 public:
+  // Throws std::invalid_argument naming the point when a point is not finite. Opacities and
+  // gradient opacity factors are clamped to [0, 1].
   explicit TransferFunctionTable(const TransferFunction& tf, int size = 1024);
   TransferFunctionView view() const;
   float maxOpacity() const { return maxOpacity_; }
 
+  // Entries of the gradient opacity table (uniform over [0, the last point's magnitude]).
+  static constexpr int kGradientOpacitySize = 256;
+
 private:
   std::vector<Vec4f> rgba_;
   std::vector<float> opacityMax_;
+  std::vector<float> gradientOpacity_;  // empty: no gradient opacity
+  float gradientOpacityHi_ = 1.f;
   int size_ = 0, levels_ = 0;
   float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
 };

@@ -26,6 +26,12 @@ struct TransferFunctionView {
   int levels = 0;
   float lo = 0.f, hi = 1.f;          // scalar range the table spans
   float invUnitDistance = 1.f;       // 1 / u
+  // Gradient opacity (TransferFunction::gradientOpacity): gradientOpacitySize entries of the
+  // factor over gradient magnitudes [0, gradientOpacityHi], interpolated linearly, clamped to the
+  // end entries. Null: off (the factor is 1 and no sample needs a gradient).
+  const float* gradientOpacity = nullptr;
+  int gradientOpacitySize = 0;
+  float gradientOpacityHi = 1.f;
 };
 
 INR_HD float opacityToExtinction(float alpha, float invUnitDistance) {
@@ -49,6 +55,27 @@ INR_HD Vec4f lookupTransferFunction(const TransferFunctionView& tf, float s) {
   const Vec4f a = tf.rgba[i], b = tf.rgba[i + 1];
   return Vec4f{a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.z + (b.z - a.z) * f,
                a.w + (b.w - a.w) * f};
+}
+
+// The gradient opacity factor in [0, 1] for gradient magnitude g (model space); 1 when the TF has
+// none. A non-finite magnitude (a network that overflowed) takes the last entry when infinite and
+// the first when NaN, as the scalar table maps NaN to its low end.
+INR_HD float gradientOpacityAt(const TransferFunctionView& tf, float g) {
+  if (!tf.gradientOpacity) return 1.f;
+  float x = g / tf.gradientOpacityHi * float(tf.gradientOpacitySize - 1);
+  if (!(x > 0.f)) x = 0.f;
+  x = minf(x, float(tf.gradientOpacitySize - 1));
+  int i = int(x);
+  if (i > tf.gradientOpacitySize - 2) i = tf.gradientOpacitySize - 2;
+  const float f = x - float(i);
+  return tf.gradientOpacity[i] + (tf.gradientOpacity[i + 1] - tf.gradientOpacity[i]) * f;
+}
+
+// A sample's opacity: the scalar opacity alpha times the gradient opacity factor the evaluation
+// stage stored beside its value (`opacityScale`, Render/Evaluate.h). Without a gradient opacity
+// the factor is not read (it is never written then) and alpha is returned as it is.
+INR_HD float sampleOpacity(const TransferFunctionView& tf, float alpha, const float* opacityScale, int slot) {
+  return tf.gradientOpacity ? alpha * opacityScale[slot] : alpha;
 }
 
 INR_HD float extinctionAt(const TransferFunctionView& tf, float s) {

@@ -96,6 +96,8 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   const CameraView view = validateScene(scene, settings_);
   if (scene.shading.enabled && !fieldHasGradient())
     throw std::invalid_argument("shading: this renderer's field evaluator computes no gradients");
+  if (scene.transferFunction.usesGradientOpacity() && !fieldHasGradient())
+    throw std::invalid_argument("gradient opacity: this renderer's field evaluator computes no gradients");
   SceneChange change = diffScenes(haveScene_ ? &scene_ : nullptr, scene);
   change.time = change.time || macrocellTime() != scene.time;  // the grid may be shared
   const auto t0 = Clock::now();
@@ -143,9 +145,13 @@ void WavefrontRenderer::setQueryReduction(const QueryReductionSettings& settings
   if (pruningChanged) resetAccumulation();
 }
 
+bool WavefrontRenderer::pruningActive() const {
+  return queryReduction_.pruning() && !scene_.transferFunction.usesGradientOpacity();
+}
+
 PruneView WavefrontRenderer::pruneThresholds() const {
   PruneView v;
-  if (!queryReduction_.pruning()) return v;
+  if (!pruningActive()) return v;
   // The range is read once per working grid (a GPU grid reduces and synchronises for it), not
   // per frame; refinement widening it later leaves the thresholds as they were for that time.
   if (!pruneRangeValid_) {

@@ -183,8 +183,11 @@ protected:
   void endFrame(const FrameStats& st, bool truncated, const std::uint32_t* residualHistogram = nullptr);
   // Homogeneity pruning's thresholds in scalar units: the settings' fractions times the span of
   // workingValueRange(). Arrays unset (the backend fills them from its grid); all zero (off)
-  // unless queryReduction_.pruning().
+  // unless pruningActive().
   PruneView pruneThresholds() const;
+  // Whether homogeneity pruning runs this frame: asked for, and the TF has no gradient opacity (a
+  // pruned candidate's expected scalar comes with no gradient, so gradient opacity stands it down).
+  bool pruningActive() const;
 
   TrackingOptions options_;
   RenderSettings settings_;

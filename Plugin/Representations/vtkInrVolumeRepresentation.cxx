@@ -7,12 +7,15 @@
 #include "InrParallelRendering.h"
 #include "vtkInformation.h"
 #include "vtkInrVolumeMapper.h"
+#include "vtkNew.h"
 #include "vtkObjectFactory.h"
+#include "vtkPiecewiseFunction.h"
 #include "vtkPVLODVolume.h"
 #include "vtkPVRenderView.h"
 #include "vtkPVView.h"
 #include "vtkSmartPointer.h"
 #include "vtkVolumeMapper.h"
+#include "vtkVolumeProperty.h"
 
 #include <algorithm>
 #include <string>
@@ -207,6 +210,31 @@ INR_FORWARD(InteractiveMacrocellsAhead, int)
 INR_FORWARD(InteractiveFreshFrames, int)
 INR_FORWARD(InteractiveStandIn, int)
 #undef INR_FORWARD
+
+void vtkInrVolumeRepresentation::RemoveAllInrGradientOpacityPoints()
+{
+  // The representation's own function, set on its volume property once and kept there; off
+  // until a node is added (VTK's gradient opacity is on by default, as a constant 1).
+  if (this->Property->GetStoredGradientOpacity(0) == nullptr)
+  {
+    vtkNew<vtkPiecewiseFunction> fn;
+    this->Property->SetGradientOpacity(0, fn);
+  }
+  this->Property->GetStoredGradientOpacity(0)->RemoveAllPoints();
+  this->Property->SetDisableGradientOpacity(0, 1);
+  this->Modified();
+}
+
+void vtkInrVolumeRepresentation::AddInrGradientOpacityPoint(double gradientMagnitude, double factor)
+{
+  if (this->Property->GetStoredGradientOpacity(0) == nullptr)
+  {
+    this->RemoveAllInrGradientOpacityPoints();
+  }
+  this->Property->GetStoredGradientOpacity(0)->AddPoint(gradientMagnitude, factor);
+  this->Property->SetDisableGradientOpacity(0, 0);
+  this->Modified();
+}
 
 void vtkInrVolumeRepresentation::SetInrLightDirection(double x, double y, double z)
 {

@@ -61,6 +61,16 @@ public:
   ///@}
 
   ///@{
+  /// Gradient opacity: VTK's gradient opacity function of the volume property (the scalar opacity
+  /// times a function of the gradient magnitude), which ParaView 5.11's Volume representation
+  /// gives no property for. XML InrGradientOpacity: (|grad f|, factor) nodes, each added with
+  /// AddInrGradientOpacityPoint after RemoveAllInrGradientOpacityPoints; no nodes turns it off.
+  /// The mapper reads it from the volume property (InrSceneTranslator::SampleTransferFunction).
+  void RemoveAllInrGradientOpacityPoints();
+  void AddInrGradientOpacityPoint(double gradientMagnitude, double factor);
+  ///@}
+
+  ///@{
   /// Query reduction, forwarded to vtkInrVolumeMapper (XML: RayBudget, BudgetFraction,
   /// BudgetMaxSkip, BudgetAlpha, Reproject, PruneEpsilon, PruneFalloff).
   void SetInrRayBudget(int);

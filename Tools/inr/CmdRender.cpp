@@ -119,6 +119,7 @@ RenderScene sceneFor(const RenderJob& job, const InrModel& model, const Box3f& b
     scene.transferFunction = TransferFunction::preset(range[0], range[1]);
   }
   if (job.transferFunctionRange) scene.transferFunction.rescale((*job.transferFunctionRange)[0], (*job.transferFunctionRange)[1]);
+  scene.transferFunction.gradientOpacity = job.gradientOpacity;
   scene.transferFunction.unitDistance = job.opacityUnitDistance.value_or(length(box.hi - box.lo) / 64.0);
   scene.background = job.background;
   scene.shadows = job.shadows;

@@ -25,6 +25,11 @@ const char* kRenderUsageHead =
     "                           with a linear opacity ramp over the model's value range\n"
     "  --tf-range LO,HI         rescale the transfer function to this scalar range\n"
     "  --opacity-unit-distance U  scalar opacity unit distance (default: box diagonal / 64)\n"
+    "  --gradient-opacity G,A[,G,A...]  gradient opacity, as vtkVolumeProperty's: the scalar\n"
+    "                           opacity times a piecewise-linear function of the gradient magnitude\n"
+    "                           |grad f| (scalar units per model-space unit), nodes (G, A) with\n"
+    "                           increasing G and A in [0, 1]; flat regions fade. Every sample then\n"
+    "                           asks for the network's gradient too (not with the GPU ray marcher)\n"
     "  --background R,G,B       background colour (default 0,0,0)\n"
     "  --shadows                ray-traced shadows from a directional light\n"
     "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"
@@ -366,6 +371,19 @@ void parseScene(const Args& args, RenderJob& job) {
     if (!(r[1] > r[0])) throw UsageError("--tf-range LO,HI needs LO < HI");
     job.transferFunctionRange = std::array<double, 2>{r[0], r[1]};
   }
+  if (args.has("gradient-opacity")) {
+    const auto v = args.getList("gradient-opacity", 0);
+    if (v.empty() || v.size() % 2 != 0)
+      throw UsageError("--gradient-opacity needs pairs G,A (gradient magnitude, opacity factor), got " +
+                       std::to_string(v.size()) + " numbers");
+    for (std::size_t k = 0; k < v.size(); k += 2) {
+      const double g = v[k], a = v[k + 1];
+      if (!(g >= 0.0 && g < INFINITY)) throw UsageError("--gradient-opacity: magnitude " + std::to_string(g) + " must be finite and >= 0");
+      if (!(a >= 0.0 && a <= 1.0)) throw UsageError("--gradient-opacity: factor " + std::to_string(a) + " must be in [0, 1]");
+      if (k > 0 && !(g > v[k - 2])) throw UsageError("--gradient-opacity: magnitudes must increase");
+      job.gradientOpacity.push_back(TransferFunction::OpacityPoint{g, a});
+    }
+  }
   if (args.has("opacity-unit-distance")) {
     job.opacityUnitDistance = args.getDouble("opacity-unit-distance", 1.0);
     if (!(*job.opacityUnitDistance > 0)) throw UsageError("--opacity-unit-distance must be > 0");
@@ -442,7 +460,7 @@ std::string renderUsage() {
 
 RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   const Args args(arguments,
-                  {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range",
+                  {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range", "gradient-opacity",
                    "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method", "sample-share",
                    "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes", "step",
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",

@@ -57,6 +57,9 @@ struct RenderJob {
   std::optional<double> parallelScale;
   std::string transferFunctionFile;  // empty: a preset over the model's value range
   std::optional<std::array<double, 2>> transferFunctionRange;
+  // --gradient-opacity G,A,...: gradient opacity nodes (|grad f|, factor), increasing magnitudes;
+  // empty: off (TransferFunction::gradientOpacity).
+  std::vector<TransferFunction::OpacityPoint> gradientOpacity;
   std::optional<double> opacityUnitDistance;  // default: box diagonal / 64
   std::array<float, 3> background{0.f, 0.f, 0.f};
   bool shadows = false;

@@ -11,6 +11,7 @@
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
 #include "Render/Cuda/DeviceRefine.cuh"
+#include "Render/Evaluate.h"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
 #include "Render/Reproject.h"
@@ -160,6 +161,18 @@ __global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
   if (threadIdx.x == 0 && sum) atomicAdd(&stats[kStatPruned], (unsigned long long)sum);
 }
 
+// Gradient opacity's evaluation scatter (Render/Evaluate.h): the value of query k, of the first
+// min(*count, maxN), to samples[slots[k]] and its gradient opacity factor to opacityScales[slots[k]].
+__global__ void scatterWithOpacityKernel(const unsigned* count, int maxN, const int* slots, const float4* results,
+                                         TransferFunctionView tf, float* samples, float* opacityScales) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= maxN || k >= int(*count)) return;
+  const float4 r = results[k];
+  const int slot = slots[k];
+  samples[slot] = r.x;
+  opacityScales[slot] = gradientOpacityOf(tf, Vec3f{r.y, r.z, r.w});
+}
+
 __global__ void resetPixelsKernel(AccumulationView acc) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i < acc.count) resetPixel(acc, i);
@@ -221,13 +234,26 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
     INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
   };
   float* sampleOut = ratio ? launch.points.sample : rs.sample;
+  float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
+  const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
+  if (gradientOpacity) valueGradients.growTo(slots);
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
     const int cur = it & 1;
     if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
       const long long bound = std::min<long long>((long long)slots, (long long)launch.n * perRay);
       timer.begin(evaluateStage, stream);
-      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(), stream);
+      if (gradientOpacity) {  // every query with its gradient (Render/Evaluate.h)
+        evaluator.evaluateWithGradientDevice(points[cur].get(), queryCount(cur), int(bound), fc.time,
+                                             valueGradients.get(), stream);
+        scatterWithOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
+            queryCount(cur), int(bound), queryRays[cur].get(), valueGradients.get(), medium.tf, sampleOut,
+            opacityScaleOut);
+        INR_CUDA_CHECK_LAUNCH("scatterWithOpacityKernel");
+      } else {
+        evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(),
+                                 stream);
+      }
       timer.end(stream);
       enqueueTraverse(it + 1);
     }
@@ -343,7 +369,7 @@ CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int 
   Impl& I = *impl_;
   FrameSetup f;
   f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
-  const PruneView prune = queryReduction_.pruning() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
+  const PruneView prune = pruningActive() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
   f.medium = TrackingMedium{macrocells_.view(I.majorants.get(), I.blocks()), I.tf.view(), prune};
   f.refine = macrocells_.refineView();
   f.refine.frameRefinements = I.stats.get() + kStatRefinements;

@@ -83,6 +83,7 @@ struct CudaDeltaTrackingRenderer::Impl {
   // Gradient shading: the lit rays' values and gradients (their points and ray indices reuse
   // points[0] and queryRays[0], free once the tracking loops are done).
   cuda::DeviceBuffer<float4> shadingResults;
+  cuda::DeviceBuffer<float4> valueGradients;  // gradient opacity: the loop's (value, gradient) per query
   cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
   // Frame statistics: counters and the convergence sums.
   cuda::DeviceBuffer<unsigned long long> stats;

@@ -35,7 +35,14 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
       return false;
     }
     const QueryPoint q = pendingQuery(rs, i, fc.time);
-    const float v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
+    float v;
+    if (medium.tf.gradientOpacity) {  // the view holds tangent planes with gradient opacity
+      float g[3];
+      v = cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
+      rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
+    } else {
+      v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
+    }
     storeQueryResult(rs, i, v);
     ++queries;
     if (refine) cuda::refineCell(refineView, linearCellIndex(medium.grid.dims, rs.cell[i]), v);
@@ -97,7 +104,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const RayStateView& rs = f.rs;
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.
-  const bool shading = fc.shading.enabled != 0;
+  const bool shading = fc.shading.enabled != 0 || medium.tf.gradientOpacity != nullptr;  // gradients
   const std::size_t perThread = network.scratchBytesPerThread() * (shading ? 4 : 1);
   int chunk = std::min(n, std::max(1, pipeline_.naiveRaysPerLaunch));
   chunk = int(std::max<std::size_t>(1024, std::min<std::size_t>(chunk, (std::size_t(2) << 30) / perThread)));

@@ -217,6 +217,10 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
   validateLighting(scene);
+  if (scene.transferFunction.usesGradientOpacity())
+    throw std::invalid_argument(
+        "gradient opacity: the GPU ray marcher does not implement it; render with the wavefront renderer "
+        "(inr render --method delta) or the CPU ray marcher (--backend cpu --method raymarch)");
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");

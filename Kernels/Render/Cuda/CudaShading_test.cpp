@@ -280,5 +280,63 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
   }
 }
 
+// The median gradient magnitude of the model over points spread through its box at the scene's
+// time (the CPU evaluator's fp32 gradient), to place a gradient opacity ramp where it bites.
+double medianGradientNorm(const CpuInrEvaluator& eval, const InrModel& model, float time) {
+  const Box3f box = modelWorldBox(model);
+  std::vector<QueryPoint> points;
+  const int n = 16;
+  for (int k = 0; k < n * n * n; ++k) {
+    const float u[3] = {(k % n + 0.5f) / n, (k / n % n + 0.5f) / n, (k / (n * n) + 0.5f) / n};
+    points.push_back(QueryPoint{box.lo.x + u[0] * (box.hi.x - box.lo.x), box.lo.y + u[1] * (box.hi.y - box.lo.y),
+                                box.lo.z + u[2] * (box.hi.z - box.lo.z), time});
+  }
+  std::vector<float> values(points.size()), gradients(3 * points.size());
+  eval.evaluateWithGradient(points.data(), points.size(), values.data(), gradients.data());
+  std::vector<double> norms;
+  for (std::size_t k = 0; k < points.size(); ++k)
+    norms.push_back(std::hypot(gradients[3 * k], gradients[3 * k + 1], gradients[3 * k + 2]));
+  std::nth_element(norms.begin(), norms.begin() + norms.size() / 2, norms.end());
+  return norms[norms.size() / 2];
+}
+
+// Gradient opacity (Render/Evaluate.h): the GPU loop's queries come with the fused tangent rows'
+// gradients and their factor lands beside the value (scatterWithOpacityKernel); the stage code is
+// the CPU's. The images agree statistically (fp16 network and gradient on the GPU), and the factor
+// must change the picture (the GPU without it is farther from the CPU with it).
+TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
+  REQUIRE_GPU();
+  const int size = 64, frames = 64;
+  for (const auto& path : test::shippedModels()) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpuEval(model);
+    const CudaInrEvaluator gpuEval(model);
+    const auto range = valueRangeFor(model, cpuEval);
+    for (const bool shadows : {false, true})
+    for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)}) {
+      const RenderScene without = test::testScene(model, range, shadows);
+      RenderScene scene = without;
+      const double g = medianGradientNorm(cpuEval, model, float(scene.time));
+      scene.transferFunction.gradientOpacity = {{0.5 * g, 0.0}, {2.0 * g, 1.0}};
+      const ShadedRun cpu =
+          renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
+      const ShadedRun gpu =
+          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, scene, options, size, frames);
+      const ShadedRun off =
+          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, without, options, size, frames);
+      const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, off.premultiplied);
+      const double offPsnr = test::psnrOverCoverage(off.image, cpu.image, off.premultiplied);
+      std::printf("%-32s %s%s, gradient opacity (median |grad| %.3g), %dx%d, %d frames: GPU vs CPU %.2f dB "
+                  "(GPU without it %.2f dB); queries GPU %zu CPU %zu\n",
+                  fs::path(path).filename().c_str(), primaryEstimatorName(options.estimator),
+                  shadows ? " + shadows" : "", g, size, size, frames, psnr, offPsnr, gpu.stats.queries,
+                  cpu.stats.queries);
+      EXPECT_GE(psnr, 34.0) << path;
+      EXPECT_LT(offPsnr, psnr - 6.0) << path << ": the gradient opacity changed too little to tell";
+      EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u) << path;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace inr

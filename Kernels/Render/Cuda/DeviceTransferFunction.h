@@ -20,6 +20,10 @@ public:
     view_ = h;
     view_.rgba = rgba_.get();
     view_.opacityMax = opacityMax_.get();
+    if (h.gradientOpacity) {
+      gradientOpacity_.upload(h.gradientOpacity, std::size_t(h.gradientOpacitySize), s);
+      view_.gradientOpacity = gradientOpacity_.get();
+    }
     // The host table must stay alive until the copies ran (they are asynchronous from pageable
     // memory only in name: the runtime stages them before returning). Synchronise anyway.
     INR_CUDA_CHECK(cudaStreamSynchronize(s));
@@ -30,6 +34,7 @@ public:
 private:
   DeviceBuffer<Vec4f> rgba_;
   DeviceBuffer<float> opacityMax_;
+  DeviceBuffer<float> gradientOpacity_;
   TransferFunctionView view_{};
 };
 

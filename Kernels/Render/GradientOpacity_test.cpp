@@ -1,0 +1,243 @@
+// Gradient opacity (TransferFunction::gradientOpacity; Render/Evaluate.h): the table, and the CPU
+// renderers. On the Gaussian blob (TestFields.h) the gradient magnitude is a function of the
+// value, |grad f| = (2 / w) f sqrt(-ln f), so a gradient opacity function is the same medium as
+// a transfer function with the factor baked into its scalar opacity: the ray marcher must render
+// both alike, and every estimator must converge to that picture.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/Evaluate.h"
+#include "Render/RayMarcher.h"
+#include "Render/SceneChange.h"
+#include "TestSupport/TestFields.h"
+#include "TestSupport/TestScene.h"
+
+namespace inr {
+namespace {
+
+// Fades the blob's core (value near 1, gradient near 0) and its outer tail: the factor ramps from
+// 0 at |grad f| = 1.0 to 1 at 1.45 (the blob's largest magnitude is about 1.43).
+const std::vector<TransferFunction::OpacityPoint> kRamp = {{1.0, 0.0}, {1.45, 1.0}};
+
+double blobGradientNorm(double v) {
+  if (!(v > 0.0 && v < 1.0)) return 0.0;
+  return 2.0 / test::kBlobWidth * v * std::sqrt(-std::log(v));
+}
+
+TEST(GradientOpacity, TableFollowsTheFunctionAndIsOffWhenEmpty) {
+  TransferFunction tf = TransferFunction::preset(0.0, 1.0);
+  EXPECT_FALSE(tf.usesGradientOpacity());
+  EXPECT_EQ(TransferFunctionTable(tf).view().gradientOpacity, nullptr);
+  EXPECT_EQ(gradientOpacityAt(TransferFunctionTable(tf).view(), 5.f), 1.f);  // off: factor 1
+  tf.gradientOpacity = {{0.0, 0.2}, {2.0, 1.0}};
+  const TransferFunctionTable table(tf);
+  const TransferFunctionView v = table.view();
+  ASSERT_NE(v.gradientOpacity, nullptr);
+  for (float g : {0.f, 0.3f, 1.f, 1.77f, 2.f}) EXPECT_NEAR(gradientOpacityAt(v, g), 0.2f + 0.4f * g, 1e-5f) << g;
+  EXPECT_NEAR(gradientOpacityAt(v, 7.f), 1.f, 1e-6f);        // beyond the last node: clamped
+  EXPECT_NEAR(gradientOpacityAt(v, INFINITY), 1.f, 1e-6f);   // an overflowed gradient: the last entry
+  EXPECT_NEAR(gradientOpacityAt(v, NAN), 0.2f, 1e-6f);       // NaN: the first entry
+  EXPECT_NEAR(gradientOpacityOf(v, Vec3f{0.6f, 0.f, 0.8f}), 0.6f, 1e-5f);  // of |g| = 1
+  // Factors above 1 are clamped as scalar opacities are (the majorants rely on factor <= 1).
+  tf.gradientOpacity = {{0.0, 3.0}, {1.0, 3.0}};
+  EXPECT_EQ(gradientOpacityAt(TransferFunctionTable(tf).view(), 0.5f), 1.f);
+}
+
+TEST(GradientOpacity, NonFiniteNodeIsRefusedByName) {
+  TransferFunction tf = TransferFunction::preset(0.0, 1.0);
+  tf.gradientOpacity = {{0.0, 0.0}, {NAN, 1.0}};
+  try {
+    TransferFunctionTable table(tf);
+    FAIL() << "a NaN node was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gradient opacity point 1"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GradientOpacity, ChangingItIsATransferFunctionChange) {
+  RenderScene a;
+  a.transferFunction = TransferFunction::preset(0.0, 1.0);
+  RenderScene b = a;
+  b.transferFunction.gradientOpacity = kRamp;
+  EXPECT_TRUE(diffScenes(&a, b).transferFunction);
+  RenderScene c = b;
+  c.transferFunction.gradientOpacity[1].alpha = 0.5;
+  EXPECT_TRUE(diffScenes(&b, c).transferFunction);
+  EXPECT_FALSE(diffScenes(&c, c).transferFunction);
+}
+
+// Orthographic view down -z of the blob; a soft shell, so the factor shows through its depth.
+test::SceneSetup blobScene(int size, bool gradientOpacity, bool shadows = false) {
+  test::SceneSetup s;
+  s.settings.width = s.settings.height = size;
+  s.settings.seed = 5;
+  s.settings.pixelJitter = false;
+  s.scene.camera = Camera::framing(test::kCubeBox);
+  s.scene.camera.parallelProjection = true;
+  s.scene.camera.parallelScale = 0.75;
+  TransferFunction tf;
+  tf.color = {{0.0, 0.2, 0.4, 0.9}, {0.5, 0.9, 0.9, 0.9}, {1.0, 0.9, 0.5, 0.1}};
+  tf.opacity = {{0.0, 0.0}, {0.2, 0.0}, {0.5, 0.8}, {1.0, 0.8}};
+  tf.unitDistance = 0.2;
+  if (gradientOpacity) tf.gradientOpacity = kRamp;
+  s.scene.transferFunction = tf;
+  s.scene.background = {0.1f, 0.1f, 0.1f};
+  s.scene.shadows = shadows;
+  s.scene.toLight = {0.5, 0.6, 0.8};
+  return s;
+}
+
+// The same medium without gradient opacity: the factor at the blob's gradient for each value,
+// multiplied into the scalar opacity (finely sampled).
+test::SceneSetup bakedScene(int size) {
+  test::SceneSetup s = blobScene(size, true);
+  TransferFunction& tf = s.scene.transferFunction;
+  const TransferFunction withRamp = tf;
+  tf.gradientOpacity.clear();
+  tf.opacity.clear();
+  const int n = 2048;
+  for (int k = 0; k <= n; ++k) {
+    const double v = double(k) / n;
+    tf.opacity.push_back({v, withRamp.opacityAt(v) * withRamp.gradientOpacityAt(blobGradientNorm(v))});
+  }
+  return s;
+}
+
+struct Render {
+  ImageRGBA image, premultiplied;
+  FrameStats total;
+  std::size_t gradientPoints = 0;
+};
+
+Render marched(const test::SceneSetup& setup) {
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  RayMarchOptions ro;
+  ro.step = 2.f / 1024.f;
+  ro.shadowStep = 2.f / 256.f;
+  RayMarchRenderer rm(f, test::kCubeBox, ro);
+  Render out;
+  out.total = test::renderFrames(rm, setup.settings, setup.scene, 1);
+  out.image = rm.image();
+  out.premultiplied = rm.premultipliedImage();
+  out.gradientPoints = f.gradientPoints();
+  return out;
+}
+
+Render tracked(const test::SceneSetup& setup, TrackingOptions options, int frames,
+               const QueryReductionSettings& reduction = {}) {
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer r(f, grid, options);
+  r.setQueryReduction(reduction);
+  f.resetCounts();
+  Render out;
+  out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
+  out.image = r.image();
+  out.premultiplied = r.premultipliedImage();
+  out.gradientPoints = f.gradientPoints();
+  return out;
+}
+
+TEST(GradientOpacityRender, MarcherRendersTheFactorAsABakedTransferFunction) {
+  const int size = 32;
+  const Render withFactor = marched(blobScene(size, true));
+  const Render baked = marched(bakedScene(size));
+  const Render without = marched(blobScene(size, false));
+  const double psnr = test::psnrOverCoverage(withFactor.image, baked.image, without.premultiplied);
+  const double control = test::psnrOverCoverage(without.image, baked.image, without.premultiplied);
+  std::printf("marcher, gradient opacity vs the factor baked into the TF: %.2f dB; without it: %.2f dB\n", psnr,
+              control);
+  EXPECT_GE(psnr, 40.0);
+  EXPECT_LT(control, 30.0);  // the factor changes the picture: the comparison can fail
+  // Every primary sample asked for its gradient (one frame, no shading).
+  EXPECT_EQ(withFactor.gradientPoints, withFactor.total.queries);
+  EXPECT_EQ(without.gradientPoints, 0u);
+  EXPECT_EQ(test::nonFinitePixels(withFactor.image), 0u);
+}
+
+void expectConvergesToMarcher(const test::SceneSetup& setup, TrackingOptions options, int frames, double minPsnr) {
+  const Render t = tracked(setup, options, frames);
+  const Render reference = marched(setup);
+  test::SceneSetup off = setup;
+  off.scene.transferFunction.gradientOpacity.clear();
+  const Render without = marched(off);
+  const double psnr = test::psnrOverCoverage(t.image, reference.image, without.premultiplied);
+  const double control = test::psnrOverCoverage(without.image, reference.image, without.premultiplied);
+  std::printf("gradient opacity, %s (%d frames%s) vs ray marching: %.2f dB over the volume; without the factor %.2f dB\n",
+              primaryEstimatorName(options.estimator), frames, setup.scene.shadows ? ", shadows" : "", psnr, control);
+  EXPECT_GE(psnr, minPsnr);
+  EXPECT_LT(control, minPsnr - 8.0);
+  // Every query of the tracking loops came with its gradient, shadow rays' too.
+  EXPECT_EQ(t.gradientPoints, t.total.queries + t.total.shadowQueries);
+  EXPECT_EQ(test::nonFinitePixels(t.image), 0u);
+}
+
+TEST(GradientOpacityRender, DeltaTrackingConvergesToRayMarching) {
+  expectConvergesToMarcher(blobScene(32, true), TrackingOptions{}, 300, 36.0);
+}
+
+TEST(GradientOpacityRender, RatioTrackingConvergesToRayMarching) {
+  expectConvergesToMarcher(blobScene(32, true), test::ratioTracking(4.0), 60, 38.0);
+}
+
+TEST(GradientOpacityRender, UnbiasedMarchConvergesToRayMarching) {
+  expectConvergesToMarcher(blobScene(32, true), test::unbiasedMarch(2.0), 120, 38.0);
+}
+
+TEST(GradientOpacityRender, ShadowRaysSeeTheFactorToo) {
+  // Against the marcher with shadows, whose shadow samples carry the factor as its primary ones
+  // do; the shadow rays' queries come with gradients (expectConvergesToMarcher counts them).
+  expectConvergesToMarcher(blobScene(32, true, true), test::ratioTracking(4.0), 200, 34.0);
+}
+
+TEST(GradientOpacityRender, NaiveTrackerRendersTheSame) {
+  // Same streams, same stage code: the unbatched baseline reproduces the wavefront image.
+  const test::SceneSetup setup = blobScene(16, true, true);
+  test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  MacrocellGrid gridA(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  MacrocellGrid gridB(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer wavefront(f, gridA), naive(f, gridB);
+  wavefront.setSettings(setup.settings);
+  wavefront.setScene(setup.scene);
+  naive.setSettings(setup.settings);
+  naive.setScene(setup.scene);
+  for (int k = 0; k < 3; ++k) {
+    wavefront.renderFrame();
+    naive.renderFrameNaive();
+  }
+  EXPECT_TRUE(wavefront.image().data == naive.image().data);
+}
+
+TEST(GradientOpacityRender, PruningStandsDown) {
+  // A pruned candidate's expected scalar has no gradient: with gradient opacity nothing is pruned.
+  const QueryReductionSettings pruning = test::pruningAt(0.2, 0.0);
+  const Render off = tracked(blobScene(24, false), TrackingOptions{}, 6, pruning);
+  const Render on = tracked(blobScene(24, true), TrackingOptions{}, 6, pruning);
+  EXPECT_GT(off.total.pruned, 0u);  // the settings do prune without it: the check can fail
+  EXPECT_EQ(on.total.pruned, 0u);
+}
+
+TEST(GradientOpacityRender, FieldWithoutGradientIsRefused) {
+  test::FunctionField f(test::blobField);  // no gradient
+  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+  DeltaTrackingRenderer r(f, grid);
+  const test::SceneSetup setup = blobScene(8, true);
+  r.setSettings(setup.settings);
+  try {
+    r.setScene(setup.scene);
+    FAIL() << "gradient opacity without gradients was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gradient opacity"), std::string::npos) << e.what();
+  }
+  RayMarchRenderer rm(f, test::kCubeBox);
+  rm.setSettings(setup.settings);
+  EXPECT_THROW(rm.setScene(setup.scene), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace inr
