@@ -275,26 +275,38 @@ inr::TransferFunction InrSceneTranslator::SampleTransferFunction(
     tf.opacity.push_back({ cr[1] > cr[0] ? cr[1] : cr[0] + 1.0, 0.0 });
   }
   tf.unitDistance = prop->GetScalarOpacityUnitDistance(0);
-  // Gradient opacity: the property's own function where one was set and is not disabled (VTK's
-  // default, a constant 1, is no function here: it would cost every sample a gradient for
-  // nothing, and so would any function at 1 everywhere).
-  vtkPiecewiseFunction* gof = prop->GetDisableGradientOpacity(0) ? nullptr : prop->GetStoredGradientOpacity(0);
-  if (gof && gof->GetSize() > 0)
-  {
-    bool constantOne = true;
-    for (int k = 0; k < gof->GetSize(); ++k)
-    {
-      double node[4];
-      gof->GetNodeValue(k, node);
-      tf.gradientOpacity.push_back({ node[0], node[1], node[2], node[3] });
-      constantOne = constantOne && node[1] >= 1.0;
-    }
-    if (constantOne)
-    {
-      tf.gradientOpacity.clear();
-    }
-  }
   return tf;
+}
+
+std::vector<inr::TransferFunction::OpacityPoint> InrSceneTranslator::GradientOpacity(vtkVolumeProperty* prop)
+{
+  // The property's own function where one was set and is not disabled (VTK's default, a constant
+  // 1, is no function here: it would cost every sample a gradient for nothing, and so would any
+  // function at 1 everywhere).
+  std::vector<inr::TransferFunction::OpacityPoint> nodes;
+  // (HasGradientOpacity first: GetStoredGradientOpacity creates VTK's default function when none
+  // is set, which modifies the property.)
+  vtkPiecewiseFunction* gof = !prop || prop->GetTransferFunctionMode() != vtkVolumeProperty::TF_1D ||
+      !prop->HasGradientOpacity(0) || prop->GetDisableGradientOpacity(0)
+    ? nullptr
+    : prop->GetStoredGradientOpacity(0);
+  if (!gof)
+  {
+    return nodes;
+  }
+  bool constantOne = true;
+  for (int k = 0; k < gof->GetSize(); ++k)
+  {
+    double node[4];
+    gof->GetNodeValue(k, node);
+    nodes.push_back({ node[0], node[1], node[2], node[3] });
+    constantOne = constantOne && node[1] >= 1.0;
+  }
+  if (constantOne)
+  {
+    nodes.clear();
+  }
+  return nodes;
 }
 
 inr::TransferFunction InrSceneTranslator::DefaultTransferFunction(
@@ -340,6 +352,8 @@ const inr::TransferFunction& InrSceneTranslator::UpdateTransferFunction(
   }
   this->CachedRange[0] = valueRange[0];
   this->CachedRange[1] = valueRange[1];
+  // With the default colour map too; read every time (a few nodes), so no key has to follow it.
+  this->TF.gradientOpacity = GradientOpacity(prop);
   return this->TF;
 }
 

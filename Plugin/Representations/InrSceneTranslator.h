@@ -113,6 +113,9 @@ public:
   /// distance.
   static inr::TransferFunction SampleTransferFunction(
     vtkVolumeProperty* property, const double valueRange[2]);
+  /// The property's gradient opacity nodes (|grad f|, factor): none where it is disabled, unset
+  /// or 1 everywhere (VTK's default). UpdateTransferFunction adds them to either TF.
+  static std::vector<inr::TransferFunction::OpacityPoint> GradientOpacity(vtkVolumeProperty* prop);
   static inr::TransferFunction DefaultTransferFunction(
     const double valueRange[2], double unitDistance);
   /// Cached: the default TF when `useDefault` or there is no property (unit distance 1 then),

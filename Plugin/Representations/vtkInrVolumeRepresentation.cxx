@@ -215,7 +215,7 @@ void vtkInrVolumeRepresentation::RemoveAllInrGradientOpacityPoints()
 {
   // The representation's own function, set on its volume property once and kept there; off
   // until a node is added (VTK's gradient opacity is on by default, as a constant 1).
-  if (this->Property->GetStoredGradientOpacity(0) == nullptr)
+  if (!this->Property->HasGradientOpacity(0))
   {
     vtkNew<vtkPiecewiseFunction> fn;
     this->Property->SetGradientOpacity(0, fn);
@@ -227,7 +227,7 @@ void vtkInrVolumeRepresentation::RemoveAllInrGradientOpacityPoints()
 
 void vtkInrVolumeRepresentation::AddInrGradientOpacityPoint(double gradientMagnitude, double factor)
 {
-  if (this->Property->GetStoredGradientOpacity(0) == nullptr)
+  if (!this->Property->HasGradientOpacity(0))
   {
     this->RemoveAllInrGradientOpacityPoints();
   }

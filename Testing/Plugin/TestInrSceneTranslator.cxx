@@ -507,6 +507,30 @@ TEST(InrSceneTranslator, TransferFunctionCache)
   EXPECT_EQ(translator.GetTransferFunctionConversions(), 7) << "back to the property's TF";
 }
 
+TEST(InrSceneTranslator, GradientOpacityFromTheVolumeProperty)
+{
+  const double range[2] = { 0.0, 1.0 };
+  vtkNew<vtkVolumeProperty> prop;
+  InrSceneTranslator translator;
+  // VTK's default: gradient opacity enabled but unset (a constant 1 on request): none.
+  EXPECT_TRUE(translator.UpdateTransferFunction(prop, true, range).gradientOpacity.empty());
+  vtkNew<vtkPiecewiseFunction> gof;
+  gof->AddPoint(0.0, 1.0);
+  gof->AddPoint(5.0, 1.0);
+  prop->SetGradientOpacity(gof);
+  EXPECT_TRUE(InrSceneTranslator::GradientOpacity(prop).empty()) << "1 everywhere: no cost for nothing";
+  gof->AddPoint(2.0, 0.25);
+  const auto nodes = InrSceneTranslator::GradientOpacity(prop);
+  ASSERT_EQ(nodes.size(), 3u);
+  EXPECT_DOUBLE_EQ(nodes[1].x, 2.0);
+  EXPECT_DOUBLE_EQ(nodes[1].alpha, 0.25);
+  // Both transfer functions carry it: the default colour map and the property's own.
+  EXPECT_EQ(translator.UpdateTransferFunction(prop, true, range).gradientOpacity.size(), 3u);
+  EXPECT_EQ(translator.UpdateTransferFunction(prop, false, range).gradientOpacity.size(), 3u);
+  prop->DisableGradientOpacityOn();
+  EXPECT_TRUE(translator.UpdateTransferFunction(prop, false, range).gradientOpacity.empty()) << "disabled";
+}
+
 TEST(InrSceneTranslator, FieldDataTimeAndRange)
 {
   vtkNew<vtkImageData> image;

@@ -11,7 +11,7 @@ import re
 import sys
 import xml.etree.ElementTree as ET
 
-GROUPS = ["Rendering", "Macrocells", "Shadows", "Query reduction", "Refinement"]
+GROUPS = ["Rendering", "Macrocells", "Shadows", "Gradient opacity", "Query reduction", "Refinement"]
 # The options behind the advanced (gear) toggle that this check pins: the macrocell fine-tuning.
 ADVANCED = {"InrSkipBlock", "InrBoundsPadding", "InrGhostPasses", "InrRefineMacrocells"}
 # The one switch a user looks for first stays visible.
@@ -99,6 +99,8 @@ if len(sys.argv) > 2:
             continue
         value = re.search(r"\((-?[\d.]+)\)$", default)
         written = value.group(1) if value else default
+        if written == "(empty)":  # a list property without default values
+            written = ""
         want = [float(v) for v in e.get("default_values", "").split()]
         try:
             got = [float(v) for v in written.split()]

@@ -81,6 +81,18 @@ TEST(RenderJob, ShadingOptionsReachTheScene) {
   EXPECT_THROW(parseRenderJob(withModel({"--shade", "--light-kit", "--light", "0,1,0"})), UsageError);
 }
 
+TEST(RenderJob, GradientOpacityNodesAndTheirErrors) {
+  EXPECT_TRUE(parseRenderJob(withModel({})).gradientOpacity.empty());
+  const RenderJob job = parseRenderJob(withModel({"--gradient-opacity", "0,0,2.5,1"}));
+  ASSERT_EQ(job.gradientOpacity.size(), 2u);
+  EXPECT_EQ(job.gradientOpacity[1].x, 2.5);
+  EXPECT_EQ(job.gradientOpacity[1].alpha, 1.0);
+  EXPECT_NE(usageError(withModel({"--gradient-opacity", "0,0,1"})).find("pairs"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--gradient-opacity", "0,1.5"})).find("[0, 1]"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--gradient-opacity", "-1,0"})).find(">= 0"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--gradient-opacity", "2,0,1,1"})).find("increase"), std::string::npos);
+}
+
 TEST(RenderJob, OptionsReachTheirFields) {
   const RenderJob job = parseRenderJob(withModel(
       {"--size", "40x30", "--seed", "7", "--frames", "5", "--time", "0.25", "--camera", "1,2,3,0,0,0,0,0,1,40",
