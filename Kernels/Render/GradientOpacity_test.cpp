@@ -73,13 +73,7 @@ TEST(GradientOpacity, ChangingItIsATransferFunctionChange) {
 
 // Orthographic view down -z of the blob; a soft shell, so the factor shows through its depth.
 test::SceneSetup blobScene(int size, bool gradientOpacity, bool shadows = false) {
-  test::SceneSetup s;
-  s.settings.width = s.settings.height = size;
-  s.settings.seed = 5;
-  s.settings.pixelJitter = false;
-  s.scene.camera = Camera::framing(test::kCubeBox);
-  s.scene.camera.parallelProjection = true;
-  s.scene.camera.parallelScale = 0.75;
+  test::SceneSetup s = test::orthographicCubeView(size, 5);
   TransferFunction tf;
   tf.color = {{0.0, 0.2, 0.4, 0.9}, {0.5, 0.9, 0.9, 0.9}, {1.0, 0.9, 0.5, 0.1}};
   tf.opacity = {{0.0, 0.0}, {0.2, 0.0}, {0.5, 0.8}, {1.0, 0.8}};
@@ -198,19 +192,8 @@ TEST(GradientOpacityRender, ShadowRaysSeeTheFactorToo) {
 TEST(GradientOpacityRender, NaiveTrackerRendersTheSame) {
   // Same streams, same stage code: the unbatched baseline reproduces the wavefront image.
   const test::SceneSetup setup = blobScene(16, true, true);
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  MacrocellGrid gridA(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  MacrocellGrid gridB(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer wavefront(f, gridA), naive(f, gridB);
-  wavefront.setSettings(setup.settings);
-  wavefront.setScene(setup.scene);
-  naive.setSettings(setup.settings);
-  naive.setScene(setup.scene);
-  for (int k = 0; k < 3; ++k) {
-    wavefront.renderFrame();
-    naive.renderFrameNaive();
-  }
-  EXPECT_TRUE(wavefront.image().data == naive.image().data);
+  const test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  EXPECT_TRUE(test::naiveImageEqualsWavefront(f, setup, test::cubeMacrocells(8, 2)));
 }
 
 TEST(GradientOpacityRender, PruningStandsDown) {

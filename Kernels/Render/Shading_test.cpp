@@ -329,13 +329,7 @@ constexpr float kAmbient = 0.2f, kDiffuse = 0.8f;
 
 // Orthographic view down -z, an opaque shell around the blob's 0.45 level (radius ~0.54).
 test::SceneSetup blobScene(int size, bool shade) {
-  test::SceneSetup s;
-  s.settings.width = s.settings.height = size;
-  s.settings.seed = 11;
-  s.settings.pixelJitter = false;
-  s.scene.camera = Camera::framing(test::kCubeBox);
-  s.scene.camera.parallelProjection = true;
-  s.scene.camera.parallelScale = 0.75;
+  test::SceneSetup s = test::orthographicCubeView(size, 11);
   TransferFunction tf;
   tf.color = {{0.0, 0.9, 0.6, 0.3}, {1.0, 0.9, 0.6, 0.3}};
   tf.opacity = {{0.0, 0.0}, {0.3, 0.0}, {0.6, 1.0}, {1.0, 1.0}};
@@ -519,19 +513,8 @@ TEST(ShadedRender, LightListReachesEveryRenderer) {
 TEST(ShadedRender, NaiveTrackerShadesTheSame) {
   // Same streams, same lighting code: the unbatched baseline reproduces the wavefront image.
   const test::SceneSetup setup = highlightScene(true);
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  MacrocellGrid gridA(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  MacrocellGrid gridB(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer wavefront(f, gridA), naive(f, gridB);
-  wavefront.setSettings(setup.settings);
-  wavefront.setScene(setup.scene);
-  naive.setSettings(setup.settings);
-  naive.setScene(setup.scene);
-  for (int k = 0; k < 3; ++k) {
-    wavefront.renderFrame();
-    naive.renderFrameNaive();
-  }
-  EXPECT_TRUE(wavefront.image().data == naive.image().data);
+  const test::FunctionField f(test::blobField, "blob", test::blobGradient);
+  EXPECT_TRUE(test::naiveImageEqualsWavefront(f, setup, test::cubeMacrocells(8, 2)));
 }
 
 TEST(ShadedRender, FieldWithoutGradientIsRefused) {

@@ -9,6 +9,7 @@
 
 #include "Common/ImageIO.h"
 #include "Model/InrModel.h"
+#include "Render/DeltaTrackingRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/ModelBox.h"
 #include "Render/QueryReduction.h"
@@ -56,6 +57,38 @@ struct SceneSetup {
   RenderSettings settings;
   RenderScene scene;
 };
+
+// The blob tests' view (TestFields.h's Gaussian blob): [-1, 1]^3 seen orthographically down -z,
+// 1.5 units across, size x size pixels without jitter, with `seed`. Callers add the medium.
+inline SceneSetup orthographicCubeView(int size, std::uint32_t seed) {
+  SceneSetup s;
+  s.settings.width = s.settings.height = size;
+  s.settings.seed = seed;
+  s.settings.pixelJitter = false;
+  s.scene.camera = Camera::framing(kCubeBox);
+  s.scene.camera.parallelProjection = true;
+  s.scene.camera.parallelScale = 0.75;
+  return s;
+}
+
+// Whether the naive (unbatched) tracker's image after `frames` frames equals the wavefront
+// renderer's, bit for bit, for `field` over [-1, 1]^3 with `macrocells` (a grid of its own each):
+// the same random streams and stage code give the same picture.
+inline bool naiveImageEqualsWavefront(const FieldEvaluator& field, const SceneSetup& setup,
+                                      const MacrocellOptions& macrocells, int frames = 3) {
+  MacrocellGrid gridA(field, kCubeBox, 0, 1, macrocells);
+  MacrocellGrid gridB(field, kCubeBox, 0, 1, macrocells);
+  DeltaTrackingRenderer wavefront(field, gridA), naive(field, gridB);
+  wavefront.setSettings(setup.settings);
+  wavefront.setScene(setup.scene);
+  naive.setSettings(setup.settings);
+  naive.setScene(setup.scene);
+  for (int k = 0; k < frames; ++k) {
+    wavefront.renderFrame();
+    naive.renderFrameNaive();
+  }
+  return wavefront.image().data == naive.image().data;
+}
 
 // The analytic-field tests' view: [-1, 1]^3 seen obliquely from (2.2, 1.6, 3.4), background
 // (0.1, 0.2, 0.3), time 0.3, size x size pixels with `seed`. Callers choose the transfer function.

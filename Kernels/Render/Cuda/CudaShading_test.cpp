@@ -209,6 +209,17 @@ TEST(CudaShading, FusedTangentsTakeTheDeviceCountAndFallBackOffTheFusedPath) {
   EXPECT_THROW(CudaInrEvaluator(model, generic), std::runtime_error);
 }
 
+// Calls f(path, model, cpu evaluator, GPU evaluator, value range) for every shipped model.
+template <typename F>
+void forEachShippedModel(F&& f) {
+  for (const auto& path : test::shippedModels()) {
+    const InrModel model = InrModel::loadFile(path);
+    const CpuInrEvaluator cpuEval(model);
+    const CudaInrEvaluator gpuEval(model);
+    f(path, model, cpuEval, gpuEval, valueRangeFor(model, cpuEval));
+  }
+}
+
 struct ShadedRun {
   ImageRGBA image, premultiplied;
   FrameStats stats;
@@ -249,11 +260,8 @@ ShadedRun renderShaded(const Evaluator& evaluator, const InrModel& model, const 
 TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
   REQUIRE_GPU();
   const int size = 64, frames = 64;
-  for (const auto& path : test::shippedModels()) {
-    const InrModel model = InrModel::loadFile(path);
-    const CpuInrEvaluator cpuEval(model);
-    const CudaInrEvaluator gpuEval(model);
-    const auto range = valueRangeFor(model, cpuEval);
+  forEachShippedModel([&](const std::string& path, const InrModel& model, const CpuInrEvaluator& cpuEval,
+                          const CudaInrEvaluator& gpuEval, const std::array<float, 2>& range) {
     for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)})
     for (const bool kit : {false, true}) {
       const RenderScene scene = shadedScene(model, range, true, kit);
@@ -277,7 +285,7 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
       EXPECT_EQ(flat.stats.shadingQueries, 0u) << path;
       EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u) << path;
     }
-  }
+  });
 }
 
 // The median gradient magnitude of the model over points spread through its box at the scene's
@@ -307,11 +315,8 @@ double medianGradientNorm(const CpuInrEvaluator& eval, const InrModel& model, fl
 TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
   REQUIRE_GPU();
   const int size = 64, frames = 64;
-  for (const auto& path : test::shippedModels()) {
-    const InrModel model = InrModel::loadFile(path);
-    const CpuInrEvaluator cpuEval(model);
-    const CudaInrEvaluator gpuEval(model);
-    const auto range = valueRangeFor(model, cpuEval);
+  forEachShippedModel([&](const std::string& path, const InrModel& model, const CpuInrEvaluator& cpuEval,
+                          const CudaInrEvaluator& gpuEval, const std::array<float, 2>& range) {
     for (const bool shadows : {false, true})
     for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)}) {
       const RenderScene without = test::testScene(model, range, shadows);
@@ -335,7 +340,7 @@ TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
       EXPECT_LT(offPsnr, psnr - 6.0) << path << ": the gradient opacity changed too little to tell";
       EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u) << path;
     }
-  }
+  });
 }
 
 }  // namespace
