@@ -45,6 +45,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowQueries += o.shadowQueries;
   shadowIterations += o.shadowIterations;
   shadingQueries += o.shadingQueries;
+  gradientOpacityQueries += o.gradientOpacityQueries;
   refinements += o.refinements;
   cappedRays += o.cappedRays;
   budgetSkipped += o.budgetSkipped;
@@ -92,7 +93,8 @@ double DeltaTrackingRenderer::applyDirtyMajorants() {
 void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
                                             const PointStateView* points, int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
-                                            std::size_t& refinements, bool& truncated) {
+                                            std::size_t& refinements, std::size_t& gradientQueries,
+                                            bool& truncated) {
   const RayStateView rs = rays_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
@@ -137,7 +139,14 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
     }
     ++iterations;
     queries += k;
-    batch_.evaluate(evaluator_, medium.tf);
+    batch_.evaluate(evaluator_);
+    if (medium.tf.gradientOpacity) {  // the factor where it can change the outcome (Evaluate.h)
+      if (points)
+        batch_.evaluatePointOpacityScales(evaluator_, medium.tf);
+      else
+        batch_.evaluateOpacityScales(evaluator_, fc, medium.tf, rs);
+      gradientQueries += batch_.gradientQueries();
+    }
     if (points)
       batch_.scatterPoints(*points);
     else
@@ -200,7 +209,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     pointsView = points_.view();
   }
   runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
-                  truncated);
+                  st.gradientOpacityQueries, truncated);
 
   if (fc.shadows) {
     t0 = Clock::now();
@@ -213,7 +222,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
     st.shadowRays = shadowRays;
     st.shadowTraverseMs += msSince(t0);
     runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
-                    st.shadowEvaluateMs, st.refinements, truncated);
+                    st.shadowEvaluateMs, st.refinements, st.gradientOpacityQueries, truncated);
   }
   if (fc.shading.enabled) {
     t0 = Clock::now();
@@ -266,12 +275,15 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       if (!(rs.flags[i] & kRayPending)) break;
       const QueryPoint q = pendingQuery(rs, i, fc.time);
       float v = 0.f;
-      if (medium.tf.gradientOpacity) {
-        float g[3];
-        evaluator_.evaluateWithGradient(&q, 1, &v, g);
-        rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
-      } else {
-        evaluator_.evaluate(&q, 1, &v);
+      evaluator_.evaluate(&q, 1, &v);
+      if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Evaluate.h)
+        rs.opacityScale[i] = 1.f;
+        if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {
+          float unused, g[3];
+          evaluator_.evaluateWithGradient(&q, 1, &unused, g);
+          rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
+          ++st.gradientOpacityQueries;
+        }
       }
       storeQueryResult(rs, i, v);
       ++queries;
@@ -340,7 +352,7 @@ void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, c
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
   bool truncated = false;
   runTrackingLoop(fc, medium, nullptr, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
-                  total.refinements, truncated);
+                  total.refinements, total.gradientOpacityQueries, truncated);
 }
 
 }  // namespace inr

@@ -61,7 +61,7 @@ private:
   void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, const PointStateView* points,
                        int& iterations,
                        std::size_t& queries, double& traverseMs, double& evaluateMs,
-                       std::size_t& refinements, bool& truncated);
+                       std::size_t& refinements, std::size_t& gradientQueries, bool& truncated);
 
   const FieldEvaluator& evaluator_;
   MacrocellGrid& macrocells_;

@@ -20,12 +20,34 @@ INR_HD void storeQueryResult(const RayStateView& rs, int ray, float value) {
   if (!isFiniteValue(value)) rs.flags[ray] |= kRayBadSample;
 }
 
-// Gradient opacity (TransferFunctionView::gradientOpacity): with it, every query is answered with
-// the network's value and model-space gradient g, and the factor stored beside the value (the
-// ray's or the point's opacityScale) is the function at |g|. The stage code multiplies the
-// sample's scalar opacity by it (sampleOpacity, Render/TransferFunctionTable.h), so the extinction
-// never exceeds the scalar opacity's: the majorants hold as they are.
+// Gradient opacity (TransferFunctionView::gradientOpacity): the factor stored beside a query's
+// value (the ray's or the point's opacityScale) is the function at |g|, g the network's
+// model-space gradient there. The stage code multiplies the sample's scalar opacity by it
+// (sampleOpacity, Render/TransferFunctionTable.h), so the extinction never exceeds the scalar
+// opacity's: the majorants hold as they are.
 INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return gradientOpacityAt(tf, length(g)); }
+
+// Gradients cost several values, so the evaluation stage asks for them in a second pass only for
+// the queries whose outcome the factor can change, once their values are back; the others get
+// factor 1. A sample the scalar opacity leaves empty (alpha = 0, or a non-finite value: empty
+// space) is empty whatever the factor. A delta-tracking candidate the scalar opacity already
+// rejects (collisionProduct = xi * majorant >= sigma(alpha)) is rejected for any factor <= 1,
+// since sigma(alpha * A) <= sigma(alpha): only the candidates it accepts need A (thinning: those
+// are then accepted with the probability sigma(alpha A) / sigma(alpha), as the exact test
+// collisionProduct < sigma(alpha A) does). Ratio-tracked shadow rays use every sample's sigma.
+INR_HD bool sampleNeedsOpacityScale(const TransferFunctionView& tf, float value) {
+  return isFiniteValue(value) && extinctionAt(tf, value) > 0.f;
+}
+
+// The same for ray i's pending candidate (delta tracking, primary or shadow ray) of value `value`.
+INR_HD bool candidateNeedsOpacityScale(const FrameConstants& fc, const TransferFunctionView& tf, const RayStateView& rs,
+                                       int i, float value) {
+  if (!isFiniteValue(value)) return false;
+  const float sigma = extinctionAt(tf, value);
+  if (!(sigma > 0.f)) return false;
+  const bool ratioShadow = (rs.flags[i] & kRayShadow) && fc.shadowEstimator == ShadowEstimator::Ratio;
+  return ratioShadow || rs.collisionProduct[i] < sigma;
+}
 
 // Expected-value refinement of homogeneity pruning (Eq. ev_ema, Render/Pruning.h): the evaluated
 // `value` of ray `ray`'s pending query moves the expected scalar of the query's macrocell

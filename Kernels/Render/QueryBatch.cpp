@@ -102,20 +102,40 @@ void QueryBatch::shade(const FieldEvaluator& evaluator, const FrameConstants& fc
   for (long long k = 0; k < n; ++k) shadeRay(fc, rs, rays_[k], Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
 }
 
-void QueryBatch::evaluate(const FieldEvaluator& evaluator, const TransferFunctionView& tf) {
-  withOpacityScales_ = tf.gradientOpacity != nullptr;
-  if (count_ == 0) return;
-  if (!withOpacityScales_) {
-    evaluator.evaluate(points_.data(), count_, values_.data());
-    return;
-  }
-  gradients_.resize(3 * count_);
-  opacityScales_.resize(count_);
-  evaluator.evaluateWithGradient(points_.data(), count_, values_.data(), gradients_.data());
-  const long long n = (long long)count_;
+void QueryBatch::evaluate(const FieldEvaluator& evaluator) {
+  withOpacityScales_ = false;
+  if (count_ > 0) evaluator.evaluate(points_.data(), count_, values_.data());
+}
+
+template <typename Needs>
+void QueryBatch::evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf,
+                                            Needs&& needs) {
+  withOpacityScales_ = true;
+  opacityScales_.assign(count_, 1.f);
+  needGradient_.clear();
+  for (std::size_t k = 0; k < count_; ++k)  // serial: in batch order, whatever the thread count
+    if (needs(k)) needGradient_.push_back(k);
+  const std::size_t m = needGradient_.size();
+  gradientQueries_ = m;
+  if (m == 0) return;
+  gradientPoints_.resize(m);
+  gradientValues_.resize(m);
+  gradients_.resize(3 * m);
+  for (std::size_t j = 0; j < m; ++j) gradientPoints_[j] = points_[needGradient_[j]];
+  evaluator.evaluateWithGradient(gradientPoints_.data(), m, gradientValues_.data(), gradients_.data());
   const float* g = gradients_.data();
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (long long k = 0; k < n; ++k) opacityScales_[k] = gradientOpacityOf(tf, Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
+  for (std::size_t j = 0; j < m; ++j)
+    opacityScales_[needGradient_[j]] = gradientOpacityOf(tf, Vec3f{g[3 * j], g[3 * j + 1], g[3 * j + 2]});
+}
+
+void QueryBatch::evaluateOpacityScales(const FieldEvaluator& evaluator, const FrameConstants& fc,
+                                       const TransferFunctionView& tf, const RayStateView& rs) {
+  evaluateOpacityScalesWhere(evaluator, tf,
+                             [&](std::size_t k) { return candidateNeedsOpacityScale(fc, tf, rs, rays_[k], values_[k]); });
+}
+
+void QueryBatch::evaluatePointOpacityScales(const FieldEvaluator& evaluator, const TransferFunctionView& tf) {
+  evaluateOpacityScalesWhere(evaluator, tf, [&](std::size_t k) { return sampleNeedsOpacityScale(tf, values_[k]); });
 }
 
 void QueryBatch::scatter(const RayStateView& rs) const {

@@ -15,9 +15,15 @@ class QueryBatch {
 public:
   // Collects the pending rays' queries; returns their number.
   std::size_t gather(const RayStateView& rs, float time);
-  // With tf's gradient opacity the batch is answered with values and gradients, and the scatters
-  // store each query's gradient opacity factor beside its value (Render/Evaluate.h).
-  void evaluate(const FieldEvaluator& evaluator, const TransferFunctionView& tf);
+  void evaluate(const FieldEvaluator& evaluator);
+  // Gradient opacity (Render/Evaluate.h), after evaluate: the factor of each query whose outcome
+  // it can change (delta-tracking candidates: the entries are rays; points: point slots), their
+  // gradients in one evaluator call; 1 for the others. The scatters then store it beside the value.
+  void evaluateOpacityScales(const FieldEvaluator& evaluator, const FrameConstants& fc, const TransferFunctionView& tf,
+                             const RayStateView& rs);
+  void evaluatePointOpacityScales(const FieldEvaluator& evaluator, const TransferFunctionView& tf);
+  // Queries the last evaluate*OpacityScales asked a gradient for.
+  std::size_t gradientQueries() const { return gradientQueries_; }
   void scatter(const RayStateView& rs) const;
   // Ratio tracking (RatioTracking.h): the pending points that need the network (majorant > 0),
   // in ray order, then point order; rayIndices() then holds their slots.
@@ -42,7 +48,14 @@ private:
   std::vector<float> values_;
   std::vector<float> gradients_;  // gradient shading and gradient opacity: 3 per query
   std::vector<float> opacityScales_;  // gradient opacity: the factor per query
-  bool withOpacityScales_ = false;    // the last evaluate computed opacityScales_
+  bool withOpacityScales_ = false;    // opacityScales_ holds this batch's factors
+  std::size_t gradientQueries_ = 0;
+  std::vector<std::size_t> needGradient_;  // gradient opacity: the queries that need their factor
+  std::vector<QueryPoint> gradientPoints_;
+  std::vector<float> gradientValues_;
+  // Computes opacityScales_ for the queries `needs(k)` selects (1 for the others).
+  template <typename Needs>
+  void evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf, Needs&& needs);
   std::vector<std::size_t> chunkOffsets_;
   std::size_t count_ = 0;
 };

@@ -16,6 +16,9 @@ struct FrameStats {
   std::size_t shadowQueries = 0;
   int shadowIterations = 0;
   std::size_t shadingQueries = 0;  // value + gradient queries of gradient shading (one per lit ray)
+  // Gradient opacity: the tracking loops' queries (primary and shadow, counted in queries and
+  // shadowQueries) that were asked for their gradient too (Render/Evaluate.h).
+  std::size_t gradientOpacityQueries = 0;
   std::size_t refinements = 0;  // macrocell bounds widened by this frame's samples
   std::size_t cappedRays = 0;   // rays cut off by the per-ray collision cap (bounded work)
   std::size_t budgetSkipped = 0;  // pixels ray budgeting left out this frame (no ray cast)

@@ -44,6 +44,7 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"shadow_queries", s.shadowQueries},
           {"shadow_iterations", s.shadowIterations},
           {"shading_queries", s.shadingQueries},
+          {"gradient_opacity_queries", s.gradientOpacityQueries},
           {"refinements", s.refinements},
           {"residual_sum", s.residualSum},
           {"capped_rays", s.cappedRays},
@@ -191,6 +192,7 @@ void writeBrickDescription(const RenderJob& job, const RenderSession& session, c
   meta["queries"] = r.total.queries;
   meta["shadow_queries"] = r.total.shadowQueries;
   meta["shading_queries"] = r.total.shadingQueries;
+  meta["gradient_opacity_queries"] = r.total.gradientOpacityQueries;
   meta["render_seconds"] = renderSeconds;
   meta["ms_per_frame"] = r.total.totalMs / std::max<long>(1, r.frames);
   meta["estimated_psnr_db"] = estimatedPsnr;

@@ -29,7 +29,7 @@ const char* kRenderUsageHead =
     "                           opacity times a piecewise-linear function of the gradient magnitude\n"
     "                           |grad f| (scalar units per model-space unit), nodes (G, A) with\n"
     "                           increasing G and A in [0, 1]; flat regions fade. Every sample then\n"
-    "                           asks for the network's gradient too (not with the GPU ray marcher)\n"
+    "                           asks for the network's gradient too, where it can matter\n"
     "  --background R,G,B       background colour (default 0,0,0)\n"
     "  --shadows                ray-traced shadows from a directional light\n"
     "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"

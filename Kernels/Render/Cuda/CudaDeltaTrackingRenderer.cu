@@ -161,16 +161,40 @@ __global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
   if (threadIdx.x == 0 && sum) atomicAdd(&stats[kStatPruned], (unsigned long long)sum);
 }
 
-// Gradient opacity's evaluation scatter (Render/Evaluate.h): the value of query k, of the first
-// min(*count, maxN), to samples[slots[k]] and its gradient opacity factor to opacityScales[slots[k]].
-__global__ void scatterWithOpacityKernel(const unsigned* count, int maxN, const int* slots, const float4* results,
-                                         TransferFunctionView tf, float* samples, float* opacityScales) {
+// Gradient opacity (Render/Evaluate.h), after the values of the first min(*count, maxN) queries
+// landed in samples[slots[k]]: lists the queries whose outcome the factor can change (their point
+// and slot, *listed of them) for a value + gradient batch, and gives the others factor 1.
+// points: delta-tracking candidates (slots are rays); else ratio / march points.
+__global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView tf, RayStateView rs, bool points,
+                                         const unsigned* count, int maxN, const float4* queries, const int* slots,
+                                         const float* samples, float* opacityScales, float4* listedPoints,
+                                         int* listedSlots, unsigned* listed) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= maxN || k >= int(*count)) return;
-  const float4 r = results[k];
   const int slot = slots[k];
-  samples[slot] = r.x;
-  opacityScales[slot] = gradientOpacityOf(tf, Vec3f{r.y, r.z, r.w});
+  const float v = samples[slot];
+  const bool needs = points ? sampleNeedsOpacityScale(tf, v) : candidateNeedsOpacityScale(fc, tf, rs, slot, v);
+  if (!needs) {
+    opacityScales[slot] = 1.f;
+    return;
+  }
+  const unsigned j = atomicAdd(listed, 1u);
+  listedPoints[j] = queries[k];
+  listedSlots[j] = slot;
+}
+
+// The factor of each listed query (`results`: its value and gradient) to opacityScales[slots[j]].
+__global__ void scatterOpacityKernel(const unsigned* listed, int maxN, const int* slots, const float4* results,
+                                     TransferFunctionView tf, float* opacityScales) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j >= maxN || j >= int(*listed)) return;
+  const float4 r = results[j];
+  opacityScales[slots[j]] = gradientOpacityOf(tf, Vec3f{r.y, r.z, r.w});
+}
+
+// Adds the listed gradient-opacity queries (at most maxN) to the frame's count of them.
+__global__ void countOpacityQueriesKernel(const unsigned* listed, int maxN, unsigned long long* stats) {
+  stats[kStatGradientOpacityQueries] += (unsigned long long)min(int(*listed), maxN);
 }
 
 __global__ void resetPixelsKernel(AccumulationView acc) {
@@ -236,23 +260,33 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   float* sampleOut = ratio ? launch.points.sample : rs.sample;
   float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
   const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
-  if (gradientOpacity) valueGradients.growTo(slots);
+  if (gradientOpacity) {
+    valueGradients.growTo(slots);
+    opacityPoints.growTo(slots);
+    opacitySlots.growTo(slots);
+    if (opacityListed.size() < 1) opacityListed.resize(1);
+  }
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
     const int cur = it & 1;
     if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
       const long long bound = std::min<long long>((long long)slots, (long long)launch.n * perRay);
       timer.begin(evaluateStage, stream);
-      if (gradientOpacity) {  // every query with its gradient (Render/Evaluate.h)
-        evaluator.evaluateWithGradientDevice(points[cur].get(), queryCount(cur), int(bound), fc.time,
+      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(), stream);
+      if (gradientOpacity) {  // gradients where the factor can change the outcome (Render/Evaluate.h)
+        INR_CUDA_CHECK(cudaMemsetAsync(opacityListed.get(), 0, sizeof(unsigned), stream));
+        listOpacityQueriesKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
+            fc, medium.tf, rs, ratio, queryCount(cur), int(bound), points[cur].get(), queryRays[cur].get(), sampleOut,
+            opacityScaleOut, opacityPoints.get(), opacitySlots.get(), opacityListed.get());
+        INR_CUDA_CHECK_LAUNCH("listOpacityQueriesKernel");
+        evaluator.evaluateWithGradientDevice(opacityPoints.get(), opacityListed.get(), int(bound), fc.time,
                                              valueGradients.get(), stream);
-        scatterWithOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
-            queryCount(cur), int(bound), queryRays[cur].get(), valueGradients.get(), medium.tf, sampleOut,
-            opacityScaleOut);
-        INR_CUDA_CHECK_LAUNCH("scatterWithOpacityKernel");
-      } else {
-        evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(),
-                                 stream);
+        scatterOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(opacityListed.get(), int(bound),
+                                                                         opacitySlots.get(), valueGradients.get(),
+                                                                         medium.tf, opacityScaleOut);
+        INR_CUDA_CHECK_LAUNCH("scatterOpacityKernel");
+        countOpacityQueriesKernel<<<1, 1, 0, stream>>>(opacityListed.get(), int(bound), stats.get());
+        INR_CUDA_CHECK_LAUNCH("countOpacityQueriesKernel");
       }
       timer.end(stream);
       enqueueTraverse(it + 1);
@@ -390,6 +424,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   st.budgetSkipped = std::size_t(I.hostStats[kStatBudgetSkipped]);
   st.pruned = std::size_t(I.hostStats[kStatPruned]);
   st.shadingQueries = std::size_t(I.hostStats[kStatShadingQueries]);
+  st.gradientOpacityQueries = std::size_t(I.hostStats[kStatGradientOpacityQueries]);
   // Refinement raised majorants: the next frame's updateDirtyMajorants applies them, and the
   // traversal's structure is rebuilt over them.
   if (st.refinements > 0) I.traversalStale = true;

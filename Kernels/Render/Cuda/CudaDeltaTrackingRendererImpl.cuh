@@ -33,7 +33,7 @@ inline int blocksFor(long long n) { return int(std::max<long long>(1, (n + kThre
 // Per-frame device counters (one read-back at the end of the frame).
 enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatNaiveQueries = 3,
                 kStatNaiveShadowQueries = 4, kStatNaiveCut = 5, kStatCapped = 6, kStatCovered = 7, kStatPruned = 8, kStatBudgetSkipped = 9,
-                kStatShadingQueries = 10, kStatCount = 11 };
+                kStatShadingQueries = 10, kStatGradientOpacityQueries = 11, kStatCount = 12 };
 // Per-frame device sums of the convergence estimate (doubles).
 enum SumSlot { kSumResidual = 0, kSumVariance = 1, kSumCount = 2 };
 }  // namespace pipeline
@@ -83,7 +83,11 @@ struct CudaDeltaTrackingRenderer::Impl {
   // Gradient shading: the lit rays' values and gradients (their points and ray indices reuse
   // points[0] and queryRays[0], free once the tracking loops are done).
   cuda::DeviceBuffer<float4> shadingResults;
-  cuda::DeviceBuffer<float4> valueGradients;  // gradient opacity: the loop's (value, gradient) per query
+  // Gradient opacity: the loop's queries that need their factor (points, slots, how many) and their
+  // (value, gradient).
+  cuda::DeviceBuffer<float4> opacityPoints, valueGradients;
+  cuda::DeviceBuffer<int> opacitySlots;
+  cuda::DeviceBuffer<unsigned> opacityListed;
   cudaEvent_t countReady[2] = {nullptr, nullptr};  // hostCounter[parity] is valid
   // Frame statistics: counters and the convergence sums.
   cuda::DeviceBuffer<unsigned long long> stats;

@@ -35,13 +35,14 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
       return false;
     }
     const QueryPoint q = pendingQuery(rs, i, fc.time);
-    float v;
-    if (medium.tf.gradientOpacity) {  // the view holds tangent planes with gradient opacity
-      float g[3];
-      v = cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
-      rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
-    } else {
-      v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
+    const float v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
+    if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Render/Evaluate.h)
+      rs.opacityScale[i] = 1.f;
+      if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {  // the view holds tangent planes then
+        float g[3];
+        cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
+        rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
+      }
     }
     storeQueryResult(rs, i, v);
     ++queries;

@@ -384,11 +384,13 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
     o.step = length(box.hi - box.lo) / 200.f;
     o.maxShadowBatch = 4096;
     struct Case {
-      bool parallel, shadows, shade, lightKit = false;
+      bool parallel, shadows, shade, lightKit = false, gradientOpacity = false;
     };
+    // Gradient opacity: a ramp around the shipped models' median gradient magnitude (about 0.3).
     for (const Case& k : {Case{false, false, false}, Case{true, false, false}, Case{false, true, false},
                           Case{true, true, false}, Case{false, false, true}, Case{true, true, true},
-                          Case{false, false, true, true}}) {
+                          Case{false, false, true, true}, Case{false, false, false, false, true},
+                          Case{true, true, false, false, true}, Case{false, true, true, false, true}}) {
       const bool parallel = k.parallel, shadows = k.shadows;
       RenderSettings settings;
       settings.width = 36;
@@ -397,6 +399,7 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
       scene.shading.enabled = k.shade;
       scene.shading.lightList = k.lightKit;  // ParaView's default view lights (VTK's light-list lighting)
       if (k.lightKit) scene.shading.lights = paraviewLightKit();
+      if (k.gradientOpacity) scene.transferFunction.gradientOpacity = {{0.15, 0.0}, {0.7, 1.0}};
       if (parallel) {
         scene.camera.parallelProjection = true;
         scene.camera.parallelScale = 0.6 * length(box.hi - box.lo);
@@ -404,10 +407,12 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
       RayMarchRenderer cpu(eval, box, o);
       CudaRayMarcher gpu(eval, box, o);
       const FrameStats a = test::renderFrames(cpu, settings, scene, 3), b = test::renderFrames(gpu, settings, scene, 3);
-      ImageRGBA flat;  // shaded cases: the same view unshaded
-      if (k.shade) {
+      ImageRGBA flat;  // shaded or gradient opacity cases: the same view without either
+      const bool changed = k.shade || k.gradientOpacity;
+      if (changed) {
         RenderScene flatScene = scene;
         flatScene.shading.enabled = false;
+        flatScene.transferFunction.gradientOpacity.clear();
         CudaRayMarcher unshaded(eval, box, o);
         test::renderFrames(unshaded, settings, flatScene, 3);
         flat = unshaded.image();
@@ -427,18 +432,19 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
         ++covered;
         for (int c = 0; c < 4; ++c) {
           maxError = std::max(maxError, double(std::fabs(ci.data[4 * i + c] - gi.data[4 * i + c])));
-          if (k.shade) shadingChange = std::max(shadingChange, double(std::fabs(flat.data[4 * i + c] - gi.data[4 * i + c])));
+          if (changed) shadingChange = std::max(shadingChange, double(std::fabs(flat.data[4 * i + c] - gi.data[4 * i + c])));
         }
       }
-      std::printf("%-24s %s%s%s: GPU vs CPU ray marcher on one evaluator: %zu covered pixels, %zu shadow queries, "
+      std::printf("%-24s %s%s%s%s: GPU vs CPU ray marcher on one evaluator: %zu covered pixels, %zu shadow queries, "
                   "max error %.2e%s\n",
                   fs::path(path).filename().c_str(), parallel ? "parallel" : "perspective", shadows ? ", shadows" : "",
-                  k.shade ? (k.lightKit ? ", shaded (light kit)" : ", shaded") : "", covered, b.shadowQueries, maxError,
-                  k.shade ? (" (unshaded: " + std::to_string(shadingChange) + ")").c_str() : "");
+                  k.shade ? (k.lightKit ? ", shaded (light kit)" : ", shaded") : "",
+                  k.gradientOpacity ? ", gradient opacity" : "", covered, b.shadowQueries, maxError,
+                  changed ? (" (without: " + std::to_string(shadingChange) + ")").c_str() : "");
       EXPECT_GT(covered, std::size_t(settings.width * settings.height / 10)) << path;
       EXPECT_EQ(coverageMismatch, 0u) << path;
-      EXPECT_LE(maxError, k.shade ? 1e-3 : shadows ? 2e-4 : 1e-4) << path;
-      if (k.shade) EXPECT_GT(shadingChange, 0.02) << path << ": shading changed too little to tell";
+      EXPECT_LE(maxError, changed ? 1e-3 : shadows ? 2e-4 : 1e-4) << path;
+      if (changed) EXPECT_GT(shadingChange, 0.02) << path << ": shading / gradient opacity changed too little to tell";
     }
   }
 }

@@ -11,6 +11,7 @@
 #include "Common/Stopwatch.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Render/Cuda/DeviceTransferFunction.h"
+#include "Render/Evaluate.h"
 #include "Render/Finalize.h"
 #include "Render/RayMarch.h"
 #include "Render/SceneInputs.h"
@@ -75,8 +76,17 @@ __device__ __forceinline__ MarchShadowRay shadowRayOf(const MarchShadowParams& s
 // Each primary sample's shadow-ray sample count (0 when it cannot emit); count has total + 1
 // entries (the last 0, so that the exclusive scan's last entry is the chunk's shadow points).
 // tau (the optical depth towards the light) starts at 0.
-__global__ void shadowCountKernel(int total, const float4* points, const float* values, TransferFunctionView tf,
-                                  MarchShadowParams sp, int* count, float* tau, int* shadowRays) {
+// Gradient opacity (Render/Evaluate.h): sample j's factor from its (value, gradient), 1 without.
+__device__ __forceinline__ float marchOpacityScale(const TransferFunctionView& tf, const float4* valueGradients, int j) {
+  if (!valueGradients) return 1.f;
+  const float4 vg = valueGradients[j];
+  return gradientOpacityOf(tf, Vec3f{vg.y, vg.z, vg.w});
+}
+
+// gradients: each sample's (value, gradient) with gradient opacity, else null.
+__global__ void shadowCountKernel(int total, const float4* points, const float* values, const float4* gradients,
+                                  TransferFunctionView tf, MarchShadowParams sp, int* count, float* tau,
+                                  int* shadowRays) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j > total) return;
   if (j == total) {
@@ -84,7 +94,7 @@ __global__ void shadowCountKernel(int total, const float4* points, const float* 
     return;
   }
   tau[j] = 0.f;
-  const int c = marchSampleEmits(tf, values[j]) ? shadowRayOf(sp, points[j]).count : 0;
+  const int c = marchSampleEmits(tf, values[j], marchOpacityScale(tf, gradients, j)) ? shadowRayOf(sp, points[j]).count : 0;
   count[j] = c;
   if (c > 0) atomicAdd(shadowRays, 1);
 }
@@ -114,24 +124,24 @@ __global__ void shadowPointsKernel(int first, int n, int total, const float4* pr
 }
 
 // Adds each primary sample's share of the optical depth from shadow points [first, first + n)
-// (values from 0), in the order of its points, so that batches add up as one sum would.
+// (values from 0; gradients: their (value, gradient) with gradient opacity, else null), in the
+// order of its points, so that batches add up as one sum would.
 __global__ void shadowDepthKernel(int first, int n, int total, const float4* primary, const int* offsets,
-                                  const float* values, TransferFunctionView tf, MarchShadowParams sp, float* tau) {
+                                  const float* values, const float4* gradients, TransferFunctionView tf,
+                                  MarchShadowParams sp, float* tau) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j >= total) return;
   const int a = max(offsets[j], first), b = min(offsets[j + 1], first + n);
   if (a >= b) return;
   const float ds = shadowRayOf(sp, primary[j]).ds;
   float sum = tau[j];
-  for (int m = a; m < b; ++m) {
-    const float v = values[m - first];
-    if (isFiniteValue(v)) sum += extinctionAt(tf, v) * ds;
-  }
+  for (int m = a; m < b; ++m)
+    sum += marchExtinction(tf, values[m - first], marchOpacityScale(tf, gradients, m - first)) * ds;
   tau[j] = sum;
 }
 
-// Gradient shading: each sample's value out of its (value, gradient) for the shadow and
-// compositing kernels, which read values.
+// Gradient shading and gradient opacity: each sample's value out of its (value, gradient) for the
+// shadow and compositing kernels, which read values.
 __global__ void valuesOfGradientsKernel(int total, const float4* valueGradients, float* values) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j < total) values[j] = valueGradients[j].x;
@@ -146,23 +156,25 @@ struct MarchShading {
   Vec3f toLight;
 };
 
-// tau: each sample's optical depth towards the light, or null without shadows.
+// tau: each sample's optical depth towards the light, or null without shadows; gradients: each
+// sample's (value, gradient) with gradient opacity, else null.
 __global__ void compositeKernel(MarchParams p, const MarchRay* rays, const int* offsets, const float* values,
-                                const float* tau, float ambient, MarchShading shading, TransferFunctionView tf,
-                                Vec4f* accum, int frameIndex) {
+                                const float4* gradients, const float* tau, float ambient, MarchShading shading,
+                                TransferFunctionView tf, Vec4f* accum, int frameIndex) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= p.chunkN) return;
   const MarchRay r = rays[k];
   MarchCompositor<float> ray;
   for (int j = 0; j < r.count; ++j) {
     const int sample = offsets[k] + j;
+    const float scale = marchOpacityScale(tf, gradients, sample);
     if (shading.valueGradients) {
       const float4 q = shading.points[sample], vg = shading.valueGradients[sample];
       const SampleLight light =
           sampleLightAt(p.cam, shading.constants, shading.toLight, Vec3f{q.x, q.y, q.z}, Vec3f{vg.y, vg.z, vg.w});
-      ray.addLit(tf, values[sample], r.ds, ambient, light, tau ? expf(-tau[sample]) : 1.f);
+      ray.addLit(tf, values[sample], r.ds, ambient, light, tau ? expf(-tau[sample]) : 1.f, scale);
     } else {
-      ray.add(tf, values[sample], r.ds, tau ? marchLightFactor<float>(ambient, expf(-tau[sample])) : 1.f);
+      ray.add(tf, values[sample], r.ds, tau ? marchLightFactor<float>(ambient, expf(-tau[sample])) : 1.f, scale);
     }
   }
   const int i = p.chunk0 + k;
@@ -182,7 +194,7 @@ struct CudaRayMarcher::Impl {
   cuda::DeviceBuffer<unsigned char> scanTemp;
   cuda::DeviceBuffer<float4> points;
   cuda::DeviceBuffer<float> values;
-  cuda::DeviceBuffer<float4> valueGradients;  // gradient shading: (value, gradient) per sample
+  cuda::DeviceBuffer<float4> valueGradients;  // gradient shading, gradient opacity: (value, gradient) per sample
   cuda::DeviceBuffer<int> hitRays;
   cuda::PinnedHost<int> total{1};
   cuda::PinnedHost<int> hitRaysHost{1};
@@ -193,6 +205,7 @@ struct CudaRayMarcher::Impl {
   cuda::DeviceBuffer<float> tau;
   cuda::DeviceBuffer<float4> shadowPoints;
   cuda::DeviceBuffer<float> shadowValues;
+  cuda::DeviceBuffer<float4> shadowValueGradients;  // gradient opacity: the shadow points' (value, gradient)
   cuda::PinnedHost<int> shadowRaysHost{1};
 };
 
@@ -217,10 +230,6 @@ void CudaRayMarcher::setSettings(const RenderSettings& settings) {
 
 void CudaRayMarcher::setScene(const RenderScene& scene) {
   validateLighting(scene);
-  if (scene.transferFunction.usesGradientOpacity())
-    throw std::invalid_argument(
-        "gradient opacity: the GPU ray marcher does not implement it; render with the wavefront renderer "
-        "(inr render --method delta) or the CPU ray marcher (--backend cpu --method raymarch)");
   const std::size_t pixels = std::size_t(settings_.width) * settings_.height;
   if (!scene.depthLimit.empty() && scene.depthLimit.size() != pixels)
     throw std::invalid_argument("depth limit must have one value per pixel");
@@ -293,7 +302,9 @@ FrameStats CudaRayMarcher::renderFrame() {
     I.shadowRays.resize(1);
     I.shadowRays.zero(s);
   }
-  // Gradient shading: every sample's value comes with its gradient, as in the CPU marcher.
+  // Gradient shading and gradient opacity: every sample's value comes with its gradient, shadow
+  // samples' too with gradient opacity, as in the CPU marcher.
+  const bool gradientOpacity = tf.gradientOpacity != nullptr;
   MarchShading shading;
   shading.constants = shadingConstants(scene_.shading, p.cam);
   shading.toLight = sp.toLight;
@@ -316,13 +327,15 @@ FrameStats CudaRayMarcher::renderFrame() {
       }
       pointsKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.points.get());
       INR_CUDA_CHECK_LAUNCH("pointsKernel");
-      if (shading.constants.enabled) {
+      if (shading.constants.enabled || gradientOpacity) {
         if (I.valueGradients.size() < std::size_t(total)) I.valueGradients.resize(std::size_t(total));
         evaluator_.evaluateWithGradientDevice(I.points.get(), nullptr, total, p.time, I.valueGradients.get(), s);
         valuesOfGradientsKernel<<<(total + 127) / 128, 128, 0, s>>>(total, I.valueGradients.get(), I.values.get());
         INR_CUDA_CHECK_LAUNCH("valuesOfGradientsKernel");
-        shading.points = I.points.get();
-        shading.valueGradients = I.valueGradients.get();
+        if (shading.constants.enabled) {
+          shading.points = I.points.get();
+          shading.valueGradients = I.valueGradients.get();
+        }
       } else {
         evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
       }
@@ -332,6 +345,7 @@ FrameStats CudaRayMarcher::renderFrame() {
     const bool shadows = scene_.shadows && total > 0;
     if (shadows) castShadows(total, tf, sp, st);
     compositeKernel<<<blocks, 128, 0, s>>>(p, I.rays.get(), I.offsets.get(), I.values.get(),
+                                           gradientOpacity ? I.valueGradients.get() : nullptr,
                                            shadows ? I.tau.get() : nullptr, sp.ambient, shading, tf, I.accum.get(),
                                            frameIndex_);
     INR_CUDA_CHECK_LAUNCH("compositeKernel");
@@ -365,8 +379,10 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
     I.shadowScanTemp.resize(bytes);
   }
   const int sampleBlocks = (total + 1 + 127) / 128;
-  shadowCountKernel<<<sampleBlocks, 128, 0, s>>>(total, I.points.get(), I.values.get(), tf, sp, I.shadowCount.get(),
-                                                 I.tau.get(), I.shadowRays.get());
+  const bool gradientOpacity = tf.gradientOpacity != nullptr;
+  shadowCountKernel<<<sampleBlocks, 128, 0, s>>>(total, I.points.get(), I.values.get(),
+                                                 gradientOpacity ? I.valueGradients.get() : nullptr, tf, sp,
+                                                 I.shadowCount.get(), I.tau.get(), I.shadowRays.get());
   INR_CUDA_CHECK_LAUNCH("shadowCountKernel");
   std::size_t bytes = I.shadowScanTemp.size();
   INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.shadowScanTemp.get(), bytes, I.shadowCount.get(), I.shadowOffsets.get(),
@@ -378,6 +394,7 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
   if (shadowTotal > 0 && I.shadowPoints.size() < std::size_t(batch)) {
     I.shadowPoints.resize(std::size_t(batch));
     I.shadowValues.resize(std::size_t(batch));
+    if (gradientOpacity) I.shadowValueGradients.resize(std::size_t(batch));
   }
   for (int first = 0; first < shadowTotal; first += batch) {
     const int m = std::min(batch, shadowTotal - first);
@@ -385,9 +402,17 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
                                                         I.shadowPoints.get());
     INR_CUDA_CHECK_LAUNCH("shadowPointsKernel");
     const auto te = Clock::now();
-    evaluator_.evaluateDevice(I.shadowPoints.get(), m, I.shadowValues.get(), nullptr, s);
+    if (gradientOpacity) {
+      evaluator_.evaluateWithGradientDevice(I.shadowPoints.get(), nullptr, m, sp.time, I.shadowValueGradients.get(), s);
+      valuesOfGradientsKernel<<<(m + 127) / 128, 128, 0, s>>>(m, I.shadowValueGradients.get(), I.shadowValues.get());
+      INR_CUDA_CHECK_LAUNCH("valuesOfGradientsKernel");
+    } else {
+      evaluator_.evaluateDevice(I.shadowPoints.get(), m, I.shadowValues.get(), nullptr, s);
+    }
     shadowDepthKernel<<<(total + 127) / 128, 128, 0, s>>>(first, m, total, I.points.get(), I.shadowOffsets.get(),
-                                                          I.shadowValues.get(), tf, sp, I.tau.get());
+                                                          I.shadowValues.get(),
+                                                          gradientOpacity ? I.shadowValueGradients.get() : nullptr, tf,
+                                                          sp, I.tau.get());
     INR_CUDA_CHECK_LAUNCH("shadowDepthKernel");
     st.shadowQueries += std::size_t(m);
     st.shadowIterations += 1;
