@@ -419,8 +419,17 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
       }
       EXPECT_EQ(a.queries, b.queries) << path;
       EXPECT_EQ(a.rays, b.rays) << path;
-      EXPECT_EQ(a.shadowRays, b.shadowRays) << path;
-      EXPECT_EQ(a.shadowQueries, b.shadowQueries) << path;
+      if (k.gradientOpacity) {
+        // A sample casts a shadow ray only where its factor is above 0, and the GPU's gradient (its
+        // fused kernel's tangent rows) rounds differently from the host path's: a sample at the
+        // ramp's zero end can fall on either side (on an H100, 1 ray in 40 000 on two models).
+        const double rays = double(a.shadowRays), queries = double(a.shadowQueries);
+        EXPECT_NEAR(double(b.shadowRays), rays, std::max(4.0, 1e-4 * rays)) << path;
+        EXPECT_NEAR(double(b.shadowQueries), queries, std::max(100.0, 1e-4 * queries)) << path;
+      } else {
+        EXPECT_EQ(a.shadowRays, b.shadowRays) << path;
+        EXPECT_EQ(a.shadowQueries, b.shadowQueries) << path;
+      }
       EXPECT_EQ(shadows, b.shadowQueries > 0) << path;
       const ImageRGBA ci = cpu.image(), gi = gpu.image();  // both over the scene's background
       std::size_t covered = 0, coverageMismatch = 0;
