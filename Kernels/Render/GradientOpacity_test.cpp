@@ -14,6 +14,7 @@
 #include "Render/Evaluate.h"
 #include "Render/RayMarcher.h"
 #include "Render/SceneChange.h"
+#include "TestSupport/BlobRenders.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
 
@@ -102,46 +103,20 @@ test::SceneSetup bakedScene(int size) {
   return s;
 }
 
-struct Render {
-  ImageRGBA image, premultiplied;
-  FrameStats total;
-  std::size_t gradientPoints = 0;
-};
+using test::BlobRender;
 
-Render marched(const test::SceneSetup& setup) {
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  RayMarchOptions ro;
-  ro.step = 2.f / 1024.f;
-  ro.shadowStep = 2.f / 256.f;
-  RayMarchRenderer rm(f, test::kCubeBox, ro);
-  Render out;
-  out.total = test::renderFrames(rm, setup.settings, setup.scene, 1);
-  out.image = rm.image();
-  out.premultiplied = rm.premultipliedImage();
-  out.gradientPoints = f.gradientPoints();
-  return out;
-}
+BlobRender marched(const test::SceneSetup& setup) { return test::marchedBlob(setup); }
 
-Render tracked(const test::SceneSetup& setup, TrackingOptions options, int frames,
-               const QueryReductionSettings& reduction = {}) {
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid, options);
-  r.setQueryReduction(reduction);
-  f.resetCounts();
-  Render out;
-  out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
-  out.image = r.image();
-  out.premultiplied = r.premultipliedImage();
-  out.gradientPoints = f.gradientPoints();
-  return out;
+BlobRender tracked(const test::SceneSetup& setup, const TrackingOptions& options, int frames,
+                   const QueryReductionSettings& reduction = {}) {
+  return test::trackedBlob(setup, options, frames, reduction);
 }
 
 TEST(GradientOpacityRender, MarcherRendersTheFactorAsABakedTransferFunction) {
   const int size = 32;
-  const Render withFactor = marched(blobScene(size, true));
-  const Render baked = marched(bakedScene(size));
-  const Render without = marched(blobScene(size, false));
+  const BlobRender withFactor = marched(blobScene(size, true));
+  const BlobRender baked = marched(bakedScene(size));
+  const BlobRender without = marched(blobScene(size, false));
   const double psnr = test::psnrOverCoverage(withFactor.image, baked.image, without.premultiplied);
   const double control = test::psnrOverCoverage(without.image, baked.image, without.premultiplied);
   std::printf("marcher, gradient opacity vs the factor baked into the TF: %.2f dB; without it: %.2f dB\n", psnr,
@@ -155,11 +130,11 @@ TEST(GradientOpacityRender, MarcherRendersTheFactorAsABakedTransferFunction) {
 }
 
 void expectConvergesToMarcher(const test::SceneSetup& setup, TrackingOptions options, int frames, double minPsnr) {
-  const Render t = tracked(setup, options, frames);
-  const Render reference = marched(setup);
+  const BlobRender t = tracked(setup, options, frames);
+  const BlobRender reference = marched(setup);
   test::SceneSetup off = setup;
   off.scene.transferFunction.gradientOpacity.clear();
-  const Render without = marched(off);
+  const BlobRender without = marched(off);
   const double psnr = test::psnrOverCoverage(t.image, reference.image, without.premultiplied);
   const double control = test::psnrOverCoverage(without.image, reference.image, without.premultiplied);
   std::printf("gradient opacity, %s (%d frames%s) vs ray marching: %.2f dB over the volume; without the factor %.2f dB\n",
@@ -205,27 +180,14 @@ TEST(GradientOpacityRender, NaiveTrackerRendersTheSame) {
 TEST(GradientOpacityRender, PruningStandsDown) {
   // A pruned candidate's expected scalar has no gradient: with gradient opacity nothing is pruned.
   const QueryReductionSettings pruning = test::pruningAt(0.2, 0.0);
-  const Render off = tracked(blobScene(24, false), TrackingOptions{}, 6, pruning);
-  const Render on = tracked(blobScene(24, true), TrackingOptions{}, 6, pruning);
+  const BlobRender off = tracked(blobScene(24, false), TrackingOptions{}, 6, pruning);
+  const BlobRender on = tracked(blobScene(24, true), TrackingOptions{}, 6, pruning);
   EXPECT_GT(off.total.pruned, 0u);  // the settings do prune without it: the check can fail
   EXPECT_EQ(on.total.pruned, 0u);
 }
 
 TEST(GradientOpacityRender, FieldWithoutGradientIsRefused) {
-  test::FunctionField f(test::blobField);  // no gradient
-  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid);
-  const test::SceneSetup setup = blobScene(8, true);
-  r.setSettings(setup.settings);
-  try {
-    r.setScene(setup.scene);
-    FAIL() << "gradient opacity without gradients was accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("gradient opacity"), std::string::npos) << e.what();
-  }
-  RayMarchRenderer rm(f, test::kCubeBox);
-  rm.setSettings(setup.settings);
-  EXPECT_THROW(rm.setScene(setup.scene), std::invalid_argument);
+  test::expectRefusedWithoutGradient(blobScene(8, true), "gradient opacity");
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "Render/RayMarcher.h"
 #include "Render/SceneChange.h"
 #include "Render/Shading.h"
+#include "TestSupport/BlobRenders.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
 
@@ -344,23 +345,10 @@ test::SceneSetup blobScene(int size, bool shade) {
   return s;
 }
 
-struct BlobRender {
-  ImageRGBA image, premultiplied;
-  FrameStats total;
-  std::size_t gradientPoints = 0;
-};
+using test::BlobRender;
 
-BlobRender renderBlob(const test::SceneSetup& setup, TrackingOptions options, int frames) {
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid, options);
-  f.resetCounts();
-  BlobRender out;
-  out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
-  out.image = r.image();
-  out.premultiplied = r.premultipliedImage();
-  out.gradientPoints = f.gradientPoints();
-  return out;
+BlobRender renderBlob(const test::SceneSetup& setup, const TrackingOptions& options, int frames) {
+  return test::trackedBlob(setup, options, frames);
 }
 
 // Distance of pixel i's centre from the blob's centre on the image plane (world units).
@@ -413,17 +401,6 @@ TEST(ShadedRender, ShadingDimsTheRimAndLeavesCoverageAndBackground) {
   EXPECT_EQ(a.total.queries, b.total.queries);
 }
 
-// The shaded reference: one ray-marched frame with a fine step (gradient at every sample).
-ImageRGBA marchedBlob(const test::SceneSetup& setup) {
-  test::FunctionField f(test::blobField, "blob", test::blobGradient);
-  RayMarchOptions ro;
-  ro.step = 2.f / 1024.f;
-  ro.shadowStep = 2.f / 256.f;
-  RayMarchRenderer rm(f, test::kCubeBox, ro);
-  test::renderFrames(rm, setup.settings, setup.scene, 1);
-  return rm.image();
-}
-
 // A directional light with a highlight, so every term of the model is in the picture.
 test::SceneSetup highlightScene(bool shadows) {
   test::SceneSetup s = blobScene(32, true);
@@ -439,10 +416,10 @@ test::SceneSetup highlightScene(bool shadows) {
 
 void expectConvergesToMarcher(const test::SceneSetup& setup, TrackingOptions options, int frames, double minPsnr) {
   const BlobRender tracked = renderBlob(setup, options, frames);
-  const ImageRGBA reference = marchedBlob(setup);
+  const ImageRGBA reference = test::marchedBlob(setup).image;
   test::SceneSetup flat = setup;
   flat.scene.shading.enabled = false;
-  const ImageRGBA unshaded = marchedBlob(flat);
+  const ImageRGBA unshaded = test::marchedBlob(flat).image;
   const double psnr = test::psnrOverCoverage(tracked.image, reference, tracked.premultiplied);
   const double flatPsnr = test::psnrOverCoverage(unshaded, reference, tracked.premultiplied);
   std::printf("shaded %s (%d frames%s) vs shaded ray marching: %.2f dB over the volume; unshaded marcher %.2f dB\n",
@@ -454,7 +431,7 @@ void expectConvergesToMarcher(const test::SceneSetup& setup, TrackingOptions opt
   if (setup.scene.shadows) {
     test::SceneSetup unshadowed = setup;
     unshadowed.scene.shadows = false;
-    const double unshadowedPsnr = test::psnrOverCoverage(marchedBlob(unshadowed), reference, tracked.premultiplied);
+    const double unshadowedPsnr = test::psnrOverCoverage(test::marchedBlob(unshadowed).image, reference, tracked.premultiplied);
     std::printf("  shaded marcher without shadows: %.2f dB\n", unshadowedPsnr);
     EXPECT_LT(unshadowedPsnr, minPsnr - 8.0);
   }
@@ -518,15 +495,7 @@ TEST(ShadedRender, NaiveTrackerShadesTheSame) {
 }
 
 TEST(ShadedRender, FieldWithoutGradientIsRefused) {
-  test::FunctionField f(test::blobField);  // no gradient
-  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid);
-  const test::SceneSetup setup = blobScene(8, true);
-  r.setSettings(setup.settings);
-  EXPECT_THROW(r.setScene(setup.scene), std::invalid_argument);
-  RayMarchRenderer rm(f, test::kCubeBox);
-  rm.setSettings(setup.settings);
-  EXPECT_THROW(rm.setScene(setup.scene), std::invalid_argument);
+  test::expectRefusedWithoutGradient(blobScene(8, true), "shading");
 }
 
 }  // namespace
