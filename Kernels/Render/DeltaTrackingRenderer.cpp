@@ -277,7 +277,7 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       float v = 0.f;
       evaluator_.evaluate(&q, 1, &v);
       if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Evaluate.h)
-        rs.opacityScale[i] = 1.f;
+        rs.opacityScale[i] = 0.f;
         if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {
           float unused, g[3];
           evaluator_.evaluateWithGradient(&q, 1, &unused, g);

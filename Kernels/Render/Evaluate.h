@@ -28,13 +28,15 @@ INR_HD void storeQueryResult(const RayStateView& rs, int ray, float value) {
 INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return gradientOpacityAt(tf, length(g)); }
 
 // Gradients cost several values, so the evaluation stage asks for them in a second pass only for
-// the queries whose outcome the factor can change, once their values are back; the others get
-// factor 1. A sample the scalar opacity leaves empty (alpha = 0, or a non-finite value: empty
-// space) is empty whatever the factor. A delta-tracking candidate the scalar opacity already
-// rejects (collisionProduct = xi * majorant >= sigma(alpha)) is rejected for any factor <= 1,
-// since sigma(alpha * A) <= sigma(alpha): only the candidates it accepts need A (thinning: those
-// are then accepted with the probability sigma(alpha A) / sigma(alpha), as the exact test
-// collisionProduct < sigma(alpha A) does). Ratio-tracked shadow rays use every sample's sigma.
+// the queries whose outcome the factor can change, once their values are back. A sample the scalar
+// opacity leaves empty (alpha = 0, or a non-finite value: empty space) is empty whatever the
+// factor. A delta-tracking candidate the scalar opacity already rejects (collisionProduct =
+// xi * majorant >= sigma(alpha)) is rejected for any factor <= 1, since sigma(alpha * A) <=
+// sigma(alpha): only the candidates it accepts need A (thinning: those are then accepted with the
+// probability sigma(alpha A) / sigma(alpha), as the exact test collisionProduct < sigma(alpha A)
+// does). Ratio-tracked shadow rays use every sample's sigma. The others get factor 0, which gives
+// them the outcome they have for any factor (empty, rejected) however sigma rounds where the
+// stage code recomputes it.
 INR_HD bool sampleNeedsOpacityScale(const TransferFunctionView& tf, float value) {
   return isFiniteValue(value) && extinctionAt(tf, value) > 0.f;
 }

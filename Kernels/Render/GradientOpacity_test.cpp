@@ -5,6 +5,7 @@
 // both alike, and every estimator must converge to that picture.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -47,6 +48,37 @@ TEST(GradientOpacity, TableFollowsTheFunctionAndIsOffWhenEmpty) {
   // Factors above 1 are clamped as scalar opacities are (the majorants rely on factor <= 1).
   tf.gradientOpacity = {{0.0, 3.0}, {1.0, 3.0}};
   EXPECT_EQ(gradientOpacityAt(TransferFunctionTable(tf).view(), 0.5f), 1.f);
+}
+
+TEST(GradientOpacity, TableKeepsANarrowRampBesideAFarNodeAndFollowsBentSegments) {
+  TransferFunction tf = TransferFunction::preset(0.0, 1.0);
+  // A ramp 1/1000 of the function's span wide, then a node far out holding the factor flat.
+  tf.gradientOpacity = {{0.0, 0.0}, {0.1, 1.0}, {100.0, 1.0}};
+  const TransferFunctionTable narrow(tf);
+  EXPECT_NEAR(gradientOpacityAt(narrow.view(), 0.05f), 0.5f, 1e-6f);
+  EXPECT_NEAR(gradientOpacityAt(narrow.view(), 0.01f), 0.1f, 1e-6f);
+  EXPECT_EQ(gradientOpacityAt(narrow.view(), 50.f), 1.f);
+  // vtkPiecewiseFunction's midpoint and sharpness bend a segment: the table follows the function.
+  tf.gradientOpacity = {{0.0, 0.0, 0.2, 0.6}, {2.0, 1.0}, {3.0, 0.5, 0.8, 0.0}, {4.0, 0.0}};
+  const TransferFunctionTable bent(tf);
+  double worst = 0.0;
+  for (int k = 0; k <= 400; ++k) {
+    const double g = 4.0 * k / 400;
+    worst = std::max(worst, std::abs(double(gradientOpacityAt(bent.view(), float(g))) - tf.gradientOpacityAt(g)));
+  }
+  std::printf("bent segments: largest difference from the piecewise function %.2e\n", worst);
+  EXPECT_LT(worst, 0.02);
+}
+
+TEST(GradientOpacity, NodesOutOfOrderAreRefused) {
+  TransferFunction tf = TransferFunction::preset(0.0, 1.0);
+  tf.gradientOpacity = {{0.0, 0.0}, {2.0, 1.0}, {1.0, 0.5}};
+  try {
+    TransferFunctionTable table(tf);
+    FAIL() << "nodes out of order were accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gradient opacity point 2"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GradientOpacity, NonFiniteNodeIsRefusedByName) {

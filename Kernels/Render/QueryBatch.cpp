@@ -111,7 +111,7 @@ template <typename Needs>
 void QueryBatch::evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf,
                                             Needs&& needs) {
   withOpacityScales_ = true;
-  opacityScales_.assign(count_, 1.f);
+  opacityScales_.assign(count_, 0.f);  // (the queries the factor cannot change: Evaluate.h)
   needGradient_.clear();
   for (std::size_t k = 0; k < count_; ++k)  // serial: in batch order, whatever the thread count
     if (needs(k)) needGradient_.push_back(k);

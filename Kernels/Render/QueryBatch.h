@@ -18,7 +18,7 @@ public:
   void evaluate(const FieldEvaluator& evaluator);
   // Gradient opacity (Render/Evaluate.h), after evaluate: the factor of each query whose outcome
   // it can change (delta-tracking candidates: the entries are rays; points: point slots), their
-  // gradients in one evaluator call; 1 for the others. The scatters then store it beside the value.
+  // gradients in one evaluator call; 0 for the others. The scatters then store it beside the value.
   void evaluateOpacityScales(const FieldEvaluator& evaluator, const FrameConstants& fc, const TransferFunctionView& tf,
                              const RayStateView& rs);
   void evaluatePointOpacityScales(const FieldEvaluator& evaluator, const TransferFunctionView& tf);
@@ -53,7 +53,7 @@ private:
   std::vector<std::size_t> needGradient_;  // gradient opacity: the queries that need their factor
   std::vector<QueryPoint> gradientPoints_;
   std::vector<float> gradientValues_;
-  // Computes opacityScales_ for the queries `needs(k)` selects (1 for the others).
+  // Computes opacityScales_ for the queries `needs(k)` selects (0 for the others).
   template <typename Needs>
   void evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf, Needs&& needs);
   std::vector<std::size_t> chunkOffsets_;

@@ -131,6 +131,7 @@ FrameStats RayMarchRenderer::renderFrame() {
       evaluator_.evaluate(points.data(), std::size_t(total), values.data());
     }
     st.queries += std::size_t(total);
+    if (gradientOpacity) st.gradientOpacityQueries += std::size_t(total);
     if (total > 0) st.iterations += 1;
     st.evaluateMs += msSince(t0);
 
@@ -151,6 +152,7 @@ FrameStats RayMarchRenderer::renderFrame() {
           evaluator_.evaluate(shadowPoints.data(), pending, shadowValues.data());
         }
         st.shadowQueries += pending;
+        if (gradientOpacity) st.gradientOpacityQueries += pending;
         st.shadowIterations += 1;
         st.shadowEvaluateMs += msSince(te);
         for (const ShadowJob& j : jobs) {

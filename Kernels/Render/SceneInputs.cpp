@@ -412,6 +412,13 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
   }
   checkPiecewiseFinite(tf.opacity, "opacity");
   checkPiecewiseFinite(tf.gradientOpacity, "gradient opacity");
+  for (std::size_t k = 1; k < tf.gradientOpacity.size(); ++k) {
+    if (!(tf.gradientOpacity[k].x > tf.gradientOpacity[k - 1].x)) {
+      throw std::invalid_argument("transfer function: gradient opacity point " + std::to_string(k) +
+                                  " does not lie above point " + std::to_string(k - 1) +
+                                  " (magnitudes must increase, as a vtkPiecewiseFunction's do)");
+    }
+  }
   const auto r = tf.range();
   size_ = size;
   lo_ = float(r[0]);
@@ -440,15 +447,25 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
       opacityMax_[std::size_t(L) * size + i] = std::max(a, b);
     }
   }
-  // Gradient opacity over [0, the last node's magnitude] (beyond it the function is constant);
-  // a function whose nodes all lie at or below 0 is constant over every magnitude.
+  // Gradient opacity: its nodes exactly (a ramp however narrow beside a far node), and samples
+  // between two nodes whose segment bends (midpoint or sharpness), so linear interpolation between
+  // the points follows the function.
   if (tf.usesGradientOpacity()) {
-    gradientOpacityHi_ = float(std::max(tf.gradientOpacity.back().x, 0.0));
-    if (!(gradientOpacityHi_ > 0.f)) gradientOpacityHi_ = 1.f;
-    gradientOpacity_.resize(kGradientOpacitySize);
-    for (int i = 0; i < kGradientOpacitySize; ++i) {
-      const double g = double(gradientOpacityHi_) * i / (kGradientOpacitySize - 1);
-      gradientOpacity_[i] = float(std::clamp(tf.gradientOpacityAt(g), 0.0, 1.0));
+    const auto& nodes = tf.gradientOpacity;
+    const int segments = int(nodes.size()) - 1;
+    const int bent = segments > 0 ? std::clamp(kMaxGradientOpacityPoints / segments, 1, kGradientOpacitySegmentSamples) : 1;
+    auto add = [&](double g) {
+      gradientOpacityX_.push_back(float(g));
+      gradientOpacity_.push_back(float(std::clamp(tf.gradientOpacityAt(g), 0.0, 1.0)));
+    };
+    add(nodes.front().x);
+    for (int k = 0; k < segments; ++k) {
+      const auto &a = nodes[k], &b = nodes[k + 1];
+      const int samples = (a.midpoint == 0.5 && a.sharpness == 0.0) ? 1 : bent;
+      for (int j = 1; j <= samples; ++j) {
+        const double g = j == samples ? b.x : a.x + (b.x - a.x) * j / samples;
+        if (float(g) > gradientOpacityX_.back()) add(g);  // (float rounding may merge close nodes)
+      }
     }
   }
 }
@@ -464,8 +481,8 @@ TransferFunctionView TransferFunctionTable::view() const {
   v.invUnitDistance = invUnitDistance_;
   if (!gradientOpacity_.empty()) {
     v.gradientOpacity = gradientOpacity_.data();
+    v.gradientOpacityX = gradientOpacityX_.data();
     v.gradientOpacitySize = int(gradientOpacity_.size());
-    v.gradientOpacityHi = gradientOpacityHi_;
   }
   return v;
 }

@@ -92,20 +92,22 @@ struct TransferFunction {
 // is the whole cost of a TF edit besides the majorant update.
 class TransferFunctionTable {
 public:
-  // Throws std::invalid_argument naming the point when a point is not finite. Opacities and
-  // gradient opacity factors are clamped to [0, 1].
+  // Throws std::invalid_argument naming the point when a point is not finite, or when the gradient
+  // opacity's magnitudes do not increase. Opacities and gradient opacity factors are clamped to
+  // [0, 1].
   explicit TransferFunctionTable(const TransferFunction& tf, int size = 1024);
   TransferFunctionView view() const;
   float maxOpacity() const { return maxOpacity_; }
 
-  // Entries of the gradient opacity table (uniform over [0, the last point's magnitude]).
-  static constexpr int kGradientOpacitySize = 256;
+  // The gradient opacity function's samples between two nodes with a midpoint or sharpness (a
+  // linear segment needs only its nodes), and the most points in all.
+  static constexpr int kGradientOpacitySegmentSamples = 256;
+  static constexpr int kMaxGradientOpacityPoints = 4096;
 
 private:
   std::vector<Vec4f> rgba_;
   std::vector<float> opacityMax_;
-  std::vector<float> gradientOpacity_;  // empty: no gradient opacity
-  float gradientOpacityHi_ = 1.f;
+  std::vector<float> gradientOpacity_, gradientOpacityX_;  // empty: no gradient opacity
   int size_ = 0, levels_ = 0;
   float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
 };

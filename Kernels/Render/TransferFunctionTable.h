@@ -26,12 +26,13 @@ struct TransferFunctionView {
   int levels = 0;
   float lo = 0.f, hi = 1.f;          // scalar range the table spans
   float invUnitDistance = 1.f;       // 1 / u
-  // Gradient opacity (TransferFunction::gradientOpacity): gradientOpacitySize entries of the
-  // factor over gradient magnitudes [0, gradientOpacityHi], interpolated linearly, clamped to the
-  // end entries. Null: off (the factor is 1 and no sample needs a gradient).
+  // Gradient opacity (TransferFunction::gradientOpacity): the factor gradientOpacity[k] at gradient
+  // magnitude gradientOpacityX[k] (strictly increasing, gradientOpacitySize points: the function's
+  // nodes, and samples between nodes with a midpoint or sharpness), interpolated linearly, clamped
+  // to the end points. Null: off (the factor is 1 and no sample needs a gradient).
   const float* gradientOpacity = nullptr;
+  const float* gradientOpacityX = nullptr;
   int gradientOpacitySize = 0;
-  float gradientOpacityHi = 1.f;
 };
 
 INR_HD float opacityToExtinction(float alpha, float invUnitDistance) {
@@ -58,17 +59,24 @@ INR_HD Vec4f lookupTransferFunction(const TransferFunctionView& tf, float s) {
 }
 
 // The gradient opacity factor in [0, 1] for gradient magnitude g (model space); 1 when the TF has
-// none. A non-finite magnitude (a network that overflowed) takes the last entry when infinite and
-// the first when NaN, as the scalar table maps NaN to its low end.
+// none. A non-finite magnitude (a network that overflowed) takes the last point's factor when
+// infinite and the first's when NaN, as the scalar table maps NaN to its low end.
 INR_HD float gradientOpacityAt(const TransferFunctionView& tf, float g) {
   if (!tf.gradientOpacity) return 1.f;
-  float x = g / tf.gradientOpacityHi * float(tf.gradientOpacitySize - 1);
-  if (!(x > 0.f)) x = 0.f;
-  x = minf(x, float(tf.gradientOpacitySize - 1));
-  int i = int(x);
-  if (i > tf.gradientOpacitySize - 2) i = tf.gradientOpacitySize - 2;
-  const float f = x - float(i);
-  return tf.gradientOpacity[i] + (tf.gradientOpacity[i + 1] - tf.gradientOpacity[i]) * f;
+  const float* x = tf.gradientOpacityX;
+  const float* y = tf.gradientOpacity;
+  const int n = tf.gradientOpacitySize;
+  if (!(g > x[0])) return y[0];
+  if (!(g < x[n - 1])) return y[n - 1];
+  int lo = 0, hi = n - 1;  // x[lo] <= g < x[hi]: a few steps (the points are few)
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    if (x[mid] <= g)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  return y[lo] + (y[hi] - y[lo]) * ((g - x[lo]) / (x[hi] - x[lo]));
 }
 
 // A sample's opacity: the scalar opacity alpha times the gradient opacity factor the evaluation

@@ -163,8 +163,8 @@ __global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
 
 // Gradient opacity (Render/Evaluate.h), after the values of the first min(*count, maxN) queries
 // landed in samples[slots[k]]: lists the queries whose outcome the factor can change (their point
-// and slot, *listed of them) for a value + gradient batch, and gives the others factor 1.
-// points: delta-tracking candidates (slots are rays); else ratio / march points.
+// and slot, *listed of them) for a value + gradient batch, and gives the others factor 0.
+// points: ratio / march points (slots are point slots); else delta-tracking candidates (rays).
 __global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView tf, RayStateView rs, bool points,
                                          const unsigned* count, int maxN, const float4* queries, const int* slots,
                                          const float* samples, float* opacityScales, float4* listedPoints,
@@ -175,7 +175,7 @@ __global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView
   const float v = samples[slot];
   const bool needs = points ? sampleNeedsOpacityScale(tf, v) : candidateNeedsOpacityScale(fc, tf, rs, slot, v);
   if (!needs) {
-    opacityScales[slot] = 1.f;
+    opacityScales[slot] = 0.f;
     return;
   }
   const unsigned j = atomicAdd(listed, 1u);

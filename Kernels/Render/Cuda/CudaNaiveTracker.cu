@@ -26,7 +26,7 @@ namespace {
 
 __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i,
                            const PerThreadMlpView& net, int tid, int refine, const DeviceRefineView& refineView,
-                           unsigned long long& queries, int maxSteps) {
+                           unsigned long long& queries, unsigned long long& gradientQueries, int maxSteps) {
   for (int step = 0;; ++step) {
     traverseRay(fc, medium, rs, i);
     if (!(rs.flags[i] & kRayPending)) return true;
@@ -37,11 +37,12 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
     const QueryPoint q = pendingQuery(rs, i, fc.time);
     const float v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
     if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Render/Evaluate.h)
-      rs.opacityScale[i] = 1.f;
+      rs.opacityScale[i] = 0.f;
       if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {  // the view holds tangent planes then
         float g[3];
         cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
         rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
+        ++gradientQueries;
       }
     }
     storeQueryResult(rs, i, v);
@@ -56,17 +57,17 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
   const int tid = blockIdx.x * blockDim.x + threadIdx.x;
   if (tid >= count) return;
   const int i = first + tid;
-  unsigned long long q = 0, sq = 0;
+  unsigned long long q = 0, sq = 0, gq = 0;
   bool complete = true;
   initPrimaryRay(fc, medium.grid, rs, i);
   if (rs.flags[i] & kRayActive) {
     atomicAdd(&stats[kStatRays], 1ull);
-    complete &= naiveTrack(fc, medium, rs, i, net, tid, refine, refineView, q, maxSteps);
+    complete &= naiveTrack(fc, medium, rs, i, net, tid, refine, refineView, q, gq, maxSteps);
     if (fc.shadows) {
       spawnShadowRay(fc, medium.grid, rs, i);
       if (rs.flags[i] & kRayActive) {
         atomicAdd(&stats[kStatShadowRays], 1ull);
-        complete &= naiveTrack(fc, medium, rs, i, net, tid, refine, refineView, sq, maxSteps);
+        complete &= naiveTrack(fc, medium, rs, i, net, tid, refine, refineView, sq, gq, maxSteps);
       }
     }
     if (needsShading(fc, rs, i)) {  // the view holds tangent planes when shading
@@ -86,6 +87,7 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
   }
   if (q) atomicAdd(&stats[kStatNaiveQueries], q);
   if (sq) atomicAdd(&stats[kStatNaiveShadowQueries], sq);
+  if (gq) atomicAdd(&stats[kStatGradientOpacityQueries], gq);
   if (!complete) atomicAdd(&stats[kStatNaiveCut], 1ull);
 }
 

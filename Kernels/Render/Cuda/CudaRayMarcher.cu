@@ -340,6 +340,7 @@ FrameStats CudaRayMarcher::renderFrame() {
         evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
       }
       st.queries += std::size_t(total);
+      if (gradientOpacity) st.gradientOpacityQueries += std::size_t(total);
       st.iterations += 1;
     }
     const bool shadows = scene_.shadows && total > 0;
@@ -394,8 +395,9 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
   if (shadowTotal > 0 && I.shadowPoints.size() < std::size_t(batch)) {
     I.shadowPoints.resize(std::size_t(batch));
     I.shadowValues.resize(std::size_t(batch));
-    if (gradientOpacity) I.shadowValueGradients.resize(std::size_t(batch));
   }
+  // (Its own size check: a marcher that cast shadows without gradient opacity has its points sized.)
+  if (shadowTotal > 0 && gradientOpacity) I.shadowValueGradients.growTo(std::size_t(batch));
   for (int first = 0; first < shadowTotal; first += batch) {
     const int m = std::min(batch, shadowTotal - first);
     shadowPointsKernel<<<(m + 127) / 128, 128, 0, s>>>(first, m, total, I.points.get(), I.shadowOffsets.get(), sp,
@@ -415,6 +417,7 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
                                                           sp, I.tau.get());
     INR_CUDA_CHECK_LAUNCH("shadowDepthKernel");
     st.shadowQueries += std::size_t(m);
+    if (gradientOpacity) st.gradientOpacityQueries += std::size_t(m);
     st.shadowIterations += 1;
     st.shadowEvaluateMs += msSince(te);  // launch time only: the stream runs on
   }

@@ -22,7 +22,9 @@ public:
     view_.opacityMax = opacityMax_.get();
     if (h.gradientOpacity) {
       gradientOpacity_.upload(h.gradientOpacity, std::size_t(h.gradientOpacitySize), s);
+      gradientOpacityX_.upload(h.gradientOpacityX, std::size_t(h.gradientOpacitySize), s);
       view_.gradientOpacity = gradientOpacity_.get();
+      view_.gradientOpacityX = gradientOpacityX_.get();
     }
     // The host table must stay alive until the copies ran (they are asynchronous from pageable
     // memory only in name: the runtime stages them before returning). Synchronise anyway.
@@ -34,7 +36,7 @@ public:
 private:
   DeviceBuffer<Vec4f> rgba_;
   DeviceBuffer<float> opacityMax_;
-  DeviceBuffer<float> gradientOpacity_;
+  DeviceBuffer<float> gradientOpacity_, gradientOpacityX_;
   TransferFunctionView view_{};
 };
 
