@@ -458,6 +458,30 @@ TEST(CudaPipeline, GpuRayMarcherRunsTheCpuMarchersRays) {
   }
 }
 
+TEST(CudaPipeline, GpuRayMarcherTakesGradientOpacityAfterShadowsWithout) {
+  // One marcher renders shadows without gradient opacity, then with it: its shadow buffers must
+  // follow the new scene (the same picture as a fresh marcher's), not keep the first one's sizes.
+  REQUIRE_GPU();
+  const InrModel model = InrModel::loadFile(shippedModels().front());
+  const CudaInrEvaluator eval(model);
+  const auto range = valueRangeFor(model, eval);
+  const Box3f box = modelWorldBox(model);
+  RayMarchOptions o;
+  o.step = length(box.hi - box.lo) / 200.f;
+  o.maxShadowBatch = 4096;
+  RenderSettings settings;
+  settings.width = 36;
+  settings.height = 28;
+  RenderScene scene = testScene(model, range, true);
+  CudaRayMarcher reused(eval, box, o);
+  test::renderFrames(reused, settings, scene, 2);
+  scene.transferFunction.gradientOpacity = {{0.15, 0.0}, {0.7, 1.0}};
+  test::renderFrames(reused, settings, scene, 2);
+  CudaRayMarcher fresh(eval, box, o);
+  test::renderFrames(fresh, settings, scene, 2);
+  EXPECT_TRUE(reused.image().data == fresh.image().data);
+}
+
 class GpuSceneTest : public ::testing::Test {
 protected:
   void SetUp() override {
