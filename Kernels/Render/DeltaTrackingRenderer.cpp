@@ -276,15 +276,12 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       const QueryPoint q = pendingQuery(rs, i, fc.time);
       float v = 0.f;
       evaluator_.evaluate(&q, 1, &v);
-      if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Evaluate.h)
-        rs.opacityScale[i] = 0.f;
-        if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {
-          float unused, g[3];
-          evaluator_.evaluateWithGradient(&q, 1, &unused, g);
-          rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
-          ++st.gradientOpacityQueries;
-        }
-      }
+      // As the wavefront's evaluation stage (Render/Evaluate.h).
+      if (medium.tf.gradientOpacity && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
+            float unused;
+            evaluator_.evaluateWithGradient(&q, 1, &unused, g);
+          }))
+        ++st.gradientOpacityQueries;
       storeQueryResult(rs, i, v);
       ++queries;
       st.refinements += macrocells_.refine(linearCellIndex(dims, rs.cell[i]), v) ? 1 : 0;

@@ -51,6 +51,20 @@ INR_HD bool candidateNeedsOpacityScale(const FrameConstants& fc, const TransferF
   return ratioShadow || rs.collisionProduct[i] < sigma;
 }
 
+// The naive trackers' form of that second pass, one candidate at a time: ray i's factor for its
+// candidate of value `value`, asking gradientAt(g) for the model-space gradient only where the
+// factor can change the outcome (0 elsewhere, as the batches give). Returns whether it asked.
+template <typename GradientAt>
+INR_HD bool storeCandidateOpacityScale(const FrameConstants& fc, const TransferFunctionView& tf, const RayStateView& rs,
+                                       int i, float value, GradientAt&& gradientAt) {
+  rs.opacityScale[i] = 0.f;
+  if (!candidateNeedsOpacityScale(fc, tf, rs, i, value)) return false;
+  float g[3];
+  gradientAt(g);
+  rs.opacityScale[i] = gradientOpacityOf(tf, Vec3f{g[0], g[1], g[2]});
+  return true;
+}
+
 // Expected-value refinement of homogeneity pruning (Eq. ev_ema, Render/Pruning.h): the evaluated
 // `value` of ray `ray`'s pending query moves the expected scalar of the query's macrocell
 // (rs.cell, the cell the candidate was emitted in), weighted by how central the query point is.

@@ -65,7 +65,7 @@ public:
   /// times a function of the gradient magnitude), which ParaView 5.11's Volume representation
   /// gives no property for. XML InrGradientOpacity: (|grad f|, factor) nodes, each added with
   /// AddInrGradientOpacityPoint after RemoveAllInrGradientOpacityPoints; no nodes turns it off.
-  /// The mapper reads it from the volume property (InrSceneTranslator::SampleTransferFunction).
+  /// The mapper reads it from the volume property (InrSceneTranslator::GradientOpacity).
   void RemoveAllInrGradientOpacityPoints();
   void AddInrGradientOpacityPoint(double gradientMagnitude, double factor);
   ///@}

@@ -183,18 +183,16 @@ __global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView
   listedSlots[j] = slot;
 }
 
-// The factor of each listed query (`results`: its value and gradient) to opacityScales[slots[j]].
+// The factor of each listed query (`results`: its value and gradient) to opacityScales[slots[j]];
+// thread 0 adds the listed queries (at most maxN) to the frame's count of them.
 __global__ void scatterOpacityKernel(const unsigned* listed, int maxN, const int* slots, const float4* results,
-                                     TransferFunctionView tf, float* opacityScales) {
+                                     TransferFunctionView tf, float* opacityScales, unsigned long long* stats) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
-  if (j >= maxN || j >= int(*listed)) return;
+  const int n = min(int(*listed), maxN);
+  if (j == 0) stats[kStatGradientOpacityQueries] += (unsigned long long)n;
+  if (j >= n) return;
   const float4 r = results[j];
   opacityScales[slots[j]] = gradientOpacityOf(tf, Vec3f{r.y, r.z, r.w});
-}
-
-// Adds the listed gradient-opacity queries (at most maxN) to the frame's count of them.
-__global__ void countOpacityQueriesKernel(const unsigned* listed, int maxN, unsigned long long* stats) {
-  stats[kStatGradientOpacityQueries] += (unsigned long long)min(int(*listed), maxN);
 }
 
 __global__ void resetPixelsKernel(AccumulationView acc) {
@@ -264,7 +262,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
     valueGradients.growTo(slots);
     opacityPoints.growTo(slots);
     opacitySlots.growTo(slots);
-    if (opacityListed.size() < 1) opacityListed.resize(1);
+    opacityListed.growTo(1);
   }
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
@@ -283,10 +281,8 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
                                              valueGradients.get(), stream);
         scatterOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(opacityListed.get(), int(bound),
                                                                          opacitySlots.get(), valueGradients.get(),
-                                                                         medium.tf, opacityScaleOut);
+                                                                         medium.tf, opacityScaleOut, stats.get());
         INR_CUDA_CHECK_LAUNCH("scatterOpacityKernel");
-        countOpacityQueriesKernel<<<1, 1, 0, stream>>>(opacityListed.get(), int(bound), stats.get());
-        INR_CUDA_CHECK_LAUNCH("countOpacityQueriesKernel");
       }
       timer.end(stream);
       enqueueTraverse(it + 1);

@@ -36,15 +36,11 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
     }
     const QueryPoint q = pendingQuery(rs, i, fc.time);
     const float v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
-    if (medium.tf.gradientOpacity) {  // as the wavefront's evaluation stage (Render/Evaluate.h)
-      rs.opacityScale[i] = 0.f;
-      if (candidateNeedsOpacityScale(fc, medium.tf, rs, i, v)) {  // the view holds tangent planes then
-        float g[3];
-        cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
-        rs.opacityScale[i] = gradientOpacityOf(medium.tf, Vec3f{g[0], g[1], g[2]});
-        ++gradientQueries;
-      }
-    }
+    // As the wavefront's evaluation stage (Render/Evaluate.h); the view holds tangent planes then.
+    if (medium.tf.gradientOpacity && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
+          cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
+        }))
+      ++gradientQueries;
     storeQueryResult(rs, i, v);
     ++queries;
     if (refine) cuda::refineCell(refineView, linearCellIndex(medium.grid.dims, rs.cell[i]), v);
