@@ -27,6 +27,7 @@
 #include "TestSupport/DevicePoints.h"
 #include "TestSupport/FusedTangents.h"
 #include "TestSupport/GradientErrors.h"
+#include "TestSupport/GradientNorms.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/ShippedModels.h"
 #include "TestSupport/TestScene.h"
@@ -288,28 +289,8 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
   });
 }
 
-// The median gradient magnitude of the model over points spread through its box at the scene's
-// time (the CPU evaluator's fp32 gradient), to place a gradient opacity ramp where it bites.
-double medianGradientNorm(const CpuInrEvaluator& eval, const InrModel& model, float time) {
-  const Box3f box = modelWorldBox(model);
-  std::vector<QueryPoint> points;
-  const int n = 16;
-  for (int k = 0; k < n * n * n; ++k) {
-    const float u[3] = {(k % n + 0.5f) / n, (k / n % n + 0.5f) / n, (k / (n * n) + 0.5f) / n};
-    points.push_back(QueryPoint{box.lo.x + u[0] * (box.hi.x - box.lo.x), box.lo.y + u[1] * (box.hi.y - box.lo.y),
-                                box.lo.z + u[2] * (box.hi.z - box.lo.z), time});
-  }
-  std::vector<float> values(points.size()), gradients(3 * points.size());
-  eval.evaluateWithGradient(points.data(), points.size(), values.data(), gradients.data());
-  std::vector<double> norms;
-  for (std::size_t k = 0; k < points.size(); ++k)
-    norms.push_back(std::hypot(gradients[3 * k], gradients[3 * k + 1], gradients[3 * k + 2]));
-  std::nth_element(norms.begin(), norms.begin() + norms.size() / 2, norms.end());
-  return norms[norms.size() / 2];
-}
-
 // Gradient opacity (Render/Evaluate.h): the GPU loop's queries come with the fused tangent rows'
-// gradients and their factor lands beside the value (scatterWithOpacityKernel); the stage code is
+// gradients and their factor lands beside the value (scatterOpacityKernel); the stage code is
 // the CPU's. The images agree statistically (fp16 network and gradient on the GPU), and the factor
 // must change the picture (the GPU without it is farther from the CPU with it).
 TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
@@ -321,7 +302,7 @@ TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
     for (const TrackingOptions& options : {TrackingOptions{}, test::ratioTracking(4.0, 16)}) {
       const RenderScene without = test::testScene(model, range, shadows);
       RenderScene scene = without;
-      const double g = medianGradientNorm(cpuEval, model, float(scene.time));
+      const double g = test::medianGradientNorm(cpuEval, model, float(scene.time));
       scene.transferFunction.gradientOpacity = {{0.5 * g, 0.0}, {2.0 * g, 1.0}};
       const ShadedRun cpu =
           renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
