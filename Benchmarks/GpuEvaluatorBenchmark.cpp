@@ -7,7 +7,8 @@
 //                           [--stored-encoding 0|1|2]
 //                           [--batches N1,N2,...] [--points random|rays]
 //                           [--hash-pairs 0|1] [--l2-persist]
-//                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N] [MODEL.inr ...]
+//                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N]
+//                           [--tangent-autotune-batch N] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
@@ -32,12 +33,15 @@
 // --gradient adds, per model, value + gradient rows (gradient shading's queries, issue 33) on
 // --gradient-batch points (default 2^16, a shaded 1024² frame's order): "grad-per-thread" (the
 // per-thread fp32 forward mode, at most 5 reps: it is slow) and "grad-fused" (the fused kernel's
-// tangent rows; the per-thread path again where the model cannot run them, its note says why).
+// tangent rows; the per-thread path again where the model cannot run them, its note says why),
+// each with the time its first call took to choose the tangent scale and configurations;
+// --tangent-autotune-batch N times those on N queries (CudaEvaluatorOptions::tangentAutotuneBatch).
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -114,7 +118,15 @@ Row measureGradient(const InrModel& model, const std::string& name, CudaGradient
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1, time));
   cuda::DeviceBuffer<float4> dOut(batch);
-  Row r{name, gp == CudaGradientPath::PerThread ? "grad-per-thread" : "grad-fused", eval.gradientPath(),
+  // The first gradient call chooses the tangent scale and times the configurations: the wait a
+  // frame that first asks for gradients (shading, gradient opacity) sees on top of its work.
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string path = eval.gradientPath();
+  char chosen[96];
+  std::snprintf(chosen, sizeof chosen, "; chosen at the first call in %.1f ms",
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  path += chosen;
+  Row r{name, gp == CudaGradientPath::PerThread ? "grad-per-thread" : "grad-fused", path,
         model.architecture.parameterCount(), spreadOf(gradientRates(eval, dPts.get(), batch, time, dOut.get(), reps)), 0,
         batch};
   const std::vector<float4> out = dOut.download(nullptr);
@@ -199,6 +211,7 @@ int main(int argc, char** argv) {
     else if (a == "--checksum") checksum = true;
     else if (a == "--gradient") gradient = true;
     else if (a == "--gradient-batch") gradientBatch = std::max(1, std::stoi(cl.value()));
+    else if (a == "--tangent-autotune-batch") fixed.tangentAutotuneBatch = std::max(0, std::stoi(cl.value()));
     else if (a == "--mma") {
       const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_evaluator_benchmark");
       if (!m) return 2;

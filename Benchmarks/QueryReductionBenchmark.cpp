@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -31,10 +32,12 @@
 #include "Backends/RenderSession.h"
 #include "BenchmarkSupport.h"
 #include "Common/ImageIO.h"
+#include "Evaluator/CpuInrEvaluator.h"
 #include "Render/ModelBox.h"
 #include "Render/QueryReduction.h"
 #include "Render/RayMarcher.h"
 #include "ShippedScene.h"
+#include "TestSupport/GradientNorms.h"
 #include "TestSupport/ShippedModels.h"
 #include "TestSupport/TestScene.h"
 
@@ -77,6 +80,10 @@ const char* kUsage =
     "  --macrocells M          M^3 macrocells (default 64)\n"
     "  --slices T              temporal macrocell slices (default 16; 1 for static models)\n"
     "  --time T                world time (default: middle of the model's time range)\n"
+    "  --gradient-opacity-median G,A[,G,A...]  gradient opacity on every render (reference, configs,\n"
+    "                          marcher): factor A at |grad f| = G x the model's median |grad f| over its\n"
+    "                          box at the scene's time (the CPU evaluator's gradient), so one list fits\n"
+    "                          models of any gradient scale; default none\n"
     "  --out DIR               results folder (default query-reduction-results)\n"
     "  --append                add to the CSVs already in DIR (e.g. one model per call)\n";
 
@@ -94,6 +101,7 @@ struct Options {
   double orbitDegrees = 1.0;
   int macrocells = 64, slices = 16;
   double time = NAN;
+  std::vector<double> gradientOpacityMedian;  // G, A pairs, G in multiples of the median |grad f|
   std::string out = "query-reduction-results";
   bool append = false;
   std::vector<std::string> models;
@@ -105,6 +113,24 @@ std::vector<std::string> split(const std::string& s, char sep) {
   for (std::string t; std::getline(ss, t, sep);)
     if (!t.empty()) out.push_back(t);
   return out;
+}
+
+// "G,A[,G,A...]": an even count of finite numbers, G ascending and A in [0, 1].
+std::vector<double> gradientOpacityPairs(const std::string& list) {
+  std::vector<double> v;
+  bool ok = true;
+  for (const std::string& t : split(list, ',')) {
+    char* end = nullptr;
+    v.push_back(std::strtod(t.c_str(), &end));
+    ok = ok && end && *end == '\0';
+  }
+  ok = ok && !v.empty() && v.size() % 2 == 0;
+  for (std::size_t k = 0; ok && k < v.size(); k += 2)
+    ok = std::isfinite(v[k]) && v[k] >= 0 && v[k + 1] >= 0 && v[k + 1] <= 1 && (k == 0 || v[k] > v[k - 2]);
+  if (!ok)
+    throw std::invalid_argument("--gradient-opacity-median '" + list +
+                                "': give G,A pairs (G >= 0 ascending, in multiples of the median |grad f|; A in [0, 1])");
+  return v;
 }
 
 std::string fmt(double v) {
@@ -656,6 +682,16 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
   probe.macrocells.temporalSlices = m.model.domain.usesTime() ? o.slices : 1;
   auto refSession = RenderSession::create(m.model, probe);
   m.scene = shippedScene(m.model, path, refSession->evaluator(), o.time);
+  std::string gradientOpacityNote;
+  if (!o.gradientOpacityMedian.empty()) {
+    const double median = test::medianGradientNorm(CpuInrEvaluator(m.model), m.model, float(m.scene.time));
+    gradientOpacityNote = ", gradient opacity (median |grad f| " + fmt(median) + "):";
+    for (std::size_t k = 0; k + 1 < o.gradientOpacityMedian.size(); k += 2) {
+      const double g = o.gradientOpacityMedian[k] * median, a = o.gradientOpacityMedian[k + 1];
+      m.scene.transferFunction.gradientOpacity.push_back({g, a});
+      gradientOpacityNote += " " + fmt(g) + " -> " + fmt(a);
+    }
+  }
   refSession->setQueryReduction(allOff());
   RenderSettings rs;
   rs.width = rs.height = o.size;
@@ -663,9 +699,10 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
   refSession->setSettings(rs);
   refSession->setScene(m.scene);
   const MacrocellInfo mi = refSession->macrocellInfo();
-  std::printf("\n== %s  (%s)  %d^2, t = %g, %d^3 macrocells x %d slices (built %d in %.2f s)%s\n", m.name.c_str(),
+  std::printf("\n== %s  (%s)  %d^2, t = %g, %d^3 macrocells x %d slices (built %d in %.2f s)%s%s\n", m.name.c_str(),
               refSession->description().c_str(), o.size, m.scene.time, mi.dims.x, mi.temporalSlices, mi.slicesBuilt,
-              mi.buildSeconds, suggestedTransferFunctionPath(path).empty() ? ", preset transfer function" : "");
+              mi.buildSeconds, suggestedTransferFunctionPath(path).empty() ? ", preset transfer function" : "",
+              gradientOpacityNote.c_str());
   std::fflush(stdout);
   double refSeconds = 0;
   const Reference ref = renderReference(*refSession, o.referenceFrames, &refSeconds);
@@ -743,6 +780,7 @@ int main(int argc, char** argv) {
       else if (a == "--macrocells") o.macrocells = std::stoi(cl.value());
       else if (a == "--slices") o.slices = std::stoi(cl.value());
       else if (a == "--time") o.time = std::stod(cl.value());
+      else if (a == "--gradient-opacity-median") o.gradientOpacityMedian = gradientOpacityPairs(cl.value());
       else if (a == "--out") o.out = cl.value();
       else if (a == "--append") o.append = true;
       else if (const int status = cl.other(a, kUsage, o.models); status >= 0)

@@ -90,10 +90,15 @@ void emulate(const MlpProgram& p, const float* inputs, std::size_t n, const int*
                         : p.floatWeights[in.floatOffset + std::int64_t(o) * in.inWidth + k];
           };
           // Column o's dot products over the K columns, per direction (the tangents without bias).
+          // The column's weights are converted once for all directions; each direction's loop
+          // keeps one shape in both instantiations, so the compiler contracts the value's the same
+          // way with tangents as without (the values stay emulateFusedProgram's).
+          std::vector<float> column(std::size_t(std::max(in.kPad, in.inWidth)));
           auto dots = [&](int o, int K, float* acc) {
+            for (int k = 0; k < K; ++k) column[std::size_t(k)] = weight(o, k);
             for (int d = 0; d < D; ++d) {
               acc[d] = 0.f;
-              for (int k = 0; k < K; ++k) acc[d] += weight(o, k) * srcAt(d, in.src, k);
+              for (int k = 0; k < K; ++k) acc[d] += column[std::size_t(k)] * srcAt(d, in.src, k);
             }
           };
           float acc[D];
@@ -202,8 +207,17 @@ float chooseTangentScale(const MlpProgram& program, const float* inputs, std::si
   MlpProgram unscaled = program;
   unscaled.tangentScale = 1.f;
   std::vector<float> values(n), tangents(3 * n);
+  // The points one at a time in parallel: a GPU evaluator chooses its scale inside the first frame
+  // that asks for a gradient, and the emulation of a deep network takes milliseconds a point.
   float largest = 0.f;
-  emulateFusedTangents(unscaled, inputs, n, tangentInput, values.data(), tangents.data(), &largest);
+  const int count = int(n);
+#pragma omp parallel for schedule(dynamic, 1) reduction(max : largest)
+  for (int q = 0; q < count; ++q) {
+    float mine = 0.f;
+    emulateFusedTangents(unscaled, inputs + std::size_t(q) * std::size_t(program.inputDim), 1, tangentInput,
+                         values.data() + q, tangents.data() + 3 * std::size_t(q), &mine);
+    largest = std::max(largest, mine);
+  }
   if (!(largest > 0.f) || !std::isfinite(largest)) return 1.f;  // nothing stored, or no finite bound
   const int e = int(std::floor(std::log2(kTangentTarget / largest)));
   return std::ldexp(1.f, std::clamp(e, -16, 16));

@@ -182,6 +182,7 @@ struct CudaInrEvaluator::Impl {
   mutable std::string tangentReport;
   std::optional<FusedLaunchAutotuner> tuner;
   std::vector<FusedConfig> tangentCandidates;
+  int tangentAutotuneBatch = 0;  // CudaEvaluatorOptions::tangentAutotuneBatch
   Domain domain;
 
   void prepareParams(const InrModel& model);
@@ -426,6 +427,10 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
   }
   for (int axis = 0; axis < 3; ++axis) this->tangentInput[axis] = tangentInput[axis];
   this->tuner.emplace(tuner);
+  if (options.tangentAutotuneBatch < 0)
+    throw std::invalid_argument("CudaEvaluatorOptions::tangentAutotuneBatch must be 0 (no timing) or more, not " +
+                                std::to_string(options.tangentAutotuneBatch));
+  tangentAutotuneBatch = options.tangentAutotuneBatch;
   domain = model.domain;
   tangentConfig = smallTangentConfig = tangentCandidates.front();
   fusedTangents = true;
@@ -437,12 +442,15 @@ void CudaInrEvaluator::Impl::tuneTangents() const {
     tangentScale = chooseTangentScale(program, domain);
     INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
     cuda::DeviceBuffer<float4> results;
-    results.growTo(std::size_t(std::max(tuner->candidatesBatch(), FusedLaunchAutotuner::kSmallBatch)));
+    const int batch = tuner->candidatesBatch() > 0 ? tangentAutotuneBatch : 0;
+    results.growTo(std::size_t(std::max(batch, FusedLaunchAutotuner::kSmallBatch)));
     const float time = float(domain.timeBegin);
-    const FusedLaunchAutotuner::Choice choice =
-        tuner->choose(tangentCandidates, domain, [&](const FusedConfig& c, const float4* points, int n, float*) {
+    const FusedLaunchAutotuner::Choice choice = tuner->choose(
+        tangentCandidates, domain,
+        [&](const FusedConfig& c, const float4* points, int n, float*) {
           launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
-        });
+        },
+        batch);
     tangentConfig = choice.large;
     smallTangentConfig = choice.small;
     tangentReport = choice.report;

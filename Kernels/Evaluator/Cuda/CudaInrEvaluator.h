@@ -41,6 +41,11 @@ struct CudaEvaluatorOptions {
   int tileQueries = 0;
   int weightChunk = 0;
   int autotuneBatch = 1 << 18;
+  // The large batch the value + gradient configurations (the tangent rows) are timed on; 0 takes
+  // the first that fits. They are timed on first use, inside the first frame that asks for a
+  // gradient (shading, gradient opacity), where each timed query costs four rows: a batch
+  // smaller than the values' keeps that frame short. Unused when autotuneBatch is 0.
+  int tangentAutotuneBatch = 1 << 16;
   // Auto: the wgmma kernel joins the autotuned candidates on Hopper (after the mma.sync ones, so
   // autotuneBatch = 0 keeps the mma.sync kernel); Wgmma: only it (a Fused path throws where it
   // cannot run); MmaSync: never it. tileQueries and weightChunk select mma.sync configurations

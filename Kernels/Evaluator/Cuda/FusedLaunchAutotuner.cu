@@ -162,16 +162,17 @@ std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vect
 }
 
 FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<FusedConfig>& candidates,
-                                                          const Domain& domain, const Launch& launch) const {
+                                                          const Domain& domain, const Launch& launch,
+                                                          int largeBatch) const {
   Choice choice;
   choice.large = choice.small = candidates.front();
-  if (candidates.size() < 2 || options_.autotuneBatch <= 0) {
+  const int batch = largeBatch < 0 ? options_.autotuneBatch : largeBatch;
+  if (candidates.size() < 2 || batch <= 0) {
     choice.report = configName(choice.large) +
                     (candidates.size() > 1 ? " (first that fits, not autotuned)" : " (the only configuration)");
     return choice;
   }
   // Every candidate runs on the same random points in the model's domain.
-  const int batch = options_.autotuneBatch;
   const int smallBatch = std::min(batch, kSmallBatch);
   std::vector<float4> pts(static_cast<std::size_t>(batch));
   std::uint32_t state = 12345u;

@@ -86,11 +86,12 @@ public:
     FusedConfig small;  // smaller launches
     std::string report;  // what launchReport() says
   };
-  // Times every candidate (best of 3 after a warm-up, CUDA events) on options.autotuneBatch and
-  // on kSmallBatch random queries in `domain` (kSmallBatchLaunches in a row per timing) and keeps
-  // the fastest of each; with one candidate
-  // or autotuneBatch = 0 the first runs every launch.
-  Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch) const;
+  // Times every candidate (best of 3 after a warm-up, CUDA events) on largeBatch (-1:
+  // options.autotuneBatch) and on min(largeBatch, kSmallBatch) random queries in `domain`
+  // (kSmallBatchLaunches in a row per timing) and keeps the fastest of each; with one candidate
+  // or a large batch of 0 the first runs every launch.
+  Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch,
+                int largeBatch = -1) const;
   // The large batch choose() times on (options.autotuneBatch).
   int candidatesBatch() const { return options_.autotuneBatch; }
 

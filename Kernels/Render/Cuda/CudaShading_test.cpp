@@ -210,6 +210,29 @@ TEST(CudaShading, FusedTangentsTakeTheDeviceCountAndFallBackOffTheFusedPath) {
   EXPECT_THROW(CudaInrEvaluator(model, generic), std::runtime_error);
 }
 
+// The tangent rows' configurations are timed at the first gradient call (inside a frame), on
+// CudaEvaluatorOptions::tangentAutotuneBatch queries, not the values' autotuneBatch; 0 takes the
+// first that fits without timing, a negative batch is refused by name.
+TEST(CudaShading, TangentRowsAreTimedOnTheirOwnBatch) {
+  REQUIRE_GPU();
+  const InrModel model = InrModel::loadFile(test::shippedModels().front());
+  CudaEvaluatorOptions options;
+  options.tangentAutotuneBatch = 1 << 14;
+  const CudaInrEvaluator timed(model, options);
+  ASSERT_TRUE(timed.usesFusedTangents()) << timed.gradientPath();
+  EXPECT_NE(timed.gradientPath().find("batch 16384 / 8192:"), std::string::npos) << timed.gradientPath();
+  options.tangentAutotuneBatch = 0;
+  const CudaInrEvaluator untimed(model, options);
+  EXPECT_EQ(untimed.gradientPath().find("Gq/s"), std::string::npos) << untimed.gradientPath();
+  options.tangentAutotuneBatch = -1;
+  try {
+    CudaInrEvaluator refused(model, options);
+    ADD_FAILURE() << "a negative tangentAutotuneBatch was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("tangentAutotuneBatch"), std::string::npos) << e.what();
+  }
+}
+
 // Calls f(path, model, cpu evaluator, GPU evaluator, value range) for every shipped model.
 template <typename F>
 void forEachShippedModel(F&& f) {
