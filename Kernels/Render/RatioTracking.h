@@ -116,6 +116,15 @@ INR_HD RngStream ratioPointStream(const RngStream& ray, float t) {
   return RngStream{ray.pixel, ray.frame, ray.seed ^ 0x85ebca6bu, floatBits(t)};
 }
 
+// Whether unbiased ray marching uses its control extinction (the extinction at the last comb
+// point). Under gradient opacity the factor switches the extinction on and off from one sample to
+// the next wherever |grad f| crosses the function's ramp, so a piecewise-constant control is
+// poor there and its residual factors 1 - (sigma - control) / mu leave [0, 1] by far: a product
+// of them now and then weighs a pixel many times over (fireflies that set the image back by
+// several dB). Without the control (0) the residual points are plain ratio tracking of the
+// transmittance at rate mu >= sigma: every factor in [0, 1], still unbiased.
+INR_HD bool marchUsesControl(const TransferFunctionView& tf) { return tf.gradientOpacity == nullptr; }
+
 // Whether the estimate keeps one picked point's colour (weighted by the emission weights' total)
 // instead of the weighted sum of all: when something is computed at that point alone, the
 // shadow ray's visibility or the shading's gradient.
@@ -163,13 +172,19 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
       // holds the majorant optical depth since the last point); from then on the extinction at
       // the last comb point (`gap` a length).
       const bool known = control == control;
-      T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
-      if (kind & kPointComb) {
-        w = T * sigma * mu;  // mu: the comb's spacing
-        control = sigma;
+      if (marchUsesControl(medium.tf)) {
+        T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
+        if (kind & kPointComb) {
+          w = T * sigma * mu;  // mu: the comb's spacing
+          control = sigma;
+        } else {
+          const float controlHere = known ? control : 0.5f * mu / maxf(fc.residualScale, fc.majorantScale);
+          T *= 1.f - (sigma - controlHere) / mu;
+        }
+      } else if (kind & kPointComb) {
+        w = T * sigma * mu;
       } else {
-        const float controlHere = known ? control : 0.5f * mu / maxf(fc.residualScale, fc.majorantScale);
-        T *= 1.f - (sigma - controlHere) / mu;
+        T *= 1.f - minf(1.f, sigma / mu);
       }
     } else {
       const float r = minf(1.f, sigma / mu);
