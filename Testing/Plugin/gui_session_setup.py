@@ -10,6 +10,8 @@
 #    seconds, the clock of the plugin's event-loop watch), the view time, and the INR Volume
 #    state read back from the representation (frames, interactive, image size, backend and query
 #    reduction in use);
+#  - with INR_GUI_GRADIENT_OPACITY set ("G,A,..."), sets the representation's Gradient Opacity
+#    after its first INR Volume render, so the rest of the session runs with it;
 #  - keeps screenshots of what the view shows, read back without rendering again: the still
 #    image of each step (view time, ray budget, backend) at 1, 8 and 32 frames
 #    (gui_session_step<N>.png).
@@ -108,8 +110,27 @@ def on_end(obj, event):
         log.flush()
 
 
+def inr_representation():
+    """The view's representation shown as INR Volume (the Python proxy), or None."""
+    for rep in view.Representations:
+        try:
+            if rep.Representation == "INR Volume":
+                return rep
+        except AttributeError:
+            continue
+    return None
+
+
 def log_render(ms):
     inr = inr_state()
+    # INR_GUI_GRADIENT_OPACITY ("G,A,..."): the representation's Gradient Opacity, set once, after
+    # its first render as INR Volume (as a user would set it in the panel), so every later step
+    # of the session runs with it.
+    nodes = os.environ.get("INR_GUI_GRADIENT_OPACITY")
+    if inr is not None and nodes and not state.get("gradient_opacity"):
+        state["gradient_opacity"] = True
+        inr_representation().InrGradientOpacity = [float(v) for v in nodes.split(",")]
+        log.write(f"gradient_opacity set {nodes}\n")
     if inr is None:
         log.write(f"render block_ms={ms:.1f} inr=0 time={view.ViewTime:g} "
                   f"start={state.get('start_t', 0):.6f}\n")

@@ -58,6 +58,9 @@ ap.add_argument("--view-size", default="960x600")
 ap.add_argument("--settle-ms", type=int, default=7000, help="pause after each step")
 ap.add_argument("--drag-steps", type=int, default=10)
 ap.add_argument("--timeout", type=float, default=400, help="seconds paraview may run")
+ap.add_argument("--gradient-opacity", default="",
+                help="G,A,... : the representation's Gradient Opacity, set after its first INR Volume "
+                     "render (the whole session then runs with it; a manual check, no ctest)")
 ap.add_argument("--judge-times", action="store_true",
                 help="fail on renders over the bounds (a quiet machine); else they are printed")
 args = ap.parse_args()
@@ -93,6 +96,8 @@ with open(xml_path, "w") as f:
 event_loop_log = os.path.join(args.out, "gui_session_event_loop.txt")
 env = dict(os.environ, INR_GUI_OUT=args.out, INR_GUI_VIEW_SIZE=args.view_size,
            INR_VOLUME_EVENT_LOOP_LOG=event_loop_log, INR_VOLUME_LOD_LOG="1")
+if args.gradient_opacity:
+    env["INR_GUI_GRADIENT_OPACITY"] = args.gradient_opacity
 cmd = [args.paraview, "--dr", f"--script={os.path.join(here, 'gui_session_setup.py')}",
        f"--test-script={xml_path}", "--exit"]
 load_before = os.getloadavg()[0]
@@ -131,6 +136,9 @@ renders, observer = C.read_render_log(os.path.join(args.out, "gui_session_render
 for r in renders:
     r.setdefault("budget", "-")
 inr = [r for r in renders if r.get("inr") == "1"]
+if args.gradient_opacity:
+    set_line = open(os.path.join(args.out, "gui_session_renders.txt")).read().count("gradient_opacity set")
+    check(set_line == 1, f"Gradient Opacity set on the representation once ({set_line})")
 print(f"{len(renders)} renders, {len(inr)} with INR Volume shown")
 check(len(inr) >= 5, "the model was shown as INR Volume")
 times = []
