@@ -122,10 +122,12 @@ Row measureGradient(const InrModel& model, const std::string& name, CudaGradient
   // frame that first asks for gradients (shading, gradient opacity) sees on top of its work.
   const auto t0 = std::chrono::steady_clock::now();
   std::string path = eval.gradientPath();
-  char chosen[96];
-  std::snprintf(chosen, sizeof chosen, "; chosen at the first call in %.1f ms",
-                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  path += chosen;
+  if (eval.usesFusedTangents()) {
+    char chosen[96];
+    std::snprintf(chosen, sizeof chosen, "; chosen at the first call in %.1f ms",
+                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    path += chosen;
+  }
   Row r{name, gp == CudaGradientPath::PerThread ? "grad-per-thread" : "grad-fused", path,
         model.architecture.parameterCount(), spreadOf(gradientRates(eval, dPts.get(), batch, time, dOut.get(), reps)), 0,
         batch};
@@ -211,7 +213,7 @@ int main(int argc, char** argv) {
     else if (a == "--checksum") checksum = true;
     else if (a == "--gradient") gradient = true;
     else if (a == "--gradient-batch") gradientBatch = std::max(1, std::stoi(cl.value()));
-    else if (a == "--tangent-autotune-batch") fixed.tangentAutotuneBatch = std::max(0, std::stoi(cl.value()));
+    else if (a == "--tangent-autotune-batch") fixed.tangentAutotuneBatch = std::stoi(cl.value());  // < 0: refused
     else if (a == "--mma") {
       const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_evaluator_benchmark");
       if (!m) return 2;

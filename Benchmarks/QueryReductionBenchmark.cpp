@@ -685,7 +685,11 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
   std::string gradientOpacityNote;
   if (!o.gradientOpacityMedian.empty()) {
     const double median = test::medianGradientNorm(CpuInrEvaluator(m.model), m.model, float(m.scene.time));
+    if (!(median > 0.0) || !std::isfinite(median))
+      throw std::runtime_error(m.name + ": --gradient-opacity-median needs a positive median |grad f|, the model's is " +
+                               fmt(median) + " (a constant field?)");
     gradientOpacityNote = ", gradient opacity (median |grad f| " + fmt(median) + "):";
+    m.scene.transferFunction.gradientOpacity.clear();  // the ramp replaces any the .tf.json brings
     for (std::size_t k = 0; k + 1 < o.gradientOpacityMedian.size(); k += 2) {
       const double g = o.gradientOpacityMedian[k] * median, a = o.gradientOpacityMedian[k + 1];
       m.scene.transferFunction.gradientOpacity.push_back({g, a});

@@ -26,7 +26,8 @@ RAMP=${INR_GRADIENT_OPACITY_MEDIAN:-"0.5,0,2,1"}
 MODELS=${INR_MODELS:-"Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr"}
 mkdir -p "$OUT/logs"
 status=0
-left() { echo $((BUDGET - ($(date +%s) - gpu_start))); }
+# Seconds left of the budget, at least 1 (timeout 0 would mean no limit).
+left() { local s=$((BUDGET - ($(date +%s) - gpu_start))); echo $((s > 1 ? s : 1)); }
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$OUT/gpu.txt"
 
 stamp "configure and build"
@@ -52,7 +53,7 @@ grep -E "^-- |chosen at the first call" "$OUT/evaluator_first_call.txt" | sed 's
 
 stamp "time to a clean image with gradient opacity ($RAMP x the median |grad f|)"
 # shellcheck disable=SC2086
-timeout $(($(left) - 15)) "$BUILD/Benchmarks/query_reduction_benchmark" --backend cuda --size 1024 \
+timeout $(($(left) > 16 ? $(left) - 15 : 1)) "$BUILD/Benchmarks/query_reduction_benchmark" --backend cuda --size 1024 \
   --configs "$CONFIGS" --seconds 1.5 --min-frames 8 --reference-frames 4096 --orbit-steps 0 --heatmap-frames 0 \
   --march-steps 64,128,256,512 --gradient-opacity-median "$RAMP" --out "$OUT" $MODELS 2>&1 \
   | grep -v "per frame: init" > "$OUT/run.txt"

@@ -44,6 +44,7 @@ void emulate(const MlpProgram& p, const float* inputs, std::size_t n, const int*
   std::vector<std::vector<std::vector<float>>> buf(
       D, std::vector<std::vector<float>>(std::max(p.numBuffers, 1), std::vector<float>(W, 0.f)));
   std::vector<std::vector<float>> tmp(D, std::vector<float>(W));
+  std::vector<float> column;  // a weight column, converted once for all directions (dots below)
   auto h = [](float v) { return roundToHalf(v); };
   float largest = 0.f;
   // A tangent about to be stored in fp16: noted for maxStored, then rounded.
@@ -93,7 +94,8 @@ void emulate(const MlpProgram& p, const float* inputs, std::size_t n, const int*
           // The column's weights are converted once for all directions; each direction's loop
           // keeps one shape in both instantiations, so the compiler contracts the value's the same
           // way with tangents as without (the values stay emulateFusedProgram's).
-          std::vector<float> column(std::size_t(std::max(in.kPad, in.inWidth)));
+          if (column.size() < std::size_t(std::max(in.kPad, in.inWidth)))
+            column.resize(std::size_t(std::max(in.kPad, in.inWidth)));
           auto dots = [&](int o, int K, float* acc) {
             for (int k = 0; k < K; ++k) column[std::size_t(k)] = weight(o, k);
             for (int d = 0; d < D; ++d) {

@@ -48,7 +48,9 @@
 // integrand. Where the field is smooth the control is close to sigma, the residual factors stay
 // near 1 and the comb's error falls like a marcher's: ray-marching efficiency per query without
 // a bias floor. Factors can leave [0, 1] where the control is poor; the estimate stays unbiased
-// (roulette works on |T|, the shadow reservoir on |weights|).
+// (roulette works on |T|, the shadow reservoir on |weights|). Under gradient opacity (with k_r >=
+// 1) the control is 0 throughout (marchUsesControl below): sigma~ = 0 is as valid a choice, and
+// every factor then lies in [0, 1].
 //
 // Majorants from lattice samples can underestimate sigma (refinement widens them as samples
 // arrive); the weight sigma / mu is then clamped at 1 (the only bias, as Falcor's ratio tracker
@@ -122,8 +124,12 @@ INR_HD RngStream ratioPointStream(const RngStream& ray, float t) {
 // poor there and its residual factors 1 - (sigma - control) / mu leave [0, 1] by far: a product
 // of them now and then weighs a pixel many times over (fireflies that set the image back by
 // several dB). Without the control (0) the residual points are plain ratio tracking of the
-// transmittance at rate mu >= sigma: every factor in [0, 1], still unbiased.
-INR_HD bool marchUsesControl(const TransferFunctionView& tf) { return tf.gradientOpacity == nullptr; }
+// transmittance at rate mu = residualScale x the majorant >= sigma: every factor in [0, 1], still
+// unbiased. That needs residualScale >= 1: below it the residual points are too sparse to carry
+// the transmittance alone (none at all at 0, the plain jittered marcher), so the control stays.
+INR_HD bool marchUsesControl(const FrameConstants& fc, const TransferFunctionView& tf) {
+  return tf.gradientOpacity == nullptr || fc.residualScale < 1.f;
+}
 
 // Whether the estimate keeps one picked point's colour (weighted by the emission weights' total)
 // instead of the weighted sum of all: when something is computed at that point alone, the
@@ -172,7 +178,7 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
       // holds the majorant optical depth since the last point); from then on the extinction at
       // the last comb point (`gap` a length).
       const bool known = control == control;
-      if (marchUsesControl(medium.tf)) {
+      if (marchUsesControl(fc, medium.tf)) {
         T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
         if (kind & kPointComb) {
           w = T * sigma * mu;  // mu: the comb's spacing

@@ -427,9 +427,6 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
   }
   for (int axis = 0; axis < 3; ++axis) this->tangentInput[axis] = tangentInput[axis];
   this->tuner.emplace(tuner);
-  if (options.tangentAutotuneBatch < 0)
-    throw std::invalid_argument("CudaEvaluatorOptions::tangentAutotuneBatch must be 0 (no timing) or more, not " +
-                                std::to_string(options.tangentAutotuneBatch));
   tangentAutotuneBatch = options.tangentAutotuneBatch;
   domain = model.domain;
   tangentConfig = smallTangentConfig = tangentCandidates.front();
@@ -459,6 +456,9 @@ void CudaInrEvaluator::Impl::tuneTangents() const {
 
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
     : impl_(std::make_unique<Impl>()) {
+  if (options.tangentAutotuneBatch < 0)
+    throw std::invalid_argument("CudaEvaluatorOptions::tangentAutotuneBatch must be 0 (no timing) or more, not " +
+                                std::to_string(options.tangentAutotuneBatch));
   if (options.wgmmaConsumers < 0 || options.wgmmaConsumers > 2)
     throw std::invalid_argument("CudaEvaluatorOptions::wgmmaConsumers must be 0 (both autotuned), 1 or 2, not " +
                                 std::to_string(options.wgmmaConsumers));

@@ -92,7 +92,7 @@ public:
   // or a large batch of 0 the first runs every launch.
   Choice choose(const std::vector<FusedConfig>& candidates, const Domain& domain, const Launch& launch,
                 int largeBatch = -1) const;
-  // The large batch choose() times on (options.autotuneBatch).
+  // options.autotuneBatch: the large batch choose() times on by default (0: no timing).
   int candidatesBatch() const { return options_.autotuneBatch; }
 
 private:

@@ -220,6 +220,8 @@ TEST(CudaShading, TangentRowsAreTimedOnTheirOwnBatch) {
   options.tangentAutotuneBatch = 1 << 14;
   const CudaInrEvaluator timed(model, options);
   ASSERT_TRUE(timed.usesFusedTangents()) << timed.gradientPath();
+  if (timed.gradientPath().find("(the only configuration)") != std::string::npos)
+    GTEST_SKIP() << "one tangent configuration fits this GPU: nothing to time (" << timed.gradientPath() << ")";
   EXPECT_NE(timed.gradientPath().find("batch 16384 / 8192:"), std::string::npos) << timed.gradientPath();
   options.tangentAutotuneBatch = 0;
   const CudaInrEvaluator untimed(model, options);
