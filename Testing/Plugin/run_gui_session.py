@@ -1,6 +1,7 @@
 """A new user's GUI session in a real window (issue 28): no warning, no GL error.
 
     pvpython run_gui_session.py --paraview PARAVIEW --model MODEL.inr --out DIR [--view-size WxH]
+                                [--gradient-opacity G,A,...]
 
 Starts `paraview --script=gui_session_setup.py --test-script=DIR/gui_session.xml` (the recorded
 session, written from gui_session.xml.in): File > Open, Apply, INR Volume; two time steps (Next

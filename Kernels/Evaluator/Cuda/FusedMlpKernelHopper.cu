@@ -446,7 +446,7 @@ __global__ void __launch_bounds__(hopperThreads(CONSUMERS), 1) hopperMlpKernel(F
   __half* const ring = reinterpret_cast<__half*>(smem);
   const int actHalves = hopperActHalves(P), splitHalves = SPLIT ? hopperSplitHalves(P) : 0;
   unsigned char* const consumerBase = smem + std::size_t(stages) * stageHalves * 2;
-  const std::size_t consumerBytes = std::size_t(actHalves + splitHalves) * 2 + kHopperRows * 4 * 4;  // hopperConsumerBytes
+  const std::size_t consumerBytes = hopperConsumerBytes(actHalves, splitHalves);
   constexpr int kThreads = hopperThreads(CONSUMERS);
   constexpr int kRegions = hopperTileRegions(CONSUMERS, COLUMNS);
   float* const dotWeights = reinterpret_cast<float*>(consumerBase + kRegions * consumerBytes);

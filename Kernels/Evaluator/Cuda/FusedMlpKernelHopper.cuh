@@ -165,8 +165,13 @@ __host__ __device__ inline int hopperActHalves(const FusedParams& P) {
 __host__ __device__ inline int hopperSplitHalves(const FusedParams& P) {
   return P.hopperSplitGemm >= 0 ? kHopperRows * kHopperKSegment : 0;
 }
+// A consumer region's bytes from its activation and split-operand halves (the kernel passes the
+// split's halves only in its split instantiation), then its rows' coordinates (float4 each).
+__host__ __device__ constexpr std::size_t hopperConsumerBytes(int actHalves, int splitHalves) {
+  return std::size_t(actHalves + splitHalves) * 2 + kHopperRows * 4 * 4;
+}
 __host__ __device__ inline std::size_t hopperConsumerBytes(const FusedParams& P) {
-  return std::size_t(hopperActHalves(P) + hopperSplitHalves(P)) * 2 + kHopperRows * 4 * 4;
+  return hopperConsumerBytes(hopperActHalves(P), hopperSplitHalves(P));
 }
 // Tiles in a block's shared memory: one per consumer, or one for both with their columns split.
 __host__ __device__ constexpr int hopperTileRegions(int consumers, bool splitColumns) { return splitColumns ? 1 : consumers; }
