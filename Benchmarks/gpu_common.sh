@@ -10,6 +10,8 @@
 #   gpu_hopper_spills BUILD_LOG       the Hopper kernels' spills and any wgmma serialisation
 #                                     warning (ptxas C75xx) in a build's log
 #   stamp MESSAGE                     a step's heading with the seconds since the script began
+#   TIME_TO_IMAGE_ARGS, TIME_TO_IMAGE_MODELS  query_reduction_benchmark's time-to-image protocol
+#                                     (issue 26) and the shipped full-size models it runs on
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 OUT=${OUT:-gpu-results}
@@ -34,6 +36,13 @@ gpu_hopper_spills() {
 }
 
 gpu_start=$(date +%s)
+
+# Time to a clean image (run_time_to_image.sh, run_gradient_opacity_time_to_image.sh): 1024^2,
+# 1.5 s of summed frame times (at least 8 frames) per configuration against a 4096-frame
+# delta-tracking reference, no orbit or heatmaps, the GPU ray marcher at four steps.
+TIME_TO_IMAGE_ARGS=(--backend cuda --size 1024 --seconds 1.5 --min-frames 8 --reference-frames 4096 --orbit-steps 0
+                    --heatmap-frames 0 --march-steps 64,128,256,512)
+TIME_TO_IMAGE_MODELS="Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr"
 stamp() { echo "== $1 ($(($(date +%s) - gpu_start)) s)"; }
 
 gpu_configure_release() {

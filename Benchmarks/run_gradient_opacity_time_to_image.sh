@@ -23,7 +23,7 @@ BUILD=${INR_BUILD_DIR:-/tmp/bgo}
 BUDGET=${BUDGET:-570}
 CONFIGS=${INR_ESTIMATOR_CONFIGS:-"delta;ratio:1:16;ratio:4:16;march"}
 RAMP=${INR_GRADIENT_OPACITY_MEDIAN:-"0.5,0,2,1"}
-MODELS=${INR_MODELS:-"Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr"}
+MODELS=${INR_MODELS:-$TIME_TO_IMAGE_MODELS}
 mkdir -p "$OUT/logs"
 status=0
 # Seconds left of the budget, at least 1 (timeout 0 would mean no limit).
@@ -53,9 +53,8 @@ grep -E "^-- |chosen at the first call" "$OUT/evaluator_first_call.txt" | sed 's
 
 stamp "time to a clean image with gradient opacity ($RAMP x the median |grad f|)"
 # shellcheck disable=SC2086
-timeout $(($(left) > 16 ? $(left) - 15 : 1)) "$BUILD/Benchmarks/query_reduction_benchmark" --backend cuda --size 1024 \
-  --configs "$CONFIGS" --seconds 1.5 --min-frames 8 --reference-frames 4096 --orbit-steps 0 --heatmap-frames 0 \
-  --march-steps 64,128,256,512 --gradient-opacity-median "$RAMP" --out "$OUT" $MODELS 2>&1 \
+timeout $(($(left) > 16 ? $(left) - 15 : 1)) "$BUILD/Benchmarks/query_reduction_benchmark" "${TIME_TO_IMAGE_ARGS[@]}" \
+  --configs "$CONFIGS" --gradient-opacity-median "$RAMP" --out "$OUT" $MODELS 2>&1 \
   | grep -v "per frame: init" > "$OUT/run.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
 grep -E "^== |reference:|^   (delta|ratio|march|raymarch) " "$OUT/run.txt" | cut -c1-170

@@ -15,7 +15,7 @@
 #     --orbit-steps 0 --heatmap-frames 0 --out cpu-results Testing/Data/real/*_small.inr
 source "$(dirname "$0")/gpu_common.sh"
 CONFIGS=${INR_ESTIMATOR_CONFIGS:-"delta;ratio:1:16;ratio:4:16;ratio:8:32;ratio:16:64"}
-MODELS=${INR_MODELS:-"Testing/Data/real/siren_cylinder_vorticity.inr Testing/Data/real/ffn_mri_head.inr Testing/Data/real/coordnet_cylinder_u.inr"}
+MODELS=${INR_MODELS:-$TIME_TO_IMAGE_MODELS}
 gpu=$(nvidia-smi --query-gpu=name,driver_version,compute_cap --format=csv,noheader 2>&1 | head -1)
 echo "$gpu" > "$OUT/gpu.txt"
 gpu_configure
@@ -23,8 +23,7 @@ cmake --build "$BUILD" -j "$(nproc)" --target query_reduction_benchmark > "$OUT/
   || { grep -E "error" -A3 "$OUT/build.log" | head -40; exit 1; }
 echo "== time to a clean image on $gpu"
 # shellcheck disable=SC2086
-"$BUILD/Benchmarks/query_reduction_benchmark" --backend cuda --size 1024 --configs "$CONFIGS" --seconds 1.5 \
-  --min-frames 8 --reference-frames 4096 --orbit-steps 0 --heatmap-frames 0 --march-steps 64,128,256,512 \
+"$BUILD/Benchmarks/query_reduction_benchmark" "${TIME_TO_IMAGE_ARGS[@]}" --configs "$CONFIGS" \
   --out "$OUT" "$@" $MODELS 2>&1 | tee "$OUT/run.txt"
 status=${PIPESTATUS[0]}
 python3 Benchmarks/plot_query_reduction.py "$OUT" --title "${gpu%%,*}, 1024^2" > "$OUT/plot.txt" 2>&1
