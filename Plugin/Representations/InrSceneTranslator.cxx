@@ -21,6 +21,22 @@
 #include <cmath>
 #include <limits>
 
+namespace
+{
+// A vtkPiecewiseFunction's nodes (x, value, midpoint, sharpness) as the engine's points.
+std::vector<inr::TransferFunction::OpacityPoint> PiecewiseNodes(vtkPiecewiseFunction* fn)
+{
+  std::vector<inr::TransferFunction::OpacityPoint> nodes;
+  for (int k = 0; k < fn->GetSize(); ++k)
+  {
+    double node[4];
+    fn->GetNodeValue(k, node);
+    nodes.push_back({ node[0], node[1], node[2], node[3] });
+  }
+  return nodes;
+}
+}
+
 double InrSceneTranslator::VerticalViewAngle(double horizontalDegrees, double aspect)
 {
   return 2.0 * std::atan(std::tan(0.5 * horizontalDegrees * M_PI / 180.0) / aspect) * 180.0 / M_PI;
@@ -263,12 +279,7 @@ inr::TransferFunction InrSceneTranslator::SampleTransferFunction(
     ctf->GetColor(x, rgb);
     tf.color.push_back({ x, rgb[0], rgb[1], rgb[2] });
   }
-  for (int k = 0; k < otf->GetSize(); ++k)
-  {
-    double node[4];
-    otf->GetNodeValue(k, node);
-    tf.opacity.push_back({ node[0], node[1], node[2], node[3] });
-  }
+  tf.opacity = PiecewiseNodes(otf);
   if (tf.opacity.empty())
   {
     tf.opacity.push_back({ cr[0], 0.0 });
@@ -283,7 +294,6 @@ std::vector<inr::TransferFunction::OpacityPoint> InrSceneTranslator::GradientOpa
   // The property's own function where one was set and is not disabled (VTK's default, a constant
   // 1, is no function here: it would cost every sample a gradient for nothing, and so would any
   // function at 1 everywhere).
-  std::vector<inr::TransferFunction::OpacityPoint> nodes;
   // (HasGradientOpacity first: GetStoredGradientOpacity creates VTK's default function when none
   // is set, which modifies the property.)
   vtkPiecewiseFunction* gof = !prop || prop->GetTransferFunctionMode() != vtkVolumeProperty::TF_1D ||
@@ -292,16 +302,11 @@ std::vector<inr::TransferFunction::OpacityPoint> InrSceneTranslator::GradientOpa
     : prop->GetStoredGradientOpacity(0);
   if (!gof)
   {
-    return nodes;
+    return {};
   }
-  bool constantOne = true;
-  for (int k = 0; k < gof->GetSize(); ++k)
-  {
-    double node[4];
-    gof->GetNodeValue(k, node);
-    nodes.push_back({ node[0], node[1], node[2], node[3] });
-    constantOne = constantOne && node[1] >= 1.0;
-  }
+  std::vector<inr::TransferFunction::OpacityPoint> nodes = PiecewiseNodes(gof);
+  const bool constantOne = std::all_of(
+    nodes.begin(), nodes.end(), [](const inr::TransferFunction::OpacityPoint& p) { return p.alpha >= 1.0; });
   if (constantOne)
   {
     nodes.clear();
