@@ -38,7 +38,7 @@ INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return
 // them the outcome they have for any factor (empty, rejected) however sigma rounds where the
 // stage code recomputes it.
 INR_HD bool sampleNeedsOpacityScale(const TransferFunctionView& tf, float value) {
-  return isFiniteValue(value) && extinctionAt(tf, value) > 0.f;
+  return sampleHasExtinction(tf, value);
 }
 
 // The same for ray i's pending candidate (delta tracking, primary or shadow ray) of value `value`.

@@ -80,7 +80,7 @@ INR_HD Vec3f marchShadowSample(Vec3f p, Vec3f toLight, const MarchShadowRay& r, 
 // Whether a sample of value v with gradient opacity factor opacityScale can contribute (and so
 // needs a shadow ray).
 INR_HD bool marchSampleEmits(const TransferFunctionView& tf, float v, float opacityScale = 1.f) {
-  return isFiniteValue(v) && opacityScale > 0.f && extinctionAt(tf, v) > 0.f;
+  return opacityScale > 0.f && sampleHasExtinction(tf, v);
 }
 
 // The extinction of a shadow-ray sample of value v with gradient opacity factor opacityScale (0

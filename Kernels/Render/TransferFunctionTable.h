@@ -90,6 +90,12 @@ INR_HD float extinctionAt(const TransferFunctionView& tf, float s) {
   return opacityToExtinction(lookupTransferFunction(tf, s).w, tf.invUnitDistance);
 }
 
+// Whether a sample of value s has any extinction under the scalar opacity (a non-finite value is
+// empty space).
+INR_HD bool sampleHasExtinction(const TransferFunctionView& tf, float s) {
+  return isFiniteValue(s) && extinctionAt(tf, s) > 0.f;
+}
+
 INR_HD int floorLog2(unsigned v) {
   int r = 0;
   while (v >>= 1) ++r;
