@@ -213,8 +213,9 @@ __device__ __forceinline__ void writeSplitEncoding(const FusedParams& P, const M
 // c takes chunks j with j % 2 == c, and releases the other's slots once they are full, so the
 // ring's protocol is unchanged), so a small batch's single tile per block has two warpgroups'
 // epilogues overlapping each other's MMAs. The tile's buffers are shared: consumer 0 alone loads
-// the coordinates and runs the row-wise instructions, a final dot's halves meet in shared memory,
-// and the two sync (named barrier 1, 256 threads) after each GEMM's A is in registers (its
+// the coordinates, the row-wise instructions run on both consumers' 256 threads (one consumer
+// alone left the other waiting at the barrier through a whole Fourier encoding), a final dot's
+// halves meet in shared memory, and the two sync (named barrier 1, 256 threads) after each GEMM's A is in registers (its
 // epilogues may write over it) and after its epilogues (the next reads all columns).
 template <int NC, int CONSUMERS, bool SPLIT, bool COLUMNS>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
@@ -282,7 +283,9 @@ __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const Hoppe
       if (in.op != MlpOp::Gemm) {
         if (SPLIT && in.op == MlpOp::Fourier && ip + 1 == P.hopperSplitGemm)
           writeSplitEncoding(P, in, coords, operand, act + bufferStart[in.dst], bufferLd[in.dst], tid);
-        else if (!COLUMNS || c == 0)
+        else if constexpr (COLUMNS)  // both consumers' 256 threads on the shared tile
+          runRowInstr<kHopperRows, 256>(P, in, view, tid + 128 * c, points, out, scatter);
+        else
           runRowInstr<kHopperRows, 128>(P, in, view, tid, points, out, scatter);
         consumerSync();
         continue;

@@ -32,8 +32,8 @@
 // Columns split (optional, autotuned; hopperConsumer's COLUMNS): the two consumers run one tile
 // together, consumer c taking the column chunks j with j % 2 == c and releasing the other's ring
 // slots once full, so a small batch's single tile per block has two epilogues overlapping each
-// other's MMAs; consumer 0 alone loads the coordinates and runs row-wise instructions, and a final
-// dot's halves meet in shared memory.
+// other's MMAs; consumer 0 alone loads the coordinates, both run the row-wise instructions
+// together (256 threads), and a final dot's halves meet in shared memory.
 // A Fourier encoding of the coordinates (the FFN) runs in one of three forms (autotuned,
 // CudaEvaluatorOptions::storedEncoding): fused, computed in the first GEMM's operand load for
 // every weight chunk (no buffer); stored, written once per tile by the row instruction into a
