@@ -57,8 +57,12 @@ private:
 // cudaProfilerStart and cudaProfilerStop, so a profiler started with collection off (`ncu
 // --profile-from-start off`) sees them and not the autotuner's trial launches before them
 // (Benchmarks/run_evaluator_summary.sh); without a profiler both calls do nothing.
+// inRow > 1 times inRow launches queued back to back per value instead of one: a launch alone
+// on an idle GPU also times the host's launch latency (the start event completes at once, the
+// kernel starts when the host's launch call reaches the GPU), which a small batch feels; the
+// frame's wavefront queues its evaluator launches behind the traversal's, as inRow does.
 template <class Launch>
-std::vector<double> launchRates(int n, int reps, const Launch& launch) {
+std::vector<double> launchRates(int n, int reps, const Launch& launch, int inRow = 1) {
   EventTimer timer;
   launch();  // warm-up
   INR_CUDA_CHECK(cudaDeviceSynchronize());
@@ -66,9 +70,9 @@ std::vector<double> launchRates(int n, int reps, const Launch& launch) {
   INR_CUDA_CHECK(cudaProfilerStart());
   for (int r = 0; r < reps; ++r) {
     timer.start();
-    launch();
+    for (int i = 0; i < inRow; ++i) launch();
     timer.stop();
-    rates.push_back(n / (timer.ms() * 1e-3));
+    rates.push_back(double(n) * inRow / (timer.ms() * 1e-3));
   }
   INR_CUDA_CHECK(cudaProfilerStop());
   return rates;
@@ -76,8 +80,8 @@ std::vector<double> launchRates(int n, int reps, const Launch& launch) {
 
 // Queries per second of `eval` over n points already on the device (launchRates).
 inline std::vector<double> evaluatorRates(const CudaInrEvaluator& eval, const float4* points, int n, float* out,
-                                          int reps) {
-  return launchRates(n, reps, [&] { eval.evaluateDevice(points, n, out, nullptr, nullptr); });
+                                          int reps, int inRow = 1) {
+  return launchRates(n, reps, [&] { eval.evaluateDevice(points, n, out, nullptr, nullptr); }, inRow);
 }
 
 // Value + gradient queries per second of `eval` over n points on the device, all at world time

@@ -22,7 +22,9 @@
 // MMAs' operand layout, the rest in registers) (CudaEvaluatorOptions::storedEncoding).
 // --batches measures each model's autotuned fused evaluator (one construction) at every batch
 // size of the list, on the first N of the same points, and prints each rate's share of the
-// largest batch's (issue 30: the few-thousand-query launches of a frame's late iterations).
+// largest batch's (issue 30: the few-thousand-query launches of a frame's late iterations), for
+// a launch alone and for launches queued back to back (kLaunchesInRow; the wavefront queues its
+// evaluator launches behind the traversal's, so the host's launch latency is not in its frames).
 // --points rays draws the points in the order of a frame's wavefront iterations (rays of an
 // image, neighbouring pixels at nearby depths: test::rayOrderedQueryPoints, at the middle of the
 // time range) instead of uniformly at random; a hash grid's table reads feel the difference.
@@ -72,7 +74,12 @@ struct Row {
   Spread qps;  // queries per second over the launches
   std::uint64_t outputHash;  // FNV-1a over the output floats' bits
   int batch;
+  Spread streamQps{};  // --batches: the same with kLaunchesInRow launches queued back to back per timing
 };
+
+// --batches times each size twice: a launch alone (the host's launch latency included) and
+// this many launches queued back to back, as a frame's wavefront queues them (launchRates).
+constexpr int kLaunchesInRow = 10;
 
 std::uint64_t hashBits(const float* v, std::size_t n) {
   std::uint64_t h = 1469598103934665603ull;
@@ -150,7 +157,8 @@ std::vector<Row> measureBatches(const InrModel& model, const std::string& name, 
   const char* path = eval.path() == CudaEvaluatorPath::Fused ? "fused-fp16" : "generic-fp32";
   for (const int n : batches)
     rows.push_back({name, path, eval.launchReport(), model.architecture.parameterCount(),
-                    spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps)), 0, n});
+                    spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps)), 0, n,
+                    spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps, kLaunchesInRow))});
   return rows;
 }
 
@@ -165,10 +173,13 @@ void printRow(const Row& r, bool checksum) {
 
 void writeCsv(const std::string& path, const std::vector<Row>& rows, const std::string& device) {
   std::ofstream o(path);
-  o << "model,path,parameters,batch,median_qps,min_qps,max_qps,device\n";
-  for (const auto& r : rows)
+  o << "model,path,parameters,batch,median_qps,min_qps,max_qps,device,stream_median_qps\n";
+  for (const auto& r : rows) {
     o << r.model << ',' << r.path << ',' << r.params << ',' << r.batch << ',' << r.qps.median << ',' << r.qps.lo << ',' << r.qps.hi
-      << ",\"" << device << "\"\n";
+      << ",\"" << device << "\",";
+    if (r.streamQps.median > 0) o << r.streamQps.median;  // --batches only
+    o << '\n';
+  }
 }
 
 }  // namespace
@@ -257,7 +268,9 @@ int main(int argc, char** argv) {
   if (!batches.empty()) {  // the batch-size sweep alone
     std::printf("GPU evaluator on %s, batch sizes swept, %s, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(),
                 pointsName, reps);
-    std::printf("%-28s %9s %12s %12s %12s %16s\n", "model", "batch", "median Gq/s", "min", "max", "of the largest");
+    std::printf("(a launch alone, and %d queued back to back as a frame queues them)\n", kLaunchesInRow);
+    std::printf("%-28s %9s %12s %12s %12s %16s %14s %16s\n", "model", "batch", "median Gq/s", "min", "max", "of the largest",
+                "queued Gq/s", "of the largest");
     std::vector<Row> rows;
     for (const auto& [name, model] : models) {
       if (!only.empty() && name.find(only) == std::string::npos) continue;
@@ -269,8 +282,9 @@ int main(int argc, char** argv) {
         continue;
       }
       for (const Row& r : sweep)
-        std::printf("%-28s %9d %12.4f %12.4f %12.4f %15.0f%%\n", r.model.c_str(), r.batch, r.qps.median / 1e9, r.qps.lo / 1e9,
-                    r.qps.hi / 1e9, 100.0 * r.qps.median / sweep.back().qps.median);
+        std::printf("%-28s %9d %12.4f %12.4f %12.4f %15.0f%% %14.4f %15.0f%%\n", r.model.c_str(), r.batch, r.qps.median / 1e9,
+                    r.qps.lo / 1e9, r.qps.hi / 1e9, 100.0 * r.qps.median / sweep.back().qps.median, r.streamQps.median / 1e9,
+                    100.0 * r.streamQps.median / sweep.back().streamQps.median);
       std::printf("    fused launch autotuning: %s\n", sweep.front().launch.c_str());
       std::fflush(stdout);
       rows.insert(rows.end(), sweep.begin(), sweep.end());

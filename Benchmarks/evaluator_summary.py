@@ -4,8 +4,9 @@ and summary.csv in the same folder:
   - per network: ours autotuned at 2^21 (ours.csv) and the configuration it chose (ours.txt's
     launch report), PyTorch fp16 eager (torch.csv) and torch.compile (torch_compile.csv) at the
     same batch, and the ratios;
-  - per network: ours at every swept batch (batches.csv) with its share of the 2^21 rate, and
-    PyTorch eager at 8192 (torch_8k.csv);
+  - per network: ours at every swept batch (batches.csv), a launch alone and launches queued
+    back to back, with its share of the 2^21 rate, and PyTorch eager at 8192 (torch_8k.csv);
+  - with a BEFORE build's sweep (before_batches.csv): before and now at 2^21 and 8192;
   - per profiled launch (ncu/NAME_BATCH.csv, `ncu --page raw --csv`): time, the speed-of-light
     throughputs, the tensor pipe, the busiest pipes and the largest warp stall reasons.
 
@@ -18,15 +19,18 @@ import re
 import sys
 
 
-def read_rates(path, want_path=None):
-    """{(model, path, batch): median q/s} from a benchmark or PyTorch CSV (missing file: {})."""
+def read_rates(path, want_path=None, column="median_qps"):
+    """{(model, path, batch): median q/s} from a benchmark or PyTorch CSV (missing file or column,
+    empty value: no entry). column "stream_median_qps": a --batches sweep's launches queued back
+    to back."""
     out = {}
     if not os.path.exists(path):
         return out
     for r in csv.DictReader(open(path)):
         if want_path and r["path"] != want_path:
             continue
-        out[(r["model"], r["path"], int(r["batch"]))] = float(r["median_qps"])
+        if r.get(column):
+            out[(r["model"], r["path"], int(r["batch"]))] = float(r[column])
     return out
 
 
@@ -87,12 +91,15 @@ def main():
     eager = read_rates(os.path.join(log, "torch.csv"), "torch-fp16-eager")
     compiled = read_rates(os.path.join(log, "torch_compile.csv"), "torch-fp16-compile")
     batches = read_rates(os.path.join(log, "batches.csv"), "fused-fp16")
+    queued = read_rates(os.path.join(log, "batches.csv"), "fused-fp16", "stream_median_qps")
+    before = read_rates(os.path.join(log, "before_batches.csv"), "fused-fp16")
+    before_queued = read_rates(os.path.join(log, "before_batches.csv"), "fused-fp16", "stream_median_qps")
     eager8k = read_rates(os.path.join(log, "torch_8k.csv"), "torch-fp16-eager")
     chosen = choices(os.path.join(log, "ours.txt"))
     gpu = open(os.path.join(log, "gpu.txt")).read().strip() if os.path.exists(os.path.join(log, "gpu.txt")) else "?"
     full = 1 << 21
     models = sorted({m for (m, _, b) in ours}, key=lambda m: (not m.startswith("paper_"), m))
-    csv_rows = [("model", "batch", "ours_qps", "mma_sync_qps", "eager_qps", "compile_qps")]
+    csv_rows = [("model", "batch", "ours_qps", "mma_sync_qps", "eager_qps", "compile_qps", "ours_queued_qps")]
 
     print("## Evaluator, batch 2^21, %s\n" % gpu)
     print("| network | ours (G q/s) | chosen configuration | mma.sync only | PyTorch fp16 eager | torch.compile | ours / eager | ours / compile |")
@@ -101,23 +108,46 @@ def main():
         o, s = ours.get((m, "fused-fp16", full)), mma.get((m, "fused-mma.sync", full))
         e, c = eager.get((m, "torch-fp16-eager", full)), compiled.get((m, "torch-fp16-compile", full))
         print("| %s | %s | %s | %s | %s | %s | %s | %s |" % (m[:-4], gq(o), chosen.get(m, "?"), gq(s), gq(e), gq(c), ratio(o, e), ratio(o, c)))
-        csv_rows.append((m, full, o, s, e, c))
+        csv_rows.append((m, full, o, s, e, c, queued.get((m, "fused-fp16", full))))
 
     sizes = sorted({b for (_, _, b) in batches})
     if sizes:
+        def share(rates, m, b):
+            small, top = rates.get((m, "fused-fp16", b)), rates.get((m, "fused-fp16", full))
+            return "%.0f%%" % (100 * small / top) if small and top else "–"
+
         print("\n## Evaluator at small batches (share of the same evaluator's 2^21 rate), %s\n" % gpu)
-        print("| network | " + " | ".join("%d" % b for b in sizes) + " | 8192 / 2^21 | PyTorch eager at 8192 | ours / eager at 8192 |")
-        print("| --- | " + " | ".join("---" for _ in sizes) + " | --- | --- | --- |")
+        print("A launch alone (the host's launch latency included), and in brackets %s; "
+              "the wavefront queues its evaluator launches so.\n" % "launches queued back to back")
+        print("| network | " + " | ".join("%d" % b for b in sizes) +
+              " | 8192 / 2^21 | 8192 / 2^21, queued | PyTorch eager at 8192 | ours / eager at 8192 |")
+        print("| --- | " + " | ".join("---" for _ in sizes) + " | --- | --- | --- | --- |")
         for m in models:
-            rates = [batches.get((m, "fused-fp16", b)) for b in sizes]
-            top = batches.get((m, "fused-fp16", full)) or (rates[-1] if rates else None)
+            cells = []
+            for b in sizes:
+                r, q = batches.get((m, "fused-fp16", b)), queued.get((m, "fused-fp16", b))
+                cells.append(gq(r) + ("" if q is None else " (%s)" % gq(q)))
             small = batches.get((m, "fused-fp16", 8192))
-            share = "%.0f%%" % (100 * small / top) if small and top else "–"
             e8 = eager8k.get((m, "torch-fp16-eager", 8192))
-            print("| %s | %s | %s | %s | %s |" % (m[:-4], " | ".join(gq(r) for r in rates), share, gq(e8), ratio(small, e8)))
-            for b, r in zip(sizes, rates):
+            print("| %s | %s | %s | %s | %s | %s |" % (m[:-4], " | ".join(cells), share(batches, m, 8192),
+                                                       share(queued, m, 8192), gq(e8), ratio(small, e8)))
+            for b in sizes:
                 if b != full:
-                    csv_rows.append((m, b, r, None, e8 if b == 8192 else None, None))
+                    csv_rows.append((m, b, batches.get((m, "fused-fp16", b)), None, e8 if b == 8192 else None, None,
+                                     queued.get((m, "fused-fp16", b))))
+
+    if before:
+        commit = open(os.path.join(log, "before_commit.txt")).read().strip()[:10] \
+            if os.path.exists(os.path.join(log, "before_commit.txt")) else "?"
+        print("\n## Before (%s) and now, the same run, %s\n" % (commit, gpu))
+        print("| network | 2^21 before → now | 8192 before → now | 8192 queued before → now | 8192 / 2^21 queued, now |")
+        print("| --- | --- | --- | --- | --- |")
+        for m in models:
+            def pair(a, b, n):
+                x, y = a.get((m, "fused-fp16", n)), b.get((m, "fused-fp16", n))
+                return "%s → %s%s" % (gq(x), gq(y), "" if not x or not y else " (%+.0f%%)" % (100 * (y / x - 1)))
+            print("| %s | %s | %s | %s | %s |" % (m[:-4], pair(before, batches, full), pair(before, batches, 8192),
+                                                  pair(before_queued, queued, 8192), share(queued, m, 8192)))
 
     rows = ncu_rows(log)
     if rows:

@@ -15,6 +15,10 @@
 #      memory workload, warp states, tensor pipe;
 #   then torch.compile at 2^21 on the paper networks;
 #   5. evaluator_summary.py joins it all into summary.md / summary.csv.
+# BEFORE=COMMIT also builds that commit's gpu_evaluator_benchmark beside this tree's (from
+# `git archive`, in /tmp/before-build, during this build) and runs its sweep at 8192 and 2^21
+# right after ours (before_batches.csv): a kernel change's before and after in one run on one
+# GPU. NCU=0 skips the profiles (step 4).
 # Logs in $OUT/summary_logs (default ./out), all of them in $OUT/evaluator_summary.tar.gz (and the
 # tables in $OUT/summary.md); a failed
 # step makes the exit status 1. The whole run keeps within $BUDGET seconds (default 570: a device
@@ -58,9 +62,20 @@ git log -1 --format='%H %s' > "$L/commit.txt" 2>/dev/null
 
 stamp "configure and build"
 gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; status=1; finish; }
+before_pid=
+if [ -n "${BEFORE:-}" ]; then
+  git rev-parse "$BEFORE" > "$L/before_commit.txt" 2>&1
+  gpu_source_of "$BEFORE" /tmp/before-src
+  { gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 &&
+    timeout "$(within 400)" ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1; } &
+  before_pid=$!
+fi
 run_step build 400 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark > "$L/build.log" 2>&1 \
   || { tail -40 "$L/build.log"; finish; }
 gpu_hopper_spills "$L/build.log"
+if [ -n "$before_pid" ] && ! wait "$before_pid"; then
+  echo "(the build of BEFORE=$BEFORE failed)"; tail -20 "$L/build_before.log"; status=1; before_pid=
+fi
 
 stamp "GPU evaluator tests"
 run_step tests 200 ctest --test-dir "$BUILD" -L cuda -R "CudaInrEvaluator\." -V > "$L/ctest_cuda.log" 2>&1
@@ -76,6 +91,13 @@ stamp "ours, 2 k .. 2 M queries"
 run_step batches 120 "$bench" --batches 2048,8192,32768,2097152 --csv "$L/batches.csv" $models > "$L/batches.txt" 2>&1
 grep -vE "^\s+fused launch" "$L/batches.txt" | head -60
 
+if [ -n "$before_pid" ]; then
+  stamp "before ($BEFORE), 8192 and 2^21"
+  run_step before 120 /tmp/before-build/Benchmarks/gpu_evaluator_benchmark --batches 8192,2097152 --csv "$L/before_batches.csv" \
+    $models > "$L/before_batches.txt" 2>&1
+  grep -vE "^\s+fused launch" "$L/before_batches.txt" | head -40
+fi
+
 paper=$(ls "$L"/models/paper_*.inr)
 stamp "PyTorch fp16 eager, 2^21"
 run_step torch 120 python3 Benchmarks/pytorch_baseline.py --reps 10 --csv "$L/torch.csv" $paper $models > "$L/torch.txt" 2>&1
@@ -83,7 +105,8 @@ cat "$L/torch.txt"
 stamp "PyTorch fp16 eager, 8192"
 run_step "torch 8k" 60 python3 Benchmarks/pytorch_baseline.py --batch 8192 --csv "$L/torch_8k.csv" $paper $models > "$L/torch_8k.txt" 2>&1
 cat "$L/torch_8k.txt"
-for net in paper_siren paper_ffn paper_coordnet paper_hashgrid.inr; do
+[ "${NCU:-1}" = 0 ] && echo "(profiles skipped: NCU=0)"
+for net in $([ "${NCU:-1}" = 0 ] || echo paper_siren paper_ffn paper_coordnet paper_hashgrid.inr); do
   for batch in 2097152 8192; do
     tag="${net%.inr}_$batch"
     stamp "ncu $tag"
