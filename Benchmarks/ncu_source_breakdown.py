@@ -5,8 +5,10 @@
   ncu --import REPORT.ncu-rep --page source --csv --print-source sass > SOURCE.csv
   ncu_source_breakdown.py SOURCE.csv [--blocks N]
 
-Prints, for the warps of whole threads (the consumers) and for one-thread warps (the Hopper
-kernel's producer) apart: the stall reasons' shares of the sampled time, the executed
+Prints, for instructions that whole warps execute and for those one lane executes apart (by ncu's
+average threads executed: in the Hopper kernel the second holds the producer, and also the
+consumers' single-lane code such as a barrier arrive or an output write; a kernel without a
+producer has only that): the stall reasons' shares of the sampled time, the executed
 instructions by opcode with their share of the samples, and the N code blocks (straight runs of
 instructions with one execution count) with the most samples, each with its opcodes and largest
 stalls. Samples are proportional to the time warps spend at an instruction, so a block's share is
@@ -50,7 +52,7 @@ def load(path):
 
 
 def blocks_of(instrs):
-    """Straight runs with one execution count, cut after a branch, barrier or wgmma wait."""
+    """Straight runs with one execution count, cut after a jump, barrier or wgmma wait."""
     out, cur, cut = [], None, True
     for i, ins in enumerate(instrs):
         if cur is None or cut or ins["executed"] != cur["executed"]:
@@ -59,7 +61,7 @@ def blocks_of(instrs):
         cur["instrs"].append(ins)
         head = ins["source"].split()
         op = head[1] if head and head[0].startswith("@") and len(head) > 1 else (head[0] if head else "")
-        cut = op.startswith(("BRA", "EXIT", "BAR", "WARPGROUP.DEPBAR", "RET"))
+        cut = op.startswith(("BRA", "BRX", "JMP", "JMX", "CALL", "EXIT", "BAR", "WARPGROUP.DEPBAR", "RET"))
     return out
 
 
@@ -105,9 +107,10 @@ def main():
     kernel, instrs = load(a.source_csv)
     print("# %s" % kernel)
     ran = [i for i in instrs if i["executed"] > 0 or i["samples"] > 0]
-    report("warps of whole threads", [i for i in ran if i["threads"] >= 2 or (i["executed"] == 0 and i["samples"] > 0)],
+    report("code whole warps run", [i for i in ran if i["threads"] >= 2 or (i["executed"] == 0 and i["samples"] > 0)],
            a.blocks)
-    report("one-thread warps (the producer)", [i for i in ran if 0 < i["threads"] < 2], min(a.blocks, 4))
+    report("code one lane runs (the Hopper producer; single-lane parts of the others)",
+           [i for i in ran if 0 < i["threads"] < 2], min(a.blocks, 4))
 
 
 if __name__ == "__main__":

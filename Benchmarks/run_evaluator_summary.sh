@@ -48,6 +48,8 @@ run_step() {
   timeout "$t" "$@" || { echo "($name: exit $?)"; status=1; return 1; }
 }
 finish() {
+  # an early finish (a failed or skipped build) leaves no before build running
+  [ -n "${before_pid:-}" ] && { pkill -P "$before_pid"; kill "$before_pid"; } 2> /dev/null
   rm -rf "$L/models"
   # (ncu's reports stay out: several MB each; the raw CSV and details pages hold their figures)
   tar --exclude='*.ncu-rep' -czf "$OUT/evaluator_summary.tar.gz" -C "$OUT" summary_logs
@@ -64,17 +66,25 @@ stamp "configure and build"
 gpu_configure_release . "$BUILD" > "$L/configure.log" 2>&1 || { tail -30 "$L/configure.log"; status=1; finish; }
 before_pid=
 if [ -n "${BEFORE:-}" ]; then
-  git rev-parse "$BEFORE" > "$L/before_commit.txt" 2>&1
-  gpu_source_of "$BEFORE" /tmp/before-src
-  { gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 &&
-    timeout "$(within 400)" ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1; } &
-  before_pid=$!
+  if ! git rev-parse --verify --quiet "$BEFORE^{commit}" > "$L/before_commit.txt"; then
+    echo "(BEFORE=$BEFORE names no commit of this checkout: no before build)"; status=1
+  else
+    gpu_source_of "$BEFORE" /tmp/before-src
+    t=$(within 400)  # (computed here: `timeout 0` would mean no limit)
+    # Its output to files and /dev/null: a background job holding this script's stdout would keep
+    # a caller's pipe open after an early finish.
+    { gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 &&
+      [ "$t" != 0 ] && timeout "$t" ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1; } > /dev/null 2>&1 &
+    before_pid=$!
+  fi
 fi
 run_step build 400 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark > "$L/build.log" 2>&1 \
   || { tail -40 "$L/build.log"; finish; }
 gpu_hopper_spills "$L/build.log"
 if [ -n "$before_pid" ] && ! wait "$before_pid"; then
-  echo "(the build of BEFORE=$BEFORE failed)"; tail -20 "$L/build_before.log"; status=1; before_pid=
+  echo "(the build of BEFORE=$BEFORE failed)"
+  tail -n 20 "$L/configure_before.log" "$L/build_before.log" 2> /dev/null
+  status=1; before_pid=
 fi
 
 stamp "GPU evaluator tests"
