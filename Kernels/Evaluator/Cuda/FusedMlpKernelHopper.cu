@@ -215,8 +215,9 @@ __device__ __forceinline__ void writeSplitEncoding(const FusedParams& P, const M
 // epilogues overlapping each other's MMAs. The tile's buffers are shared: consumer 0 alone loads
 // the coordinates, the row-wise instructions run on both consumers' 256 threads (one consumer
 // alone left the other waiting at the barrier through a whole Fourier encoding), a final dot's
-// halves meet in shared memory, and the two sync (named barrier 1, 256 threads) after each GEMM's A is in registers (its
-// epilogues may write over it) and after its epilogues (the next reads all columns).
+// halves meet in shared memory, and the two sync (named barrier 1, 256 threads) after each GEMM's
+// A is in registers (its epilogues may write over it) and after its epilogues (the next reads all
+// columns).
 template <int NC, int CONSUMERS, bool SPLIT, bool COLUMNS>
 __device__ __forceinline__ void hopperConsumer(const FusedParams& P, const HopperBlock& B, int numRounds,
                                                const float4* __restrict__ points, int n, float* __restrict__ out,
