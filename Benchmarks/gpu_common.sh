@@ -4,6 +4,10 @@
 #   gpu_ctest [extra ctest args]      runs the GPU tests (ctest -L cuda, log in $OUT/ctest_cuda.log)
 #   gpu_configure_release SRC BUILD [extra CMake args]  an sm_90 Release build of SRC's engine
 #   gpu_source_of COMMIT DIR          that commit's tree in DIR (git archive), built beside this one
+#   gpu_start_before_build LOGDIR JOBS SECONDS TARGETS  $BEFORE's tree configured in
+#                                     /tmp/before-build (returns 1 where that fails) and TARGETS
+#                                     built there in the background (pid in gpu_before_pid; logs
+#                                     LOGDIR/configure_before.log, build_before.log)
 #   gpu_build_with_before LOGDIR BEFORE_TARGETS -- TARGETS  builds TARGETS here in $BUILD (16 jobs)
 #                                     and, when $BEFORE names a commit, BEFORE_TARGETS of its tree
 #                                     in /tmp/before-build beside it (4 jobs); prints the spills
@@ -56,6 +60,18 @@ gpu_source_of() {
   rm -rf "$2" && mkdir -p "$2" && git archive "$1" | tar -x -C "$2"
 }
 
+gpu_start_before_build() {
+  local log=$1 jobs=$2 seconds=$3
+  shift 3
+  gpu_before_pid=
+  gpu_source_of "$BEFORE" /tmp/before-src
+  gpu_configure_release /tmp/before-src /tmp/before-build \
+    ${OptiX_INSTALL_DIR:+-DOptiX_INSTALL_DIR="$OptiX_INSTALL_DIR"} > "$log/configure_before.log" 2>&1 \
+    || { tail -30 "$log/configure_before.log"; return 1; }
+  timeout "$seconds" ninja -C /tmp/before-build -j"$jobs" "$@" > "$log/build_before.log" 2>&1 &
+  gpu_before_pid=$!
+}
+
 gpu_build_with_before() {
   local log=$1 before_targets=() targets=()
   shift
@@ -64,19 +80,14 @@ gpu_build_with_before() {
   targets=("$@")
   gpu_configure_release . "$BUILD" ${OptiX_INSTALL_DIR:+-DOptiX_INSTALL_DIR="$OptiX_INSTALL_DIR"} \
     > "$log/configure.log" 2>&1 || { tail -30 "$log/configure.log"; exit 1; }
-  local before_pid=
+  gpu_before_pid=
   if [ -n "${BEFORE:-}" ]; then
-    gpu_source_of "$BEFORE" /tmp/before-src
-    gpu_configure_release /tmp/before-src /tmp/before-build \
-      ${OptiX_INSTALL_DIR:+-DOptiX_INSTALL_DIR="$OptiX_INSTALL_DIR"} > "$log/configure_before.log" 2>&1 \
-      || { tail -30 "$log/configure_before.log"; exit 1; }
-    timeout 500 ninja -C /tmp/before-build -j4 "${before_targets[@]}" > "$log/build_before.log" 2>&1 &
-    before_pid=$!
+    gpu_start_before_build "$log" 4 500 "${before_targets[@]}" || exit 1
   fi
   timeout 500 ninja -C "$BUILD" -j16 "${targets[@]}" > "$log/build.log" 2>&1 \
     || { grep -E "error|FAILED" "$log/build.log" | head -30; exit 1; }
-  if [ -n "$before_pid" ]; then
-    wait "$before_pid" || { grep -E "error|FAILED" "$log/build_before.log" | head; exit 1; }
+  if [ -n "$gpu_before_pid" ]; then
+    wait "$gpu_before_pid" || { grep -E "error|FAILED" "$log/build_before.log" | head; exit 1; }
   fi
   grep -iE "spill" "$log/build.log" | sed 's/.*function//' | sort | uniq -c | head -20
 }

@@ -15,10 +15,10 @@
 #      memory workload, warp states, tensor pipe;
 #   then torch.compile at 2^21 on the paper networks;
 #   5. evaluator_summary.py joins it all into summary.md / summary.csv.
-# BEFORE=COMMIT also builds that commit's gpu_evaluator_benchmark beside this tree's (from
-# `git archive`, in /tmp/before-build, during this build) and runs its sweep at 8192 and 2^21
-# right after ours (before_batches.csv): a kernel change's before and after in one run on one
-# GPU. NCU=0 skips the profiles (step 4).
+# BEFORE=COMMIT also builds that commit's gpu_evaluator_benchmark beside this tree's
+# (gpu_start_before_build: `git archive`, /tmp/before-build, during this build) and runs its
+# sweep at 8192 and 2^21 right after ours (before_batches.csv): a kernel change's before and after
+# in one run on one GPU. NCU=0 skips the profiles (step 4).
 # Logs in $OUT/summary_logs (default ./out), all of them in $OUT/evaluator_summary.tar.gz (and the
 # tables in $OUT/summary.md); a failed
 # step makes the exit status 1. The whole run keeps within $BUDGET seconds (default 570: a device
@@ -49,7 +49,7 @@ run_step() {
 }
 finish() {
   # an early finish (a failed or skipped build) leaves no before build running
-  [ -n "${before_pid:-}" ] && { pkill -P "$before_pid"; kill "$before_pid"; } 2> /dev/null
+  [ -n "${before_pid:-}" ] && kill "$before_pid" 2> /dev/null  # (timeout passes the signal to ninja)
   rm -rf "$L/models"
   # (ncu's reports stay out: several MB each; the raw CSV and details pages hold their figures)
   tar --exclude='*.ncu-rep' -czf "$OUT/evaluator_summary.tar.gz" -C "$OUT" summary_logs
@@ -69,22 +69,19 @@ if [ -n "${BEFORE:-}" ]; then
   if ! git rev-parse --verify --quiet "$BEFORE^{commit}" > "$L/before_commit.txt"; then
     echo "(BEFORE=$BEFORE names no commit of this checkout: no before build)"; status=1
   else
-    gpu_source_of "$BEFORE" /tmp/before-src
-    t=$(within 400)  # (computed here: `timeout 0` would mean no limit)
-    # Its output to files and /dev/null: a background job holding this script's stdout would keep
-    # a caller's pipe open after an early finish.
-    { gpu_configure_release /tmp/before-src /tmp/before-build > "$L/configure_before.log" 2>&1 &&
-      [ "$t" != 0 ] && timeout "$t" ninja -C /tmp/before-build -j8 gpu_evaluator_benchmark > "$L/build_before.log" 2>&1; } > /dev/null 2>&1 &
-    before_pid=$!
+    t=$(within 400)  # (0: no time left; `timeout 0` would mean no limit)
+    if [ "$t" != 0 ] && gpu_start_before_build "$L" 8 "$t" gpu_evaluator_benchmark; then
+      before_pid=$gpu_before_pid
+    else
+      echo "(no before build)"; status=1
+    fi
   fi
 fi
 run_step build 400 ninja -C "$BUILD" -j16 cuda_evaluator_tests gpu_evaluator_benchmark > "$L/build.log" 2>&1 \
   || { tail -40 "$L/build.log"; finish; }
 gpu_hopper_spills "$L/build.log"
 if [ -n "$before_pid" ] && ! wait "$before_pid"; then
-  echo "(the build of BEFORE=$BEFORE failed)"
-  tail -n 20 "$L/configure_before.log" "$L/build_before.log" 2> /dev/null
-  status=1; before_pid=
+  echo "(the build of BEFORE=$BEFORE failed)"; tail -n 20 "$L/build_before.log"; status=1; before_pid=
 fi
 
 stamp "GPU evaluator tests"
