@@ -23,8 +23,8 @@ struct RefinementOptions {
   // stopped one short of it; figures: Benchmarks/RESULTS.md, "Figures moved out of code comments").
   int maximumFrames = 2048;
   // Stop when the estimated PSNR over the volume's pixels reaches this (dB); 0 = off. The
-  // default leaves a margin for the estimate's own noise: measured against 1024-frame references
-  // on the shipped models it gives >= 40 dB (Benchmarks/RESULTS.md).
+  // default leaves a margin for the estimate's own noise: against 1024-frame references on the
+  // shipped models it gives at least 40 dB (Benchmarks/RESULTS.md).
   double convergenceTarget = 41.0;
   int minimumFrames = 8;           // never converged on fewer frames (the variance is unknown)
   int framesPerRender = 1;         // one request accumulates until the image holds this many

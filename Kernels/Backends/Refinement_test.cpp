@@ -137,10 +137,9 @@ TEST(Refinement, EstimatedPsnrMatchesTheErrorOverTheVolume) {
     const double actual = psnrOverVolume(f.session->image(), refImage, refPremultiplied);
     std::printf("%4d frames: estimated %.2f dB, measured %.2f dB against the reference\n", frames, d.estimate(), actual);
     // Never optimistic by more than the estimate's sampling noise (over ~10^3 pixels a few tenths
-    // of a dB; the reference's own noise lowers the measured value by up to 0.5 dB), and close:
-    // on few frames it is conservative (rarely hit pixels are not yet covered and count in the
-    // measurement, with their small errors). Measured: 16 frames 24.0 vs 25.6 dB, 64 frames 30.7
-    // vs 30.8, 256 frames 37.2 vs 36.8.
+    // of a dB; the reference's own noise lowers the PSNR against it by up to half a dB), and
+    // close: on few frames it is conservative (rarely hit pixels are not yet covered and count in
+    // the measurement, with their small errors). The line above prints both per frame count.
     EXPECT_LE(d.estimate(), actual + 1.0) << frames << " frames";
     EXPECT_GE(d.estimate(), actual - 2.5) << frames << " frames";
   }

@@ -263,7 +263,7 @@ TEST(Pruning, PrunesNearUniformRegionsAndConvergesCloseToUnpruned) {
               floor);
   EXPECT_GT(prunedFraction, 0.5);
   EXPECT_LT(double(onQueries), 0.6 * double(refQueries));
-  EXPECT_GE(psnr, 50.0);  // measured 57.8 dB (GCC 13, x86-64)
+  EXPECT_GE(psnr, 50.0);  // the line above prints the measured value
   EXPECT_EQ(test::nonFinitePixels(on.premultiplied), 0u);
 
   // The metric sees a wrong substitution: pruning every cell (the blob too) is far off.

@@ -187,8 +187,8 @@ INR_HD void opaqueRayIndex(int& i) {
 // candidates that need the network leave the ray pending. The walker is rebuilt from the ray
 // state after each pruned candidate rather than kept live across resolveCandidate: pruning stays
 // a loop back-edge. kPruning = false compiles the pass without the loop (one candidate at most):
-// with the loop present but never taken, nvcc still allocated for it, and the GPU traversal of
-// siren_cylinder_vorticity took 1.04 instead of 0.48 ms per frame (H100, Benchmarks/RESULTS.md).
+// with the loop present but never taken, nvcc still allocated for it, and the GPU traversal
+// took twice as long (Benchmarks/RESULTS.md has the figures).
 template <typename Walker, bool kPruning = true>
 INR_HD void traverseRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs, int i) {
   std::uint8_t flags = rs.flags[i];

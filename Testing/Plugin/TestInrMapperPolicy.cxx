@@ -93,7 +93,7 @@ TEST(InrLevelOfDetail, PlanScalesTheImageAndFreshImagesGetMoreFrames)
   }
   {
     Lod lod;
-    // Measured: 1e-6 ms per pixel-frame, a full-resolution frame costs 0.12 ms: it fits the
+    // A frame timed at 1e-6 ms per pixel-frame (0.12 ms at full resolution) fits the
     // budget, so the "interactive" render is an ordinary still one.
     lod.MeasureFrame(1.0, 0.12, 0.0, 1, 400, 300, false);
     const Lod::Frame f = lod.Plan(s, Lod::Decision{ true, false, 100.0 }, 400, 300);

@@ -9,8 +9,7 @@
 # in .data/ (made by Tools/data/, see Docs/DATA.md; about 43 MB of .npy + .json):
 #   gerris_cylinder_vorticity, gerris_sphere_plate_vorticity, gerris_cylinder_u,
 #   mri_head_deform
-# Default budget 1.6 min per model (4 models, ~7.5 min in all on one H100 with start-up and
-# evaluation). Uses CUDA when present, the CPU otherwise. PYTHON overrides the interpreter
+# Default training budget 1.6 min per model (Docs/DATA.md has the whole run's time). Uses CUDA when present, the CPU otherwise. PYTHON overrides the interpreter
 # (default: the first of python3, /usr/bin/python3 that imports torch and numpy).
 set -eu
 if [ $# -lt 1 ]; then
