@@ -6,7 +6,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash Tools/install-deps.sh
-bash Tools/build.sh "$@"
+# Only what the example runs: the engine, the inr CLI and the ParaView plugin (no tests, no
+# benchmark programs). The CUDA code is built as the test command builds it, so that
+# Tools/run-tests.sh afterwards reuses this build: for the present GPU only where one is usable,
+# compile-checked where none is (the renders then run on the CPU). Arguments given here decide
+# instead (e.g. -DINR_ENABLE_CUDA=OFF).
+example_args=(-DINR_BUILD_TESTS=OFF -DINR_BUILD_BENCHMARKS=OFF)
+if [[ " $* " != *CMAKE_CUDA_ARCHITECTURES* && " $* " != *INR_CUDA_COMPILE_CHECK* ]]; then
+  if nvidia-smi -L >/dev/null 2>&1; then
+    example_args+=("-DINR_CUDA_COMPILE_CHECK=OFF")
+  else
+    example_args+=("-DINR_CUDA_COMPILE_CHECK=ON")
+    echo "run-example: no usable GPU: the renders run on the CPU; CUDA code (if nvcc is found) is only compile-checked"
+  fi
+fi
+bash Tools/build.sh "${example_args[@]}" "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
 INR="$BUILD_DIR/bin/inr"
 MODEL=${INR_EXAMPLE_MODEL:-Testing/Data/real/siren_cylinder_vorticity_small.inr}  # Gerris flow, real data

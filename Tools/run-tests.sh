@@ -27,7 +27,11 @@ if [[ " $* " != *CMAKE_CUDA_ARCHITECTURES* && " $* " != *INR_CUDA_COMPILE_CHECK*
     echo "run-tests: no usable GPU: CUDA code (if nvcc is found) is only compile-checked (PTX for sm_90, device optimiser off)"
   fi
 fi
-bash Tools/build.sh "${cuda_archs[@]}" "$@"
+# The example (Tools/run-example.sh) configures the same folder without tests and benchmarks.
+suite_args=()
+[[ " $* " == *INR_BUILD_TESTS* ]] || suite_args+=(-DINR_BUILD_TESTS=ON)
+[[ " $* " == *INR_BUILD_BENCHMARKS* ]] || suite_args+=(-DINR_BUILD_BENCHMARKS=ON)
+bash Tools/build.sh "${cuda_archs[@]}" "${suite_args[@]}" "$@"
 BUILD_DIR=${INR_BUILD_DIR:-build}
 source Tools/xvfb.sh
 SAN_PID=""

@@ -13,6 +13,7 @@ option(INR_FUZZ "Build only the model loader and its libFuzzer target (Testing/F
 # Tools/run-tests.sh without a usable GPU (the GPU tests skip there): the CUDA code is compiled to
 # PTX for sm_90 with NVVM's optimiser off, a compile check (Docs/testing.md). Not cached into
 # CMAKE_CUDA_ARCHITECTURES / CMAKE_CUDA_FLAGS, so turning it off restores the normal build.
+option(INR_CUDA_ALL_ARCHITECTURES "Build CUDA code for sm_75, 80, 86, 89 and 90 even where a GPU is present (default: the present GPU's architecture only)" OFF)
 option(INR_CUDA_COMPILE_CHECK "Compile-check the CUDA code only (PTX, device optimiser off); no kernel of such a build is for running" OFF)
 foreach(opt INR_ENABLE_CUDA INR_ENABLE_OPTIX INR_ENABLE_PARAVIEW)
   set_property(CACHE ${opt} PROPERTY STRINGS AUTO ON OFF)
@@ -38,8 +39,29 @@ else()
       # A normal variable: it shadows (never overwrites) a cached choice.
       set(CMAKE_CUDA_ARCHITECTURES 90-virtual)
     elseif(NOT DEFINED CMAKE_CUDA_ARCHITECTURES)
-      # RTX workstations (Turing..Ada) plus Hopper; the fastest path is picked at run time.
-      set(CMAKE_CUDA_ARCHITECTURES 75-real 80-real 86-real 89-real 90)
+      # With a usable GPU: the present GPUs' architectures only (what CMake's "native" means,
+      # spelled out so that the Hopper kernel below sees "90"), one device compile per kernel
+      # instead of five. INR_CUDA_ALL_ARCHITECTURES (packagers, or a build machine without the
+      # GPU that will run it) builds for RTX workstations (Turing..Ada) plus Hopper; the fastest
+      # path is picked at run time.
+      set(_inr_present_archs "")
+      if(NOT INR_CUDA_ALL_ARCHITECTURES)
+        execute_process(COMMAND nvidia-smi --query-gpu=compute_cap --format=csv,noheader
+                        RESULT_VARIABLE _inr_smi OUTPUT_VARIABLE _inr_caps ERROR_QUIET)
+        if(_inr_smi EQUAL 0)
+          string(REGEX MATCHALL "[0-9]+\\.[0-9]+" _inr_caps "${_inr_caps}")
+          foreach(cap IN LISTS _inr_caps)
+            string(REPLACE "." "" cap "${cap}")
+            list(APPEND _inr_present_archs ${cap})
+          endforeach()
+          list(REMOVE_DUPLICATES _inr_present_archs)
+        endif()
+      endif()
+      if(_inr_present_archs)
+        set(CMAKE_CUDA_ARCHITECTURES ${_inr_present_archs})
+      else()
+        set(CMAKE_CUDA_ARCHITECTURES 75-real 80-real 86-real 89-real 90)
+      endif()
     endif()
     enable_language(CUDA)
     find_package(CUDAToolkit REQUIRED)

@@ -51,6 +51,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   budgetSkipped += o.budgetSkipped;
   pruned += o.pruned;
   updateMs += o.updateMs;
+  setupMs += o.setupMs;
   initMs += o.initMs;
   traverseMs += o.traverseMs;
   evaluateMs += o.evaluateMs;
@@ -58,6 +59,7 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   shadowEvaluateMs += o.shadowEvaluateMs;
   shadingMs += o.shadingMs;
   finalizeMs += o.finalizeMs;
+  otherMs += o.otherMs;
   totalMs += o.totalMs;
   traversalBuildMs += o.traversalBuildMs;
   traversalPrimitives = o.traversalPrimitives;  // state: the structure after the later frame
@@ -178,6 +180,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
 
 FrameStats DeltaTrackingRenderer::renderFrame() {
   FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
+  const double updateBeforeFrame = st.updateMs;
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
@@ -205,7 +208,11 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   const bool withPoints = fc.estimator != PrimaryEstimator::Delta;  // ratio tracking, march
   if (withPoints) {
     const std::size_t slots = std::size_t(n) * std::size_t(fc.pointsPerIteration);
-    if (points_.count != slots) points_.resize(slots);
+    if (points_.count != slots) {
+      const auto tSetup = Clock::now();
+      points_.resize(slots);
+      st.setupMs += msSince(tSetup);
+    }
     pointsView = points_.view();
   }
   runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
@@ -252,12 +259,13 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   st.cappedRays = capped;
   st.finalizeMs = msSince(t0);
   endFrame(st, truncated, histogram);
-  st.totalMs = msSince(tFrame);
+  st.closeTiming(updateBeforeFrame, msSince(tFrame));
   return st;
 }
 
 FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   FrameStats st = beginFrame("naive", "renderFrameNaive");
+  const double updateBeforeFrame = st.updateMs;
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
@@ -314,8 +322,11 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
     st.coveredPixels += std::size_t(pc.covered);
   }
   endFrame(st, false);
-  st.totalMs = msSince(tFrame);
-  st.traverseMs = st.totalMs;  // traversal and evaluation are interleaved; not separable
+  // Traversal and evaluation are interleaved, not separable: the frame's time past its update
+  // counts as traversal.
+  const double frameMs = msSince(tFrame);
+  st.traverseMs = frameMs - (st.updateMs - updateBeforeFrame);
+  st.closeTiming(updateBeforeFrame, frameMs);
   return st;
 }
 

@@ -214,7 +214,7 @@ FrameStats RayMarchRenderer::renderFrame() {
     st.finalizeMs += msSince(t0);
   }
   ++frameIndex_;
-  st.totalMs = msSince(tFrame);
+  st.closeTiming(0.0, msSince(tFrame));
   return st;
 }
 

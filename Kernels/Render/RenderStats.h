@@ -30,9 +30,17 @@ struct FrameStats {
   // displayed mean over the pixels the volume covers, and how many pixels it covers.
   double varianceSum = 0;
   std::size_t coveredPixels = 0;
-  // Milliseconds per stage. `updateMs`: majorant/working-grid updates done before the frame.
-  double updateMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
-         shadowEvaluateMs = 0, shadingMs = 0, finalizeMs = 0, totalMs = 0;
+  // Milliseconds per stage: the same parts for every estimator, method and backend, and every
+  // millisecond of totalMs in one of them (closeTiming).
+  // - updateMs: majorant / working-grid updates the frame waited for, whether done when the scene
+  //   changed (reported with the next frame) or at the frame's start;
+  // - setupMs: the frame's buffers (re)allocated for a new image size or batch shape (a first
+  //   frame's cost, like the update: benchmarks report both on the first frame's line);
+  // - init ... finalize: the pipeline's stages (GPU: device time of each stage's kernels);
+  // - otherMs: the rest of the frame's wall time, which no stage names (launches and syncs on the
+  //   GPU, bookkeeping). Large values say a stage is missing its timer.
+  double updateMs = 0, setupMs = 0, initMs = 0, traverseMs = 0, evaluateMs = 0, shadowTraverseMs = 0,
+         shadowEvaluateMs = 0, shadingMs = 0, finalizeMs = 0, otherMs = 0, totalMs = 0;
 
   // The traversal's structure over the majorants (OptiX GAS; zero for the DDA): wall time of the
   // rebuilds since the previous frame (scene updates, refinements), and its primitives (non-empty
@@ -41,6 +49,18 @@ struct FrameStats {
   std::size_t traversalPrimitives = 0, traversalBytes = 0;
 
   std::size_t totalQueries() const { return queries + shadowQueries + shadingQueries; }
+  // The named stages' sum (every part of totalMs but otherMs).
+  double namedStagesMs() const {
+    return updateMs + setupMs + initMs + traverseMs + evaluateMs + shadowTraverseMs + shadowEvaluateMs + shadingMs +
+           finalizeMs;
+  }
+  // Ends a frame's accounting: totalMs = the update done before the frame started (already in
+  // updateMs) + the frame's own wall time; otherMs = what no stage names (never negative: GPU
+  // stage times are device times that can overlap the host's).
+  void closeTiming(double updateBeforeFrameMs, double frameWallMs) {
+    totalMs = updateBeforeFrameMs + frameWallMs;
+    otherMs = totalMs > namedStagesMs() ? totalMs - namedStagesMs() : 0.0;
+  }
   // Sums counts and times (for run totals); keeps the later frame index.
   FrameStats& operator+=(const FrameStats& o);
 };

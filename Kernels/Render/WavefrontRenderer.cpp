@@ -286,7 +286,7 @@ FrameStats WavefrontRenderer::runGhostPasses(int count) {
     traceGhostPass(table, fc, stride, total);
   }
   endGhostPasses(total);
-  total.totalMs = msSince(tStart);
+  total.closeTiming(0.0, msSince(tStart));
   return total;
 }
 

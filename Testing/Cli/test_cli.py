@@ -329,6 +329,10 @@ def check_estimator_xml_defaults(inr, data):
     expect(entries == {"0": "delta", "1": "ratio", "2": "march"}, "InrEstimator entries %r" % entries)
     expect(entries[est.get("default_values")] == e["name"],
            "InrEstimator default %r, CLI default %r" % (entries[est.get("default_values")], e["name"]))
+    # Pinned by name (as ShippedDefaults.EstimatorIsRatioTrackingAtScale8With32PointsPerBatch pins
+    # TrackingOptions::recommended()): reverting the CLI and the XML together must fail too.
+    expect((e["name"], e["majorant_scale"], e["points_per_iteration"]) == ("ratio", 8.0, 32),
+           "the shipped default estimator is ratio tracking, K 8, 32 points per batch; the CLI runs %r" % e)
     for prop, key, cast in (("InrMajorantScale", "majorant_scale", float), ("InrResidualScale", "residual_scale", float),
                             ("InrPointsPerIteration", "points_per_iteration", int)):
         got = cast(props[prop].get("default_values"))

@@ -54,6 +54,7 @@ nlohmann::json statsJson(const FrameStats& s) {
           {"traversal_bytes", s.traversalBytes},
           {"ms",
            {{"update", s.updateMs},
+            {"setup", s.setupMs},
             {"init", s.initMs},
             {"traverse", s.traverseMs},
             {"evaluate", s.evaluateMs},
@@ -61,6 +62,7 @@ nlohmann::json statsJson(const FrameStats& s) {
             {"shadow_evaluate", s.shadowEvaluateMs},
             {"shading", s.shadingMs},
             {"finalize", s.finalizeMs},
+            {"other", s.otherMs},
             {"traversal_build", s.traversalBuildMs},
             {"total", s.totalMs}}}};
 }
@@ -139,6 +141,7 @@ struct RenderOutcome {
   ImageRGBA image;
   long frames = 0;
   FrameStats total;
+  FrameStats first;  // the first frame's, whose update and buffer setup the summary names apart
   std::vector<nlohmann::json> perFrame;
 };
 
@@ -167,6 +170,7 @@ RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session,
   for (long k = 0; k < job.frames; ++k) {
     const FrameStats st = renderer->renderFrame();
     printFrameLine(job, st, k);
+    if (r.perFrame.empty()) r.first = st;
     r.total += st;
     r.perFrame.push_back(statsJson(st));
   }
@@ -252,6 +256,7 @@ RenderOutcome renderTracking(const RenderJob& job, const RenderSettings& setting
     const RefinementDriver::Step step = driver.advance(session, job.method == RenderMethod::Naive);
     if (step.framesRendered == 0) break;
     printFrameLine(job, step.total, session.accumulatedFrames() - 1);
+    if (r.perFrame.empty()) r.first = step.total;
     r.total += step.total;
     nlohmann::json js = statsJson(step.total);
     js["estimated_psnr_db"] = driver.estimate();
@@ -369,6 +374,9 @@ int runRenderJob(const RenderJob& job) {
               total.rays / n, total.queries / n, total.shadowQueries / n, total.iterations / n, total.totalMs / n,
               total.traverseMs / n, total.evaluateMs / n, (total.shadowTraverseMs + total.shadowEvaluateMs) / n,
               total.finalizeMs / n, job.output.c_str());
+  if (r.frames > 0 && !job.quiet)
+    std::printf("first frame's setup: update %.1f ms, buffers %.1f ms (in its frame time and the mean above)\n",
+                r.first.updateMs, r.first.setupMs);
   if (!job.statsJson.empty()) {
     report["total"] = statsJson(total);
     report["frames"] = r.perFrame;

@@ -1,14 +1,14 @@
 """Render an INR Volume model through ParaView at a few times (pvpython or pvbatch).
 
     pvpython Tools/paraview/render_inr.py MODEL.inr [--times 0 5 10 | --count 3]
-        [--out DIR] [--size 512 512] [--frames 64] [--shadows] [--tf COLORMAP.json]
-        [--plugin PATH/InrVolume.so]
+        [--out DIR] [--size 512 512] [--frames 64] [--converge DB] [--shadows] [--tf COLORMAP.json]
+        [--plugin PATH/InrVolume.so] [--frame-resolution 24]
 
 Loads the plugin (PV_PLUGIN_PATH autoloads it too), opens the model (OpenDataFile finds the
 reader by the .inr extension), shows it as "INR Volume", colours it by "value" with the colour
 map of --tf (a ParaView colour-map export, e.g. a model's suggested MODEL.tf.json) or else
 ParaView's Cool to Warm over the model's value range with an opacity ramp over its upper half,
-then for
+frames the camera on the part the opacity map shows (--frame-resolution), then for
 each time: sets the animation time, accumulates --frames frames in one render and saves
 DIR/inr_t<i>.png. Prints the accumulated frames and the backend used.
 """
@@ -22,10 +22,15 @@ ap.add_argument("--times", type=float, nargs="*", default=None, help="world time
 ap.add_argument("--count", type=int, default=3, help="evenly spaced times over the range")
 ap.add_argument("--out", default="example-output")
 ap.add_argument("--size", type=int, nargs=2, default=[512, 512])
-ap.add_argument("--frames", type=int, default=64)
+ap.add_argument("--frames", type=int, default=64, help="frames per picture (the most, with --converge)")
+ap.add_argument("--converge", type=float, default=0.0,
+                help="stop a picture's accumulation once its estimated PSNR over the volume's pixels "
+                     "reaches this many dB (0: always --frames)")
 ap.add_argument("--shadows", action="store_true")
 ap.add_argument("--tf", default="", help="ParaView colour-map JSON (RGBPoints, Points) to use")
 ap.add_argument("--plugin", default="", help="InrVolume.so, if not autoloaded via PV_PLUGIN_PATH")
+ap.add_argument("--frame-resolution", type=int, default=24,
+                help="lattice (per axis) on which the camera finds the visible part to frame; 0: the whole box")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
@@ -79,14 +84,63 @@ display.ScalarOpacityUnitDistance = 0.05 * max(
 # Progressive refinement in a script: one render accumulates FramesPerRender frames.
 display.InrMaximumFrames = args.frames
 display.InrFramesPerRender = args.frames
-display.InrConvergenceTarget = 0.0
+display.InrConvergenceTarget = args.converge
 display.InrShadows = 1 if args.shadows else 0
 
-# A three-quarter view from the front (+z), up +y, framing the box.
+
+def visible_bounds(resolution):
+    """The box around what the transfer function shows at any of the times: the reader's preview
+    grid (the network on a resolution^3 lattice) at each time, points whose opacity reaches 2% of
+    the map's peak, grown by one lattice cell. None when nothing is visible (then the whole box)."""
+    from paraview import servermanager
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    import numpy as np
+    opacity_of = pwf.GetClientSideObject()  # the vtkPiecewiseFunction the mapper reads
+    node_values = list(pwf.Points)[1::4]
+    threshold = 0.02 * max(node_values) if node_values else 0.0
+    saved = reader.PreviewResolution
+    reader.PreviewResolution = resolution
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for t in times:
+        reader.UpdatePipeline(t)
+        grid = servermanager.Fetch(reader)
+        array = grid.GetPointData().GetArray("value") if grid else None
+        if array is None or array.GetNumberOfTuples() == 0:
+            continue
+        values = vtk_to_numpy(array)
+        visible = np.array([opacity_of.GetValue(float(v)) > threshold for v in values])
+        if not visible.any():
+            continue
+        nx, ny, _ = grid.GetDimensions()
+        ids = np.nonzero(visible)[0]
+        ijk = np.stack([ids % nx, (ids // nx) % ny, ids // (nx * ny)], axis=1)
+        origin, spacing = np.array(grid.GetOrigin()), np.array(grid.GetSpacing())
+        lo = np.minimum(lo, origin + (ijk.min(axis=0) - 1) * spacing)
+        hi = np.maximum(hi, origin + (ijk.max(axis=0) + 1) * spacing)
+    reader.PreviewResolution = saved
+    if not np.isfinite(lo).all():
+        return None
+    box = reader.GetDataInformation().GetBounds()
+    lo = np.maximum(lo, box[0::2])
+    hi = np.minimum(hi, box[1::2])
+    return [float(x) for pair in zip(lo, hi) for x in pair]
+
+
+# A three-quarter view from the front (+z), up +y, framing what the transfer function shows (a
+# camera that fits the whole box leaves a small volume in a corner of the picture).
+frame = visible_bounds(args.frame_resolution) if args.frame_resolution > 0 else None
+if frame:
+    print("framing the visible part: bounds " + " ".join(f"{b:.4g}" for b in frame), flush=True)
 simple.ResetCamera(view)
+view.CameraFocalPoint = [0.5 * (frame[2 * a] + frame[2 * a + 1]) for a in range(3)] if frame \
+    else view.CameraFocalPoint
 view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
 view.CameraViewUp = [0.0, 1.0, 0.0]
-simple.ResetCamera(view)
+if frame:
+    view.ResetCamera(frame)
+else:
+    simple.ResetCamera(view)
 scene = simple.GetAnimationScene()
 scene.UpdateAnimationUsingDataTimeSteps()
 os.makedirs(args.out, exist_ok=True)
@@ -95,9 +149,11 @@ for i, t in enumerate(times):
     path = os.path.join(args.out, f"inr_t{i}.png")
     simple.SaveScreenshot(path, view, ImageResolution=args.size)
     prop = display.SMProxy.GetProperty("InrAccumulatedFrames")
+    estimate = display.SMProxy.GetProperty("InrConvergenceEstimate")
     display.SMProxy.UpdatePropertyInformation(prop)
     backend = display.SMProxy.GetProperty("InrBackendInUse")
     display.SMProxy.UpdatePropertyInformation(backend)
-    print(f"t = {t:g}: {path} ({prop.GetElement(0)} frames, backend {backend.GetElement(0)})",
-          flush=True)
+    display.SMProxy.UpdatePropertyInformation(estimate)
+    print(f"t = {t:g}: {path} ({prop.GetElement(0)} frames, estimated {estimate.GetElement(0):.1f} dB "
+          f"over the volume's pixels, backend {backend.GetElement(0)})", flush=True)
 sys.stdout.flush()

@@ -217,6 +217,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   const int perRay = ratio ? fc.pointsPerIteration : 1;
   const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
   if (ratio) {
+    const auto tSetup = Clock::now();
     if (pointState.count != slots) pointState.resize(slots);
     for (int b = 0; b < 2; ++b) {
       points[b].growTo(slots);
@@ -224,6 +225,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
       rayList[b].growTo(std::size_t(rs.count));
     }
     if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
+    setupMs += msSince(tSetup);
   }
   const DeviceTraversal& walker = ratio && !traversal->supportsRatioTracking() ? *ratioTraversal : *traversal;
   TraversalLaunch launch;
@@ -428,9 +430,11 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
 
 FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
+  const double updateBeforeFrame = st.updateMs;
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const auto tFrame = Clock::now();
+  I.setupMs = 0.0;
   I.timer.reset(pipeline_.stageTiming);
   I.truncated = false;
   I.clearStats();
@@ -495,8 +499,9 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   st.traversalPrimitives = built.primitives;
   st.traversalBytes = built.bytes;
   I.pendingBuildMs = 0;
+  st.setupMs = I.setupMs;
   endFrame(st, I.truncated, histogram ? I.hostHistogram.get() : nullptr);
-  st.totalMs = msSince(tFrame);
+  st.closeTiming(updateBeforeFrame, msSince(tFrame));
   return st;
 }
 

@@ -96,6 +96,7 @@ struct CudaDeltaTrackingRenderer::Impl {
   cuda::PinnedHost<double> hostSums{pipeline::kSumCount};
   cuda::StageTimer timer;
   bool truncated = false;
+  double setupMs = 0.0;  // this frame's buffer (re)allocations (FrameStats::setupMs)
 
   // Zeroes the frame statistics (asynchronous).
   void clearStats() {

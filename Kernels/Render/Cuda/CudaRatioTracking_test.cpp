@@ -60,8 +60,10 @@ RatioRun renderAnalytic(const Field& field, const TrackingOptions& options, bool
 // device's ulps (sinf, expf in the field, FMA contraction) and its concurrent refinement. Without
 // shadows after 4 frames. With shadows an ulp can flip which point the reservoir picks for the
 // shadow ray (a decision u * sum < w), and that pixel's frame differs by its shading: after 64
-// frames the images still agree to >= 35 dB (the test prints each estimator's PSNR; delta
-// tracking, whose shadow rays start at the collision itself, agrees bit for bit).
+// frames ratio tracking's images still agree to >= 40 dB (delta tracking, whose shadow rays start
+// at the collision itself, bit for bit). The march's bound is 35 dB: its reservoir chooses among
+// a whole comb of points per cell rather than among a few tentative collisions, so an ulp flips
+// the choice on more pixels (the test prints each estimator's PSNR; RESULTS.md has the figures).
 TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
@@ -84,7 +86,8 @@ TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
                   "iterations GPU %d CPU %d\n",
                   primaryEstimatorName(options.estimator), shadows ? " (shadows)" : "", frames, psnr, control,
                   gpu.stats.queries, cpu.stats.queries, gpu.stats.iterations, cpu.stats.iterations);
-      EXPECT_GE(psnr, shadows ? 35.0 : 50.0) << primaryEstimatorName(options.estimator);
+      const double shadowBound = options.estimator == PrimaryEstimator::March ? 35.0 : 40.0;
+      EXPECT_GE(psnr, shadows ? shadowBound : 50.0) << primaryEstimatorName(options.estimator);
       const double q = double(cpu.stats.queries);
       EXPECT_NEAR(double(gpu.stats.queries), q, 0.01 * q);
       EXPECT_EQ(test::nonFinitePixels(gpu.image), 0u);

@@ -360,7 +360,7 @@ FrameStats CudaRayMarcher::renderFrame() {
     st.shadowRays = std::size_t(I.shadowRaysHost[0]);
   }
   ++frameIndex_;
-  st.totalMs = msSince(tFrame);
+  st.closeTiming(0.0, msSince(tFrame));
   return st;
 }
 
