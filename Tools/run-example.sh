@@ -28,14 +28,16 @@ MODEL=${INR_EXAMPLE_MODEL:-Testing/Data/real/siren_cylinder_vorticity_small.inr}
 OUT=example-output
 mkdir -p "$OUT"
 
-# --- ParaView: open the model, show it as "INR Volume", render three times (64 frames each).
+# --- ParaView: open the model, show it as "INR Volume", render three times, each accumulated
+# until its estimated PSNR over the volume's pixels reaches 40 dB (512 frames at most), the
+# camera framed on the part the colour map shows.
 PLUGIN_DIR="$BUILD_DIR/lib/paraview-plugins/InrVolume"
 if command -v pvpython >/dev/null && [ -f "$PLUGIN_DIR/InrVolume.so" ]; then
   source Tools/xvfb.sh
   start_xvfb
   echo "== ParaView (pvpython + INR Volume plugin): $MODEL at three times"
   PV_PLUGIN_PATH="$(cd "$PLUGIN_DIR" && pwd)" pvpython --force-offscreen-rendering \
-    Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 48 --out "$OUT" \
+    Tools/paraview/render_inr.py "$MODEL" --count 3 --size 384 384 --frames 512 --converge 40 --out "$OUT" \
     $([ -f "${MODEL%.inr}.tf.json" ] && echo --tf "${MODEL%.inr}.tf.json")
   stop_xvfb
 else

@@ -13,6 +13,7 @@ each time: sets the animation time, accumulates --frames frames in one render an
 DIR/inr_t<i>.png. Prints the accumulated frames and the backend used.
 """
 import argparse
+import math
 import os
 import sys
 
@@ -88,20 +89,19 @@ display.InrConvergenceTarget = args.converge
 display.InrShadows = 1 if args.shadows else 0
 
 
-def visible_bounds(resolution):
+def visible_bounds(resolution, share=0.98):
     """The box around what the transfer function shows at any of the times: the reader's preview
-    grid (the network on a resolution^3 lattice) at each time, points whose opacity reaches 2% of
-    the map's peak, grown by one lattice cell. None when nothing is visible (then the whole box)."""
+    grid (the network on a resolution^3 lattice) at each time, each point weighted by its opacity,
+    and per axis the range that holds `share` of the weight (a noisy network's scattered faint
+    points do not stretch it to the whole box), grown by one lattice cell. None when nothing is
+    visible (then the whole box)."""
     from paraview import servermanager
     from vtkmodules.util.numpy_support import vtk_to_numpy
     import numpy as np
     opacity_of = pwf.GetClientSideObject()  # the vtkPiecewiseFunction the mapper reads
-    node_values = list(pwf.Points)[1::4]
-    threshold = 0.02 * max(node_values) if node_values else 0.0
     saved = reader.PreviewResolution
     reader.PreviewResolution = resolution
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
+    coords, weights, spacing = [], [], None
     for t in times:
         reader.UpdatePipeline(t)
         grid = servermanager.Fetch(reader)
@@ -109,22 +109,27 @@ def visible_bounds(resolution):
         if array is None or array.GetNumberOfTuples() == 0:
             continue
         values = vtk_to_numpy(array)
-        visible = np.array([opacity_of.GetValue(float(v)) > threshold for v in values])
-        if not visible.any():
-            continue
+        w = np.array([opacity_of.GetValue(float(v)) for v in values])
         nx, ny, _ = grid.GetDimensions()
-        ids = np.nonzero(visible)[0]
+        ids = np.arange(values.size)
         ijk = np.stack([ids % nx, (ids // nx) % ny, ids // (nx * ny)], axis=1)
-        origin, spacing = np.array(grid.GetOrigin()), np.array(grid.GetSpacing())
-        lo = np.minimum(lo, origin + (ijk.min(axis=0) - 1) * spacing)
-        hi = np.maximum(hi, origin + (ijk.max(axis=0) + 1) * spacing)
+        spacing = np.array(grid.GetSpacing())
+        coords.append(np.array(grid.GetOrigin()) + ijk * spacing)
+        weights.append(w)
     reader.PreviewResolution = saved
-    if not np.isfinite(lo).all():
+    if not weights or sum(w.sum() for w in weights) <= 0.0:
         return None
+    xyz, w = np.concatenate(coords), np.concatenate(weights)
+    tail = 0.5 * (1.0 - share) * w.sum()
     box = reader.GetDataInformation().GetBounds()
-    lo = np.maximum(lo, box[0::2])
-    hi = np.minimum(hi, box[1::2])
-    return [float(x) for pair in zip(lo, hi) for x in pair]
+    bounds = []
+    for a in range(3):
+        order = np.argsort(xyz[:, a])
+        cumulative = np.cumsum(w[order])
+        lo = xyz[order[np.searchsorted(cumulative, tail)], a] - spacing[a]
+        hi = xyz[order[min(len(order) - 1, np.searchsorted(cumulative, cumulative[-1] - tail))], a] + spacing[a]
+        bounds += [max(lo, box[2 * a]), min(hi, box[2 * a + 1])]
+    return [float(b) for b in bounds]
 
 
 # A three-quarter view from the front (+z), up +y, framing what the transfer function shows (a
@@ -132,15 +137,21 @@ def visible_bounds(resolution):
 frame = visible_bounds(args.frame_resolution) if args.frame_resolution > 0 else None
 if frame:
     print("framing the visible part: bounds " + " ".join(f"{b:.4g}" for b in frame), flush=True)
-simple.ResetCamera(view)
-view.CameraFocalPoint = [0.5 * (frame[2 * a] + frame[2 * a + 1]) for a in range(3)] if frame \
-    else view.CameraFocalPoint
-view.CameraPosition = [c + d for c, d in zip(view.CameraFocalPoint, [0.8, 0.6, 2.0])]
+box = list(reader.GetDataInformation().GetBounds())
+frame = frame or box
+centre = [0.5 * (frame[2 * a] + frame[2 * a + 1]) for a in range(3)]
+radius = 0.5 * math.sqrt(sum((frame[2 * a + 1] - frame[2 * a]) ** 2 for a in range(3)))
+direction = [0.8, 0.6, 2.0]
+norm = math.sqrt(sum(d * d for d in direction))
+# As vtkRenderer::ResetCamera: the bounding sphere of the framed box fits the view angle.
+distance = radius / math.sin(math.radians(view.CameraViewAngle) / 2.0)
+view.CameraFocalPoint = centre
+view.CameraPosition = [c + distance * d / norm for c, d in zip(centre, direction)]
 view.CameraViewUp = [0.0, 1.0, 0.0]
-if frame:
-    view.ResetCamera(frame)
-else:
-    simple.ResetCamera(view)
+view.CenterOfRotation = centre
+# paraview.simple resets the camera on a view's first render unless told not to: that reset
+# would frame the whole box again.
+simple._DisableFirstRenderCameraReset()
 scene = simple.GetAnimationScene()
 scene.UpdateAnimationUsingDataTimeSteps()
 os.makedirs(args.out, exist_ok=True)
