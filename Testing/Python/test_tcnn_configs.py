@@ -324,6 +324,8 @@ def same_conversion(torch, data):
     same("letter case", dict(base, encoding=dict(enc, otype="hashgrid", interpolation="LINEAR",
                                                  hash="coherentprime"),
                              network=dict(network, activation="relu", output_activation="none")))
+    same("n_dims_to_encode 3", dict(base, encoding=dict(enc, n_dims_to_encode=3)))
+    same("n_input_dims 3", dict(base, n_input_dims=3))
     same("network defaults spelled out", dict(base, network=dict(network, n_input_dims=32,
                                                                   n_output_dims=1)))
     # tiny-cuda-nn's defaults when the fields are absent
@@ -370,6 +372,9 @@ def refusals(torch, data, tmp):
         ({"network": dict(network, n_output_dims=4)}, ["network n_output_dims is 4"]),
         ({"network": dict(network, dropout=0.1)}, ["unknown or unsupported fields ['dropout']"]),
         ({}, ["1000 parameters ('params') fit neither 3 nor 4 inputs"]),
+        ({"n_input_dims": 4}, ["1000 parameters ('params') do not fit 4 inputs", "over 4 inputs"]),
+        ({"n_input_dims": "three"}, ["n_input_dims is 'three'"]),
+        ({"n_input_dims": 3, "encoding": dict(enc, n_dims_to_encode=2)}, ["n_dims_to_encode 2"]),
     ]
     for patch, needles in cases:
         cfg = dict(base, **patch)

@@ -857,16 +857,24 @@ def _tcnn_parameter_keys(K):
 
 def _tcnn(K, o):
     where = o.tcnn_config or "tcnn"
+    if where.lstrip().startswith("{"):  # given inline: name the option, not the whole text
+        where = "--tcnn-config"
     if not o.tcnn_config:
         raise ExportError("the tcnn layout needs --tcnn-config CONFIG.json (the encoding and network "
                           "of the training config)")
     cfg = _read_json_arg(o.tcnn_config, "the tiny-cuda-nn config")
     enc, net = _tcnn_config(cfg, where)
-    dims_given = cfg.get("n_input_dims")
-    if dims_given is None and o.input_order:
+    # The number of inputs: the config's n_input_dims, else --input-order's, else the encoding's
+    # n_dims_to_encode, else whichever of 3 and 4 the parameter count fits.
+    dims_given = None
+    if "n_input_dims" in cfg:
+        dims_given = _tcnn_int(cfg, "n_input_dims", 0, where, "config")
+    elif o.input_order:
         dims_given = len(o.input_order.replace(",", " ").split())
+    elif isinstance(enc, dict) and "n_dims_to_encode" in enc:
+        dims_given = _tcnn_int(enc, "n_dims_to_encode", 0, where, "encoding")
     layouts = []  # (dims, spec, MLP matrix shapes, MLP parameter count)
-    for dims in ((int(dims_given),) if dims_given else (3, 4)):
+    for dims in ((dims_given,) if dims_given else (3, 4)):
         spec = _tcnn_hashgrid(enc, dims, where)
         for in_alignment, out_alignment in ((16, 16), (8, 8), (8, 16), (16, 8)):
             shapes = _tcnn_mlp_shapes(net["n_neurons"], net["n_hidden_layers"],
@@ -894,14 +902,16 @@ def _tcnn(K, o):
         candidates = [(c, keys[0], None) for c in layouts
                       if c[3] + c[1].entries * c[1].n_features_per_level == sizes[keys[0]]]
     if not candidates:
-        spec3 = _tcnn_hashgrid(enc, 3, where)
-        raise ExportError("%s: %s parameters (%s) fit neither 3 nor 4 inputs with this config (a "
-                          "hash grid of %d levels over 3 inputs has %d table parameters); check "
+        spec3 = layouts[0][1]
+        raise ExportError("%s: %s parameters (%s) %s with this config (a "
+                          "hash grid of %d levels over %d inputs has %d table parameters); check "
                           "n_levels, log2_hashmap_size, base_resolution, per_level_scale, n_neurons "
                           "and n_hidden_layers against the training config"
                           % (K.where, " + ".join(str(sizes[k]) for k in keys),
-                             ", ".join(repr(k) for k in keys), spec3.n_levels,
-                             spec3.entries * spec3.n_features_per_level))
+                             ", ".join(repr(k) for k in keys),
+                             "fit neither 3 nor 4 inputs" if not dims_given
+                             else "do not fit %d inputs" % dims_given,
+                             spec3.n_levels, spec3.dims, spec3.entries * spec3.n_features_per_level))
     if len({c[0][0] for c in candidates}) > 1:  # every level hashed: 3 and 4 inputs fit alike
         raise ExportError("%s: the parameters fit 3 and 4 inputs alike; add \"n_input_dims\" to "
                           "the config (or give --input-order)" % where)
