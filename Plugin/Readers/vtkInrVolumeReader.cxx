@@ -18,6 +18,7 @@
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
+#include "Render/SceneInputs.h"
 
 #include <algorithm>
 #include <cstring>
@@ -113,26 +114,75 @@ const char* vtkInrVolumeReader::GetTransferFunctionJSON()
   this->TransferFunctionJSON.clear();
   std::string path = this->FileName ? this->FileName : "";
   const std::string ext = ".inr";
-  if (path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0)
+  if (path.size() <= ext.size() || path.compare(path.size() - ext.size(), ext.size(), ext) != 0)
   {
-    path = path.substr(0, path.size() - ext.size()) + ".tf.json";
+    return this->TransferFunctionJSON.c_str();
+  }
+  path = path.substr(0, path.size() - ext.size()) + ".tf.json";
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0)
+  {
+    return this->TransferFunctionJSON.c_str();  // no colour map beside the model: the default
+  }
+  // What is wrong with the file, "" when nothing is. The same checks as `inr render --tf`
+  // (the engine's parser and table), so a map ParaView would be handed is one the engine reads.
+  std::string problem;
+  std::string text;
+  constexpr long long kMaxBytes = 1 << 20;  // a preset is a few hundred bytes
+  const long long size = static_cast<long long>(st.st_size);
+  if (size == 0)
+  {
+    problem = path + ": the file is empty";
+  }
+  else if (size > kMaxBytes)
+  {
+    problem = path + ": " + std::to_string(size) + " bytes, more than a colour map preset holds (at most " +
+      std::to_string(kMaxBytes) + ")";
+  }
+  else
+  {
     std::ifstream in(path, std::ios::binary);
-    constexpr std::streamoff kMaxBytes = 1 << 20;  // a preset is a few hundred bytes
-    if (in)
+    text.resize(std::size_t(size));
+    if (!in || !in.read(&text[0], size))
     {
-      in.seekg(0, std::ios::end);
-      const std::streamoff size = in.tellg();
-      if (size > 0 && size <= kMaxBytes)
+      problem = path + ": cannot read the file";
+    }
+    else
+    {
+      try
       {
-        this->TransferFunctionJSON.resize(std::size_t(size));
-        in.seekg(0);
-        in.read(&this->TransferFunctionJSON[0], size);
-        if (!in)
+        const inr::TransferFunction tf = inr::TransferFunction::fromParaViewJson(text, path);
+        inr::TransferFunctionTable table(tf);  // non-finite or misordered points
+      }
+      catch (const std::exception& e)
+      {
+        problem = e.what();
+        if (problem.compare(0, path.size(), path) != 0)
         {
-          this->TransferFunctionJSON.clear();
+          problem = path + ": " + problem;
+        }
+        // Python's json module writes non-finite floats as these literals, which JSON lacks.
+        if (text.find("NaN") != std::string::npos || text.find("Infinity") != std::string::npos)
+        {
+          problem += " (it holds NaN or Infinity: a non-finite value, which a colour map cannot use)";
         }
       }
     }
+  }
+  if (problem.empty())
+  {
+    this->TransferFunctionJSON = text;
+    this->WarnedTransferFunction.clear();
+    return this->TransferFunctionJSON.c_str();
+  }
+  // Once per state of the file: ParaView asks for this property more than once per model.
+  const std::string warned = problem + "|" + std::to_string(static_cast<long long>(st.st_mtime)) +
+    "|" + std::to_string(size);
+  if (warned != this->WarnedTransferFunction)
+  {
+    this->WarnedTransferFunction = warned;
+    vtkWarningMacro(<< "the model's colour map " << problem
+                    << "; the default colour map is used instead");
   }
   return this->TransferFunctionJSON.c_str();
 }

@@ -56,8 +56,11 @@ public:
 
   /// The model's own colour and opacity map: the text of the ParaView preset file beside the
   /// model (MODEL.tf.json for MODEL.inr: a JSON list holding one preset with RGBPoints and
-  /// Points, as Tools/ ships them), "" when there is none or it cannot be read. ParaView's GUI
-  /// applies it when the model is first shown as INR Volume.
+  /// Points, as Tools/ ships them), "" when there is none. A file that is there but broken (not
+  /// JSON, no RGBPoints, wrong groups, non-finite values, opacity outside [0, 1], unreadable,
+  /// empty) gives "" too, with a warning naming the file and the problem (once per state of the
+  /// file), so the default colour map is used. ParaView's GUI applies the text when the model is
+  /// first shown as INR Volume.
   const char* GetTransferFunctionJSON();
 
 protected:
@@ -77,6 +80,7 @@ private:
   double TimeRange[2] = { 0, 0 };
   double ValueRange[2] = { 0, 1 };
   std::string TransferFunctionJSON;
+  std::string WarnedTransferFunction;  // the problem and file state last warned about
   struct Internals;
   Internals* Internal;
 };

@@ -124,6 +124,38 @@ def main():
         with open(p_trunc_legacy, "wb") as f:
             f.write(raw[:len(raw) // 2])
 
+        # training checkpoints: optimiser state, counters, EMA copies (an entry of their own or
+        # the same keys under a prefix), a whole pickled module
+        model = L.SirenNotebook(4, 16, 1)
+        adam = torch.optim.Adam(model.parameters())
+        sum(q.square().sum() for q in model.parameters()).backward()
+        adam.step()
+        ema = L.SirenNotebook(4, 16, 1).state_dict()
+        p_ckpt = save({"epoch": 7, "state_dict": model.state_dict(), "optimizer": adam.state_dict()},
+                      "siren_checkpoint.pth")
+        p_ema_entry = save({"model": siren, "ema": ema, "optimizer": adam.state_dict()},
+                           "siren_ema_entry.pth")
+        p_ema_keys = save(dict(siren, **{"ema." + k: v for k, v in ema.items()}), "siren_ema_keys.pth")
+        sd = dict(siren, **{"ema." + k: v for k, v in ema.items()})
+        sd["ema.net.0.linear.weight"] = torch.zeros(16, 3)
+        p_ema_bad = save(sd, "siren_ema_mismatch.pth")
+        p_lightning = save({"state_dict": {"model." + k: v for k, v in siren.items()},
+                            "optimizer_states": [adam.state_dict()], "global_step": 10},
+                           "siren_lightning.pth")
+        p_two_sd = save({"student": siren, "teacher": ema}, "siren_two_state_dicts.pth")
+        p_no_tensors = save({"epoch": 3, "optimizer": adam.state_dict()}, "no_tensors.pth")
+        p_module = save(model, "siren_module.pth")
+        # a whole module whose class cannot be imported where the file is read
+        with open(os.path.join(tmp, "lost_module.py"), "w") as f:
+            f.write("import torch\nclass Net(torch.nn.Module):\n    def __init__(self):\n"
+                    "        super().__init__()\n        self.fc = torch.nn.Linear(4, 1)\n")
+        sys.path.insert(0, tmp)
+        import lost_module
+        p_lost = save(lost_module.Net(), "lost_module.pth")
+        sys.path.remove(tmp)
+        del sys.modules["lost_module"]
+        os.remove(os.path.join(tmp, "lost_module.py"))
+
         out = os.path.join(tmp, "out.inr")
         # (name, args, strings that must appear in the message)
         cases = [
@@ -168,6 +200,16 @@ def main():
              ["siren_truncated_legacy.pth", "truncated or corrupt"]),
             ("prefix matches nothing", ["siren-notebook", p_siren, out, "--prefix", "inr."],
              ["siren_ok.pth", "'inr.'", "'net.0.linear.weight'"]),
+            ("EMA copy of other shapes", ["siren-notebook", p_ema_bad, out],
+             ["siren_ema_mismatch.pth", "'ema.net.0.linear.weight'"]),
+            ("two state_dicts", ["siren-notebook", p_two_sd, out],
+             ["siren_two_state_dicts.pth", "'student'", "'teacher'", "--checkpoint-key"]),
+            ("no such checkpoint entry", ["siren-notebook", p_ema_entry, out, "--checkpoint-key",
+                                          "swa"], ["siren_ema_entry.pth", "'swa'", "'ema'"]),
+            ("checkpoint without tensors", ["siren-notebook", p_no_tensors, out],
+             ["no_tensors.pth", "no tensors", "'optimizer'"]),
+            ("module not importable", ["siren-notebook", p_lost, out],
+             ["lost_module.pth", "lost_module", "state_dict"]),
         ]
         # The first case also through a real process: the command line's exit status and message
         # are the in-process ones.
@@ -205,6 +247,18 @@ def main():
             ("prefix under module.", ["siren-notebook", p_nested, out, "--prefix", "inr."], [], []),
             ("prefix module.inr.", ["siren-notebook", p_nested, out, "--prefix", "module.inr."],
              [], []),
+            ("training checkpoint", ["siren-notebook", p_ckpt, out],
+             ["'state_dict'", "'optimizer'", "'epoch'"], ["warning"]),
+            ("EMA entry beside the model", ["siren-notebook", p_ema_entry, out],
+             ["'model'", "'ema'", "--checkpoint-key"], []),
+            ("EMA entry chosen", ["siren-notebook", p_ema_entry, out, "--checkpoint-key", "ema"],
+             [], []),
+            ("EMA copy under ema.", ["siren-notebook", p_ema_keys, out], ["'ema.'", "--prefix"], []),
+            ("EMA copy chosen", ["siren-notebook", p_ema_keys, out, "--prefix", "ema."], [],
+             ["ema."]),
+            ("Lightning checkpoint", ["siren-notebook", p_lightning, out, "--prefix", "model."],
+             ["'state_dict'", "'optimizer_states'"], []),
+            ("pickled module", ["siren-notebook", p_module, out], [], []),
             ("coordnet without table", ["coordnet", p_coord, out], [per_time, "normalised"], []),
             ("coordnet with table", ["coordnet", p_coord, out, per_time, good_table], [],
              ["warning"]),

@@ -132,7 +132,7 @@ def export_errors(tmp):
         ({"encoding": dict(base["encoding"], interpolation="Nearest")}, "interpolation Nearest"),
         ({"network": dict(base["network"], activation="LeakyReLU")}, "network activation 'LeakyReLU'"),
         ({"network": dict(base["network"], otype="CutlassMLPX")}, "network otype 'CutlassMLPX'"),
-        ({}, "100 parameters fit neither 3 nor 4 inputs"),
+        ({}, "100 parameters ('params') fit neither 3 nor 4 inputs"),
         # base 8: every level hashed in 3D and 4D alike; 16 x 16 + 16 x 16 network + 2 x 16 x 2 table
         ({"encoding": dict(base["encoding"], base_resolution=8), "n_params": 576},
          "fit 3 and 4 inputs alike"),

@@ -31,18 +31,27 @@ Layouts (``--help`` lists every option):
                   with ``--fourier-B FILE`` (.npy/.pt, the official [channels, nf] orientation)
                   or regenerate it as the official code does with ``--reed-sigma S``
                   [``--reed-seed 0``] [``--reed-input-channels 3``].
-  tcnn            tiny-cuda-nn: ``--tcnn-config CONFIG.json`` (the training config: ``encoding``
-                  and ``network``, optionally inside ``"otype": "NetworkWithInputEncoding"``)
-                  and the flat parameter vector: key ``params`` of a tcnn.NetworkWithInputEncoding
-                  state_dict or a .npy (network parameters first, then the encoding's, as
-                  tiny-cuda-nn lays them out), or keys ``network.params`` and
-                  ``encoding.params`` of a module holding tcnn.Network and tcnn.Encoding. Encoding
-                  ``HashGrid`` (or ``Grid`` of type ``Hash``, hash ``CoherentPrime``, interpolation
-                  Linear or Smoothstep); network ``FullyFusedMLP`` or ``CutlassMLP`` (no biases;
-                  weight matrices [out, in] row-major with the encoding's width padded with zero
-                  inputs and the output padded, both to the MLP's alignment), activations ReLU,
-                  Sigmoid, Tanh, Sine, None. Inputs in [0, 1] (the default --input-range and
-                  --time-input-range here); 3 or 4 inputs, found from the parameter count.
+  tcnn            tiny-cuda-nn: ``--tcnn-config CONFIG.json`` (the training config, e.g. its
+                  own data/config_hash.json verbatim: ``encoding`` and ``network``, optionally
+                  inside ``"otype": "NetworkWithInputEncoding"``; other top-level keys such as
+                  loss and optimizer are ignored) and the parameters as its PyTorch bindings
+                  save them: key ``params`` of a tcnn.NetworkWithInputEncoding state_dict (or
+                  ``<name>.params`` of a module holding one), the bare tensor, or a .npy (network
+                  parameters first, then the encoding's; the grid pads its output with zeros);
+                  or two keys ``<a>.params`` / ``<b>.params`` of a tcnn.Encoding and a
+                  tcnn.Network (told apart by size; that Network pads its input with ones, so the
+                  padded inputs' weights become a first-layer bias). Fields are read as
+                  tiny-cuda-nn reads them: its defaults, any letter case, network otype
+                  FullyFusedMLP / MegakernelMLP / CutlassMLP / MLP (or none: MLP); encoding
+                  ``HashGrid`` (or ``Grid`` of type Hash), hash CoherentPrime, interpolation
+                  Linear or Smoothstep, ``fixed_point_pos`` false, ``stochastic_interpolation``
+                  either (training only), ``n_levels`` or ``n_features``; activations ReLU,
+                  Sigmoid, Tanh, Sine, SiLU, None. What changes the network and has no
+                  counterpart here is refused by name (fixed_point_pos true, other hashes,
+                  dense or tiled grids, Nearest, LeakyReLU/Exponential/Softplus/Squareplus,
+                  n_output_dims other than 1, unknown fields). Inputs in [0, 1] (the default
+                  --input-range and --time-input-range here); 3 or 4 inputs, found from the
+                  parameter count (or ``n_input_dims`` / --input-order).
   hashgrid-torch  the plain PyTorch module of Tools/python/inr_hashgrid_torch.py
                   (``HashGridNetwork``): ``encoding.embeddings`` [entries, F] with
                   ``encoding.offsets``, then ``network.{i}.weight`` / ``.bias`` (Linear layers
@@ -77,8 +86,14 @@ Output options: ``--output-scale/--output-offset``, or ``--output-range LO HI`` 
 ``--network-range``, default -1 1, onto [LO, HI]), or ``--per-time-table FILE`` (lines
 ``t min max`` or JSON {"times","min","max"}). ``--value-range`` sets the TF hint.
 
-Every mismatch between the state_dict and the layout (missing key, wrong shape, keys left
-over) is an error naming the file and the key; the exit status is then 1 (2 for bad usage).
+Checkpoints: a bare state_dict, a pickled module, or a training checkpoint whose entry
+``state_dict`` / ``model_state_dict`` / ``model`` / ``net`` / ``network`` (or its only entry holding
+tensors; ``--checkpoint-key NAME`` picks another, e.g. ``ema``) is the state_dict, beside optimiser
+state and counters (ignored, and named in a note). DataParallel's ``module.`` is removed; a second
+copy of every used key under a prefix (an EMA kept in the same state_dict) is named in a note and
+left out (``--prefix`` exports it). Every mismatch between the state_dict and the layout
+(missing key, wrong shape, keys left over) is an error naming the file and the key; the exit status
+is then 1 (2 for bad usage).
 The written file is re-read and validated before the tool reports success.
 
 Importable: ``main(argv)`` runs the CLI; ``convert(state_dict, layout, opts)`` returns
@@ -116,13 +131,82 @@ def _to_numpy(v):
     return np.asarray(v)
 
 
-def load_state_dict(path, prefix=None):
+# Checkpoint entries that hold the model's state_dict, in the order they are preferred.
+_STATE_DICT_ENTRIES = ("state_dict", "model_state_dict", "model", "net", "network")
+
+
+def _note(text):
+    sys.stderr.write("inr_export: note: %s\n" % text)
+
+
+def _is_tensor(v):
+    return hasattr(v, "shape") and hasattr(v, "dtype")
+
+
+def _as_state_dict(v):
+    """v as a mapping of names to tensors, or None: a state_dict, or a pickled nn.Module's."""
+    if hasattr(v, "state_dict") and callable(v.state_dict) and not isinstance(v, dict):
+        v = v.state_dict()
+    if isinstance(v, dict) and any(_is_tensor(t) for t in v.values()):
+        return v
+    return None
+
+
+def _select_entry(obj, path, entry):
+    """The state_dict in a loaded object: the object itself when it holds tensors at the top
+    level, else the checkpoint entry named by ``entry`` or found among the usual names."""
+    if _is_tensor(obj):  # a bare tensor: tiny-cuda-nn's flat parameter vector
+        return {"params": obj}
+    sd = _as_state_dict(obj)
+    if not isinstance(obj, dict):
+        if sd is None:
+            raise ExportError("%s: does not contain a state_dict (got %s)" % (path, type(obj).__name__))
+        return sd
+    # Entries that are state_dicts themselves (an optimizer's state is not: its tensors sit two
+    # levels down, under 'state'); the rest (epoch, step, config) is ignored.
+    nested = collections.OrderedDict((str(k), _as_state_dict(v)) for k, v in obj.items()
+                                     if not _is_tensor(v))
+    nested = collections.OrderedDict((k, v) for k, v in nested.items() if v is not None)
+    if entry is not None:
+        if entry not in nested:
+            raise ExportError("%s: --checkpoint-key %r: no such entry holding tensors (the "
+                              "checkpoint's entries: %s)" % (path, entry, ", ".join(
+                                  repr(str(k)) for k in list(obj)[:12]) or "none"))
+        return nested[entry]
+    if any(_is_tensor(v) for v in obj.values()):
+        if nested:
+            _note("%s: exporting the tensors at the top level; the checkpoint also holds %s "
+                  "(--checkpoint-key NAME exports one of those)"
+                  % (path, ", ".join(repr(k) for k in nested)))
+        return obj
+    if not nested:
+        raise ExportError("%s: the checkpoint holds no tensors (entries: %s)"
+                          % (path, ", ".join(repr(str(k)) for k in list(obj)[:12]) or "none"))
+    chosen = next((k for k in _STATE_DICT_ENTRIES if k in nested), None)
+    if chosen is None and len(nested) == 1:
+        chosen = next(iter(nested))
+    if chosen is None:
+        raise ExportError("%s: the checkpoint holds several state_dicts, %s: choose one with "
+                          "--checkpoint-key NAME" % (path, ", ".join(repr(k) for k in nested)))
+    others = [k for k in obj if str(k) != chosen]
+    _note("%s: exporting the checkpoint's entry %r%s" % (
+        path, chosen, "" if not others else "; also there: %s%s" % (
+            ", ".join(repr(str(k)) for k in others[:8]), " ..." if len(others) > 8 else "")
+        + (" (--checkpoint-key NAME exports another state_dict: %s)"
+           % ", ".join(repr(k) for k in nested if k != chosen) if len(nested) > 1 else "")))
+    return nested[chosen]
+
+
+def load_state_dict(path, prefix=None, entry=None):
     """Load a state_dict from a .pth/.pt (torch), .npz or .safetensors-like file.
 
-    Accepts a bare state_dict, a checkpoint dict holding one under ``state_dict`` /
-    ``model_state_dict`` / ``model`` / ``net``, or a pickled nn.Module. A ``module.`` prefix
-    on every key (nn.DataParallel) is removed. With ``prefix`` only keys starting with it (as
-    stored, else after removing ``module.``) are kept, with the prefix removed.
+    Accepts a bare state_dict, a pickled nn.Module, a bare tensor (tiny-cuda-nn's flat
+    parameters, as key ``params``), or a training checkpoint: a dict whose entries are the
+    state_dict (``state_dict`` / ``model_state_dict`` / ``model`` / ``net`` / ``network``, or the
+    only entry holding tensors; ``entry`` names another, e.g. an EMA copy) beside optimiser state
+    and counters, which are ignored (and named on stderr). A ``module.`` prefix on every key
+    (nn.DataParallel) is removed. With ``prefix`` only keys starting with it (as stored, else
+    after removing ``module.``) are kept, with the prefix removed.
     """
     path = str(path)
     if not os.path.exists(path):
@@ -142,19 +226,11 @@ def load_state_dict(path, prefix=None):
             except TypeError:  # torch < 1.13 has no weights_only
                 obj = torch.load(path, map_location="cpu")
         except Exception as e:  # noqa: BLE001 - report any unpickling failure clearly
-            raise ExportError("%s: %s (torch.load: %s)" % (path, _damage(path), e))
-        if hasattr(obj, "state_dict") and callable(obj.state_dict):
-            obj = obj.state_dict()
-    if isinstance(obj, dict):
-        for k in ("state_dict", "model_state_dict", "model", "net"):
-            if k in obj and isinstance(obj[k], dict) and not hasattr(obj[k], "shape"):
-                obj = obj[k]
-                break
-    if not isinstance(obj, dict):
-        raise ExportError("%s: does not contain a state_dict (got %s)" % (path, type(obj).__name__))
+            raise ExportError("%s: %s (torch.load: %s)" % (path, _damage(path, e), e))
+    obj = _select_entry(obj, path, entry)
     sd = collections.OrderedDict()
     for k, v in obj.items():
-        if not hasattr(v, "shape"):
+        if not _is_tensor(v):
             continue
         sd[str(k)] = _to_numpy(v)
     def strip(d, p):
@@ -175,11 +251,18 @@ def load_state_dict(path, prefix=None):
     return sd
 
 
-def _damage(path):
+def _damage(path, error=None):
     """Why torch.load could not read ``path``, in words a user can act on."""
     size = os.path.getsize(path)
     if size == 0:
         return "the file is empty"
+    if isinstance(error, ImportError) or (isinstance(error, AttributeError)
+                                          and "Can't get attribute" in str(error)):
+        # The pickle names a class this Python cannot import (a whole module was saved, e.g.
+        # torch.save(model) of a tinycudann module, instead of its state_dict).
+        return ("the file pickles a Python object whose class cannot be imported here (%s): "
+                "save the model's state_dict instead, torch.save(model.state_dict(), FILE), and "
+                "export that" % (getattr(error, "name", None) or error))
     with open(path, "rb") as f:
         magic = f.read(4)
     if magic == b"PK\x03\x04":  # the zip container torch.save writes since PyTorch 1.6
@@ -255,8 +338,34 @@ class _Keys(object):
             layer["bias"], _ = self.take(bkey, (W.shape[0],))
         return layer, int(W.shape[0])
 
+    def copies(self, left):
+        """Prefixes P under which ``left`` repeats every used key with the same shape (P + key):
+        second copies of the network, such as an EMA kept beside the trained weights; {} unless
+        they explain every key left."""
+        found, rest = collections.OrderedDict(), list(left)
+        while rest and self.used:
+            key = rest[0]
+            prefix = next((key[:-len(u)] for u in self.used if key.endswith(u) and key != u), None)
+            if prefix is None:
+                return {}
+            copy = [prefix + u for u in self.used]
+            if any(c not in rest or np.shape(self.sd[c]) != np.shape(self.sd[u])
+                   for c, u in zip(copy, self.used)):
+                return {}
+            found[prefix] = copy
+            rest = [k for k in rest if k not in copy]
+        return found
+
     def check_all_used(self, layout):
         left = [k for k in self.sd if k not in self.used]
+        copies = self.copies(left)
+        if copies:
+            _note("%s: exported the %s keys %s; not the second cop%s of them under %s (an EMA? "
+                  "--prefix PREFIX exports one)"
+                  % (self.where, layout, ", ".join(repr(k) for k in self.used[:3])
+                     + (" ..." if len(self.used) > 3 else ""), "y" if len(copies) == 1 else "ies",
+                     ", ".join(repr(p) for p in copies)))
+            left = []
         if left:
             raise ExportError("%s: keys not part of the %s layout: %s (wrong layout, or use "
                               "--prefix to select a sub-module)"
@@ -565,14 +674,31 @@ def _generic(K, o):
 
 
 # ---------------------------------------------------------------------------- hash grids
-_TCNN_ENCODING_FIELDS = {"otype", "type", "n_levels", "n_features", "n_features_per_level",
-                         "log2_hashmap_size", "base_resolution", "per_level_scale",
-                         "interpolation", "hash", "stochastic_interpolation", "n_dims_to_encode"}
+# tiny-cuda-nn's configs, read as tiny-cuda-nn reads them (its JSON lookups take a default for
+# every absent field, compare names without regard to case and map aliases onto one class). What
+# changes the forward pass and this format has no counterpart for is refused by name.
+_TCNN_GRID_OTYPES = {"hashgrid": "hash", "grid": "hash", "densegrid": "dense",
+                     "tiledgrid": "tiled"}  # otype -> its default grid "type"
+_TCNN_GRID_TYPES = {"hash": "hash", "dense": "dense", "tiled": "tiled", "tile": "tiled"}
+_TCNN_HASHES = ("prime", "coherentprime", "reversedprime", "rng", "baseconvert")
+# Fields tiny-cuda-nn's grid reads. stochastic_interpolation only changes the backward pass
+# (training), so either value gives the same network.
+_TCNN_ENCODING_FIELDS = {"otype", "type", "n_levels", "n_features", "n_grid_features",
+                         "n_features_per_level", "log2_hashmap_size", "base_resolution",
+                         "per_level_scale", "interpolation", "hash", "stochastic_interpolation",
+                         "fixed_point_pos", "n_dims_to_encode"}
+# Fields its MLPs read; n_input_dims / n_output_dims are filled in by tiny-cuda-nn itself,
+# feedback_alignment (older releases) only changed training.
 _TCNN_NETWORK_FIELDS = {"otype", "activation", "output_activation", "n_neurons",
-                        "n_hidden_layers", "feedback_alignment"}
-# tiny-cuda-nn activation -> this format's layers (tcnn's Sine is sin(x): w0 = 1)
+                        "n_hidden_layers", "n_input_dims", "n_output_dims", "feedback_alignment"}
+# otype -> the MLP tiny-cuda-nn builds (src/network.cu): no otype means "MLP".
+_TCNN_NETWORKS = {"fullyfusedmlp": "FullyFusedMLP", "megakernelmlp": "FullyFusedMLP",
+                  "cutlassmlp": "CutlassMLP", "mlp": "CutlassMLP"}
+# tiny-cuda-nn activation -> this format's layers (tcnn's Sine is sin(x): w0 = 1; its SiLU is
+# x * sigmoid(x)). LeakyReLU, Exponential, Softplus and Squareplus have no layer here.
 _TCNN_ACTIVATIONS = {"none": [], "relu": [{"type": "relu"}], "sigmoid": [{"type": "sigmoid"}],
-                     "tanh": [{"type": "tanh"}], "sine": [{"type": "sine", "w0": 1.0}]}
+                     "tanh": [{"type": "tanh"}], "sine": [{"type": "sine", "w0": 1.0}],
+                     "silu": [{"type": "silu"}]}
 
 
 def _read_json_arg(text, what):
@@ -586,29 +712,76 @@ def _read_json_arg(text, what):
         raise ExportError("%s: cannot read %s: %s" % (text, what, e))
 
 
+def _tcnn_int(d, key, default, where, section):
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or v != int(v) or v < 0:
+        raise ExportError("%s: %s: %s is %r; it must be a non-negative integer"
+                          % (where, section, key, v))
+    return int(v)
+
+
+def _tcnn_bool(d, key, where, section):
+    v = d.get(key, False)
+    if not isinstance(v, bool):
+        raise ExportError("%s: %s: %s is %r; it must be true or false" % (where, section, key, v))
+    return v
+
+
 def _tcnn_hashgrid(enc, dims, where):
     """A HashGridSpec from tiny-cuda-nn's encoding config; unsupported options are named."""
+    if not isinstance(enc, dict):
+        raise ExportError("%s: 'encoding' must be an object" % where)
+    otype = enc.get("otype")
+    if otype is None or str(otype).lower() not in _TCNN_GRID_OTYPES:
+        raise ExportError("%s: encoding otype %r is not supported: only HashGrid (or Grid of "
+                          "type Hash) is%s" % (where, otype, "; without an otype tiny-cuda-nn "
+                                               "uses OneBlob" if otype is None else ""))
     extra = set(enc) - _TCNN_ENCODING_FIELDS
     if extra:
-        raise ExportError("%s: encoding: unknown or unsupported fields %s" % (where, sorted(extra)))
-    otype = str(enc.get("otype", ""))
-    grid_type = str(enc.get("type", "Hash"))
-    if otype.lower() not in ("hashgrid", "grid") or grid_type.lower() != "hash":
-        raise ExportError("%s: encoding otype %r (type %r) is not supported: only HashGrid (or Grid "
-                          "of type Hash) is; DenseGrid, TiledGrid and Composite encodings are not"
-                          % (where, otype, grid_type))
-    if str(enc.get("hash", "CoherentPrime")) != "CoherentPrime":
+        raise ExportError("%s: encoding: unknown or unsupported fields %s (tiny-cuda-nn's grid "
+                          "reads %s)" % (where, sorted(extra), ", ".join(sorted(_TCNN_ENCODING_FIELDS))))
+    grid_type = str(enc.get("type", _TCNN_GRID_OTYPES[str(otype).lower()]))
+    if _TCNN_GRID_TYPES.get(grid_type.lower()) != "hash":
+        raise ExportError("%s: encoding otype %r (type %r) is not supported: only HashGrid (or "
+                          "Grid of type Hash) is; dense and tiled grids are not"
+                          % (where, otype, enc.get("type", grid_type)))
+    hash_type = str(enc.get("hash", "CoherentPrime"))
+    if hash_type.lower() != "coherentprime":
         raise ExportError("%s: encoding hash %r is not supported (only CoherentPrime, tiny-cuda-nn's "
-                          "default)" % (where, enc["hash"]))
-    if "n_dims_to_encode" in enc and int(enc["n_dims_to_encode"]) != dims:
+                          "default)%s" % (where, enc["hash"], "" if hash_type.lower() in _TCNN_HASHES
+                                          else "; tiny-cuda-nn knows no such hash either"))
+    if _tcnn_bool(enc, "fixed_point_pos", where, "encoding"):
+        raise ExportError("%s: encoding fixed_point_pos true is not supported: it rounds the "
+                          "positions to fixed point before the lookup, which changes the "
+                          "encoding's values; false (tiny-cuda-nn's default) is" % where)
+    _tcnn_bool(enc, "stochastic_interpolation", where, "encoding")
+    if "n_dims_to_encode" in enc and _tcnn_int(enc, "n_dims_to_encode", 0, where, "encoding") != dims:
         raise ExportError("%s: encoding n_dims_to_encode %s: the hash grid must encode every input"
                           % (where, enc["n_dims_to_encode"]))
-    fields = {k: enc[k] for k in inr_hashgrid.HashGridSpec.FIELDS if k in enc}
-    if "n_features" in enc:
-        fields["n_levels"] = int(enc["n_features"]) // int(enc.get("n_features_per_level", 2))
-    if str(fields.get("interpolation", "Linear")).lower() == "nearest":
+    interpolation = str(enc.get("interpolation", "Linear")).lower()
+    if interpolation == "nearest":
         raise ExportError("%s: encoding interpolation Nearest is not supported (Linear, Smoothstep)"
                           % where)
+    fields = {"interpolation": interpolation}
+    for key, default in (("n_features_per_level", 2), ("log2_hashmap_size", 19),
+                         ("base_resolution", 16)):
+        fields[key] = _tcnn_int(enc, key, default, where, "encoding")
+    features = [k for k in ("n_features", "n_grid_features") if k in enc]
+    if features and "n_levels" in enc:
+        raise ExportError("%s: encoding gives both %s and n_levels: one determines the other, as "
+                          "tiny-cuda-nn says" % (where, features[0]))
+    if features:
+        n = _tcnn_int(enc, features[0], 0, where, "encoding")
+        if n % fields["n_features_per_level"]:
+            raise ExportError("%s: encoding %s %d is not a multiple of n_features_per_level %d"
+                              % (where, features[0], n, fields["n_features_per_level"]))
+        fields["n_levels"] = n // fields["n_features_per_level"]
+    else:
+        fields["n_levels"] = _tcnn_int(enc, "n_levels", 16, where, "encoding")
+    scale = enc.get("per_level_scale", 2.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+        raise ExportError("%s: encoding: per_level_scale is %r; it must be a number" % (where, scale))
+    fields["per_level_scale"] = float(scale)
     try:
         return inr_hashgrid.HashGridSpec(dims, **fields)
     except ValueError as e:
@@ -618,15 +791,14 @@ def _tcnn_hashgrid(enc, dims, where):
 def _tcnn_activation(name, field, where):
     key = str(name).lower()
     if key not in _TCNN_ACTIVATIONS:
-        raise ExportError("%s: network %s %r is not supported (ReLU, Sigmoid, Tanh, Sine, None)"
-                          % (where, field, name))
+        raise ExportError("%s: network %s %r is not supported (ReLU, Sigmoid, Tanh, Sine, SiLU, "
+                          "None)" % (where, field, name))
     return [dict(a) for a in _TCNN_ACTIVATIONS[key]]
 
 
-def _tcnn_mlp_shapes(net, fan_in, in_alignment, out_alignment):
+def _tcnn_mlp_shapes(width, hidden, fan_in, in_alignment, out_alignment):
     """[(out, in)] of tiny-cuda-nn's MLP weight matrices for a network input of fan_in, padded
-    to the alignments (16 for FullyFusedMLP; CutlassMLP's are smaller: the caller tries both)."""
-    width, hidden = int(net.get("n_neurons", 128)), int(net.get("n_hidden_layers", 5))
+    to the alignments (16 in tiny-cuda-nn today; older CutlassMLPs used 8: the caller tries both)."""
     pad = lambda n, a: (n + a - 1) // a * a  # noqa: E731
     if hidden == 0:
         return [(pad(1, out_alignment), pad(fan_in, in_alignment))]
@@ -634,79 +806,147 @@ def _tcnn_mlp_shapes(net, fan_in, in_alignment, out_alignment):
         [(pad(1, out_alignment), width)]
 
 
+def _tcnn_config(cfg, where):
+    """The encoding and network objects of a tiny-cuda-nn config, the network normalised:
+    (encoding, {"otype", "activation", "output_activation", "n_neurons", "n_hidden_layers"})."""
+    if not isinstance(cfg, dict) or "encoding" not in cfg or "network" not in cfg:
+        raise ExportError("%s: the config needs 'encoding' and 'network' objects" % where)
+    enc, net = cfg["encoding"], cfg["network"]
+    if not isinstance(net, dict):
+        raise ExportError("%s: 'network' must be an object" % where)
+    extra = set(net) - _TCNN_NETWORK_FIELDS
+    if extra:
+        raise ExportError("%s: network: unknown or unsupported fields %s (tiny-cuda-nn's MLPs "
+                          "read %s)" % (where, sorted(extra), ", ".join(sorted(_TCNN_NETWORK_FIELDS))))
+    otype = net.get("otype", "MLP")
+    if str(otype).lower() not in _TCNN_NETWORKS:
+        raise ExportError("%s: network otype %r is not supported (FullyFusedMLP or its alias "
+                          "MegakernelMLP, CutlassMLP or its alias MLP)" % (where, otype))
+    for holder, label in ((cfg, "config"), (net, "network")):
+        if "n_output_dims" in holder and holder["n_output_dims"] != 1:
+            raise ExportError("%s: %s n_output_dims is %r; INR Volume renders scalar fields "
+                              "(1 output)" % (where, label, holder["n_output_dims"]))
+    norm = {"otype": _TCNN_NETWORKS[str(otype).lower()],
+            "activation": _tcnn_activation(net.get("activation", "ReLU"), "activation", where),
+            "output_activation": _tcnn_activation(net.get("output_activation", "None"),
+                                                  "output_activation", where),
+            "n_neurons": _tcnn_int(net, "n_neurons", 128, where, "network"),
+            "n_hidden_layers": _tcnn_int(net, "n_hidden_layers", 5, where, "network")}
+    if norm["n_neurons"] < 1:
+        raise ExportError("%s: network n_neurons must be at least 1" % where)
+    return enc, norm
+
+
+def _tcnn_parameter_keys(K):
+    """The state_dict keys holding tiny-cuda-nn parameter vectors: 'params' (the module itself
+    was saved) or the least nested '*.params' keys (modules holding tcnn modules)."""
+    keys = [k for k in K.sd if k == "params" or k.endswith(".params")]
+    if "params" in keys:
+        return ["params"]
+    if not keys:
+        raise ExportError("%s: no tiny-cuda-nn parameters: expected key 'params' (a saved "
+                          "tcnn.NetworkWithInputEncoding) or '<name>.params' keys (modules holding "
+                          "tcnn.Encoding and tcnn.Network)%s" % (K.where, K._hint("params")))
+    depth = min(k.count(".") for k in keys)
+    top = [k for k in keys if k.count(".") == depth]
+    if len(top) > 2:
+        raise ExportError("%s: %d tiny-cuda-nn parameter vectors %s: choose the network's module "
+                          "with --prefix NAME." % (K.where, len(top), ", ".join(repr(k) for k in top)))
+    return top
+
+
 def _tcnn(K, o):
     where = o.tcnn_config or "tcnn"
+    if where.lstrip().startswith("{"):  # given inline: name the option, not the whole text
+        where = "--tcnn-config"
     if not o.tcnn_config:
         raise ExportError("the tcnn layout needs --tcnn-config CONFIG.json (the encoding and network "
                           "of the training config)")
     cfg = _read_json_arg(o.tcnn_config, "the tiny-cuda-nn config")
-    if "encoding" not in cfg or "network" not in cfg:
-        raise ExportError("%s: the config needs 'encoding' and 'network' objects" % where)
-    enc, net = cfg["encoding"], cfg["network"]
-    extra = set(net) - _TCNN_NETWORK_FIELDS
-    if extra:
-        raise ExportError("%s: network: unknown or unsupported fields %s" % (where, sorted(extra)))
-    if str(net.get("otype")) not in ("FullyFusedMLP", "CutlassMLP"):
-        raise ExportError("%s: network otype %r is not supported (FullyFusedMLP, CutlassMLP)"
-                          % (where, net.get("otype")))
-    hidden_act = _tcnn_activation(net.get("activation", "ReLU"), "activation", where)
-    out_act = _tcnn_activation(net.get("output_activation", "None"), "output_activation", where)
-    if K.has("params"):  # NetworkWithInputEncoding: network parameters, then the encoding's
-        flat = np.asarray(K._get("params"), np.float64).ravel()
-        split = None
-    elif K.has("network.params") and K.has("encoding.params"):
-        net_params = np.asarray(K._get("network.params"), np.float64).ravel()
-        enc_params = np.asarray(K._get("encoding.params"), np.float64).ravel()
-        flat, split = np.concatenate([net_params, enc_params]), net_params.size
-    else:
-        raise ExportError("%s: no tiny-cuda-nn parameters: expected key 'params' (a "
-                          "NetworkWithInputEncoding) or 'network.params' and 'encoding.params'%s"
-                          % (K.where, K._hint("params")))
-    dims_given = cfg.get("n_input_dims")
-    if dims_given is None and o.input_order:
+    enc, net = _tcnn_config(cfg, where)
+    # The number of inputs: the config's n_input_dims, else --input-order's, else the encoding's
+    # n_dims_to_encode, else whichever of 3 and 4 the parameter count fits.
+    dims_given = None
+    if "n_input_dims" in cfg:
+        dims_given = _tcnn_int(cfg, "n_input_dims", 0, where, "config")
+    elif o.input_order:
         dims_given = len(o.input_order.replace(",", " ").split())
-    candidates = []
-    for dims in ((int(dims_given),) if dims_given else (3, 4)):
+    elif isinstance(enc, dict) and "n_dims_to_encode" in enc:
+        dims_given = _tcnn_int(enc, "n_dims_to_encode", 0, where, "encoding")
+    layouts = []  # (dims, spec, MLP matrix shapes, MLP parameter count)
+    for dims in ((dims_given,) if dims_given else (3, 4)):
         spec = _tcnn_hashgrid(enc, dims, where)
         for in_alignment, out_alignment in ((16, 16), (8, 8), (8, 16), (16, 8)):
-            shapes = _tcnn_mlp_shapes(net, spec.n_output_dims, in_alignment, out_alignment)
+            shapes = _tcnn_mlp_shapes(net["n_neurons"], net["n_hidden_layers"],
+                                      spec.n_output_dims, in_alignment, out_alignment)
             n_net = sum(a * b for a, b in shapes)
-            if n_net + spec.entries * spec.n_features_per_level == flat.size and \
-                    (split is None or split == n_net) and \
-                    not any(c[1].dims == dims and c[3] == n_net for c in candidates):
-                candidates.append((dims, spec, shapes, n_net))
+            if not any(c[0] == dims and c[3] == n_net for c in layouts):
+                layouts.append((dims, spec, shapes, n_net))
+    keys = _tcnn_parameter_keys(K)
+    sizes = {k: int(np.prod(K.raw_shape(k))) for k in keys}
+    # One vector: tcnn.NetworkWithInputEncoding, the MLP's parameters first, then the grid's;
+    # the grid pads its output to the MLP's alignment with zeros. Two: a tcnn.Encoding and a
+    # tcnn.Network (told apart by their sizes); that Network reaches its alignment through an
+    # identity encoding that pads with ones, so the padded inputs' weights are a first-layer bias.
+    candidates = []  # (layout, network key, encoding key)
+    if len(keys) == 2:
+        for c in layouts:
+            n_enc = c[1].entries * c[1].n_features_per_level
+            for net_key, enc_key in (keys, keys[::-1]):
+                if (sizes[net_key], sizes[enc_key]) == (c[3], n_enc):
+                    candidates.append((c, net_key, enc_key))
+        if not candidates:  # not an encoding and a network: one may hold the whole network
+            keys = [k for k in keys if any(c[3] + c[1].entries * c[1].n_features_per_level
+                                           == sizes[k] for c in layouts)][:1] or keys[:1]
+    if len(keys) == 1:
+        candidates = [(c, keys[0], None) for c in layouts
+                      if c[3] + c[1].entries * c[1].n_features_per_level == sizes[keys[0]]]
     if not candidates:
-        raise ExportError("%s: %d parameters fit neither 3 nor 4 inputs with this config (a hash "
-                          "grid of %d levels over 3 inputs has %d table parameters); check "
+        spec3 = layouts[0][1]
+        raise ExportError("%s: %s parameters (%s) %s with this config (a "
+                          "hash grid of %d levels over %d inputs has %d table parameters); check "
                           "n_levels, log2_hashmap_size, base_resolution, per_level_scale, n_neurons "
                           "and n_hidden_layers against the training config"
-                          % (K.where, flat.size, _tcnn_hashgrid(enc, 3, where).n_levels,
-                             _tcnn_hashgrid(enc, 3, where).entries
-                             * _tcnn_hashgrid(enc, 3, where).n_features_per_level))
-    if len({c[0] for c in candidates}) > 1:  # every level hashed: 3 and 4 inputs fit alike
+                          % (K.where, " + ".join(str(sizes[k]) for k in keys),
+                             ", ".join(repr(k) for k in keys),
+                             "fit neither 3 nor 4 inputs" if not dims_given
+                             else "do not fit %d inputs" % dims_given,
+                             spec3.n_levels, spec3.dims, spec3.entries * spec3.n_features_per_level))
+    if len({c[0][0] for c in candidates}) > 1:  # every level hashed: 3 and 4 inputs fit alike
         raise ExportError("%s: the parameters fit 3 and 4 inputs alike; add \"n_input_dims\" to "
                           "the config (or give --input-order)" % where)
-    dims, spec, shapes, n_net = candidates[0]
-    if not np.all(np.isfinite(flat)):
-        raise ExportError("%s: the parameters contain NaN or Inf" % K.where)
-    K.tensors["encoding.table"] = flat[n_net:].reshape(spec.table_shape).astype(np.float16)
+    (dims, spec, shapes, n_net), net_key, enc_key = candidates[0]
+    if enc_key is None:
+        flat = np.asarray(K._get(net_key), np.float64).ravel()
+        net_params, table = flat[:n_net], flat[n_net:]
+    else:
+        net_params = np.asarray(K._get(net_key), np.float64).ravel()
+        table = np.asarray(K._get(enc_key), np.float64).ravel()
+    for key, values in ((net_key, net_params), (enc_key or net_key, table)):
+        if not np.all(np.isfinite(values)):
+            raise ExportError("%s: key %r contains NaN or Inf" % (K.where, key))
+    K.tensors["encoding.table"] = table.reshape(spec.table_shape).astype(np.float16)
     layers = [spec.to_layer("encoding.table")]
     at, fan_in = 0, spec.n_output_dims
     for i, (rows, cols) in enumerate(shapes):
-        W = flat[at:at + rows * cols].reshape(rows, cols)
+        W = net_params[at:at + rows * cols].reshape(rows, cols)
         at += rows * cols
         last = i + 1 == len(shapes)
-        # Padded inputs are zero (tiny-cuda-nn's grid pads its output with zeros): drop their
-        # columns; of the padded outputs only the first is the field.
-        W = W[:1 if last else rows, :fan_in]
-        name = "mlp.%d.weight" % i
-        K.tensors[name] = W.astype(np.float32)
-        layers.append({"type": "linear", "weight": name, "bias": None})
-        layers += out_act if last else [dict(a) for a in hidden_act]
-        fan_in = W.shape[0]
+        keep = 1 if last else rows  # of the padded outputs only the first is the field
+        layer = {"type": "linear", "weight": "mlp.%d.weight" % i, "bias": None}
+        if i == 0 and enc_key is not None and cols > fan_in:
+            layer["bias"] = "mlp.0.bias"
+            K.tensors["mlp.0.bias"] = W[:keep, fan_in:].sum(axis=1).astype(np.float32)
+        K.tensors[layer["weight"]] = W[:keep, :fan_in].astype(np.float32)
+        layers.append(layer)
+        layers += [dict(a) for a in (net["output_activation"] if last else net["activation"])]
+        fan_in = keep
     defaults = {"input_range": [0.0, 1.0],
                 "domain": {"input_range": [0.0, 1.0], "time_input_range": [0.0, 1.0]},
-                "_provenance": "tiny-cuda-nn %s + %s" % (enc.get("otype"), net.get("otype"))}
+                "_provenance": "tiny-cuda-nn %s + %s%s" % (
+                    enc.get("otype"), net["otype"],
+                    "" if enc_key is None else " (tcnn.Encoding %r, tcnn.Network %r)"
+                    % (enc_key, net_key))}
     return dims, layers, defaults
 
 
@@ -908,6 +1148,10 @@ def make_parser():
     ap.add_argument("input", help="PyTorch state_dict (.pth/.pt), .npz, or .npy (tcnn params)")
     ap.add_argument("output", help="INR Volume file to write (.inr)")
     ap.add_argument("--prefix", help="use only keys starting with this prefix (removed)")
+    ap.add_argument("--checkpoint-key", metavar="NAME",
+                    help="the checkpoint entry holding the state_dict to export (e.g. an EMA "
+                         "copy); default: state_dict, model_state_dict, model, net, network, or "
+                         "the only entry holding tensors")
     g = ap.add_argument_group("layout options")
     g.add_argument("--w0", type=float, default=30.0, help="sine frequency (hidden) [30]")
     g.add_argument("--first-w0", type=float, help="sine frequency of the first layer [--w0]")
@@ -986,7 +1230,7 @@ def export(opts):
     """Run one export described by parsed options; returns the output path."""
     if opts.first_w0 is None:
         opts.first_w0 = opts.w0
-    sd = load_state_dict(opts.input, opts.prefix)
+    sd = load_state_dict(opts.input, opts.prefix, opts.checkpoint_key)
     tensors, arch, defaults = convert(sd, opts.layout, opts, where=opts.input)
     domain = build_domain(opts, arch["input_dim"], defaults)
     output, vr = build_output(opts, defaults)

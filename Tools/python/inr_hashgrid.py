@@ -58,11 +58,15 @@ class HashGridSpec(object):
                             % interpolation)
         if problems:
             raise ValueError("; ".join(problems))
-        log2_scale = np.log2(np.float32(self.per_level_scale))
+        # log2 and exp2 correctly rounded to fp32 (evaluated in float64, then rounded), as the C++
+        # loader's std::log2 / std::exp2 of floats give them: numpy's own float32 exp2 is an ulp
+        # off at times, which at a fine level's scale moves positions by a visible fraction of a
+        # cell.
+        log2_scale = np.float32(np.log2(np.float64(np.float32(self.per_level_scale))))
         self.scales, self.resolutions, self.offsets, self.sizes = [], [], [], []
         offset = 0
         for level in range(self.n_levels):
-            scale = np.float32(np.exp2(np.float32(level) * log2_scale)
+            scale = np.float32(np.float32(np.exp2(np.float64(np.float32(level) * log2_scale)))
                                * np.float32(self.base_resolution) - np.float32(1.0))
             if not scale <= MAX_FINEST_SCALE:
                 raise ValueError("level %d has scale %g; at most 2^24 is supported: lower "

@@ -21,8 +21,14 @@ _ACTIVATIONS = {"relu": nn.ReLU, "sigmoid": nn.Sigmoid, "tanh": nn.Tanh, "silu":
 
 
 class HashGridEncoding(nn.Module):
-    def __init__(self, dims, **config):
+    """``exact_position``: each level's position x * scale + 0.5 rounded once to fp32, as
+    tiny-cuda-nn's fmaf (and this project's evaluators) compute it, by way of float64: for
+    references. Off, it is rounded twice in fp32 (cheaper on a GPU, for training and timing): an
+    ulp apart at times, which at a fine level's scale is a visible fraction of a cell."""
+
+    def __init__(self, dims, exact_position=False, **config):
         super().__init__()
+        self.exact_position = bool(exact_position)
         self.spec = inr_hashgrid.HashGridSpec(dims, **config)
         s = self.spec
         self.embeddings = nn.Parameter(torch.empty(s.entries, s.n_features_per_level).uniform_(-1e-4, 1e-4))
@@ -37,7 +43,10 @@ class HashGridEncoding(nn.Module):
         x = x.to(torch.float32)
         features = []
         for level in range(s.n_levels):
-            pos = x * float(s.scales[level]) + 0.5
+            if self.exact_position:  # fp32 x times fp32 scale plus 0.5 is exact in float64
+                pos = (x.double() * float(s.scales[level]) + 0.5).float()
+            else:
+                pos = x * float(s.scales[level]) + 0.5
             cell = torch.floor(pos)
             t = pos - cell
             if s.interpolation == "smoothstep":
