@@ -29,7 +29,7 @@
 #   bash Benchmarks/bench.sh evaluator --out "$OUT/evaluator" --before HEAD~1
 set -uo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-SUITES_DIR=$HERE/suites
+SUITES_DIR=${BENCH_SUITES_DIR:-$HERE/suites}  # (another folder: the door's own test)
 
 suite_names() { for f in "$SUITES_DIR"/*.sh; do basename "$f" .sh; done; }
 
@@ -116,6 +116,7 @@ export BENCH_GPU
 
 OUT_GIVEN=${out:-bench-results/$SUITE}
 if [ "$dry" = 1 ]; then
+  bench_target_list=$(bench_targets)  # (read once: the checks of every command use it)
   OUT=$(mktemp -d)
   BENCH_DRY_ROOT=$OUT
   bench_missing=$OUT/.missing
@@ -154,9 +155,15 @@ heading="bench.sh $SUITE at $(git log -1 --format='%h %s' 2> /dev/null | cut -c1
 device: $(bench_gpu_name); output: $OUT_GIVEN; build: $BUILD${BEFORE:+; before: $BEFORE in $BEFORE_BUILD}"
 if [ "$dry" = 1 ]; then sed 's/^/# /' <<< "$heading" >&3; else sed 's/^/== /' <<< "$heading"; fi
 
+# In a dry run the suites' display filters read logs no command wrote: they do nothing there
+# (grep stays: suites choose their models with it).
+bench_dry_filters() {
+  for tool in sed cut head tail tee tar cat sort uniq nvidia-smi; do eval "$tool() { :; }"; done
+}
+
 run_suite_part() {
   if [ "$dry" = 1 ]; then
-    ( "$@" ) > /dev/null 2>&1
+    ( bench_dry_filters; "$@" ) > /dev/null 2>&1
   else
     ( "$@" )
   fi

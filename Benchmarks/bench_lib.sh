@@ -42,15 +42,18 @@ bench_targets() {
   fi
   echo "$bench_target_list"
 }
-bench_is_target() { grep -qxF "$1" <<< "$(bench_targets)"; }
+bench_is_target() {
+  [ -n "${bench_target_list:-}" ] || bench_target_list=$(bench_targets)
+  [[ $'\n'"$bench_target_list"$'\n' == *$'\n'"$1"$'\n'* ]]
+}
 
-# A command as a shell would read it back: words quoted only where they need it.
+# A command as a shell would read it back, in bench_quoted: words quoted only where they need it.
 bench_quote() {
-  local w out=()
+  local w q out=()
   for w in "$@"; do
-    if [[ "$w" =~ ^[A-Za-z0-9_./:=,+@%^-]+$ ]]; then out+=("$w"); else out+=("$(printf %q "$w")"); fi
+    if [[ "$w" =~ ^[A-Za-z0-9_./:=,+@%^-]+$ ]]; then out+=("$w"); else printf -v q %q "$w"; out+=("$q"); fi
   done
-  echo "${out[*]}"
+  bench_quoted="${out[*]}"
 }
 
 # bench_check WORD...: in a dry run, says what in a command does not resolve (appended to
@@ -103,9 +106,8 @@ x() {
     while [[ "${words[$i]}" == *=* ]]; do i=$((i + 1)); done
   fi
   if [ "$DRY_RUN" = 1 ]; then
-    local shown
-    shown=$(bench_quote "$@")
-    echo "+ ${shown//$BENCH_DRY_ROOT/\$OUT}" >&3
+    bench_quote "$@"
+    echo "+ ${bench_quoted//$BENCH_DRY_ROOT/\$OUT}" >&3
     bench_check "${words[@]:$i}"
     return 0
   fi
@@ -113,7 +115,8 @@ x() {
   t0=$(date +%s%N)
   "$@"
   rc=$?
-  printf '%s\t%s\t%s\t%s\n' "$rc" "$(( ($(date +%s%N) - t0) / 1000000 ))" "$BENCH_STEP" "$(bench_quote "$@")" \
+  bench_quote "$@"
+  printf '%s\t%s\t%s\t%s\n' "$rc" "$(( ($(date +%s%N) - t0) / 1000000 ))" "$BENCH_STEP" "$bench_quoted" \
     >> "$OUT/steps.tsv"
   return $rc
 }
