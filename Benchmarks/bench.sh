@@ -130,8 +130,8 @@ else
 fi
 if [ -n "$build" ]; then BUILD=$build
 elif [ -n "$SUITE_DEFAULT_BUILD" ]; then BUILD=$SUITE_DEFAULT_BUILD
-elif [ "$BENCH_GPU" = 1 ]; then BUILD=build-bench
-else BUILD=build-bench-cpu; fi
+elif [ "$BENCH_GPU" = 1 ]; then BUILD="build-bench"
+else BUILD="build-bench-cpu"; fi
 BEFORE_SRC=${BEFORE_SRC:-/tmp/bench-before-src}
 BEFORE_BUILD=${BEFORE_BUILD:-/tmp/bench-before-build}
 export OUT BUILD BEFORE BEFORE_SRC BEFORE_BUILD

@@ -66,11 +66,11 @@ bench_check() {
     "$BUILD"/* | "${BEFORE_BUILD:-/nonexistent}"/* | */build*/bin/* | */Benchmarks/*_benchmark)
       base=$(basename "$prog")
       bench_is_target "$base" || problems+=("$base is no CMake target of this tree") ;;
-    */*) [ -e "$prog" ] || problems+=("$prog does not exist") ;;
     python3 | /usr/bin/python3 | pvpython | pvbatch | bash | "${PYTHON:-python3}")
       for a in "$@"; do
         case "$a" in -*) ;; *) [ -e "$a" ] || problems+=("$a does not exist"); break ;; esac
       done ;;
+    */*) [ -e "$prog" ] || problems+=("$prog does not exist") ;;
     cmake)
       local want=0
       for a in "$@"; do

@@ -6,7 +6,8 @@
 
 Reads OUT/steps.tsv (written by bench_lib.sh's x: exit status, milliseconds, step, command per
 line; a before run's in OUT/before/steps.tsv) and lists every file the suite wrote. The
-suite's own tables (--tables, paths relative to OUT) are copied into summary.md as they are.
+suite's own tables (--tables, paths relative to OUT; and the same under OUT/before/) are copied
+into summary.md as they are.
 summary.json:
     {"suite", "command", "commit", "before", "device", "started", "seconds", "status",
      "steps": [{"step", "command", "status", "seconds", "run"}],   run: "this" or "before"
@@ -58,7 +59,9 @@ def main():
     skip = {"summary.md", "summary.json"}
     files = sorted(os.path.relpath(os.path.join(d, f), a.out)
                    for d, _, fs in os.walk(a.out) for f in fs if f not in skip)
-    tables = [t for t in a.tables.split() if os.path.exists(os.path.join(a.out, t))]
+    # The suite's tables, and the same tables of a before run (OUT/before/) where it wrote them.
+    tables = [t for name in a.tables.split() for t in (name, os.path.join("before", name))
+              if os.path.exists(os.path.join(a.out, t))]
     summary = {"suite": a.suite, "command": a.command.strip(), "commit": commit, "before": a.before or None,
                "device": a.device, "started": a.started, "seconds": a.seconds, "status": a.status,
                "steps": steps, "tables": tables, "files": files}

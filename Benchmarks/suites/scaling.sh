@@ -127,6 +127,7 @@ suite_run() {
     done
   fi
   # The compositing needs numpy: the first interpreter with it.
+  [ "$DRY_RUN" = 1 ] && PYTHON=${PYTHON:-python3}
   if [ -z "${PYTHON:-}" ]; then
     for py in python3 /usr/bin/python3; do
       if "$py" -c "import numpy" 2> /dev/null; then PYTHON=$py; break; fi
