@@ -133,6 +133,53 @@ def small_share(r, rel, model, column="ours_queued_qps"):
     return f"{100 * small / full:.0f}%"
 
 
+def query_reduction_row(r):
+    orbit = "query-reduction-h100/orbit.csv"
+    gains = []
+    for m in ("ffn_mri_head", "siren_cylinder_vorticity"):
+        first = {mode: {x["step"]: float(x["psnr_volume"]) for x in r.rows(orbit, model=m, mode=mode, frame_in_step=1)}
+                 for mode in ("reproject", "no-reproject")}
+        steps = sorted(set(first["reproject"]) & set(first["no-reproject"]), key=int)
+        gains.append(statistics.mean(first["reproject"][k] - first["no-reproject"][k] for k in steps))
+    summary = "query-reduction-h100/summary.csv"
+    later = []
+    for m in ("ffn_mri_head", "siren_cylinder_vorticity"):
+        none = r.num(summary, "time_to_35", model=m, config="none")
+        for row in r.rows(summary, model=m):
+            if row["family"] in ("histogram", "stbn", "weighted") and row["time_to_35"]:
+                later.append(float(row["time_to_35"]) / none)
+    return (f"reprojection: +{min(gains):.1f} to +{max(gains):.1f} dB over the volume in the first frame after an orbit "
+            f"step (mean over the steps); ray budgeting reaches 35 dB {min(later):.2f}–{max(later):.2f}× later than none "
+            "(where it reaches it)")
+
+
+def interactive_row(r):
+    rel = "interactive_lod_cpu_ahead_load2.txt"
+    text = r.text(rel)
+
+    def medians(phase, lod):
+        values = [float(v) for v in re.findall(r"^\S+\s+" + re.escape(phase) + r"\s+" + lod + r"\s+\d+\s+([\d.]+)", text, re.M)]
+        if not values:
+            raise FigureError(f"results/{rel}: no {phase} rows with LOD {lod}")
+        return f"{min(values):.0f}–{max(values):.0f}"
+    return (f"medians: first visits of a time {medians('scrub-first-visit', 'on')} ms, time changes {medians('scrub-built', 'on')} ms, "
+            f"camera drags {medians('orbit', 'on')} ms (LOD off: {medians('orbit', 'off')} ms)")
+
+
+def first_gradient_frame_row(r):
+    def first_frames(rel):
+        out = {}
+        for m in ("siren_cylinder_vorticity", "ffn_mri_head", "coordnet_cylinder_u"):
+            out[m] = [float(x["seconds"]) for x in r.rows(rel, model=m, frame=1)]
+        return out
+    after = first_frames("issue33-h200-gradient-opacity-tti/curves.csv.gz")
+    before = first_frames("issue33-h100-gradient-opacity-tti/curves.csv.gz")
+    now = " / ".join(f"{min(v):.3f}" for v in after.values())
+    earlier = [t for v in before.values() for t in v]
+    return (f"the first frame of a render with gradient opacity, fastest estimator: {now} s (siren, ffn, coordnet; "
+            f"{min(earlier):.2f}–{max(earlier):.2f} s before the tangent autotuning moved out of it, H100)")
+
+
 H100_EVAL = "issue30-h100-rows-split/summary.csv"
 H200_EVAL = "issue30-h200-rows-split/summary.csv"
 CONSUMER_SECTION = ("Where a consumer's time goes",
@@ -358,6 +405,12 @@ FIGURES = [
            "H200", "5f0bca6", "2026-11-28",
            ("Gradient opacity: time to a clean image",
             "gradient-opacity-time-to-a-clean-image-and-the-first-frame-that-asks-for-gradients-issue-33")),
+    Figure("Query reduction, 1024², shipped TFs", query_reduction_row, "H100", "62142cc (rec.)", "2026-11-23",
+           ("Query reduction", "query-reduction-time-against-error-issue-11-items-25")),
+    Figure("Gradient opacity: the first frame that asks for gradients", first_gradient_frame_row,
+           "H200; before: H100", "5f0bca6; before e266dcf", "2026-11-28",
+           ("Gradient opacity: time to a clean image",
+            "gradient-opacity-time-to-a-clean-image-and-the-first-frame-that-asks-for-gradients-issue-33")),
     Figure("Four GPUs against one, 2048², shipped real models", scaling_row, "4× H100", "d0d3fee", "2026-11-27",
            ("Scaling on 4 GPUs", "scaling-on-4-gpus-pixel-shares-against-sample-shares-issue-31"),
            "the time to 40 dB is the renderer's own per-frame estimate, not measured against a reference image"),
@@ -377,6 +430,10 @@ FIGURES = [
     Figure("ParaView CPU camera drags, 1292×765, 2 cores, paper-size models", drags_row,
            "2-core dev box, quiet", "b8403a0 (plugin)", "2026-11-27",
            ("Camera drags on a quiet machine", "camera-drags-on-a-quiet-machine-issue-28")),
+    Figure("ParaView CPU interactive frames, 1280×768 (target ≤ 100 ms)", interactive_row,
+           "2-core dev box, load 2–4", "81b1e71 (rec.)", "2026-11-23",
+           ("First visits without a slice build",
+            "first-visits-without-a-slice-build-coarse-slices-built-ahead-inrinteractivemacrocellsahead")),
     Figure("Fresh time-change frames, SIREN", fresh_row, "2-core dev box", "ba3e2ed (rec.)", "2026-11-23",
            ("Fresh time-change frames", "fresh-time-change-frames-several-frames-at-a-lower-resolution-inrinteractivefreshframes")),
     Figure("CPU evaluator (Eigen fp32, 2 threads)", cpu_eval_row, "2-core dev box", "6d9df31 (rec.)", "2026-11-21",
@@ -395,18 +452,12 @@ UNBACKED = [
      "timed by hand; no log committed"),
     ("Convergence estimate (`--converge 41`) against the measured error", "within 0.1 dB on four shipped models",
      "no raw output of convergence_check.py committed"),
-    ("Query reduction, 1024², shipped TFs", "reprojection +13 to +15 dB; budgeting reaches 35 dB 1.09–2.6× later",
-     "results/query-reduction-h100/ holds it; no reader here yet"),
     ("ParaView on a GPU (pvpython, 1024², CUDA backend)", "time change → converged 1.19–1.45× the engine; Play 19.7–20.2 steps/s",
      "results/issue27-h100-paraview-budget/ holds the sessions; no reader here yet"),
     ("ParaView GUI, 2-core CPU, 960×600: longest render per step", "Apply 174 ms, time steps 163 / 166 ms",
      "no raw file committed (the run's logs stayed on the machine)"),
-    ("ParaView CPU interactive frames, 1280×768", "medians 87–96 / 83–103 / 75–95 ms",
-     "results/interactive_lod_cpu_ahead_load2.txt holds it; no reader here yet"),
     ("Value + gradient on the CPU evaluator", "max relative error 4.8e-5 … 4.8e-4; cost 2.2–4.4×",
      "printed by the CPU tests at the time; no log committed"),
-    ("Gradient opacity: the first frame that asks for gradients", "0.06 / 0.20 / 0.13 s (0.31–0.73 s before)",
-     "derived by hand from results/issue33-h200-gradient-opacity-tti/curves.csv.gz; no reader here yet"),
 ]
 
 
