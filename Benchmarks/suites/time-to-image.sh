@@ -30,6 +30,7 @@ suite_run() {
     models=${MODELS:-$TIME_TO_IMAGE_MODELS}
     gpu="$(bench_gpu_name | cut -d, -f1), 1024^2"
   fi
+  bench_gpu_name > "$OUT/gpu.txt"
   stamp "time to a clean image ($gpu)"
   # shellcheck disable=SC2086
   x "$BUILD/Benchmarks/query_reduction_benchmark" "${protocol[@]}" --configs "$configs" --out "$OUT" "$@" $models 2>&1 \
