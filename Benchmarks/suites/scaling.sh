@@ -134,8 +134,8 @@ suite_run() {
     done
     [ -n "${PYTHON:-}" ] || { echo "scaling: no python3 with numpy (set PYTHON)" >&2; return 2; }
   fi
-  for size in ${SIZES:-1024 2048}; do
-    size=${size//,/}
+  local sizes=${SIZES:-1024 2048}
+  for size in ${sizes//,/ }; do
     stamp "${size}x${size}"
     BENCH_STEP="${size}x${size}" scaling_at_size "$OUT/$size" "$size" "${models[@]}" > "$OUT/run_$size.log" 2>&1
     grep -E "^== |failed|FAILED" "$OUT/run_$size.log"
