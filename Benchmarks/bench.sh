@@ -6,9 +6,10 @@
 #   Benchmarks/bench.sh SUITE [options] [NAME=VALUE ...] [-- ARGS...]
 #
 # Options:
-#   --out DIR        where the results go (default bench-results/SUITE): the raw logs, CSV and
-#                    tables the suite writes, steps.tsv (every command with its exit status and
-#                    seconds) and summary.md / summary.json (one shape for every suite)
+#   --out DIR        where the results go (default bench-results/SUITE in the repository): the
+#                    raw logs, CSV and tables the suite writes, steps.tsv (every command with its
+#                    exit status and seconds) and summary.md / summary.json (one shape for every
+#                    suite)
 #   --before COMMIT  also builds COMMIT's tree beside this one (git archive, built in
 #                    $BEFORE_BUILD, default /tmp/bench-before-build, during this tree's build) and
 #                    measures it in the same run: the suite's own before steps where it has them,
@@ -23,12 +24,15 @@
 #                    check that each resolves: its programs are CMake targets of this tree, its
 #                    scripts and data files exist; exit status 1 where one does not
 #   NAME=VALUE       a suite's setting (bench.sh SUITE --help lists them)
-#   -- ARGS          passed to the suite (models, or extra arguments of its benchmark program)
+#   -- ARGS          passed to the suite (models, or extra arguments of its benchmark program);
+#                    the suites run from the repository root, so paths in ARGS are the root's
 #
 # On the GPU machine of a device call (the working tree in the current folder, $OUT returned):
 #   bash Benchmarks/bench.sh evaluator --out "$OUT/evaluator" --before HEAD~1
 set -uo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+CALLER_DIR=$PWD  # relative --out and --build are the caller's; the suites run from the repository root
+invocation="bench.sh $*"
 SUITES_DIR=${BENCH_SUITES_DIR:-$HERE/suites}  # (another folder: the door's own test)
 
 suite_names() { for f in "$SUITES_DIR"/*.sh; do basename "$f" .sh; done; }
@@ -99,6 +103,16 @@ for s in "${settings[@]}"; do
   fi
   export "${s?}"
 done
+
+# From the caller's folder, where that is not the repository root (suites run from the root).
+from_caller() {
+  case "$1" in
+    "" | /*) echo "$1" ;;
+    *) if [ "$CALLER_DIR" = "$(cd "$HERE/.." && pwd)" ]; then echo "$1"; else echo "$CALLER_DIR/$1"; fi ;;
+  esac
+}
+out=$(from_caller "$out")
+build=$(from_caller "$build")
 
 DRY_RUN=$dry
 export DRY_RUN
@@ -195,7 +209,7 @@ fi
 
 /usr/bin/python3 "$HERE/bench_summary.py" "$OUT" --suite "$SUITE" --status "$status" --started "$started" \
   --seconds "$(($(date +%s) - bench_start))" --device "$(bench_gpu_name)" --before "$BEFORE" \
-  --tables "${SUITE_TABLES:-}" --command "bench.sh $SUITE ${settings[*]} ${suite_args[*]}" \
+  --tables "${SUITE_TABLES:-}" --command "$invocation" \
   || { echo "bench.sh: the summary failed" >&2; status=1; }
 echo "== $SUITE: status $status; summary: $OUT_GIVEN/summary.md"
 exit "$status"
