@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
-"""Table of run_brick_scaling.sh: per image size and model, the single-GPU run against each split
+"""Table of the scaling suite (Benchmarks/bench.sh scaling): per image size and model, the single-GPU run against each split
 (pixels, samples, bricks) on N GPUs.
 
   brick_scaling_summary.py OUT [OUT...] MODEL.inr... [--csv FILE] [--plot FILE] [--target DB]
 
-Each OUT is one run_brick_scaling.sh output folder (one image size). Columns:
+Each OUT is one image size's output folder of the scaling suite (OUT/SIZE). Columns:
   ms/frame     median frame time of one GPU (the slowest part's)
   ms/picture   time per frame of the whole picture: a pixel or brick split's parts render one
                picture frame together, N sample shares N of them at once (ms/frame / N)

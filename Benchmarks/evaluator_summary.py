@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Joins what Benchmarks/run_evaluator_summary.sh measured in one run into Markdown tables (stdout)
+"""Joins what the evaluator suite (Benchmarks/bench.sh evaluator) measured in one run into Markdown tables (stdout)
 and summary.csv in the same folder:
   - per network: ours autotuned at 2^21 (ours.csv) and the configuration it chose (ours.txt's
     launch report), PyTorch fp16 eager (torch.csv) and torch.compile (torch_compile.csv) at the
