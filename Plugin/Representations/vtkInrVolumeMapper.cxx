@@ -25,6 +25,7 @@
 #include "InrEngineSlots.h"
 #include "InrFramebufferCompositor.h"
 #include "InrLevelOfDetail.h"
+#include "InrMapperReport.h"
 #include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
 
@@ -231,17 +232,16 @@ struct vtkInrVolumeMapper::Internals
   // valid and refused.
   InrEngines engines;
   InrEngineOptions options;
-  std::string backendInUse = "none (no model rendered yet)";
-  std::string macrocellsInUse;
-  std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
-  std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
-  bool shownCoarse = false;     // the last Render drew the coarse session's image
-  bool shownStandIn = false;    // ... on the stand-in of the network (InteractiveStandIn)
+  // What the panel shows (InrMapperReport.h): written as the render goes; Report refreshes its
+  // refinement figures from the engine, ReportEngineCounters its counters (joining the worker).
+  InrMapperReport report;
+  const InrMapperReport& Report(vtkInrVolumeMapper* self);
+  const InrMapperReport& ReportEngineCounters(vtkInrVolumeMapper* self, bool joinFine);
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool warnedLightsLeftOut = false;  // Shade's lights the engine left out: said once
   inr::RenderSession* Shown() const
   {
-    return this->shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()
+    return this->report.shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()
                                                              : this->engines.fine.session.get();
   }
 
@@ -307,7 +307,7 @@ struct vtkInrVolumeMapper::Internals
   void LaunchRefine();
   int ShownFrames() const
   {
-    return !this->shownCoarse && this->engines.FineRefining()
+    return !this->report.shownCoarse && this->engines.FineRefining()
       ? this->fineKept.frames
       : this->Shown() ? this->Shown()->accumulatedFrames() : 0;
   }
@@ -330,7 +330,6 @@ struct vtkInrVolumeMapper::Internals
   bool depthValid = false;
   bool warnedDepthSize = false;
   void CompositeDepth(vtkRenderer* ren, vtkVolume* vol);
-  inr::RefinementDriver::Step lastStep;
   InrFramebufferCompositor compositor;
   // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
   // says why) the image goes through host memory for the rest of the mapper's life.
@@ -368,8 +367,6 @@ struct vtkInrVolumeMapper::Internals
   void ObserveWindow(vtkRenderWindow* window);
   void StopObserving();
   static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
-  int imageWidth = 0, imageHeight = 0;
-  double lastRenderMs = 0.0;
 
   // For the INR_VOLUME_DEBUG report of what changed.
   bool haveLastScene = false;
@@ -380,7 +377,6 @@ struct vtkInrVolumeMapper::Internals
   // Sub-domain rendering under MPI (InrParallelRendering.h): this rank's place, the refinement
   // state reduced over all ranks after each render (what the getters report with several ranks).
   InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
-  InrParallelRendering::Refinement reduced;
   std::string rankInUse;  // appended to the backend description
   int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
   std::string localRankSource;
@@ -397,7 +393,6 @@ struct vtkInrVolumeMapper::Internals
       this->haveLocalRank = true;
     }
   }
-  std::string ranksInUse;  // one line per rank after each render (several ranks only)
   // With several ranks: this rank's pixel share (image-space split).
   void RankSettings(inr::RenderSettings& settings) const;
   // Reduces the refinement state over the ranks (ReduceRefinement) once per Render, on every exit
@@ -466,145 +461,124 @@ void vtkInrVolumeMapper::ResetAccumulation()
   }
 }
 
+// The panel's figures (InrMapperReport.h). The refinement figures are refreshed from the engine
+// whenever read: a reset, a property change or a finished job between renders shows at once.
+const InrMapperReport& vtkInrVolumeMapper::Internals::Report(vtkInrVolumeMapper* self)
+{
+  InrMapperReport& r = this->report;
+  r.ranks = this->ranks.count;
+  r.haveEngine = this->engines.fine.session != nullptr;
+  r.frames = this->ShownFrames();
+  // Without progressive refinement nothing renders again by itself: "stopped" from the start.
+  // A reduced interactive image is never the final one: a still render must follow. A
+  // refinement step running on the worker, or a first render put off: not converged yet.
+  r.localConverged = this->firstRender != FirstRender::PutOff &&
+    (!self->ProgressiveRefinement ||
+      (!this->lod.LastInteractive() && !this->engines.FineRefining() &&
+        this->engines.fine.refinement.converged()));
+  r.estimate = this->engines.FineRefining() ? this->fineKept.estimate
+                                            : this->engines.fine.refinement.estimate();
+  r.queryReductionInUse = this->engines.queryReductionInUse;
+  r.engineBuilds = this->engines.engineBuilds;
+  return r;
+}
+
+// The sessions' counters, once the worker's job on them is done: `joinFine` waits for a job on
+// the fine session only (the fine session's figures; the coarse ones may be on the worker),
+// else any job finishes first (both sessions' figures).
+const InrMapperReport& vtkInrVolumeMapper::Internals::ReportEngineCounters(
+  vtkInrVolumeMapper* self, bool joinFine)
+{
+  if (joinFine)
+  {
+    this->engines.JoinFineBuild();
+  }
+  else
+  {
+    this->engines.FinishBackgroundBuild();
+  }
+  InrMapperReport& r = this->report;
+  const auto& fine = this->engines.fine.session;
+  const auto& coarse = this->engines.coarse.session;
+  r.slicesBuilt = fine ? fine->macrocellInfo().slicesBuilt : 0;
+  r.engineOptions = fine ? InrDescribeSession(*fine) : "";
+  if (!joinFine)
+  {
+    r.interactiveSlicesBuilt = coarse ? coarse->macrocellInfo().slicesBuilt : 0;
+    r.interactiveEngineOptions = coarse ? InrDescribeSession(*coarse) : "";
+    // On the CPU the coarse session's evaluator is the switch to a stand-in (InrStandInSwitch),
+    // around the fine session's network.
+    const InrStandInSwitch* standIn = this->engines.StandIn();
+    const inr::FieldEvaluator* coarseNetwork =
+      coarse ? (standIn ? &standIn->Network() : &coarse->evaluator()) : nullptr;
+    r.sharesEvaluator = fine && coarse && &fine->evaluator() == coarseNetwork;
+  }
+  return this->Report(self);
+}
+
 int vtkInrVolumeMapper::GetAccumulatedFrames()
 {
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.frames;  // the fewest of all ranks
-  }
-  return this->Internal->ShownFrames();
+  return this->Internal->Report(this).Frames();
 }
 
 int vtkInrVolumeMapper::GetConverged()
 {
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.converged;  // every rank has converged
-  }
-  return this->GetLocalConverged();
+  return this->Internal->Report(this).Converged() ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLocalConverged()
 {
-  // Without progressive refinement nothing renders again by itself: "stopped" from the start.
-  // A reduced interactive image is never the final one: a still render must follow.
-  // A refinement step running on the worker: not converged yet.
-  const Internals& I = *this->Internal;
-  if (I.firstRender == Internals::FirstRender::PutOff)
-  {
-    return 0;  // the first render was put off: the refinement behaviour renders again
-  }
-  return !this->ProgressiveRefinement ||
-      (!I.lod.LastInteractive() && !I.engines.FineRefining() && I.engines.fine.refinement.converged())
-    ? 1
-    : 0;
+  return this->Internal->Report(this).localConverged ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderInteractive()
 {
-  return this->Internal->lod.LastInteractive() ? 1 : 0;
+  return this->Internal->report.interactive ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastImageWidth()
 {
-  return this->Internal->imageWidth;
+  return this->Internal->report.imageWidth;
 }
 
 int vtkInrVolumeMapper::GetLastImageHeight()
 {
-  return this->Internal->imageHeight;
+  return this->Internal->report.imageHeight;
 }
 
 double vtkInrVolumeMapper::GetLastRenderMilliseconds()
 {
-  return this->Internal->lastRenderMs;
+  return this->Internal->report.renderMs;
 }
 
 double vtkInrVolumeMapper::GetConvergenceEstimate()
 {
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.estimate;  // the lowest of all ranks
-  }
-  return this->Internal->engines.FineRefining() ? this->Internal->fineKept.estimate
-                                                : this->Internal->engines.fine.refinement.estimate();
+  return this->Internal->Report(this).Estimate();
 }
 
 std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
 {
-  if (std::isnan(db) || db == -std::numeric_limits<double>::infinity())
-  {
-    return "\u2014";  // not known yet: a covered pixel has a single sample
-  }
-  if (db == std::numeric_limits<double>::infinity())
-  {
-    return "no noise left";  // no covered pixel, or no variance
-  }
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.1f dB", db);
-  return text;
+  return InrFormatConvergenceEstimate(db);
 }
 
 const char* vtkInrVolumeMapper::GetConvergenceEstimateText()
 {
-  this->Internal->estimateText = FormatConvergenceEstimate(this->GetConvergenceEstimate());
-  return this->Internal->estimateText.c_str();
+  InrMapperReport& r = this->Internal->report;
+  r.estimateText = InrFormatConvergenceEstimate(this->Internal->Report(this).Estimate());
+  return r.estimateText.c_str();
 }
 
 const char* vtkInrVolumeMapper::GetRefinementState()
 {
-  Internals& I = *this->Internal;
-  std::ostringstream s;
-  const int frames = this->GetAccumulatedFrames();
-  const double estimate = this->GetConvergenceEstimate();
-  if (!I.engines.fine.session || frames == 0)
-  {
-    s << "\u2014 (nothing rendered yet)";
-  }
-  else if (I.lod.LastInteractive())
-  {
-    s << "interacting: reduced " << I.imageWidth << "x" << I.imageHeight << " image";
-  }
-  else if (!this->ProgressiveRefinement)
-  {
-    s << "one frame per render (Progressive Refinement off)";
-  }
-  else if (this->GetConverged())
-  {
-    if (this->ConvergenceTarget > 0.0 && estimate >= this->ConvergenceTarget)
-    {
-      s << "converged: " << frames << " frames, " << FormatConvergenceEstimate(estimate);
-    }
-    else
-    {
-      s << "stopped at " << frames << " frames (Maximum Frames " << this->MaximumFrames << ")";
-      if (std::isfinite(estimate))
-      {
-        s << ", " << FormatConvergenceEstimate(estimate);
-      }
-    }
-  }
-  else
-  {
-    s << "refining: " << frames << " frames";
-    if (std::isfinite(estimate))
-    {
-      s << ", " << FormatConvergenceEstimate(estimate);
-      if (this->ConvergenceTarget > 0.0)
-      {
-        char target[32];
-        std::snprintf(target, sizeof(target), " of %.0f dB", this->ConvergenceTarget);
-        s << target;
-      }
-    }
-  }
-  I.refinementState = s.str();
-  return I.refinementState.c_str();
+  InrMapperReport& r = this->Internal->report;
+  r.refinementState = InrDescribeRefinement(this->Internal->Report(this),
+    InrRefinementLimits{ this->ProgressiveRefinement != 0, this->ConvergenceTarget, this->MaximumFrames });
+  return r.refinementState.c_str();
 }
 
 const char* vtkInrVolumeMapper::GetBackendInUse()
 {
-  return this->Internal->backendInUse.c_str();
+  return this->Internal->report.backendInUse.c_str();
 }
 
 double* vtkInrVolumeMapper::GetBounds()
@@ -625,65 +599,47 @@ double* vtkInrVolumeMapper::GetBounds()
 
 const char* vtkInrVolumeMapper::GetRanksInUse()
 {
-  return this->Internal->ranksInUse.c_str();
+  return this->Internal->report.ranksInUse.c_str();
 }
 
 double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
 {
-  return this->Internal->lastStep.total.updateMs;
+  return this->Internal->report.step.total.updateMs;
 }
 
 int vtkInrVolumeMapper::GetSlicesBuilt()
 {
-  this->Internal->engines.JoinFineBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  return fine ? fine->macrocellInfo().slicesBuilt : 0;
+  return this->Internal->ReportEngineCounters(this, true).slicesBuilt;
 }
 
 int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
 {
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& coarse = this->Internal->engines.coarse.session;
-  return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
+  return this->Internal->ReportEngineCounters(this, false).interactiveSlicesBuilt;
 }
 
 const char* vtkInrVolumeMapper::GetEngineOptionsInUse()
 {
-  this->Internal->engines.JoinFineBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  this->Internal->engineOptionsText = fine ? InrDescribeSession(*fine) : "";
-  return this->Internal->engineOptionsText.c_str();
+  return this->Internal->ReportEngineCounters(this, true).engineOptions.c_str();
 }
 
 const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
 {
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& coarse = this->Internal->engines.coarse.session;
-  this->Internal->interactiveOptionsText = coarse ? InrDescribeSession(*coarse) : "";
-  return this->Internal->interactiveOptionsText.c_str();
+  return this->Internal->ReportEngineCounters(this, false).interactiveEngineOptions.c_str();
 }
 
 int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
 {
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  const auto& coarse = this->Internal->engines.coarse.session;
-  // On the CPU the coarse session's evaluator is the switch to a stand-in (InrStandInSwitch),
-  // around the fine session's network.
-  const InrStandInSwitch* standIn = this->Internal->engines.StandIn();
-  const inr::FieldEvaluator* coarseNetwork =
-    coarse ? (standIn ? &standIn->Network() : &coarse->evaluator()) : nullptr;
-  return fine && coarse && &fine->evaluator() == coarseNetwork ? 1 : 0;
+  return this->Internal->ReportEngineCounters(this, false).sharesEvaluator ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderStandIn()
 {
-  return this->Internal->shownStandIn ? 1 : 0;
+  return this->Internal->report.shownStandIn ? 1 : 0;
 }
 
 int vtkInrVolumeMapper::GetLastRenderCoarse()
 {
-  return this->Internal->shownCoarse ? 1 : 0;
+  return this->Internal->report.shownCoarse ? 1 : 0;
 }
 
 double vtkInrVolumeMapper::InteractiveFreshFrameScale(double scale, int fresh)
@@ -698,27 +654,27 @@ int vtkInrVolumeMapper::InteractiveFreshFrameCount(double scale, int fresh)
 
 int vtkInrVolumeMapper::GetEngineBuilds()
 {
-  return this->Internal->engines.engineBuilds;
+  return this->Internal->Report(this).engineBuilds;
 }
 
 double vtkInrVolumeMapper::GetLastQueries()
 {
-  return double(this->Internal->lastStep.total.totalQueries());
+  return double(this->Internal->report.step.total.totalQueries());
 }
 
 double vtkInrVolumeMapper::GetLastRays()
 {
-  return double(this->Internal->lastStep.total.rays);
+  return double(this->Internal->report.step.total.rays);
 }
 
 double vtkInrVolumeMapper::GetLastBudgetSkipped()
 {
-  return double(this->Internal->lastStep.total.budgetSkipped);
+  return double(this->Internal->report.step.total.budgetSkipped);
 }
 
 double vtkInrVolumeMapper::GetLastPruned()
 {
-  return double(this->Internal->lastStep.total.pruned);
+  return double(this->Internal->report.step.total.pruned);
 }
 
 // Options kept in Internals as asked: query reduction (validated when pushed into the engine, so
@@ -754,7 +710,7 @@ INR_STORED_OPTION(PruneFalloff, double, options.queryReduction.pruneFalloff, v,
 
 const char* vtkInrVolumeMapper::GetQueryReductionInUse()
 {
-  return this->Internal->engines.queryReductionInUse.c_str();
+  return this->Internal->Report(this).queryReductionInUse.c_str();
 }
 
 INR_STORED_OPTION(SkipBlock, int, options.macrocellsAsked.skipBlockCells, v,
@@ -777,7 +733,7 @@ INR_STORED_OPTION(PointsPerIteration, int, options.trackingAsked.pointsPerIterat
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()
 {
-  return this->Internal->macrocellsInUse.c_str();
+  return this->Internal->report.macrocellsInUse.c_str();
 }
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
@@ -1040,7 +996,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   I.engines.UseStandIn(drawStandIn);
   const bool refined = I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background);
   I.engines.UseStandIn(false);
-  I.shownStandIn = drawStandIn && refined;
+  I.report.shownStandIn = drawStandIn && refined;
   if (!refined)
   {
     return;
@@ -1061,26 +1017,27 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     glFinish();
   }
   const double compositeMs = msSince(compositeStart);
-  I.lastRenderMs = msSince(renderStart);
+  I.report.renderMs = msSince(renderStart);
   I.lod.Drew(interactive);
+  I.report.interactive = interactive;
   I.lodStandIn.Drew(interactive);
   I.renderedInWindow = true;
-  I.imageWidth = width;
-  I.imageHeight = height;
+  I.report.imageWidth = width;
+  I.report.imageHeight = height;
   if (background)
   {
     // The step's frames were rendered on the worker: its own time is the engine's part; this
     // render's time outside its refinement part (which holds the wait for the step) is the
     // render's fixed cost.
-    const double engineMs = I.lastStep.total.totalMs;
-    I.lod.MeasureFrame(std::max(0.0, I.lastRenderMs - refineMs) + engineMs,
-      engineMs, I.lastStep.total.updateMs, I.lastStep.framesRendered, width, height, false);
+    const double engineMs = I.report.step.total.totalMs;
+    I.lod.MeasureFrame(std::max(0.0, I.report.renderMs - refineMs) + engineMs,
+      engineMs, I.report.step.total.updateMs, I.report.step.framesRendered, width, height, false);
   }
   else
   {
     (drawStandIn ? I.lodStandIn : I.lod)
-      .MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
-        I.lastStep.framesRendered, width, height, interactive);
+      .MeasureFrame(I.report.renderMs, refineMs, I.report.step.total.updateMs,
+        I.report.step.framesRendered, width, height, interactive);
   }
   if (lodReport())
   {
@@ -1089,7 +1046,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     {
       char step[160];
       std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
-        I.keepImage ? "image kept" : "image drawn", I.lastStep.framesRendered, I.lastStep.total.totalMs);
+        I.keepImage ? "image kept" : "image drawn", I.report.step.framesRendered, I.report.step.total.totalMs);
       worker = step;
     }
     std::fprintf(stderr,
@@ -1097,7 +1054,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
       "%.1f ms), frames %d%s%s\n",
       interactive ? "interactive" : "still", width, height, tile.width, tile.height,
-      double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
+      double(width) / tile.width, I.report.renderMs, d.budgetMs, I.report.step.total.updateMs,
       std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
       I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
       useCoarse ? (drawStandIn ? ", coarse macrocells, stand-in" : ", coarse macrocells") : "",
@@ -1290,8 +1247,8 @@ void vtkInrVolumeMapper::Internals::OnWindowEvent(
   }
   if (event == vtkCommand::EndEvent && self->renderedInWindow)
   {
-    self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
-    self->lodStandIn.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
+    self->lod.WindowRendered(msSince(self->windowStart), self->report.renderMs, self->aheadMs);
+    self->lodStandIn.WindowRendered(msSince(self->windowStart), self->report.renderMs, self->aheadMs);
     const double after = msSince(self->framesEnd);
     self->afterMs = self->afterMs > 0.0 ? 0.5 * (self->afterMs + after) : after;
     self->renderedInWindow = false;
@@ -1388,9 +1345,9 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   }
   if (!this->engines.FineBusy())
   {
-    this->backendInUse = f.session->description() +
+    this->report.backendInUse = f.session->description() +
       (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
-    this->macrocellsInUse = InrDescribeMacrocells(*f.session);
+    this->report.macrocellsInUse = InrDescribeMacrocells(*f.session);
   }
   return true;
 }
@@ -1565,7 +1522,7 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 bool vtkInrVolumeMapper::Internals::RefineInBackground(
   vtkInrVolumeMapper*, const inr::RenderScene& scene, const inr::RenderSettings& settings)
 {
-  this->lastStep = inr::RefinementDriver::Step{};
+  this->report.step = inr::RefinementDriver::Step{};
   if (this->engines.FineRefining() || this->engines.CoarseBusy())
   {
     const auto start = Clock::now();
@@ -1586,7 +1543,7 @@ bool vtkInrVolumeMapper::Internals::RefineInBackground(
     }
     this->engines.JoinBackgroundBuild();
   }
-  this->lastStep = this->engines.TakeRefineStep();
+  this->report.step = this->engines.TakeRefineStep();
   return true;
 }
 
@@ -1599,7 +1556,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   // The session drawing this render: the fine one, or the coarse one for a time-change
   // interactive frame.
   InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
-  this->shownCoarse = useCoarse;
+  this->report.shownCoarse = useCoarse;
   this->keepImage = false;
   this->startRefine = false;
   inr::RenderSettings settings;
@@ -1671,17 +1628,17 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
       this->refinedEpoch = epoch;
       return true;
     }
-    this->lastStep = inr::RefinementDriver::Step{};
-    this->lastStep = refinement.advance(engine);
-    if (debug && this->lastStep.framesRendered > 0)
+    this->report.step = inr::RefinementDriver::Step{};
+    this->report.step = refinement.advance(engine);
+    if (debug && this->report.step.framesRendered > 0)
     {
       std::fprintf(stderr,
         "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d; %s: %.0f rays, "
         "%.0f pixels skipped, %.0f pruned\n",
-        engine.accumulatedFrames(), double(this->lastStep.total.totalQueries()),
-        this->lastStep.total.updateMs, int(refinement.converged()),
-        this->engines.queryReductionInUse.c_str(), double(this->lastStep.total.rays),
-        double(this->lastStep.total.budgetSkipped), double(this->lastStep.total.pruned));
+        engine.accumulatedFrames(), double(this->report.step.total.totalQueries()),
+        this->report.step.total.updateMs, int(refinement.converged()),
+        this->engines.queryReductionInUse.c_str(), double(this->report.step.total.rays),
+        double(this->report.step.total.budgetSkipped), double(this->report.step.total.pruned));
     }
     return true;
   }
@@ -1711,10 +1668,10 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   line << "rank " << this->ranks.rank << " of " << this->ranks.count << ": ";
   if (rendered)
   {
-    line << this->lastStep.total.totalQueries() << " queries in the last render, "
+    line << this->report.step.total.totalQueries() << " queries in the last render, "
          << this->ShownFrames() << " frames, "
          << (self->GetLocalConverged() ? "converged" : "refining") << "; "
-         << this->backendInUse;
+         << this->report.backendInUse;
   }
   else
   {
@@ -1722,7 +1679,7 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   }
   if (this->ranks.count < 2)
   {
-    this->ranksInUse = line.str();
+    this->report.ranksInUse = line.str();
     return;
   }
   // A rank that drew nothing (no model on its piece, a failed engine) neither holds back nor
@@ -1738,13 +1695,13 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   {
     all = InrParallelRendering::Refinement{ 0, 0, 0.0 };  // no rank drew anything
   }
-  this->reduced = all;
+  this->report.reduced = all;
   std::string text;
   for (const std::string& l : InrParallelRendering::GatherText(line.str()))
   {
     text += (text.empty() ? "" : "\n") + l;
   }
-  this->ranksInUse = text;
+  this->report.ranksInUse = text;
 }
 
 // Draws the accumulated image over what is in the framebuffer; the texture is loaded again only
@@ -1778,8 +1735,8 @@ void vtkInrVolumeMapper::Internals::Composite(
   // kept history already reaches the frame limit: upload on any new accumulation epoch too.
   const int epoch = shown.counters().accumulationResets + shown.counters().reprojections;
   if (this->compositor.NeedsUpload(window, width, height, frames,
-        this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch ||
-          this->shownCoarse != this->uploadedCoarse))
+        this->report.step.framesRendered > 0 || epoch != this->uploadedEpoch ||
+          this->report.shownCoarse != this->uploadedCoarse))
   {
     // A reduced (interactive) image is stretched over the viewport: filter it linearly.
     int viewport[2] = { width, height };
@@ -1815,7 +1772,7 @@ void vtkInrVolumeMapper::Internals::Composite(
       this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     }
     this->uploadedEpoch = epoch;
-    this->uploadedCoarse = this->shownCoarse;
+    this->uploadedCoarse = this->report.shownCoarse;
     this->uploadedWindow = window;
   }
   std::string error;
@@ -1839,7 +1796,7 @@ void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
   os << indent << "RefinementTimeBudget: " << this->RefinementTimeBudget << " ms\n";
   os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
-  os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
+  os << indent << "Macrocells in use: " << this->Internal->report.macrocellsInUse << "\n";
   os << indent << "Seed: " << this->Seed << "\n";
   os << indent << "InteractiveLevelOfDetail: " << this->InteractiveLevelOfDetail << "\n";
   os << indent << "InteractiveFrameTime: " << this->InteractiveFrameTime << " ms\n";
