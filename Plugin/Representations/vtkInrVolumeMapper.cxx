@@ -25,6 +25,7 @@
 #include "InrEngineSlots.h"
 #include "InrFramebufferCompositor.h"
 #include "InrLevelOfDetail.h"
+#include "InrMapperRanks.h"
 #include "InrMapperReport.h"
 #include "InrParallelRendering.h"
 #include "InrSceneTranslator.h"
@@ -89,63 +90,6 @@ bool insideDepthPeeling(vtkVolume* vol)
 bool debugReport()
 {
   return std::getenv("INR_VOLUME_DEBUG") != nullptr;
-}
-
-// Whether the renderer draws anything that can write depth before its volumes: a visible prop
-// with data (ParaView keeps empty actors visible, e.g. the selection's) that is neither a volume
-// nor a 2D overlay (those are drawn after the volumes).
-bool geometryDrawnBeforeVolumes(vtkRenderer* ren)
-{
-  vtkPropCollection* props = ren->GetViewProps();
-  vtkCollectionSimpleIterator it;
-  props->InitTraversal(it);
-  while (vtkProp* prop = props->GetNextProp(it))
-  {
-    if (!prop->GetVisibility() || vtkVolume::SafeDownCast(prop) || vtkActor2D::SafeDownCast(prop))
-    {
-      continue;
-    }
-    const double* bounds = prop->GetBounds();
-    if (!bounds || vtkMath::AreBoundsInitialized(bounds))
-    {
-      return true;  // no bounds (e.g. a widget): assume it draws
-    }
-  }
-  return false;
-}
-
-// The pixels of a width x height tile that the volume's box can cover (its corners projected,
-// two pixels wider for rounding); the whole tile when a corner lies at or behind the eye (its
-// projection says nothing), nothing when the volume has no bounds (no data on this rank).
-InrParallelRendering::PixelRect volumeRect(vtkRenderer* ren, vtkVolume* vol, int width, int height)
-{
-  const double* b = vol->GetBounds();
-  if (width <= 0 || height <= 0 || !b || !vtkMath::AreBoundsInitialized(b))
-  {
-    return {};
-  }
-  vtkMatrix4x4* m = ren->GetActiveCamera()->GetCompositeProjectionTransformMatrix(
-    double(width) / double(height), -1, 1);
-  double lo[2] = { std::numeric_limits<double>::max(), std::numeric_limits<double>::max() };
-  double hi[2] = { std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest() };
-  for (int k = 0; k < 8; ++k)
-  {
-    const double p[4] = { b[k & 1], b[2 + ((k >> 1) & 1)], b[4 + ((k >> 2) & 1)], 1.0 };
-    double q[4];
-    m->MultiplyPoint(p, q);
-    if (!(q[3] > 1e-9))
-    {
-      return { 0, 0, width, height };
-    }
-    const double x = (q[0] / q[3] + 1.0) * 0.5 * width, y = (q[1] / q[3] + 1.0) * 0.5 * height;
-    lo[0] = std::min(lo[0], x);
-    hi[0] = std::max(hi[0], x);
-    lo[1] = std::min(lo[1], y);
-    hi[1] = std::max(hi[1], y);
-  }
-  const auto clampTo = [](double v, int n) { return int(std::max(0.0, std::min(double(n), v))); };
-  return { clampTo(std::floor(lo[0]) - 2, width), clampTo(std::floor(lo[1]) - 2, height),
-    clampTo(std::ceil(hi[0]) + 2, width), clampTo(std::ceil(hi[1]) + 2, height) };
 }
 
 // A still render of the GUI waits this long for the worker's refinement step before it draws
@@ -328,8 +272,6 @@ struct vtkInrVolumeMapper::Internals
   // geometry drawn before the volume, under MPI of every rank (CompositeDepth).
   std::vector<float> depth;
   bool depthValid = false;
-  bool warnedDepthSize = false;
-  void CompositeDepth(vtkRenderer* ren, vtkVolume* vol);
   InrFramebufferCompositor compositor;
   // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
   // says why) the image goes through host memory for the rest of the mapper's life.
@@ -374,29 +316,11 @@ struct vtkInrVolumeMapper::Internals
 
   // Tiled rendering: where this render's image lies in the full picture (whole: fullWidth 0).
   inr::ImageWindow window;
-  // Sub-domain rendering under MPI (InrParallelRendering.h): this rank's place, the refinement
-  // state reduced over all ranks after each render (what the getters report with several ranks).
-  InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
-  std::string rankInUse;  // appended to the backend description
-  int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
-  std::string localRankSource;
-  int cudaDevices = -1;   // CUDA devices this process sees (-1: not counted yet)
-  bool haveLocalRank = false;
-  std::string rankNoteKey;  // the local rank and source rankInUse was written for
-  // Once per process life of the mapper: neither the node nor the rank changes. Asking MPI is
-  // collective, so Render calls it first thing, where every rank passes.
-  void LookUpLocalRank()
-  {
-    if (!this->haveLocalRank)
-    {
-      this->localRank = InrParallelRendering::NodeLocalRank(&this->localRankSource);
-      this->haveLocalRank = true;
-    }
-  }
-  // With several ranks: this rank's pixel share (image-space split).
-  void RankSettings(inr::RenderSettings& settings) const;
-  // Reduces the refinement state over the ranks (ReduceRefinement) once per Render, on every exit
-  // path: every rank must take part in the collective or the others wait forever.
+  // Sub-domain rendering under MPI (InrMapperRanks.h): this rank's device, pixel share and
+  // depth composite, and the refinement state reduced over all ranks after each render.
+  InrMapperRanks ranks;
+  // Reduces the refinement state over the ranks once per Render, on every exit path: every rank
+  // must take part in the collective or the others wait forever.
   void ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered);
   // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
   bool warnedTranslucent = false, warnedPeeling = false;
@@ -466,7 +390,7 @@ void vtkInrVolumeMapper::ResetAccumulation()
 const InrMapperReport& vtkInrVolumeMapper::Internals::Report(vtkInrVolumeMapper* self)
 {
   InrMapperReport& r = this->report;
-  r.ranks = this->ranks.count;
+  r.ranks = this->ranks.Ranks().count;
   r.haveEngine = this->engines.fine.session != nullptr;
   r.frames = this->ShownFrames();
   // Without progressive refinement nothing renders again by itself: "stopped" from the start.
@@ -879,8 +803,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   } reduction{ I, this };
   // The depth limit before anything can return: under MPI its composite is collective, and a
   // rank that draws nothing must still bring its geometry to the others' rays.
-  I.CompositeDepth(ren, vol);
-  I.LookUpLocalRank();
+  I.depthValid = I.ranks.CompositeDepth(ren, vol, I.depth);
+  I.ranks.LookUpLocalRank();
   if (insideDepthPeeling(vol))
   {
     // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
@@ -1168,7 +1092,7 @@ bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) 
   // refinement on. Never for a capture or a tile of a larger picture (they must draw now), and
   // once per mapper.
   return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
-    !self->Capturing && this->ranks.count <= 1;
+    !self->Capturing && this->ranks.Ranks().count <= 1;
 }
 
 bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
@@ -1201,7 +1125,7 @@ InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolu
   s.progressiveRefinement = self->ProgressiveRefinement != 0;
   s.capturing = self->Capturing;
   s.coarseAhead = self->InteractiveMacrocellsAhead != 0;
-  s.ranks = this->ranks.count;
+  s.ranks = this->ranks.Ranks().count;
   return s;
 }
 
@@ -1286,18 +1210,8 @@ InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self
   r.skipBlockCells = this->options.macrocellsValid.skipBlockCells;
   r.boundsPadding = this->options.macrocellsValid.boundsPadding;
   r.tracking = this->options.trackingValid;
-  // One GPU per rank: the rank's index on its node (LookUpLocalRank, at the start of the first
-  // Render) picks the device. Not looked up yet (PrepareRender before the first Render, which
-  // not every rank may reach): the launcher's environment, without the collective.
-  if (!this->haveLocalRank)
-  {
-    this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
-  }
-  if (this->cudaDevices < 0)
-  {
-    this->cudaDevices = inr::cudaDeviceCount();
-  }
-  const int device = InrParallelRendering::DeviceForLocalRank(this->localRank, this->cudaDevices);
+  // One GPU per rank: the rank's index on its node picks the device (InrMapperRanks).
+  const int device = this->ranks.CudaDevice();
   if (device >= 0)
   {
     r.cudaDevice = device;
@@ -1315,38 +1229,17 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
     return false;
   }
   const InrEngineSlot& f = this->engines.fine;
-  // Also when the local rank's source changed: the first Render asks MPI (LookUpLocalRank) after
-  // a PrepareRender may have built the sessions from the environment (same device under Open
-  // MPI, so no rebuild).
-  const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
   if (this->engines.Rebuilt())
   {
     this->haveDeferredFineBuild = false;  // a new session: its first build is deferred again
     this->haveFineScene = false;
   }
-  if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
-  {
-    this->rankNoteKey = rankKey;
-    this->rankInUse.clear();
-    if (this->ranks.count > 1 || this->localRank >= 0)
-    {
-      std::ostringstream note;
-      note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
-      if (this->localRank >= 0)
-      {
-        note << " (local rank " << this->localRank << " from " << this->localRankSource << ")";
-      }
-      if (f.session->backend() == inr::RenderBackend::Cuda)
-      {
-        note << ", CUDA device " << f.built.cudaDevice << " of " << this->cudaDevices;
-      }
-      this->rankInUse = note.str();
-    }
-  }
+  const std::string& rankNote = this->ranks.Note(this->engines.Rebuilt(),
+    f.session->backend() == inr::RenderBackend::Cuda, f.built.cudaDevice);
   if (!this->engines.FineBusy())
   {
     this->report.backendInUse = f.session->description() +
-      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
+      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + rankNote;
     this->report.macrocellsInUse = InrDescribeMacrocells(*f.session);
   }
   return true;
@@ -1398,81 +1291,6 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
       "intensity). Turn lights off or mend them in the view's Light Inspector.");
   }
   return scene;
-}
-
-// The depth that clips the rays, over the render tile. One process: the window's depth buffer
-// where geometry was drawn before the volume; without any the buffer holds only the clear value
-// (no limit) and the read, tens of ms per render on a software OpenGL, is skipped. Several ranks
-// (ParaView's distributed rendering): each rank's buffer holds only its own geometry, which IceT
-// composites after the volumes, so a rank's rays would pass another rank's surfaces; the limit is
-// the per-pixel minimum over all ranks' buffers (over the union of the volumes' rectangles: no
-// ray outside it meets the box). Whether to read is decided by all ranks together
-// (PlanDepthComposite) since the reduction is collective: a rank without geometry contributes
-// the clear value.
-void vtkInrVolumeMapper::Internals::CompositeDepth(vtkRenderer* ren, vtkVolume* vol)
-{
-  this->depthValid = false;
-  Viewport tile;
-  ren->GetTiledSizeAndOrigin(&tile.width, &tile.height, &tile.x0, &tile.y0);
-  const bool localGeometry = geometryDrawnBeforeVolumes(ren);
-  if (this->ranks.count < 2)
-  {
-    if (localGeometry && tile.width > 0 && tile.height > 0)
-    {
-      InrFramebufferCompositor::ReadDepth(
-        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
-      this->depthValid = true;
-    }
-    return;
-  }
-  const InrParallelRendering::DepthPlan plan = InrParallelRendering::PlanDepthComposite(
-    localGeometry, tile.width, tile.height, volumeRect(ren, vol, tile.width, tile.height));
-  if (!plan.anyGeometry || tile.width <= 0 || tile.height <= 0)
-  {
-    return;
-  }
-  if (!plan.sameSize)
-  {
-    // Not seen with ParaView (every rank renders the same view); each rank keeps its own depth.
-    if (!this->warnedDepthSize)
-    {
-      std::cerr << "INR Volume: the ranks' render sizes differ: each rank clips its rays by its "
-                   "own geometry only\n";
-      this->warnedDepthSize = true;
-    }
-    if (localGeometry)
-    {
-      InrFramebufferCompositor::ReadDepth(
-        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
-      this->depthValid = true;
-    }
-    return;
-  }
-  const InrParallelRendering::PixelRect r = plan.rect;
-  const int rw = std::max(0, r.x1 - r.x0), rh = std::max(0, r.y1 - r.y0);
-  std::vector<float> part;
-  if (localGeometry && rw > 0 && rh > 0)
-  {
-    InrFramebufferCompositor::ReadDepth(
-      ren->GetRenderWindow(), tile.x0 + r.x0, tile.y0 + r.y0, rw, rh, part);
-  }
-  else
-  {
-    part.assign(std::size_t(rw) * std::size_t(rh), 1.0f);  // the clear value: no geometry here
-  }
-  InrParallelRendering::MinOverRanks(part);
-  this->depth.assign(std::size_t(tile.width) * std::size_t(tile.height), 1.0f);
-  for (int j = 0; j < rh; ++j)
-  {
-    std::copy_n(part.begin() + std::ptrdiff_t(j) * rw, rw,
-      this->depth.begin() + std::ptrdiff_t(r.y0 + j) * tile.width + r.x0);
-  }
-  this->depthValid = true;
-  if (debugReport())
-  {
-    std::cerr << "INR Volume: rank " << this->ranks.rank << " depth composite over " << rw << "x"
-              << rh << " pixels (own geometry " << (localGeometry ? "yes" : "no") << ")\n";
-  }
 }
 
 // Once per mapper: translucent polygonal geometry in the renderer (VTK draws it before volumes
@@ -1564,7 +1382,7 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   settings.height = height;
   settings.seed = static_cast<std::uint32_t>(self->Seed);
   settings.window = this->window;
-  this->RankSettings(settings);
+  this->ranks.Share(settings);
   if (background && !this->RefineInBackground(self, scene, settings))
   {
     return true;  // the worker is busy: this render draws the image it has
@@ -1649,59 +1467,21 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   }
 }
 
-// With several ranks, the image-space split: rank r of N traces the pixels (x + y) mod N = r of
-// the picture at full depth (RenderSettings::pixelShare) with the same seed as one rank would,
-// so the ranks' premultiplied images add up to the single-rank image (IceT blends them; disjoint
-// pixels blend the same in any order).
-void vtkInrVolumeMapper::Internals::RankSettings(inr::RenderSettings& settings) const
-{
-  if (this->ranks.count > 1)
-  {
-    settings.pixelShare = inr::PixelShare{ this->ranks.rank, this->ranks.count };
-  }
-}
-
+// What this rank did, reduced over the ranks (InrMapperRanks::Reduce).
 void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered)
 {
-  // What every rank did (GetRanksInUse): how a user checks that all of them render.
-  std::ostringstream line;
-  line << "rank " << this->ranks.rank << " of " << this->ranks.count << ": ";
+  InrMapperRanks::Local local;
+  local.rendered = rendered;
   if (rendered)
   {
-    line << this->report.step.total.totalQueries() << " queries in the last render, "
-         << this->ShownFrames() << " frames, "
-         << (self->GetLocalConverged() ? "converged" : "refining") << "; "
-         << this->report.backendInUse;
+    local.queries = this->report.step.total.totalQueries();
+    local.shownFrames = this->ShownFrames();
+    local.frames = this->Shown() ? this->Shown()->accumulatedFrames() : std::numeric_limits<int>::max();
+    local.converged = self->GetLocalConverged() != 0;
+    local.estimate = this->engines.fine.refinement.estimate();
+    local.backend = this->report.backendInUse;
   }
-  else
-  {
-    line << "nothing drawn in the last render";
-  }
-  if (this->ranks.count < 2)
-  {
-    this->report.ranksInUse = line.str();
-    return;
-  }
-  // A rank that drew nothing (no model on its piece, a failed engine) neither holds back nor
-  // speeds up the others: it reports "converged", the most frames and the highest estimate.
-  InrParallelRendering::Refinement local;
-  local.converged = rendered ? self->GetLocalConverged() : 1;
-  local.frames = rendered && this->Shown() ? this->Shown()->accumulatedFrames()
-                                           : std::numeric_limits<int>::max();
-  local.estimate =
-    rendered ? this->engines.fine.refinement.estimate() : std::numeric_limits<double>::infinity();
-  InrParallelRendering::Refinement all = InrParallelRendering::ReduceRefinement(local);
-  if (all.frames == std::numeric_limits<int>::max())
-  {
-    all = InrParallelRendering::Refinement{ 0, 0, 0.0 };  // no rank drew anything
-  }
-  this->report.reduced = all;
-  std::string text;
-  for (const std::string& l : InrParallelRendering::GatherText(line.str()))
-  {
-    text += (text.empty() ? "" : "\n") + l;
-  }
-  this->report.ranksInUse = text;
+  this->ranks.Reduce(local, this->report);
 }
 
 // Draws the accumulated image over what is in the framebuffer; the texture is loaded again only
