@@ -92,11 +92,6 @@ bool debugReport()
   return std::getenv("INR_VOLUME_DEBUG") != nullptr;
 }
 
-// A still render of the GUI waits this long for the worker's refinement step before it draws
-// the image it has (the GUI's own refinement loop renders once the step is done:
-// GetBackgroundWorkRunning; other renders, e.g. a property change, find it running).
-constexpr double kRefineWaitMs = 30.0;
-
 // CPU time of the whole process (all its threads), ms: logged beside the engine's wall time
 // (INR_VOLUME_LOD_LOG) to see how much of a frame's time a loaded machine adds.
 double processCpuMs()
@@ -175,6 +170,7 @@ struct vtkInrVolumeMapper::Internals
   // and drags with Reproject on), built from one request (InrEngineSlots.h); the options as asked,
   // valid and refused.
   InrEngines engines;
+  InrBackgroundWorker& worker = engines.worker;
   InrEngineOptions options;
   // What the panel shows (InrMapperReport.h): written as the render goes; Report refreshes its
   // refinement figures from the engine, ReportEngineCounters its counters (joining the worker).
@@ -214,45 +210,20 @@ struct vtkInrVolumeMapper::Internals
   {
     this->aheadMs += this->engines.BuildCoarseAhead(self->InteractiveMacrocellResolution, lodReport());
   }
-  // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
-  // (PrepareRender, background builds on) while renders draw reduced frames of the coarse
-  // session, so the event loop never waits seconds for them.
-  // In the GUI the build is only marked here (fineBuildPending) and starts on the worker once
-  // the render has drawn its reduced coarse frame: that frame does not share the CPU with it.
-  bool StartFineBuild(vtkInrVolumeMapper* self, double time);
-  bool fineBuildPending = false;
-  bool haveDeferredFineBuild = false;
-  double fineBuildTime = 0.0;  // the time of the last deferred build
   // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
   // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
   bool BuildsInBackground(vtkInrVolumeMapper* self) const;
   // Whether this render is the GUI's first of this mapper, put off to the next one
   // (firstRender).
   bool DefersFirstRender(vtkInrVolumeMapper* self) const;
-  // The GUI's still renders of the fine session refine it on that worker too, one refinement
-  // step at a time (InrEngines::StartFineRefine): a render joins a finished step, hands the
-  // scene over, draws the image so far and starts the next step, so no render waits for a whole
-  // full-resolution frame (on a CPU at ~1280x768 longer than the GUI may stall). A render that
-  // finds the step still running waits a little for it, then draws the image it has (keepImage).
-  // While the worker holds the fine session its state is read from what was kept (fineKept).
-  bool startRefine = false;  // this render starts a refinement step once it has drawn
-  bool keepImage = false;    // this render draws the texture as it is
-  bool haveFineScene = false;
-  int refinedEpoch = -1;  // the fine session's resets + reprojections when its step was started
-  inr::RenderScene fineScene;  // the scene last handed to the fine session
-  struct FineState
-  {
-    int frames = 0;
-    double estimate = -std::numeric_limits<double>::infinity();
-  } fineKept;
+  // The GUI's still renders of the fine session refine it on the worker, one refinement step at
+  // a time (InrBackgroundWorker.h); while the worker holds the fine session the panel reads what
+  // was kept of it.
   vtkOpenGLRenderWindow* uploadedWindow = nullptr;  // the window the texture was loaded for
-  bool RefineInBackground(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
-    const inr::RenderSettings& settings);
-  void LaunchRefine();
   int ShownFrames() const
   {
-    return !this->report.shownCoarse && this->engines.FineRefining()
-      ? this->fineKept.frames
+    return !this->report.shownCoarse && this->worker.FineRefining()
+      ? this->worker.KeptFrames()
       : this->Shown() ? this->Shown()->accumulatedFrames() : 0;
   }
 
@@ -352,7 +323,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
   { return progressHandler(this, prefix, muted); };
   // Frames measured while the worker shared the CPU were slower: a scale barred by them may be
   // tried again.
-  engines.joined = [this]()
+  engines.worker.joined = [this]()
   {
     this->Internal->lod.ForgetCeiling();
     this->Internal->lodStandIn.ForgetCeiling();
@@ -361,7 +332,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
-  this->Internal->engines.JoinBackgroundBuild();
+  this->Internal->worker.JoinBackgroundBuild();
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -374,7 +345,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  this->Internal->engines.JoinBackgroundBuild();
+  this->Internal->worker.JoinBackgroundBuild();
   for (InrEngineSlot* slot : { &this->Internal->engines.fine, &this->Internal->engines.coarse })
   {
     if (slot->session)
@@ -398,9 +369,9 @@ const InrMapperReport& vtkInrVolumeMapper::Internals::Report(vtkInrVolumeMapper*
   // refinement step running on the worker, or a first render put off: not converged yet.
   r.localConverged = this->firstRender != FirstRender::PutOff &&
     (!self->ProgressiveRefinement ||
-      (!this->lod.LastInteractive() && !this->engines.FineRefining() &&
+      (!this->lod.LastInteractive() && !this->worker.FineRefining() &&
         this->engines.fine.refinement.converged()));
-  r.estimate = this->engines.FineRefining() ? this->fineKept.estimate
+  r.estimate = this->worker.FineRefining() ? this->worker.KeptEstimate()
                                             : this->engines.fine.refinement.estimate();
   r.queryReductionInUse = this->engines.queryReductionInUse;
   r.engineBuilds = this->engines.engineBuilds;
@@ -415,11 +386,11 @@ const InrMapperReport& vtkInrVolumeMapper::Internals::ReportEngineCounters(
 {
   if (joinFine)
   {
-    this->engines.JoinFineBuild();
+    this->worker.JoinFineBuild();
   }
   else
   {
-    this->engines.FinishBackgroundBuild();
+    this->worker.FinishBackgroundBuild();
   }
   InrMapperReport& r = this->report;
   const auto& fine = this->engines.fine.session;
@@ -685,13 +656,13 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render puts it off
   }
-  if (I.engines.BuildDone())
+  if (I.worker.BuildDone())
   {
-    I.engines.FinishBackgroundBuild();  // finished on the worker: join it
-    if (lodReport() && I.engines.LastCoarseAheadMs() > 0.0)
+    I.worker.FinishBackgroundBuild();  // finished on the worker: join it
+    if (lodReport() && I.worker.LastCoarseAheadMs() > 0.0)
     {
       std::fprintf(stderr, "INR Volume LOD: interactive macrocell slices built ahead on a worker "
-                           "thread, %.1f ms\n", I.engines.LastCoarseAheadMs());
+                           "thread, %.1f ms\n", I.worker.LastCoarseAheadMs());
     }
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
@@ -705,11 +676,11 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render reports what is wrong
   }
-  if (I.engines.FineBuilding())
+  if (I.worker.FineBuilding())
   {
     // Still building on the worker: show how far (the render draws the coarse session).
     this->SetProgressText("INR Volume: building macrocells");
-    this->UpdateProgress(I.engines.FineBuildProgress());
+    this->UpdateProgress(I.worker.BuildProgress());
     this->SetProgressText(nullptr);
     return;
   }
@@ -726,18 +697,19 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     {
       I.engines.coarse.session->buildSlicesFor(time);
     }
-    else if (I.engines.FineRefining())
+    else if (I.worker.FineRefining())
     {
       // The worker holds the fine session for a refinement step: this render draws its image, or
       // a reduced coarse frame when the time moved (Render); the fine slices of the new time
       // build once the step is done.
-      if (I.haveFineScene && time != I.fineScene.time &&
+      if (I.worker.FineTimeDiffers(time) &&
         I.engines.UpdateCoarse(this->InteractiveMacrocellResolution))
       {
         I.engines.coarse.session->buildSlicesFor(time);
       }
     }
-    else if (!I.StartFineBuild(this, time))
+    else if (!I.worker.DeferFineBuild(
+               time, I.BuildsInBackground(this), this->InteractiveMacrocellResolution))
     {
       I.engines.fine.session->buildSlicesFor(time);
     }
@@ -746,7 +718,7 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     // The render's setScene meets the same failure and reports it.
   }
-  if (I.engines.FineBusy() || I.fineBuildPending)
+  if (I.worker.FineBusy() || I.worker.FineBuildPending())
   {
     return;
   }
@@ -759,10 +731,10 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     if (I.BuildsInBackground(this))
     {
-      if (I.engines.StartCoarseAhead(this->InteractiveMacrocellResolution))
+      if (I.worker.StartCoarseAhead(this->InteractiveMacrocellResolution))
       {
         this->SetProgressText("INR Volume (interactive macrocells): building macrocells");
-        this->UpdateProgress(I.engines.BuildProgress());
+        this->UpdateProgress(I.worker.BuildProgress());
         this->SetProgressText(nullptr);
       }
     }
@@ -873,9 +845,8 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   if (I.window.fullWidth == 0)
   {
     d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
-    const bool fineTimeOnWorker =
-      I.engines.FineRefining() && I.haveFineScene && scene.time != I.fineScene.time;
-    if ((I.engines.FineBuilding() || I.fineBuildPending || fineTimeOnWorker) && !d.interactive &&
+    const bool fineTimeOnWorker = I.worker.FineTimeDiffers(scene.time);
+    if ((I.worker.FineBuilding() || I.worker.FineBuildPending() || fineTimeOnWorker) && !d.interactive &&
       !this->Capturing)
     {
       // The fine slices of this time are still building on the worker (or will, once its
@@ -912,9 +883,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // fits at full resolution renders its one frame here (it must show the new camera at once).
   const bool background = !interactive && !useCoarse && !I.cameraInteraction &&
     I.window.fullWidth == 0 && I.BuildsInBackground(this);
-  if (I.engines.FineBusy() && !useCoarse && !(background && I.engines.FineRefining()))
+  if (I.worker.FineBusy() && !useCoarse && !(background && I.worker.FineRefining()))
   {
-    I.engines.JoinFineBuild();  // this frame needs the fine session: wait for the worker
+    I.worker.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
   const bool drawStandIn = standIn && useCoarse;
   I.engines.UseStandIn(drawStandIn);
@@ -925,9 +896,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
-  if (!useCoarse && !background && I.haveFineScene)
+  if (!useCoarse && !background && I.worker.HasFineScene())
   {
-    I.engines.KeepStandIn(I.fineScene.time);  // a frame of the fine session was rendered here
+    I.engines.KeepStandIn(I.worker.FineSceneTime());  // a frame of the fine session was rendered here
   }
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
@@ -970,7 +941,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     {
       char step[160];
       std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
-        I.keepImage ? "image kept" : "image drawn", I.report.step.framesRendered, I.report.step.total.totalMs);
+        I.worker.KeepsImage() ? "image kept" : "image drawn", I.report.step.framesRendered, I.report.step.total.totalMs);
       worker = step;
     }
     std::fprintf(stderr,
@@ -992,37 +963,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     I.BuildCoarseAhead(this);
   }
-  if (I.fineBuildPending)
-  {
-    // The reduced coarse frame is drawn: the fine slices of this time build on the worker now
-    // (InrEngines::StartFineBuild returns at once where they were built before).
-    I.fineBuildPending = false;
-    I.startRefine = false;
-    if (I.engines.fine.session && !I.engines.FineBusy())
-    {
-      I.engines.StartFineBuild(I.fineBuildTime);
-    }
-  }
-  I.LaunchRefine();
-}
-
-// Starts the refinement step this render prepared (startRefine), once its image has been read
-// (Composite) or nothing of the session is read any more: keeps what the getters read while the
-// worker holds the fine session.
-void vtkInrVolumeMapper::Internals::LaunchRefine()
-{
-  if (!this->startRefine)
-  {
-    return;
-  }
-  this->startRefine = false;
-  if (this->haveFineScene)
-  {
-    this->engines.KeepStandIn(this->fineScene.time);  // while the fine session is not the worker's
-  }
-  this->fineKept.frames = this->engines.fine.session->accumulatedFrames();
-  this->fineKept.estimate = this->engines.fine.refinement.estimate();
-  this->engines.StartFineRefine();
+  // The reduced coarse frame is drawn: a fine build put off for it starts on the worker now.
+  I.worker.StartPendingFineBuild();
+  I.worker.LaunchRefine();
 }
 
 void vtkInrVolumeMapper::MarkViewUpdate()
@@ -1075,7 +1018,7 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
 int vtkInrVolumeMapper::GetBackgroundWorkRunning()
 {
   const InrEngines& e = this->Internal->engines;
-  return (e.FineRefining() || e.CoarseBusy()) && !e.BuildDone() ? 1 : 0;
+  return (e.worker.FineRefining() || e.worker.CoarseBusy()) && !e.worker.BuildDone() ? 1 : 0;
 }
 
 bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self) const
@@ -1093,25 +1036,6 @@ bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) 
   // once per mapper.
   return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
     !self->Capturing && this->ranks.Ranks().count <= 1;
-}
-
-bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
-{
-  if (this->engines.FineBusy() || !this->BuildsInBackground(self) ||
-    !this->engines.UpdateCoarse(self->InteractiveMacrocellResolution))
-  {
-    return false;
-  }
-  if (this->haveDeferredFineBuild && this->fineBuildTime == time)
-  {
-    // Deferred once for this time already: the build ran (or returns at once): go on as without
-    // deferral, the render uses the fine session when it is done within a few ms.
-    return this->engines.StartFineBuild(time);
-  }
-  this->fineBuildPending = true;
-  this->haveDeferredFineBuild = true;
-  this->fineBuildTime = time;
-  return true;
 }
 
 InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
@@ -1231,12 +1155,11 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   const InrEngineSlot& f = this->engines.fine;
   if (this->engines.Rebuilt())
   {
-    this->haveDeferredFineBuild = false;  // a new session: its first build is deferred again
-    this->haveFineScene = false;
+    this->worker.SessionRebuilt();
   }
   const std::string& rankNote = this->ranks.Note(this->engines.Rebuilt(),
     f.session->backend() == inr::RenderBackend::Cuda, f.built.cudaDevice);
-  if (!this->engines.FineBusy())
+  if (!this->worker.FineBusy())
   {
     this->report.backendInUse = f.session->description() +
       (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + rankNote;
@@ -1332,39 +1255,6 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
   this->warnedCamera = ignored;
 }
 
-// A still render of the GUI, refining the fine session on the worker: waits a little for a
-// running job (a refinement step, or the coarse slices built ahead), joins it when it is done
-// (its frames become this render's image); false when it is still running and this render
-// changes nothing the fine session renders (the render then draws the image it has: keepImage).
-// A changed scene stops a build ahead (within a slice) or waits for the refinement step.
-bool vtkInrVolumeMapper::Internals::RefineInBackground(
-  vtkInrVolumeMapper*, const inr::RenderScene& scene, const inr::RenderSettings& settings)
-{
-  this->report.step = inr::RefinementDriver::Step{};
-  if (this->engines.FineRefining() || this->engines.CoarseBusy())
-  {
-    const auto start = Clock::now();
-    while (!this->engines.BuildDone() && msSince(start) < kRefineWaitMs)
-    {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    const InrEngineSlot& fine = this->engines.fine;
-    const inr::RenderSettings& held = fine.settings;
-    const bool changed = !this->haveFineScene || inr::diffScenes(&this->fineScene, scene).any() ||
-      !fine.haveSettings || settings.width != held.width || settings.height != held.height ||
-      settings.seed != held.seed || settings.window != held.window ||
-      settings.pixelShare != held.pixelShare;
-    if (!this->engines.BuildDone() && !changed)
-    {
-      this->keepImage = true;
-      return false;
-    }
-    this->engines.JoinBackgroundBuild();
-  }
-  this->report.step = this->engines.TakeRefineStep();
-  return true;
-}
-
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
@@ -1375,28 +1265,26 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   // interactive frame.
   InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
   this->report.shownCoarse = useCoarse;
-  this->keepImage = false;
-  this->startRefine = false;
+  this->worker.BeginRender();
   inr::RenderSettings settings;
   settings.width = width;
   settings.height = height;
   settings.seed = static_cast<std::uint32_t>(self->Seed);
   settings.window = this->window;
   this->ranks.Share(settings);
-  if (background && !this->RefineInBackground(self, scene, settings))
+  if (background && !this->worker.JoinRefineStep(scene, settings, this->report.step))
   {
     return true;  // the worker is busy: this render draws the image it has
   }
   if (!background)
   {
-    this->engines.TakeRefineStep();  // a step joined for this render: its frames are in the image
+    this->worker.TakeRefineStep();  // a step joined for this render: its frames are in the image
   }
   inr::RenderSession& engine = *slot.session;
   inr::RefinementDriver& refinement = slot.refinement;
   if (!useCoarse)
   {
-    this->fineScene = scene;
-    this->haveFineScene = true;
+    this->worker.HandedFineScene(scene);
   }
   try
   {
@@ -1439,11 +1327,9 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     refinement.setOptions(options);
     if (background)
     {
-      // The frames go to the worker once this render has drawn (Render: startRefine); this
-      // render shows the steps joined so far (lastStep, from RefineInBackground).
-      const int epoch = engine.counters().accumulationResets + engine.counters().reprojections;
-      this->startRefine = epoch != this->refinedEpoch || !refinement.converged(engine.accumulatedFrames());
-      this->refinedEpoch = epoch;
+      // The frames go to the worker once this render has drawn (Render: LaunchRefine); this
+      // render shows the steps joined so far (report.step, from JoinRefineStep).
+      this->worker.PlanRefineStep(engine, refinement);
       return true;
     }
     this->report.step = inr::RefinementDriver::Step{};
@@ -1494,9 +1380,10 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     return;
   }
-  // The worker holds the fine session (keepImage), or its first frame of a new image is still to
+  // The worker holds the fine session (KeepsImage), or its first frame of a new image is still to
   // come: the image on screen stays (the previous one, or the coarse one) rather than a blank view.
-  if (this->keepImage || (this->startRefine && this->engines.fine.session->accumulatedFrames() == 0))
+  if (this->worker.KeepsImage() ||
+    (this->worker.StartsRefine() && this->engines.fine.session->accumulatedFrames() == 0))
   {
     std::string error;
     if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
@@ -1548,7 +1435,7 @@ void vtkInrVolumeMapper::Internals::Composite(
       const inr::ImageRGBA image = shown.premultipliedImage();
       // The image is copied: the worker may take the session for the next step while this
       // render uploads and draws it.
-      this->LaunchRefine();
+      this->worker.LaunchRefine();
       this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     }
     this->uploadedEpoch = epoch;
