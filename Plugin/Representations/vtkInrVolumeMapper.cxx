@@ -28,6 +28,7 @@
 #include "InrMapperRanks.h"
 #include "InrMapperReport.h"
 #include "InrParallelRendering.h"
+#include "InrRenderDecision.h"
 #include "InrSceneTranslator.h"
 
 #include "Backends/Refinement.h"
@@ -192,14 +193,6 @@ struct vtkInrVolumeMapper::Internals
   // pixel than the network's frames, so its scale must not carry over to time changes and back.
   InrLevelOfDetail lodStandIn;
   InrLevelOfDetail::Settings LodSettings(vtkInrVolumeMapper* self) const;
-  // Whether this render, a camera drag (interactive, not a time change) of an on-screen view,
-  // may draw the stand-in of the network (InteractiveStandIn): it renders on the coarse session
-  // (Reproject on) and the stand-in for the time is ready (InrEngines::StandInReady).
-  bool StandInFor(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d, double time)
-  {
-    return self->InteractiveStandIn && this->window.fullWidth == 0 && !self->Capturing &&
-      d.interactive && !d.timeChange && this->RendersCoarse(self, d) && this->engines.StandInReady(time);
-  }
   // Whether a reduced interactive frame renders on the coarse session (creating it if needed).
   bool RendersCoarse(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d)
   {
@@ -247,7 +240,6 @@ struct vtkInrVolumeMapper::Internals
   // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
   // says why) the image goes through host memory for the rest of the mapper's life.
   InrCudaGlInterop interop;
-  bool cameraInteraction = false;  // this render was asked for by a camera interaction
   bool interopFailed = false;
   std::string imageTransfer;
 
@@ -304,9 +296,13 @@ struct vtkInrVolumeMapper::Internals
   bool UpdateEngine(vtkInrVolumeMapper* self);
   inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
     vtkDataSet* input, const Viewport& tile);
-  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
-    bool interactive = false, bool useCoarse = false, int interactiveFrames = 1,
-    bool background = false);
+  // This render's decision (Decide: InrRenderDecision with the mapper's state as its queries).
+  InrRenderDecision decision;
+  InrRenderDecision::Inputs DecisionInputs(
+    vtkInrVolumeMapper* self, vtkRenderer* ren, double time, const Viewport& tile);
+  InrRenderDecision Decide(vtkInrVolumeMapper* self, const InrRenderDecision::Inputs& in, double time);
+  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
+    const InrRenderDecision::Inputs& in);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
 };
 
@@ -838,58 +834,28 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const auto renderStart = Clock::now();
   I.ObserveWindow(ren->GetRenderWindow());
   inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
-  // Level of detail: an interactive render draws one frame of a reduced image, upscaled. Tiles of
-  // a larger picture are captures (still renders) and always render at full resolution.
-  const InrLevelOfDetail::Settings lod = I.LodSettings(this);
-  InrLevelOfDetail::Decision d;
-  if (I.window.fullWidth == 0)
-  {
-    d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
-    const bool fineTimeOnWorker = I.worker.FineTimeDiffers(scene.time);
-    if ((I.worker.FineBuilding() || I.worker.FineBuildPending() || fineTimeOnWorker) && !d.interactive &&
-      !this->Capturing)
-    {
-      // The fine slices of this time are still building on the worker (or will, once its
-      // refinement step is done): a reduced frame of the coarse session, as right after a time
-      // change (a fresh image).
-      d = InrLevelOfDetail::WhileFineBuilds(lod);
-    }
-  }
-  // A camera drag drawn on the stand-in of the network (InteractiveStandIn) has its own cost
-  // model, and stays on the stand-in even where its full resolution fits the budget.
-  const bool standIn = I.StandInFor(this, d, scene.time);
-  InrLevelOfDetail& lodModel = standIn ? I.lodStandIn : I.lod;
-  InrLevelOfDetail::Frame frame = lodModel.Plan(lod, d, tile.width, tile.height);
-  frame.interactive = frame.interactive || standIn;
-  // A camera interaction that fits at full resolution renders as a still frame, but one frame:
-  // the refinement time budget is for a view at rest (a drag frame would otherwise take it all).
-  I.cameraInteraction = d.interactive && !d.timeChange;
-  d.interactive = frame.interactive;
-  const bool interactive = frame.interactive;
-  const int width = frame.width, height = frame.height;
+  I.lastEngineBudgetMs = -1.0;
+  const auto refineStart = Clock::now();
+  const double refineCpuStart = processCpuMs();
+  // What this render does (InrRenderDecision.h): reduced or still, which session, on the worker.
+  const InrRenderDecision::Inputs in = I.DecisionInputs(this, ren, scene.time, tile);
+  I.decision = I.Decide(this, in, scene.time);
+  const InrRenderDecision& dec = I.decision;
+  const InrLevelOfDetail::Decision& d = dec.lod;
+  const bool interactive = dec.frame.interactive, useCoarse = dec.useCoarse;
+  const bool background = dec.background, drawStandIn = dec.drawStandIn;
+  const int width = dec.frame.width, height = dec.frame.height;
   if (interactive)
   {
     scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
   I.lod.SawTime(scene.time);  // the one model that classifies renders (lodStandIn only plans)
-  I.lastEngineBudgetMs = -1.0;
-  const auto refineStart = Clock::now();
-  const double refineCpuStart = processCpuMs();
-  // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
-  // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
-  // which the still render after the drag reprojects to the new camera instead of restarting.
-  const bool useCoarse = I.RendersCoarse(this, d);
-  // A still render of the fine session in the GUI refines it on the worker; a camera drag that
-  // fits at full resolution renders its one frame here (it must show the new camera at once).
-  const bool background = !interactive && !useCoarse && !I.cameraInteraction &&
-    I.window.fullWidth == 0 && I.BuildsInBackground(this);
-  if (I.worker.FineBusy() && !useCoarse && !(background && I.worker.FineRefining()))
+  if (dec.joinFine)
   {
     I.worker.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
-  const bool drawStandIn = standIn && useCoarse;
   I.engines.UseStandIn(drawStandIn);
-  const bool refined = I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background);
+  const bool refined = I.Refine(this, scene, in);
   I.engines.UseStandIn(false);
   I.report.shownStandIn = drawStandIn && refined;
   if (!refined)
@@ -959,7 +925,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // now (after the frame is measured: it is no part of the frame's cost).
   // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)
   if (!I.quietRenders && !interactive && I.window.fullWidth == 0 &&
-    InrLevelOfDetail::BuildsCoarseAhead(lod))
+    InrLevelOfDetail::BuildsCoarseAhead(in.lodSettings))
   {
     I.BuildCoarseAhead(this);
   }
@@ -1036,6 +1002,50 @@ bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) 
   // once per mapper.
   return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
     !self->Capturing && this->ranks.Ranks().count <= 1;
+}
+
+// What the render decision reads (InrRenderDecision::Inputs): the level-of-detail policy's
+// classification (not for a tile of a larger picture), the worker's state, the properties.
+InrRenderDecision::Inputs vtkInrVolumeMapper::Internals::DecisionInputs(
+  vtkInrVolumeMapper* self, vtkRenderer* ren, double time, const Viewport& tile)
+{
+  InrRenderDecision::Inputs in;
+  in.lodSettings = this->LodSettings(self);
+  in.tile = this->window.fullWidth != 0;
+  if (!in.tile)
+  {
+    in.lod = this->lod.Classify(in.lodSettings, ren->GetRenderWindow()->GetDesiredUpdateRate(), time);
+  }
+  in.width = tile.width;
+  in.height = tile.height;
+  in.fineOnWorker = this->worker.FineBuilding() || this->worker.FineBuildPending() ||
+    this->worker.FineTimeDiffers(time);
+  in.fineBusy = this->worker.FineBusy();
+  in.fineRefining = this->worker.FineRefining();
+  in.backgroundAllowed = this->BuildsInBackground(self);
+  in.standInOption = self->InteractiveStandIn != 0;
+  in.reproject = this->options.queryReduction.reproject;
+  in.progressive = self->ProgressiveRefinement != 0;
+  in.framesPerRender = self->FramesPerRender;
+  in.maximumFrames = self->MaximumFrames;
+  in.convergenceTarget = self->ConvergenceTarget;
+  in.timeBudgetMs = self->RefinementTimeBudget;
+  return in;
+}
+
+// The decision with the mapper's state as its queries: the coarse session (created on first use),
+// the stand-in kept for `time`, and the cost model that plans the image (the stand-in's own for a
+// drag drawn on it).
+InrRenderDecision vtkInrVolumeMapper::Internals::Decide(
+  vtkInrVolumeMapper* self, const InrRenderDecision::Inputs& in, double time)
+{
+  InrRenderDecision::Queries ask;
+  ask.coarseSession = [this, self]()
+  { return this->engines.UpdateCoarse(self->InteractiveMacrocellResolution); };
+  ask.standInReady = [this, time]() { return this->engines.StandInReady(time); };
+  ask.plan = [this, &in](const InrLevelOfDetail::Decision& d, bool standIn)
+  { return (standIn ? this->lodStandIn : this->lod).Plan(in.lodSettings, d, in.width, in.height); };
+  return InrRenderDecision::Decide(in, ask);
 }
 
 InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
@@ -1258,9 +1268,10 @@ void vtkInrVolumeMapper::Internals::WarnAboutScene(
 // Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
 // as the refinement options allow (RefinementDriver). False when the engine failed.
 bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
-  const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
-  int interactiveFrames, bool background)
+  const inr::RenderScene& scene, const InrRenderDecision::Inputs& in)
 {
+  const int width = this->decision.frame.width, height = this->decision.frame.height;
+  const bool useCoarse = this->decision.useCoarse, background = this->decision.background;
   // The session drawing this render: the fine one, or the coarse one for a time-change
   // interactive frame.
   InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
@@ -1303,26 +1314,15 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
     this->engines.PushQueryReduction(slot, this->options.queryReduction);
     engine.setScene(scene);
 
-    inr::RefinementOptions options;
-    options.maximumFrames = self->MaximumFrames;
-    options.convergenceTarget = self->ConvergenceTarget;
-    options.framesPerRender =
-      interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
-    // Refinement by time: a still render of the GUI's one-frame-per-render refinement adds the
-    // frames that fit in the budget.
-    if (!interactive && !this->cameraInteraction && self->ProgressiveRefinement &&
-      self->FramesPerRender == 1 && this->window.fullWidth == 0)
+    // A step on the worker does not hold the view: it gets the whole budget; a frame here what
+    // is left of it now.
+    const inr::RefinementOptions options = this->decision.Refinement(in,
+      this->decision.budget == InrRenderDecision::Budget::Remaining
+        ? this->EngineTimeBudget(self->RefinementTimeBudget)
+        : 0.0);
+    if (this->decision.budget != InrRenderDecision::Budget::None)
     {
-      // A step on the worker does not hold the view: it gets the whole budget.
-      options.timeBudgetMs = background ? self->RefinementTimeBudget
-                                        : this->EngineTimeBudget(self->RefinementTimeBudget);
       this->lastEngineBudgetMs = options.timeBudgetMs;
-    }
-    if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
-    {
-      // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
-      // image's quality (convergence target or frame limit) in this one render.
-      options.framesPerRender = options.maximumFrames;
     }
     refinement.setOptions(options);
     if (background)
