@@ -167,42 +167,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // no picking support: hardware-selection passes skip the volume
   }
-  struct InsideRender
-  {
-    Internals& I;
-    explicit InsideRender(Internals& i)
-      : I(i)
-    {
-      I.SetInsideRender(true);
-    }
-    ~InsideRender() { I.SetInsideRender(false); }
-  } inside(I);
+  Internals::InsideRender inside(I);
   // Under MPI every rank reaches this point in every render (IceT composites all of them):
-  // whatever happens below, the refinement state is reduced over the ranks once on the way out
-  // (also where this rank draws nothing: depth peeling depends on its own geometry, and a rank
-  // that skipped the reduction would leave the others waiting in it).
-  struct RankReduction
-  {
-    Internals& I;
-    vtkInrVolumeMapper* self;
-    bool rendered = false;
-    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
-  } reduction{ I, this };
+  // whatever happens below, the refinement state is reduced over the ranks once on the way out.
+  Internals::RankReduction reduction{ I, this };
   // The depth limit before anything can return: under MPI its composite is collective, and a
   // rank that draws nothing must still bring its geometry to the others' rays.
   I.depthValid = I.ranks.CompositeDepth(ren, vol, I.depth);
   I.ranks.LookUpLocalRank();
-  if (insideDepthPeeling(vol))
+  if (I.InsideDepthPeeling(this, vol))
   {
-    // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
-    // (several times a frame) corrupts the picture. ParaView's representation avoids this path.
-    if (!I.warnedPeeling)
-    {
-      vtkWarningMacro("INR Volume: not drawn while the renderer depth-peels volumes with "
-                      "translucent geometry (UseDepthPeelingForVolumes, which only the GPU "
-                      "ray-cast mapper supports): turn UseDepthPeelingForVolumes off to see it.");
-      I.warnedPeeling = true;
-    }
     return;
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
@@ -240,15 +214,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
-  // A tile of a larger picture (screenshot larger than the view, tile display): the camera is
-  // already the tile's (window centre); the window keys the random streams by the full picture.
-  {
-    vtkRenderWindow* win = ren->GetRenderWindow();
-    double tileViewport[4] = { 0, 0, 1, 1 };
-    win->GetTileViewport(tileViewport);
-    I.window = InrSceneTranslator::TileWindow(
-      ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
-  }
+  I.PlaceTile(ren, tile);
   I.WarnAboutScene(this, ren, vol, tile.width, tile.height);
   const auto renderStart = Clock::now();
   I.ObserveWindow(ren->GetRenderWindow());
@@ -260,7 +226,6 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const InrRenderDecision::Inputs in = I.DecisionInputs(this, ren, scene.time, tile);
   I.decision = I.Decide(this, in, scene.time);
   const InrRenderDecision& dec = I.decision;
-  const InrLevelOfDetail::Decision& d = dec.lod;
   const bool interactive = dec.frame.interactive, useCoarse = dec.useCoarse;
   const bool background = dec.background, drawStandIn = dec.drawStandIn;
   const int width = dec.frame.width, height = dec.frame.height;
@@ -298,48 +263,7 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   const double compositeMs = msSince(compositeStart);
   I.report.renderMs = msSince(renderStart);
-  I.lod.Drew(interactive);
-  I.report.interactive = interactive;
-  I.lodStandIn.Drew(interactive);
-  I.renderedInWindow = true;
-  I.report.imageWidth = width;
-  I.report.imageHeight = height;
-  if (background)
-  {
-    // The step's frames were rendered on the worker: its own time is the engine's part; this
-    // render's time outside its refinement part (which holds the wait for the step) is the
-    // render's fixed cost.
-    const double engineMs = I.report.step.total.totalMs;
-    I.lod.MeasureFrame(std::max(0.0, I.report.renderMs - refineMs) + engineMs,
-      engineMs, I.report.step.total.updateMs, I.report.step.framesRendered, width, height, false);
-  }
-  else
-  {
-    (drawStandIn ? I.lodStandIn : I.lod)
-      .MeasureFrame(I.report.renderMs, refineMs, I.report.step.total.updateMs,
-        I.report.step.framesRendered, width, height, interactive);
-  }
-  if (lodReport())
-  {
-    std::string worker;
-    if (background)
-    {
-      char step[160];
-      std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
-        I.worker.KeepsImage() ? "image kept" : "image drawn", I.report.step.framesRendered, I.report.step.total.totalMs);
-      worker = step;
-    }
-    std::fprintf(stderr,
-      "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
-      "%.1f ms), frames %d%s%s\n",
-      interactive ? "interactive" : "still", width, height, tile.width, tile.height,
-      double(width) / tile.width, I.report.renderMs, d.budgetMs, I.report.step.total.updateMs,
-      std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
-      useCoarse ? (drawStandIn ? ", coarse macrocells, stand-in" : ", coarse macrocells") : "",
-      worker.c_str());
-  }
+  I.RecordRender(tile, Internals::RenderTimes{ renderStart, refineStart, refineMs, refineCpuMs, compositeMs });
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
   // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)

@@ -340,3 +340,85 @@ void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bo
   this->ranks.Reduce(local, this->report);
 }
 
+// What the render drew, for the panel (InrMapperReport) and the level-of-detail cost model; the
+// INR_VOLUME_LOD_LOG line.
+void vtkInrVolumeMapper::Internals::RecordRender(const Viewport& tile, const RenderTimes& t)
+{
+  const InrRenderDecision& dec = this->decision;
+  const bool interactive = dec.frame.interactive, useCoarse = dec.useCoarse;
+  const bool background = dec.background, drawStandIn = dec.drawStandIn;
+  const int width = dec.frame.width, height = dec.frame.height;
+  const double refineMs = t.refineMs;
+  this->lod.Drew(interactive);
+  this->report.interactive = interactive;
+  this->lodStandIn.Drew(interactive);
+  this->renderedInWindow = true;
+  this->report.imageWidth = width;
+  this->report.imageHeight = height;
+  if (background)
+  {
+    // The step's frames were rendered on the worker: its own time is the engine's part; this
+    // render's time outside its refinement part (which holds the wait for the step) is the
+    // render's fixed cost.
+    const double engineMs = this->report.step.total.totalMs;
+    this->lod.MeasureFrame(std::max(0.0, this->report.renderMs - refineMs) + engineMs,
+      engineMs, this->report.step.total.updateMs, this->report.step.framesRendered, width, height, false);
+  }
+  else
+  {
+    (drawStandIn ? this->lodStandIn : this->lod)
+      .MeasureFrame(this->report.renderMs, refineMs, this->report.step.total.updateMs,
+        this->report.step.framesRendered, width, height, interactive);
+  }
+  if (lodReport())
+  {
+    std::string workerNote;
+    if (background)
+    {
+      char step[160];
+      std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
+        this->worker.KeepsImage() ? "image kept" : "image drawn", this->report.step.framesRendered, this->report.step.total.totalMs);
+      workerNote = step;
+    }
+    std::fprintf(stderr,
+      "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
+      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
+      "%.1f ms), frames %d%s%s\n",
+      interactive ? "interactive" : "still", width, height, tile.width, tile.height,
+      double(width) / tile.width, this->report.renderMs, dec.lod.budgetMs, this->report.step.total.updateMs,
+      std::chrono::duration<double, std::milli>(t.refineStart - t.renderStart).count(), refineMs,
+      this->lastEngineBudgetMs, t.refineCpuMs, t.compositeMs, this->ShownFrames(),
+      useCoarse ? (drawStandIn ? ", coarse macrocells, stand-in" : ", coarse macrocells") : "",
+      workerNote.c_str());
+  }
+}
+
+bool vtkInrVolumeMapper::Internals::InsideDepthPeeling(vtkInrVolumeMapper* self, vtkVolume* vol)
+{
+  if (!insideDepthPeeling(vol))
+  {
+    return false;
+  }
+  // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
+  // (several times a frame) corrupts the picture. ParaView's representation avoids this path.
+  if (!this->warnedPeeling)
+  {
+    vtkWarningWithObjectMacro(self,
+      "INR Volume: not drawn while the renderer depth-peels volumes with "
+      "translucent geometry (UseDepthPeelingForVolumes, which only the GPU "
+      "ray-cast mapper supports): turn UseDepthPeelingForVolumes off to see it.");
+    this->warnedPeeling = true;
+  }
+  return true;
+}
+
+// A tile of a larger picture (screenshot larger than the view, tile display): the camera is
+// already the tile's (window centre); the window keys the random streams by the full picture.
+void vtkInrVolumeMapper::Internals::PlaceTile(vtkRenderer* ren, const Viewport& tile)
+{
+  vtkRenderWindow* win = ren->GetRenderWindow();
+  double tileViewport[4] = { 0, 0, 1, 1 };
+  win->GetTileViewport(tileViewport);
+  this->window = InrSceneTranslator::TileWindow(
+    ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
+}

@@ -314,6 +314,37 @@ struct vtkInrVolumeMapper::Internals
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
     const InrRenderDecision::Inputs& in);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
+  // Render's scope: inside it, progress is muted where renders are prepared (SetInsideRender).
+  struct InsideRender
+  {
+    Internals& I;
+    explicit InsideRender(Internals& i)
+      : I(i)
+    {
+      I.SetInsideRender(true);
+    }
+    ~InsideRender() { I.SetInsideRender(false); }
+  };
+  // Reduces the refinement state over the ranks on every way out of Render (also where this rank
+  // draws nothing: a rank that skipped the collective would leave the others waiting in it).
+  struct RankReduction
+  {
+    Internals& I;
+    vtkInrVolumeMapper* self;
+    bool rendered = false;
+    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
+  };
+  // True (warned once) while VTK's dual depth peeling renders the volume inside its peels.
+  bool InsideDepthPeeling(vtkInrVolumeMapper* self, vtkVolume* vol);
+  // Where this render's image lies in the full picture (`window`; a tile of a larger one).
+  void PlaceTile(vtkRenderer* ren, const Viewport& tile);
+  // Records a drawn render (report, level-of-detail cost model, the INR_VOLUME_LOD_LOG line).
+  struct RenderTimes
+  {
+    Clock::time_point renderStart, refineStart;
+    double refineMs = 0.0, refineCpuMs = 0.0, compositeMs = 0.0;
+  };
+  void RecordRender(const Viewport& tile, const RenderTimes& times);
 };
 
 #endif
