@@ -455,4 +455,3 @@ void vtkInrVolumeMapper::Internals::Composite(
     vtkErrorWithObjectMacro(self, << error);
   }
 }
-
