@@ -1,18 +1,11 @@
 #include "InrEngineSlots.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
 #include <vector>
-
-#ifdef __linux__
-#include <sched.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-#endif
 
 #include "Render/MacrocellLayout.h"
 #include "Render/WavefrontRenderer.h"
@@ -143,20 +136,6 @@ std::ostream& operator<<(std::ostream& os, inr::PrimaryEstimator e)
 }
 
 using inr::msSince;
-
-// The worker's jobs (slice builds, refinement steps) should not delay what the view's thread
-// draws meanwhile (reduced frames, the image): the worker is a batch thread for the scheduler,
-// which then never preempts a woken interactive thread for it, and so are the evaluator threads
-// it starts (Linux threads inherit their creator's policy). Its share of the CPU is unchanged (a
-// lower nice value starved it on a machine busy with other work).
-void MarkThisThreadBatch()
-{
-#ifdef __linux__
-  sched_param none{};
-  none.sched_priority = 0;
-  ::sched_setscheduler(static_cast<pid_t>(::syscall(SYS_gettid)), SCHED_BATCH, &none);
-#endif
-}
 }
 
 // Each asked value is checked as `inr render` checks it (the engine's validation and message:
@@ -232,7 +211,7 @@ void InrEngineOptions::Check(const std::function<void(const std::string&)>& erro
 
 InrEngines::~InrEngines()
 {
-  this->JoinBackgroundBuild();
+  this->worker.JoinBackgroundBuild();
 }
 
 bool InrEngines::SetModel(const unsigned char* bytes, std::size_t n)
@@ -242,7 +221,7 @@ bool InrEngines::SetModel(const unsigned char* bytes, std::size_t n)
   {
     return true;
   }
-  this->JoinBackgroundBuild();
+  this->worker.JoinBackgroundBuild();
   this->hash = h;
   this->modelOk = false;
   this->coarse.session.reset();  // before the fine one: it runs the fine one's evaluator
@@ -273,19 +252,19 @@ bool InrEngines::UpdateFine(const InrEngineRequest& want)
 {
   this->rebuilt = false;
   InrEngineSlot& f = this->fine;
-  if (this->FineBusy())
+  if (this->worker.FineBusy())
   {
-    if (f.asked.SameBuild(want) || !this->buildDone)
+    if (f.asked.SameBuild(want) || !this->worker.BuildDone())
     {
       // The worker owns the session until its job is joined; a rebuild waits for that (the
       // view keeps drawing what it has meanwhile) rather than the render waiting for the job.
       return true;
     }
-    this->JoinFineBuild();
+    this->worker.JoinFineBuild();
   }
   if (!f.session || !f.asked.SameBuild(want))
   {
-    this->JoinBackgroundBuild();  // a build ahead of the coarse session that goes with it
+    this->worker.JoinBackgroundBuild();  // a build ahead of the coarse session that goes with it
     try
     {
       // The coarse session runs the fine session's evaluator: it goes with it.
@@ -358,7 +337,7 @@ bool InrEngines::UpdateFine(const InrEngineRequest& want)
 
 void InrEngines::KeepStandIn(double time)
 {
-  if (this->FineBusy() || !this->fine.session || (this->standInField && this->standInTime == time))
+  if (this->worker.FineBusy() || !this->fine.session || (this->standInField && this->standInTime == time))
   {
     return;
   }
@@ -372,9 +351,9 @@ void InrEngines::KeepStandIn(double time)
 bool InrEngines::UpdateCoarse(int n)
 {
   InrEngineSlot& c = this->coarse;
-  if (this->CoarseBusy())
+  if (this->worker.CoarseBusy())
   {
-    this->JoinBackgroundBuild();  // the caller draws with it: the rest of the build ahead later
+    this->worker.JoinBackgroundBuild();  // the caller draws with it: the rest of the build ahead later
   }
   if (n <= 0 || !this->fine.session || n >= this->fine.built.resolution)
   {
@@ -473,176 +452,6 @@ double InrEngines::BuildCoarseAhead(int n, bool report)
       before.dims.z, ms);
   }
   return ms;
-}
-
-void InrEngines::Launch(Job what, inr::RenderSession* session, std::function<void()> work)
-{
-  this->buildProgress = 0.0;
-  this->buildDone = false;
-  this->stopBuild = false;
-  // Progress from the worker goes to an atomic, read by the view's thread (PrepareRender): VTK's
-  // progress events may only be fired from there.
-  session->setProgressHandler([this](double fraction, const std::string&)
-    { this->buildProgress = fraction; });
-  if (what != Job::FineSlices)
-  {
-    session->setProgressHandler({});  // the build ahead reports per slice itself
-  }
-  this->job = what;
-  this->builder = std::thread(
-    [this, work]()
-    {
-      MarkThisThreadBatch();
-      try
-      {
-        work();
-      }
-      catch (const std::exception&)
-      {
-        // The render's setScene meets the same failure and reports it.
-      }
-      this->buildDone = true;
-    });
-}
-
-bool InrEngines::StartFineBuild(double time)
-{
-  if (this->FineBuilding() || !this->fine.session)
-  {
-    return false;
-  }
-  this->JoinBackgroundBuild();  // a refinement step finishes first: the build needs the session
-  inr::RenderSession* session = this->fine.session.get();
-  this->Launch(Job::FineSlices, session, [session, time]() { session->buildSlicesFor(time); });
-  const auto start = inr::Clock::now();
-  while (!this->buildDone && msSince(start) < 20.0)
-  {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  if (this->buildDone)
-  {
-    this->JoinFineBuild();
-  }
-  return true;
-}
-
-bool InrEngines::StartCoarseAhead(int n)
-{
-  if (this->CoarseBusy())
-  {
-    return true;
-  }
-  if (this->FineBusy() || !this->UpdateCoarse(n))
-  {
-    return false;
-  }
-  inr::RenderSession* session = this->coarse.session.get();
-  const inr::MacrocellInfo info = session->macrocellInfo();
-  if (info.slicesBuilt >= info.temporalSlices)
-  {
-    return false;
-  }
-  // The slices' times, as the engine lays them out (MacrocellLayout::sliceTime): one slice per
-  // call, so that a stop request is seen between slices.
-  inr::MacrocellLayout layout;
-  layout.temporalSlices = info.temporalSlices;
-  layout.timeBegin = this->model.domain.timeBegin;
-  layout.timeEnd = this->model.domain.timeEnd;
-  std::vector<double> times;
-  for (int k = 0; k < info.temporalSlices; ++k)
-  {
-    times.push_back(layout.sliceTime(k));
-  }
-  this->Launch(Job::CoarseAhead, session,
-    [this, session, times]()
-    {
-      const auto start = inr::Clock::now();
-      for (std::size_t k = 0; k < times.size() && !this->stopBuild; ++k)
-      {
-        session->buildSlicesFor(times[k]);
-        this->buildProgress = double(k + 1) / double(times.size());
-      }
-      this->coarseAheadRunMs = msSince(start);
-    });
-  return true;
-}
-
-bool InrEngines::StartFineRefine()
-{
-  if (this->job != Job::None || !this->fine.session)
-  {
-    return false;
-  }
-  inr::RenderSession* session = this->fine.session.get();
-  inr::RefinementDriver* refinement = &this->fine.refinement;
-  this->refineRun = {};
-  this->Launch(Job::FineRefine, session,
-    [this, session, refinement]() { this->refineRun = refinement->advance(*session); });
-  return true;
-}
-
-inr::RefinementDriver::Step InrEngines::TakeRefineStep()
-{
-  inr::RefinementDriver::Step step = this->refineStep;
-  this->refineStep = {};
-  return step;
-}
-
-void InrEngines::Join()
-{
-  if (this->job == Job::None)
-  {
-    return;
-  }
-  const Job was = this->job;
-  this->builder.join();
-  this->job = Job::None;
-  const bool onFine = was == Job::FineSlices || was == Job::FineRefine;
-  InrEngineSlot& slot = onFine ? this->fine : this->coarse;
-  if (was == Job::FineRefine)
-  {
-    this->refineStep = this->refineRun;
-  }
-  if (slot.session)
-  {
-    // The fine session reports its lazy builds as VTK progress again; the coarse one reports
-    // none (its lazy builds happen inside interactive frames).
-    if (onFine && this->progress)
-    {
-      slot.session->setProgressHandler(this->progress("INR Volume: "));
-    }
-    else
-    {
-      slot.session->setProgressHandler({});
-    }
-  }
-  if (was == Job::CoarseAhead)
-  {
-    this->coarseAheadMs = this->coarseAheadRunMs;
-  }
-  if (this->joined && was != Job::FineRefine)
-  {
-    this->joined();
-  }
-}
-
-void InrEngines::JoinFineBuild()
-{
-  if (this->FineBusy())
-  {
-    this->Join();
-  }
-}
-
-void InrEngines::JoinBackgroundBuild()
-{
-  this->stopBuild = true;  // a build ahead stops after its current slice; a fine build finishes
-  this->Join();
-}
-
-void InrEngines::FinishBackgroundBuild()
-{
-  this->Join();
 }
 
 // A rejected set is reported once and the engine keeps what it had; a pruning change restarts its

@@ -12,14 +12,13 @@
 #ifndef InrEngineSlots_h
 #define InrEngineSlots_h
 
-#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "Backends/Refinement.h"
+#include "InrBackgroundWorker.h"
 #include "Model/InrModel.h"
 #include "Backends/RenderSession.h"
 #include "Render/QueryReduction.h"
@@ -151,8 +150,8 @@ public:
 
 /// The mapper's two engine sessions on one model: the fine one (the still image) and the coarse
 /// one of reduced interactive frames, built from one request (InrSessionOptions), the long
-/// macrocell builds optionally on one worker thread (the fine slices of a new time, the coarse
-/// slices built ahead), query reduction and frames pushed into whichever session draws. No VTK:
+/// macrocell builds and refinement steps optionally on one worker thread (`worker`), query
+/// reduction pushed into whichever session draws. No VTK:
 /// messages and progress go through the callbacks below.
 class InrEngines
 {
@@ -166,8 +165,6 @@ public:
   /// macrocell builds, given the text that prefixes the engine's phase.
   std::function<void(const std::string&)> error, warning;
   std::function<inr::MacrocellProgress(const std::string& prefix)> progress;
-  /// Called after a worker's build was joined (frames measured meanwhile were slower).
-  std::function<void()> joined;
 
   /// The model, loaded from its bytes when their hash changed (both sessions are dropped then);
   /// false (reported once per content) when it cannot be loaded.
@@ -188,39 +185,6 @@ public:
   bool UpdateCoarse(int resolution);
   /// Builds every coarse slice not built yet, with progress; the milliseconds it took.
   double BuildCoarseAhead(int resolution, bool report);
-
-  /// The long builds on the worker thread, one at a time; the session being built belongs to the
-  /// worker until the build is joined (nothing else touches it meanwhile).
-  ///  - StartFineBuild: the fine slices for `time` (true) while reduced coarse frames are drawn;
-  ///    waits a few ms first, as most calls find them built. FineBusy: not joined yet.
-  ///  - StartCoarseAhead: every coarse slice not built yet, slice by slice, so that a render that
-  ///    needs the coarse session (UpdateCoarse) stops it within one slice; the slices built so far
-  ///    stay, a later call builds the rest. True while it runs (or was already running).
-  ///  - StartFineRefine: one refinement step of the fine session (fine.refinement.advance, under
-  ///    the options set on it, after the caller's setScene), so that a still render of the GUI
-  ///    draws the image of the steps finished so far instead of waiting for a whole frame.
-  ///    TakeRefineStep: what the last joined step rendered (once; empty after).
-  /// JoinFineBuild waits for a job on the fine session; JoinBackgroundBuild stops a build ahead
-  /// and waits for whichever runs; FinishBackgroundBuild lets either finish. BuildDone /
-  /// BuildProgress: of the running job.
-  bool StartFineBuild(double time);
-  bool StartCoarseAhead(int resolution);
-  bool StartFineRefine();
-  inr::RefinementDriver::Step TakeRefineStep();
-  void JoinFineBuild();
-  void JoinBackgroundBuild();
-  void FinishBackgroundBuild();
-  /// The fine session belongs to the worker (a slice build or a refinement step).
-  bool FineBusy() const { return this->job == Job::FineSlices || this->job == Job::FineRefine; }
-  bool FineBuilding() const { return this->job == Job::FineSlices; }
-  bool FineRefining() const { return this->job == Job::FineRefine; }
-  bool CoarseBusy() const { return this->job == Job::CoarseAhead; }
-  bool BuildDone() const { return this->buildDone; }
-  double BuildProgress() const { return this->buildProgress; }
-  bool FineBuildDone() const { return this->FineBusy() && this->buildDone; }
-  double FineBuildProgress() const { return this->buildProgress; }
-  /// Milliseconds the last joined build ahead ran on the worker (0 before).
-  double LastCoarseAheadMs() const { return this->coarseAheadMs; }
 
   /// Keeps the fine session's stand-in of the network (RenderSession::workingMeanField) for
   /// `time`, the time of the fine session's scene, unless one is kept for it already: the mapper
@@ -249,6 +213,9 @@ public:
   void PushQueryReduction(InrEngineSlot& slot, const inr::QueryReductionSettings& asked);
 
   InrEngineSlot fine, coarse;
+  /// The long builds and refinement steps on a worker thread (InrBackgroundWorker.h); declared
+  /// after the sessions it works on.
+  InrBackgroundWorker worker{ *this };
   int engineBuilds = 0;
   bool muteProgress = false;  // read by the progress handlers the mapper hands out
   std::string queryReductionInUse;
@@ -266,23 +233,6 @@ private:
   bool coarseFailed = false;  // creation failed once for coarse.asked: reported, not retried
   bool haveRefusedQueryReduction = false;  // the last set the engine refused (reported once,
   inr::QueryReductionSettings refusedQueryReduction;  // not again by a rebuilt session)
-  enum class Job
-  {
-    None,
-    FineSlices,
-    CoarseAhead,
-    FineRefine
-  };
-  std::thread builder;
-  Job job = Job::None;
-  std::atomic<bool> buildDone{ false };
-  std::atomic<bool> stopBuild{ false };  // asks a build ahead to stop after its current slice
-  std::atomic<double> buildProgress{ 0.0 };
-  std::atomic<double> coarseAheadRunMs{ 0.0 };
-  double coarseAheadMs = 0.0;
-  inr::RefinementDriver::Step refineRun, refineStep;  // on the worker; joined, not taken yet
-  void Launch(Job what, inr::RenderSession* session, std::function<void()> work);
-  void Join();
 };
 
 #endif

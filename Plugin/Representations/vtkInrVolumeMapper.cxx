@@ -1,424 +1,4 @@
-#include "vtkInrVolumeMapper.h"
-
-#include "vtkActor.h"
-#include "vtkActor2D.h"
-#include "vtkCallbackCommand.h"
-#include "vtkCamera.h"
-#include "vtkDataSet.h"
-#include "vtkDualDepthPeelingPass.h"
-#include "vtkMath.h"
-#include "vtkWeakPointer.h"
-#include "vtkFieldData.h"
-#include "vtkInformation.h"
-#include "vtkInformationObjectBaseVectorKey.h"
-#include "vtkMatrix4x4.h"
-#include "vtkObjectFactory.h"
-#include "vtkOpenGLRenderPass.h"
-#include "vtkOpenGLRenderWindow.h"
-#include "vtkPropCollection.h"
-#include "vtkRenderer.h"
-#include "vtkUnsignedCharArray.h"
-#include "vtkVolume.h"
-#include "vtk_glew.h"
-
-#include "InrCudaGlInterop.h"
-#include "InrEngineSlots.h"
-#include "InrFramebufferCompositor.h"
-#include "InrLevelOfDetail.h"
-#include "InrParallelRendering.h"
-#include "InrSceneTranslator.h"
-
-#include "Backends/Refinement.h"
-#include "Backends/RenderSession.h"
-#include "Model/InrModel.h"
-#include "Render/MacrocellLayout.h"
-#include "Render/QueryReduction.h"
-#include "Render/SceneChange.h"
-#include "Render/SceneInputs.h"
-#include "Render/WavefrontRenderer.h"
-
-#include <algorithm>
-#include <array>
-#include <atomic>
-#include <chrono>
-#include <cmath>
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include <ctime>
-#include <iostream>
-#include <limits>
-#include <memory>
-#include <sstream>
-#include <stdexcept>
-#include <string>
-#include <thread>
-#include <tuple>
-#include <vector>
-#include "Common/Stopwatch.h"
-
-namespace
-{
-// The renderer's tile in the window (the image the engine renders).
-struct Viewport
-{
-  int width = 0, height = 0, x0 = 0, y0 = 0;
-};
-
-// True while VTK's dual depth peeling renders the volume inside its peels (translucent geometry
-// with UseDepthPeelingForVolumes): the pass registers itself in the props' keys.
-bool insideDepthPeeling(vtkVolume* vol)
-{
-  vtkInformation* keys = vol->GetPropertyKeys();
-  if (!keys || !keys->Has(vtkOpenGLRenderPass::RenderPasses()))
-  {
-    return false;
-  }
-  for (int i = 0; i < keys->Length(vtkOpenGLRenderPass::RenderPasses()); ++i)
-  {
-    if (vtkDualDepthPeelingPass::SafeDownCast(keys->Get(vtkOpenGLRenderPass::RenderPasses(), i)))
-    {
-      return true;
-    }
-  }
-  return false;
-}
-
-bool debugReport()
-{
-  return std::getenv("INR_VOLUME_DEBUG") != nullptr;
-}
-
-// Whether the renderer draws anything that can write depth before its volumes: a visible prop
-// with data (ParaView keeps empty actors visible, e.g. the selection's) that is neither a volume
-// nor a 2D overlay (those are drawn after the volumes).
-bool geometryDrawnBeforeVolumes(vtkRenderer* ren)
-{
-  vtkPropCollection* props = ren->GetViewProps();
-  vtkCollectionSimpleIterator it;
-  props->InitTraversal(it);
-  while (vtkProp* prop = props->GetNextProp(it))
-  {
-    if (!prop->GetVisibility() || vtkVolume::SafeDownCast(prop) || vtkActor2D::SafeDownCast(prop))
-    {
-      continue;
-    }
-    const double* bounds = prop->GetBounds();
-    if (!bounds || vtkMath::AreBoundsInitialized(bounds))
-    {
-      return true;  // no bounds (e.g. a widget): assume it draws
-    }
-  }
-  return false;
-}
-
-// The pixels of a width x height tile that the volume's box can cover (its corners projected,
-// two pixels wider for rounding); the whole tile when a corner lies at or behind the eye (its
-// projection says nothing), nothing when the volume has no bounds (no data on this rank).
-InrParallelRendering::PixelRect volumeRect(vtkRenderer* ren, vtkVolume* vol, int width, int height)
-{
-  const double* b = vol->GetBounds();
-  if (width <= 0 || height <= 0 || !b || !vtkMath::AreBoundsInitialized(b))
-  {
-    return {};
-  }
-  vtkMatrix4x4* m = ren->GetActiveCamera()->GetCompositeProjectionTransformMatrix(
-    double(width) / double(height), -1, 1);
-  double lo[2] = { std::numeric_limits<double>::max(), std::numeric_limits<double>::max() };
-  double hi[2] = { std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest() };
-  for (int k = 0; k < 8; ++k)
-  {
-    const double p[4] = { b[k & 1], b[2 + ((k >> 1) & 1)], b[4 + ((k >> 2) & 1)], 1.0 };
-    double q[4];
-    m->MultiplyPoint(p, q);
-    if (!(q[3] > 1e-9))
-    {
-      return { 0, 0, width, height };
-    }
-    const double x = (q[0] / q[3] + 1.0) * 0.5 * width, y = (q[1] / q[3] + 1.0) * 0.5 * height;
-    lo[0] = std::min(lo[0], x);
-    hi[0] = std::max(hi[0], x);
-    lo[1] = std::min(lo[1], y);
-    hi[1] = std::max(hi[1], y);
-  }
-  const auto clampTo = [](double v, int n) { return int(std::max(0.0, std::min(double(n), v))); };
-  return { clampTo(std::floor(lo[0]) - 2, width), clampTo(std::floor(lo[1]) - 2, height),
-    clampTo(std::ceil(hi[0]) + 2, width), clampTo(std::ceil(hi[1]) + 2, height) };
-}
-
-// A still render of the GUI waits this long for the worker's refinement step before it draws
-// the image it has (the GUI's own refinement loop renders once the step is done:
-// GetBackgroundWorkRunning; other renders, e.g. a property change, find it running).
-constexpr double kRefineWaitMs = 30.0;
-
-// CPU time of the whole process (all its threads), ms: logged beside the engine's wall time
-// (INR_VOLUME_LOD_LOG) to see how much of a frame's time a loaded machine adds.
-double processCpuMs()
-{
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return 1e3 * double(t.tv_sec) + 1e-6 * double(t.tv_nsec);
-}
-
-bool lodReport()
-{
-  const char* v = std::getenv("INR_VOLUME_LOD_LOG");
-  return v && v[0] && std::string(v) != "0";
-}
-
-using inr::Clock;
-using inr::msSince;
-
-// The depth limits (engine row order) of a width x height image, sampled at the centres of the
-// pixels of a w x h image covering the same view.
-std::vector<float> resampleDepthLimit(
-  const std::vector<float>& full, int width, int height, int w, int h)
-{
-  if (full.empty())
-  {
-    return {};
-  }
-  std::vector<float> out(std::size_t(w) * std::size_t(h));
-  for (int j = 0; j < h; ++j)
-  {
-    const int sj = std::min(height - 1, int((j + 0.5) * height / h));
-    for (int i = 0; i < w; ++i)
-    {
-      const int si = std::min(width - 1, int((i + 0.5) * width / w));
-      out[std::size_t(j) * w + i] = full[std::size_t(sj) * width + si];
-    }
-  }
-  return out;
-}
-
-// Macrocell builds (inside the engine's setScene or buildAllSlices during Render) become VTK
-// progress, `prefix` + the engine's phase as ProgressText: the representation forwards it to
-// ParaView's progress bar.
-//
-// A view that prepares each render (vtkInrVolumeMapper::PrepareRender: ParaView's representation)
-// gets the builds done there, before the GL render; a build that still happens inside the GL
-// render reports nothing then (`*muted`): a GUI handles a progress event by repainting its
-// progress bar at once, and Qt composes the window with another OpenGL context and repaints the
-// view widget in the middle of VTK's render (the GL state VTK caches is then wrong: "Error in
-// cache state" warnings, GL errors, a blank view).
-inr::MacrocellProgress progressHandler(
-  vtkInrVolumeMapper* self, const std::string& prefix, const bool* muted)
-{
-  return [self, prefix, muted](double fraction, const std::string& phase)
-  {
-    if (muted && *muted)
-    {
-      return;
-    }
-    self->SetProgressText((prefix + phase).c_str());
-    self->UpdateProgress(fraction);
-    self->SetProgressText(nullptr);  // observers read it during the event; later events (the
-                                     // executive's own) are not the build's
-  };
-}
-
-}
-
-struct vtkInrVolumeMapper::Internals
-{
-  // Model identity: the bytes array and its modification time (then the engines' content hash).
-  vtkUnsignedCharArray* bytesPtr = nullptr;
-  vtkMTimeType bytesMTime = 0;
-
-  // The engine sessions (fine: the still image; coarse: reduced interactive frames of time changes
-  // and drags with Reproject on), built from one request (InrEngineSlots.h); the options as asked,
-  // valid and refused.
-  InrEngines engines;
-  InrEngineOptions options;
-  std::string backendInUse = "none (no model rendered yet)";
-  std::string macrocellsInUse;
-  std::string estimateText, refinementState;  // GetConvergenceEstimateText, GetRefinementState
-  std::string engineOptionsText, interactiveOptionsText;  // GetEngineOptionsInUse and co.
-  bool shownCoarse = false;     // the last Render drew the coarse session's image
-  bool shownStandIn = false;    // ... on the stand-in of the network (InteractiveStandIn)
-  bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
-  bool warnedLightsLeftOut = false;  // Shade's lights the engine left out: said once
-  inr::RenderSession* Shown() const
-  {
-    return this->shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()
-                                                             : this->engines.fine.session.get();
-  }
-
-  // Level of detail (InrLevelOfDetail.h): the policy and its cost model; the mapper's options
-  // as the policy reads them.
-  InrLevelOfDetail lod;
-  // The cost model of camera drags drawn on the stand-in (InteractiveStandIn): far cheaper per
-  // pixel than the network's frames, so its scale must not carry over to time changes and back.
-  InrLevelOfDetail lodStandIn;
-  InrLevelOfDetail::Settings LodSettings(vtkInrVolumeMapper* self) const;
-  // Whether this render, a camera drag (interactive, not a time change) of an on-screen view,
-  // may draw the stand-in of the network (InteractiveStandIn): it renders on the coarse session
-  // (Reproject on) and the stand-in for the time is ready (InrEngines::StandInReady).
-  bool StandInFor(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d, double time)
-  {
-    return self->InteractiveStandIn && this->window.fullWidth == 0 && !self->Capturing &&
-      d.interactive && !d.timeChange && this->RendersCoarse(self, d) && this->engines.StandInReady(time);
-  }
-  // Whether a reduced interactive frame renders on the coarse session (creating it if needed).
-  bool RendersCoarse(vtkInrVolumeMapper* self, const InrLevelOfDetail::Decision& d)
-  {
-    return InrLevelOfDetail::RendersCoarse(d, this->options.queryReduction.reproject, true) &&
-      this->engines.UpdateCoarse(self->InteractiveMacrocellResolution);
-  }
-  void BuildCoarseAhead(vtkInrVolumeMapper* self)
-  {
-    this->aheadMs += this->engines.BuildCoarseAhead(self->InteractiveMacrocellResolution, lodReport());
-  }
-  // The fine session's macrocell slices for a new time, built on a worker thread in the GUI
-  // (PrepareRender, background builds on) while renders draw reduced frames of the coarse
-  // session, so the event loop never waits seconds for them.
-  // In the GUI the build is only marked here (fineBuildPending) and starts on the worker once
-  // the render has drawn its reduced coarse frame: that frame does not share the CPU with it.
-  bool StartFineBuild(vtkInrVolumeMapper* self, double time);
-  bool fineBuildPending = false;
-  bool haveDeferredFineBuild = false;
-  double fineBuildTime = 0.0;  // the time of the last deferred build
-  // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
-  // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
-  bool BuildsInBackground(vtkInrVolumeMapper* self) const;
-  // Whether this render is the GUI's first of this mapper, put off to the next one
-  // (firstRender).
-  bool DefersFirstRender(vtkInrVolumeMapper* self) const;
-  // The GUI's still renders of the fine session refine it on that worker too, one refinement
-  // step at a time (InrEngines::StartFineRefine): a render joins a finished step, hands the
-  // scene over, draws the image so far and starts the next step, so no render waits for a whole
-  // full-resolution frame (on a CPU at ~1280x768 longer than the GUI may stall). A render that
-  // finds the step still running waits a little for it, then draws the image it has (keepImage).
-  // While the worker holds the fine session its state is read from what was kept (fineKept).
-  bool startRefine = false;  // this render starts a refinement step once it has drawn
-  bool keepImage = false;    // this render draws the texture as it is
-  bool haveFineScene = false;
-  int refinedEpoch = -1;  // the fine session's resets + reprojections when its step was started
-  inr::RenderScene fineScene;  // the scene last handed to the fine session
-  struct FineState
-  {
-    int frames = 0;
-    double estimate = -std::numeric_limits<double>::infinity();
-  } fineKept;
-  vtkOpenGLRenderWindow* uploadedWindow = nullptr;  // the window the texture was loaded for
-  bool RefineInBackground(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
-    const inr::RenderSettings& settings);
-  void LaunchRefine();
-  int ShownFrames() const
-  {
-    return !this->shownCoarse && this->engines.FineRefining()
-      ? this->fineKept.frames
-      : this->Shown() ? this->Shown()->accumulatedFrames() : 0;
-  }
-
-  // Renders prepared outside the GL render (PrepareRender): once a view does that, progress is
-  // reported only there (quietRenders), never from inside Render (insideRender).
-  bool quietRenders = false;
-  bool insideRender = false;
-  void SetInsideRender(bool inside)
-  {
-    this->insideRender = inside;
-    this->engines.muteProgress = this->quietRenders && inside;
-  }
-
-  // VTK -> engine (transfer-function cache), progressive refinement, drawing.
-  InrSceneTranslator translator;
-  // The window's depth over the render tile (GL rows) where `depthValid`: the nearest opaque
-  // geometry drawn before the volume, under MPI of every rank (CompositeDepth).
-  std::vector<float> depth;
-  bool depthValid = false;
-  bool warnedDepthSize = false;
-  void CompositeDepth(vtkRenderer* ren, vtkVolume* vol);
-  inr::RefinementDriver::Step lastStep;
-  InrFramebufferCompositor compositor;
-  // The CUDA image into the compositor's texture on the GPU; after a failure (`imageTransfer`
-  // says why) the image goes through host memory for the rest of the mapper's life.
-  InrCudaGlInterop interop;
-  bool cameraInteraction = false;  // this render was asked for by a camera interaction
-  bool interopFailed = false;
-  std::string imageTransfer;
-
-  // The budget is for the whole window render: what the window spends outside this mapper
-  // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
-  vtkWeakPointer<vtkRenderWindow> observedWindow;
-  vtkNew<vtkCallbackCommand> windowObserver;
-  Clock::time_point windowStart;
-  double aheadMs = 0.0;  // of this window render, spent building coarse slices ahead (not a cost
-                         // of the window's frames: left out of the window's fixed cost)
-  bool renderedInWindow = false;
-  // The GUI's first render of this mapper is put off to the next turn of the event loop
-  // (DefersFirstRender): not reached yet, put off (the next render does the work), or done.
-  enum class FirstRender
-  {
-    NotReached,
-    PutOff,
-    Done
-  };
-  FirstRender firstRender = FirstRender::NotReached;
-  // The refinement budget is for the view's whole render: where it began (the view's update, when
-  // MarkViewUpdate came after the last render, else the window's render) and what the window
-  // spends after this mapper's Render (measured: drawing, swap).
-  Clock::time_point viewUpdateStart;
-  bool viewUpdatePending = false;
-  Clock::time_point framesEnd;  // this render's last frame (compositing and the window follow)
-  double afterMs = 0.0;
-  double lastEngineBudgetMs = -1.0;  // the frames' share of the last still render (for the log)
-  double EngineTimeBudget(double viewBudgetMs) const;
-  void ObserveWindow(vtkRenderWindow* window);
-  void StopObserving();
-  static void OnWindowEvent(vtkObject*, unsigned long event, void* clientData, void*);
-  int imageWidth = 0, imageHeight = 0;
-  double lastRenderMs = 0.0;
-
-  // For the INR_VOLUME_DEBUG report of what changed.
-  bool haveLastScene = false;
-  inr::RenderScene lastScene;
-
-  // Tiled rendering: where this render's image lies in the full picture (whole: fullWidth 0).
-  inr::ImageWindow window;
-  // Sub-domain rendering under MPI (InrParallelRendering.h): this rank's place, the refinement
-  // state reduced over all ranks after each render (what the getters report with several ranks).
-  InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
-  InrParallelRendering::Refinement reduced;
-  std::string rankInUse;  // appended to the backend description
-  int localRank = -1;     // this rank's index on its node (-1: unknown), and where it came from
-  std::string localRankSource;
-  int cudaDevices = -1;   // CUDA devices this process sees (-1: not counted yet)
-  bool haveLocalRank = false;
-  std::string rankNoteKey;  // the local rank and source rankInUse was written for
-  // Once per process life of the mapper: neither the node nor the rank changes. Asking MPI is
-  // collective, so Render calls it first thing, where every rank passes.
-  void LookUpLocalRank()
-  {
-    if (!this->haveLocalRank)
-    {
-      this->localRank = InrParallelRendering::NodeLocalRank(&this->localRankSource);
-      this->haveLocalRank = true;
-    }
-  }
-  std::string ranksInUse;  // one line per rank after each render (several ranks only)
-  // With several ranks: this rank's pixel share (image-space split).
-  void RankSettings(inr::RenderSettings& settings) const;
-  // Reduces the refinement state over the ranks (ReduceRefinement) once per Render, on every exit
-  // path: every rank must take part in the collective or the others wait forever.
-  void ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered);
-  // Once-per-mapper warnings: translucent geometry in the renderer, camera features ignored.
-  bool warnedTranslucent = false, warnedPeeling = false;
-  int uploadedEpoch = -1;  // the session's resets + reprojections when the image was uploaded
-  std::string warnedCamera;
-  void WarnAboutScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height);
-
-  bool UpdateModel(vtkUnsignedCharArray* bytes);
-  InrEngineRequest Request(vtkInrVolumeMapper* self);
-  bool UpdateEngine(vtkInrVolumeMapper* self);
-  inr::RenderScene TranslateScene(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol,
-    vtkDataSet* input, const Viewport& tile);
-  bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene, int width, int height,
-    bool interactive = false, bool useCoarse = false, int interactiveFrames = 1,
-    bool background = false);
-  void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
-};
+#include "vtkInrVolumeMapperInternals.h"
 
 vtkStandardNewMacro(vtkInrVolumeMapper);
 
@@ -433,7 +13,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
   { return progressHandler(this, prefix, muted); };
   // Frames measured while the worker shared the CPU were slower: a scale barred by them may be
   // tried again.
-  engines.joined = [this]()
+  engines.worker.joined = [this]()
   {
     this->Internal->lod.ForgetCeiling();
     this->Internal->lodStandIn.ForgetCeiling();
@@ -442,7 +22,7 @@ vtkInrVolumeMapper::vtkInrVolumeMapper()
 
 vtkInrVolumeMapper::~vtkInrVolumeMapper()
 {
-  this->Internal->engines.JoinBackgroundBuild();
+  this->Internal->worker.JoinBackgroundBuild();
   this->Internal->StopObserving();
   delete this->Internal;
 }
@@ -455,7 +35,7 @@ int vtkInrVolumeMapper::FillInputPortInformation(int, vtkInformation* info)
 
 void vtkInrVolumeMapper::ResetAccumulation()
 {
-  this->Internal->engines.JoinBackgroundBuild();
+  this->Internal->worker.JoinBackgroundBuild();
   for (InrEngineSlot* slot : { &this->Internal->engines.fine, &this->Internal->engines.coarse })
   {
     if (slot->session)
@@ -464,320 +44,6 @@ void vtkInrVolumeMapper::ResetAccumulation()
     }
     slot->refinement.restart();
   }
-}
-
-int vtkInrVolumeMapper::GetAccumulatedFrames()
-{
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.frames;  // the fewest of all ranks
-  }
-  return this->Internal->ShownFrames();
-}
-
-int vtkInrVolumeMapper::GetConverged()
-{
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.converged;  // every rank has converged
-  }
-  return this->GetLocalConverged();
-}
-
-int vtkInrVolumeMapper::GetLocalConverged()
-{
-  // Without progressive refinement nothing renders again by itself: "stopped" from the start.
-  // A reduced interactive image is never the final one: a still render must follow.
-  // A refinement step running on the worker: not converged yet.
-  const Internals& I = *this->Internal;
-  if (I.firstRender == Internals::FirstRender::PutOff)
-  {
-    return 0;  // the first render was put off: the refinement behaviour renders again
-  }
-  return !this->ProgressiveRefinement ||
-      (!I.lod.LastInteractive() && !I.engines.FineRefining() && I.engines.fine.refinement.converged())
-    ? 1
-    : 0;
-}
-
-int vtkInrVolumeMapper::GetLastRenderInteractive()
-{
-  return this->Internal->lod.LastInteractive() ? 1 : 0;
-}
-
-int vtkInrVolumeMapper::GetLastImageWidth()
-{
-  return this->Internal->imageWidth;
-}
-
-int vtkInrVolumeMapper::GetLastImageHeight()
-{
-  return this->Internal->imageHeight;
-}
-
-double vtkInrVolumeMapper::GetLastRenderMilliseconds()
-{
-  return this->Internal->lastRenderMs;
-}
-
-double vtkInrVolumeMapper::GetConvergenceEstimate()
-{
-  if (this->Internal->ranks.count > 1)
-  {
-    return this->Internal->reduced.estimate;  // the lowest of all ranks
-  }
-  return this->Internal->engines.FineRefining() ? this->Internal->fineKept.estimate
-                                                : this->Internal->engines.fine.refinement.estimate();
-}
-
-std::string vtkInrVolumeMapper::FormatConvergenceEstimate(double db)
-{
-  if (std::isnan(db) || db == -std::numeric_limits<double>::infinity())
-  {
-    return "\u2014";  // not known yet: a covered pixel has a single sample
-  }
-  if (db == std::numeric_limits<double>::infinity())
-  {
-    return "no noise left";  // no covered pixel, or no variance
-  }
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.1f dB", db);
-  return text;
-}
-
-const char* vtkInrVolumeMapper::GetConvergenceEstimateText()
-{
-  this->Internal->estimateText = FormatConvergenceEstimate(this->GetConvergenceEstimate());
-  return this->Internal->estimateText.c_str();
-}
-
-const char* vtkInrVolumeMapper::GetRefinementState()
-{
-  Internals& I = *this->Internal;
-  std::ostringstream s;
-  const int frames = this->GetAccumulatedFrames();
-  const double estimate = this->GetConvergenceEstimate();
-  if (!I.engines.fine.session || frames == 0)
-  {
-    s << "\u2014 (nothing rendered yet)";
-  }
-  else if (I.lod.LastInteractive())
-  {
-    s << "interacting: reduced " << I.imageWidth << "x" << I.imageHeight << " image";
-  }
-  else if (!this->ProgressiveRefinement)
-  {
-    s << "one frame per render (Progressive Refinement off)";
-  }
-  else if (this->GetConverged())
-  {
-    if (this->ConvergenceTarget > 0.0 && estimate >= this->ConvergenceTarget)
-    {
-      s << "converged: " << frames << " frames, " << FormatConvergenceEstimate(estimate);
-    }
-    else
-    {
-      s << "stopped at " << frames << " frames (Maximum Frames " << this->MaximumFrames << ")";
-      if (std::isfinite(estimate))
-      {
-        s << ", " << FormatConvergenceEstimate(estimate);
-      }
-    }
-  }
-  else
-  {
-    s << "refining: " << frames << " frames";
-    if (std::isfinite(estimate))
-    {
-      s << ", " << FormatConvergenceEstimate(estimate);
-      if (this->ConvergenceTarget > 0.0)
-      {
-        char target[32];
-        std::snprintf(target, sizeof(target), " of %.0f dB", this->ConvergenceTarget);
-        s << target;
-      }
-    }
-  }
-  I.refinementState = s.str();
-  return I.refinementState.c_str();
-}
-
-const char* vtkInrVolumeMapper::GetBackendInUse()
-{
-  return this->Internal->backendInUse.c_str();
-}
-
-double* vtkInrVolumeMapper::GetBounds()
-{
-  vtkDataSet* input = this->GetInput();
-  vtkFieldData* fd = input ? input->GetFieldData() : nullptr;
-  vtkDataArray* domain = fd ? fd->GetArray("InrDomainBounds") : nullptr;
-  if (domain && domain->GetNumberOfValues() == 6)
-  {
-    for (int k = 0; k < 6; ++k)
-    {
-      this->Bounds[k] = domain->GetTuple1(k);
-    }
-    return this->Bounds;
-  }
-  return this->Superclass::GetBounds();
-}
-
-const char* vtkInrVolumeMapper::GetRanksInUse()
-{
-  return this->Internal->ranksInUse.c_str();
-}
-
-double vtkInrVolumeMapper::GetLastUpdateMilliseconds()
-{
-  return this->Internal->lastStep.total.updateMs;
-}
-
-int vtkInrVolumeMapper::GetSlicesBuilt()
-{
-  this->Internal->engines.JoinFineBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  return fine ? fine->macrocellInfo().slicesBuilt : 0;
-}
-
-int vtkInrVolumeMapper::GetInteractiveSlicesBuilt()
-{
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& coarse = this->Internal->engines.coarse.session;
-  return coarse ? coarse->macrocellInfo().slicesBuilt : 0;
-}
-
-const char* vtkInrVolumeMapper::GetEngineOptionsInUse()
-{
-  this->Internal->engines.JoinFineBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  this->Internal->engineOptionsText = fine ? InrDescribeSession(*fine) : "";
-  return this->Internal->engineOptionsText.c_str();
-}
-
-const char* vtkInrVolumeMapper::GetInteractiveEngineOptionsInUse()
-{
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& coarse = this->Internal->engines.coarse.session;
-  this->Internal->interactiveOptionsText = coarse ? InrDescribeSession(*coarse) : "";
-  return this->Internal->interactiveOptionsText.c_str();
-}
-
-int vtkInrVolumeMapper::GetInteractiveSharesEvaluator()
-{
-  this->Internal->engines.FinishBackgroundBuild();
-  const auto& fine = this->Internal->engines.fine.session;
-  const auto& coarse = this->Internal->engines.coarse.session;
-  // On the CPU the coarse session's evaluator is the switch to a stand-in (InrStandInSwitch),
-  // around the fine session's network.
-  const InrStandInSwitch* standIn = this->Internal->engines.StandIn();
-  const inr::FieldEvaluator* coarseNetwork =
-    coarse ? (standIn ? &standIn->Network() : &coarse->evaluator()) : nullptr;
-  return fine && coarse && &fine->evaluator() == coarseNetwork ? 1 : 0;
-}
-
-int vtkInrVolumeMapper::GetLastRenderStandIn()
-{
-  return this->Internal->shownStandIn ? 1 : 0;
-}
-
-int vtkInrVolumeMapper::GetLastRenderCoarse()
-{
-  return this->Internal->shownCoarse ? 1 : 0;
-}
-
-double vtkInrVolumeMapper::InteractiveFreshFrameScale(double scale, int fresh)
-{
-  return InrLevelOfDetail::FreshFrameScale(scale, fresh);
-}
-
-int vtkInrVolumeMapper::InteractiveFreshFrameCount(double scale, int fresh)
-{
-  return InrLevelOfDetail::FreshFrameCount(scale, fresh);
-}
-
-int vtkInrVolumeMapper::GetEngineBuilds()
-{
-  return this->Internal->engines.engineBuilds;
-}
-
-double vtkInrVolumeMapper::GetLastQueries()
-{
-  return double(this->Internal->lastStep.total.totalQueries());
-}
-
-double vtkInrVolumeMapper::GetLastRays()
-{
-  return double(this->Internal->lastStep.total.rays);
-}
-
-double vtkInrVolumeMapper::GetLastBudgetSkipped()
-{
-  return double(this->Internal->lastStep.total.budgetSkipped);
-}
-
-double vtkInrVolumeMapper::GetLastPruned()
-{
-  return double(this->Internal->lastStep.total.pruned);
-}
-
-// Options kept in Internals as asked: query reduction (validated when pushed into the engine, so
-// the error names the engine's parameter and range) and macrocell / tracking options (checked
-// when the engine is updated, naming the property). Modified() makes ParaView render again.
-#define INR_STORED_OPTION(Name, Type, member, toField, fromField)                                  \
-  void vtkInrVolumeMapper::Set##Name(Type v)                                                      \
-  {                                                                                                \
-    if (this->Get##Name() != v)                                                                    \
-    {                                                                                              \
-      this->Internal->member = toField;                                                            \
-      this->Modified();                                                                            \
-    }                                                                                              \
-  }                                                                                                \
-  Type vtkInrVolumeMapper::Get##Name()                                                             \
-  {                                                                                                \
-    return fromField;                                                                              \
-  }
-INR_STORED_OPTION(RayBudget, int, options.queryReduction.budget, static_cast<inr::BudgetScheme>(v),
-  static_cast<int>(this->Internal->options.queryReduction.budget))
-INR_STORED_OPTION(BudgetFraction, double, options.queryReduction.budgetFraction, v,
-  this->Internal->options.queryReduction.budgetFraction)
-INR_STORED_OPTION(BudgetMaxSkip, int, options.queryReduction.budgetMaxSkip, v,
-  this->Internal->options.queryReduction.budgetMaxSkip)
-INR_STORED_OPTION(BudgetAlpha, double, options.queryReduction.budgetAlpha, v,
-  this->Internal->options.queryReduction.budgetAlpha)
-INR_STORED_OPTION(Reproject, int, options.queryReduction.reproject, v != 0,
-  this->Internal->options.queryReduction.reproject ? 1 : 0)
-INR_STORED_OPTION(PruneEpsilon, double, options.queryReduction.pruneEpsilon, v,
-  this->Internal->options.queryReduction.pruneEpsilon)
-INR_STORED_OPTION(PruneFalloff, double, options.queryReduction.pruneFalloff, v,
-  this->Internal->options.queryReduction.pruneFalloff)
-
-const char* vtkInrVolumeMapper::GetQueryReductionInUse()
-{
-  return this->Internal->engines.queryReductionInUse.c_str();
-}
-
-INR_STORED_OPTION(SkipBlock, int, options.macrocellsAsked.skipBlockCells, v,
-  this->Internal->options.macrocellsAsked.skipBlockCells)
-INR_STORED_OPTION(BoundsPadding, double, options.macrocellsAsked.boundsPadding, v,
-  this->Internal->options.macrocellsAsked.boundsPadding)
-INR_STORED_OPTION(GhostPasses, int, options.trackingAsked.ghostPassesOnUpdate, v,
-  this->Internal->options.trackingAsked.ghostPassesOnUpdate)
-INR_STORED_OPTION(RefineMacrocells, int, options.trackingAsked.refineMacrocells, v != 0,
-  this->Internal->options.trackingAsked.refineMacrocells ? 1 : 0)
-INR_STORED_OPTION(Estimator, int, options.trackingAsked.estimator, static_cast<inr::PrimaryEstimator>(v),
-  static_cast<int>(this->Internal->options.trackingAsked.estimator))
-INR_STORED_OPTION(MajorantScale, double, options.trackingAsked.majorantScale, v,
-  this->Internal->options.trackingAsked.majorantScale)
-INR_STORED_OPTION(ResidualScale, double, options.trackingAsked.residualScale, v,
-  this->Internal->options.trackingAsked.residualScale)
-INR_STORED_OPTION(PointsPerIteration, int, options.trackingAsked.pointsPerIteration, v,
-  this->Internal->options.trackingAsked.pointsPerIteration)
-#undef INR_STORED_OPTION
-
-const char* vtkInrVolumeMapper::GetMacrocellsInUse()
-{
-  return this->Internal->macrocellsInUse.c_str();
 }
 
 void vtkInrVolumeMapper::ReleaseGraphicsResources(vtkWindow* win)
@@ -805,13 +71,13 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render puts it off
   }
-  if (I.engines.BuildDone())
+  if (I.worker.BuildDone())
   {
-    I.engines.FinishBackgroundBuild();  // finished on the worker: join it
-    if (lodReport() && I.engines.LastCoarseAheadMs() > 0.0)
+    I.worker.FinishBackgroundBuild();  // finished on the worker: join it
+    if (lodReport() && I.worker.LastCoarseAheadMs() > 0.0)
     {
       std::fprintf(stderr, "INR Volume LOD: interactive macrocell slices built ahead on a worker "
-                           "thread, %.1f ms\n", I.engines.LastCoarseAheadMs());
+                           "thread, %.1f ms\n", I.worker.LastCoarseAheadMs());
     }
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
@@ -825,11 +91,11 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render reports what is wrong
   }
-  if (I.engines.FineBuilding())
+  if (I.worker.FineBuilding())
   {
     // Still building on the worker: show how far (the render draws the coarse session).
     this->SetProgressText("INR Volume: building macrocells");
-    this->UpdateProgress(I.engines.FineBuildProgress());
+    this->UpdateProgress(I.worker.BuildProgress());
     this->SetProgressText(nullptr);
     return;
   }
@@ -846,18 +112,19 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
     {
       I.engines.coarse.session->buildSlicesFor(time);
     }
-    else if (I.engines.FineRefining())
+    else if (I.worker.FineRefining())
     {
       // The worker holds the fine session for a refinement step: this render draws its image, or
       // a reduced coarse frame when the time moved (Render); the fine slices of the new time
       // build once the step is done.
-      if (I.haveFineScene && time != I.fineScene.time &&
+      if (I.worker.FineTimeDiffers(time) &&
         I.engines.UpdateCoarse(this->InteractiveMacrocellResolution))
       {
         I.engines.coarse.session->buildSlicesFor(time);
       }
     }
-    else if (!I.StartFineBuild(this, time))
+    else if (!I.worker.DeferFineBuild(
+               time, I.BuildsInBackground(this), this->InteractiveMacrocellResolution))
     {
       I.engines.fine.session->buildSlicesFor(time);
     }
@@ -866,7 +133,7 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     // The render's setScene meets the same failure and reports it.
   }
-  if (I.engines.FineBusy() || I.fineBuildPending)
+  if (I.worker.FineBusy() || I.worker.FineBuildPending())
   {
     return;
   }
@@ -879,10 +146,10 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     if (I.BuildsInBackground(this))
     {
-      if (I.engines.StartCoarseAhead(this->InteractiveMacrocellResolution))
+      if (I.worker.StartCoarseAhead(this->InteractiveMacrocellResolution))
       {
         this->SetProgressText("INR Volume (interactive macrocells): building macrocells");
-        this->UpdateProgress(I.engines.BuildProgress());
+        this->UpdateProgress(I.worker.BuildProgress());
         this->SetProgressText(nullptr);
       }
     }
@@ -900,42 +167,16 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // no picking support: hardware-selection passes skip the volume
   }
-  struct InsideRender
-  {
-    Internals& I;
-    explicit InsideRender(Internals& i)
-      : I(i)
-    {
-      I.SetInsideRender(true);
-    }
-    ~InsideRender() { I.SetInsideRender(false); }
-  } inside(I);
+  Internals::InsideRender inside(I);
   // Under MPI every rank reaches this point in every render (IceT composites all of them):
-  // whatever happens below, the refinement state is reduced over the ranks once on the way out
-  // (also where this rank draws nothing: depth peeling depends on its own geometry, and a rank
-  // that skipped the reduction would leave the others waiting in it).
-  struct RankReduction
-  {
-    Internals& I;
-    vtkInrVolumeMapper* self;
-    bool rendered = false;
-    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
-  } reduction{ I, this };
+  // whatever happens below, the refinement state is reduced over the ranks once on the way out.
+  Internals::RankReduction reduction{ I, this };
   // The depth limit before anything can return: under MPI its composite is collective, and a
   // rank that draws nothing must still bring its geometry to the others' rays.
-  I.CompositeDepth(ren, vol);
-  I.LookUpLocalRank();
-  if (insideDepthPeeling(vol))
+  I.depthValid = I.ranks.CompositeDepth(ren, vol, I.depth);
+  I.ranks.LookUpLocalRank();
+  if (I.InsideDepthPeeling(this, vol))
   {
-    // Its peels expect the GPU ray-cast mapper's shaders; blending a finished image into them
-    // (several times a frame) corrupts the picture. ParaView's representation avoids this path.
-    if (!I.warnedPeeling)
-    {
-      vtkWarningMacro("INR Volume: not drawn while the renderer depth-peels volumes with "
-                      "translucent geometry (UseDepthPeelingForVolumes, which only the GPU "
-                      "ray-cast mapper supports): turn UseDepthPeelingForVolumes off to see it.");
-      I.warnedPeeling = true;
-    }
     return;
   }
   if (vtkAlgorithm* producer = this->GetInputAlgorithm())
@@ -973,81 +214,41 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
-  // A tile of a larger picture (screenshot larger than the view, tile display): the camera is
-  // already the tile's (window centre); the window keys the random streams by the full picture.
-  {
-    vtkRenderWindow* win = ren->GetRenderWindow();
-    double tileViewport[4] = { 0, 0, 1, 1 };
-    win->GetTileViewport(tileViewport);
-    I.window = InrSceneTranslator::TileWindow(
-      ren->GetViewport(), tileViewport, win->GetSize(), tile.width, tile.height);
-  }
+  I.PlaceTile(ren, tile);
   I.WarnAboutScene(this, ren, vol, tile.width, tile.height);
   const auto renderStart = Clock::now();
   I.ObserveWindow(ren->GetRenderWindow());
   inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);
-  // Level of detail: an interactive render draws one frame of a reduced image, upscaled. Tiles of
-  // a larger picture are captures (still renders) and always render at full resolution.
-  const InrLevelOfDetail::Settings lod = I.LodSettings(this);
-  InrLevelOfDetail::Decision d;
-  if (I.window.fullWidth == 0)
-  {
-    d = I.lod.Classify(lod, ren->GetRenderWindow()->GetDesiredUpdateRate(), scene.time);
-    const bool fineTimeOnWorker =
-      I.engines.FineRefining() && I.haveFineScene && scene.time != I.fineScene.time;
-    if ((I.engines.FineBuilding() || I.fineBuildPending || fineTimeOnWorker) && !d.interactive &&
-      !this->Capturing)
-    {
-      // The fine slices of this time are still building on the worker (or will, once its
-      // refinement step is done): a reduced frame of the coarse session, as right after a time
-      // change (a fresh image).
-      d = InrLevelOfDetail::WhileFineBuilds(lod);
-    }
-  }
-  // A camera drag drawn on the stand-in of the network (InteractiveStandIn) has its own cost
-  // model, and stays on the stand-in even where its full resolution fits the budget.
-  const bool standIn = I.StandInFor(this, d, scene.time);
-  InrLevelOfDetail& lodModel = standIn ? I.lodStandIn : I.lod;
-  InrLevelOfDetail::Frame frame = lodModel.Plan(lod, d, tile.width, tile.height);
-  frame.interactive = frame.interactive || standIn;
-  // A camera interaction that fits at full resolution renders as a still frame, but one frame:
-  // the refinement time budget is for a view at rest (a drag frame would otherwise take it all).
-  I.cameraInteraction = d.interactive && !d.timeChange;
-  d.interactive = frame.interactive;
-  const bool interactive = frame.interactive;
-  const int width = frame.width, height = frame.height;
+  I.lastEngineBudgetMs = -1.0;
+  const auto refineStart = Clock::now();
+  const double refineCpuStart = processCpuMs();
+  // What this render does (InrRenderDecision.h): reduced or still, which session, on the worker.
+  const InrRenderDecision::Inputs in = I.DecisionInputs(this, ren, scene.time, tile);
+  I.decision = I.Decide(this, in, scene.time);
+  const InrRenderDecision& dec = I.decision;
+  const bool interactive = dec.frame.interactive, useCoarse = dec.useCoarse;
+  const bool background = dec.background, drawStandIn = dec.drawStandIn;
+  const int width = dec.frame.width, height = dec.frame.height;
   if (interactive)
   {
     scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
   }
   I.lod.SawTime(scene.time);  // the one model that classifies renders (lodStandIn only plans)
-  I.lastEngineBudgetMs = -1.0;
-  const auto refineStart = Clock::now();
-  const double refineCpuStart = processCpuMs();
-  // A time change shown as a reduced frame: the coarse grid, unless it is off or not coarser.
-  // and a camera drag with Reproject on: the fine session keeps its full-resolution accumulation,
-  // which the still render after the drag reprojects to the new camera instead of restarting.
-  const bool useCoarse = I.RendersCoarse(this, d);
-  // A still render of the fine session in the GUI refines it on the worker; a camera drag that
-  // fits at full resolution renders its one frame here (it must show the new camera at once).
-  const bool background = !interactive && !useCoarse && !I.cameraInteraction &&
-    I.window.fullWidth == 0 && I.BuildsInBackground(this);
-  if (I.engines.FineBusy() && !useCoarse && !(background && I.engines.FineRefining()))
+  if (dec.joinFine)
   {
-    I.engines.JoinFineBuild();  // this frame needs the fine session: wait for the worker
+    I.worker.JoinFineBuild();  // this frame needs the fine session: wait for the worker
   }
-  const bool drawStandIn = standIn && useCoarse;
   I.engines.UseStandIn(drawStandIn);
-  const bool refined = I.Refine(this, scene, width, height, interactive, useCoarse, frame.frames, background);
+  const bool refined = I.Refine(this, scene, in);
   I.engines.UseStandIn(false);
-  I.shownStandIn = drawStandIn && refined;
+  I.report.shownStandIn = drawStandIn && refined;
   if (!refined)
   {
     return;
   }
-  if (!useCoarse && !background && I.haveFineScene)
+  if (!useCoarse && !background && I.worker.HasFineScene())
   {
-    I.engines.KeepStandIn(I.fineScene.time);  // a frame of the fine session was rendered here
+    I.engines.KeepStandIn(I.worker.FineSceneTime());  // a frame of the fine session was rendered here
   }
   reduction.rendered = true;
   const double refineMs = msSince(refineStart);
@@ -1061,116 +262,19 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     glFinish();
   }
   const double compositeMs = msSince(compositeStart);
-  I.lastRenderMs = msSince(renderStart);
-  I.lod.Drew(interactive);
-  I.lodStandIn.Drew(interactive);
-  I.renderedInWindow = true;
-  I.imageWidth = width;
-  I.imageHeight = height;
-  if (background)
-  {
-    // The step's frames were rendered on the worker: its own time is the engine's part; this
-    // render's time outside its refinement part (which holds the wait for the step) is the
-    // render's fixed cost.
-    const double engineMs = I.lastStep.total.totalMs;
-    I.lod.MeasureFrame(std::max(0.0, I.lastRenderMs - refineMs) + engineMs,
-      engineMs, I.lastStep.total.updateMs, I.lastStep.framesRendered, width, height, false);
-  }
-  else
-  {
-    (drawStandIn ? I.lodStandIn : I.lod)
-      .MeasureFrame(I.lastRenderMs, refineMs, I.lastStep.total.updateMs,
-        I.lastStep.framesRendered, width, height, interactive);
-  }
-  if (lodReport())
-  {
-    std::string worker;
-    if (background)
-    {
-      char step[160];
-      std::snprintf(step, sizeof(step), ", refining on the worker (%s; step joined: %d frames, %.1f ms)",
-        I.keepImage ? "image kept" : "image drawn", I.lastStep.framesRendered, I.lastStep.total.totalMs);
-      worker = step;
-    }
-    std::fprintf(stderr,
-      "INR Volume LOD: %s frame %dx%d of %dx%d (scale %.3f), %.1f ms (budget %.0f ms; macrocell "
-      "update %.1f ms; scene %.1f ms, engine %.1f ms of %.1f (process CPU %.1f ms), composite "
-      "%.1f ms), frames %d%s%s\n",
-      interactive ? "interactive" : "still", width, height, tile.width, tile.height,
-      double(width) / tile.width, I.lastRenderMs, d.budgetMs, I.lastStep.total.updateMs,
-      std::chrono::duration<double, std::milli>(refineStart - renderStart).count(), refineMs,
-      I.lastEngineBudgetMs, refineCpuMs, compositeMs, I.ShownFrames(),
-      useCoarse ? (drawStandIn ? ", coarse macrocells, stand-in" : ", coarse macrocells") : "",
-      worker.c_str());
-  }
+  I.report.renderMs = msSince(renderStart);
+  I.RecordRender(tile, Internals::RenderTimes{ renderStart, refineStart, refineMs, refineCpuMs, compositeMs });
   // A still render that time-change frames may follow: build the coarse slices they will need
   // now (after the frame is measured: it is no part of the frame's cost).
   // (A view that prepares its renders builds them in PrepareRender instead, outside the GL render.)
   if (!I.quietRenders && !interactive && I.window.fullWidth == 0 &&
-    InrLevelOfDetail::BuildsCoarseAhead(lod))
+    InrLevelOfDetail::BuildsCoarseAhead(in.lodSettings))
   {
     I.BuildCoarseAhead(this);
   }
-  if (I.fineBuildPending)
-  {
-    // The reduced coarse frame is drawn: the fine slices of this time build on the worker now
-    // (InrEngines::StartFineBuild returns at once where they were built before).
-    I.fineBuildPending = false;
-    I.startRefine = false;
-    if (I.engines.fine.session && !I.engines.FineBusy())
-    {
-      I.engines.StartFineBuild(I.fineBuildTime);
-    }
-  }
-  I.LaunchRefine();
-}
-
-// Starts the refinement step this render prepared (startRefine), once its image has been read
-// (Composite) or nothing of the session is read any more: keeps what the getters read while the
-// worker holds the fine session.
-void vtkInrVolumeMapper::Internals::LaunchRefine()
-{
-  if (!this->startRefine)
-  {
-    return;
-  }
-  this->startRefine = false;
-  if (this->haveFineScene)
-  {
-    this->engines.KeepStandIn(this->fineScene.time);  // while the fine session is not the worker's
-  }
-  this->fineKept.frames = this->engines.fine.session->accumulatedFrames();
-  this->fineKept.estimate = this->engines.fine.refinement.estimate();
-  this->engines.StartFineRefine();
-}
-
-void vtkInrVolumeMapper::MarkViewUpdate()
-{
-  if (!this->Internal->viewUpdatePending)  // the earliest mark since the last render
-  {
-    this->Internal->viewUpdateStart = Clock::now();
-    this->Internal->viewUpdatePending = true;
-  }
-}
-
-// What the frames of this render may take: the view's budget less the time this render has
-// already spent (since the view's update began, or the window's render) and the measured time
-// after the frames (compositing the image, the rest of the window's render). Never below 0,
-// which adds one frame.
-double vtkInrVolumeMapper::Internals::EngineTimeBudget(double viewBudgetMs) const
-{
-  if (viewBudgetMs <= 0.0)
-  {
-    return 0.0;
-  }
-  // A mark long before the window's render is not this render's own update (a script's
-  // UpdatePipeline, then a pause): only the window's render counts then.
-  constexpr std::chrono::milliseconds kStaleMark(1000);
-  const bool marked = this->viewUpdatePending && this->viewUpdateStart < this->windowStart &&
-    this->windowStart - this->viewUpdateStart < kStaleMark;
-  const Clock::time_point began = marked ? this->viewUpdateStart : this->windowStart;
-  const double spent = std::chrono::duration<double, std::milli>(Clock::now() - began).count();
-  return std::max(0.0, viewBudgetMs - spent - this->afterMs);
+  // The reduced coarse frame is drawn: a fine build put off for it starts on the worker now.
+  I.worker.StartPendingFineBuild();
+  I.worker.LaunchRefine();
 }
 
 // Starts building the fine slices for `time` on a worker thread where that keeps the GUI
@@ -1194,7 +298,7 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
 int vtkInrVolumeMapper::GetBackgroundWorkRunning()
 {
   const InrEngines& e = this->Internal->engines;
-  return (e.FineRefining() || e.CoarseBusy()) && !e.BuildDone() ? 1 : 0;
+  return (e.worker.FineRefining() || e.worker.CoarseBusy()) && !e.worker.BuildDone() ? 1 : 0;
 }
 
 bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self) const
@@ -1211,26 +315,51 @@ bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) 
   // refinement on. Never for a capture or a tile of a larger picture (they must draw now), and
   // once per mapper.
   return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
-    !self->Capturing && this->ranks.count <= 1;
+    !self->Capturing && this->ranks.Ranks().count <= 1;
 }
 
-bool vtkInrVolumeMapper::Internals::StartFineBuild(vtkInrVolumeMapper* self, double time)
+// What the render decision reads (InrRenderDecision::Inputs): the level-of-detail policy's
+// classification (not for a tile of a larger picture), the worker's state, the properties.
+InrRenderDecision::Inputs vtkInrVolumeMapper::Internals::DecisionInputs(
+  vtkInrVolumeMapper* self, vtkRenderer* ren, double time, const Viewport& tile)
 {
-  if (this->engines.FineBusy() || !this->BuildsInBackground(self) ||
-    !this->engines.UpdateCoarse(self->InteractiveMacrocellResolution))
+  InrRenderDecision::Inputs in;
+  in.lodSettings = this->LodSettings(self);
+  in.tile = this->window.fullWidth != 0;
+  if (!in.tile)
   {
-    return false;
+    in.lod = this->lod.Classify(in.lodSettings, ren->GetRenderWindow()->GetDesiredUpdateRate(), time);
   }
-  if (this->haveDeferredFineBuild && this->fineBuildTime == time)
-  {
-    // Deferred once for this time already: the build ran (or returns at once): go on as without
-    // deferral, the render uses the fine session when it is done within a few ms.
-    return this->engines.StartFineBuild(time);
-  }
-  this->fineBuildPending = true;
-  this->haveDeferredFineBuild = true;
-  this->fineBuildTime = time;
-  return true;
+  in.width = tile.width;
+  in.height = tile.height;
+  in.fineOnWorker = this->worker.FineBuilding() || this->worker.FineBuildPending() ||
+    this->worker.FineTimeDiffers(time);
+  in.fineBusy = this->worker.FineBusy();
+  in.fineRefining = this->worker.FineRefining();
+  in.backgroundAllowed = this->BuildsInBackground(self);
+  in.standInOption = self->InteractiveStandIn != 0;
+  in.reproject = this->options.queryReduction.reproject;
+  in.progressive = self->ProgressiveRefinement != 0;
+  in.framesPerRender = self->FramesPerRender;
+  in.maximumFrames = self->MaximumFrames;
+  in.convergenceTarget = self->ConvergenceTarget;
+  in.timeBudgetMs = self->RefinementTimeBudget;
+  return in;
+}
+
+// The decision with the mapper's state as its queries: the coarse session (created on first use),
+// the stand-in kept for `time`, and the cost model that plans the image (the stand-in's own for a
+// drag drawn on it).
+InrRenderDecision vtkInrVolumeMapper::Internals::Decide(
+  vtkInrVolumeMapper* self, const InrRenderDecision::Inputs& in, double time)
+{
+  InrRenderDecision::Queries ask;
+  ask.coarseSession = [this, self]()
+  { return this->engines.UpdateCoarse(self->InteractiveMacrocellResolution); };
+  ask.standInReady = [this, time]() { return this->engines.StandInReady(time); };
+  ask.plan = [this, &in](const InrLevelOfDetail::Decision& d, bool standIn)
+  { return (standIn ? this->lodStandIn : this->lod).Plan(in.lodSettings, d, in.width, in.height); };
+  return InrRenderDecision::Decide(in, ask);
 }
 
 InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolumeMapper* self) const
@@ -1244,507 +373,8 @@ InrLevelOfDetail::Settings vtkInrVolumeMapper::Internals::LodSettings(vtkInrVolu
   s.progressiveRefinement = self->ProgressiveRefinement != 0;
   s.capturing = self->Capturing;
   s.coarseAhead = self->InteractiveMacrocellsAhead != 0;
-  s.ranks = this->ranks.count;
+  s.ranks = this->ranks.Ranks().count;
   return s;
-}
-
-void vtkInrVolumeMapper::Internals::ObserveWindow(vtkRenderWindow* window)
-{
-  if (window == this->observedWindow)
-  {
-    return;
-  }
-  this->StopObserving();
-  this->windowObserver->SetCallback(&Internals::OnWindowEvent);
-  this->windowObserver->SetClientData(this);
-  window->AddObserver(vtkCommand::StartEvent, this->windowObserver);
-  window->AddObserver(vtkCommand::EndEvent, this->windowObserver);
-  this->observedWindow = window;
-  this->windowStart = Clock::now();
-  this->renderedInWindow = false;
-}
-
-void vtkInrVolumeMapper::Internals::StopObserving()
-{
-  if (this->observedWindow)
-  {
-    this->observedWindow->RemoveObserver(this->windowObserver);
-  }
-  this->observedWindow = nullptr;
-}
-
-void vtkInrVolumeMapper::Internals::OnWindowEvent(
-  vtkObject*, unsigned long event, void* clientData, void*)
-{
-  auto* self = static_cast<Internals*>(clientData);
-  if (event == vtkCommand::StartEvent)
-  {
-    self->windowStart = Clock::now();
-    self->renderedInWindow = false;
-    self->aheadMs = 0.0;
-  }
-  else if (event == vtkCommand::EndEvent)
-  {
-    // Whatever this window render drew, the next render's work starts after it.
-    self->viewUpdatePending = false;
-  }
-  if (event == vtkCommand::EndEvent && self->renderedInWindow)
-  {
-    self->lod.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
-    self->lodStandIn.WindowRendered(msSince(self->windowStart), self->lastRenderMs, self->aheadMs);
-    const double after = msSince(self->framesEnd);
-    self->afterMs = self->afterMs > 0.0 ? 0.5 * (self->afterMs + after) : after;
-    self->renderedInWindow = false;
-  }
-}
-
-// The model: loaded again only when its bytes changed (array, modification time, then the
-// engines' content hash).
-bool vtkInrVolumeMapper::Internals::UpdateModel(vtkUnsignedCharArray* bytes)
-{
-  if (bytes != this->bytesPtr || bytes->GetMTime() != this->bytesMTime)
-  {
-    this->bytesPtr = bytes;
-    this->bytesMTime = bytes->GetMTime();
-    this->engines.SetModel(bytes->GetPointer(0), static_cast<std::size_t>(bytes->GetNumberOfValues()));
-  }
-  return this->engines.HasModel();
-}
-
-// What the user asked of the engine (the properties, checked by InrEngineOptions::Check), with
-// the device of this rank: what both sessions are built from (InrSessionOptions).
-InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self)
-{
-  this->options.Check(this->engines.error);
-  InrEngineRequest r;
-  r.backend = self->Backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
-    : self->Backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
-                                            : inr::RenderBackend::Auto;
-  r.traversal = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
-    : self->Traversal == TRAVERSAL_OPTIX         ? inr::TraversalKind::Optix
-                                                 : inr::TraversalKind::Auto;
-  r.resolution = self->MacrocellResolution;
-  r.temporalSlices = self->TemporalSlices;
-  r.modelUsesTime = this->engines.Model().domain.usesTime();
-  r.skipBlockCells = this->options.macrocellsValid.skipBlockCells;
-  r.boundsPadding = this->options.macrocellsValid.boundsPadding;
-  r.tracking = this->options.trackingValid;
-  // One GPU per rank: the rank's index on its node (LookUpLocalRank, at the start of the first
-  // Render) picks the device. Not looked up yet (PrepareRender before the first Render, which
-  // not every rank may reach): the launcher's environment, without the collective.
-  if (!this->haveLocalRank)
-  {
-    this->localRank = InrParallelRendering::LocalRank(&this->localRankSource);
-  }
-  if (this->cudaDevices < 0)
-  {
-    this->cudaDevices = inr::cudaDeviceCount();
-  }
-  const int device = InrParallelRendering::DeviceForLocalRank(this->localRank, this->cudaDevices);
-  if (device >= 0)
-  {
-    r.cudaDevice = device;
-  }
-  return r;
-}
-
-// The engine sessions for the properties (InrEngines::UpdateFine: rebuilt when a build option
-// changed, with progress through the mapper's ProgressEvent), and what runs, for the panel.
-bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
-{
-  const InrEngineRequest want = this->Request(self);
-  if (!this->engines.UpdateFine(want))
-  {
-    return false;
-  }
-  const InrEngineSlot& f = this->engines.fine;
-  // Also when the local rank's source changed: the first Render asks MPI (LookUpLocalRank) after
-  // a PrepareRender may have built the sessions from the environment (same device under Open
-  // MPI, so no rebuild).
-  const std::string rankKey = std::to_string(this->localRank) + this->localRankSource;
-  if (this->engines.Rebuilt())
-  {
-    this->haveDeferredFineBuild = false;  // a new session: its first build is deferred again
-    this->haveFineScene = false;
-  }
-  if (this->engines.Rebuilt() || rankKey != this->rankNoteKey)
-  {
-    this->rankNoteKey = rankKey;
-    this->rankInUse.clear();
-    if (this->ranks.count > 1 || this->localRank >= 0)
-    {
-      std::ostringstream note;
-      note << "; rank " << this->ranks.rank << " of " << this->ranks.count;
-      if (this->localRank >= 0)
-      {
-        note << " (local rank " << this->localRank << " from " << this->localRankSource << ")";
-      }
-      if (f.session->backend() == inr::RenderBackend::Cuda)
-      {
-        note << ", CUDA device " << f.built.cudaDevice << " of " << this->cudaDevices;
-      }
-      this->rankInUse = note.str();
-    }
-  }
-  if (!this->engines.FineBusy())
-  {
-    this->backendInUse = f.session->description() +
-      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + this->rankInUse;
-    this->macrocellsInUse = InrDescribeMacrocells(*f.session);
-  }
-  return true;
-}
-
-// Camera, transfer function, time and depth limit from VTK; light and shadows from the mapper.
-inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMapper* self,
-  vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input, const Viewport& tile)
-{
-  const int width = tile.width, height = tile.height;
-  vtkCamera* cam = ren->GetActiveCamera();
-  inr::RenderScene scene;
-  scene.camera = InrSceneTranslator::TranslateCamera(cam, width, height);
-  scene.camera.modelToWorld = InrSceneTranslator::ModelToWorld(vol);
-  // Depth limit: world distance to the opaque geometry rendered before the volume (of every rank:
-  // CompositeDepth, called for this tile at the start of the render).
-  if (this->depthValid)
-  {
-    scene.depthLimit = InrSceneTranslator::DepthToRayDistances(this->depth, width, height, cam);
-  }
-  double valueRange[2];
-  InrSceneTranslator::ValueRange(input->GetFieldData(), valueRange);
-  scene.transferFunction = this->translator.UpdateTransferFunction(
-    vol->GetProperty(), self->UseDefaultTransferFunction != 0, valueRange);
-  const inr::InrModel& model = this->engines.Model();
-  scene.time =
-    InrSceneTranslator::Time(input, 0.5 * (model.domain.timeBegin + model.domain.timeEnd));
-  scene.background = { 0.f, 0.f, 0.f };
-  scene.shadows = self->Shadows != 0;
-  const double* l = self->LightDirection;
-  scene.toLight = (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0)
-    ? inr::defaultLightDirection(scene.camera)
-    : std::array<double, 3>{ l[0], l[1], l[2] };
-  scene.ambient = static_cast<float>(self->Ambient);
-  scene.shadowEstimator =
-    self->ShadowEstimator == 1 ? inr::ShadowEstimator::Ratio : inr::ShadowEstimator::Delta;
-  // The automatic light with shading alone is the view's lights (its light kit, headlight,
-  // additional lights), taken as VTK's volume mapper takes them; shadows and a set
-  // LightDirection light along that one direction.
-  const bool automaticLight = l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0;
-  const int left = InrSceneTranslator::TranslateShading(
-    vol->GetProperty(), automaticLight && !scene.shadows ? ren : nullptr, scene);
-  if (left > 0 && !this->warnedLightsLeftOut)
-  {
-    this->warnedLightsLeftOut = true;
-    this->engines.warning("INR Volume: Shade lights the volume with the view's first " +
-      std::to_string(inr::kMaxShadingLights) + " usable lights; " + std::to_string(left) +
-      " are left out (beyond that number, or with no direction, a negative or an over-large "
-      "intensity). Turn lights off or mend them in the view's Light Inspector.");
-  }
-  return scene;
-}
-
-// The depth that clips the rays, over the render tile. One process: the window's depth buffer
-// where geometry was drawn before the volume; without any the buffer holds only the clear value
-// (no limit) and the read, tens of ms per render on a software OpenGL, is skipped. Several ranks
-// (ParaView's distributed rendering): each rank's buffer holds only its own geometry, which IceT
-// composites after the volumes, so a rank's rays would pass another rank's surfaces; the limit is
-// the per-pixel minimum over all ranks' buffers (over the union of the volumes' rectangles: no
-// ray outside it meets the box). Whether to read is decided by all ranks together
-// (PlanDepthComposite) since the reduction is collective: a rank without geometry contributes
-// the clear value.
-void vtkInrVolumeMapper::Internals::CompositeDepth(vtkRenderer* ren, vtkVolume* vol)
-{
-  this->depthValid = false;
-  Viewport tile;
-  ren->GetTiledSizeAndOrigin(&tile.width, &tile.height, &tile.x0, &tile.y0);
-  const bool localGeometry = geometryDrawnBeforeVolumes(ren);
-  if (this->ranks.count < 2)
-  {
-    if (localGeometry && tile.width > 0 && tile.height > 0)
-    {
-      InrFramebufferCompositor::ReadDepth(
-        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
-      this->depthValid = true;
-    }
-    return;
-  }
-  const InrParallelRendering::DepthPlan plan = InrParallelRendering::PlanDepthComposite(
-    localGeometry, tile.width, tile.height, volumeRect(ren, vol, tile.width, tile.height));
-  if (!plan.anyGeometry || tile.width <= 0 || tile.height <= 0)
-  {
-    return;
-  }
-  if (!plan.sameSize)
-  {
-    // Not seen with ParaView (every rank renders the same view); each rank keeps its own depth.
-    if (!this->warnedDepthSize)
-    {
-      std::cerr << "INR Volume: the ranks' render sizes differ: each rank clips its rays by its "
-                   "own geometry only\n";
-      this->warnedDepthSize = true;
-    }
-    if (localGeometry)
-    {
-      InrFramebufferCompositor::ReadDepth(
-        ren->GetRenderWindow(), tile.x0, tile.y0, tile.width, tile.height, this->depth);
-      this->depthValid = true;
-    }
-    return;
-  }
-  const InrParallelRendering::PixelRect r = plan.rect;
-  const int rw = std::max(0, r.x1 - r.x0), rh = std::max(0, r.y1 - r.y0);
-  std::vector<float> part;
-  if (localGeometry && rw > 0 && rh > 0)
-  {
-    InrFramebufferCompositor::ReadDepth(
-      ren->GetRenderWindow(), tile.x0 + r.x0, tile.y0 + r.y0, rw, rh, part);
-  }
-  else
-  {
-    part.assign(std::size_t(rw) * std::size_t(rh), 1.0f);  // the clear value: no geometry here
-  }
-  InrParallelRendering::MinOverRanks(part);
-  this->depth.assign(std::size_t(tile.width) * std::size_t(tile.height), 1.0f);
-  for (int j = 0; j < rh; ++j)
-  {
-    std::copy_n(part.begin() + std::ptrdiff_t(j) * rw, rw,
-      this->depth.begin() + std::ptrdiff_t(r.y0 + j) * tile.width + r.x0);
-  }
-  this->depthValid = true;
-  if (debugReport())
-  {
-    std::cerr << "INR Volume: rank " << this->ranks.rank << " depth composite over " << rw << "x"
-              << rh << " pixels (own geometry " << (localGeometry ? "yes" : "no") << ")\n";
-  }
-}
-
-// Once per mapper: translucent polygonal geometry in the renderer (VTK draws it before volumes
-// and this mapper blends over it without depth order: only VTK's GPU ray-cast mapper joins
-// depth peeling), and camera features the engine ignores (named; warned again when they change).
-void vtkInrVolumeMapper::Internals::WarnAboutScene(
-  vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, int width, int height)
-{
-  if (!this->warnedTranslucent)
-  {
-    vtkPropCollection* props = ren->GetViewProps();
-    vtkCollectionSimpleIterator it;
-    props->InitTraversal(it);
-    while (vtkProp* prop = props->GetNextProp(it))
-    {
-      auto* actor = vtkActor::SafeDownCast(prop);
-      if (actor && prop != vol && actor->GetVisibility() && actor->HasTranslucentPolygonalGeometry())
-      {
-        vtkWarningWithObjectMacro(self,
-          "INR Volume: translucent geometry (opacity < 1) is drawn before the volume and is not "
-          "depth-sorted with it: translucent surfaces in front of the INR volume appear behind "
-          "it (ParaView's non-GPU volume mappers do the same; only the GPU ray-cast mapper "
-          "interleaves volumes with depth peeling). Opaque geometry is depth-composited "
-          "correctly: set the surface's Opacity to 1 to have it hide the volume behind it.");
-        this->warnedTranslucent = true;
-        break;
-      }
-    }
-  }
-  const std::string ignored = InrSceneTranslator::UnsupportedCameraFeatures(
-    ren->GetActiveCamera(), ren->GetRenderWindow(), width, height);
-  if (!ignored.empty() && ignored != this->warnedCamera)
-  {
-    vtkWarningWithObjectMacro(self, "INR Volume: the volume is rendered with the camera's "
-                                    "position, focal point, view up, angle/scale and window "
-                                    "centre only; ignored here: "
-        << ignored << ".");
-  }
-  this->warnedCamera = ignored;
-}
-
-// A still render of the GUI, refining the fine session on the worker: waits a little for a
-// running job (a refinement step, or the coarse slices built ahead), joins it when it is done
-// (its frames become this render's image); false when it is still running and this render
-// changes nothing the fine session renders (the render then draws the image it has: keepImage).
-// A changed scene stops a build ahead (within a slice) or waits for the refinement step.
-bool vtkInrVolumeMapper::Internals::RefineInBackground(
-  vtkInrVolumeMapper*, const inr::RenderScene& scene, const inr::RenderSettings& settings)
-{
-  this->lastStep = inr::RefinementDriver::Step{};
-  if (this->engines.FineRefining() || this->engines.CoarseBusy())
-  {
-    const auto start = Clock::now();
-    while (!this->engines.BuildDone() && msSince(start) < kRefineWaitMs)
-    {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    const InrEngineSlot& fine = this->engines.fine;
-    const inr::RenderSettings& held = fine.settings;
-    const bool changed = !this->haveFineScene || inr::diffScenes(&this->fineScene, scene).any() ||
-      !fine.haveSettings || settings.width != held.width || settings.height != held.height ||
-      settings.seed != held.seed || settings.window != held.window ||
-      settings.pixelShare != held.pixelShare;
-    if (!this->engines.BuildDone() && !changed)
-    {
-      this->keepImage = true;
-      return false;
-    }
-    this->engines.JoinBackgroundBuild();
-  }
-  this->lastStep = this->engines.TakeRefineStep();
-  return true;
-}
-
-// Hands the scene to the engine (it decides what to redo: SceneChange), then accumulates frames
-// as the refinement options allow (RefinementDriver). False when the engine failed.
-bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
-  const inr::RenderScene& scene, int width, int height, bool interactive, bool useCoarse,
-  int interactiveFrames, bool background)
-{
-  // The session drawing this render: the fine one, or the coarse one for a time-change
-  // interactive frame.
-  InrEngineSlot& slot = useCoarse ? this->engines.coarse : this->engines.fine;
-  this->shownCoarse = useCoarse;
-  this->keepImage = false;
-  this->startRefine = false;
-  inr::RenderSettings settings;
-  settings.width = width;
-  settings.height = height;
-  settings.seed = static_cast<std::uint32_t>(self->Seed);
-  settings.window = this->window;
-  this->RankSettings(settings);
-  if (background && !this->RefineInBackground(self, scene, settings))
-  {
-    return true;  // the worker is busy: this render draws the image it has
-  }
-  if (!background)
-  {
-    this->engines.TakeRefineStep();  // a step joined for this render: its frames are in the image
-  }
-  inr::RenderSession& engine = *slot.session;
-  inr::RefinementDriver& refinement = slot.refinement;
-  if (!useCoarse)
-  {
-    this->fineScene = scene;
-    this->haveFineScene = true;
-  }
-  try
-  {
-    slot.SetSettings(settings);
-    const bool debug = debugReport();
-    if (debug)
-    {
-      const inr::SceneChange change =
-        inr::diffScenes(this->haveLastScene ? &this->lastScene : nullptr, scene);
-      std::fprintf(stderr, "INR Volume: render %dx%d%s, frames %d, changed:%s\n", width, height,
-        useCoarse ? " (coarse macrocells)" : "", engine.accumulatedFrames(),
-        change.describe().c_str());
-      this->lastScene = scene;
-      this->haveLastScene = true;
-    }
-    this->engines.PushQueryReduction(slot, this->options.queryReduction);
-    engine.setScene(scene);
-
-    inr::RefinementOptions options;
-    options.maximumFrames = self->MaximumFrames;
-    options.convergenceTarget = self->ConvergenceTarget;
-    options.framesPerRender =
-      interactive ? interactiveFrames : self->ProgressiveRefinement ? self->FramesPerRender : 1;
-    // Refinement by time: a still render of the GUI's one-frame-per-render refinement adds the
-    // frames that fit in the budget.
-    if (!interactive && !this->cameraInteraction && self->ProgressiveRefinement &&
-      self->FramesPerRender == 1 && this->window.fullWidth == 0)
-    {
-      // A step on the worker does not hold the view: it gets the whole budget.
-      options.timeBudgetMs = background ? self->RefinementTimeBudget
-                                        : this->EngineTimeBudget(self->RefinementTimeBudget);
-      this->lastEngineBudgetMs = options.timeBudgetMs;
-    }
-    if (this->window.fullWidth > 0 && self->ProgressiveRefinement && !interactive)
-    {
-      // A tile is rendered once per capture, from a fresh accumulation: refine it to the still
-      // image's quality (convergence target or frame limit) in this one render.
-      options.framesPerRender = options.maximumFrames;
-    }
-    refinement.setOptions(options);
-    if (background)
-    {
-      // The frames go to the worker once this render has drawn (Render: startRefine); this
-      // render shows the steps joined so far (lastStep, from RefineInBackground).
-      const int epoch = engine.counters().accumulationResets + engine.counters().reprojections;
-      this->startRefine = epoch != this->refinedEpoch || !refinement.converged(engine.accumulatedFrames());
-      this->refinedEpoch = epoch;
-      return true;
-    }
-    this->lastStep = inr::RefinementDriver::Step{};
-    this->lastStep = refinement.advance(engine);
-    if (debug && this->lastStep.framesRendered > 0)
-    {
-      std::fprintf(stderr,
-        "INR Volume: now %d frames, %.0f queries, update %.1f ms, converged %d; %s: %.0f rays, "
-        "%.0f pixels skipped, %.0f pruned\n",
-        engine.accumulatedFrames(), double(this->lastStep.total.totalQueries()),
-        this->lastStep.total.updateMs, int(refinement.converged()),
-        this->engines.queryReductionInUse.c_str(), double(this->lastStep.total.rays),
-        double(this->lastStep.total.budgetSkipped), double(this->lastStep.total.pruned));
-    }
-    return true;
-  }
-  catch (const std::exception& e)
-  {
-    vtkErrorWithObjectMacro(self, << "INR Volume: rendering failed: " << e.what());
-    return false;
-  }
-}
-
-// With several ranks, the image-space split: rank r of N traces the pixels (x + y) mod N = r of
-// the picture at full depth (RenderSettings::pixelShare) with the same seed as one rank would,
-// so the ranks' premultiplied images add up to the single-rank image (IceT blends them; disjoint
-// pixels blend the same in any order).
-void vtkInrVolumeMapper::Internals::RankSettings(inr::RenderSettings& settings) const
-{
-  if (this->ranks.count > 1)
-  {
-    settings.pixelShare = inr::PixelShare{ this->ranks.rank, this->ranks.count };
-  }
-}
-
-void vtkInrVolumeMapper::Internals::ReduceOverRanks(vtkInrVolumeMapper* self, bool rendered)
-{
-  // What every rank did (GetRanksInUse): how a user checks that all of them render.
-  std::ostringstream line;
-  line << "rank " << this->ranks.rank << " of " << this->ranks.count << ": ";
-  if (rendered)
-  {
-    line << this->lastStep.total.totalQueries() << " queries in the last render, "
-         << this->ShownFrames() << " frames, "
-         << (self->GetLocalConverged() ? "converged" : "refining") << "; "
-         << this->backendInUse;
-  }
-  else
-  {
-    line << "nothing drawn in the last render";
-  }
-  if (this->ranks.count < 2)
-  {
-    this->ranksInUse = line.str();
-    return;
-  }
-  // A rank that drew nothing (no model on its piece, a failed engine) neither holds back nor
-  // speeds up the others: it reports "converged", the most frames and the highest estimate.
-  InrParallelRendering::Refinement local;
-  local.converged = rendered ? self->GetLocalConverged() : 1;
-  local.frames = rendered && this->Shown() ? this->Shown()->accumulatedFrames()
-                                           : std::numeric_limits<int>::max();
-  local.estimate =
-    rendered ? this->engines.fine.refinement.estimate() : std::numeric_limits<double>::infinity();
-  InrParallelRendering::Refinement all = InrParallelRendering::ReduceRefinement(local);
-  if (all.frames == std::numeric_limits<int>::max())
-  {
-    all = InrParallelRendering::Refinement{ 0, 0, 0.0 };  // no rank drew anything
-  }
-  this->reduced = all;
-  std::string text;
-  for (const std::string& l : InrParallelRendering::GatherText(line.str()))
-  {
-    text += (text.empty() ? "" : "\n") + l;
-  }
-  this->ranksInUse = text;
 }
 
 // Draws the accumulated image over what is in the framebuffer; the texture is loaded again only
@@ -1757,9 +387,10 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     return;
   }
-  // The worker holds the fine session (keepImage), or its first frame of a new image is still to
+  // The worker holds the fine session (KeepsImage), or its first frame of a new image is still to
   // come: the image on screen stays (the previous one, or the coarse one) rather than a blank view.
-  if (this->keepImage || (this->startRefine && this->engines.fine.session->accumulatedFrames() == 0))
+  if (this->worker.KeepsImage() ||
+    (this->worker.StartsRefine() && this->engines.fine.session->accumulatedFrames() == 0))
   {
     std::string error;
     if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
@@ -1778,8 +409,8 @@ void vtkInrVolumeMapper::Internals::Composite(
   // kept history already reaches the frame limit: upload on any new accumulation epoch too.
   const int epoch = shown.counters().accumulationResets + shown.counters().reprojections;
   if (this->compositor.NeedsUpload(window, width, height, frames,
-        this->lastStep.framesRendered > 0 || epoch != this->uploadedEpoch ||
-          this->shownCoarse != this->uploadedCoarse))
+        this->report.step.framesRendered > 0 || epoch != this->uploadedEpoch ||
+          this->report.shownCoarse != this->uploadedCoarse))
   {
     // A reduced (interactive) image is stretched over the viewport: filter it linearly.
     int viewport[2] = { width, height };
@@ -1811,11 +442,11 @@ void vtkInrVolumeMapper::Internals::Composite(
       const inr::ImageRGBA image = shown.premultipliedImage();
       // The image is copied: the worker may take the session for the next step while this
       // render uploads and draws it.
-      this->LaunchRefine();
+      this->worker.LaunchRefine();
       this->compositor.Upload(window, width, height, frames, image.data.data(), upscaled);
     }
     this->uploadedEpoch = epoch;
-    this->uploadedCoarse = this->shownCoarse;
+    this->uploadedCoarse = this->report.shownCoarse;
     this->uploadedWindow = window;
   }
   std::string error;
@@ -1823,31 +454,4 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     vtkErrorWithObjectMacro(self, << error);
   }
-}
-
-void vtkInrVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
-{
-  this->Superclass::PrintSelf(os, indent);
-  os << indent << "Backend: " << this->Backend << " (" << this->GetBackendInUse() << ")\n";
-  os << indent << "Traversal: " << this->Traversal << "\n";
-  os << indent << "InteractiveStandIn: " << this->InteractiveStandIn << "\n";
-  os << indent << "MacrocellResolution: " << this->MacrocellResolution << "\n";
-  os << indent << "TemporalSlices: " << this->TemporalSlices << "\n";
-  os << indent << "Shadows: " << this->Shadows << "\n";
-  os << indent << "MaximumFrames: " << this->MaximumFrames << "\n";
-  os << indent << "ConvergenceTarget: " << this->ConvergenceTarget << "\n";
-  os << indent << "FramesPerRender: " << this->FramesPerRender << "\n";
-  os << indent << "RefinementTimeBudget: " << this->RefinementTimeBudget << " ms\n";
-  os << indent << "ProgressiveRefinement: " << this->ProgressiveRefinement << "\n";
-  os << indent << "Macrocells in use: " << this->Internal->macrocellsInUse << "\n";
-  os << indent << "Seed: " << this->Seed << "\n";
-  os << indent << "InteractiveLevelOfDetail: " << this->InteractiveLevelOfDetail << "\n";
-  os << indent << "InteractiveFrameTime: " << this->InteractiveFrameTime << " ms\n";
-  os << indent << "InteractiveUpdateRate: " << this->InteractiveUpdateRate << "\n";
-  os << indent << "InteractiveMacrocellResolution: " << this->InteractiveMacrocellResolution
-     << "\n";
-  os << indent << "InteractiveMacrocellsAhead: " << this->InteractiveMacrocellsAhead << "\n";
-  os << indent << "InteractiveFreshFrames: " << this->InteractiveFreshFrames << "\n";
-  os << indent << "QueryReduction: " << InrDescribeQueryReduction(this->Internal->options.queryReduction)
-     << " (in use: " << this->Internal->engines.queryReductionInUse << ")\n";
 }
