@@ -12,18 +12,19 @@
 // points, not the transfer function's edges. The correction's frame is Kettunen et al. 2021
 // (unbiased ray marching): a deterministic control plus an unbiased estimate of the rest.
 //
-// The estimator. Along the ray (the non-empty macrocells only: length u counts where the majorant
-// is > 0) comb points x_0 < x_1 < ... come at k points per unit of majorant optical depth (k =
-// FrameConstants::majorantScale, a random phase per frame as in the first march), and residual
+// The estimator. Along the ray (in its non-empty macrocells) comb points x_0 < x_1 < ... come at
+// k points per unit of majorant optical depth (k = FrameConstants::majorantScale, a random phase
+// per frame as in the first march), and residual
 // points y_j from a Poisson process of rate mu = k_r x the majorant (k_r = residualScale), drawn
 // independently of the comb. Between comb points x_k and x_{k+1}, with network values s_f and s_b
-// and non-empty length d, the control scalar goes linearly from s_f to s_b; its extinction
+// and length d, the control scalar goes linearly from s_f to s_b; its extinction
 // sigma~ is the transfer function's extinction there, read from the table's entries interpolated
 // linearly, so that its integral over the segment is exact from running integrals over the table
 // (TransferFunctionView::extinctionIntegral): tau~ = d x (mean of sigma~ over [s_f, s_b]). Before
-// the first comb point (and after the last) the control scalar is constant: the value at that
-// comb point; a ray with no comb point has control 0. The control's colour over a segment is one
-// constant, c-bar (the extinction-weighted mean colour over [s_f, s_b]), so its emission
+// a macrocell's first comb point (and after its last) the control scalar is constant: the value
+// at that comb point; in a cell with no comb point, the ray's last comb value, its extinction
+// capped at the cell's majorant (resolvePreintegratedPoints). The control's colour over a segment
+// is one constant, c-bar (the extinction-weighted mean colour over [s_f, s_b]), so its emission
 // integrates exactly too: int T~ sigma~ c-bar = c-bar (1 - exp(-tau~)). With T_k the estimate of
 // the transmittance at x_k and, inside the segment, T~(v) = exp(-int_0^v sigma~) and P(v) the
 // product of the residual factors (1 - (sigma - sigma~) / mu) before offset v:
@@ -39,15 +40,21 @@
 // residual terms vanish but for the colour's variation inside a segment: the marcher's error with
 // the edges integrated exactly. Coverage (radiance.w) is the same sum with c = 1.
 //
-// Batches: a residual point needs its segment's closing comb point, so a ray's batch of points
-// (up to FrameConstants::pointsPerIteration) ends at a comb point: when it fills first, the walk
-// goes back to the last comb point of the batch (its state is committed to the ray state there;
-// the points after it are drawn again, the same, next iteration). Only the ray's last batch ends
-// with the residual points after its last comb point (then tailLength closes it). A segment whose
-// points alone fill a batch (rare: a segment holds Poisson(k_r / k) residual points) cuts the ray
-// off as the per-frame work cap does (kRayCapped). The image does not depend on the batch size
-// otherwise. Under Russian roulette (at each segment's end, below FrameConstants::
-// rouletteThreshold, as ratio tracking) the estimate stays unbiased.
+// Segments never cross a macrocell boundary: where the ray leaves a cell that had comb points, a
+// marker (kPointCellExit, no query) closes the cell's last segment, and in the next cell the first
+// segment runs from the entry to its first comb point. So the control's values stay in each cell's
+// value range and the control never exceeds the cell's majorant (a segment reaching from a dense
+// cell into a thin one made the residual factors 1 - (sigma - sigma~) / mu, with mu the thin cell's
+// rate, far larger than 1).
+//
+// Batches: a residual point needs its segment's closing point, so a ray's batch of points (up to
+// FrameConstants::pointsPerIteration) ends where the walk's state was committed to the ray state:
+// after a comb point or at a macrocell's start. When a batch fills first, the points after the
+// last commit are dropped and drawn again, the same, next iteration. Points between two commits
+// that fill a batch alone (a segment holds Poisson(k_r / k) residual points: rare) cut the ray off
+// as the per-frame work cap does (kRayCapped). The image does not depend on the batch size
+// otherwise. Russian roulette at each segment's end, below FrameConstants::rouletteThreshold as in
+// ratio tracking, keeps the estimate unbiased.
 //
 // Shadows, gradient shading and gradient opacity: the renderer runs ratio tracking instead
 // (frameConstants, WavefrontRenderer.cpp): a shadow ray or a lit colour needs one emission point,
@@ -164,23 +171,56 @@ INR_HD float meanControlExtinction(const TransferFunctionView& tf, float xf, flo
 
 // ---- drawing the points
 
+// A cell-exit marker, where the ray leaves a non-empty macrocell (or ends in it): no query; its
+// `sinceBreak` is the length from the cell's last comb point (or its entry) to there, its
+// `majorant` the cell's majorant. Skipped by the evaluator's gather as a pruned point is.
+constexpr std::uint8_t kPointCellExit = 1u << 2;
+
+// Stores point `count` of ray i (no query is emitted here; pruning may answer it at once).
+template <bool kPruning>
+INR_HD void storePreintegratedPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts,
+                                    int i, int count, float t, float rate, float sinceBreak, std::uint8_t kind,
+                                    int cell, RngStream& rng) {
+  const int slot = pointSlot(rs.count, i, count);
+  pts.t[slot] = t;
+  pts.majorant[slot] = rate;
+  pts.sinceBreak[slot] = sinceBreak;
+  pts.cell[slot] = cell;
+  float estimate = NAN;
+  const bool pruned = kPruning && !(kind & kPointCellExit) && prunes(medium.prune, cell, rng) &&
+                      isFiniteValue(estimate = medium.prune.expected[cell]);
+  pts.kind[slot] = std::uint8_t(kind | (pruned ? kPointPruned : 0));
+  pts.sample[slot] = estimate;
+}
+
 // Draws ray i's next batch of points from rs.t on (PointStateView, slots 0..), resuming the
-// walker, and returns their number; the batch ends at a comb point (the walk's state there is
-// committed to the ray state) unless the ray reached its end (`left`, rs.t = tEnd, tailLength
-// written). Points pruning answers get their sample at once; none is handed to the evaluator here
-// (the caller emits the batch's queries).
+// walker, and returns their number. The walk's state is committed to the ray state after each comb
+// point and at each macrocell exit, and the batch ends at such a commit (when it fills first, the
+// points after the last commit are dropped and drawn again, the same, next time) or at the ray's
+// end (`left`, rs.t = tEnd). Points pruning answers get their sample at once; no query is handed
+// to the evaluator here (the caller emits the batch's).
 template <typename Walker, bool kPruning>
 INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
                                    const PointStateView& pts, int i, std::uint8_t& flags, RngStream& rng, bool& left) {
   const float tEnd = rs.tEnd[i];
   float t = rs.t[i];
   float combNext = rs.combNext[i], residualNext = rs.residualNext[i], combPhase = rs.combPhase[i];
-  float sinceComb = 0.f;  // every batch starts at a comb point or at the ray's start
+  // A batch starts at a commit: after a comb point or at a cell's start.
+  float sinceBreak = 0.f;  // length since the cell's last comb point or its entry
   int count = 0, committed = 0;
   std::uint32_t committedCounter = rng.counter;
-  bool capped = false;
+  bool capped = false, full = false;
   left = false;
   Walker walker(medium.grid, rs, i);
+  auto commit = [&](float tHere) {
+    walker.store(rs, i);
+    rs.t[i] = tHere;
+    rs.combNext[i] = combNext;
+    rs.residualNext[i] = residualNext;
+    rs.combPhase[i] = combPhase;
+    committed = count;
+    committedCounter = rng.counter;
+  };
   for (;;) {
     float m, segmentEnd;
     if (!walker.segment(tEnd, t, m, segmentEnd)) break;
@@ -197,7 +237,6 @@ INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMediu
         combNext = t + combPhase * spacing;
         residualNext = mu > 0.f ? candidateDistance(rng, mu, t) : INFINITY;
       }
-      bool full = false;
       for (;;) {
         const bool comb = combNext <= residualNext;
         const float next = comb ? combNext : residualNext;
@@ -210,68 +249,103 @@ INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMediu
           full = true;
           break;
         }
-        sinceComb += next - t;
+        sinceBreak += next - t;
         t = next;
-        const int slot = pointSlot(rs.count, i, count);
-        const int cell = walker.cellIndex();
-        pts.t[slot] = t;
-        pts.majorant[slot] = comb ? spacing : mu;
-        pts.sinceComb[slot] = sinceComb;
-        pts.cell[slot] = cell;
-        float estimate = NAN;
-        const bool pruned =
-            kPruning && prunes(medium.prune, cell, rng) && isFiniteValue(estimate = medium.prune.expected[cell]);
-        pts.kind[slot] = std::uint8_t((comb ? kPointComb : 0) | (pruned ? kPointPruned : 0));
-        pts.sample[slot] = estimate;
+        storePreintegratedPoint<kPruning>(medium, rs, pts, i, count, t, comb ? spacing : mu, sinceBreak,
+                                          comb ? kPointComb : 0, walker.cellIndex(), rng);
         ++count;
         if (comb) {
           combNext += spacing;
-          sinceComb = 0.f;
-          walker.store(rs, i);  // commit: the next batch resumes here
-          rs.t[i] = t;
-          rs.combNext[i] = combNext;
-          rs.residualNext[i] = residualNext;
-          rs.combPhase[i] = combPhase;
-          committed = count;
-          committedCounter = rng.counter;
+          sinceBreak = 0.f;
+          commit(t);
         } else {
           residualNext = candidateDistance(rng, mu, t);
         }
       }
-      if (full) {
-        if (committed > 0) {  // back to the batch's last comb point
-          rng.counter = committedCounter;
-          return committed;
-        }
-        flags |= kRayCapped;  // one segment's points fill a batch: cut off (see the header)
-        capped = true;
+      if (full || capped) break;
+      sinceBreak += segmentEnd - t;
+      // The cell's last segment ends at a marker where the ray leaves the cell (or ends), with
+      // the cell's majorant.
+      if (count == fc.pointsPerIteration) {
+        full = true;
+        break;
       }
-      if (capped) break;
-      sinceComb += segmentEnd - t;
+      storePreintegratedPoint<kPruning>(medium, rs, pts, i, count, segmentEnd, m, sinceBreak,
+                                        std::uint8_t(kPointCellExit | kPointPruned), walker.cellIndex(), rng);
+      ++count;
       combPhase = (combNext - segmentEnd) * density;  // what is left of the comb interval
     }
     combNext = NAN;
+    residualNext = NAN;
+    sinceBreak = 0.f;
     if (!walker.advance(segmentEnd, tEnd)) break;
     t = segmentEnd;
+    if (count > committed) commit(t);  // the next cell's start
   }
-  if (capped) count = committed;  // the ray stops at its last comb point
+  if (full) {
+    if (committed > 0) {  // back to the batch's last commit
+      rng.counter = committedCounter;
+      return committed;
+    }
+    flags |= kRayCapped;  // the points between two commits fill a batch: cut off (see the header)
+    capped = true;
+  }
+  if (capped) count = committed;  // the ray stops at its last commit
   left = true;
   rs.t[i] = tEnd;
-  rs.tailLength[i] = capped ? 0.f : sinceComb;
   return count;
 }
 
 // ---- folding the points in
 
-// Folds ray i's batch (`count` points in slot order: each segment's residual points, then its
-// closing comb point; after the last comb point, when `rayDrawn`, the tail's residual points) into
-// its estimate: radiance (premultiplied colour, w = coverage), visibility = T at the last closed
-// segment's end, collisionProduct = the sum of the emission weights' magnitudes (the hit point's
-// reservoir), lastCombValue. With `rayDrawn` the tail is closed too. `onEvaluated(slot, value)` for
-// each point the network answered. Returns true when roulette ended the ray.
+// The control over one segment: 0, a constant (extinction and colour), or linear in the network's
+// value between table coordinates xf and xb (pre-integrated).
+struct SegmentControl {
+  int kind = 0;  // 0: none, 1: constant, 2: linear
+  float xf = 0.f, xb = 0.f;
+  float extinction = 0.f;  // constant: its extinction; linear: the mean over the segment
+  Vec3f colour{0.f, 0.f, 0.f};
+};
+
+// The control's extinction at offset v of a segment of length `length`, and its optical depth
+// from the segment's start to there.
+INR_HD void controlAlong(const TransferFunctionView& tf, const SegmentControl& control, float v, float length,
+                         float& sigma, float& depth) {
+  if (control.kind == 2) {
+    const float x = length > 0.f ? control.xf + (control.xb - control.xf) * minf(1.f, v / length) : control.xb;
+    sigma = controlExtinctionAt(tf, x);
+    depth = v * meanControlExtinction(tf, control.xf, x);
+  } else {
+    sigma = control.extinction;
+    depth = v * control.extinction;
+  }
+}
+
+// A constant control at scalar s (non-finite: none), its extinction at most `cap`.
+INR_HD SegmentControl constantControl(const TransferFunctionView& tf, float s, float cap) {
+  SegmentControl c;
+  const float x = controlCoordinate(tf, s);
+  if (!isFiniteValue(x)) return c;
+  c.kind = 1;
+  c.extinction = minf(controlExtinctionAt(tf, x), cap);
+  c.colour = controlColourAt(tf, x);
+  return c;
+}
+
+// Folds ray i's batch (`count` points in slot order) into its estimate: radiance (premultiplied
+// colour, w = coverage), visibility = T, collisionProduct = the sum of the emission weights'
+// magnitudes (the hit point's reservoir), lastCombValue, combInCell. A segment runs from a
+// breakpoint (a comb point, or where the ray entered the macrocell) to the next (a comb point or
+// the cell's exit marker), inside one cell. Its control: linear between two comb points; the value
+// of its comb point when the other end is the cell's entry or exit; in a cell without comb points,
+// the ray's last comb value with its extinction capped at the cell's majorant (0 before the ray's
+// first comb point). So the control never exceeds the cell's majorant (but where the majorant
+// underestimates) and the residual factors stay within 1 +- 1 / residualScale.
+// `onEvaluated(slot, value)` for each point the network answered. Returns true when roulette
+// ended the ray.
 template <typename OnEvaluated>
 INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
-                                       const PointStateView& pts, int i, int count, bool rayDrawn, const RngStream& ray,
+                                       const PointStateView& pts, int i, int count, const RngStream& ray,
                                        OnEvaluated&& onEvaluated) {
   const TransferFunctionView& tf = medium.tf;
   for (int j = 0; j < count; ++j) {
@@ -282,35 +356,45 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
   Vec4f L = rs.radiance[i];
   float absSum = rs.collisionProduct[i];
   float hitT = rs.hitT[i];
-  float lastValue = rs.lastCombValue[i];
+  float lastValue = rs.lastCombValue[i];  // the ray's last comb point's value (NaN: none yet)
+  bool inCell = rs.combInCell[i] != 0;   // that comb point is in the current cell
   bool ended = false;
-  int j = 0;
-  for (;;) {
-    int e = j;  // the segment's closing comb point
-    while (e < count && !(pts.kind[pointSlot(rs.count, i, e)] & kPointComb)) ++e;
-    const bool closes = e < count;
-    if (!closes && !rayDrawn) break;  // (every batch but the last ends at a comb point)
-    const int closeSlot = closes ? pointSlot(rs.count, i, e) : -1;
-    const float sb = closes ? pts.sample[closeSlot] : lastValue;
-    const float sf = lastValue == lastValue ? lastValue : sb;  // before the first comb point: constant
-    const float length = closes ? pts.sinceComb[closeSlot] : rs.tailLength[i];
-    const float xf = controlCoordinate(tf, sf), xb = controlCoordinate(tf, sb);
-    const bool controlled = isFiniteValue(xf) && isFiniteValue(xb);  // else the control is 0
-    const ControlSegment control =
-        controlled ? controlSegment(tf, xf, xb) : ControlSegment{Vec3f{0.f, 0.f, 0.f}, 0.f};
+  for (int j = 0; j < count && !ended;) {
+    // The segment: residual points j..e-1, closed by point e (a comb point or the cell's marker).
+    int e = j;
+    while (e < count && !(pts.kind[pointSlot(rs.count, i, e)] & (kPointComb | kPointCellExit))) ++e;
+    if (e == count) break;  // (never: every batch ends at a comb point or a marker)
+    const int closeSlot = pointSlot(rs.count, i, e);
+    const bool atComb = (pts.kind[closeSlot] & kPointComb) != 0;
+    const float length = pts.sinceBreak[closeSlot];
+    SegmentControl control;
+    if (atComb) {
+      const float sb = pts.sample[closeSlot];
+      const float xf = controlCoordinate(tf, lastValue), xb = controlCoordinate(tf, sb);
+      if (inCell && isFiniteValue(xf) && isFiniteValue(xb)) {
+        const ControlSegment seg = controlSegment(tf, xf, xb);
+        control.kind = 2;
+        control.xf = xf;
+        control.xb = xb;
+        control.extinction = seg.extinction;
+        control.colour = seg.colour;
+      } else if (!inCell) {
+        control = constantControl(tf, sb, INFINITY);  // (in the cell's range)
+      }
+    } else {  // the marker: its majorant field holds the cell's majorant
+      // In a cell without comb points: the ray's last comb value, its extinction capped at the
+      // cell's majorant (on siren_cylinder_vorticity_small a control of 0 there was noisier).
+      control = constantControl(tf, lastValue, inCell ? INFINITY : pts.majorant[closeSlot]);
+    }
     float product = 1.f;  // residual factors so far in this segment
-    for (int r = j; r < e && r < count; ++r) {
+    for (int r = j; r < e; ++r) {
       const int slot = pointSlot(rs.count, i, r);
-      const float s = pts.sample[slot], mu = pts.majorant[slot], v = pts.sinceComb[slot];
+      const float s = pts.sample[slot], mu = pts.majorant[slot], v = pts.sinceBreak[slot];
       const Vec4f c = isFiniteValue(s) ? lookupTransferFunction(tf, s) : Vec4f{0.f, 0.f, 0.f, 0.f};
       const float sigma = opacityToExtinction(c.w, tf.invUnitDistance);
-      float controlSigma = 0.f, controlT = 1.f;
-      if (controlled) {
-        const float x = length > 0.f ? xf + (xb - xf) * minf(1.f, v / length) : xb;
-        controlSigma = controlExtinctionAt(tf, x);
-        controlT = expf(-v * meanControlExtinction(tf, xf, x));
-      }
-      const float scale = T * controlT / mu;
+      float controlSigma, depth;
+      controlAlong(tf, control, v, length, controlSigma, depth);
+      const float scale = T * expf(-depth) / mu;
       const float a = product * sigma, b = controlSigma;
       const float w = scale * (a - b);
       L = Vec4f{L.x + scale * (a * c.x - b * control.colour.x), L.y + scale * (a * c.y - b * control.colour.y),
@@ -327,12 +411,21 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
     const float opacity = -expm1f(-tau), w = T * opacity;
     L = Vec4f{L.x + w * control.colour.x, L.y + w * control.colour.y, L.z + w * control.colour.z, L.w + w};
     T *= expf(-tau) * product;
-    RngStream segmentRng = ratioPointStream(ray, closes ? pts.t[closeSlot] : rs.tEnd[i]);
-    if (w != 0.f && closes) {
+    // The segment's own stream (reservoir, roulette), keyed by its closing point.
+    const float tClose = pts.t[closeSlot];
+    RngStream segmentRng = ratioPointStream(ray, tClose);
+    segmentRng.seed ^= 0x27d4eb2du;
+    if (w != 0.f) {
       absSum += fabsf(w);
-      if (segmentRng.next() * absSum < fabsf(w)) hitT = pts.t[closeSlot];
+      if (segmentRng.next() * absSum < fabsf(w)) hitT = tClose;
     }
-    if (closes) lastValue = sb;
+    if (atComb) {
+      const float sb = pts.sample[closeSlot];
+      lastValue = isFiniteValue(sb) ? sb : NAN;
+      inCell = isFiniteValue(sb);
+    } else {
+      inCell = false;
+    }
     const float magnitude = fabsf(T);
     if (magnitude < fc.rouletteThreshold) {  // survivors continue with |T| = threshold: unbiased
       if (segmentRng.next() * fc.rouletteThreshold < magnitude) {
@@ -342,7 +435,6 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
         ended = true;
       }
     }
-    if (ended || !closes) break;
     j = e + 1;
   }
   rs.visibility[i] = T;
@@ -350,6 +442,7 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
   rs.collisionProduct[i] = absSum;
   rs.hitT[i] = hitT;
   rs.lastCombValue[i] = lastValue;
+  rs.combInCell[i] = inCell ? 1 : 0;
   return ended;
 }
 
@@ -369,19 +462,23 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
   int pending = (flags & kRayPending) ? int(rs.pointCount[i]) : 0;
   bool finished = false;
   for (;;) {
-    const bool rayDrawn = !(rs.t[i] < rs.tEnd[i]);
-    if (pending > 0 || rayDrawn) {
-      if (resolvePreintegratedPoints(fc, medium, rs, pts, i, pending, rayDrawn, rng, onEvaluated) || rayDrawn) {
-        finished = true;
-        break;
-      }
+    if (pending > 0 && resolvePreintegratedPoints(fc, medium, rs, pts, i, pending, rng, onEvaluated)) {
+      finished = true;
+      break;
+    }
+    pending = 0;
+    if (!(rs.t[i] < rs.tEnd[i])) {
+      finished = true;
+      break;
     }
     bool left = false;
     pending = drawPreintegratedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
     int queries = 0;
     for (int j = 0; j < pending; ++j) {
       const int slot = pointSlot(rs.count, i, j);
-      if (pts.kind[slot] & kPointPruned) {
+      if (pts.kind[slot] & kPointCellExit) {
+        // (no query)
+      } else if (pts.kind[slot] & kPointPruned) {
         rs.pruned[i] += 1u;
       } else {
         emitQuery(slot);
@@ -389,6 +486,7 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
       }
     }
     if (queries > 0) break;  // wait for the evaluator
+    // else: all answered already (pruning, markers) or none: fold them in and go on
   }
   if (finished) {
     flags &= std::uint8_t(~(kRayActive | kRayPending));

@@ -39,7 +39,7 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.hitWeight[i] = 1.f;
   rs.combPhase[i] = NAN;
   rs.lastCombValue[i] = NAN;  // preintegrated: no comb point yet
-  rs.tailLength[i] = 0.f;
+  rs.combInCell[i] = 0;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 

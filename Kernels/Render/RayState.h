@@ -78,9 +78,8 @@ enum class ShadowEstimator : int {
 //                      one macrocell segment to the next (NaN: the ray has not started its comb)
 //   controlKnown       march: the ray has drawn a comb point (its control is known)
 //   lastCombValue      preintegrated: the network's value at the ray's last resolved comb point
-//                      (NaN before the first)
-//   tailLength         preintegrated: non-empty length from the ray's last comb point (or its
-//                      start) to its end, written when the ray has drawn all its points
+//                      (NaN: none yet, or a non-finite value)
+//   combInCell         preintegrated: that comb point lies in the macrocell the ray is in
 //   hitWeight          ratio / march with one picked emission point (shadows or shading): its
 //                      weight's sign while tracking, then the signed weight the picked colour
 //                      carries in the frame estimate; 1 for delta tracking (Shading.h applies it)
@@ -107,7 +106,7 @@ enum class ShadowEstimator : int {
   X(float, combPhase)            \
   X(std::uint8_t, controlKnown)  \
   X(float, lastCombValue)        \
-  X(float, tailLength)           \
+  X(std::uint8_t, combInCell)    \
   X(float, hitWeight)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
