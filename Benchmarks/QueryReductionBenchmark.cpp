@@ -63,8 +63,9 @@ const char* kUsage =
     "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
     "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
-    "                          march[:K[:KR[:P[:R]]]] (ratio tracking with majorant scale K; unbiased ray\n"
-    "                          marching with comb density K and residual scale KR; points per iteration\n"
+    "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R]]]] (ratio tracking with\n"
+    "                          majorant scale K; unbiased ray marching, with the pre-integrated control\n"
+    "                          for preint, comb density K and residual scale KR; points per iteration\n"
     "                          P, roulette threshold R; join with '+', e.g. ratio:4+prune:0.02; default:\n"
     "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
@@ -218,16 +219,16 @@ Config parseSingleConfig(const std::string& spec) {
     c.tracking.validate();
     c.label = "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
               fmt(c.tracking.rouletteThreshold);
-  } else if (f == "march") {
+  } else if (f == "march" || f == "preint") {
     arity(1, 5);
-    c.family = "march";
-    c.tracking.estimator = PrimaryEstimator::March;
+    c.family = f;
+    c.tracking.estimator = f == "march" ? PrimaryEstimator::March : PrimaryEstimator::Preintegrated;
     c.tracking.majorantScale = num(1, c.tracking.majorantScale);
     c.tracking.residualScale = num(2, c.tracking.residualScale);
     c.tracking.pointsPerIteration = int(num(3, c.tracking.pointsPerIteration));
     c.tracking.rouletteThreshold = num(4, c.tracking.rouletteThreshold);
     c.tracking.validate();
-    c.label = "march:" + fmt(c.tracking.majorantScale) + ":" + fmt(c.tracking.residualScale) + ":" +
+    c.label = f + ":" + fmt(c.tracking.majorantScale) + ":" + fmt(c.tracking.residualScale) + ":" +
               std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
   } else if (f == "prune") {
     arity(2, 3);
@@ -238,7 +239,8 @@ Config parseSingleConfig(const std::string& spec) {
   } else {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
-                                "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]])");
+                                "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]], "
+                                "preint[:K[:KR[:P[:R]]]])");
   }
   c.q.validate();
   return c;
@@ -252,7 +254,7 @@ Config parseConfig(const std::string& spec) {
   Config c = parseSingleConfig(parts[0]);
   for (std::size_t k = 1; k < parts.size(); ++k) {
     const Config p = parseSingleConfig(parts[k]);
-    if (p.family == "ratio" || p.family == "march" || p.family == "delta") {
+    if (p.family == "ratio" || p.family == "march" || p.family == "preint" || p.family == "delta") {
       c.tracking = p.tracking;
     } else if (p.family == "prune") {
       c.q.pruneEpsilon = p.q.pruneEpsilon;

@@ -12,6 +12,7 @@
 #include "Render/Reproject.h"
 #include "Render/Shade.h"
 #include "Render/Shadows.h"
+#include "Render/PreintegratedMarch.h"
 #include "Render/RatioTracking.h"
 #include "Render/Traverse.h"
 #include "Common/Stopwatch.h"
@@ -104,7 +105,15 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
   auto noop = [](auto&&...) {};
   for (int loopIterations = 0;; ++loopIterations) {
     auto t0 = Clock::now();
-    if (points) {
+    if (points && fc.estimator == PrimaryEstimator::Preintegrated) {
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
+      for (int i = 0; i < n; ++i) {
+        if (pruning)
+          traversePreintegratedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+        else
+          traversePreintegratedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+      }
+    } else if (points) {
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
       for (int i = 0; i < n; ++i) {
         if (pruning)

@@ -72,6 +72,8 @@ namespace inr {
 //             their spacing
 //   gap       march: length of non-empty macrocells between the previous point and this one
 //             (where the control extinction applies)
+//   sinceBreak  preintegrated (PreintegratedMarch.h): length from the macrocell's previous comb
+//             point (or where the ray entered the cell) to this point
 //   sample    the network's value there (or the pruned estimate); NaN while pending
 //   opacityScale  the gradient opacity factor there (RayStateView::opacityScale)
 //   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
@@ -80,6 +82,7 @@ namespace inr {
   X(float, t)                     \
   X(float, majorant)              \
   X(float, gap)                   \
+  X(float, sinceBreak)            \
   X(float, sample)                \
   X(float, opacityScale)          \
   X(int, cell)                    \

@@ -38,6 +38,8 @@ INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& gri
   rs.controlKnown[i] = 0;
   rs.hitWeight[i] = 1.f;
   rs.combPhase[i] = NAN;
+  rs.lastCombValue[i] = NAN;  // preintegrated: no comb point yet
+  rs.combInCell[i] = 0;
   rs.t[i] = 0.f;
   rs.tEnd[i] = 0.f;
 

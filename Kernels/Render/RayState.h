@@ -35,6 +35,10 @@ enum class PrimaryEstimator : int {
   Delta = 0,  // the paper's delta tracking, collision estimator: one binary event per ray
   Ratio = 1,  // ratio-tracking emission weights at every tentative collision (RatioTracking.h)
   March = 2,  // unbiased ray marching: comb emission, residual ratio-tracked transmittance (same)
+  // Unbiased ray marching with a pre-integrated control: the network linear between comb points,
+  // the transfer function integrated exactly over that, residual points correct the rest
+  // (PreintegratedMarch.h)
+  Preintegrated = 3,
 };
 
 enum class ShadowEstimator : int {
@@ -67,12 +71,15 @@ enum class ShadowEstimator : int {
 //   pointCount         ratio tracking (RatioTracking.h): the ray's points waiting for the evaluator
 //   hitT               ratio tracking: ray parameter of the emission point picked for the shadow ray
 //                      and the reprojection hit point (reservoir over the emission weights)
-//   combNext, residualNext  march: the next comb and residual points of the current macrocell
-//                      segment (NaN: draw them afresh at the next segment)
+//   combNext, residualNext  march and preintegrated: the next comb and residual points of the
+//                      current macrocell segment (NaN: draw them afresh at the next segment)
 //   lastExtinction     march: the control extinction (at the last comb point)
-//   combPhase          march: fraction of a comb interval to the next comb point, carried from
+//   combPhase          march, preintegrated: fraction of a comb interval to the next comb point, carried from
 //                      one macrocell segment to the next (NaN: the ray has not started its comb)
 //   controlKnown       march: the ray has drawn a comb point (its control is known)
+//   lastCombValue      preintegrated: the network's value at the ray's last resolved comb point
+//                      (NaN: none yet, or a non-finite value)
+//   combInCell         preintegrated: that comb point lies in the macrocell the ray is in
 //   hitWeight          ratio / march with one picked emission point (shadows or shading): its
 //                      weight's sign while tracking, then the signed weight the picked colour
 //                      carries in the frame estimate; 1 for delta tracking (Shading.h applies it)
@@ -98,6 +105,8 @@ enum class ShadowEstimator : int {
   X(float, lastExtinction)       \
   X(float, combPhase)            \
   X(std::uint8_t, controlKnown)  \
+  X(float, lastCombValue)        \
+  X(std::uint8_t, combInCell)    \
   X(float, hitWeight)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),

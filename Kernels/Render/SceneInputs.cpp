@@ -447,6 +447,23 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
       opacityMax_[std::size_t(L) * size + i] = std::max(a, b);
     }
   }
+  // Pre-integration: each entry's extinction and the running integrals of the piecewise-linear
+  // control extinction (trapezoids, exact for it) and of extinction times colour (Simpson, exact
+  // for the product of two linear functions), summed in double.
+  entryExtinction_.resize(size);
+  extinctionIntegral_.resize(size);
+  for (int i = 0; i < size; ++i) entryExtinction_[i] = opacityToExtinction(rgba_[i].w, invUnitDistance_);
+  double integral[4] = {0.0, 0.0, 0.0, 0.0};
+  for (int i = 0; i < size; ++i) {
+    if (i > 0) {
+      const double s0 = entryExtinction_[i - 1], s1 = entryExtinction_[i], sm = 0.5 * (s0 + s1);
+      const Vec4f c0 = rgba_[i - 1], c1 = rgba_[i];
+      const double a0[3] = {c0.x, c0.y, c0.z}, a1[3] = {c1.x, c1.y, c1.z};
+      for (int k = 0; k < 3; ++k) integral[k] += (s0 * a0[k] + 4.0 * sm * 0.5 * (a0[k] + a1[k]) + s1 * a1[k]) / 6.0;
+      integral[3] += sm;
+    }
+    extinctionIntegral_[i] = Vec4f{float(integral[0]), float(integral[1]), float(integral[2]), float(integral[3])};
+  }
   // Gradient opacity: its nodes exactly (a ramp however narrow beside a far node), and samples
   // between two nodes whose segment bends (midpoint or sharpness), so linear interpolation between
   // the points follows the function.
@@ -479,6 +496,8 @@ TransferFunctionView TransferFunctionTable::view() const {
   v.lo = lo_;
   v.hi = hi_;
   v.invUnitDistance = invUnitDistance_;
+  v.entryExtinction = entryExtinction_.data();
+  v.extinctionIntegral = extinctionIntegral_.data();
   if (!gradientOpacity_.empty()) {
     v.gradientOpacity = gradientOpacity_.data();
     v.gradientOpacityX = gradientOpacityX_.data();

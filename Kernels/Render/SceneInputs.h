@@ -108,6 +108,8 @@ private:
   std::vector<Vec4f> rgba_;
   std::vector<float> opacityMax_;
   std::vector<float> gradientOpacity_, gradientOpacityX_;  // empty: no gradient opacity
+  std::vector<float> entryExtinction_;      // pre-integration (TransferFunctionView)
+  std::vector<Vec4f> extinctionIntegral_;
   int size_ = 0, levels_ = 0;
   float lo_ = 0.f, hi_ = 1.f, invUnitDistance_ = 1.f, maxOpacity_ = 0.f;
 };

@@ -33,6 +33,12 @@ struct TransferFunctionView {
   const float* gradientOpacity = nullptr;
   const float* gradientOpacityX = nullptr;
   int gradientOpacitySize = 0;
+  // Pre-integration (Render/PreintegratedMarch.h), size entries each, built with the table: the
+  // extinction of each entry's opacity, and the running integrals from entry 0 to entry i, in
+  // table-entry units, of the control extinction (those extinctions interpolated linearly: w) and
+  // of that extinction times the colour (xyz).
+  const float* entryExtinction = nullptr;
+  const Vec4f* extinctionIntegral = nullptr;
 };
 
 INR_HD float opacityToExtinction(float alpha, float invUnitDistance) {

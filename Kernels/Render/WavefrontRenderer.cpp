@@ -13,14 +13,20 @@
 namespace inr {
 
 const char* primaryEstimatorName(PrimaryEstimator e) {
-  return e == PrimaryEstimator::Ratio ? "ratio" : e == PrimaryEstimator::March ? "march" : "delta";
+  switch (e) {
+    case PrimaryEstimator::Ratio: return "ratio";
+    case PrimaryEstimator::March: return "march";
+    case PrimaryEstimator::Preintegrated: return "preintegrated";
+    default: return "delta";
+  }
 }
 
 PrimaryEstimator parsePrimaryEstimator(const std::string& name) {
   if (name == "delta") return PrimaryEstimator::Delta;
   if (name == "ratio") return PrimaryEstimator::Ratio;
   if (name == "march") return PrimaryEstimator::March;
-  throw std::invalid_argument("estimator must be delta, ratio or march, got '" + name + "'");
+  if (name == "preintegrated") return PrimaryEstimator::Preintegrated;
+  throw std::invalid_argument("estimator must be delta, ratio, march or preintegrated, got '" + name + "'");
 }
 
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
@@ -36,8 +42,9 @@ void TrackingOptions::validate() const {
                                 std::to_string(ghostPassesOnUpdate));
   }
   if (ghostPixelStride < 1) throw std::invalid_argument("ghostPixelStride must be >= 1");
-  if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio && estimator != PrimaryEstimator::March)
-    throw std::invalid_argument("estimator must be delta (0), ratio (1) or march (2), got " +
+  if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio &&
+      estimator != PrimaryEstimator::March && estimator != PrimaryEstimator::Preintegrated)
+    throw std::invalid_argument("estimator must be delta (0), ratio (1), march (2) or preintegrated (3), got " +
                                 std::to_string(int(estimator)));
   if (!(residualScale >= 0.0 && residualScale <= 1024.0))
     throw std::invalid_argument("residual scale must be in [0, 1024], got " + std::to_string(residualScale));
@@ -181,12 +188,22 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   FrameConstants fc = makeFrameConstants(cameraView_, volumeBox(), scene_, settings_, depthLimit, frame);
   fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
   fc.estimator = options_.estimator;
+  // The pre-integrated march has no single emission point for a shadow ray or a lit colour, and
+  // no control for a gradient opacity factor (PreintegratedMarch.h): ratio tracking renders those
+  // scenes, with the comb density as its majorant scale.
+  if (fc.estimator == PrimaryEstimator::Preintegrated &&
+      (fc.shadows || fc.shading.enabled || scene_.transferFunction.usesGradientOpacity()))
+    fc.estimator = PrimaryEstimator::Ratio;
   fc.majorantScale = float(options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
   fc.rouletteThreshold = float(options_.rouletteThreshold);
   const long long pixels = std::max(1ll, (long long)settings_.width * settings_.height);
-  fc.pointsPerIteration =
-      int(std::max(1ll, std::min<long long>(options_.pointsPerIteration, TrackingOptions::kMaxPointSlots / pixels)));
+  // The pre-integrated march's batches end at comb points and a segment must fit in one
+  // (PreintegratedMarch.h): it takes at least kMinPreintegratedPoints, memory permitting.
+  long long points = options_.pointsPerIteration;
+  if (fc.estimator == PrimaryEstimator::Preintegrated)
+    points = std::max<long long>(points, TrackingOptions::kMinPreintegratedPoints);
+  fc.pointsPerIteration = int(std::max(1ll, std::min<long long>(points, TrackingOptions::kMaxPointSlots / pixels)));
   const QueryReductionSettings& q = queryReduction_;
   BudgetConstants& b = fc.budget;
   b.scheme = int(q.budget);

@@ -49,9 +49,16 @@ struct TrackingOptions {
   // points per iteration; ~21 bytes each, plus the query batch), so large images hand the
   // evaluator fewer points per ray per iteration instead (the image does not change).
   static constexpr long long kMaxPointSlots = 1ll << 25;
+  // The pre-integrated march hands the evaluator at least this many points per ray and iteration
+  // (whatever pointsPerIteration says, unless kMaxPointSlots allows fewer): its batches end at comb
+  // points, and a segment (Poisson(residualScale / majorantScale) residual points and a comb
+  // point) that does not fit in one cuts the ray off (PreintegratedMarch.h).
+  static constexpr int kMinPreintegratedPoints = 16;
   // March (unbiased ray marching, RatioTracking.h) puts a comb of majorantScale points per unit
   // of majorant optical depth in each macrocell and residual ratio-tracking points at
-  // residualScale x the majorant (0: none: a plain jittered marcher, biased).
+  // residualScale x the majorant (0: none: a plain jittered marcher, biased). Preintegrated
+  // (PreintegratedMarch.h) takes the same two scales for its comb and its residual points; with
+  // shadows, shading or gradient opacity the renderer runs ratio tracking instead.
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   double majorantScale = 1.0;
   double residualScale = 1.0;
@@ -66,7 +73,7 @@ struct TrackingOptions {
   static TrackingOptions recommended();
 };
 
-// "delta" / "ratio" / "march" (the CLI's --estimator, the plugin's InrEstimator); parse throws
+// "delta" / "ratio" / "march" / "preintegrated" (the CLI's --estimator, the plugin's InrEstimator); parse throws
 // std::invalid_argument naming the accepted names.
 const char* primaryEstimatorName(PrimaryEstimator e);
 PrimaryEstimator parsePrimaryEstimator(const std::string& name);

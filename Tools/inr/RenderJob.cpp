@@ -159,19 +159,23 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
 
 std::string estimatorUsage() {
   const TrackingOptions d = TrackingOptions::recommended();
-  char text[2048];
+  char text[3072];
   std::snprintf(
       text, sizeof text,
       "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
       "  --estimator E            delta: the paper's delta tracking, one collision event per ray; ratio:\n"
       "                           ratio-tracking emission weights at every tentative collision; march:\n"
       "                           unbiased ray marching (a jittered comb per macrocell, transmittance\n"
-      "                           corrected by residual ratio tracking). All three converge to the same\n"
-      "                           image; ratio and march spend cheap queries for far less noise (default %s)\n"
-      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; march: comb\n"
+      "                           corrected by residual ratio tracking); preintegrated: unbiased ray\n"
+      "                           marching whose control takes the network as linear between comb points\n"
+      "                           and integrates the transfer function exactly over that (ratio tracking\n"
+      "                           with shadows, shading or gradient opacity). All converge to the same\n"
+      "                           image; ratio and the marches spend cheap queries for far less noise\n"
+      "                           (default %s)\n"
+      "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; marches: comb\n"
       "                           points per unit of majorant optical depth; in [1, 1024] (default %g);\n"
       "                           higher = more queries per frame, less noise\n"
-      "  --residual-scale KR      march: residual points at KR x the majorant, in [0, 1024] (default %g;\n"
+      "  --residual-scale KR      marches: residual points at KR x the majorant, in [0, 1024] (default %g;\n"
       "                           0 = no correction: a plain jittered marcher, biased)\n"
       "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
       "                           (default %d); the image does not depend on it, only the frame time\n"

@@ -20,11 +20,13 @@ constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 
 // Stage II for ray i: complete and refine the previous query (when the launch says so), resume
 // tracking, append the next candidate's query. kPruning: the medium has expected scalars (the
-// kernel is compiled twice so the pass without pruning carries none of its registers).
-template <bool kPruning, bool kRatio>
+// kernel is compiled twice so the pass without pruning carries none of its registers). kPoints:
+// kDeltaPass, kRatioPass (ratio tracking and the first march) or kPreintegratedPass.
+constexpr int kDeltaPass = 0, kRatioPass = 1, kPreintegratedPass = 2;
+template <bool kPruning, int kPoints>
 __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
-  if (kRatio) {  // ratio tracking resolves its own points (RatioTracking.h)
-    cuda::traverseRatioListedRay<DdaWalker, kPruning>(p, i);
+  if (kPoints != kDeltaPass) {  // these estimators resolve their own points (RatioTracking.h)
+    cuda::traverseRatioListedRay<DdaWalker, kPruning, kPoints == kPreintegratedPass>(p, i);
     return;
   }
   if (p.resolvePrevious) cuda::completeListedQuery<kPruning>(p, i);
@@ -48,7 +50,7 @@ __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int 
 #else
 #define INR_TRAVERSE_MIN_BLOCKS 9
 #endif
-template <bool kPruning, bool kRatio>
+template <bool kPruning, int kPoints>
 __device__ __forceinline__ void traversePass(const TraversalLaunch& p, int tilesX) {
   if (p.list) {
     // List passes: one thread per listed ray, as before the persistent loop (grid-stride when
@@ -56,7 +58,7 @@ __device__ __forceinline__ void traversePass(const TraversalLaunch& p, int tiles
     // two same-address atomics (its fetch and the empty fetch that ends it) lie on that path.
     const int n = p.listCount ? min(p.n, int(*p.listCount)) : p.n;
     const int stride = int(gridDim.x * blockDim.x);
-    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay<kPruning, kRatio>(p, p.list[k]);
+    for (int k = int(blockIdx.x * blockDim.x + threadIdx.x); k < n; k += stride) traverseListedRay<kPruning, kPoints>(p, p.list[k]);
     return;
   }
   const int lane = int(threadIdx.x) & (kWarp - 1);
@@ -78,21 +80,26 @@ __device__ __forceinline__ void traversePass(const TraversalLaunch& p, int tiles
       if (px >= width || py >= height) continue;
       i = py * width + px;
     }
-    traverseListedRay<kPruning, kRatio>(p, i);
+    traverseListedRay<kPruning, kPoints>(p, i);
   }
 }
 
 // Delta tracking's pass (one candidate per ray) at the occupancy above.
 template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, INR_TRAVERSE_MIN_BLOCKS) ddaTraverseKernel(TraversalLaunch p, int tilesX) {
-  traversePass<kPruning, false>(p, tilesX);
+  traversePass<kPruning, kDeltaPass>(p, tilesX);
 }
 // Ratio tracking's pass (RatioTracking.h) carries the ray's estimate and a transfer-function
 // lookup per point: at the delta kernel's bound it spilled, so it gets a lower bound of its own
 // (the largest without spills for ratio and march, ptxas sm_90).
 template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, 5) ddaRatioTraverseKernel(TraversalLaunch p, int tilesX) {
-  traversePass<kPruning, true>(p, tilesX);
+  traversePass<kPruning, kRatioPass>(p, tilesX);
+}
+// The pre-integrated march's pass (PreintegratedMarch.h), at ratio tracking's bound.
+template <bool kPruning>
+__global__ void __launch_bounds__(kThreads, 5) ddaPreintegratedTraverseKernel(TraversalLaunch p, int tilesX) {
+  traversePass<kPruning, kPreintegratedPass>(p, tilesX);
 }
 
 class DdaTraversal final : public DeviceTraversal {
@@ -101,9 +108,13 @@ public:
     int device = 0, sms = 0, perSm = 0;
     INR_CUDA_CHECK(cudaGetDevice(&device));
     INR_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-    const void* kernels[4] = {(const void*)ddaTraverseKernel<false>, (const void*)ddaTraverseKernel<true>,
-                              (const void*)ddaRatioTraverseKernel<false>, (const void*)ddaRatioTraverseKernel<true>};
-    for (int k = 0; k < 4; ++k) {
+    const void* kernels[kVariants] = {(const void*)ddaTraverseKernel<false>,
+                                      (const void*)ddaTraverseKernel<true>,
+                                      (const void*)ddaRatioTraverseKernel<false>,
+                                      (const void*)ddaRatioTraverseKernel<true>,
+                                      (const void*)ddaPreintegratedTraverseKernel<false>,
+                                      (const void*)ddaPreintegratedTraverseKernel<true>};
+    for (int k = 0; k < kVariants; ++k) {
       INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernels[k], kThreads, 0));
       residentBlocks_[k] = std::max(1, sms * std::max(1, perSm));
     }
@@ -116,7 +127,8 @@ public:
     const bool pruning = launch.medium.prune.expected != nullptr;
     if (launch.ratio && (!launch.outRayList || !launch.outRayCount || !launch.points.t))
       throw std::invalid_argument("DdaTraversal: a ratio-tracking launch needs its point storage and ray list");
-    const int variant = (launch.ratio ? 2 : 0) + (pruning ? 1 : 0);
+    const bool preintegrated = launch.ratio && launch.fc.estimator == PrimaryEstimator::Preintegrated;
+    const int variant = (preintegrated ? 4 : launch.ratio ? 2 : 0) + (pruning ? 1 : 0);
     const int blocks = int(std::min<long long>(needed, residentBlocks_[variant]));
     // Pixel tiles only when the rays are exactly the image's pixels (ray i = pixel i).
     const CameraView& cam = launch.fc.camera;
@@ -127,13 +139,16 @@ public:
       case 0: ddaTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
       case 1: ddaTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
       case 2: ddaRatioTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
-      default: ddaRatioTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 3: ddaRatioTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 4: ddaPreintegratedTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      default: ddaPreintegratedTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
     }
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }
 
 private:
-  int residentBlocks_[4] = {1, 1, 1, 1};  // per kernel: delta / ratio x without / with pruning
+  static constexpr int kVariants = 6;  // delta / ratio / preintegrated x without / with pruning
+  int residentBlocks_[kVariants] = {1, 1, 1, 1, 1, 1};
 };
 
 }  // namespace

@@ -20,6 +20,10 @@ public:
     view_ = h;
     view_.rgba = rgba_.get();
     view_.opacityMax = opacityMax_.get();
+    entryExtinction_.upload(h.entryExtinction, std::size_t(h.size), s);
+    extinctionIntegral_.upload(h.extinctionIntegral, std::size_t(h.size), s);
+    view_.entryExtinction = entryExtinction_.get();
+    view_.extinctionIntegral = extinctionIntegral_.get();
     if (h.gradientOpacity) {
       gradientOpacity_.upload(h.gradientOpacity, std::size_t(h.gradientOpacitySize), s);
       gradientOpacityX_.upload(h.gradientOpacityX, std::size_t(h.gradientOpacitySize), s);
@@ -36,6 +40,8 @@ public:
 private:
   DeviceBuffer<Vec4f> rgba_;
   DeviceBuffer<float> opacityMax_;
+  DeviceBuffer<float> entryExtinction_;
+  DeviceBuffer<Vec4f> extinctionIntegral_;
   DeviceBuffer<float> gradientOpacity_, gradientOpacityX_;
   TransferFunctionView view_{};
 };

@@ -4,6 +4,7 @@
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Cuda/DeviceTraversal.h"
 #include "Render/Evaluate.h"
+#include "Render/PreintegratedMarch.h"
 #include "Render/RatioTracking.h"
 
 namespace inr::cuda {
@@ -38,7 +39,9 @@ __device__ __forceinline__ void writeListedQuery(const TraversalLaunch& p, int i
 // evaluated points refine their macrocells and feed pruning's expected scalars as they are
 // folded in; the points that need the network are appended to the launch's query output with
 // their slots, and the ray to the next pass's list while it waits for them.
-template <typename Walker, bool kPruning>
+// kPreintegrated: the pre-integrated march's pass (Render/PreintegratedMarch.h) instead, the same
+// way.
+template <typename Walker, bool kPruning, bool kPreintegrated = false>
 __device__ __forceinline__ void traverseRatioListedRay(const TraversalLaunch& p, int i) {
   const RayStateView& rs = p.rs;
   const PointStateView& pts = p.points;
@@ -56,7 +59,10 @@ __device__ __forceinline__ void traverseRatioListedRay(const TraversalLaunch& p,
     p.outPoints[k] = make_float4(q.x, q.y, q.z, q.t);
     p.outRays[k] = slot;
   };
-  traverseRatioRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
+  if (kPreintegrated)
+    traversePreintegratedRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
+  else
+    traverseRatioRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
   if (rs.flags[i] & kRayPending) p.outRayList[appendSlot(p.outRayCount)] = i;
 }
 
