@@ -29,7 +29,7 @@ const char* blendModeName(BlendMode mode);
 
 // What the isosurface and slice modes need beyond RenderScene, with ParaView's property names.
 struct BlendScene {
-  BlendMode mode = BlendMode::Slice;
+  BlendMode mode = BlendMode::Composite;
   // IsosurfaceValues: every value is drawn (at most kMaxIsovalues).
   std::vector<double> isovalues;
   // The Slice property's plane (a vtkPlane: origin and normal in world coordinates).
