@@ -184,8 +184,10 @@ RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session,
 // (the first is the exact picture; later jittered ones anti-alias it).
 RenderOutcome renderSurface(const RenderJob& job, const RenderSession& session, const InrModel& model, const Box3f& box,
                             const RenderScene& scene, nlohmann::json& report) {
+  SurfaceOptions options = job.surface;
+  options.macrocells.temporalSlices = session.options().macrocells.temporalSlices;  // (a static model: 1)
   const std::unique_ptr<SessionSurfaceRenderer> renderer =
-      SessionSurfaceRenderer::create(session, box, model.domain.timeBegin, model.domain.timeEnd, job.surface);
+      SessionSurfaceRenderer::create(session, box, model.domain.timeBegin, model.domain.timeEnd, options);
   if (!job.quiet) std::printf("surface renderer: %s\n", renderer->description().c_str());
   BlendScene blend = job.blend;
   if (blend.mode == BlendMode::Slice && !job.sliceOriginGiven) {
@@ -206,7 +208,9 @@ RenderOutcome renderSurface(const RenderJob& job, const RenderSession& session, 
     b["isovalues"] = blend.isovalues;
     b["step"] = renderer->step();
     b["tolerance"] = renderer->tolerance();
-    b["macrocells"] = {{"dims", {job.surface.macrocells.dims.x, job.surface.macrocells.dims.y, job.surface.macrocells.dims.z}},
+    b["macrocells"] = {{"dims", {options.macrocells.dims.x, options.macrocells.dims.y, options.macrocells.dims.z}},
+                       {"temporal_slices", options.macrocells.temporalSlices},
+                       {"bounds_padding", options.macrocells.boundsPadding},
                        {"slices_built", m.slicesBuilt},
                        {"build_seconds", m.seconds},
                        {"lattice_queries", m.evaluations}};

@@ -347,6 +347,11 @@ void parseBlendOptions(const Args& args, RenderJob& job) {
     if (blend.isovalues.empty()) throw UsageError("--iso needs at least one value");
     if (int(blend.isovalues.size()) > BlendScene::kMaxIsovalues)
       throw UsageError("--iso: at most " + std::to_string(BlendScene::kMaxIsovalues) + " isovalues");
+    // The candidate macrocells: --macrocells and --skip-block as the session's; --bounds-padding
+    // when given (the surface renderer's default pads: SurfaceOptions::defaultMacrocells).
+    job.surface.macrocells.dims = job.session.macrocells.dims;
+    job.surface.macrocells.skipBlockCells = job.session.macrocells.skipBlockCells;
+    if (args.has("bounds-padding")) job.surface.macrocells.boundsPadding = job.session.macrocells.boundsPadding;
     job.surface.stepFraction = float(args.getDouble("iso-step", job.surface.stepFraction));
     if (!(job.surface.stepFraction > 0.f && job.surface.stepFraction <= 1.f))
       throw UsageError("--iso-step must be in (0, 1] (a fraction of a macrocell's edge)");

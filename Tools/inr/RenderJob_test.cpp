@@ -285,6 +285,12 @@ TEST(RenderJob, BlendModesAndTheirOptions) {
   EXPECT_EQ(iso.frames, 1);               // exact in one frame
   EXPECT_TRUE(iso.shading.enabled);       // lit unless --no-shade
   EXPECT_FALSE(parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1", "--no-shade"})).shading.enabled);
+  EXPECT_EQ(iso.surface.macrocells.boundsPadding, SurfaceOptions{}.macrocells.boundsPadding);  // its own default
+  const RenderJob cells = parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1", "--macrocells", "16",
+                                                    "--bounds-padding", "0.1", "--skip-block", "8"}));
+  EXPECT_EQ(cells.surface.macrocells.dims.y, 16);
+  EXPECT_EQ(cells.surface.macrocells.boundsPadding, 0.1);
+  EXPECT_EQ(cells.surface.macrocells.skipBlockCells, 8);
 
   const RenderJob slice = parseRenderJob(withModel({"--blend", "slice", "--slice-origin", "1,2,3", "--slice-normal",
                                                     "0,1,0", "--slice-opaque", "--crop", "-1,1,-2,2,0,0.5"}));
