@@ -1,9 +1,8 @@
 #pragma once
 // The isosurface and slice blend modes (Render/SurfaceRenderer.h) on a session's backend, so the
 // CLI and the plugin reach them without naming a backend's classes (as SessionRayMarcher does for
-// the ray marcher). Today every backend runs the host-driven renderer over the session's
-// evaluator: on a CUDA session that is the GPU evaluator, each batch a host round trip
-// (description() says so).
+// the ray marcher): on a CUDA session the GPU renderer (Render/Cuda/CudaSurfaceRenderer.h), else
+// the CPU one (Render/SurfaceRenderer.h); description() says which.
 #include <memory>
 #include <string>
 #include <vector>

@@ -205,11 +205,7 @@ void fillCommon(Constants& k, const FrameConstants& fc, const Box3f& clipBox, co
 
 }  // namespace
 
-FrameStats SurfaceRenderer::renderSlice() {
-  const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "slice";
-  st.frame = frameIndex_;
+SliceConstants SurfaceRenderer::sliceConstants() const {
   const CameraView cam = scene_.camera.view(settings_.width, settings_.height);
   const FrameConstants fc = makeFrameConstants(cam, box_, scene_, settings_,
                                                scene_.depthLimit.empty() ? nullptr : scene_.depthLimit.data(),
@@ -228,7 +224,15 @@ FrameStats SurfaceRenderer::renderSlice() {
   }
   sc.origin = origin;
   sc.normal = normal;
+  return sc;
+}
 
+FrameStats SurfaceRenderer::renderSlice() {
+  const auto tFrame = Clock::now();
+  FrameStats st;
+  st.method = "slice";
+  st.frame = frameIndex_;
+  const SliceConstants sc = sliceConstants();
   const int n = settings_.width * settings_.height;
   st.pixels = std::size_t(n);
   std::vector<QueryPoint> points;
@@ -292,11 +296,8 @@ FrameStats SurfaceRenderer::renderSlice() {
   return st;
 }
 
-FrameStats SurfaceRenderer::renderIsosurface() {
-  const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "isosurface";
-  st.frame = frameIndex_;
+SurfaceConstants SurfaceRenderer::surfaceConstants() const {
+  if (!grid_ || !candidatesValid_) throw std::logic_error("surfaceConstants: no isosurface scene");
   const CameraView cam = scene_.camera.view(settings_.width, settings_.height);
   const FrameConstants fc = makeFrameConstants(cam, box_, scene_, settings_,
                                                scene_.depthLimit.empty() ? nullptr : scene_.depthLimit.data(),
@@ -312,7 +313,15 @@ FrameStats SurfaceRenderer::renderIsosurface() {
   sc.samplesPerIteration = options_.samplesPerIteration;
   sc.maxRefinements = options_.maxRefinements;
   sc.opaqueTransmittance = options_.opaqueTransmittance;
+  return sc;
+}
 
+FrameStats SurfaceRenderer::renderIsosurface() {
+  const auto tFrame = Clock::now();
+  FrameStats st;
+  st.method = "isosurface";
+  st.frame = frameIndex_;
+  const SurfaceConstants sc = surfaceConstants();
   const int n = settings_.width * settings_.height;
   const int K = sc.samplesPerIteration;
   st.pixels = std::size_t(n);

@@ -16,6 +16,7 @@
 #include "Evaluator/FieldEvaluator.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/RenderStats.h"
+#include "Render/SurfaceMarch.h"
 #include "Render/SceneInputs.h"
 #include "Render/TransferFunctionTable.h"
 
@@ -108,6 +109,25 @@ public:
   // the macrocell grid; empty before the first isosurface scene.
   const std::vector<float>& candidateCells() const { return candidates_.cell; }
   const MacrocellGrid* macrocells() const { return grid_.get(); }
+
+  // What a backend's per-ray code reads for the next frame (host pointers: the TF table, the
+  // candidate mask, the isovalues, the depth limit; a GPU backend swaps in its device copies).
+  const BlendScene& blendScene() const { return blend_; }
+  const RenderScene& scene() const { return scene_; }
+  const RenderSettings& settings() const { return settings_; }
+  const TransferFunctionTable& transferFunctionTable() const { return *tfTable_; }
+  const MajorantArrays& candidates() const { return candidates_; }
+  const std::vector<float>& isovalues() const { return isovalues_; }
+  SliceConstants sliceConstants() const;
+  SurfaceConstants surfaceConstants() const;  // (isosurface scenes only)
+  // A backend that renders the frames itself: the update time to report with its next frame, and
+  // the frame it rendered (the accumulation index the constants above use).
+  double takePendingUpdateMs() {
+    const double ms = pendingUpdateMs_;
+    pendingUpdateMs_ = 0.0;
+    return ms;
+  }
+  void frameRenderedElsewhere() { ++frameIndex_; }
 
 private:
   FrameStats renderSlice();
