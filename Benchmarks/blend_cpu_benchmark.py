@@ -5,9 +5,10 @@ usage: blend_cpu_benchmark.py INR_EXECUTABLE DATA_DIR OUT_DIR [--size N] [--fram
 
 For each model in DATA_DIR/real/*_small.inr with its shipped transfer function, renders
   - the isosurface at one isovalue: the highest value below which the TF's opacity falls under
-    half its maximum (the edge of what the composite picture shows), kept inside the middle half
-    of the model's sampled value range (`inr info`: a TF shared with a larger model may reach
-    past what this one holds), lit (the CLI's default);
+    half its maximum (the edge of what the composite picture shows) when it lies in the inner 80 %
+    of the model's sampled value range (`inr info`: a TF shared with a larger model may reach past
+    what this one holds), else the value of that inner range where the TF is most opaque; lit
+    (the CLI's default);
   - the slice through the box's centre, normal +z (ParaView's default Slice plane),
 at N x N (default 512) for F frames (default 3: the first builds the candidate macrocells at the
 time; later frames are jittered and cost what any frame of a new view costs), and prints a table:
@@ -39,6 +40,24 @@ def edge_isovalue(points):
     return 0.5 * (points[0][0] + points[-1][0])
 
 
+def opacity_at(points, x):
+    if x <= points[0][0]:
+        return points[0][1]
+    for (x0, a0), (x1, a1) in zip(points, points[1:]):
+        if x <= x1:
+            return a0 + (a1 - a0) * (x - x0) / (x1 - x0) if x1 > x0 else a1
+    return points[-1][1]
+
+
+def choose_isovalue(points, lo, hi):
+    inner = (lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))
+    edge = edge_isovalue(points)
+    if inner[0] <= edge <= inner[1]:
+        return edge
+    xs = [inner[0] + (inner[1] - inner[0]) * k / 200 for k in range(201)]
+    return max(xs, key=lambda x: opacity_at(points, x))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("inr")
@@ -57,7 +76,7 @@ def main():
         info = json.loads(subprocess.run([a.inr, "info", model, "--json"], capture_output=True, text=True,
                                          check=True).stdout)["sampled_value_range"]
         lo, hi = info["min"], info["max"]
-        iso = min(max(edge_isovalue(tf_points(tf)), lo + 0.25 * (hi - lo)), lo + 0.75 * (hi - lo))
+        iso = choose_isovalue(tf_points(tf), lo, hi)
         for mode, extra in (("isosurface", ["--iso", "%.6g" % iso]), ("slice", [])):
             stem = os.path.join(a.out, "%s_%s" % (name, mode))
             cmd = [a.inr, "render", model, "--blend", mode, *extra, "--tf", tf, "--size", "%dx%d" % (a.size, a.size),

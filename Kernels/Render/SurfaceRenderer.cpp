@@ -128,10 +128,17 @@ void SurfaceRenderer::setScene(const RenderScene& scene, const BlendScene& blend
   if (scene.shading.enabled && !evaluator_.providesGradient())
     throw std::invalid_argument("shading: the evaluator " + evaluator_.name() + " computes no gradients");
   const bool timeChanged = !haveScene_ || scene.time != scene_.time;
-  const bool isoChanged = !haveScene_ || blend.isovalues != blend_.isovalues;
+  auto table = std::make_unique<TransferFunctionTable>(scene.transferFunction);
+  // The isovalues the TF shows (opacity > 0 there): a transparent surface adds nothing to the
+  // picture, so its cells need no sampling (a TF edit can change the mask, not the macrocells).
+  std::vector<float> visible;
+  for (double v : blend.isovalues)
+    if (lookupTransferFunction(table->view(), float(v)).w > 0.f) visible.push_back(float(v));
+  const bool isoChanged = !haveScene_ || visible != isovalues_;
   scene_ = scene;
   blend_ = blend;
-  tfTable_ = std::make_unique<TransferFunctionTable>(scene.transferFunction);
+  tfTable_ = std::move(table);
+  isovalues_ = std::move(visible);
   if (timeChanged || isoChanged) candidatesValid_ = false;
   haveScene_ = true;
   if (blend_.mode == BlendMode::Isosurface && !candidatesValid_) {
@@ -145,7 +152,6 @@ void SurfaceRenderer::setScene(const RenderScene& scene, const BlendScene& blend
 void SurfaceRenderer::updateCandidates() {
   if (!grid_) grid_ = std::make_unique<MacrocellGrid>(evaluator_, box_, timeBegin_, timeEnd_, options_.macrocells);
   grid_->setTime(scene_.time);
-  isovalues_.assign(blend_.isovalues.begin(), blend_.isovalues.end());
   const std::vector<float>& mn = grid_->workingMin();
   const std::vector<float>& mx = grid_->workingMax();
   candidates_.cell.assign(mn.size(), 0.f);

@@ -90,8 +90,9 @@ public:
   ~SurfaceRenderer();
   void setSettings(const RenderSettings& settings);
   // The scene and the blend mode (Isosurface or Slice; Composite is the session's renderer). A
-  // time or isovalue change rebuilds the candidate mask (a new time may build macrocell slices);
-  // anything else only restarts the accumulation. Throws std::invalid_argument naming the problem
+  // change of the time or of the isovalues the TF shows (opacity > 0 at the value: the others are
+  // not drawn, and cost nothing) rebuilds the candidate mask (a new time may build macrocell
+  // slices); anything else only restarts the accumulation. Throws std::invalid_argument naming the problem
   // (BlendScene::validate, shading without gradients, shadows, a depth limit of the wrong size).
   void setScene(const RenderScene& scene, const BlendScene& blend);
   FrameStats renderFrame();
@@ -117,7 +118,7 @@ public:
   const RenderSettings& settings() const { return settings_; }
   const TransferFunctionTable& transferFunctionTable() const { return *tfTable_; }
   const MajorantArrays& candidates() const { return candidates_; }
-  const std::vector<float>& isovalues() const { return isovalues_; }
+  const std::vector<float>& isovalues() const { return isovalues_; }  // the visible ones
   SliceConstants sliceConstants() const;
   SurfaceConstants surfaceConstants() const;  // (isosurface scenes only)
   // A backend that renders the frames itself: the update time to report with its next frame, and

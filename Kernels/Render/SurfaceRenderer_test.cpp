@@ -407,6 +407,25 @@ TEST(IsosurfaceBlend, CellsWhoseRangeExcludesEveryIsovalueCostNoQueries) {
   EXPECT_GT(outsideAll, all.size() / 4);
 }
 
+TEST(IsosurfaceBlend, TransparentIsovaluesCostNoQueries) {
+  // The TF's opacity is 0 up to 0.35, then rises to 1 at 0.6: the 0.3 surface is not drawn, and
+  // not sampled.
+  auto queries = [](std::vector<double> isovalues) {
+    IsoCase c;
+    c.blend.isovalues = std::move(isovalues);
+    c.scene.transferFunction = twoPointTf(0.0, {1, 1, 1}, 0.0, 0.6, {1, 1, 1}, 1.0);
+    c.scene.transferFunction.opacity = {{0.0, 0.0}, {0.35, 0.0}, {0.6, 1.0}};
+    FunctionField field(distanceField, "distance", distanceGradient);
+    SurfaceRenderer renderer(field, kCubeBox, 0.0, 1.0, c.options);
+    renderer.setSettings(c.settings);
+    renderer.setScene(c.scene, c.blend);
+    return renderer.renderFrame().queries;
+  };
+  EXPECT_EQ(queries({0.3}), 0u);
+  EXPECT_GT(queries({0.45}), 0u);  // control: a visible one is sampled
+  EXPECT_EQ(queries({0.3, 0.45}), queries({0.45}));
+}
+
 TEST(IsosurfaceBlend, TwoIsovaluesCompositeFrontToBack) {
   IsoCase c;
   c.blend.isovalues = {0.6, 0.3};  // any order
