@@ -519,6 +519,42 @@ TEST(IsosurfaceBlend, CropBoxClipsTheRays) {
   EXPECT_GT(lost + moved, 50);  // control: the crop changes what is seen
 }
 
+TEST(IsosurfaceBlend, OpaqueGeometryHidesWhatLiesBehindIt) {
+  // Opaque geometry just in front of the sphere over the left half of the picture (the depth
+  // limit, a world distance per pixel): no surface there; the right half is unchanged.
+  IsoCase c;
+  FunctionField field(distanceField, "distance", distanceGradient);
+  std::vector<int> use;
+  const std::vector<double> exact = sphereDepth(c, 0.5, 0.0, use);
+  auto render = [&](bool limit) {
+    IsoCase k = c;
+    if (limit) {
+      k.scene.depthLimit.assign(exact.size(), INFINITY);
+      for (std::size_t i = 0; i < exact.size(); ++i)
+        if (int(i) % k.settings.width < k.settings.width / 2 && !std::isinf(exact[i]))
+          k.scene.depthLimit[i] = float(exact[i] - 0.05);
+    }
+    SurfaceRenderer renderer(field, kCubeBox, 0.0, 1.0, k.options);
+    renderer.setSettings(k.settings);
+    renderer.setScene(k.scene, k.blend);
+    renderer.renderFrame();
+    return renderer.surfaceDepth();
+  };
+  const std::vector<float> limited = render(true), open = render(false);
+  int hiddenLeft = 0, visibleLeft = 0, changedRight = 0;
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    const bool left = int(i) % c.settings.width < c.settings.width / 2;
+    if (left && !std::isinf(open[i])) {
+      ++visibleLeft;  // control: without the geometry the surface is there
+      hiddenLeft += std::isinf(limited[i]) ? 1 : 0;
+    }
+    if (!left && !(limited[i] == open[i] || (std::isinf(limited[i]) && std::isinf(open[i])))) ++changedRight;
+  }
+  EXPECT_GT(visibleLeft, 100);
+  EXPECT_EQ(hiddenLeft, visibleLeft);
+  EXPECT_EQ(changedRight, 0);
+}
+
 TEST(BlendScene, ParaViewCroppingBoxAndValidation) {
   const Box3f b = paraviewCroppingBox(Box3f{{-1.f, 0.f, 2.f}, {1.f, 4.f, 6.f}}, {0.5, -1.0, 0.0}, {0.5, 1.0, 2.0});
   EXPECT_FLOAT_EQ(b.lo.x, 0.f);
