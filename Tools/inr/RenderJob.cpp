@@ -121,27 +121,36 @@ std::string queryReductionUsage() {
   return text;
 }
 
-const char* kRenderUsageBlend =
-    "blend modes (ParaView's Volume Blend Mode; isosurface and slice are exact in one frame):\n"
-    "  --blend B                composite (default: the volume, --method above), isosurface or slice\n"
-    "  --iso V[,V...]           --blend isosurface: the isovalues (ParaView's Isosurface Values), each\n"
-    "                           surface coloured by the colour map and made as opaque as the scalar\n"
-    "                           opacity at its value, lit from the network's gradient (as --shade:\n"
-    "                           --diffuse, --specular, --light-kit apply; --no-shade for flat colours),\n"
-    "                           several along a ray composited front to back\n"
-    "  --iso-step F             march step as a fraction of a macrocell's edge, in (0, 1] (default 0.25);\n"
-    "                           surfaces closer together than the step can be missed\n"
-    "  --iso-tolerance F        a hit is refined to within F x step of the surface, in (0, 1]\n"
-    "                           (default 0.001)\n"
-    "  --slice-origin X,Y,Z     --blend slice: a point of the plane, world coordinates (default: the\n"
-    "                           box's centre)\n"
-    "  --slice-normal X,Y,Z     --blend slice: the plane's normal (default 0,0,1)\n"
-    "  --slice-opaque           --blend slice: opaque wherever the plane is hit (default: the colour\n"
-    "                           map weighted by the scalar opacity, as ParaView's slice)\n"
-    "  --crop XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX  keep only this box of the model (model coordinates; ParaView's\n"
-    "                           Cropping): rays are clipped to it. With --blend composite (--method\n"
-    "                           delta only) the camera rays are clipped as for --brick; shadow rays\n"
-    "                           still cross the whole box\n";
+// The blend modes' part of the help prints SurfaceOptions' defaults (the engine's one definition).
+std::string blendUsage() {
+  const SurfaceOptions d;
+  char text[4096];
+  std::snprintf(
+      text, sizeof text,
+      "blend modes (ParaView's Volume Blend Mode; isosurface and slice are exact in one frame):\n"
+      "  --blend B                composite (default: the volume, --method above), isosurface or slice\n"
+      "  --iso V[,V...]           --blend isosurface: the isovalues (ParaView's Isosurface Values), each\n"
+      "                           surface coloured by the colour map and made as opaque as the scalar\n"
+      "                           opacity at its value, lit from the network's gradient (as --shade:\n"
+      "                           --diffuse, --specular, --light-kit apply), several along a ray\n"
+      "                           composited front to back\n"
+      "  --no-shade               --blend isosurface: flat colours, unlit\n"
+      "  --iso-step F             march step as a fraction of a macrocell's edge, in (0, 1] (default %g);\n"
+      "                           surfaces closer together than the step can be missed\n"
+      "  --iso-tolerance F        a hit is refined to within F x step of the surface, in (0, 1]\n"
+      "                           (default %g)\n"
+      "  --slice-origin X,Y,Z     --blend slice: a point of the plane, world coordinates (default: the\n"
+      "                           box's centre)\n"
+      "  --slice-normal X,Y,Z     --blend slice: the plane's normal (default 0,0,1)\n"
+      "  --slice-opaque           --blend slice: opaque wherever the plane is hit (default: the colour\n"
+      "                           map weighted by the scalar opacity, as ParaView's slice)\n"
+      "  --crop XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX  keep only this box of the model (model coordinates; ParaView's\n"
+      "                           Cropping): rays are clipped to it. With --blend composite (--method\n"
+      "                           delta only) the camera rays are clipped as for --brick; shadow rays\n"
+      "                           still cross the whole box\n",
+      d.stepFraction, d.toleranceFraction);
+  return text;
+}
 
 const char* kRenderUsageTail =
     "output:\n"
@@ -562,7 +571,7 @@ const char* splitKindName(SplitKind split) {
 }
 
 std::string renderUsage() {
-  return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + kRenderUsageBlend +
+  return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + blendUsage() +
          kRenderUsageTail;
 }
 
