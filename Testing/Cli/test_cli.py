@@ -730,7 +730,8 @@ def check_blend_slice_values(inr, data):
 
 def check_blend_isosurface(inr, data):
     """--blend isosurface renders a lit surface in one frame (its stats: the mode, isovalues, the
-    step and tolerance, gradient queries for the lit hits); --crop removes part of it."""
+    step and tolerance, gradient queries for the lit hits); --crop removes part of it, and of the
+    composite volume too."""
     model = os.path.join(data, "models", "siren_blobs.inr")
     p = run(inr, "info", model, "--json")
     j = json.loads(p.stdout)
@@ -757,6 +758,17 @@ def check_blend_isosurface(inr, data):
         _, coveredCropped = render("--crop", half)
         print("isosurface: %d covered pixels, %d cropped" % (covered, coveredCropped))
         expect(coveredCropped < covered, "--crop to half the box should cover fewer pixels")
+
+        # The composite's crop clips its camera rays: half the box shows less of the volume.
+        def composite(*extra):
+            p = run(inr, "render", model, "--size", "32x32", "--frames", "4", "--backend", "cpu", "--quiet", "-o", out,
+                    *extra)
+            expect(p.returncode == 0, p.stderr)
+            return sum(sum(c) for r in read_pfm_rgb(out) for c in r)
+
+        whole, cropped = composite(), composite("--crop", half)
+        print("composite: brightness %.1f, cropped %.1f" % (whole, cropped))
+        expect(0.0 < cropped < 0.9 * whole, "--crop with --blend composite should clip the volume")
 
 
 # Composites the bricks in the reverse of their visibility order and prints the PSNR against the
