@@ -631,6 +631,147 @@ def check_raymarch_backend(inr, data):
         expect(m == "GPU ray marcher", "--backend cuda --shade runs %s %s" % (m, p.stderr))
 
 
+def read_pfm_rgb(path):
+    """A PFM's pixels as rows (top row first) of (r, g, b)."""
+    raw = open(path, "rb").read()
+    lines = raw.split(b"\n", 3)
+    w, h = (int(v) for v in lines[1].split())
+    floats = struct.unpack("<%df" % (w * h * 3), lines[3][:w * h * 12])
+    rows = [[floats[3 * (y * w + x):3 * (y * w + x) + 3] for x in range(w)] for y in range(h)]
+    return rows[::-1]  # PFM stores rows bottom to top
+
+
+BLEND_ERRORS = [  # (arguments, what stderr must name)
+    (["--blend", "mip"], "--blend"),
+    (["--blend", "isosurface"], "--iso"),
+    (["--iso", "0.1"], "--iso needs --blend isosurface"),
+    (["--blend", "isosurface", "--iso", "0.1,nan"], "--iso"),
+    (["--blend", "isosurface", "--iso", "0.1", "--iso-step", "1.5"], "--iso-step"),
+    (["--blend", "isosurface", "--iso", "0.1", "--iso-tolerance", "0"], "--iso-tolerance"),
+    (["--blend", "slice", "--slice-normal", "0,0,0"], "--slice-normal"),
+    (["--blend", "slice", "--slice-origin", "1,2"], "--slice-origin"),
+    (["--slice-opaque"], "--slice-opaque needs --blend slice"),
+    (["--crop", "0,1,0,1"], "--crop"),
+    (["--crop", "0.5,0.2,0,1,0,1"], "--crop"),
+    (["--crop", "2,3,2,3,2,3"], "--crop"),  # no overlap with the model's box (found once it loads)
+    (["--crop", "0,1,0,1,0,1", "--method", "raymarch"], "--crop"),
+    (["--blend", "slice", "--method", "raymarch"], "--method"),
+    (["--blend", "slice", "--shadows"], "--shadows"),
+    (["--blend", "isosurface", "--iso", "0.1", "--converge", "40"], "--converge"),
+]
+
+
+def check_blend_errors(inr, data):
+    """--blend and its options are in --help, and a bad value or an option of another mode is a
+    usage error (exit 2) naming the option, with no image written."""
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    p = run(inr, "render", "--help")
+    for flag in ("--blend", "--iso", "--iso-step", "--iso-tolerance", "--slice-origin", "--slice-normal",
+                 "--slice-opaque", "--crop"):
+        expect(flag + " " in p.stdout, "render --help does not list %s" % flag)
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "r.png")
+        for extra, needle in BLEND_ERRORS:
+            p = run(inr, "render", model, "--size", "8x8", "--backend", "cpu", "-o", out, *extra)
+            expect(p.returncode == 2, "%s: exit %d, want 2 (usage error): %s" % (extra, p.returncode, p.stderr))
+            expect(needle in p.stderr, "%s: message lacks %r: %s" % (extra, needle, p.stderr))
+            expect(not os.path.exists(out), "%s: wrote an image despite the error" % extra)
+        # Control: the same options where they apply render.
+        for extra in (["--blend", "slice", "--slice-normal", "0,1,0", "--crop", "0,1,0,1,0,0.5"],
+                      ["--blend", "isosurface", "--iso", "0.1,0.2"], ["--crop", "0,1,0,1,0,0.5", "--frames", "2"]):
+            p = run(inr, "render", model, "--size", "8x8", "--backend", "cpu", "-o", out, *extra)
+            expect(p.returncode == 0, "%s: %s" % (extra, p.stderr))
+
+
+def check_blend_slice_values(inr, data):
+    """--blend slice: with a grey ramp over the value range and --slice-opaque, each pixel of a
+    parallel view down -z is the network's value where its ray meets the plane z = Z (the tiny
+    SIREN's value computed here in Python); the plane at another Z is the control. One query per
+    covered pixel. --crop clips the plane."""
+    t = read_control(data)
+    model = os.path.join(data, "malformed", "valid_control.inr")
+    lo, hi = -3.0, 3.0
+    n, z, time = 24, 0.37, 0.5
+    with tempfile.TemporaryDirectory() as d:
+        tf = os.path.join(d, "grey.json")
+        json.dump([{"RGBPoints": [lo, 0, 0, 0, hi, 1, 1, 1], "Points": [lo, 1, 0.5, 0, hi, 1, 0.5, 0]}], open(tf, "w"))
+        out, stats = os.path.join(d, "s.pfm"), os.path.join(d, "s.json")
+        common = ["--blend", "slice", "--slice-opaque", "--slice-origin", "0.3,0.6,%r" % z, "--slice-normal", "0,0,1",
+                  "--camera", "0.5,0.5,3,0.5,0.5,0.5,0,1,0,30", "--parallel-scale", "0.5", "--size", "%dx%d" % (n, n),
+                  "--time", repr(time), "--tf", tf, "--backend", "cpu", "--stats-json", stats, "-o", out]
+        p = run(inr, "render", model, *common)
+        expect(p.returncode == 0, p.stderr)
+        rows = read_pfm_rgb(out)
+        report = json.load(open(stats))
+        expect(report["blend"]["mode"] == "slice" and report["total"]["queries"] == n * n,
+               "want one query per pixel: %s" % report["total"])
+
+        def error_against(zz):
+            worst = 0.0
+            for py in range(n):
+                for px in range(n):
+                    x, y = (px + 0.5) / n, 1.0 - (py + 0.5) / n
+                    v = control_value(t, x, y, zz, time)
+                    want = min(1.0, max(0.0, (v - lo) / (hi - lo)))
+                    worst = max(worst, abs(rows[py][px][0] - want))
+            return worst
+
+        err, control = error_against(z), error_against(z + 0.05)
+        print("slice: max error %.3g, plane moved: %.3g" % (err, control))
+        expect(err < 2e-3, "slice differs from the network's values by %g" % err)
+        expect(control > 0.02, "control: the moved plane should differ (%g)" % control)
+        p = run(inr, "render", model, *common, "--crop", "0,0.5,0,1,0,1")
+        expect(p.returncode == 0, p.stderr)
+        cropped = read_pfm_rgb(out)
+        kept = sum(1 for py in range(n) for px in range(n) if cropped[py][px] == rows[py][px])
+        empty = sum(1 for py in range(n) for px in range(n) if max(cropped[py][px]) == 0.0)
+        expect(kept >= n * n // 2 - n and empty >= n * n // 2 - n,
+               "--crop 0,0.5: want the left half kept, the right half empty: %d kept, %d empty" % (kept, empty))
+
+
+def check_blend_isosurface(inr, data):
+    """--blend isosurface renders a lit surface in one frame (its stats: the mode, isovalues, the
+    step and tolerance, gradient queries for the lit hits); --crop removes part of it, and of the
+    composite volume too."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    p = run(inr, "info", model, "--json")
+    j = json.loads(p.stdout)
+    lo, hi = j["sampled_value_range"]["min"], j["sampled_value_range"]["max"]
+    iso = lo + 0.6 * (hi - lo)
+    b = j["bounds"]
+    with tempfile.TemporaryDirectory() as d:
+        out, stats = os.path.join(d, "i.pfm"), os.path.join(d, "i.json")
+
+        def render(*extra):
+            p = run(inr, "render", model, "--blend", "isosurface", "--iso", repr(iso), "--size", "48x48",
+                    "--backend", "cpu", "--stats-json", stats, "-o", out, *extra)
+            expect(p.returncode == 0, p.stderr)
+            rows = read_pfm_rgb(out)
+            return json.load(open(stats)), sum(1 for r in rows for c in r if max(c) > 0.0)
+
+        report, covered = render()
+        expect(report["blend"]["mode"] == "isosurface" and report["blend"]["isovalues"] == [iso], report["blend"])
+        expect(report["frames_requested"] == 1 and len(report["frames"]) == 1, "one frame by default")
+        expect(report["total"]["shading_queries"] > 0, "the surface is lit from the gradient: %s" % report["total"])
+        expect(report["blend"]["tolerance"] < report["blend"]["step"], report["blend"])
+        expect(covered > 40, "the isosurface covers %d pixels" % covered)
+        half = "%r,%r,%r,%r,%r,%r" % (b[0], (b[0] + b[1]) / 2, b[2], b[3], b[4], b[5])
+        _, coveredCropped = render("--crop", half)
+        print("isosurface: %d covered pixels, %d cropped" % (covered, coveredCropped))
+        expect(coveredCropped < covered, "--crop to half the box should cover fewer pixels")
+
+        # The composite's crop clips its camera rays: half the box shows less of the volume.
+        def composite(*extra):
+            p = run(inr, "render", model, "--size", "32x32", "--frames", "4", "--backend", "cpu", "--quiet", "-o", out,
+                    *extra)
+            expect(p.returncode == 0, p.stderr)
+            return sum(sum(c) for r in read_pfm_rgb(out) for c in r)
+
+        whole, cropped = composite(), composite("--crop", half)
+        print("composite: brightness %.1f, cropped %.1f" % (whole, cropped))
+        expect(0.0 < cropped < 0.9 * whole, "--crop with --blend composite should clip the volume")
+
+
 # Composites the bricks in the reverse of their visibility order and prints the PSNR against the
 # whole render: argv = script, whole, bricks...
 REVERSED_ORDER = """

@@ -24,6 +24,7 @@
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "Backends/SessionRayMarcher.h"
+#include "Backends/SessionSurfaceRenderer.h"
 #include "Render/BrickDecomposition.h"
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/ModelBox.h"
@@ -179,6 +180,71 @@ RenderOutcome renderRayMarch(const RenderJob& job, const RenderSession& session,
   return r;
 }
 
+// --blend isosurface / slice: the surface renderer on the session's backend, job.frames frames
+// (the first is the exact picture; later jittered ones anti-alias it).
+RenderOutcome renderSurface(const RenderJob& job, const RenderSession& session, const InrModel& model, const Box3f& box,
+                            const RenderScene& scene, nlohmann::json& report) {
+  SurfaceOptions options = job.surface;
+  options.macrocells.temporalSlices = session.options().macrocells.temporalSlices;  // (a static model: 1)
+  const std::unique_ptr<SessionSurfaceRenderer> renderer =
+      SessionSurfaceRenderer::create(session, box, model.domain.timeBegin, model.domain.timeEnd, options);
+  if (!job.quiet) std::printf("surface renderer: %s\n", renderer->description().c_str());
+  BlendScene blend = job.blend;
+  if (blend.mode == BlendMode::Slice && !job.sliceOriginGiven) {
+    const Vec3f c = (box.lo + box.hi) * 0.5f;
+    blend.sliceOrigin = {c.x, c.y, c.z};
+  }
+  renderer->setSettings(job.settings);
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    renderer->setScene(scene, blend);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--blend ") + blendModeName(blend.mode) + ": " + e.what());
+  }
+  const double setupMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  nlohmann::json b = {{"mode", blendModeName(blend.mode)}, {"renderer", renderer->description()}, {"setup_ms", setupMs}};
+  if (blend.mode == BlendMode::Isosurface) {
+    const MacrocellBuildStats m = renderer->macrocellBuildStats();
+    b["isovalues"] = blend.isovalues;
+    b["step"] = renderer->step();
+    b["tolerance"] = renderer->tolerance();
+    b["macrocells"] = {{"dims", {options.macrocells.dims.x, options.macrocells.dims.y, options.macrocells.dims.z}},
+                       {"temporal_slices", options.macrocells.temporalSlices},
+                       {"bounds_padding", options.macrocells.boundsPadding},
+                       {"slices_built", m.slicesBuilt},
+                       {"build_seconds", m.seconds},
+                       {"lattice_queries", m.evaluations}};
+    if (!job.quiet)
+      std::printf("isosurface: %zu isovalue(s), step %g, tolerance %g (model units); candidate macrocells: %d slice(s) "
+                  "built in %.3f s (%zu lattice queries)\n",
+                  blend.isovalues.size(), renderer->step(), renderer->tolerance(), m.slicesBuilt, m.seconds,
+                  m.evaluations);
+  } else {
+    b["slice_origin"] = blend.sliceOrigin;
+    b["slice_normal"] = blend.sliceNormal;
+    b["slice_opaque"] = blend.sliceOpaque;
+  }
+  if (blend.crop)
+    b["crop"] = {blend.cropBox.lo.x, blend.cropBox.hi.x, blend.cropBox.lo.y, blend.cropBox.hi.y, blend.cropBox.lo.z,
+                 blend.cropBox.hi.z};
+  report["blend"] = b;
+  RenderOutcome r;
+  for (long k = 0; k < job.frames; ++k) {
+    const FrameStats st = renderer->renderFrame();
+    if (!job.quiet) {
+      std::printf("frame %ld/%ld: %zu rays, %zu queries (+%zu gradient) in %d iterations, %.1f ms (update %.1f)\n",
+                  k + 1, job.frames, st.rays, st.queries, st.shadingQueries, st.iterations, st.totalMs, st.updateMs);
+      std::fflush(stdout);
+    }
+    if (r.perFrame.empty()) r.first = st;
+    r.total += st;
+    r.perFrame.push_back(statsJson(st));
+  }
+  r.frames = job.frames;
+  r.image = renderer->image();
+  return r;
+}
+
 // The brick's description beside its .npy: what the compositing script needs to order the
 // bricks, and what the run cost.
 void writeBrickDescription(const RenderJob& job, const RenderSession& session, const Brick& b, const Camera& c,
@@ -316,6 +382,16 @@ int runRenderJob(const RenderJob& job) {
     settings.clipToBrick = true;
     settings.brick = brick->box;
   }
+  if (job.blend.crop && !job.surfaceBlend()) {
+    // The composite's crop: camera rays clipped to the box as a brick's are.
+    const Box3f& c = job.blend.cropBox;
+    const Box3f clip{{std::max(c.lo.x, box.lo.x), std::max(c.lo.y, box.lo.y), std::max(c.lo.z, box.lo.z)},
+                     {std::min(c.hi.x, box.hi.x), std::min(c.hi.y, box.hi.y), std::min(c.hi.z, box.hi.z)}};
+    if (!(clip.lo.x < clip.hi.x && clip.lo.y < clip.hi.y && clip.lo.z < clip.hi.z))
+      throw UsageError("--crop: the box does not overlap the model's box");
+    settings.clipToBrick = true;
+    settings.brick = clip;
+  }
 
   double lastShown = -1.0;
   if (!job.quiet) {
@@ -336,7 +412,7 @@ int runRenderJob(const RenderJob& job) {
   nlohmann::json report;
   report["model"] = job.model;
   report["method"] = renderMethodName(job.method);
-  if (job.method == RenderMethod::Delta) {
+  if (job.method == RenderMethod::Delta && !job.surfaceBlend()) {
     const TrackingOptions& t = session->trackingOptions();
     report["estimator"] = {{"name", primaryEstimatorName(t.estimator)},
                            {"majorant_scale", t.majorantScale},
@@ -354,18 +430,20 @@ int runRenderJob(const RenderJob& job) {
   report["evaluator"] = evaluator.name();
   report["backend"] = session->description();
   // What the session holds, read back: the settings every frame below ran with.
-  if (job.method != RenderMethod::RayMarch) report["query_reduction"] = queryReductionJson(session->queryReduction());
+  if (job.method != RenderMethod::RayMarch && !job.surfaceBlend()) report["query_reduction"] = queryReductionJson(session->queryReduction());
 
-  const RenderOutcome r = job.method == RenderMethod::RayMarch
-                              ? renderRayMarch(job, *session, box, scene, report)
-                              : renderTracking(job, settings, *session, scene, brick, report);
+  report["blend_mode"] = blendModeName(job.blend.mode);
+  const RenderOutcome r = job.surfaceBlend()                ? renderSurface(job, *session, model, box, scene, report)
+                          : job.method == RenderMethod::RayMarch ? renderRayMarch(job, *session, box, scene, report)
+                                                                 : renderTracking(job, settings, *session, scene, brick, report);
 
   if (job.writesNpy()) writeNpyRgba(job.output, r.image);
   else writeImage(job.output, r.image);
   const double n = double(r.frames);
   const FrameStats& total = r.total;
   // The wavefront tracker's line names its estimator (ratio, delta, march), not the method.
-  const std::string summaryMethod = job.method == RenderMethod::Delta
+  const std::string summaryMethod = job.surfaceBlend()               ? std::string(blendModeName(job.blend.mode))
+                                    : job.method == RenderMethod::Delta
                                         ? primaryEstimatorName(session->trackingOptions().estimator)
                                         : renderMethodName(job.method);
   std::printf("%s: %s %dx%d, %ld frame(s), t=%g: %.0f rays, %.0f queries (+%.0f shadow), %.1f iterations per "

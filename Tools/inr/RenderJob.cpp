@@ -121,6 +121,37 @@ std::string queryReductionUsage() {
   return text;
 }
 
+// The blend modes' part of the help prints SurfaceOptions' defaults (the engine's one definition).
+std::string blendUsage() {
+  const SurfaceOptions d;
+  char text[4096];
+  std::snprintf(
+      text, sizeof text,
+      "blend modes (ParaView's Volume Blend Mode; isosurface and slice are exact in one frame):\n"
+      "  --blend B                composite (default: the volume, --method above), isosurface or slice\n"
+      "  --iso V[,V...]           --blend isosurface: the isovalues (ParaView's Isosurface Values), each\n"
+      "                           surface coloured by the colour map and made as opaque as the scalar\n"
+      "                           opacity at its value, lit from the network's gradient (as --shade:\n"
+      "                           --diffuse, --specular, --light-kit apply), several along a ray\n"
+      "                           composited front to back\n"
+      "  --no-shade               --blend isosurface: flat colours, unlit\n"
+      "  --iso-step F             march step as a fraction of a macrocell's edge, in (0, 1] (default %g);\n"
+      "                           surfaces closer together than the step can be missed\n"
+      "  --iso-tolerance F        a hit is refined to within F x step of the surface, in (0, 1]\n"
+      "                           (default %g)\n"
+      "  --slice-origin X,Y,Z     --blend slice: a point of the plane, world coordinates (default: the\n"
+      "                           box's centre)\n"
+      "  --slice-normal X,Y,Z     --blend slice: the plane's normal (default 0,0,1)\n"
+      "  --slice-opaque           --blend slice: opaque wherever the plane is hit (default: the colour\n"
+      "                           map weighted by the scalar opacity, as ParaView's slice)\n"
+      "  --crop XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX  keep only this box of the model (model coordinates; ParaView's\n"
+      "                           Cropping): rays are clipped to it. With --blend composite (--method\n"
+      "                           delta only) the camera rays are clipped as for --brick; shadow rays\n"
+      "                           still cross the whole box\n",
+      d.stepFraction, d.toleranceFraction);
+  return text;
+}
+
 const char* kRenderUsageTail =
     "output:\n"
     "  -o FILE                  .png (8-bit, composited over the background) or .pfm (linear float);\n"
@@ -279,7 +310,10 @@ void parseImageAndFrames(const Args& args, RenderJob& job) {
   settings.pixelJitter = !args.has("no-jitter");
   if (job.split == SplitKind::PixelShare) settings.pixelShare = PixelShare{job.splitIndex.index, job.splitIndex.count};
   if (job.split == SplitKind::SampleShare) settings.sampleShare = SampleShare{job.splitIndex.index, job.splitIndex.count};
-  job.frames = args.getInt("frames", job.method == RenderMethod::RayMarch && !settings.pixelJitter ? 1 : 64);
+  // One frame is the whole picture for ray marching without jitter and for the isosurface and
+  // slice modes (later frames only anti-alias them).
+  const bool oneFrame = (job.method == RenderMethod::RayMarch && !settings.pixelJitter) || job.surfaceBlend();
+  job.frames = args.getInt("frames", oneFrame ? 1 : 64);
   if (job.frames < 1 || job.frames > 1000000) throw UsageError("--frames must be in [1, 1000000]");
   job.convergeTarget = args.getDouble("converge", 0.0);
   if (args.has("converge") && !(job.convergeTarget > 0.0 && job.convergeTarget <= 200.0)) {
@@ -287,6 +321,84 @@ void parseImageAndFrames(const Args& args, RenderJob& job) {
   }
   if (args.has("converge") && job.method == RenderMethod::RayMarch)
     throw UsageError("--converge applies to delta tracking only");
+}
+
+// --blend: the mode, and what the isosurface and slice modes refuse (read before the frames'
+// default, which depends on it).
+void parseBlendMode(const Args& args, RenderJob& job) {
+  try {
+    job.blend.mode = inr::parseBlendMode(args.get("blend", "composite"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--blend: ") + e.what());
+  }
+  if (!job.surfaceBlend()) return;
+  const std::string mode = std::string("--blend ") + blendModeName(job.blend.mode);
+  if (args.has("method")) throw UsageError("--method applies to --blend composite, not " + mode);
+  if (job.split != SplitKind::None) throw UsageError(std::string(job.splitOption()) + " applies to --blend composite, not " + mode);
+  for (const char* option : {"converge", "shadows", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
+                             "roulette-threshold", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
+                             "reproject", "no-reproject", "prune-epsilon", "prune-falloff", "ghost-passes",
+                             "gradient-opacity", "step", "shadow-step", "shadow-estimator"}) {
+    if (args.has(option)) throw UsageError(std::string("--") + option + " applies to --blend composite, not " + mode);
+  }
+}
+
+// The isosurface and slice options and the crop box, checked against the mode.
+void parseBlendOptions(const Args& args, RenderJob& job) {
+  BlendScene& blend = job.blend;
+  const BlendMode mode = blend.mode;
+  auto only = [&](const char* option, BlendMode needs) {
+    if (args.has(option) && mode != needs)
+      throw UsageError(std::string("--") + option + " needs --blend " + blendModeName(needs) + " (got --blend " +
+                       blendModeName(mode) + ")");
+  };
+  for (const char* option : {"iso", "iso-step", "iso-tolerance"}) only(option, BlendMode::Isosurface);
+  for (const char* option : {"slice-origin", "slice-normal", "slice-opaque"}) only(option, BlendMode::Slice);
+  if (mode == BlendMode::Isosurface) {
+    if (!args.has("iso")) throw UsageError("--blend isosurface needs --iso V[,V...] (the isovalues)");
+    blend.isovalues = args.getList("iso", 0);
+    if (blend.isovalues.empty()) throw UsageError("--iso needs at least one value");
+    if (int(blend.isovalues.size()) > BlendScene::kMaxIsovalues)
+      throw UsageError("--iso: at most " + std::to_string(BlendScene::kMaxIsovalues) + " isovalues");
+    // The candidate macrocells: --macrocells and --skip-block as the session's; --bounds-padding
+    // when given (the surface renderer's default pads: SurfaceOptions::defaultMacrocells).
+    job.surface.macrocells.dims = job.session.macrocells.dims;
+    job.surface.macrocells.skipBlockCells = job.session.macrocells.skipBlockCells;
+    if (args.has("bounds-padding")) job.surface.macrocells.boundsPadding = job.session.macrocells.boundsPadding;
+    job.surface.stepFraction = float(args.getDouble("iso-step", job.surface.stepFraction));
+    if (!(job.surface.stepFraction > 0.f && job.surface.stepFraction <= 1.f))
+      throw UsageError("--iso-step must be in (0, 1] (a fraction of a macrocell's edge)");
+    job.surface.toleranceFraction = float(args.getDouble("iso-tolerance", job.surface.toleranceFraction));
+    if (!(job.surface.toleranceFraction > 0.f && job.surface.toleranceFraction <= 1.f))
+      throw UsageError("--iso-tolerance must be in (0, 1] (a fraction of the step)");
+  }
+  if (mode == BlendMode::Slice) {
+    if (args.has("slice-origin")) {
+      blend.sliceOrigin = list3(args, "slice-origin");
+      job.sliceOriginGiven = true;
+    }
+    if (args.has("slice-normal")) {
+      blend.sliceNormal = list3(args, "slice-normal");
+      const auto& n = blend.sliceNormal;
+      if (!(std::hypot(n[0], n[1], n[2]) > 0)) throw UsageError("--slice-normal must be a non-zero direction");
+    }
+    blend.sliceOpaque = args.has("slice-opaque");
+  }
+  if (args.has("crop")) {
+    const auto c = args.getList("crop", 6);
+    for (int a = 0; a < 3; ++a)
+      if (!(c[2 * a] < c[2 * a + 1]))
+        throw UsageError(std::string("--crop XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX needs min < max on every axis (axis ") +
+                         "xyz"[a] + ": " + std::to_string(c[2 * a]) + " >= " + std::to_string(c[2 * a + 1]) + ")");
+    blend.crop = true;
+    blend.cropBox = Box3f{{float(c[0]), float(c[2]), float(c[4])}, {float(c[1]), float(c[3]), float(c[5])}};
+    if (mode == BlendMode::Composite) {
+      if (job.method != RenderMethod::Delta)
+        throw UsageError("--crop with --blend composite needs --method delta (it clips the camera rays as --brick does)");
+      if (job.split != SplitKind::None)
+        throw UsageError(std::string("--crop and ") + job.splitOption() + " both clip the picture: give one");
+    }
+  }
 }
 
 // Macrocells, backend, traversal and CPU threads: the session's options.
@@ -404,7 +516,11 @@ void parseScene(const Args& args, RenderJob& job) {
   }
   job.ambient = float(args.getDouble("ambient", 0.2));
   if (job.ambient < 0.f || job.ambient > 1.f) throw UsageError("--ambient must be in [0, 1]");
-  job.shading.enabled = args.has("shade");
+  // The isosurface is lit unless --no-shade (ParaView's Volume with Shade on).
+  if (args.has("no-shade") && args.has("shade")) throw UsageError("--shade and --no-shade contradict");
+  if (args.has("no-shade") && job.blend.mode != BlendMode::Isosurface)
+    throw UsageError("--no-shade applies to --blend isosurface (the other modes are unlit unless --shade)");
+  job.shading.enabled = args.has("shade") || (job.blend.mode == BlendMode::Isosurface && !args.has("no-shade"));
   if (args.has("light-kit")) {
     if (!job.shading.enabled) throw UsageError("--light-kit needs --shade");
     if (job.shadows || job.toLight)
@@ -459,7 +575,8 @@ const char* splitKindName(SplitKind split) {
 }
 
 std::string renderUsage() {
-  return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + kRenderUsageTail;
+  return std::string(kRenderUsageHead) + estimatorUsage() + queryReductionUsage() + blendUsage() +
+         kRenderUsageTail;
 }
 
 RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
@@ -470,8 +587,10 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold", "diffuse", "specular", "specular-power"},
-                  {"help", "shadows", "shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet", "reproject", "no-reproject"});
+                   "roulette-threshold", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
+                   "iso-tolerance", "slice-origin", "slice-normal", "crop"},
+                  {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
+                   "reproject", "no-reproject", "slice-opaque"});
   RenderJob job;
   if (args.has("help")) {
     job.help = true;
@@ -485,6 +604,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   else throw UsageError("--method must be delta, raymarch or naive, got '" + method + "'");
   if (job.split != SplitKind::None && job.method != RenderMethod::Delta)
     throw UsageError(std::string(job.splitOption()) + " applies to --method delta only");
+  parseBlendMode(args, job);
   job.quiet = args.has("quiet");
   job.statsJson = args.get("stats-json");
   if (args.has("stats-json") && job.statsJson.empty()) throw UsageError("--stats-json needs a file name");
@@ -499,6 +619,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   }
   parseSessionOptions(args, job);
   parseScene(args, job);
+  parseBlendOptions(args, job);
   return job;
 }
 

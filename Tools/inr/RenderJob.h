@@ -15,6 +15,7 @@
 #include "Render/RayMarcher.h"
 #include "Render/RayState.h"
 #include "Render/SceneInputs.h"
+#include "Render/SurfaceRenderer.h"
 #include "Render/WavefrontRenderer.h"
 
 namespace inr::cli {
@@ -67,6 +68,13 @@ struct RenderJob {
   float ambient = 0.2f;  // shadows' and shading's one ambient (Render/Shading.h)
   ShadowEstimator shadowEstimator = ShadowEstimator::Delta;
   ShadingOptions shading;  // --shade, --diffuse, --specular, --specular-power, --light-kit (headlight: the runner)
+
+  // --blend and its options: the mode, --iso, --slice-origin / --slice-normal / --slice-opaque and
+  // --crop (for every mode; composite clips its camera rays as a brick does: settings.clipToBrick).
+  BlendScene blend;
+  bool sliceOriginGiven = false;  // default: the model box's centre (the runner)
+  SurfaceOptions surface;         // --iso-step, --iso-tolerance
+  bool surfaceBlend() const { return blend.mode != BlendMode::Composite; }
 
   bool splitIntoBricks() const { return split == SplitKind::Brick; }
   bool writesNpy() const { return split != SplitKind::None; }

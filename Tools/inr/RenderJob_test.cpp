@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -268,6 +269,73 @@ TEST(RenderJob, ModelAndOutputAreRequired) {
   EXPECT_NE(usageError({"-o", "out.png"}).find("MODEL"), std::string::npos);
   EXPECT_NE(usageError({"a.inr", "b.inr", "-o", "out.png"}).find("MODEL"), std::string::npos);
   EXPECT_NE(usageError({"a.inr"}).find("-o"), std::string::npos);
+}
+
+TEST(RenderJob, BlendModesAndTheirOptions) {
+  const RenderJob composite = parseRenderJob(withModel({}));
+  EXPECT_EQ(composite.blend.mode, BlendMode::Composite);
+  EXPECT_FALSE(composite.blend.crop);
+
+  const RenderJob iso = parseRenderJob(withModel({"--blend", "isosurface", "--iso", "0.25,0.75", "--iso-step", "0.5",
+                                                  "--iso-tolerance", "0.01"}));
+  EXPECT_EQ(iso.blend.mode, BlendMode::Isosurface);
+  EXPECT_EQ(iso.blend.isovalues, (std::vector<double>{0.25, 0.75}));
+  EXPECT_FLOAT_EQ(iso.surface.stepFraction, 0.5f);
+  EXPECT_FLOAT_EQ(iso.surface.toleranceFraction, 0.01f);
+  EXPECT_EQ(iso.frames, 1);               // exact in one frame
+  EXPECT_TRUE(iso.shading.enabled);       // lit unless --no-shade
+  EXPECT_FALSE(parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1", "--no-shade"})).shading.enabled);
+  EXPECT_EQ(iso.surface.macrocells.boundsPadding, SurfaceOptions{}.macrocells.boundsPadding);  // its own default
+  const RenderJob cells = parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1", "--macrocells", "16",
+                                                    "--bounds-padding", "0.1", "--skip-block", "8"}));
+  EXPECT_EQ(cells.surface.macrocells.dims.y, 16);
+  EXPECT_EQ(cells.surface.macrocells.boundsPadding, 0.1);
+  EXPECT_EQ(cells.surface.macrocells.skipBlockCells, 8);
+
+  const RenderJob slice = parseRenderJob(withModel({"--blend", "slice", "--slice-origin", "1,2,3", "--slice-normal",
+                                                    "0,1,0", "--slice-opaque", "--crop", "-1,1,-2,2,0,0.5"}));
+  EXPECT_EQ(slice.blend.mode, BlendMode::Slice);
+  EXPECT_TRUE(slice.sliceOriginGiven);
+  EXPECT_EQ(slice.blend.sliceOrigin, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(slice.blend.sliceNormal, (std::array<double, 3>{0, 1, 0}));
+  EXPECT_TRUE(slice.blend.sliceOpaque);
+  EXPECT_FALSE(slice.shading.enabled);
+  ASSERT_TRUE(slice.blend.crop);
+  EXPECT_FLOAT_EQ(slice.blend.cropBox.lo.y, -2.f);
+  EXPECT_FLOAT_EQ(slice.blend.cropBox.hi.z, 0.5f);
+  EXPECT_FALSE(parseRenderJob(withModel({"--blend", "slice"})).sliceOriginGiven);  // the runner: box centre
+}
+
+TEST(RenderJob, BlendUsageErrorsNameTheOption) {
+  EXPECT_NE(usageError(withModel({"--blend", "mip"})).find("--blend"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "isosurface"})).find("--iso"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--iso", "1"})).find("--iso needs --blend isosurface"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--iso", "1"})).find("--iso needs --blend isosurface"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1,x"})).find("--iso"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--iso-step", "0"})).find("--iso-step"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--iso-tolerance", "2"})).find("--iso-tolerance"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--slice-normal", "0,0,1"})).find("--slice-normal needs --blend slice"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--slice-normal", "0,0,0"})).find("--slice-normal"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--slice-origin", "1,2"})).find("--slice-origin"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--crop", "0,1,0,1,0"})).find("--crop"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--crop", "0,1,1,0,0,1"})).find("--crop"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--crop", "0,1,0,1,0,1", "--method", "raymarch"})).find("--crop"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--crop", "0,1,0,1,0,1", "--brick", "0/2"}, "out.npy")).find("--crop"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--method", "raymarch"})).find("--method"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--shadows"})).find("--shadows"), std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--converge", "40"})).find("--converge"),
+            std::string::npos);
+  EXPECT_NE(usageError(withModel({"--blend", "slice", "--no-shade"})).find("--no-shade"), std::string::npos);
+  // The options are accepted where they apply (the control for the errors above).
+  EXPECT_EQ(usageError(withModel({"--blend", "slice", "--slice-normal", "0,0,1", "--crop", "0,1,0,1,0,1"})), "");
+  EXPECT_EQ(usageError(withModel({"--crop", "0,1,0,1,0,1"})), "");
 }
 
 }  // namespace
