@@ -13,6 +13,7 @@
 #include "Model/InrModel.h"
 #include "Render/ModelBox.h"
 #include "Render/SceneInputs.h"
+#include "TestSupport/TestScene.h"
 
 namespace inr {
 namespace {
@@ -62,21 +63,11 @@ struct ShippedScene {
   }
 };
 
-// PSNR of `img` against `ref` (composited RGB) over the pixels the reference volume covers.
-double psnrOverVolume(const ImageRGBA& img, const ImageRGBA& ref, const ImageRGBA& refPremultiplied,
-                      std::size_t* covered = nullptr) {
-  double se = 0;
+// Pixels the volume covers in a premultiplied image (alpha > 0): what the PSNR is taken over.
+std::size_t coveredPixels(const ImageRGBA& premultiplied) {
   std::size_t n = 0;
-  for (int p = 0; p < ref.width * ref.height; ++p) {
-    if (!(refPremultiplied.data[4 * p + 3] > 0.f)) continue;
-    for (int c = 0; c < 3; ++c) {
-      const double d = double(img.data[4 * p + c]) - ref.data[4 * p + c];
-      se += d * d;
-    }
-    n += 3;
-  }
-  if (covered) *covered = n / 3;
-  return n ? -10.0 * std::log10(se / double(n)) : INFINITY;
+  for (int p = 0; p < premultiplied.width * premultiplied.height; ++p) n += premultiplied.data[4 * p + 3] > 0.f;
+  return n;
 }
 
 // At the shipped defaults (the CLI's view of a shipped real-data model with its colour map) the
@@ -113,8 +104,9 @@ void convergesToRayMarchedReference(const char* name) {
   const ImageRGBA firstImage = session->image();
   while (!driver.converged()) driver.advance(*session);
   refPremultiplied = session->premultipliedImage();
-  const double first = psnrOverVolume(firstImage, refImage, refPremultiplied, &covered);
-  const double converged = psnrOverVolume(session->image(), refImage, refPremultiplied);
+  covered = coveredPixels(refPremultiplied);
+  const double first = test::psnrOverCoverage(firstImage, refImage, refPremultiplied);
+  const double converged = test::psnrOverCoverage(session->image(), refImage, refPremultiplied);
   std::printf("defaults on %s, %dx%d, %zu covered pixels: 1 frame %.2f dB; converged "
               "after %d frames (estimate %.2f dB) %.2f dB against a %d-frame ray-marched reference\n",
               name, kSide, kSide, covered, first, session->accumulatedFrames(), driver.estimate(), converged,
