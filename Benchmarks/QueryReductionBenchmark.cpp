@@ -63,10 +63,11 @@ const char* kUsage =
     "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
     "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
-    "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R]]]] (ratio tracking with\n"
+    "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R[:S]]]]] (ratio tracking with\n"
     "                          majorant scale K; unbiased ray marching, with the pre-integrated control\n"
     "                          for preint, comb density K and residual scale KR; points per iteration\n"
-    "                          P, roulette threshold R; join with '+', e.g. ratio:4+prune:0.02; default:\n"
+    "                          P, roulette threshold R, preint's comb at least every diagonal / S; join\n"
+    "                          with '+', e.g. ratio:4+prune:0.02; default:\n"
     "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
     "                          growing by 2^(1/4), plus 400 and the last; default GPU)\n"
@@ -85,6 +86,9 @@ const char* kUsage =
     "                          marcher): factor A at |grad f| = G x the model's median |grad f| over its\n"
     "                          box at the scene's time (the CPU evaluator's gradient), so one list fits\n"
     "                          models of any gradient scale; default none\n"
+    "  --config-jitter 0|1     sub-pixel jitter of the configurations' frames (default 1; 0: pixel\n"
+    "                          centres, to measure the jitter's share of their error; the reference\n"
+    "                          stays jittered)\n"
     "  --out DIR               results folder (default query-reduction-results)\n"
     "  --append                add to the CSVs already in DIR (e.g. one model per call)\n";
 
@@ -105,6 +109,7 @@ struct Options {
   std::vector<double> gradientOpacityMedian;  // G, A pairs, G in multiples of the median |grad f|
   std::string out = "query-reduction-results";
   bool append = false;
+  bool configJitter = true;
   std::vector<std::string> models;
 };
 
@@ -220,16 +225,18 @@ Config parseSingleConfig(const std::string& spec) {
     c.label = "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
               fmt(c.tracking.rouletteThreshold);
   } else if (f == "march" || f == "preint") {
-    arity(1, 5);
+    arity(1, f == "preint" ? 6 : 5);
     c.family = f;
     c.tracking.estimator = f == "march" ? PrimaryEstimator::March : PrimaryEstimator::Preintegrated;
     c.tracking.majorantScale = num(1, c.tracking.majorantScale);
     c.tracking.residualScale = num(2, c.tracking.residualScale);
     c.tracking.pointsPerIteration = int(num(3, c.tracking.pointsPerIteration));
     c.tracking.rouletteThreshold = num(4, c.tracking.rouletteThreshold);
+    if (f == "preint") c.tracking.combMinimumSteps = num(5, c.tracking.combMinimumSteps);
     c.tracking.validate();
     c.label = f + ":" + fmt(c.tracking.majorantScale) + ":" + fmt(c.tracking.residualScale) + ":" +
               std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
+    if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -240,7 +247,7 @@ Config parseSingleConfig(const std::string& spec) {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
                                 "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]], "
-                                "preint[:K[:KR[:P[:R]]]])");
+                                "preint[:K[:KR[:P[:R[:S]]]]])");
   }
   c.q.validate();
   return c;
@@ -481,7 +488,7 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
                      Outputs& out, const std::string& imageDir) {
   RunSummary r;
   r.config = c;
-  auto s = makeSession(m, o, c.q, 1u, true, c.tracking);
+  auto s = makeSession(m, o, c.q, 1u, o.configJitter, c.tracking);
   const bool everyFrame = o.psnrSchedule == "all";
   RayHeatmap heat(o.heatmapFrames);
   bool snapshotWritten = false;
@@ -789,6 +796,7 @@ int main(int argc, char** argv) {
       else if (a == "--gradient-opacity-median") o.gradientOpacityMedian = gradientOpacityPairs(cl.value());
       else if (a == "--out") o.out = cl.value();
       else if (a == "--append") o.append = true;
+      else if (a == "--config-jitter") o.configJitter = cl.value() != "0";
       else if (const int status = cl.other(a, kUsage, o.models); status >= 0)
         return status;
     }

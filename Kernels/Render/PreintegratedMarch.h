@@ -88,13 +88,31 @@ INR_HD int controlInterval(const TransferFunctionView& tf, float x, float& f) {
   return i;
 }
 
-// The control extinction at table coordinate x: the entries' extinctions interpolated linearly,
-// the end entries' beyond the table.
-INR_HD float controlExtinctionAt(const TransferFunctionView& tf, float x) {
+// The table's opacity at table coordinate x: the entries' opacities interpolated linearly, the
+// end entries' beyond the table (lookupTransferFunction's, unclamped coordinate).
+INR_HD float controlOpacityAt(const TransferFunctionView& tf, float x) {
   float f;
   const int i = controlInterval(tf, x, f);
-  const float a = tf.entryExtinction[i], b = tf.entryExtinction[i + 1];
+  const float a = tf.rgba[i].w, b = tf.rgba[i + 1].w;
   return a + (b - a) * f;
+}
+
+// The control extinction at table coordinate x: the renderer's own extinction there (the opacity
+// interpolated linearly, then -ln(1 - alpha) / u: extinctionAt), so where the network is linear
+// between comb points the control is the medium exactly and the residual points see nothing.
+// (Interpolating the entries' extinctions instead differs most at the table's sharp edges, by up
+// to the edge's height in the middle of an interval: exactly where the residual was noisy.)
+INR_HD float controlExtinctionAt(const TransferFunctionView& tf, float x) {
+  return opacityToExtinction(controlOpacityAt(tf, x), tf.invUnitDistance);
+}
+
+// The mean of -ln(1 - alpha) over a span where alpha goes linearly from a0 to a1, both in
+// [0, kMaxTableOpacity]: with beta = 1 - alpha and e = (beta1 - beta0) / beta0, the mean of -ln beta
+// is -ln beta0 + 1 - (1 + e) ln(1 + e) / e (a series for small e, where that ratio cancels).
+INR_HD float meanNegLogTransmittance(float a0, float a1) {
+  const float b0 = 1.f - a0, e = (a0 - a1) / b0;
+  const float r = fabsf(e) < 1e-3f ? 1.f + e * (0.5f - e * (1.f / 6.f - e * (1.f / 12.f))) : (1.f + e) * log1pf(e) / e;
+  return maxf(0.f, -logf(b0) + 1.f - r);
 }
 
 // The table's colour at table coordinate x (linear between entries, the ends' beyond).
@@ -106,12 +124,24 @@ INR_HD Vec3f controlColourAt(const TransferFunctionView& tf, float x) {
 }
 
 // Integral over [a, b] (a <= b, both inside one table interval or both beyond one end) of the
-// control extinction (w) and of it times the colour (xyz): the midpoint rule, exact for the
-// extinction (linear there), close for the colour.
+// control extinction (w: exact, the opacity being linear there; split where it crosses the
+// opacity clamp) and of it times the colour (xyz: the colour at the midpoint, close).
 INR_HD Vec4f controlPiece(const TransferFunctionView& tf, float a, float b) {
-  const float m = 0.5f * (a + b);
-  const float w = (b - a) * controlExtinctionAt(tf, m);
-  const Vec3f c = controlColourAt(tf, m);
+  const float len = b - a;
+  if (!(len > 0.f)) return Vec4f{0.f, 0.f, 0.f, 0.f};
+  const float aa = controlOpacityAt(tf, a), ab = controlOpacityAt(tf, b);
+  const float cap = kMaxTableOpacity;
+  float depth;  // in units of 1 / u
+  if (aa <= cap && ab <= cap) {
+    depth = len * meanNegLogTransmittance(maxf(aa, 0.f), maxf(ab, 0.f));
+  } else if (aa >= cap && ab >= cap) {
+    depth = len * -logf(1.f - cap);
+  } else {  // the clamp inside: the clamped part is constant
+    const float lo = minf(aa, ab), fraction = (cap - lo) / fabsf(ab - aa);  // unclamped share
+    depth = len * (fraction * meanNegLogTransmittance(maxf(lo, 0.f), cap) + (1.f - fraction) * -logf(1.f - cap));
+  }
+  const float w = depth * tf.invUnitDistance;
+  const Vec3f c = controlColourAt(tf, 0.5f * (a + b));
   return Vec4f{w * c.x, w * c.y, w * c.z, w};
 }
 
@@ -227,7 +257,8 @@ INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMediu
     if (m > 0.f) {
       // As the first march: the comb is regular in majorant optical depth and its phase carries
       // over from macrocell to macrocell; residual points restart at each cell (memoryless).
-      const float density = m * fc.majorantScale, spacing = 1.f / density, mu = m * fc.residualScale;
+      const float density = maxf(m * fc.majorantScale, fc.combMinimumDensity), spacing = 1.f / density;
+      const float mu = m * fc.residualScale;
       if (combNext != combNext) {
         if (drawCapReached(fc, rng, flags, left)) {
           capped = true;

@@ -96,6 +96,14 @@ TEST(PreintegratedMarch, ControlIntegralsAreExact) {
       EXPECT_LE(seg.colour.x, 1.0f + 1e-4f);
     }
   }
+  // The control is the renderer's own extinction (extinctionAt) at every scalar, between the
+  // entries too: where the network is linear between comb points the residual is 0.
+  std::uniform_real_distribution<float> scalar(tf.lo - 0.1f * (tf.hi - tf.lo), tf.hi + 0.1f * (tf.hi - tf.lo));
+  for (int k = 0; k < 500; ++k) {
+    const float s = scalar(rng);
+    EXPECT_NEAR(controlExtinctionAt(tf, controlCoordinate(tf, s)), extinctionAt(tf, s), 1e-5f * (1.f + extinctionAt(tf, s)))
+        << s;
+  }
   // The control is the entries' extinction at the entries.
   for (int i : {0, 17, 40, 63}) EXPECT_FLOAT_EQ(controlExtinctionAt(tf, float(i)), tf.entryExtinction[i]);
   // Beyond the ends: the end entries' extinction.

@@ -159,6 +159,7 @@ struct FrameConstants {
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   float majorantScale = 1.f;       // ratio: points at this x the cell majorant; march: comb density
   float residualScale = 1.f;       // march: residual points at this x the cell majorant
+  float combMinimumDensity = 0.f;  // preintegrated: comb points per unit length at least (model space)
   float rouletteThreshold = 0.05f; // Russian roulette below this transmittance estimate
   int pointsPerIteration = 1;      // tentative collisions a ray hands the evaluator per iteration
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking

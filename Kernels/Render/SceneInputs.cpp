@@ -33,6 +33,25 @@ Camera Camera::framing(const Box3f& box, double viewAngleDegrees) {
 
 namespace {
 
+// Integral over one table interval (unit length) of -ln(1 - alpha), alpha going linearly from a0
+// to a1 and clamped to [0, kMaxTableOpacity] as the lookup clamps it: with beta = 1 - alpha, an
+// antiderivative of -ln beta in beta is beta - beta ln beta.
+double linearOpacityDepth(double a0, double a1) {
+  const double cap = kMaxTableOpacity;
+  auto mean = [](double x0, double x1) {  // x0, x1 in [0, cap]
+    const double b0 = 1.0 - x0, b1 = 1.0 - x1;
+    if (std::fabs(b1 - b0) < 1e-9) return -std::log(0.5 * (b0 + b1));
+    auto g = [](double b) { return b - b * std::log(b); };
+    return (g(b1) - g(b0)) / (b1 - b0);
+  };
+  a0 = std::max(a0, 0.0);
+  a1 = std::max(a1, 0.0);
+  if (a0 <= cap && a1 <= cap) return mean(a0, a1);
+  if (a0 >= cap && a1 >= cap) return -std::log(1.0 - cap);
+  const double lo = std::min(a0, a1), unclamped = (cap - lo) / std::fabs(a1 - a0);
+  return unclamped * mean(lo, cap) + (1.0 - unclamped) * -std::log(1.0 - cap);
+}
+
 // Finite, and finite once converted to float (the per-ray code's precision).
 bool finiteInFloat(const std::array<double, 3>& a) {
   for (double v : a)
@@ -447,20 +466,33 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
       opacityMax_[std::size_t(L) * size + i] = std::max(a, b);
     }
   }
-  // Pre-integration: each entry's extinction and the running integrals of the piecewise-linear
-  // control extinction (trapezoids, exact for it) and of extinction times colour (Simpson, exact
-  // for the product of two linear functions), summed in double.
+  // Pre-integration: each entry's extinction and the running integrals of the control extinction
+  // (the renderer's own: the opacity interpolated linearly, then -ln(1 - alpha) / u; its
+  // integral over an interval in closed form) and of extinction times colour (composite Simpson
+  // on 64 sub-intervals: close, the colour varies slowly), summed in double.
   entryExtinction_.resize(size);
   extinctionIntegral_.resize(size);
   for (int i = 0; i < size; ++i) entryExtinction_[i] = opacityToExtinction(rgba_[i].w, invUnitDistance_);
   double integral[4] = {0.0, 0.0, 0.0, 0.0};
   for (int i = 0; i < size; ++i) {
     if (i > 0) {
-      const double s0 = entryExtinction_[i - 1], s1 = entryExtinction_[i], sm = 0.5 * (s0 + s1);
       const Vec4f c0 = rgba_[i - 1], c1 = rgba_[i];
-      const double a0[3] = {c0.x, c0.y, c0.z}, a1[3] = {c1.x, c1.y, c1.z};
-      for (int k = 0; k < 3; ++k) integral[k] += (s0 * a0[k] + 4.0 * sm * 0.5 * (a0[k] + a1[k]) + s1 * a1[k]) / 6.0;
-      integral[3] += sm;
+      auto integrand = [&](double f, double out[4]) {
+        const double alpha = std::clamp(double(c0.w) + (double(c1.w) - double(c0.w)) * f, 0.0, double(kMaxTableOpacity));
+        const double sigma = -std::log1p(-alpha) * invUnitDistance_;
+        out[0] = sigma * (c0.x + (c1.x - c0.x) * f);
+        out[1] = sigma * (c0.y + (c1.y - c0.y) * f);
+        out[2] = sigma * (c0.z + (c1.z - c0.z) * f);
+        out[3] = sigma;
+      };
+      constexpr int kPieces = 64;  // even
+      for (int k = 0; k <= kPieces; ++k) {
+        double v[4];
+        integrand(double(k) / kPieces, v);
+        const double weight = (k == 0 || k == kPieces ? 1.0 : (k % 2 ? 4.0 : 2.0)) / (3.0 * kPieces);
+        for (int c = 0; c < 3; ++c) integral[c] += weight * v[c];
+      }
+      integral[3] += linearOpacityDepth(c0.w, c1.w) * invUnitDistance_;
     }
     extinctionIntegral_[i] = Vec4f{float(integral[0]), float(integral[1]), float(integral[2]), float(integral[3])};
   }

@@ -35,8 +35,8 @@ struct TransferFunctionView {
   int gradientOpacitySize = 0;
   // Pre-integration (Render/PreintegratedMarch.h), size entries each, built with the table: the
   // extinction of each entry's opacity, and the running integrals from entry 0 to entry i, in
-  // table-entry units, of the control extinction (those extinctions interpolated linearly: w) and
-  // of that extinction times the colour (xyz).
+  // table-entry units, of the control extinction (the renderer's own: opacity interpolated
+  // linearly, then converted: w) and of that extinction times the colour (xyz).
   const float* entryExtinction = nullptr;
   const Vec4f* extinctionIntegral = nullptr;
 };

@@ -50,6 +50,8 @@ void TrackingOptions::validate() const {
     throw std::invalid_argument("residual scale must be in [0, 1024], got " + std::to_string(residualScale));
   if (!(majorantScale >= 1.0 && majorantScale <= 1024.0))
     throw std::invalid_argument("majorant scale must be in [1, 1024], got " + std::to_string(majorantScale));
+  if (!(combMinimumSteps >= 0.0 && combMinimumSteps <= 65536.0))
+    throw std::invalid_argument("comb minimum steps must be in [0, 65536], got " + std::to_string(combMinimumSteps));
   if (pointsPerIteration < 1 || pointsPerIteration > kMaxPointsPerIteration)
     throw std::invalid_argument("points per iteration must be in [1, " + std::to_string(kMaxPointsPerIteration) +
                                 "], got " + std::to_string(pointsPerIteration));
@@ -196,6 +198,11 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
     fc.estimator = PrimaryEstimator::Ratio;
   fc.majorantScale = float(options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
+  {
+    const Vec3f extent = fc.box.hi - fc.box.lo;
+    const float diagonal = std::sqrt(extent.x * extent.x + extent.y * extent.y + extent.z * extent.z);
+    fc.combMinimumDensity = diagonal > 0.f ? float(options_.combMinimumSteps) / diagonal : 0.f;
+  }
   fc.rouletteThreshold = float(options_.rouletteThreshold);
   const long long pixels = std::max(1ll, (long long)settings_.width * settings_.height);
   // The pre-integrated march's batches end at comb points and a segment must fit in one

@@ -62,6 +62,13 @@ struct TrackingOptions {
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   double majorantScale = 1.0;
   double residualScale = 1.0;
+  // Preintegrated: comb points at least every (box diagonal / combMinimumSteps) along a ray inside
+  // non-empty macrocells, whatever their majorant (0: the majorant's density alone). Why: where
+  // the majorant is low the majorant-density comb leaves cells without a comb point, and the
+  // control there is the last comb value carried from elsewhere, which the residual points must
+  // then correct; a floor on the density lets the control follow the network everywhere the
+  // transfer function shows something, as a ray marcher's step does.
+  double combMinimumSteps = 0.0;
   int pointsPerIteration = 16;
   double rouletteThreshold = 0.05;
   // Throws std::invalid_argument naming the first option out of its range.
