@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "Common/DeviceMemory.h"
 #include "Common/Stopwatch.h"
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
@@ -208,6 +209,37 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // (an upper bound: the rays a pass lists never outnumber the previous pass's queries, and a ray
 // has at most pointsPerIteration queries), while the host reads count i from pinned memory. When
 // count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
+// Ratio tracking's slot buffers for `slots` points and `rays` listed rays, all or nothing: the new
+// ones are allocated beside the current ones and swapped in only when every one fits, so that a
+// lack of memory leaves the buffers (and the device memory in use) as they were.
+void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t rays) {
+  const bool newState = pointState.count != slots;
+  bool growPoints[2], growQueries[2], growList[2];
+  bool any = newState;
+  for (int b = 0; b < 2; ++b) {
+    growPoints[b] = points[b].size() < slots;
+    growQueries[b] = queryRays[b].size() < slots;
+    growList[b] = rayList[b].size() < rays;
+    any = any || growPoints[b] || growQueries[b] || growList[b];
+  }
+  if (!any) return;
+  PointStateArrays<cuda::DeviceBuffer> state;
+  cuda::DeviceBuffer<float4> newPoints[2];
+  cuda::DeviceBuffer<int> newQueries[2], newList[2];
+  if (newState) state.resize(slots);
+  for (int b = 0; b < 2; ++b) {
+    if (growPoints[b]) newPoints[b].resize(slots);
+    if (growQueries[b]) newQueries[b].resize(slots);
+    if (growList[b]) newList[b].resize(rays);
+  }
+  if (newState) std::swap(pointState, state);
+  for (int b = 0; b < 2; ++b) {
+    if (growPoints[b]) points[b].swap(newPoints[b]);
+    if (growQueries[b]) queryRays[b].swap(newQueries[b]);
+    if (growList[b]) rayList[b].swap(newList[b]);
+  }
+}
+
 void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
@@ -218,12 +250,12 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
   if (ratio) {
     const auto tSetup = Clock::now();
-    if (pointState.count != slots) pointState.resize(slots);
-    for (int b = 0; b < 2; ++b) {
-      points[b].growTo(slots);
-      queryRays[b].growTo(slots);
-      rayList[b].growTo(std::size_t(rs.count));
-    }
+    const DeviceAllocationPurpose purpose(
+        "ratio tracking's query slots (" + std::to_string(rs.count) + " rays x " + std::to_string(perRay) +
+            " points per iteration)",
+        "lower Points Per Batch (InrPointsPerIteration; inr render --points-per-iteration) or the image "
+        "resolution");
+    growSlots(slots, std::size_t(rs.count));
     if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
     setupMs += msSince(tSetup);
   }
@@ -261,10 +293,26 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
   const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
   if (gradientOpacity) {
-    valueGradients.growTo(slots);
-    opacityPoints.growTo(slots);
-    opacitySlots.growTo(slots);
-    opacityListed.growTo(1);
+    const DeviceAllocationPurpose purpose(
+        "gradient opacity's value-and-gradient queries (" + std::to_string(slots) + " slots)",
+        "turn Gradient Opacity off, lower Points Per Batch (InrPointsPerIteration) or the image resolution");
+    // All or nothing, as growSlots.
+    cuda::DeviceBuffer<float4> newGradients, newPoints;
+    cuda::DeviceBuffer<int> newSlots;
+    cuda::DeviceBuffer<unsigned> newListed;
+    const bool grow = valueGradients.size() < slots, growListed = opacityListed.size() < 1;
+    if (grow) {
+      newGradients.resize(slots);
+      newPoints.resize(slots);
+      newSlots.resize(slots);
+    }
+    if (growListed) newListed.resize(1);
+    if (grow) {
+      valueGradients.swap(newGradients);
+      opacityPoints.swap(newPoints);
+      opacitySlots.swap(newSlots);
+    }
+    if (growListed) opacityListed.swap(newListed);
   }
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
@@ -318,6 +366,9 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   I.stats.resize(kStatCount);
   I.sums.resize(kSumCount);
   I.histogram.resize(kResidualBins);
+  const DeviceAllocationPurpose purpose(
+      "the majorant grid of " + std::to_string(macrocells.cellCount()) + " macrocells",
+      "lower the macrocell resolution (Macrocell Resolution; inr render --macrocells)");
   I.majorants.resize(std::size_t(macrocells.cellCount()));
   I.majorants.zero(I.stream);
   if (macrocells.blockCount() > 0) {
@@ -347,17 +398,55 @@ void CudaDeltaTrackingRenderer::rebuildTraversal() {
   I.traversalStale = false;
 }
 
-void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+void CudaDeltaTrackingRenderer::reservePixels(int width, int height) {
+  if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
+  stagePixels(std::size_t(width) * std::size_t(height), std::to_string(width) + "x" + std::to_string(height));
+}
+
+void CudaDeltaTrackingRenderer::stagePixels(std::size_t n, const std::string& imageSize) {
   if (n > (std::size_t(1) << 30))
     throw std::invalid_argument("image too large for the GPU pipeline (more than 2^30 pixels)");
   Impl& I = *impl_;
-  I.rays.resize(n);
-  I.rays.flags.zero(I.stream);
-  I.pixels.resize(n);
-  for (int b = 0; b < 2; ++b) {
-    I.points[b].resize(n);
-    I.queryRays[b].resize(n);
+  if (I.staged.ready && I.staged.count == n) return;
+  I.staged = Impl::PixelBuffers{};  // a size staged before and not used: freed first
+  if (I.rays.count == n && I.pixels.count == n) return;  // the current buffers fit
+  Impl::PixelBuffers next;
+  {
+    const DeviceAllocationPurpose purpose(
+        "the per-pixel ray, accumulation and query state of a " + imageSize + " image (" + std::to_string(n) +
+            " pixels, while the current image's is kept)",
+        "lower the image resolution (the view or screenshot size; inr render --size)");
+    next.rays.resize(n);
+    next.pixels.resize(n);
+    for (int b = 0; b < 2; ++b) {
+      next.points[b].resize(n);
+      next.queryRays[b].resize(n);
+    }
+  }  // a throw above frees what `next` holds and leaves the current buffers untouched
+  next.count = n;
+  next.ready = true;
+  I.staged = std::move(next);
+}
+
+std::string CudaDeltaTrackingRenderer::takeMemoryNote() {
+  std::string note;
+  std::swap(note, impl_->memoryNote);
+  return note;
+}
+
+void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+  Impl& I = *impl_;
+  stagePixels(n, std::to_string(n) + "-pixel");
+  if (I.staged.ready && I.staged.count == n) {
+    std::swap(I.rays, I.staged.rays);
+    std::swap(I.pixels, I.staged.pixels);
+    for (int b = 0; b < 2; ++b) {
+      std::swap(I.points[b], I.staged.points[b]);
+      std::swap(I.queryRays[b], I.staged.queryRays[b]);
+    }
+    I.staged = Impl::PixelBuffers{};  // the old size's buffers are freed
   }
+  I.rays.flags.zero(I.stream);
 }
 
 void CudaDeltaTrackingRenderer::clearAccumulation() {
@@ -389,6 +478,9 @@ void CudaDeltaTrackingRenderer::recomputeMajorants() {
 }
 
 void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
+  const DeviceAllocationPurpose purpose(
+      "the opaque geometry's depth limit (" + std::to_string(depthLimit.size()) + " pixels)",
+      "lower the image resolution");
   if (depthLimit.empty())
     impl_->depth.resize(0);
   else
@@ -517,9 +609,24 @@ void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView,
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const std::size_t n = I.pixels.count;
+  // The history buffers are allocated before the accumulation becomes the history, so that a
+  // lack of memory leaves the accumulation in place: the image then restarts instead (the camera
+  // moved), as without reprojection, and says so once.
+  try {
+    const DeviceAllocationPurpose purpose(
+        "reprojection's history of a " + std::to_string(n) + "-pixel image",
+        "turn Reproject off (InrReproject; inr render --no-reproject) or lower the image resolution");
+    I.history.resize(n);
+    I.reprojectKeys.resize(n);
+  } catch (const DeviceOutOfMemory& e) {
+    I.history = PixelStateArrays<cuda::DeviceBuffer>{};
+    I.reprojectKeys = cuda::DeviceBuffer<unsigned long long>{};
+    clearAccumulation();
+    if (!I.reprojectionSkipped) I.memoryNote = std::string("reprojection skipped, the image restarts: ") + e.what();
+    I.reprojectionSkipped = true;
+    return;
+  }
   std::swap(I.history, I.pixels);  // the old accumulation becomes the history
-  I.pixels.resize(n);
-  I.reprojectKeys.resize(n);
   INR_CUDA_CHECK(cudaMemsetAsync(I.reprojectKeys.get(), 0xff, n * sizeof(unsigned long long), s));
   const AccumulationView history = I.history.view(), acc = I.pixels.view();
   reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history,
@@ -535,6 +642,9 @@ void CudaDeltaTrackingRenderer::beginGhostPasses() {
   Impl& I = *impl_;
   I.timer.reset(false);
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  const DeviceAllocationPurpose purpose(
+      "the ghost passes' majorant grid (" + std::to_string(macrocells_.cellCount()) + " macrocells)",
+      "lower the macrocell resolution or set Ghost Passes to 0");
   I.ghostMajorants.resize(std::size_t(macrocells_.cellCount()));
   if (macrocells_.blockCount() > 0) I.ghostBlockMajorants.resize(std::size_t(macrocells_.blockCount()));
   I.clearStats();
@@ -582,7 +692,12 @@ void CudaDeltaTrackingRenderer::shadeHits(const FrameConstants& fc) {
   const RayStateView rs = I.rays.view();
   const int n = rs.count;
   I.timer.begin(cuda::kShade, s);
-  I.shadingResults.growTo(std::size_t(n));
+  {
+    const DeviceAllocationPurpose purpose(
+        "gradient shading's values and gradients (" + std::to_string(n) + " rays)",
+        "turn Shade off (inr render without --shade) or lower the image resolution");
+    I.shadingResults.growTo(std::size_t(n));
+  }
   float4* points = I.points[0].get();
   int* rays = I.queryRays[0].get();
   gatherShadingKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, points, rays, I.stats.get());
