@@ -213,6 +213,10 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // ones are allocated beside the current ones and swapped in only when every one fits, so that a
 // lack of memory leaves the buffers (and the device memory in use) as they were.
 void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t rays) {
+  const DeviceAllocationPurpose purpose(
+      "ratio tracking's query slots (" + std::to_string(rays) + " rays x " + std::to_string(slots / std::max<std::size_t>(1, rays)) +
+          " points per iteration)",
+      "lower Points Per Batch (InrPointsPerIteration; inr render --points-per-iteration) or the image resolution");
   const bool newState = pointState.count != slots;
   bool growPoints[2], growQueries[2], growList[2];
   bool any = newState;
@@ -240,6 +244,37 @@ void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t r
   }
 }
 
+// Gradient opacity's buffers for `slots` queries, all or nothing (as growSlots).
+void CudaDeltaTrackingRenderer::Impl::growGradientOpacity(std::size_t slots) {
+  const DeviceAllocationPurpose purpose(
+      "gradient opacity's value-and-gradient queries (" + std::to_string(slots) + " slots)",
+      "turn Gradient Opacity off, lower Points Per Batch (InrPointsPerIteration) or the image resolution");
+  cuda::DeviceBuffer<float4> newGradients, newPoints;
+  cuda::DeviceBuffer<int> newSlots;
+  cuda::DeviceBuffer<unsigned> newListed;
+  const bool grow = valueGradients.size() < slots, growListed = opacityListed.size() < 1;
+  if (grow) {
+    newGradients.resize(slots);
+    newPoints.resize(slots);
+    newSlots.resize(slots);
+  }
+  if (growListed) newListed.resize(1);
+  if (grow) {
+    valueGradients.swap(newGradients);
+    opacityPoints.swap(newPoints);
+    opacitySlots.swap(newSlots);
+  }
+  if (growListed) opacityListed.swap(newListed);
+}
+
+// Gradient shading's results for `rays` rays (one buffer: resize keeps it as it was on failure).
+void CudaDeltaTrackingRenderer::Impl::growShading(std::size_t rays) {
+  const DeviceAllocationPurpose purpose(
+      "gradient shading's values and gradients (" + std::to_string(rays) + " rays)",
+      "turn Shade off (inr render without --shade) or lower the image resolution");
+  shadingResults.growTo(rays);
+}
+
 void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
@@ -250,11 +285,6 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
   if (ratio) {
     const auto tSetup = Clock::now();
-    const DeviceAllocationPurpose purpose(
-        "ratio tracking's query slots (" + std::to_string(rs.count) + " rays x " + std::to_string(perRay) +
-            " points per iteration)",
-        "lower Points Per Batch (InrPointsPerIteration; inr render --points-per-iteration) or the image "
-        "resolution");
     growSlots(slots, std::size_t(rs.count));
     if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
     setupMs += msSince(tSetup);
@@ -292,28 +322,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   float* sampleOut = ratio ? launch.points.sample : rs.sample;
   float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
   const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
-  if (gradientOpacity) {
-    const DeviceAllocationPurpose purpose(
-        "gradient opacity's value-and-gradient queries (" + std::to_string(slots) + " slots)",
-        "turn Gradient Opacity off, lower Points Per Batch (InrPointsPerIteration) or the image resolution");
-    // All or nothing, as growSlots.
-    cuda::DeviceBuffer<float4> newGradients, newPoints;
-    cuda::DeviceBuffer<int> newSlots;
-    cuda::DeviceBuffer<unsigned> newListed;
-    const bool grow = valueGradients.size() < slots, growListed = opacityListed.size() < 1;
-    if (grow) {
-      newGradients.resize(slots);
-      newPoints.resize(slots);
-      newSlots.resize(slots);
-    }
-    if (growListed) newListed.resize(1);
-    if (grow) {
-      valueGradients.swap(newGradients);
-      opacityPoints.swap(newPoints);
-      opacitySlots.swap(newSlots);
-    }
-    if (growListed) opacityListed.swap(newListed);
-  }
+  if (gradientOpacity) growGradientOpacity(slots);
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
     const int cur = it & 1;
@@ -542,6 +551,15 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   const DeviceRefineView& refine = f.refine;
   const RayStateView& rs = f.rs;
   const int n = rs.count;
+  // Every buffer this frame grows is allocated before any of its work: a lack of GPU memory then
+  // leaves the frame undone with the image, its accumulation and the ray state as they were.
+  const bool ratio = fc.estimator != PrimaryEstimator::Delta;
+  const std::size_t slots = std::size_t(n) * std::size_t(ratio ? fc.pointsPerIteration : 1);
+  const auto tSetup = Clock::now();
+  if (ratio) I.growSlots(slots, std::size_t(n));
+  if (medium.tf.gradientOpacity) I.growGradientOpacity(slots);
+  if (fc.shading.enabled) I.growShading(std::size_t(n));
+  I.setupMs += msSince(tSetup);  // (I.setupMs was reset above: this frame's allocations)
 
   I.timer.begin(cuda::kInit, s);
   initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.pixels.view(), I.stats.get());
@@ -549,7 +567,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   I.timer.end(s);
 
   I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
-          cuda::kEvaluate, st.iterations, st.queries, fc.estimator != PrimaryEstimator::Delta);
+          cuda::kEvaluate, st.iterations, st.queries, ratio);
 
   if (fc.shadows) {
     I.timer.begin(cuda::kShadowTraverse, s);
@@ -692,12 +710,7 @@ void CudaDeltaTrackingRenderer::shadeHits(const FrameConstants& fc) {
   const RayStateView rs = I.rays.view();
   const int n = rs.count;
   I.timer.begin(cuda::kShade, s);
-  {
-    const DeviceAllocationPurpose purpose(
-        "gradient shading's values and gradients (" + std::to_string(n) + " rays)",
-        "turn Shade off (inr render without --shade) or lower the image resolution");
-    I.shadingResults.growTo(std::size_t(n));
-  }
+  I.growShading(std::size_t(n));
   float4* points = I.points[0].get();
   int* rays = I.queryRays[0].get();
   gatherShadingKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, points, rays, I.stats.get());

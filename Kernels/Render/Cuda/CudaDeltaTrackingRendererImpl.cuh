@@ -126,7 +126,11 @@ struct CudaDeltaTrackingRenderer::Impl {
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
 
+  // Buffers a frame grows, each group all or nothing (a lack of memory throws DeviceOutOfMemory
+  // and leaves them as they were): ratio tracking's slots, gradient opacity's, shading's.
   void growSlots(std::size_t slots, std::size_t rays);
+  void growGradientOpacity(std::size_t slots);
+  void growShading(std::size_t rays);
   // `ratio`: the leg is a ratio-tracked primary leg (fc.pointsPerIteration points per ray).
   void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
              const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
