@@ -245,9 +245,10 @@ std::unique_ptr<RenderSession> RenderSession::create(const InrModel& model, cons
       return std::make_unique<CudaRenderSession>(
           model, std::make_shared<const CudaInrEvaluator>(model, CudaEvaluatorOptions{options.cudaDevice}), options);
     } catch (const DeviceOutOfMemory& e) {
-      // Everything the attempt allocated is freed by now (RAII). Without fallback the caller
-      // gets the message; with it the CPU renders and description() says why.
-      if (!options.allowFallback) throw;
+      // Everything the attempt allocated is freed by now (RAII). CUDA asked for without fallback:
+      // the caller gets the message; else (auto, or fallback allowed) the CPU renders and
+      // description() says why.
+      if (options.backend == RenderBackend::Cuda && !options.allowFallback) throw;
       return std::make_unique<CpuRenderSession>(model, cpuEvaluator(), options,
                                                 std::string("the GPU is out of memory, rendering on the CPU: ") +
                                                     e.what());

@@ -82,4 +82,15 @@ inline DeviceOutOfMemory deviceOutOfMemory(std::size_t bytes, std::size_t freeBy
   return DeviceOutOfMemory(m, bytes, p ? p->what() : std::string());
 }
 
+// A CUDA call other than an allocation that failed for lack of device memory (creating the
+// context, a stream, a library handle): the call is named, the bytes are unknown.
+inline DeviceOutOfMemory deviceOutOfMemoryIn(const std::string& call) {
+  const DeviceAllocationPurpose* p = DeviceAllocationPurpose::current();
+  std::string m = "out of GPU memory in " + call + " (CUDA's own memory: context, streams, library handles" +
+                  (p ? std::string(", for ") + p->what() : std::string()) +
+                  "); free GPU memory (other views, models or programs using the GPU)";
+  if (p) m += ", or " + p->lower();
+  return DeviceOutOfMemory(m, 0, p ? p->what() : std::string());
+}
+
 }  // namespace inr

@@ -28,6 +28,7 @@ namespace inr {
 namespace {
 
 void cublasCheck(cublasStatus_t s, const char* what) {
+  if (s == CUBLAS_STATUS_ALLOC_FAILED) throw deviceOutOfMemoryIn(std::string("cuBLAS's ") + what);
   if (s != CUBLAS_STATUS_SUCCESS)
     throw std::runtime_error(std::string("cuBLAS error in ") + what + ": status " + std::to_string(int(s)));
 }
