@@ -346,13 +346,16 @@ bool vtkInrVolumeReader::LoadModel()
   {
     problem = e.what();
   }
+  // A file that changed while it was read may hold parts of two versions even where they parse:
+  // it is not taken, and is read again at the next update (GetMTime sees the state differ from
+  // `seen`).
+  if (ModelFileState::Of(this->FileName) != before)
+  {
+    problem = problem.empty() ? path + ": the file changed while it was read (a save still in progress?)"
+                              : problem + " (the file changed while it was read: a save still in progress?)";
+  }
   if (!problem.empty())
   {
-    if (ModelFileState::Of(this->FileName) != before)
-    {
-      // Read again at the next update: GetMTime sees the state differ from `seen`.
-      problem += " (the file changed while it was read: a save still in progress?)";
-    }
     if (holdsModel)
     {
       // The loader's messages start with the file name already.
