@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <stdexcept>
 
+#include "Common/DeviceMemory.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Render/ModelBox.h"
 
@@ -125,12 +127,43 @@ public:
     renderer_.copyAccumulation(target);
     return true;
   }
+  // A new image size is allocated beside the current one before anything changes: if it does not
+  // fit, DeviceOutOfMemory leaves the settings, the image and its accumulation as they were.
+  void setSettings(const RenderSettings& s) override {
+    const RenderSettings& now = renderer_.settings();
+    if (s.width > 0 && s.height > 0 && (s.width != now.width || s.height != now.height))
+      renderer_.reservePixels(s.width, s.height);
+    renderer_.setSettings(s);
+  }
+  void setScene(const RenderScene& s) override {
+    renderer_.setScene(s);
+    passOnMemoryNote();
+  }
+  FrameStats renderFrame() override {
+    FrameStats st = renderer_.renderFrame();
+    passOnMemoryNote();
+    return st;
+  }
+  void setWarningHandler(std::function<void(const std::string&)> handler) override {
+    warn_ = handler;
+    renderer_.setWarningHandler(std::move(handler));
+  }
   FrameStats renderFrameNaive() override {
     if (!perThread_) perThread_ = std::make_unique<CudaPerThreadMlp>(model_);
     return renderer_.renderFrameNaive(*perThread_);
   }
 
 private:
+  // Work the renderer left out for lack of GPU memory (reprojection) goes where its warnings go.
+  void passOnMemoryNote() {
+    const std::string note = renderer_.takeMemoryNote();
+    if (note.empty()) return;
+    if (warn_)
+      warn_(note);
+    else
+      std::fprintf(stderr, "INR Volume: warning: %s\n", note.c_str());
+  }
+  std::function<void(const std::string&)> warn_;
   InrModel model_;  // for the naive baseline's per-thread network, built on first use
   std::unique_ptr<CudaPerThreadMlp> perThread_;
   int device_ = 0;
@@ -208,8 +241,18 @@ std::unique_ptr<RenderSession> RenderSession::create(const InrModel& model, cons
   const bool cuda = cudaBackendAvailable(&why);
   if (cuda) {
 #ifdef INR_HAVE_CUDA
-    return std::make_unique<CudaRenderSession>(
-        model, std::make_shared<const CudaInrEvaluator>(model, CudaEvaluatorOptions{options.cudaDevice}), options);
+    try {
+      return std::make_unique<CudaRenderSession>(
+          model, std::make_shared<const CudaInrEvaluator>(model, CudaEvaluatorOptions{options.cudaDevice}), options);
+    } catch (const DeviceOutOfMemory& e) {
+      // Everything the attempt allocated is freed by now (RAII). CUDA asked for without fallback:
+      // the caller gets the message; else (auto, or fallback allowed) the CPU renders and
+      // description() says why.
+      if (options.backend == RenderBackend::Cuda && !options.allowFallback) throw;
+      return std::make_unique<CpuRenderSession>(model, cpuEvaluator(), options,
+                                                std::string("the GPU is out of memory, rendering on the CPU: ") +
+                                                    e.what());
+    }
 #endif
   }
   if (options.backend == RenderBackend::Cuda && !options.allowFallback)

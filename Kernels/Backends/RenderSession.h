@@ -5,7 +5,14 @@
 //
 // Backend choice: Auto takes CUDA when this build has it and a usable GPU is present, else the
 // CPU; Cuda without a usable GPU either throws or, with allowFallback, runs on the CPU and says so
-// in description().
+// in description(). A GPU without room for the session (DeviceOutOfMemory while creating it) is
+// treated alike: Auto and Cuda with allowFallback run on the CPU, saying so in description().
+//
+// Out of GPU memory later (Common/DeviceMemory.h): a CUDA session's setSettings to a larger image,
+// setScene to a time whose macrocell slices are not built, and renderFrame needing larger buffers
+// throw DeviceOutOfMemory naming the bytes, their purpose and what to lower, with the session as
+// it was (settings, scene, image and accumulated frames); a camera move without room for
+// reprojection's history restarts the image instead, with one warning.
 //
 // Several sessions of one model on one backend and device can share one evaluator (the network's
 // weights uploaded and, on CUDA, the fused kernel autotuned once): pass one session's

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "Backends/RenderSession.h"
+#include "Common/DeviceMemory.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/ModelBox.h"
@@ -258,6 +259,40 @@ TEST(RenderSessionSharedEvaluator, RefusesAnotherBackend) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("shared evaluator of the cpu backend"), std::string::npos) << e.what();
   }
+}
+
+// The out-of-GPU-memory message (built on the host, so it is checked here; the GPU paths that
+// throw it are cuda_oom_tests): the bytes, the device's free memory, the innermost purpose and
+// its advice; without a purpose a generic one.
+TEST(DeviceOutOfMemoryMessage, NamesBytesPurposeAndWhatToLower) {
+  {
+    const DeviceAllocationPurpose outer("the working macrocell grid", "lower the macrocell resolution");
+    {
+      const DeviceAllocationPurpose inner("the per-pixel state of a 16384x16384 image", "lower the image resolution");
+      const DeviceOutOfMemory e = deviceOutOfMemory(std::size_t(3) << 30, std::size_t(512) << 20,
+                                                    std::size_t(80) << 30, false);
+      const std::string m = e.what();
+      EXPECT_NE(m.find("out of GPU memory: 3.00 GiB asked for the per-pixel state of a 16384x16384 image"),
+                std::string::npos) << m;
+      EXPECT_NE(m.find("512.0 MiB free of 80.00 GiB"), std::string::npos) << m;
+      EXPECT_NE(m.find("lower the image resolution"), std::string::npos) << m;
+      EXPECT_EQ(m.find("macrocell"), std::string::npos) << "the innermost purpose only: " << m;
+      EXPECT_EQ(m.find("injected"), std::string::npos) << m;
+      EXPECT_EQ(e.bytesAsked(), std::size_t(3) << 30);
+      EXPECT_EQ(e.purpose(), "the per-pixel state of a 16384x16384 image");
+    }
+    const std::string m = deviceOutOfMemory(1000, 0, 0, true).what();
+    EXPECT_NE(m.find("1000 bytes asked for the working macrocell grid"), std::string::npos) << m;
+    EXPECT_EQ(m.find("free of"), std::string::npos) << "free memory unknown: not printed: " << m;
+    EXPECT_NE(m.find("[injected"), std::string::npos) << m;
+  }
+  EXPECT_EQ(DeviceAllocationPurpose::current(), nullptr);
+  const std::string generic = deviceOutOfMemory(64, 0, 0, false).what();
+  EXPECT_NE(generic.find("a device buffer"), std::string::npos) << generic;
+  EXPECT_NE(generic.find("lower the image resolution, the macrocell resolution"), std::string::npos) << generic;
+  const std::string call = deviceOutOfMemoryIn("cudaStreamCreate").what();
+  EXPECT_NE(call.find("out of GPU memory in cudaStreamCreate"), std::string::npos) << call;
+  EXPECT_NE(call.find("free GPU memory"), std::string::npos) << call;
 }
 
 }  // namespace

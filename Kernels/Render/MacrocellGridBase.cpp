@@ -10,13 +10,16 @@ MacrocellGridBase::MacrocellGridBase(const Box3f& box, double timeBegin, double 
     : options_(options), layout_(MacrocellLayout::make(box, timeBegin, timeEnd, options)), time_(timeBegin) {}
 
 void MacrocellGridBase::setTime(double t) {
+  // The slices first: if one cannot be built (a GPU out of memory), the grid stays at its old
+  // time, so that the renderer, whose scene keeps the old time too, asks for this one again.
+  int k0 = 0, k1 = 0;
+  float w = 0.f;
+  layout_.interpolationWeights(t, k0, k1, w);
+  buildSlices(w > 0.f ? std::vector<int>{k0, k1} : std::vector<int>{k0});
   time_ = t;
-  layout_.interpolationWeights(t, k0_, k1_, w_);
-  if (w_ > 0.f) {
-    buildSlices({k0_, k1_});
-  } else {
-    buildSlices({k0_});
-  }
+  k0_ = k0;
+  k1_ = k1;
+  w_ = w;
   interpolateWorkingGrid();
   clearDirtyCells();
   workingGridSet_ = true;

@@ -13,6 +13,7 @@
 #include "vtkPointData.h"
 #include "vtkSmartPointer.h"
 #include "vtkStreamingDemandDrivenPipeline.h"
+#include "vtkTimeStamp.h"
 #include "vtkUnsignedCharArray.h"
 
 #include "Evaluator/CpuInrEvaluator.h"
@@ -53,12 +54,50 @@ std::size_t previewChunkPoints(std::size_t n, std::size_t evaluatorChunk)
 }
 }
 
+// What identifies one version of the model file on disk: a rewrite in place changes the size or
+// the modification time (nanoseconds where the file system keeps them), a replacement by rename
+// (an atomic save) the inode. `exists` false: the file is gone.
+struct ModelFileState
+{
+  bool exists = false;
+  long long size = -1;
+  long long mtimeSec = 0;
+  long long mtimeNsec = 0;
+  unsigned long long inode = 0;
+  unsigned long long device = 0;
+
+  static ModelFileState Of(const char* path)
+  {
+    ModelFileState s;
+    struct stat st;
+    if (path && ::stat(path, &st) == 0)
+    {
+      s.exists = true;
+      s.size = static_cast<long long>(st.st_size);
+      s.mtimeSec = static_cast<long long>(st.st_mtim.tv_sec);
+      s.mtimeNsec = static_cast<long long>(st.st_mtim.tv_nsec);
+      s.inode = static_cast<unsigned long long>(st.st_ino);
+      s.device = static_cast<unsigned long long>(st.st_dev);
+    }
+    return s;
+  }
+  bool operator==(const ModelFileState& o) const
+  {
+    return exists == o.exists && size == o.size && mtimeSec == o.mtimeSec &&
+      mtimeNsec == o.mtimeNsec && inode == o.inode && device == o.device;
+  }
+  bool operator!=(const ModelFileState& o) const { return !(*this == o); }
+};
+
 struct vtkInrVolumeReader::Internals
 {
-  std::string loadedPath;
-  long long loadedMTime = -1;
-  long long loadedSize = -1;
-  bool ok = false;
+  std::string loadedPath;  // the file `seen` belongs to
+  ModelFileState seen;     // the state of the file last read (or found missing)
+  ModelFileState noticed;  // a change GetMTime has already announced
+  bool ok = false;         // a model read from loadedPath is held (maybe from an earlier version)
+  bool reloadAsked = false;  // Reload(): read the file again even if it looks unchanged
+  std::string warnedFileProblem;  // the problem and file state last warned about
+  vtkTimeStamp fileChanged;       // when GetMTime noticed the file change on disk
   inr::InrModel model;
   // The preview's evaluator: the model's, with a chunk small enough to use every core.
   std::unique_ptr<inr::CpuInrEvaluator> previewEvaluator;
@@ -203,64 +242,151 @@ void vtkInrVolumeReader::SetFileName(const char* name)
   this->Modified();
 }
 
+void vtkInrVolumeReader::Reload()
+{
+  this->Internal->reloadAsked = true;
+  this->Modified();
+}
+
+vtkMTimeType vtkInrVolumeReader::GetMTime()
+{
+  // A model file rewritten or deleted on disk (a training script saving a checkpoint) makes the
+  // reader out of date, so the next pipeline update (a time step, UpdatePipeline) reads it again
+  // without File > Reload Files. One stat per call; each new state of the file is announced once.
+  Internals& I = *this->Internal;
+  if (this->FileName && I.loadedPath == this->FileName)
+  {
+    const ModelFileState now = ModelFileState::Of(this->FileName);
+    if (now != I.seen && now != I.noticed)
+    {
+      I.noticed = now;
+      I.fileChanged.Modified();
+    }
+  }
+  return std::max(this->Superclass::GetMTime(), I.fileChanged.GetMTime());
+}
+
+void vtkInrVolumeReader::WarnOnce(const std::string& problem, const std::string& key)
+{
+  if (key == this->Internal->warnedFileProblem)
+  {
+    return;
+  }
+  this->Internal->warnedFileProblem = key;
+  vtkWarningMacro(<< problem);
+}
+
 bool vtkInrVolumeReader::LoadModel()
 {
   Internals& I = *this->Internal;
+  const bool reloadAsked = I.reloadAsked;
+  I.reloadAsked = false;
   if (!this->FileName || !*this->FileName)
   {
     vtkErrorMacro("No FileName set: give the INR Volume model (.inr) to read.");
     I.ok = false;
     return false;
   }
-  struct stat st;
-  if (::stat(this->FileName, &st) != 0)
+  const std::string path = this->FileName;
+  // A model already read from this file is kept when the file goes away or its new content does
+  // not load: the view goes on showing it, and the user is told once per state of the file.
+  const bool holdsModel = I.ok && I.loadedPath == path;
+  const ModelFileState before = ModelFileState::Of(this->FileName);
+  if (!before.exists)
   {
-    vtkErrorMacro(<< this->FileName << ": cannot open the file (does it exist?)");
+    if (holdsModel)
+    {
+      I.seen = before;
+      this->WarnOnce(path + ": the model file is gone (deleted, moved or renamed); the model "
+          "read from it before is still shown. Put the file back and use File > Reload Files "
+          "(pvpython: ReloadFiles) to read it again.",
+        path + "|gone");
+      return true;
+    }
+    vtkErrorMacro(<< path << ": cannot open the file (does it exist?)");
     I.ok = false;
     I.loadedPath.clear();
     return false;
   }
-  const long long mtime = static_cast<long long>(st.st_mtime);
-  const long long size = static_cast<long long>(st.st_size);
-  if (I.loadedPath == this->FileName && I.loadedMTime == mtime && I.loadedSize == size)
+  if (I.loadedPath == path && I.seen == before && !reloadAsked)
   {
-    return I.ok;  // cached (also remembers a failure, so it is reported once per change)
+    return I.ok;  // unchanged (also remembers a failure, so it is reported once per change)
   }
-  I.loadedPath = this->FileName;
-  I.loadedMTime = mtime;
-  I.loadedSize = size;
-  I.ok = false;
-  I.previewEvaluator.reset();
-  I.bytes = nullptr;
+  const bool hadFailed = I.loadedPath == path && !I.ok;
+  I.loadedPath = path;
+  I.seen = before;
+  I.noticed = before;
+  // Everything is read and checked into these before any of it replaces the held model: a file
+  // caught half-written (a save in progress) fails to parse and leaves the model as it was.
+  inr::InrModel model;
+  double valueRange[2] = { 0, 1 };
+  vtkSmartPointer<vtkUnsignedCharArray> bytes;
+  std::string problem;
   try
   {
     std::ifstream in(this->FileName, std::ios::binary);
-    std::vector<char> data(static_cast<std::size_t>(size));
-    if (!in.read(data.data(), size))
+    std::vector<char> data(static_cast<std::size_t>(before.size));
+    if (!in || !in.read(data.data(), before.size))
     {
-      throw inr::ModelError(std::string(this->FileName) + ": cannot read the file");
+      throw inr::ModelError(path + ": cannot read the file");
     }
-    I.model = inr::InrModel::loadBytes(
+    model = inr::InrModel::loadBytes(
       reinterpret_cast<const std::uint8_t*>(data.data()), data.size(), this->FileName);
-    I.model.path = this->FileName;
-    const auto vr = inr::valueRangeFor(I.model, inr::CpuInrEvaluator(I.model));
-    this->ValueRange[0] = vr[0];
-    this->ValueRange[1] = vr[1];
-    this->TimeRange[0] = I.model.domain.timeBegin;
-    this->TimeRange[1] = I.model.domain.timeEnd;
-    I.bytes = vtkSmartPointer<vtkUnsignedCharArray>::New();
-    I.bytes->SetName("InrModel");
-    I.bytes->SetNumberOfTuples(static_cast<vtkIdType>(data.size()));
-    std::memcpy(I.bytes->GetPointer(0), data.data(), data.size());
-    CacheByteRange(I.bytes);
-    I.ok = true;
+    model.path = path;
+    const auto vr = inr::valueRangeFor(model, inr::CpuInrEvaluator(model));
+    valueRange[0] = vr[0];
+    valueRange[1] = vr[1];
+    bytes = vtkSmartPointer<vtkUnsignedCharArray>::New();
+    bytes->SetName("InrModel");
+    bytes->SetNumberOfTuples(static_cast<vtkIdType>(data.size()));
+    std::memcpy(bytes->GetPointer(0), data.data(), data.size());
+    CacheByteRange(bytes);
   }
   catch (const std::exception& e)
   {
-    vtkErrorMacro(<< e.what());
-    I.bytes = nullptr;
+    problem = e.what();
   }
-  return I.ok;
+  // A file that changed while it was read may hold parts of two versions even where they parse:
+  // it is not taken, and is read again at the next update (GetMTime sees the state differ from
+  // `seen`).
+  if (ModelFileState::Of(this->FileName) != before)
+  {
+    problem = problem.empty() ? path + ": the file changed while it was read (a save still in progress?)"
+                              : problem + " (the file changed while it was read: a save still in progress?)";
+  }
+  if (!problem.empty())
+  {
+    if (holdsModel)
+    {
+      // The loader's messages start with the file name already.
+      const std::string what =
+        problem.compare(0, path.size(), path) == 0 ? problem : path + ": " + problem;
+      this->WarnOnce("the model file changed on disk but its new content cannot be read: " +
+          what + ". The model read before is still shown; it is read again when the file " +
+          "changes (or with File > Reload Files).",
+        path + "|" + problem + "|" + std::to_string(before.size) + "|" +
+          std::to_string(before.mtimeSec) + "." + std::to_string(before.mtimeNsec));
+      return true;
+    }
+    I.ok = false;
+    I.previewEvaluator.reset();
+    I.bytes = nullptr;
+    vtkErrorMacro(<< problem);
+    return false;
+  }
+  if (holdsModel || hadFailed)
+  {
+    this->Internal->warnedFileProblem.clear();  // a later fault of the file is news again
+  }
+  I.previewEvaluator.reset();  // it refers to the model it was made for
+  I.model = std::move(model);
+  I.bytes = bytes;  // a new array: the mapper sees new bytes and restarts its accumulation
+  this->ValueRange[0] = valueRange[0];
+  this->ValueRange[1] = valueRange[1];
+  this->TimeRange[0] = I.model.domain.timeBegin;
+  this->TimeRange[1] = I.model.domain.timeEnd;
+  I.ok = true;
+  return true;
 }
 
 int vtkInrVolumeReader::RequestInformation(

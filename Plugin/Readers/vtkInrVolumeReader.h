@@ -12,7 +12,9 @@
  *  - "InrTime":       vtkDoubleArray, 1 tuple: the world time of this output
  * Information: a continuous TIME_RANGE (no TIME_STEPS, so time moves continuously); static models
  * report no time at all. Errors (unreadable or malformed file) are reported with vtkErrorMacro and
- * the loader's message; the request fails, nothing crashes.
+ * the loader's message; the request fails, nothing crashes. A file that changes on disk after it
+ * was read is read again (Reload, GetMTime); if its new content is bad or it is deleted, the model
+ * read before stays, with a warning.
  *
  * In parallel (several pieces), piece 0 carries the whole model and preview; other pieces are
  * empty, so the volume is rendered exactly once.
@@ -63,6 +65,16 @@ public:
   /// first shown as INR Volume.
   const char* GetTransferFunctionJSON();
 
+  /// Reads the model file again at the next update, even if it looks unchanged (ParaView's
+  /// File > Reload Files, through the proxy's ReloadFiles hint). A change on disk (size,
+  /// modification time, inode) is noticed without it at the next pipeline update. When the new
+  /// content does not load (truncated, malformed, caught half-written) or the file is gone, the
+  /// model read before is kept and shown, with one warning naming the file and the problem.
+  void Reload();
+
+  /// The superclass's MTime, or later when the model file changed on disk since it was read.
+  vtkMTimeType GetMTime() override;
+
 protected:
   vtkInrVolumeReader();
   ~vtkInrVolumeReader() override;
@@ -74,6 +86,7 @@ private:
   vtkInrVolumeReader(const vtkInrVolumeReader&) = delete;
   void operator=(const vtkInrVolumeReader&) = delete;
   bool LoadModel();
+  void WarnOnce(const std::string& problem, const std::string& key);
 
   char* FileName = nullptr;
   int PreviewResolution = 8;

@@ -4,6 +4,8 @@
 // reduced over the ranks.
 #include "vtkInrVolumeMapperInternals.h"
 
+#include "Common/DeviceMemory.h"
+
 void vtkInrVolumeMapper::MarkViewUpdate()
 {
   if (!this->Internal->viewUpdatePending)  // the earliest mark since the last render
@@ -105,6 +107,14 @@ InrEngineRequest vtkInrVolumeMapper::Internals::Request(vtkInrVolumeMapper* self
   r.backend = self->Backend == BACKEND_CUDA ? inr::RenderBackend::Cuda
     : self->Backend == BACKEND_CPU          ? inr::RenderBackend::Cpu
                                             : inr::RenderBackend::Auto;
+  if (!this->gpuOutOfMemory.empty() && self->Backend == this->gpuOutOfMemoryBackend)
+  {
+    r.backend = inr::RenderBackend::Cpu;  // out of GPU memory (Refine): the CPU until Backend changes
+  }
+  else
+  {
+    this->gpuOutOfMemory.clear();
+  }
   r.traversal = self->Traversal == TRAVERSAL_DDA ? inr::TraversalKind::Dda
     : self->Traversal == TRAVERSAL_OPTIX         ? inr::TraversalKind::Optix
                                                  : inr::TraversalKind::Auto;
@@ -142,7 +152,8 @@ bool vtkInrVolumeMapper::Internals::UpdateEngine(vtkInrVolumeMapper* self)
   if (!this->worker.FineBusy())
   {
     this->report.backendInUse = f.session->description() +
-      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + rankNote;
+      (this->imageTransfer.empty() ? "" : "; " + this->imageTransfer) + rankNote +
+      (this->gpuOutOfMemory.empty() ? "" : " (the GPU ran out of memory: " + this->gpuOutOfMemory + ")");
     this->report.macrocellsInUse = InrDescribeMacrocells(*f.session);
   }
   return true;
@@ -315,6 +326,23 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
         double(this->report.step.total.budgetSkipped), double(this->report.step.total.pruned));
     }
     return true;
+  }
+  catch (const inr::DeviceOutOfMemory& e)
+  {
+    // The session kept its previous image and settings; the next render rebuilds it on the CPU.
+    if (engine.backend() == inr::RenderBackend::Cuda)
+    {
+      this->gpuOutOfMemory = e.what();
+      this->gpuOutOfMemoryBackend = self->Backend;
+      vtkErrorWithObjectMacro(self, << "INR Volume: " << e.what()
+                                    << ". Rendering on the CPU from now on; set Backend again to "
+                                       "retry the GPU.");
+    }
+    else
+    {
+      vtkErrorWithObjectMacro(self, << "INR Volume: rendering failed: " << e.what());
+    }
+    return false;
   }
   catch (const std::exception& e)
   {

@@ -253,6 +253,12 @@ struct vtkInrVolumeMapper::Internals
   bool interopFailed = false;
   std::string imageTransfer;
 
+  // Out of GPU memory (issue 52): a render's request that the GPU could not hold, for the
+  // Backend setting it happened under; until that setting changes the engine runs on the CPU
+  // (Request) and "Backend In Use" says why.
+  std::string gpuOutOfMemory;
+  int gpuOutOfMemoryBackend = -1;
+
   // The budget is for the whole window render: what the window spends outside this mapper
   // (other props, clear, swap; ParaView's view) is measured by observing the window's render.
   vtkWeakPointer<vtkRenderWindow> observedWindow;

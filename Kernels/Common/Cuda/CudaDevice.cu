@@ -2,6 +2,11 @@
 
 #include <cuda_runtime.h>
 
+#include <atomic>
+#include <cstdlib>
+
+#include "Common/Cuda/DeviceBuffer.h"
+
 namespace inr {
 
 CudaDeviceInfo queryCudaDevice(int device) {
@@ -51,3 +56,36 @@ int countCudaDevices() {
 }
 
 }  // namespace inr
+
+// ------------------------------------------------------------------ allocation fault hook
+// (Common/Cuda/DeviceBuffer.h). One countdown for the process: -1 = not read from the
+// environment yet, 0 = off, n > 0 = the n-th allocation from now fails.
+namespace inr::cuda {
+namespace {
+std::atomic<long long> gAllocationFaultCountdown{-1};
+
+long long allocationFaultFromEnvironment() {
+  const char* text = std::getenv("INR_TEST_DEVICE_ALLOCATION_FAULT");
+  if (!text || !*text) return 0;
+  char* end = nullptr;
+  const long long n = std::strtoll(text, &end, 10);
+  return (end && *end == '\0' && n > 0) ? n : 0;
+}
+}  // namespace
+
+void setDeviceAllocationFault(long long n) { gAllocationFaultCountdown.store(n > 0 ? n : 0); }
+
+bool deviceAllocationFaultDue() {
+  long long c = gAllocationFaultCountdown.load();
+  if (c < 0) {
+    long long unread = -1;
+    gAllocationFaultCountdown.compare_exchange_strong(unread, allocationFaultFromEnvironment());
+    c = gAllocationFaultCountdown.load();
+  }
+  while (c > 0) {
+    if (gAllocationFaultCountdown.compare_exchange_weak(c, c - 1)) return c == 1;
+  }
+  return false;
+}
+
+}  // namespace inr::cuda

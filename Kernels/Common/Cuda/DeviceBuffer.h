@@ -9,8 +9,37 @@
 #include <vector>
 
 #include "Common/Cuda/CudaCheck.h"
+#include "Common/DeviceMemory.h"
 
 namespace inr::cuda {
+
+// Test hook (fault injection): the n-th device allocation from now on fails as if the device
+// were out of memory (n = 1: the next one), once; 0 turns it off. The environment variable
+// INR_TEST_DEVICE_ALLOCATION_FAULT=N sets it before the process's first device allocation. For
+// tests and the GPU stress script only: a real failure takes the same path.
+void setDeviceAllocationFault(long long n);
+// Whether the allocation being made now is the one the hook makes fail (counts it).
+bool deviceAllocationFaultDue();
+
+// cudaMalloc of `bytes`; a lack of memory (real or injected) throws DeviceOutOfMemory naming the
+// bytes, the device's free memory and the current DeviceAllocationPurpose, and leaves no CUDA
+// error pending; other errors throw as INR_CUDA_CHECK does.
+inline void* allocateDevice(std::size_t bytes) {
+  void* p = nullptr;
+  const bool injected = deviceAllocationFaultDue();
+  const cudaError_t e = injected ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes);
+  if (e == cudaErrorMemoryAllocation) {
+    (void)cudaGetLastError();  // not sticky: clear it so that no later check reports it
+    std::size_t freeBytes = 0, totalBytes = 0;
+    if (cudaMemGetInfo(&freeBytes, &totalBytes) != cudaSuccess) {
+      (void)cudaGetLastError();
+      freeBytes = totalBytes = 0;
+    }
+    throw deviceOutOfMemory(bytes, freeBytes, totalBytes, injected);
+  }
+  INR_CUDA_CHECK(e);
+  return p;
+}
 
 template <typename T>
 class DeviceBuffer {
@@ -31,14 +60,17 @@ public:
     std::swap(ptr_, o.ptr_);
     std::swap(size_, o.size_);
   }
-  // Exactly n elements afterwards (contents lost when reallocated).
+  // Exactly n elements afterwards (contents lost when reallocated). The new storage is
+  // allocated before the old is freed, so that a size that does not fit throws DeviceOutOfMemory
+  // with the buffer as it was (its size and contents): no caller is left holding an empty
+  // buffer it would launch kernels on.
   void resize(std::size_t n) {
     if (n == size_ && ptr_) return;
-    if (ptr_) INR_CUDA_CHECK(cudaFree(ptr_));
-    ptr_ = nullptr;
-    size_ = 0;
-    INR_CUDA_CHECK(cudaMalloc(&ptr_, (n ? n : 1) * sizeof(T)));
+    T* fresh = static_cast<T*>(allocateDevice((n ? n : 1) * sizeof(T)));
+    const cudaError_t freed = ptr_ ? cudaFree(ptr_) : cudaSuccess;
+    ptr_ = fresh;
     size_ = n;
+    INR_CUDA_CHECK(freed);
   }
   // At least n elements afterwards: reallocates (contents lost) only when n exceeds size(), so a
   // staging buffer reused by calls of varying size is allocated once for the largest.

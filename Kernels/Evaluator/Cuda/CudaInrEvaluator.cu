@@ -14,6 +14,7 @@
 #include "Common/Cuda/CudaCheck.h"
 #include "Common/Cuda/CudaDevice.h"
 #include "Common/Cuda/DeviceBuffer.h"
+#include "Common/DeviceMemory.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/Cuda/FusedLaunchAutotuner.h"
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
@@ -27,6 +28,7 @@ namespace inr {
 namespace {
 
 void cublasCheck(cublasStatus_t s, const char* what) {
+  if (s == CUBLAS_STATUS_ALLOC_FAILED) throw deviceOutOfMemoryIn(std::string("cuBLAS's ") + what);
   if (s != CUBLAS_STATUS_SUCCESS)
     throw std::runtime_error(std::string("cuBLAS error in ") + what + ": status " + std::to_string(int(s)));
 }
@@ -484,7 +486,12 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   INR_CUDA_CHECK(cudaSetDevice(options.device));
   I.program = MlpProgram::compile(model.architecture);
   I.whyNoWgmma = whyNoWgmmaKernel(I.device, options);
-  I.prepareParams(model);
+  {
+    const DeviceAllocationPurpose purpose(
+        "the network's weights (" + std::to_string(model.architecture.parameterCount()) + " parameters, packed per kernel)",
+        "free GPU memory (close other views or models on this GPU) or render this model on the CPU");
+    I.prepareParams(model);
+  }
   const std::string persistence = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
   I.output = model.output;
 
@@ -648,8 +655,12 @@ void CudaInrEvaluator::evaluate(const QueryPoint* points, std::size_t n, float* 
   if (n == 0) return;
   if (n > std::size_t(1) << 30) throw std::runtime_error("CudaInrEvaluator::evaluate: batch larger than 2^30 queries");
   static_assert(sizeof(QueryPoint) == sizeof(float4), "QueryPoint must match float4");
-  I.stagePoints.growTo(n);
-  I.stageOut.growTo(n);
+  {
+    const DeviceAllocationPurpose purpose("a batch of " + std::to_string(n) + " host queries and their values",
+                                          "evaluate fewer points per call");
+    I.stagePoints.growTo(n);
+    I.stageOut.growTo(n);
+  }
   INR_CUDA_CHECK(cudaMemcpy(I.stagePoints.get(), points, n * sizeof(float4), cudaMemcpyHostToDevice));
   evaluateDevice(I.stagePoints.get(), int(n), I.stageOut.get(), nullptr, nullptr);
   INR_CUDA_CHECK(cudaMemcpy(out, I.stageOut.get(), n * sizeof(float), cudaMemcpyDeviceToHost));

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "Common/DeviceMemory.h"
 #include "Common/Stopwatch.h"
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
@@ -208,6 +209,72 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // (an upper bound: the rays a pass lists never outnumber the previous pass's queries, and a ray
 // has at most pointsPerIteration queries), while the host reads count i from pinned memory. When
 // count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
+// Ratio tracking's slot buffers for `slots` points and `rays` listed rays, all or nothing: the new
+// ones are allocated beside the current ones and swapped in only when every one fits, so that a
+// lack of memory leaves the buffers (and the device memory in use) as they were.
+void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t rays) {
+  const DeviceAllocationPurpose purpose(
+      "ratio tracking's query slots (" + std::to_string(rays) + " rays x " + std::to_string(slots / std::max<std::size_t>(1, rays)) +
+          " points per iteration)",
+      "lower Points Per Batch (InrPointsPerIteration; inr render --points-per-iteration) or the image resolution");
+  const bool newState = pointState.count != slots;
+  bool growPoints[2], growQueries[2], growList[2];
+  bool any = newState;
+  for (int b = 0; b < 2; ++b) {
+    growPoints[b] = points[b].size() < slots;
+    growQueries[b] = queryRays[b].size() < slots;
+    growList[b] = rayList[b].size() < rays;
+    any = any || growPoints[b] || growQueries[b] || growList[b];
+  }
+  if (!any) return;
+  PointStateArrays<cuda::DeviceBuffer> state;
+  cuda::DeviceBuffer<float4> newPoints[2];
+  cuda::DeviceBuffer<int> newQueries[2], newList[2];
+  if (newState) state.resize(slots);
+  for (int b = 0; b < 2; ++b) {
+    if (growPoints[b]) newPoints[b].resize(slots);
+    if (growQueries[b]) newQueries[b].resize(slots);
+    if (growList[b]) newList[b].resize(rays);
+  }
+  if (newState) std::swap(pointState, state);
+  for (int b = 0; b < 2; ++b) {
+    if (growPoints[b]) points[b].swap(newPoints[b]);
+    if (growQueries[b]) queryRays[b].swap(newQueries[b]);
+    if (growList[b]) rayList[b].swap(newList[b]);
+  }
+}
+
+// Gradient opacity's buffers for `slots` queries, all or nothing (as growSlots).
+void CudaDeltaTrackingRenderer::Impl::growGradientOpacity(std::size_t slots) {
+  const DeviceAllocationPurpose purpose(
+      "gradient opacity's value-and-gradient queries (" + std::to_string(slots) + " slots)",
+      "turn Gradient Opacity off, lower Points Per Batch (InrPointsPerIteration) or the image resolution");
+  cuda::DeviceBuffer<float4> newGradients, newPoints;
+  cuda::DeviceBuffer<int> newSlots;
+  cuda::DeviceBuffer<unsigned> newListed;
+  const bool grow = valueGradients.size() < slots, growListed = opacityListed.size() < 1;
+  if (grow) {
+    newGradients.resize(slots);
+    newPoints.resize(slots);
+    newSlots.resize(slots);
+  }
+  if (growListed) newListed.resize(1);
+  if (grow) {
+    valueGradients.swap(newGradients);
+    opacityPoints.swap(newPoints);
+    opacitySlots.swap(newSlots);
+  }
+  if (growListed) opacityListed.swap(newListed);
+}
+
+// Gradient shading's results for `rays` rays (one buffer: resize keeps it as it was on failure).
+void CudaDeltaTrackingRenderer::Impl::growShading(std::size_t rays) {
+  const DeviceAllocationPurpose purpose(
+      "gradient shading's values and gradients (" + std::to_string(rays) + " rays)",
+      "turn Shade off (inr render without --shade) or lower the image resolution");
+  shadingResults.growTo(rays);
+}
+
 void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
@@ -218,12 +285,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
   if (ratio) {
     const auto tSetup = Clock::now();
-    if (pointState.count != slots) pointState.resize(slots);
-    for (int b = 0; b < 2; ++b) {
-      points[b].growTo(slots);
-      queryRays[b].growTo(slots);
-      rayList[b].growTo(std::size_t(rs.count));
-    }
+    growSlots(slots, std::size_t(rs.count));
     if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
     setupMs += msSince(tSetup);
   }
@@ -260,12 +322,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   float* sampleOut = ratio ? launch.points.sample : rs.sample;
   float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
   const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
-  if (gradientOpacity) {
-    valueGradients.growTo(slots);
-    opacityPoints.growTo(slots);
-    opacitySlots.growTo(slots);
-    opacityListed.growTo(1);
-  }
+  if (gradientOpacity) growGradientOpacity(slots);
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
     const int cur = it & 1;
@@ -318,6 +375,9 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   I.stats.resize(kStatCount);
   I.sums.resize(kSumCount);
   I.histogram.resize(kResidualBins);
+  const DeviceAllocationPurpose purpose(
+      "the majorant grid of " + std::to_string(macrocells.cellCount()) + " macrocells",
+      "lower the macrocell resolution (Macrocell Resolution; inr render --macrocells)");
   I.majorants.resize(std::size_t(macrocells.cellCount()));
   I.majorants.zero(I.stream);
   if (macrocells.blockCount() > 0) {
@@ -347,17 +407,55 @@ void CudaDeltaTrackingRenderer::rebuildTraversal() {
   I.traversalStale = false;
 }
 
-void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+void CudaDeltaTrackingRenderer::reservePixels(int width, int height) {
+  if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
+  stagePixels(std::size_t(width) * std::size_t(height), std::to_string(width) + "x" + std::to_string(height));
+}
+
+void CudaDeltaTrackingRenderer::stagePixels(std::size_t n, const std::string& imageSize) {
   if (n > (std::size_t(1) << 30))
     throw std::invalid_argument("image too large for the GPU pipeline (more than 2^30 pixels)");
   Impl& I = *impl_;
-  I.rays.resize(n);
-  I.rays.flags.zero(I.stream);
-  I.pixels.resize(n);
-  for (int b = 0; b < 2; ++b) {
-    I.points[b].resize(n);
-    I.queryRays[b].resize(n);
+  if (I.staged.ready && I.staged.count == n) return;
+  I.staged = Impl::PixelBuffers{};  // a size staged before and not used: freed first
+  if (I.rays.count == n && I.pixels.count == n) return;  // the current buffers fit
+  Impl::PixelBuffers next;
+  {
+    const DeviceAllocationPurpose purpose(
+        "the per-pixel ray, accumulation and query state of a " + imageSize + " image (" + std::to_string(n) +
+            " pixels, while the current image's is kept)",
+        "lower the image resolution (the view or screenshot size; inr render --size)");
+    next.rays.resize(n);
+    next.pixels.resize(n);
+    for (int b = 0; b < 2; ++b) {
+      next.points[b].resize(n);
+      next.queryRays[b].resize(n);
+    }
+  }  // a throw above frees what `next` holds and leaves the current buffers untouched
+  next.count = n;
+  next.ready = true;
+  I.staged = std::move(next);
+}
+
+std::string CudaDeltaTrackingRenderer::takeMemoryNote() {
+  std::string note;
+  std::swap(note, impl_->memoryNote);
+  return note;
+}
+
+void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+  Impl& I = *impl_;
+  stagePixels(n, std::to_string(n) + "-pixel");
+  if (I.staged.ready && I.staged.count == n) {
+    std::swap(I.rays, I.staged.rays);
+    std::swap(I.pixels, I.staged.pixels);
+    for (int b = 0; b < 2; ++b) {
+      std::swap(I.points[b], I.staged.points[b]);
+      std::swap(I.queryRays[b], I.staged.queryRays[b]);
+    }
+    I.staged = Impl::PixelBuffers{};  // the old size's buffers are freed
   }
+  I.rays.flags.zero(I.stream);
 }
 
 void CudaDeltaTrackingRenderer::clearAccumulation() {
@@ -389,6 +487,9 @@ void CudaDeltaTrackingRenderer::recomputeMajorants() {
 }
 
 void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
+  const DeviceAllocationPurpose purpose(
+      "the opaque geometry's depth limit (" + std::to_string(depthLimit.size()) + " pixels)",
+      "lower the image resolution");
   if (depthLimit.empty())
     impl_->depth.resize(0);
   else
@@ -450,6 +551,15 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   const DeviceRefineView& refine = f.refine;
   const RayStateView& rs = f.rs;
   const int n = rs.count;
+  // Every buffer this frame grows is allocated before any of its work: a lack of GPU memory then
+  // leaves the frame undone with the image, its accumulation and the ray state as they were.
+  const bool ratio = fc.estimator != PrimaryEstimator::Delta;
+  const std::size_t slots = std::size_t(n) * std::size_t(ratio ? fc.pointsPerIteration : 1);
+  const auto tSetup = Clock::now();
+  if (ratio) I.growSlots(slots, std::size_t(n));
+  if (medium.tf.gradientOpacity) I.growGradientOpacity(slots);
+  if (fc.shading.enabled) I.growShading(std::size_t(n));
+  I.setupMs += msSince(tSetup);  // (I.setupMs was reset above: this frame's allocations)
 
   I.timer.begin(cuda::kInit, s);
   initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.pixels.view(), I.stats.get());
@@ -457,7 +567,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   I.timer.end(s);
 
   I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
-          cuda::kEvaluate, st.iterations, st.queries, fc.estimator != PrimaryEstimator::Delta);
+          cuda::kEvaluate, st.iterations, st.queries, ratio);
 
   if (fc.shadows) {
     I.timer.begin(cuda::kShadowTraverse, s);
@@ -517,9 +627,24 @@ void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView,
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const std::size_t n = I.pixels.count;
+  // The history buffers are allocated before the accumulation becomes the history, so that a
+  // lack of memory leaves the accumulation in place: the image then restarts instead (the camera
+  // moved), as without reprojection, and says so once.
+  try {
+    const DeviceAllocationPurpose purpose(
+        "reprojection's history of a " + std::to_string(n) + "-pixel image",
+        "turn Reproject off (InrReproject; inr render --no-reproject) or lower the image resolution");
+    I.history.resize(n);
+    I.reprojectKeys.resize(n);
+  } catch (const DeviceOutOfMemory& e) {
+    I.history = PixelStateArrays<cuda::DeviceBuffer>{};
+    I.reprojectKeys = cuda::DeviceBuffer<unsigned long long>{};
+    clearAccumulation();
+    if (!I.reprojectionSkipped) I.memoryNote = std::string("reprojection skipped, the image restarts: ") + e.what();
+    I.reprojectionSkipped = true;
+    return;
+  }
   std::swap(I.history, I.pixels);  // the old accumulation becomes the history
-  I.pixels.resize(n);
-  I.reprojectKeys.resize(n);
   INR_CUDA_CHECK(cudaMemsetAsync(I.reprojectKeys.get(), 0xff, n * sizeof(unsigned long long), s));
   const AccumulationView history = I.history.view(), acc = I.pixels.view();
   reprojectScatterKernel<<<blocksFor(history.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history,
@@ -535,6 +660,9 @@ void CudaDeltaTrackingRenderer::beginGhostPasses() {
   Impl& I = *impl_;
   I.timer.reset(false);
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
+  const DeviceAllocationPurpose purpose(
+      "the ghost passes' majorant grid (" + std::to_string(macrocells_.cellCount()) + " macrocells)",
+      "lower the macrocell resolution or set Ghost Passes to 0");
   I.ghostMajorants.resize(std::size_t(macrocells_.cellCount()));
   if (macrocells_.blockCount() > 0) I.ghostBlockMajorants.resize(std::size_t(macrocells_.blockCount()));
   I.clearStats();
@@ -582,7 +710,7 @@ void CudaDeltaTrackingRenderer::shadeHits(const FrameConstants& fc) {
   const RayStateView rs = I.rays.view();
   const int n = rs.count;
   I.timer.begin(cuda::kShade, s);
-  I.shadingResults.growTo(std::size_t(n));
+  I.growShading(std::size_t(n));
   float4* points = I.points[0].get();
   int* rays = I.queryRays[0].get();
   gatherShadingKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, rs, points, rays, I.stats.get());

@@ -24,6 +24,7 @@
 #include <cuda_runtime.h>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "Render/Cuda/CudaMacrocellGrid.h"
@@ -69,12 +70,24 @@ public:
 
   struct Impl;  // device state (CudaDeltaTrackingRendererImpl.cuh)
 
+  // Allocates the per-pixel device state of a width x height image beside the current one, so
+  // that a later setSettings to that size only swaps it in. Throws DeviceOutOfMemory (naming the
+  // bytes, the image size and what to lower) with nothing changed when it does not fit: the
+  // current image, its accumulation and the settings stay. setSettings to a new size calls it
+  // too, but by then the settings have changed; a caller that must keep the old image calls this
+  // first (RenderSession does).
+  void reservePixels(int width, int height);
+  // A warning about work left out for lack of GPU memory since the last call (reprojection
+  // skipped: the image restarted instead), "" when none; cleared by the call.
+  std::string takeMemoryNote();
+
   // The accumulated image (accumulation()'s layout: width x height float RGBA) into a CUDA array
   // of that size, device to device; returns when the copy is done.
   void copyAccumulation(cudaArray* target) const;
 
 private:
   void resizePixels(std::size_t pixels) override;
+  void stagePixels(std::size_t pixels, const std::string& imageSize);
   void clearAccumulation() override;
   std::vector<Vec4f> accumulation() const override;
   double macrocellTime() const override { return macrocells_.time(); }

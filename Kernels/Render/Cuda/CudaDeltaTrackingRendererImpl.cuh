@@ -3,6 +3,7 @@
 // baseline in CudaNaiveTracker.cu): the renderer's device state and the small launch helpers.
 #include <algorithm>
 #include <memory>
+#include <string>
 
 #include "Common/Cuda/DeviceBuffer.h"
 #include "Render/Cuda/CudaDeltaTrackingRenderer.h"
@@ -57,9 +58,22 @@ struct CudaDeltaTrackingRenderer::Impl {
   float* ghostBlocks() const { return ghostBlockMajorants.empty() ? nullptr : ghostBlockMajorants.get(); }
   RayStateArrays<cuda::DeviceBuffer> rays;
   PixelStateArrays<cuda::DeviceBuffer> pixels;
+  // The per-pixel buffers of the next image size, allocated in full before they replace the
+  // current ones (reservePixels): a size that does not fit leaves the image as it was.
+  struct PixelBuffers {
+    RayStateArrays<cuda::DeviceBuffer> rays;
+    PixelStateArrays<cuda::DeviceBuffer> pixels;
+    cuda::DeviceBuffer<float4> points[2];
+    cuda::DeviceBuffer<int> queryRays[2];
+    std::size_t count = 0;
+    bool ready = false;
+  };
+  PixelBuffers staged;
   // Reprojection: the old accumulation and the per-pixel minimum offers (allocated on first use).
   PixelStateArrays<cuda::DeviceBuffer> history;
   cuda::DeviceBuffer<unsigned long long> reprojectKeys;
+  bool reprojectionSkipped = false;  // once for lack of memory (memoryNote said so)
+  std::string memoryNote;            // a warning for the session to pass on (takeMemoryNote)
   cuda::DeviceBuffer<std::uint8_t> blueNoise;  // the shipped STBN mask (uploaded on first use)
   // The histogram scheme's residual histogram of the last frame (device, and its pinned copy).
   cuda::DeviceBuffer<unsigned> histogram;
@@ -112,6 +126,11 @@ struct CudaDeltaTrackingRenderer::Impl {
     INR_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
 
+  // Buffers a frame grows, each group all or nothing (a lack of memory throws DeviceOutOfMemory
+  // and leaves them as they were): ratio tracking's slots, gradient opacity's, shading's.
+  void growSlots(std::size_t slots, std::size_t rays);
+  void growGradientOpacity(std::size_t slots);
+  void growShading(std::size_t rays);
   // `ratio`: the leg is a ratio-tracked primary leg (fc.pointsPerIteration points per ray).
   void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
              const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,

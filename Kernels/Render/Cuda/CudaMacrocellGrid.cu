@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "Common/Cuda/DeviceBuffer.h"
+#include "Common/DeviceMemory.h"
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Cuda/DeviceTransferFunction.h"
@@ -123,6 +124,9 @@ CudaMacrocellGrid::CudaMacrocellGrid(const DeviceFieldEvaluator& evaluator, cons
   const int n = layout_.cellCount;
   Impl& I = *impl_;
   I.slices.resize(layout_.temporalSlices);
+  const DeviceAllocationPurpose purpose(
+      "the working macrocell grid (" + gridSize() + ", 7 values per cell)",
+      "lower the macrocell resolution (Macrocell Resolution; inr render --macrocells)");
   I.workMin.resize(n);
   I.workMax.resize(n);
   I.workMean.resize(n);
@@ -144,6 +148,11 @@ CudaMacrocellGrid::CudaMacrocellGrid(const DeviceFieldEvaluator& evaluator, cons
 
 CudaMacrocellGrid::~CudaMacrocellGrid() = default;
 
+std::string CudaMacrocellGrid::gridSize() const {
+  const Int3 d = layout_.dims;
+  return std::to_string(d.x) + "x" + std::to_string(d.y) + "x" + std::to_string(d.z) + " cells";
+}
+
 bool CudaMacrocellGrid::sliceBuilt(int k) const { return impl_->slices.at(k).built; }
 
 void CudaMacrocellGrid::setSlice(int k, const std::vector<float>& mn, const std::vector<float>& mx,
@@ -163,15 +172,25 @@ void CudaMacrocellGrid::buildSlice(int k) {
   const long long tilesPerBatch = std::max<long long>(1, kGpuLatticeBatch / P);
   const float time = float(sliceTime(k));
   Impl::Slice& s = I.slices[k];
-  s.min.resize(layout_.cellCount);
-  s.max.resize(layout_.cellCount);
-  s.mean.resize(layout_.cellCount);
-  const CellBoundsArrays out{s.min.get(), s.max.get(), s.mean.get()};
   const long long batchTiles = std::min(tiles, tilesPerBatch);
-  if (I.points.size() < std::size_t(batchTiles * P)) {
-    I.points.resize(std::size_t(batchTiles * P));
-    I.values.resize(std::size_t(batchTiles * P));
+  try {
+    const DeviceAllocationPurpose purpose(
+        "temporal macrocell slice " + std::to_string(k + 1) + " of " + std::to_string(layout_.temporalSlices) +
+            " (" + gridSize() + "; every slice built stays on the GPU)",
+        "lower the macrocell resolution or the temporal slices (Macrocell Resolution, Temporal Slices; inr "
+        "render --macrocells, --time-slices)");
+    s.min.resize(layout_.cellCount);
+    s.max.resize(layout_.cellCount);
+    s.mean.resize(layout_.cellCount);
+    if (I.points.size() < std::size_t(batchTiles * P)) {
+      I.points.resize(std::size_t(batchTiles * P));
+      I.values.resize(std::size_t(batchTiles * P));
+    }
+  } catch (const DeviceOutOfMemory&) {
+    s = Impl::Slice{};  // nothing half-built stays allocated; a later build tries again
+    throw;
   }
+  const CellBoundsArrays out{s.min.get(), s.max.get(), s.mean.get()};
   for (long long first = 0; first < tiles; first += tilesPerBatch) {
     const long long count = std::min(tilesPerBatch, tiles - first);
     const long long n = count * P;

@@ -17,6 +17,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "Render/MacrocellGrid.h"
@@ -92,6 +93,7 @@ private:
   void buildSlice(int k) override;
   void interpolateWorkingGrid() override;
   void clearDirtyCells() override;
+  std::string gridSize() const;  // "NXxNYxNZ cells", for out-of-memory messages
 
   const DeviceFieldEvaluator& evaluator_;
   cudaStream_t stream_ = nullptr;

@@ -19,6 +19,7 @@
 
 #include "Common/Cuda/CudaCheck.h"
 #include "Common/Cuda/DeviceBuffer.h"
+#include "Common/DeviceMemory.h"
 #include "Render/Cuda/OptixLaunchParams.h"
 
 // OptixProgramsIr.cpp, generated at build time from OptixPrograms.cu (cmake/EmbedBytes.cmake).
@@ -233,6 +234,10 @@ private:
     shape_ = Int3{0, 0, 0};  // until every buffer below is in place
     gas_ = 0;
     INR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // nothing of the OptiX stream reads the old buffers
+    // A lack of memory leaves shape_ empty: the next build reserves again.
+    const DeviceAllocationPurpose purpose(
+        "the OptiX traversal's acceleration structure over " + std::to_string(cells) + " macrocells",
+        "lower the macrocell resolution or set GPU Traversal to DDA (inr render --traversal dda)");
     cellOfPrimitive_.resize(cells);
     aabbs_.resize(cells);
     selected_.resize(cells);
