@@ -265,7 +265,11 @@ bool InrBackgroundWorker::JoinRefineStep(const inr::RenderScene& scene,
     const bool changed = !this->haveFineScene || inr::diffScenes(&this->fineScene, scene).any() ||
       !fine.haveSettings || settings.width != held.width || settings.height != held.height ||
       settings.seed != held.seed || settings.window != held.window ||
-      settings.pixelShare != held.pixelShare;
+      settings.pixelShare != held.pixelShare || settings.clipToBrick != held.clipToBrick ||
+      (settings.clipToBrick &&
+        (settings.brick.lo.x != held.brick.lo.x || settings.brick.lo.y != held.brick.lo.y ||
+          settings.brick.lo.z != held.brick.lo.z || settings.brick.hi.x != held.brick.hi.x ||
+          settings.brick.hi.y != held.brick.hi.y || settings.brick.hi.z != held.brick.hi.z));
     if (!this->BuildDone() && !changed)
     {
       this->keepImage = true;

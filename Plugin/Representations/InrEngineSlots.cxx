@@ -96,8 +96,15 @@ bool InrSameQueryReduction(const inr::QueryReductionSettings& a, const inr::Quer
 void InrEngineSlot::SetSettings(const inr::RenderSettings& s)
 {
   const inr::RenderSettings& held = this->settings;
+  // The crop box (Cropping of the composite) clips the primary rays as a brick's does.
+  const auto sameBox = [](const inr::Box3f& a, const inr::Box3f& b)
+  {
+    return a.lo.x == b.lo.x && a.lo.y == b.lo.y && a.lo.z == b.lo.z && a.hi.x == b.hi.x &&
+      a.hi.y == b.hi.y && a.hi.z == b.hi.z;
+  };
   if (!this->haveSettings || s.width != held.width || s.height != held.height ||
-    s.seed != held.seed || s.window != held.window || s.pixelShare != held.pixelShare)
+    s.seed != held.seed || s.window != held.window || s.pixelShare != held.pixelShare ||
+    s.clipToBrick != held.clipToBrick || (s.clipToBrick && !sameBox(s.brick, held.brick)))
   {
     this->session->setSettings(s);
     this->settings = s;

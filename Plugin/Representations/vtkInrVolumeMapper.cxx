@@ -91,6 +91,11 @@ void vtkInrVolumeMapper::PrepareRender(vtkRenderer* ren, vtkVolume* vol)
   {
     return;  // Render reports what is wrong
   }
+  const int blendMode = this->GetBlendMode();
+  if ((blendMode == ISOSURFACE_BLEND || blendMode == SLICE_BLEND) && I.ranks.Ranks().count <= 1)
+  {
+    return;  // the surface renderer (Render) needs none of the composite's macrocell slices
+  }
   if (I.worker.FineBuilding())
   {
     // Still building on the worker: show how far (the render draws the coarse session).
@@ -216,6 +221,24 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   I.PlaceTile(ren, tile);
   I.WarnAboutScene(this, ren, vol, tile.width, tile.height);
+  // The blend mode, isovalues, slice plane and crop box, read as VTK's own mappers read them;
+  // what is not drawn as asked is said once.
+  I.blend = InrBlendTranslator::Translate(this, vol->GetProperty());
+  for (const std::string& note : I.blend.notes)
+  {
+    I.NoteBlend(this, note);
+  }
+  if (I.DrawsSurface(this))
+  {
+    I.ObserveWindow(ren->GetRenderWindow());
+    reduction.rendered = I.RenderSurface(this, ren, vol, input, tile);
+    return;
+  }
+  if (I.surface.active)
+  {
+    I.surface.active = false;
+    I.uploadedEpoch = -1;  // the texture holds the surface image: load the composite again
+  }
   const auto renderStart = Clock::now();
   I.ObserveWindow(ren->GetRenderWindow());
   inr::RenderScene scene = I.TranslateScene(this, ren, vol, input, tile);

@@ -264,6 +264,11 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
   settings.seed = static_cast<std::uint32_t>(self->Seed);
   settings.window = this->window;
   this->ranks.Share(settings);
+  this->cropEmpty = !this->CropSettings(self, settings);
+  if (this->cropEmpty)
+  {
+    return false;  // the crop box holds none of the model: nothing drawn
+  }
   if (background && !this->worker.JoinRefineStep(scene, settings, this->report.step))
   {
     return true;  // the worker is busy: this render draws the image it has

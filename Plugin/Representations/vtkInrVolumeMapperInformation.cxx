@@ -19,6 +19,18 @@ const InrMapperReport& vtkInrVolumeMapper::Internals::Report(vtkInrVolumeMapper*
         this->engines.fine.refinement.converged()));
   r.estimate = this->worker.FineRefining() ? this->worker.KeptEstimate()
                                             : this->engines.fine.refinement.estimate();
+  if (this->surface.active)
+  {
+    // Isosurface and slice: exact in their first frame, nothing left to refine (a reduced drag
+    // frame is followed by a still one).
+    r.frames = this->surface.frames;
+    r.localConverged = !this->surface.interactive;
+    r.estimate = std::numeric_limits<double>::infinity();
+  }
+  else if (this->cropEmpty)
+  {
+    r.localConverged = true;  // nothing to draw inside the crop box
+  }
   r.queryReductionInUse = this->engines.queryReductionInUse;
   r.engineBuilds = this->engines.engineBuilds;
   return r;
@@ -112,6 +124,11 @@ const char* vtkInrVolumeMapper::GetConvergenceEstimateText()
 const char* vtkInrVolumeMapper::GetRefinementState()
 {
   InrMapperReport& r = this->Internal->report;
+  if (this->Internal->surface.active)
+  {
+    r.refinementState = this->Internal->surface.state;
+    return r.refinementState.c_str();
+  }
   r.refinementState = InrDescribeRefinement(this->Internal->Report(this),
     InrRefinementLimits{ this->ProgressiveRefinement != 0, this->ConvergenceTarget, this->MaximumFrames });
   return r.refinementState.c_str();

@@ -27,6 +27,7 @@
 #include "vtkVolume.h"
 #include "vtk_glew.h"
 
+#include "InrBlendTranslator.h"
 #include "InrCudaGlInterop.h"
 #include "InrEngineSlots.h"
 #include "InrFramebufferCompositor.h"
@@ -39,6 +40,7 @@
 
 #include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
+#include "Backends/SessionSurfaceRenderer.h"
 #include "Model/InrModel.h"
 #include "Render/MacrocellLayout.h"
 #include "Render/QueryReduction.h"
@@ -239,6 +241,41 @@ struct vtkInrVolumeMapper::Internals
     this->insideRender = inside;
     this->engines.muteProgress = this->quietRenders && inside;
   }
+
+  // The blend modes (InrBlendTranslator.h), read from the mapper and the volume property at each
+  // render: Composite through the sessions above (Cropping clips their primary rays: CropSettings),
+  // Isosurface and Slice by the fine session's surface renderer (vtkInrVolumeMapperSurface.cxx).
+  InrBlendTranslator::Result blend;
+  std::vector<std::string> blendNotesSaid;  // each note about the blend mode is said once
+  void NoteBlend(vtkInrVolumeMapper* self, const std::string& note);
+  // The surface renderer over the fine session's evaluator, and what it was last handed.
+  struct SurfaceBlend
+  {
+    std::unique_ptr<inr::SessionSurfaceRenderer> renderer;
+    int engineBuild = -1;  // InrEngines::engineBuilds it was made for (a rebuild drops it)
+    int resolution = 0, temporalSlices = 0;
+    bool haveSettings = false, haveScene = false;
+    inr::RenderSettings settings;
+    inr::RenderScene scene;
+    inr::BlendScene blend;
+    bool active = false;       // the last render drew a surface mode (the panel's figures)
+    bool interactive = false;  // ... at a reduced resolution (a camera drag)
+    bool drew = false;         // ... and its image holds something (not "nothing to draw")
+    int frames = 0;
+    double queries = 0.0;
+    double msPerPixel = 0.0;   // of the last full-resolution frame (sizes drag frames)
+    std::string state;         // the refinement-state line of surface modes
+  };
+  SurfaceBlend surface;
+  // Draws this render's isosurface or slice (Render's surface path); false: nothing drawn.
+  bool RenderSurface(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input,
+    const Viewport& tile);
+  // Whether this render draws the isosurface or slice path (a surface mode that can be drawn).
+  bool DrawsSurface(vtkInrVolumeMapper* self);
+  // The composite's Cropping: the sessions' primary rays clipped to the crop box (in the model's
+  // box); false when the box holds none of the model (nothing to draw).
+  bool CropSettings(vtkInrVolumeMapper* self, inr::RenderSettings& settings);
+  bool cropEmpty = false;  // the last render's crop box held none of the model
 
   // VTK -> engine (transfer-function cache), progressive refinement, drawing.
   InrSceneTranslator translator;

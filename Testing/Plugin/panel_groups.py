@@ -46,7 +46,13 @@ for n, new in renamed.items():
           and old.get("panel_visibility") == "never" and old.get("state_ignored") == "1"
           and old.get("default_values") == new.get("default_values"),
           f"{n}, exposed outside a group, is a hidden, state-ignored old name of Inr{n} (same command and default)")
-uninrd = [n for n in properties if not n.startswith("Inr") and n not in renamed]
+# ParaView's own Volume properties that INR Volume redeclares (override="1", never shown: the
+# panel shows ParaView's row, shared with INR Volume).
+paraview_own = {n for n, e in properties.items() if e.get("override") == "1"}
+check(paraview_own <= {"SliceFunction"}, f"ParaView's properties redeclared: {sorted(paraview_own)}")
+for n in paraview_own:
+    check(properties[n].get("panel_visibility") == "never", f"{n} (ParaView's, redeclared) is never shown")
+uninrd = [n for n in properties if not n.startswith("Inr") and n not in renamed and n not in paraview_own]
 check(not uninrd, f"every property name carries the Inr prefix, old names aside ({uninrd})")
 
 membership = {}
