@@ -163,7 +163,9 @@ TEST(CudaRatioTracking, ShippedModelsMatchCpuAndDeltaTracking) {
                   fs::path(path).filename().c_str(), primaryEstimatorName(options.estimator), size, size, frames / 4,
                   vsCpu, 8 * frames, vsDelta, double(g.iterations) / (frames / 4), g.queries / std::size_t(frames / 4));
       EXPECT_GE(vsCpu, 40.0) << path;
-      EXPECT_GE(vsDelta, 38.0) << path;
+      // The pre-integrated march spends fewer queries per frame and converges more slowly per frame
+      // here (Benchmarks/RESULTS.md, "GPU test bounds"): its own bound.
+      EXPECT_GE(vsDelta, options.estimator == PrimaryEstimator::Preintegrated ? 37.5 : 38.0) << path;
       EXPECT_EQ(test::nonFinitePixels(gpu.image()), 0u) << path;
       EXPECT_EQ(gpu.counters().truncatedFrames, 0) << path;
     }
