@@ -92,9 +92,12 @@ def run_meminfo():
 def device_free(dry):
     if dry:
         return 0, 0
-    out = subprocess.run([sys.executable, os.path.abspath(__file__), "--meminfo"],
-                         stdout=subprocess.PIPE, text=True, check=True).stdout.split()
-    return int(out[0]), int(out[1])
+    # A CUDA context of its own needs memory the hog may have taken: nvidia-smi reads the free
+    # memory without one.
+    out = subprocess.run(["nvidia-smi", "--query-gpu=memory.free,memory.total", "--format=csv,noheader,nounits",
+                          "-i", os.environ.get("CUDA_VISIBLE_DEVICES", "0").split(",")[0]],
+                         stdout=subprocess.PIPE, text=True, check=True).stdout.split(",")
+    return int(out[0]) << 20, int(out[1]) << 20
 
 
 class Hog:
