@@ -16,7 +16,6 @@
 #include <array>
 #include <cmath>
 #include <functional>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -31,7 +30,6 @@
 namespace inr {
 namespace {
 
-using nlohmann::json;
 
 // Faults are injected at most this far into one request: a request with more allocations than
 // this is not fully covered (the loop stops with a failure saying so).
@@ -49,26 +47,7 @@ std::size_t deviceBytesInUse() {
   return totalB - freeB;
 }
 
-InrModel sineModel() {
-  std::mt19937 rng(5);
-  const int h = 16;
-  const json arch = {{"input_dim", 4},
-                     {"layers",
-                      {{{"type", "linear"}, {"weight", "w0"}, {"bias", "b0"}},
-                       {{"type", "sine"}, {"w0", 2.0}},
-                       {{"type", "linear"}, {"weight", "w1"}, {"bias", "b1"}},
-                       {{"type", "sine"}, {"w0", 1.0}},
-                       {{"type", "linear"}, {"weight", "w2"}, {"bias", "b2"}}}}};
-  const json domain = {{"bounds", {-1, 1, -1, 1, -1, 1}}, {"time_range", {0.0, 10.0}}};
-  return test::load(test::buildSafeTensors({{"w0", {h, 4}, test::randomValues(h * 4, rng, 1.5f)},
-                                            {"b0", {h}, test::randomValues(h, rng, 1.f)},
-                                            {"w1", {h, h}, test::randomValues(h * h, rng, 0.4f)},
-                                            {"b1", {h}, test::randomValues(h, rng, 0.5f)},
-                                            {"w2", {1, h}, test::randomValues(h, rng, 0.3f)},
-                                            {"b2", {1}, {0.5f}}},
-                                           test::modelMetadata(arch, domain)),
-                 "oom.inr");
-}
+InrModel sineModel() { return test::randomSineNetwork(5, {-1, 1, -1, 1, -1, 1}, 0.0, 10.0, "oom.inr"); }
 
 std::array<float, 2> valueRange(const InrModel& model) {
   const CpuInrEvaluator e(model, CpuEvaluatorOptions{256, 1});

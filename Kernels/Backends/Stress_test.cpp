@@ -82,34 +82,11 @@ json domainJson(const std::array<double, 6>& bounds, double t0 = 0.0, double t1 
   return {{"bounds", bounds}, {"time_range", {t0, t1}}};
 }
 
-// A small time-varying SIREN-like network, 4 -> 16 -> 16 -> 1, on `bounds` (the network sees
-// [-1, 1]^4 whatever the box): cheap on the CPU, the fused fp16 kernel on the GPU.
-// 4 -> 16 (sine, w0 2) -> 16 (sine, w0 1) -> 1 with the given weights, output bias 0.5.
-InrModel sineNetwork(const std::vector<float>& w0, const std::vector<float>& b0, const std::vector<float>& w1,
-                     const std::vector<float>& b1, const std::vector<float>& w2,
-                     const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
-                     double t1 = 10.0) {
-  const int h = 16;
-  const json arch = {{"input_dim", 4},
-                     {"layers",
-                      {{{"type", "linear"}, {"weight", "w0"}, {"bias", "b0"}},
-                       {{"type", "sine"}, {"w0", 2.0}},
-                       {{"type", "linear"}, {"weight", "w1"}, {"bias", "b1"}},
-                       {{"type", "sine"}, {"w0", 1.0}},
-                       {{"type", "linear"}, {"weight", "w2"}, {"bias", "b2"}}}}};
-  return load(buildSafeTensors({{"w0", {h, 4}, w0}, {"b0", {h}, b0}, {"w1", {h, h}, w1}, {"b1", {h}, b1},
-                                {"w2", {1, h}, w2}, {"b2", {1}, {0.5f}}},
-                               modelMetadata(arch, domainJson(bounds, t0, t1))));
-}
+using test::sineNetwork;
 
 InrModel smoothModel(const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
                      double t1 = 10.0) {
-  std::mt19937 rng(11);
-  const int h = 16;
-  std::vector<float> w0 = randomValues(h * 4, rng, 1.5f), b0 = randomValues(h, rng, 1.f),
-                     w1 = randomValues(h * h, rng, 0.4f), b1 = randomValues(h, rng, 0.5f),
-                     w2 = randomValues(h, rng, 0.3f);
-  return sineNetwork(w0, b0, w1, b1, w2, bounds, t0, t1);
+  return test::randomSineNetwork(11, bounds, t0, t1, "stress.inr");
 }
 
 // value = `value` everywhere (zero weights): majorant == extinction, every candidate is real.
@@ -135,7 +112,7 @@ InrModel hugeHiddenWeightsModel(float hiddenScale) {
   for (auto& w : w1) w = w < 0.f ? -hiddenScale : hiddenScale;
   std::vector<float> w0 = randomValues(h * 4, rng, 1.5f), b0 = randomValues(h, rng, 1.f),
                      b1 = randomValues(h, rng, 0.5f), w2 = randomValues(h, rng, 0.3f);
-  return sineNetwork(w0, b0, w1, b1, w2);
+  return sineNetwork(w0, b0, w1, b1, w2, {-1, 1, -1, 1, -1, 1}, 0.0, 10.0, "stress.inr");
 }
 
 // ReLU network whose activations grow by `scale` per layer: scale 1e5 gives activations ~1e5..1e10

@@ -2,6 +2,7 @@
 // Test-only: builds INR Volume files in memory (safetensors bytes) so unit tests can construct
 // exact models and damaged variants without files on disk.
 #include <cstdint>
+#include <array>
 #include <cstring>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -68,6 +69,39 @@ inline std::vector<float> randomValues(std::size_t n, std::mt19937& rng, float s
   std::vector<float> v(n);
   for (auto& x : v) x = d(rng);
   return v;
+}
+
+// A small time-varying SIREN-like network, 4 -> 16 (sine, w0 2) -> 16 (sine, w0 1) -> 1 with the
+// given weights and output bias 0.5, on `bounds` (the network sees [-1, 1]^4 whatever the box):
+// cheap on the CPU, the fused fp16 kernel on the GPU.
+inline InrModel sineNetwork(const std::vector<float>& w0, const std::vector<float>& b0, const std::vector<float>& w1,
+                            const std::vector<float>& b1, const std::vector<float>& w2,
+                            const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1}, double t0 = 0.0,
+                            double t1 = 10.0, const std::string& label = "m.inr") {
+  const int h = 16;
+  const nlohmann::json arch = {{"input_dim", 4},
+                               {"layers",
+                                {{{"type", "linear"}, {"weight", "w0"}, {"bias", "b0"}},
+                                 {{"type", "sine"}, {"w0", 2.0}},
+                                 {{"type", "linear"}, {"weight", "w1"}, {"bias", "b1"}},
+                                 {{"type", "sine"}, {"w0", 1.0}},
+                                 {{"type", "linear"}, {"weight", "w2"}, {"bias", "b2"}}}}};
+  const nlohmann::json domain = {{"bounds", bounds}, {"time_range", {t0, t1}}};
+  return load(buildSafeTensors({{"w0", {h, 4}, w0}, {"b0", {h}, b0}, {"w1", {h, h}, w1}, {"b1", {h}, b1},
+                                {"w2", {1, h}, w2}, {"b2", {1}, {0.5f}}},
+                               modelMetadata(arch, domain)),
+              label);
+}
+
+// sineNetwork with random weights from `seed` (smooth: first-layer scale 1.5, hidden 0.4).
+inline InrModel randomSineNetwork(unsigned seed, const std::array<double, 6>& bounds = {-1, 1, -1, 1, -1, 1},
+                                  double t0 = 0.0, double t1 = 10.0, const std::string& label = "m.inr") {
+  std::mt19937 rng(seed);
+  const int h = 16;
+  const std::vector<float> w0 = randomValues(h * 4, rng, 1.5f), b0 = randomValues(h, rng, 1.f),
+                           w1 = randomValues(h * h, rng, 0.4f), b1 = randomValues(h, rng, 0.5f),
+                           w2 = randomValues(h, rng, 0.3f);
+  return sineNetwork(w0, b0, w1, b1, w2, bounds, t0, t1, label);
 }
 
 }  // namespace inr::test
