@@ -63,10 +63,12 @@ const char* kUsage =
     "  --reference-frames N    frames of the unbudgeted reference (default 400)\n"
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
     "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
-    "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R[:S]]]]] (ratio tracking with\n"
+    "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R[:S]]]]] |\n"
+    "                          debiased[:K[:Q[:L[:P[:S]]]]] (ratio tracking with\n"
     "                          majorant scale K; unbiased ray marching, with the pre-integrated control\n"
     "                          for preint, comb density K and residual scale KR; points per iteration\n"
-    "                          P, roulette threshold R, preint's comb at least every diagonal / S; join\n"
+    "                          P, roulette threshold R, preint's comb at least every diagonal / S;\n"
+    "                          the debiased march with comb density K, level ratio Q, max level L; join\n"
     "                          with '+', e.g. ratio:4+prune:0.02; default:\n"
     "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
@@ -215,14 +217,15 @@ Config parseSingleConfig(const std::string& spec) {
     c.family = "delta";
     c.label = "delta";
   } else if (f == "ratio") {
-    arity(1, 4);
+    arity(1, 5);
     c.family = "ratio";
     c.tracking.estimator = PrimaryEstimator::Ratio;
     c.tracking.majorantScale = num(1, c.tracking.majorantScale);
     c.tracking.pointsPerIteration = int(num(2, c.tracking.pointsPerIteration));
     c.tracking.rouletteThreshold = num(3, c.tracking.rouletteThreshold);
+    c.tracking.stratifiedJitter = num(4, 0) != 0;
     c.tracking.validate();
-    c.label = "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
+    c.label = std::string(c.tracking.stratifiedJitter ? "s" : "") + "ratio:" + fmt(c.tracking.majorantScale) + ":" + std::to_string(c.tracking.pointsPerIteration) + ":" +
               fmt(c.tracking.rouletteThreshold);
   } else if (f == "march" || f == "preint") {
     arity(1, f == "preint" ? 6 : 5);
@@ -237,6 +240,21 @@ Config parseSingleConfig(const std::string& spec) {
     c.label = f + ":" + fmt(c.tracking.majorantScale) + ":" + fmt(c.tracking.residualScale) + ":" +
               std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
     if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
+  } else if (f == "debiased") {
+    arity(1, 7);
+    c.family = f;
+    c.tracking.estimator = PrimaryEstimator::Debiased;
+    c.tracking.majorantScale = num(1, c.tracking.majorantScale);
+    c.tracking.levelRatio = num(2, c.tracking.levelRatio);
+    c.tracking.maxLevel = int(num(3, c.tracking.maxLevel));
+    c.tracking.pointsPerIteration = int(num(4, 32));
+    c.tracking.combMinimumSteps = num(5, c.tracking.combMinimumSteps);
+    c.tracking.stratifiedJitter = num(6, 0) != 0;
+    c.tracking.validate();
+    c.label = std::string(c.tracking.stratifiedJitter ? "s" : "") + f + ":" + fmt(c.tracking.majorantScale) + ":" +
+              fmt(c.tracking.levelRatio) + ":" +
+              std::to_string(c.tracking.maxLevel) + ":" + std::to_string(c.tracking.pointsPerIteration);
+    if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -247,7 +265,7 @@ Config parseSingleConfig(const std::string& spec) {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
                                 "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]], "
-                                "preint[:K[:KR[:P[:R[:S]]]]])");
+                                "preint[:K[:KR[:P[:R[:S]]]]], debiased[:K[:Q[:L[:P[:S]]]]])");
   }
   c.q.validate();
   return c;
@@ -261,7 +279,8 @@ Config parseConfig(const std::string& spec) {
   Config c = parseSingleConfig(parts[0]);
   for (std::size_t k = 1; k < parts.size(); ++k) {
     const Config p = parseSingleConfig(parts[k]);
-    if (p.family == "ratio" || p.family == "march" || p.family == "preint" || p.family == "delta") {
+    if (p.family == "ratio" || p.family == "march" || p.family == "preint" || p.family == "debiased" ||
+        p.family == "delta") {
       c.tracking = p.tracking;
     } else if (p.family == "prune") {
       c.q.pruneEpsilon = p.q.pruneEpsilon;

@@ -12,6 +12,7 @@
 #include "Render/Reproject.h"
 #include "Render/Shade.h"
 #include "Render/Shadows.h"
+#include "Render/DebiasedMarch.h"
 #include "Render/PreintegratedMarch.h"
 #include "Render/RatioTracking.h"
 #include "Render/Traverse.h"
@@ -105,7 +106,15 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
   auto noop = [](auto&&...) {};
   for (int loopIterations = 0;; ++loopIterations) {
     auto t0 = Clock::now();
-    if (points && fc.estimator == PrimaryEstimator::Preintegrated) {
+    if (points && fc.estimator == PrimaryEstimator::Debiased) {
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
+      for (int i = 0; i < n; ++i) {
+        if (pruning)
+          traverseDebiasedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+        else
+          traverseDebiasedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+      }
+    } else if (points && fc.estimator == PrimaryEstimator::Preintegrated) {
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
       for (int i = 0; i < n; ++i) {
         if (pruning)

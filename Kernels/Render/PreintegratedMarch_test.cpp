@@ -258,7 +258,7 @@ TEST(PreintegratedMarch, OptionsAreValidatedAndNamed) {
   EXPECT_EQ(parsePrimaryEstimator("preintegrated"), PrimaryEstimator::Preintegrated);
   EXPECT_STREQ(primaryEstimatorName(PrimaryEstimator::Preintegrated), "preintegrated");
   TrackingOptions bad = preintegrated(4.0);
-  bad.estimator = static_cast<PrimaryEstimator>(4);
+  bad.estimator = static_cast<PrimaryEstimator>(5);
   EXPECT_THROW(bad.validate(), std::invalid_argument);
 }
 

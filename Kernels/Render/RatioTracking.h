@@ -59,6 +59,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "Evaluator/FieldEvaluator.h"
 #include "Render/CounterRng.h"
 #include "Render/Pruning.h"
 #include "Render/RayState.h"
@@ -78,6 +79,8 @@ namespace inr {
 //   opacityScale  the gradient opacity factor there (RayStateView::opacityScale)
 //   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
 //   kind      PointKind bits
+//   level, step  debiased (DebiasedMarch.h): the level of the point's comb interval and the point's
+//             index in it (1 .. 2^level, 2^level the closing comb point)
 #define INR_POINT_STATE_FIELDS(X) \
   X(float, t)                     \
   X(float, majorant)              \
@@ -86,7 +89,9 @@ namespace inr {
   X(float, sample)                \
   X(float, opacityScale)          \
   X(int, cell)                    \
-  X(std::uint8_t, kind)
+  X(std::uint8_t, kind)           \
+  X(std::uint8_t, level)          \
+  X(std::uint8_t, step)
 
 enum PointKind : std::uint8_t {
   kPointComb = 1u << 0,          // march: an emission (comb) point, else a transmittance point

@@ -39,6 +39,10 @@ enum class PrimaryEstimator : int {
   // the transfer function integrated exactly over that, residual points correct the rest
   // (PreintegratedMarch.h)
   Preintegrated = 3,
+  // A ray march made unbiased by random refinement: each comb interval is marched at a random
+  // number of halvings of the comb step and the levels are combined so that the expectation is
+  // the limit of ever finer marches (DebiasedMarch.h)
+  Debiased = 4,
 };
 
 enum class ShadowEstimator : int {
@@ -80,6 +84,11 @@ enum class ShadowEstimator : int {
 //   lastCombValue      preintegrated: the network's value at the ray's last resolved comb point
 //                      (NaN: none yet, or a non-finite value)
 //   combInCell         preintegrated: that comb point lies in the macrocell the ray is in
+//   marchLevel, marchStep  debiased: the current comb interval's level (halvings of the comb step)
+//                      and the index of the ray's next point in it (1 .. 2^level; 2^level: the
+//                      interval's closing comb point)
+//   leftKnown, leftScale  debiased: the ray has resolved a comb point (its value in lastCombValue)
+//                      and that point's gradient opacity factor
 //   hitWeight          ratio / march with one picked emission point (shadows or shading): its
 //                      weight's sign while tracking, then the signed weight the picked colour
 //                      carries in the frame estimate; 1 for delta tracking (Shading.h applies it)
@@ -107,6 +116,10 @@ enum class ShadowEstimator : int {
   X(std::uint8_t, controlKnown)  \
   X(float, lastCombValue)        \
   X(std::uint8_t, combInCell)    \
+  X(std::uint8_t, marchLevel)    \
+  X(std::uint8_t, marchStep)     \
+  X(std::uint8_t, leftKnown)     \
+  X(float, leftScale)            \
   X(float, hitWeight)
 
 // The per-pixel fields that outlive a frame (the accumulation: VisRTX's frame-owned state),
@@ -148,7 +161,8 @@ struct FrameConstants {
   const float* depthLimit = nullptr;  // per pixel world ray distance to opaque geometry, or null
   float time = 0.f;                   // world time of every query
   std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)
-  int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing)
+  int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing): 0 off, 1 random,
+                                      // 2 stratified over frames (RayInit.h)
   int shadows = 0;
   float ambient = 0.2f;               // unlit share of the colour (shadows and shading, Shading.h)
   Vec3f toLight{0.f, 0.f, 1.f};       // unit model-space vector towards the (directional) light
@@ -161,6 +175,10 @@ struct FrameConstants {
   float residualScale = 1.f;       // march: residual points at this x the cell majorant
   float combMinimumDensity = 0.f;  // preintegrated: comb points per unit length at least (model space)
   float rouletteThreshold = 0.05f; // Russian roulette below this transmittance estimate
+  // debiased (DebiasedMarch.h): a comb interval is refined at least k + 1 times with probability
+  // levelRatio^(k+1) given k, at most maxLevel times
+  float levelRatio = 0.3f;
+  int maxLevel = 5;
   int pointsPerIteration = 1;      // tentative collisions a ray hands the evaluator per iteration
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking
   // (kRayCapped; it counts as escaped). Every candidate collision takes two draws, so this caps

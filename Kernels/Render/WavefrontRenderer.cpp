@@ -17,6 +17,7 @@ const char* primaryEstimatorName(PrimaryEstimator e) {
     case PrimaryEstimator::Ratio: return "ratio";
     case PrimaryEstimator::March: return "march";
     case PrimaryEstimator::Preintegrated: return "preintegrated";
+    case PrimaryEstimator::Debiased: return "debiased";
     default: return "delta";
   }
 }
@@ -26,7 +27,8 @@ PrimaryEstimator parsePrimaryEstimator(const std::string& name) {
   if (name == "ratio") return PrimaryEstimator::Ratio;
   if (name == "march") return PrimaryEstimator::March;
   if (name == "preintegrated") return PrimaryEstimator::Preintegrated;
-  throw std::invalid_argument("estimator must be delta, ratio, march or preintegrated, got '" + name + "'");
+  if (name == "debiased") return PrimaryEstimator::Debiased;
+  throw std::invalid_argument("estimator must be delta, ratio, march, preintegrated or debiased, got '" + name + "'");
 }
 
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
@@ -43,9 +45,15 @@ void TrackingOptions::validate() const {
   }
   if (ghostPixelStride < 1) throw std::invalid_argument("ghostPixelStride must be >= 1");
   if (estimator != PrimaryEstimator::Delta && estimator != PrimaryEstimator::Ratio &&
-      estimator != PrimaryEstimator::March && estimator != PrimaryEstimator::Preintegrated)
-    throw std::invalid_argument("estimator must be delta (0), ratio (1), march (2) or preintegrated (3), got " +
+      estimator != PrimaryEstimator::March && estimator != PrimaryEstimator::Preintegrated &&
+      estimator != PrimaryEstimator::Debiased)
+    throw std::invalid_argument("estimator must be delta (0), ratio (1), march (2), preintegrated (3) or debiased (4), got " +
                                 std::to_string(int(estimator)));
+  if (!(levelRatio > 0.0 && levelRatio < 1.0))
+    throw std::invalid_argument("level ratio must be in (0, 1), got " + std::to_string(levelRatio));
+  if (maxLevel < 0 || maxLevel > kMaxDebiasedLevel)
+    throw std::invalid_argument("max level must be in [0, " + std::to_string(kMaxDebiasedLevel) + "], got " +
+                                std::to_string(maxLevel));
   if (!(residualScale >= 0.0 && residualScale <= 1024.0))
     throw std::invalid_argument("residual scale must be in [0, 1024], got " + std::to_string(residualScale));
   if (!(majorantScale >= 1.0 && majorantScale <= 1024.0))
@@ -192,10 +200,16 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   fc.estimator = options_.estimator;
   // The pre-integrated march has no single emission point for a shadow ray or a lit colour, and
   // no control for a gradient opacity factor (PreintegratedMarch.h): ratio tracking renders those
-  // scenes, with the comb density as its majorant scale.
+  // scenes, with the comb density as its majorant scale. The debiased march has no single
+  // emission point either (DebiasedMarch.h).
   if (fc.estimator == PrimaryEstimator::Preintegrated &&
       (fc.shadows || fc.shading.enabled || scene_.transferFunction.usesGradientOpacity()))
     fc.estimator = PrimaryEstimator::Ratio;
+  if (fc.estimator == PrimaryEstimator::Debiased && (fc.shadows || fc.shading.enabled))
+    fc.estimator = PrimaryEstimator::Ratio;
+  if (fc.pixelJitter && options_.stratifiedJitter) fc.pixelJitter = 2;
+  fc.levelRatio = float(options_.levelRatio);
+  fc.maxLevel = options_.maxLevel;
   fc.majorantScale = float(options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
   {
@@ -210,6 +224,9 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   long long points = options_.pointsPerIteration;
   if (fc.estimator == PrimaryEstimator::Preintegrated)
     points = std::max<long long>(points, TrackingOptions::kMinPreintegratedPoints);
+  // The debiased march's batches end at comb points and an interval (up to 2^maxLevel points)
+  // must fit in one (DebiasedMarch.h).
+  if (fc.estimator == PrimaryEstimator::Debiased) points = std::max<long long>(points, 1ll << options_.maxLevel);
   fc.pointsPerIteration = int(std::max(1ll, std::min<long long>(points, TrackingOptions::kMaxPointSlots / pixels)));
   const QueryReductionSettings& q = queryReduction_;
   BudgetConstants& b = fc.budget;

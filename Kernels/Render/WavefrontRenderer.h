@@ -69,8 +69,20 @@ struct TrackingOptions {
   // then correct; a floor on the density lets the control follow the network everywhere the
   // transfer function shows something, as a ray marcher's step does.
   double combMinimumSteps = 0.0;
+  // Debiased (DebiasedMarch.h): the comb takes majorantScale points per unit of majorant optical
+  // depth (and combMinimumSteps); each comb interval is refined (its step halved) once more with
+  // probability levelRatio, at most maxLevel times. Below 1/2 the expected points per interval are
+  // (1 - r) / (1 - 2 r); larger ratios cost more and weigh the refinements less. The expectation
+  // is the march at 2^-maxLevel of the comb step (see the header).
+  static constexpr int kMaxDebiasedLevel = 6;  // 2^6 points per interval fit a batch (kMaxPointsPerIteration)
+  double levelRatio = 0.3;
+  int maxLevel = 5;
   int pointsPerIteration = 16;
   double rouletteThreshold = 0.05;
+  // Sub-pixel jitter (when RenderSettings::pixelJitter is on) from a low-discrepancy sequence over
+  // each pixel's frames instead of independent draws (RayInit.h, stratifiedJitter): every frame
+  // stays unbiased, and the antialiasing's share of the error falls about as 1 / frames.
+  bool stratifiedJitter = false;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
   // What `inr render`, pvpython and the ParaView GUI use: the struct's own defaults (the paper's
@@ -80,7 +92,7 @@ struct TrackingOptions {
   static TrackingOptions recommended();
 };
 
-// "delta" / "ratio" / "march" / "preintegrated" (the CLI's --estimator, the plugin's InrEstimator); parse throws
+// "delta" / "ratio" / "march" / "preintegrated" / "debiased" (the CLI's --estimator, the plugin's InrEstimator); parse throws
 // std::invalid_argument naming the accepted names.
 const char* primaryEstimatorName(PrimaryEstimator e);
 PrimaryEstimator parsePrimaryEstimator(const std::string& name);

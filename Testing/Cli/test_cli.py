@@ -326,7 +326,7 @@ def check_estimator_xml_defaults(inr, data):
     props = {el.get("name"): el for el in ET.parse(xml).getroot().iter() if el.get("default_values") is not None}
     est = props["InrEstimator"]
     entries = {el.get("value"): el.get("text") for el in est.iter("Entry")}
-    expect(entries == {"0": "delta", "1": "ratio", "2": "march", "3": "preintegrated"},
+    expect(entries == {"0": "delta", "1": "ratio", "2": "march", "3": "preintegrated", "4": "debiased"},
            "InrEstimator entries %r" % entries)
     expect(entries[est.get("default_values")] == e["name"],
            "InrEstimator default %r, CLI default %r" % (entries[est.get("default_values")], e["name"]))

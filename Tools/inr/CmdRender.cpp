@@ -418,7 +418,11 @@ int runRenderJob(const RenderJob& job) {
                            {"majorant_scale", t.majorantScale},
                            {"residual_scale", t.residualScale},
                            {"points_per_iteration", t.pointsPerIteration},
-                           {"roulette_threshold", t.rouletteThreshold}};
+                           {"roulette_threshold", t.rouletteThreshold},
+                           {"level_ratio", t.levelRatio},
+                           {"max_level", t.maxLevel},
+                           {"comb_minimum_steps", t.combMinimumSteps},
+                           {"jitter", t.stratifiedJitter ? "stratified" : "random"}};
   }
   report["width"] = settings.width;
   report["height"] = settings.height;

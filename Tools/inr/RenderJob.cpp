@@ -165,7 +165,8 @@ const char* kRenderUsageTail =
 // model loads; the help prints TrackingOptions' defaults.
 TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
   for (const char* option :
-       {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold"}) {
+       {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold", "level-ratio",
+        "max-level", "comb-minimum-steps", "jitter"}) {
     if (args.has(option) && method != "delta")
       throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
   }
@@ -178,11 +179,19 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
   t.residualScale = args.getDouble("residual-scale", t.residualScale);
   t.pointsPerIteration = int(args.getInt("points-per-iteration", t.pointsPerIteration));
   t.rouletteThreshold = args.getDouble("roulette-threshold", t.rouletteThreshold);
+  t.levelRatio = args.getDouble("level-ratio", t.levelRatio);
+  t.maxLevel = int(args.getInt("max-level", t.maxLevel));
+  t.combMinimumSteps = args.getDouble("comb-minimum-steps", t.combMinimumSteps);
+  if (args.has("jitter")) {
+    const std::string j = args.get("jitter");
+    if (j != "random" && j != "stratified") throw UsageError("--jitter must be random or stratified, got '" + j + "'");
+    t.stratifiedJitter = j == "stratified";
+  }
   try {
     t.validate();
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
-                                 "--roulette-threshold: ") +
+                                 "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps: ") +
                      e.what());
   }
   return t;
@@ -190,7 +199,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
 
 std::string estimatorUsage() {
   const TrackingOptions d = TrackingOptions::recommended();
-  char text[3072];
+  char text[4096];
   std::snprintf(
       text, sizeof text,
       "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
@@ -200,9 +209,10 @@ std::string estimatorUsage() {
       "                           corrected by residual ratio tracking); preintegrated: unbiased ray\n"
       "                           marching whose control takes the network as linear between comb points\n"
       "                           and integrates the transfer function exactly over that (ratio tracking\n"
-      "                           with shadows, shading or gradient opacity). All converge to the same\n"
-      "                           image; ratio and the marches spend cheap queries for far less noise\n"
-      "                           (default %s)\n"
+      "                           with shadows, shading or gradient opacity); debiased: a ray march made\n"
+      "                           unbiased by refining each comb interval a random number of times (ratio\n"
+      "                           tracking with shadows or shading). All converge to the same image; ratio\n"
+      "                           and the marches spend cheap queries for far less noise (default %s)\n"
       "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; marches: comb\n"
       "                           points per unit of majorant optical depth; in [1, 1024] (default %g);\n"
       "                           higher = more queries per frame, less noise\n"
@@ -210,9 +220,18 @@ std::string estimatorUsage() {
       "                           0 = no correction: a plain jittered marcher, biased)\n"
       "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
       "                           (default %d); the image does not depend on it, only the frame time\n"
-      "  --roulette-threshold R   ratio: Russian roulette below this transmittance, in (0, 1] (default %g)\n",
+      "  --roulette-threshold R   ratio: Russian roulette below this transmittance, in (0, 1] (default %g)\n"
+      "  --level-ratio Q          debiased: probability of each further halving of a comb interval's step,\n"
+      "                           in (0, 1) (default %g; about (1 - Q) / (1 - 2Q) points per interval)\n"
+      "  --max-level L            debiased: at most L halvings, 0..%d (default %d; 0 = the plain march, biased)\n"
+      "  --comb-minimum-steps S   debiased, preintegrated: comb points at least every box diagonal / S in\n"
+      "                           non-empty macrocells (default %g; 0 = the majorant's density alone)\n"
+      "  --jitter random|stratified  sub-pixel jitter over frames: independent, or a low-discrepancy\n"
+      "                           sequence per pixel (unbiased per frame, less antialiasing noise over\n"
+      "                           frames) (default %s)\n",
       primaryEstimatorName(d.estimator), d.majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
-      d.pointsPerIteration, d.rouletteThreshold);
+      d.pointsPerIteration, d.rouletteThreshold, d.levelRatio, TrackingOptions::kMaxDebiasedLevel, d.maxLevel,
+      d.combMinimumSteps, d.stratifiedJitter ? "stratified" : "random");
   return text;
 }
 
@@ -336,7 +355,7 @@ void parseBlendMode(const Args& args, RenderJob& job) {
   if (args.has("method")) throw UsageError("--method applies to --blend composite, not " + mode);
   if (job.split != SplitKind::None) throw UsageError(std::string(job.splitOption()) + " applies to --blend composite, not " + mode);
   for (const char* option : {"converge", "shadows", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                             "roulette-threshold", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
+                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
                              "reproject", "no-reproject", "prune-epsilon", "prune-falloff", "ghost-passes",
                              "gradient-opacity", "step", "shadow-step", "shadow-estimator"}) {
     if (args.has(option)) throw UsageError(std::string("--") + option + " applies to --blend composite, not " + mode);
@@ -587,7 +606,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
+                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
                    "iso-tolerance", "slice-origin", "slice-normal", "crop"},
                   {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
                    "reproject", "no-reproject", "slice-opaque"});

@@ -21,12 +21,14 @@ constexpr int kTileWidth = 8, kTileHeight = kWarp / kTileWidth;
 // Stage II for ray i: complete and refine the previous query (when the launch says so), resume
 // tracking, append the next candidate's query. kPruning: the medium has expected scalars (the
 // kernel is compiled twice so the pass without pruning carries none of its registers). kPoints:
-// kDeltaPass, kRatioPass (ratio tracking and the first march) or kPreintegratedPass.
-constexpr int kDeltaPass = 0, kRatioPass = 1, kPreintegratedPass = 2;
+// kDeltaPass, or the point passes of ListedRay.cuh (cuda::kRatioPoints, kPreintegratedPoints,
+// kDebiasedPoints).
+constexpr int kDeltaPass = 0, kRatioPass = cuda::kRatioPoints, kPreintegratedPass = cuda::kPreintegratedPoints,
+              kDebiasedPass = cuda::kDebiasedPoints;
 template <bool kPruning, int kPoints>
 __device__ __forceinline__ void traverseListedRay(const TraversalLaunch& p, int i) {
   if (kPoints != kDeltaPass) {  // these estimators resolve their own points (RatioTracking.h)
-    cuda::traverseRatioListedRay<DdaWalker, kPruning, kPoints == kPreintegratedPass>(p, i);
+    cuda::traverseRatioListedRay<DdaWalker, kPruning, kPoints>(p, i);
     return;
   }
   if (p.resolvePrevious) cuda::completeListedQuery<kPruning>(p, i);
@@ -101,6 +103,11 @@ template <bool kPruning>
 __global__ void __launch_bounds__(kThreads, 5) ddaPreintegratedTraverseKernel(TraversalLaunch p, int tilesX) {
   traversePass<kPruning, kPreintegratedPass>(p, tilesX);
 }
+// The debiased march's pass (DebiasedMarch.h), at ratio tracking's bound.
+template <bool kPruning>
+__global__ void __launch_bounds__(kThreads, 5) ddaDebiasedTraverseKernel(TraversalLaunch p, int tilesX) {
+  traversePass<kPruning, kDebiasedPass>(p, tilesX);
+}
 
 class DdaTraversal final : public DeviceTraversal {
 public:
@@ -113,7 +120,9 @@ public:
                                       (const void*)ddaRatioTraverseKernel<false>,
                                       (const void*)ddaRatioTraverseKernel<true>,
                                       (const void*)ddaPreintegratedTraverseKernel<false>,
-                                      (const void*)ddaPreintegratedTraverseKernel<true>};
+                                      (const void*)ddaPreintegratedTraverseKernel<true>,
+                                      (const void*)ddaDebiasedTraverseKernel<false>,
+                                      (const void*)ddaDebiasedTraverseKernel<true>};
     for (int k = 0; k < kVariants; ++k) {
       INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernels[k], kThreads, 0));
       residentBlocks_[k] = std::max(1, sms * std::max(1, perSm));
@@ -128,7 +137,8 @@ public:
     if (launch.ratio && (!launch.outRayList || !launch.outRayCount || !launch.points.t))
       throw std::invalid_argument("DdaTraversal: a ratio-tracking launch needs its point storage and ray list");
     const bool preintegrated = launch.ratio && launch.fc.estimator == PrimaryEstimator::Preintegrated;
-    const int variant = (preintegrated ? 4 : launch.ratio ? 2 : 0) + (pruning ? 1 : 0);
+    const bool debiased = launch.ratio && launch.fc.estimator == PrimaryEstimator::Debiased;
+    const int variant = (debiased ? 6 : preintegrated ? 4 : launch.ratio ? 2 : 0) + (pruning ? 1 : 0);
     const int blocks = int(std::min<long long>(needed, residentBlocks_[variant]));
     // Pixel tiles only when the rays are exactly the image's pixels (ray i = pixel i).
     const CameraView& cam = launch.fc.camera;
@@ -141,14 +151,16 @@ public:
       case 2: ddaRatioTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
       case 3: ddaRatioTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
       case 4: ddaPreintegratedTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
-      default: ddaPreintegratedTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 5: ddaPreintegratedTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      case 6: ddaDebiasedTraverseKernel<false><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
+      default: ddaDebiasedTraverseKernel<true><<<blocks, kThreads, 0, stream>>>(launch, tilesX); break;
     }
     INR_CUDA_CHECK_LAUNCH("ddaTraverseKernel");
   }
 
 private:
-  static constexpr int kVariants = 6;  // delta / ratio / preintegrated x without / with pruning
-  int residentBlocks_[kVariants] = {1, 1, 1, 1, 1, 1};
+  static constexpr int kVariants = 8;  // delta / ratio / preintegrated / debiased x without / with pruning
+  int residentBlocks_[kVariants] = {1, 1, 1, 1, 1, 1, 1, 1};
 };
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Cuda/DeviceTraversal.h"
 #include "Render/Evaluate.h"
+#include "Render/DebiasedMarch.h"
 #include "Render/PreintegratedMarch.h"
 #include "Render/RatioTracking.h"
 
@@ -39,9 +40,11 @@ __device__ __forceinline__ void writeListedQuery(const TraversalLaunch& p, int i
 // evaluated points refine their macrocells and feed pruning's expected scalars as they are
 // folded in; the points that need the network are appended to the launch's query output with
 // their slots, and the ray to the next pass's list while it waits for them.
-// kPreintegrated: the pre-integrated march's pass (Render/PreintegratedMarch.h) instead, the same
-// way.
-template <typename Walker, bool kPruning, bool kPreintegrated = false>
+// kPass: kRatioPoints (ratio tracking and the first march), kPreintegratedPoints (the
+// pre-integrated march's pass, Render/PreintegratedMarch.h) or kDebiasedPoints (the debiased
+// march's, Render/DebiasedMarch.h), the same way.
+constexpr int kRatioPoints = 1, kPreintegratedPoints = 2, kDebiasedPoints = 3;
+template <typename Walker, bool kPruning, int kPass = kRatioPoints>
 __device__ __forceinline__ void traverseRatioListedRay(const TraversalLaunch& p, int i) {
   const RayStateView& rs = p.rs;
   const PointStateView& pts = p.points;
@@ -59,7 +62,9 @@ __device__ __forceinline__ void traverseRatioListedRay(const TraversalLaunch& p,
     p.outPoints[k] = make_float4(q.x, q.y, q.z, q.t);
     p.outRays[k] = slot;
   };
-  if (kPreintegrated)
+  if (kPass == kDebiasedPoints)
+    traverseDebiasedRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
+  else if (kPass == kPreintegratedPoints)
     traversePreintegratedRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);
   else
     traverseRatioRayWith<Walker, kPruning>(p.fc, p.medium, rs, pts, i, onEvaluated, emitQuery);

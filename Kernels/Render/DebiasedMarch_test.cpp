@@ -1,0 +1,283 @@
+// The debiased ray march (DebiasedMarch.h) on the CPU backend: its levels are drawn with the
+// documented probabilities, a homogeneous medium comes out exact, the estimate converges to the
+// image of delta tracking under a transfer function with sharp edges while the same march without
+// its random refinement does not, its convergence estimate is honest, and its image does not
+// depend on how the points are batched or on the thread count. The stratified sub-pixel jitter
+// (RayInit.h) is uniform per frame and evenly spread over frames.
+#include <gtest/gtest.h>
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "Render/DebiasedMarch.h"
+#include "Render/DeltaTrackingRenderer.h"
+#include "Render/RayInit.h"
+#include "TestSupport/TestFields.h"
+#include "TestSupport/TestScene.h"
+
+namespace inr {
+namespace {
+
+using test::SceneSetup;
+
+TrackingOptions debiased(double comb, int maxLevel = 5, double ratio = 0.3, double minimumSteps = 0.0,
+                         int points = 32) {
+  TrackingOptions t;
+  t.estimator = PrimaryEstimator::Debiased;
+  t.majorantScale = comb;
+  t.maxLevel = maxLevel;
+  t.levelRatio = ratio;
+  t.combMinimumSteps = minimumSteps;
+  t.pointsPerIteration = points;
+  return t;
+}
+
+// A transfer function with sharp edges, as the shipped ones have (PreintegratedMarch_test.cpp's).
+TransferFunction sharpTf() {
+  TransferFunction tf;
+  tf.color = {{0.0, 0.1, 0.2, 0.9}, {0.5, 0.9, 0.8, 0.2}, {0.75, 1.0, 0.2, 0.1}, {1.0, 0.3, 1.0, 0.3}};
+  tf.opacity = {{0.0, 0.0}, {0.45, 0.0}, {0.47, 0.5}, {0.72, 0.5}, {0.74, 0.95}, {0.78, 0.95}, {0.8, 0.3}, {1.0, 0.3}};
+  tf.unitDistance = 0.2;
+  return tf;
+}
+
+SceneSetup sharpScene(int size) {
+  SceneSetup s = test::obliqueCubeScene(size, 3);
+  s.settings.pixelJitter = false;
+  s.scene.transferFunction = sharpTf();
+  return s;
+}
+
+struct Rendered {
+  ImageRGBA image, premultiplied;
+  FrameStats total;  // summed; varianceSum and coveredPixels are the last frame's
+};
+
+Rendered render(const FieldEvaluator& f, const SceneSetup& setup, TrackingOptions options, int frames) {
+  MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
+  DeltaTrackingRenderer r(f, grid, options);
+  Rendered out;
+  out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
+  out.image = r.image();
+  out.premultiplied = r.premultipliedImage();
+  return out;
+}
+
+// ---- the levels
+
+TEST(DebiasedMarch, LevelsFollowTheirProbabilities) {
+  // P(level >= k) = r^k up to the cap, which takes the rest.
+  FrameConstants fc;
+  fc.levelRatio = 0.3f;
+  fc.maxLevel = 4;
+  const int n = 1 << 20;
+  int counts[8] = {};
+  for (int k = 0; k < n; ++k) ++counts[debiasedLevel(fc, (float(k) + 0.5f) / float(n))];
+  double atLeast = n;
+  for (int k = 0; k <= fc.maxLevel; ++k) {
+    const double expected = k < fc.maxLevel ? std::pow(0.3, k) * 0.7 : std::pow(0.3, k);
+    EXPECT_NEAR(counts[k] / double(n), expected, 1e-4) << "level " << k;
+    atLeast -= counts[k];
+  }
+  EXPECT_EQ(atLeast, 0.0);
+  EXPECT_EQ(debiasedLevel(fc, 0.f), 0);  // u = 0: v = 1, never refined
+}
+
+// ---- the estimator
+
+TEST(DebiasedMarch, HomogeneousMediumIsExactWhateverTheLevels) {
+  // A constant field: every level's march is exact, and the levels' weights sum to 1, so every
+  // frame is the exact image (up to rounding), whatever levels its intervals drew.
+  test::FunctionField f([](const QueryPoint&) { return 0.5f; });
+  SceneSetup s;
+  s.settings.width = s.settings.height = 32;
+  s.settings.seed = 7;
+  s.scene.camera = Camera::framing(test::kCubeBox);
+  s.scene.camera.parallelProjection = true;
+  s.scene.camera.parallelScale = 0.9;
+  TransferFunction tf;
+  tf.color = {{0, 0.2, 0.6, 1.0}, {1, 0.2, 0.6, 1.0}};
+  tf.opacity = {{0, 0.3}, {1, 0.3}};
+  tf.unitDistance = 0.5;
+  s.scene.transferFunction = tf;
+  const double p = 1.0 - std::pow(1.0 - 0.3, 2.0 / 0.5);  // two units of medium
+  TrackingOptions t = debiased(2.0, 5, 0.45);  // many refined intervals
+  t.rouletteThreshold = 1e-6;                  // (roulette would add noise)
+  const Rendered one = render(f, s, t, 3);  // (the variance needs two frames)
+  for (int px : {0, 100, 500, 1000}) {
+    EXPECT_NEAR(one.premultiplied.data[4 * px + 3], p, 2e-5) << "pixel " << px;
+    EXPECT_NEAR(one.premultiplied.data[4 * px + 2] / one.premultiplied.data[4 * px + 3], 1.0f, 1e-5);
+  }
+  EXPECT_LT(one.total.varianceSum, 1e-7);  // rounding only (a tracker's is of order 1 here)
+  EXPECT_EQ(one.total.cappedRays, 0u);
+}
+
+// The image the estimators converge to: ratio tracking (tested against delta tracking in
+// RatioTracking_test.cpp) at 2048 frames, and delta tracking at 1500 frames as a second check.
+struct Reference {
+  Rendered ratio, delta;
+};
+const Reference& sharpReference() {
+  static const Reference ref = [] {
+    test::FunctionField f(test::smoothField);
+    const SceneSetup setup = sharpScene(24);
+    Reference r;
+    r.ratio = render(f, setup, test::ratioTracking(8.0, 32), 2048);
+    r.delta = render(f, setup, TrackingOptions{}, 1500);
+    return r;
+  }();
+  return ref;
+}
+
+double psnrAgainst(const Rendered& r, const Rendered& ref) {
+  return test::psnrOverCoverage(r.image, ref.image, ref.premultiplied);
+}
+
+// The convergence estimate's mean squared error (FrameStats::varianceSum over the covered pixels).
+double estimatedMse(const Rendered& r) { return r.total.varianceSum / double(r.total.coveredPixels); }
+
+TEST(DebiasedMarch, ConvergesToDeltaTrackingWhereTheMarchDoesNot) {
+  test::FunctionField f(test::smoothField);
+  const Reference& ref = sharpReference();
+  const SceneSetup setup = sharpScene(24);
+  // A coarse comb (two points per unit of majorant optical depth, at least 16 per box diagonal),
+  // so the march's own error is large and the refinement has much to correct.
+  const TrackingOptions coarse = debiased(2.0, 5, 0.3, 16.0);
+  const Rendered m = render(f, setup, coarse, 256);
+  const double vsRatio = psnrAgainst(m, ref.ratio), vsDelta = psnrAgainst(m, ref.delta);
+  const double refs = psnrAgainst(ref.ratio, ref.delta);
+  std::printf("debiased (256 frames, k 2): %.2f dB against ratio tracking (2048 frames), %.2f dB against delta "
+              "tracking (1500 frames; ratio against delta: %.2f dB)\n",
+              vsRatio, vsDelta, refs);
+  EXPECT_GE(vsRatio, 45.0);
+  // Delta tracking's frames are the noisier reference, and the march's own remaining noise adds
+  // to theirs: within 1.5 dB of what ratio tracking's converged image scores against them.
+  EXPECT_GE(vsDelta, refs - 1.5);
+  // Controls, so that the comparison can fail: the same comb without refinement (max level 0:
+  // the plain march, biased) stays off by its bias however many frames it averages; one frame of
+  // the debiased march is far from converged.
+  TrackingOptions plain = coarse;
+  plain.maxLevel = 0;
+  const Rendered biased = render(f, setup, plain, 256);
+  const Rendered one = render(f, setup, coarse, 1);
+  const double psnrBiased = psnrAgainst(biased, ref.ratio), psnrOne = psnrAgainst(one, ref.ratio);
+  std::printf("the march without refinement (256 frames): %.2f dB; one debiased frame: %.2f dB\n", psnrBiased, psnrOne);
+  EXPECT_LT(psnrBiased, 40.0);
+  EXPECT_LT(psnrOne, 40.0);
+}
+
+// The convergence estimate (the pixels' sample variances, FrameStats::varianceSum) predicts the
+// error against the converged image within 1 dB; the reference's own error is taken off.
+TEST(DebiasedMarch, ConvergenceEstimateIsHonest) {
+  test::FunctionField f(test::smoothField);
+  const Reference& ref = sharpReference();
+  const double referenceMse = estimatedMse(ref.ratio);
+  for (int frames : {4, 16, 64}) {
+    const Rendered m = render(f, sharpScene(24), debiased(2.0, 5, 0.3, 16.0), frames);
+    const double estimate = -10.0 * std::log10(estimatedMse(m));
+    const double againstReference = psnrAgainst(m, ref.ratio);
+    const double measured = -10.0 * std::log10(std::pow(10.0, -againstReference / 10.0) - referenceMse);
+    std::printf("%4d frames: estimated %.2f dB, measured %.2f dB (%.2f dB against the reference, whose own estimate "
+                "is %.2f dB)\n",
+                frames, estimate, measured, againstReference, -10.0 * std::log10(referenceMse));
+    EXPECT_NEAR(estimate, measured, 1.0) << frames << " frames";
+  }
+}
+
+TEST(DebiasedMarch, ImageDoesNotDependOnPointsPerIteration) {
+  test::FunctionField f(test::smoothField);
+  SceneSetup setup = sharpScene(40);
+  setup.settings.pixelJitter = true;
+  auto run = [&](int points) {
+    TrackingOptions t = debiased(2.0, 4, 0.3, 0.0, points);
+    t.refineMacrocells = false;
+    return render(f, setup, t, 2);
+  };
+  // One point per iteration asked: the renderer takes 2^maxLevel (an interval must fit a batch).
+  const Rendered one = run(1), many = run(64);
+  EXPECT_TRUE(one.image.data == many.image.data);
+  EXPECT_LT(many.total.iterations, one.total.iterations);
+  EXPECT_EQ(one.total.cappedRays, 0u);
+}
+
+TEST(DebiasedMarch, IdenticalImagesForOneAndManyThreads) {
+  auto run = [](int threads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    test::FunctionField f(test::smoothField);
+    SceneSetup setup = sharpScene(96);  // above kParallelMinItems
+    setup.settings.pixelJitter = true;
+    TrackingOptions t = debiased(2.0);
+    t.stratifiedJitter = true;
+    const Rendered r = render(f, setup, t, 2);
+    omp_set_num_threads(saved);
+    return r.image.data;
+  };
+  EXPECT_TRUE(run(1) == run(4));
+}
+
+TEST(DebiasedMarch, ShadowsAndShadingRunRatioTracking) {
+  // No single emission point for a shadow ray: the renderer runs ratio tracking instead, with the
+  // comb density as its majorant scale; the image is ratio tracking's bit for bit.
+  test::FunctionField f(test::smoothField);
+  SceneSetup setup = sharpScene(24);
+  test::lightScene(setup.scene, true);
+  TrackingOptions ratio = debiased(3.0);
+  ratio.estimator = PrimaryEstimator::Ratio;
+  const Rendered a = render(f, setup, debiased(3.0), 2), b = render(f, setup, ratio, 2);
+  EXPECT_TRUE(a.image.data == b.image.data);
+}
+
+TEST(DebiasedMarch, OptionsAreValidatedAndNamed) {
+  EXPECT_NO_THROW(debiased(4.0).validate());
+  EXPECT_EQ(parsePrimaryEstimator("debiased"), PrimaryEstimator::Debiased);
+  EXPECT_STREQ(primaryEstimatorName(PrimaryEstimator::Debiased), "debiased");
+  for (double ratio : {0.0, 1.0, -0.5, double(NAN)}) {
+    TrackingOptions t = debiased(4.0, 5, ratio);
+    EXPECT_THROW(t.validate(), std::invalid_argument) << ratio;
+  }
+  for (int level : {-1, TrackingOptions::kMaxDebiasedLevel + 1}) {
+    TrackingOptions t = debiased(4.0, level);
+    EXPECT_THROW(t.validate(), std::invalid_argument) << level;
+  }
+}
+
+// ---- the stratified jitter
+
+TEST(StratifiedJitter, UniformPerFrameAndEvenOverFrames) {
+  // Over the pixels of one frame the positions are uniform (each frame's estimate is unbiased):
+  // a 4 x 4 histogram within 5 sigma of flat.
+  const int pixels = 1 << 16;
+  int histogram[16] = {};
+  for (int p = 0; p < pixels; ++p) {
+    float u0, u1;
+    stratifiedJitter(std::uint32_t(p), 37u, 5u, u0, u1);
+    ++histogram[int(u0 * 4) * 4 + int(u1 * 4)];
+  }
+  const double expected = pixels / 16.0;
+  for (int c = 0; c < 16; ++c) EXPECT_NEAR(histogram[c], expected, 5.0 * std::sqrt(expected)) << "cell " << c;
+  // Over the frames of one pixel they spread evenly: with 64 frames every cell of an 8 x 8 grid
+  // holds at most 3 (independent draws put 4 or more into some cell of most pixels: the control).
+  int stratifiedWorst = 0, randomWorst = 0;
+  for (std::uint32_t pixel = 0; pixel < 64; ++pixel) {
+    int cells[64] = {}, randomCells[64] = {};
+    for (std::uint32_t frame = 0; frame < 64; ++frame) {
+      float u0, u1;
+      stratifiedJitter(pixel, frame, 5u, u0, u1);
+      ++cells[int(u0 * 8) * 8 + int(u1 * 8)];
+      RngStream rng{pixel, frame, 5u, 0u};
+      const float r0 = rng.next(), r1 = rng.next();
+      ++randomCells[int(r0 * 8) * 8 + int(r1 * 8)];
+    }
+    stratifiedWorst = std::max(stratifiedWorst, *std::max_element(cells, cells + 64));
+    randomWorst = std::max(randomWorst, *std::max_element(randomCells, randomCells + 64));
+  }
+  EXPECT_LE(stratifiedWorst, 3);
+  EXPECT_GE(randomWorst, 4);
+}
+
+}  // namespace
+}  // namespace inr
