@@ -29,14 +29,15 @@ namespace fs = std::filesystem;
 
 // The estimators under test: ratio tracking (k = 4), unbiased ray marching (k = 2, kr = 1), the
 // pre-integrated march (k = 2, kr = 1; it takes at least TrackingOptions::kMinPreintegratedPoints
-// points per iteration whatever `points` says) and the debiased march (k = 2, at most 4 levels: at
-// least 16 points per iteration, stratified jitter as shipped).
+// points per iteration whatever `points` says) and the debiased march (k = 2, comb points at least
+// every diagonal / 64, at most 4 levels: at least 16 points per iteration, stratified jitter).
 std::vector<TrackingOptions> estimators(int points) {
   TrackingOptions preintegrated = test::unbiasedMarch(2.0, 1.0, points);
   preintegrated.estimator = PrimaryEstimator::Preintegrated;
   TrackingOptions debiased = test::unbiasedMarch(2.0, 1.0, points);
   debiased.estimator = PrimaryEstimator::Debiased;
   debiased.maxLevel = 4;
+  debiased.combMinimumSteps = 64.0;
   debiased.stratifiedJitter = true;
   return {test::ratioTracking(4.0, points), test::unbiasedMarch(2.0, 1.0, points), preintegrated, debiased};
 }
