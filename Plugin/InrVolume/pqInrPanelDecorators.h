@@ -17,6 +17,16 @@
  * Volume's own rows then hide (they do nothing for Surface, Slice, ParaView's Volume, ...). The
  * panel's search box still finds a hidden one only after switching type (as for ParaView's own
  * hidden rows).
+ *
+ * The rows of ParaView's Volume that INR Volume honours (Blend Mode, Isosurfaces, Slice Type,
+ * Use Cropping, the cropping box, ...) carry ParaView's own decorators, which show them only for
+ * "Volume" (and NVIDIA IndeX); a panel shows a row only when every decorator agrees, so another
+ * decorator cannot show it. Those decorators come from the property groups' hints after this
+ * interface is asked (and the cropping box is a group row, for which it is never asked), so a
+ * deferred pass over the panel, once its rows exist, makes each such decorator again from a copy
+ * of its XML in which "Representation is Volume" reads "Volume or INR Volume": the rows show for
+ * INR Volume in the places and under the conditions (Isosurfaces only with Blend Mode
+ * Isosurface, the box only with Use Cropping, ...) that ParaView gives them for Volume.
  */
 #ifndef pqInrPanelDecorators_h
 #define pqInrPanelDecorators_h

@@ -98,6 +98,17 @@ InrBlendTranslator::Result InrBlendTranslator::Translate(
       }
       r.blend.sliceOrigin = { origin[0], origin[1], origin[2] };
       r.blend.sliceNormal = { normal[0], normal[1], normal[2] };
+      // A zero normal is a state the panel passes through while a user types one (0 0 1 from
+      // 1 0 0 goes by 0 0 0): no plane yet, nothing to draw, as for a missing value.
+      const bool finite = std::isfinite(origin[0]) && std::isfinite(origin[1]) &&
+        std::isfinite(origin[2]) && std::isfinite(normal[0]) && std::isfinite(normal[1]) &&
+        std::isfinite(normal[2]);
+      if (!finite || (normal[0] == 0.0 && normal[1] == 0.0 && normal[2] == 0.0))
+      {
+        r.nothingToDraw = true;
+        r.empty = finite ? "slice: the Slice plane's normal is zero, nothing to draw"
+                         : "slice: the Slice plane is not finite, nothing to draw";
+      }
     }
   }
   else if (const char* name = unsupportedBlendName(mode))

@@ -33,8 +33,9 @@ public:
   struct Result
   {
     inr::BlendScene blend;
-    /// Isosurface with no value, or Slice without a plane: nothing to draw (not an error: the
-    /// state a user passes through while setting the mode up). `empty` says why, for the panel.
+    /// Isosurface with no value, or Slice without a plane (or with a zero normal): nothing to
+    /// draw (not an error: the state a user passes through while setting the mode up). `empty`
+    /// says why, for the panel.
     bool nothingToDraw = false;
     std::string empty;
     /// What is not drawn as asked (each a sentence naming the property).

@@ -8,6 +8,11 @@
 
 namespace
 {
+// A pixel the surfaces make at least this opaque writes their depth (254.5 / 255: opaque in an
+// 8-bit framebuffer); anti-aliased edges and translucent surfaces do not, as VTK's translucent
+// geometry does not.
+constexpr float kOpaqueSurfaceAlpha = 254.5f / 255.0f;
+
 bool sameBox(const inr::Box3f& a, const inr::Box3f& b)
 {
   return a.lo.x == b.lo.x && a.lo.y == b.lo.y && a.lo.z == b.lo.z && a.hi.x == b.hi.x &&
@@ -222,9 +227,27 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
     this->compositor.Upload(window, width, height, s.frames, image.data.data(), upscaled);
     this->uploadedWindow = window;
     this->uploadedEpoch = -1;  // a composite image after this must be uploaded again
+    // Where the surfaces are opaque their depth goes to the depth buffer, as opaque geometry's
+    // does (what is drawn or read after the volume sees them: another volume, the view's depth
+    // read-back), with the camera whose depth buffer TranslateScene read.
+    vtkCamera* cam = ren->GetActiveCamera();
+    vtkNew<vtkMatrix4x4> projection;
+    projection->DeepCopy(cam->GetCompositeProjectionTransformMatrix(
+      double(tile.width) / double(tile.height), -1, 1));
+    double eye[3], fwd[3];
+    cam->GetPosition(eye);
+    cam->GetDirectionOfProjection(fwd);
+    const std::vector<float> distance = s.renderer->surfaceDepth();
+    if (distance.size() == std::size_t(width) * std::size_t(height))
+    {
+      const std::vector<float> depth = InrFramebufferCompositor::RayDistancesToDepth(
+        distance.data(), image.data.data(), width, height, kOpaqueSurfaceAlpha,
+        projection->GetData(), eye, fwd, cam->GetParallelProjection() != 0);
+      this->compositor.UploadDepth(window, width, height, depth.data());
+    }
   }
   std::string error;
-  if (!this->compositor.Blend(window, &error))
+  if (!this->compositor.Blend(window, &error, /*writeDepth=*/true))
   {
     vtkErrorWithObjectMacro(self, << error);
   }
