@@ -46,7 +46,7 @@ struct InstrBuffers {
 // tangents, as emulateFusedTangents does (MlpProgramEmulation.cpp). LoadInput and Combine treat
 // every row alike (linear), so runRowInstr runs them for tangent rows too.
 template <int M, int THREADS>
-__device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+__device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                           float* __restrict__ out) {
   using L = TileRows<true>;
   constexpr int Q = M / 4;
@@ -147,7 +147,7 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
 // threads (tid: this thread's index among them); the caller synchronises afterwards. With
 // kTangents (the rows of TileRows<true>), runTangentRowInstr runs what needs a query's rows together.
 template <int M, int THREADS, bool kTangents = false>
-__device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+__device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                    const float4* __restrict__ points, float* __restrict__ out,
                                    const int* __restrict__ scatter) {
   if constexpr (kTangents) {
