@@ -210,6 +210,9 @@ std::string generateFusedKernelSource(const std::vector<MlpProgram>& forms, cons
       << "  static constexpr int kNumBuffers = " << layout.numBuffers << ";\n"
       << "  static constexpr int kMaxGemmOutPad = " << layout.maxGemmOutPad << ";\n"
       << "  static constexpr int kFusedFourier = " << (layout.fusedFourier ? 1 : 0) << ";\n"
+      << "  static constexpr int kHashGrid = "
+      << (std::any_of(p.instrs.begin(), p.instrs.end(), [](const MlpInstr& in) { return in.op == MlpOp::HashGrid; }) ? 1 : 0)
+      << ";\n"
       << "  __host__ __device__ static constexpr int ld(int b) {\n    switch (b) {\n";
     for (int b = 0; b < layout.numBuffers; ++b) s << "      case " << b << ": return " << layout.bufferLd[std::size_t(b)] << ";\n";
     s << "      default: return 0;\n    }\n  }\n"

@@ -526,7 +526,11 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   }
   // The kernels generated for this model (the mma.sync design: not with the wgmma kernel forced).
   if (fused && options.generatedKernels != GeneratedKernelUse::Off && options.mma != FusedMma::Wgmma) {
-    I.generated = std::make_unique<cuda::GeneratedKernels>(prog, I.device.major, I.device.minor, options.kernelCacheDir);
+    // (the configurations the options allow only: each kernel is a compilation)
+    const std::vector<int> tiles = options.tileQueries ? std::vector<int>{options.tileQueries} : std::vector<int>{128, 64, 32};
+    const std::vector<int> chunks = options.weightChunk ? std::vector<int>{options.weightChunk} : std::vector<int>{64, 32};
+    I.generated = std::make_unique<cuda::GeneratedKernels>(prog, I.device.major, I.device.minor, options.kernelCacheDir,
+                                                           tiles, chunks);
     I.generatedReport = I.generated->report();
     if (!I.generated->available()) I.generated.reset();
   } else if (options.generatedKernels == GeneratedKernelUse::Off) {

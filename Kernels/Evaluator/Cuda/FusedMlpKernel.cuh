@@ -83,11 +83,12 @@ struct SharedMemoryProgram {
   }
   __device__ static int weightStageRows(const FusedParams& P) { return stageRows(P); }
   __device__ static bool fusedFourier(const FusedParams& P) { return P.fusedFourier != 0; }
+  static constexpr bool kHashGrid = true;  // any instruction may be one
 };
 
 // A generated kernel's program (Evaluator/MlpKernelSource.h): Desc holds the instructions
 // (static constexpr MlpInstr instr(int)), kNumInstrs, kNumBuffers, ld(b) (halves per row of
-// buffer b), kMaxGemmOutPad and kFusedFourier, all compile-time constants of one network; the
+// buffer b), kMaxGemmOutPad, kFusedFourier and kHashGrid, all compile-time constants of one network; the
 // FusedParams it runs with describe the same program (the host checks that: GeneratedKernels.h).
 // The loop over the instructions is unrolled, each instruction a constexpr object, so the
 // kernel's code for it is what that instruction needs and nothing decodes it at run time.
@@ -129,6 +130,7 @@ struct ConstantProgram {
     return (Desc::kMaxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
   }
   __device__ static constexpr bool fusedFourier(const FusedParams&) { return Desc::kFusedFourier != 0; }
+  static constexpr bool kHashGrid = Desc::kHashGrid != 0;  // whether an instruction is a hash grid
 };
 
 // The kernel body: the persistent grid's tile loop, the program read through `prog`
@@ -180,8 +182,8 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
       // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
       if (in.fusedIntoPrevious || in.fusedIntoNext) return;  // uniform
       if (in.op != MlpOp::Gemm) {
-        runRowInstr<M, THREADS, kTangents>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out,
-                                           scatter);
+        runRowInstr<M, THREADS, kTangents, Program::kHashGrid>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base},
+                                                               tid, points, out, scatter);
         __syncthreads();
         return;
       }

@@ -75,6 +75,11 @@ TEST(GeneratedKernelSource, IsDeterministicAndFollowsTheProgram) {
   const MlpInstr& g = siren.instrs[std::size_t(gemm)];
   EXPECT_NE(a.source.find("in.nPad = " + std::to_string(g.nPad) + ";"), std::string::npos);
   EXPECT_NE(a.source.find("in.act = MlpAct::Sine;"), std::string::npos);
+  // No hash grid in the SIREN (its gathers are left out of the kernel), one in a hash-grid network.
+  EXPECT_NE(a.source.find("kHashGrid = 0"), std::string::npos);
+  EXPECT_NE(generateModelKernels(MlpProgram::compile(test::hashGridModel(test::hashGridMlp(3, 8, 12, 16, 1.5, 64, 2)).architecture))
+                .source.find("kHashGrid = 1"),
+            std::string::npos);
 }
 
 TEST(GeneratedKernelSource, RejectsAProgramTheKernelCannotRun) {

@@ -85,12 +85,13 @@ struct GeneratedKernels::Loaded {
   FusedKernel kernel = nullptr;
 };
 
-GeneratedKernels::GeneratedKernels(const MlpProgram& program, int major, int minor, const std::string& cacheDirOption) {
+GeneratedKernels::GeneratedKernels(const MlpProgram& program, int major, int minor, const std::string& cacheDirOption,
+                                   const std::vector<int>& tiles, const std::vector<int>& chunks) {
   const auto start = std::chrono::steady_clock::now();
   const std::string arch = "sm_" + std::to_string(major) + std::to_string(minor);
   ModelKernelSource all;
   try {
-    all = generateModelKernels(program);
+    all = generateModelKernels(program, tiles, chunks);
   } catch (const std::invalid_argument& e) {
     report_ = std::string("not generated: ") + e.what();
     return;

@@ -22,10 +22,11 @@ std::string defaultKernelCacheDir();
 
 class GeneratedKernels {
 public:
-  // Every tile (128, 64, 32) and weight chunk (64, 32), values and tangent rows, of `program`
-  // and, where it fuses a Fourier encoding, of its stored form, for compute capability
-  // major.minor. cacheDir: "" = defaultKernelCacheDir(), "none" = no disk cache.
-  GeneratedKernels(const MlpProgram& program, int major, int minor, const std::string& cacheDir);
+  // Every tile of `tiles` (128, 64, 32) and weight chunk of `chunks` (64, 32), values and tangent
+  // rows, of `program` and, where it fuses a Fourier encoding, of its stored form, for compute
+  // capability major.minor. cacheDir: "" = defaultKernelCacheDir(), "none" = no disk cache.
+  GeneratedKernels(const MlpProgram& program, int major, int minor, const std::string& cacheDir,
+                   const std::vector<int>& tiles = {128, 64, 32}, const std::vector<int>& chunks = {64, 32});
   ~GeneratedKernels();
   GeneratedKernels(const GeneratedKernels&) = delete;
   GeneratedKernels& operator=(const GeneratedKernels&) = delete;
