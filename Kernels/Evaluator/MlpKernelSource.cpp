@@ -113,8 +113,9 @@ void validateFusedProgram(const MlpProgram& p) {
       if (b < -1 || b >= std::max(1, p.numBuffers))
         bad(i, std::string("(") + opEnumName(in.op) + ") has " + name + " buffer " + std::to_string(b) + " (the program has " +
                    std::to_string(p.numBuffers) + ")");
+    // (an Output instruction reads column 0 of a value of any width: no padded input width)
     if (in.kPad < 0 || in.kPad % 16 || in.nPad < 0 || in.nPad % 16 || in.inWidth < 0 || in.outWidth < 0 ||
-        in.inWidth > std::max(in.kPad, 16) || in.outWidth > std::max(in.nPad, 16))
+        (in.op != MlpOp::Output && in.inWidth > std::max(in.kPad, 16)) || in.outWidth > std::max(in.nPad, 16))
       bad(i, std::string("(") + opEnumName(in.op) + ") has widths " + std::to_string(in.inWidth) + "->" +
                  std::to_string(in.outWidth) + " padded to " + std::to_string(in.kPad) + "->" + std::to_string(in.nPad) +
                  " (padded widths are multiples of 16, at least the logical ones)");

@@ -83,6 +83,12 @@ struct GeneratedKernels::Loaded {
   GeneratedKernelSpec spec;
   cudaLibrary_t library = nullptr;
   FusedKernel kernel = nullptr;
+  Loaded() = default;
+  Loaded(const Loaded&) = delete;
+  Loaded& operator=(const Loaded&) = delete;
+  ~Loaded() {
+    if (library) cudaLibraryUnload(library);
+  }
 };
 
 GeneratedKernels::GeneratedKernels(const MlpProgram& program, int major, int minor, const std::string& cacheDirOption,
@@ -162,7 +168,6 @@ GeneratedKernels::GeneratedKernels(const MlpProgram& program, int major, int min
     if (e == cudaSuccess) e = cudaLibraryGetKernel(&k, l->library, j.name.c_str());
     if (e != cudaSuccess) {
       cudaGetLastError();
-      if (l->library) cudaLibraryUnload(l->library);
       if (j.fromCache) {  // a damaged cache file: removed, compiled anew at the next load
         std::error_code ec;
         std::filesystem::remove(j.cached, ec);
@@ -186,10 +191,7 @@ GeneratedKernels::GeneratedKernels(const MlpProgram& program, int major, int min
   report_ = line;
 }
 
-GeneratedKernels::~GeneratedKernels() {
-  for (const auto& l : loaded_)
-    if (l->library) cudaLibraryUnload(l->library);
-}
+GeneratedKernels::~GeneratedKernels() = default;  // each Loaded unloads its library
 
 FusedKernel GeneratedKernels::kernel(int tile, int kc, bool storedEncoding, bool tangents) const {
   for (const auto& l : loaded_) {
