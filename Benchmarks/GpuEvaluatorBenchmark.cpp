@@ -8,7 +8,8 @@
 //                           [--batches N1,N2,...] [--points random|rays]
 //                           [--hash-pairs 0|1] [--l2-persist]
 //                           [--no-autotune] [--checksum] [--gradient] [--gradient-batch N]
-//                           [--tangent-autotune-batch N] [MODEL.inr ...]
+//                           [--tangent-autotune-batch N] [--generated off|auto|only]
+//                           [--kernel-cache DIR|none] [MODEL.inr ...]
 // --only keeps the models whose name contains NAME; --mma, --tile and --weight-chunk (mma.sync),
 // --ping-pong and --wgmma-columns (wgmma: the consumers take turns; output columns per weight
 // chunk) and --no-autotune fix
@@ -38,6 +39,12 @@
 // tangent rows; the per-thread path again where the model cannot run them, its note says why),
 // each with the time its first call took to choose the tangent scale and configurations;
 // --tangent-autotune-batch N times those on N queries (CudaEvaluatorOptions::tangentAutotuneBatch).
+// --generated selects the kernels generated for each model (issue 50, compiled by NVRTC at
+// construction: CudaEvaluatorOptions::generatedKernels): off (the built-in kernels only), auto
+// (both, autotuned: the default, or INR_GENERATED_KERNELS), only (the generated mma.sync kernels
+// alone); run it twice, off and only, for the interpreter and the generated kernel side by side.
+// The launch report ends with what the compilation did ([generated kernels: N kernels for sm_90,
+// NVRTC ..., seconds, how many from the cache]). --kernel-cache sets their cache folder.
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
@@ -225,6 +232,17 @@ int main(int argc, char** argv) {
     else if (a == "--gradient") gradient = true;
     else if (a == "--gradient-batch") gradientBatch = std::max(1, std::stoi(cl.value()));
     else if (a == "--tangent-autotune-batch") fixed.tangentAutotuneBatch = std::stoi(cl.value());  // < 0: refused
+    else if (a == "--generated") {
+      const std::string g = cl.value();
+      if (g == "off") fixed.generatedKernels = GeneratedKernelUse::Off;
+      else if (g == "auto") fixed.generatedKernels = GeneratedKernelUse::Auto;
+      else if (g == "only") fixed.generatedKernels = GeneratedKernelUse::Only;
+      else {
+        std::fprintf(stderr, "gpu_evaluator_benchmark: --generated takes off, auto or only, not '%s'\n", g.c_str());
+        return 2;
+      }
+    }
+    else if (a == "--kernel-cache") fixed.kernelCacheDir = cl.value();
     else if (a == "--mma") {
       const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_evaluator_benchmark");
       if (!m) return 2;
@@ -297,7 +315,8 @@ int main(int argc, char** argv) {
   std::printf("%-28s %-16s %9s %12s %12s %12s\n", "model", "path", "params", "median Gq/s", "min", "max");
   std::vector<Row> rows;
   const bool fixedConfig = fixed.mma != FusedMma::Auto || fixed.tileQueries || fixed.weightChunk || fixed.wgmmaPingPong >= 0 || fixed.wgmmaChunkColumns || fixed.wgmmaConsumers || fixed.wgmmaColumnSplit >= 0 || !fixed.autotuneBatch ||
-                          fixed.hashGridPairs >= 0 || fixed.storedEncoding >= 0;
+                          fixed.hashGridPairs >= 0 || fixed.storedEncoding >= 0 ||
+                          fixed.generatedKernels == GeneratedKernelUse::Only;
   for (const auto& [name, model] : models)
     for (int variant = 0; variant < 5; ++variant) {
       if (!only.empty() && name.find(only) == std::string::npos) continue;

@@ -8,10 +8,12 @@
 // Eigen arrays instead: Eigen's vectorised sin/exp/tanh are other implementations than the scalar
 // library functions here, so routing it through this function would change its results (and
 // speed).
+#if !defined(__CUDACC_RTC__)  // NVRTC: the math functions are built in (Common/RtcCompat.h)
 #include <cmath>
-#include <cstdint>
+#endif
 
 #include "Common/HostDevice.h"
+#include "Common/RtcCompat.h"
 
 namespace inr {
 

@@ -15,12 +15,15 @@
 //
 // The CPU reference evaluator (Evaluator/CpuInrEvaluator.cpp) computes the same formula on whole
 // Eigen arrays instead, for the reason Common/Activation.h gives.
+#if !defined(__CUDACC_RTC__)  // NVRTC: the fused kernels' device code only (Common/RtcCompat.h)
 #include <cmath>
-#include <cstdint>
-#include <cstring>
+
+#include "Evaluator/MlpProgram.h"
+#endif
 
 #include "Common/Activation.h"  // ActMath, INR_HD
-#include "Evaluator/MlpProgram.h"
+#include "Common/RtcCompat.h"
+#include "Evaluator/MlpInstr.h"
 
 namespace inr {
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstdint>
 #include <mutex>
 #include <optional>
@@ -21,6 +22,7 @@
 #include "Evaluator/Cuda/FusedMlpKernelHopper.cuh"
 #include "Evaluator/Cuda/FusedMlpKernels.h"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Cuda/GeneratedKernels.h"
 #include "Evaluator/Encodings.h"
 #include "Evaluator/MlpProgram.h"
 
@@ -132,8 +134,20 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 }  // namespace
 
+GeneratedKernelUse generatedKernelUseFromEnvironment() {
+  const char* v = std::getenv("INR_GENERATED_KERNELS");
+  if (!v) return GeneratedKernelUse::Auto;
+  const std::string s(v);
+  if (s == "off" || s == "0") return GeneratedKernelUse::Off;
+  if (s == "only") return GeneratedKernelUse::Only;
+  return GeneratedKernelUse::Auto;
+}
+
 struct CudaInrEvaluator::Impl {
   CudaDeviceInfo device;
+  // The kernels generated for this model (null: not built), and what became of them.
+  std::unique_ptr<cuda::GeneratedKernels> generated;
+  std::string generatedReport = "off";
   MlpProgram program;
   CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
   FusedConfig config;       // launches of kSmallBatchThreshold queries or more
@@ -362,8 +376,9 @@ void CudaInrEvaluator::Impl::launchFused(const FusedConfig& c, const float4* poi
   // grid-strided, so extra blocks just exit).
   const int tiles = (n + c.tile - 1) / c.tile;
   const int grid = std::min(tiles, c.gridBlocks);
-  const FusedKernel kernel =
-      c.wgmma ? cuda::hopperKernel(c.kc, c.consumers, c.splitEncoding, c.splitColumns) : cuda::mmaSyncKernel(c.tile, c.kc);
+  const FusedKernel kernel = c.wgmma       ? cuda::hopperKernel(c.kc, c.consumers, c.splitEncoding, c.splitColumns)
+                            : c.generated ? generated->kernel(c.tile, c.kc, c.storedEncoding, false)
+                                          : cuda::mmaSyncKernel(c.tile, c.kc);
   cuda::FusedParams P = c.splitEncoding ? paramsSplit : c.storedEncoding ? paramsStored : params;
   if (c.wgmma) {
     P.hopperStages = c.stages;
@@ -401,8 +416,9 @@ void CudaInrEvaluator::Impl::launchTangents(const FusedConfig& c, const float4* 
     const int i = P.tangentInput[axis];
     P.gradientScale[axis] = i >= 0 ? a * P.inScale[i] / P.tangentScale : 0.f;
   }
-  cuda::mmaSyncTangentKernel(c.tile, c.kc)<<<grid, c.tile * 4, c.sharedBytes, stream>>>(
-      P, points, n, deviceCount, reinterpret_cast<float*>(out), nullptr);
+  const FusedKernel kernel =
+      c.generated ? generated->kernel(c.tile, c.kc, c.storedEncoding, true) : cuda::mmaSyncTangentKernel(c.tile, c.kc);
+  kernel<<<grid, c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, reinterpret_cast<float*>(out), nullptr);
   INR_CUDA_CHECK_LAUNCH("fusedMlpKernel (tangent rows)");
 }
 
@@ -416,7 +432,7 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
   } else if (!tangentInputsOf(model.domain, model.architecture.inputDim, tangentInput)) {
     whyNoFusedTangents = "a world axis feeds more than one network input";
   }
-  if (whyNoFusedTangents.empty()) tangentCandidates = tuner.tangentCandidates(candidates);
+  if (whyNoFusedTangents.empty()) tangentCandidates = tuner.tangentCandidates(candidates, generated.get());
   if (whyNoFusedTangents.empty() && tangentCandidates.empty())
     whyNoFusedTangents = "no mma.sync configuration among the launch candidates (the kernel with tangent rows)";
   if (!whyNoFusedTangents.empty()) {
@@ -508,11 +524,29 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     fused = false;
     why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
   }
+  // The kernels generated for this model (the mma.sync design: not with the wgmma kernel forced).
+  if (fused && options.generatedKernels != GeneratedKernelUse::Off && options.mma != FusedMma::Wgmma) {
+    // (the configurations the options allow only: each kernel is a compilation)
+    const std::vector<int> tiles = options.tileQueries ? std::vector<int>{options.tileQueries} : std::vector<int>{128, 64, 32};
+    const std::vector<int> chunks = options.weightChunk ? std::vector<int>{options.weightChunk} : std::vector<int>{64, 32};
+    I.generated = std::make_unique<cuda::GeneratedKernels>(prog, I.device.major, I.device.minor, options.kernelCacheDir,
+                                                           tiles, chunks);
+    I.generatedReport = I.generated->report();
+    if (!I.generated->available()) I.generated.reset();
+  } else if (options.generatedKernels == GeneratedKernelUse::Off) {
+    I.generatedReport = "off (CudaEvaluatorOptions::generatedKernels / INR_GENERATED_KERNELS)";
+  } else if (fused) {
+    I.generatedReport = "off (the wgmma kernel requested)";
+  }
   const FusedLaunchAutotuner tuner(I.device, options);
   std::vector<FusedConfig> candidates;
   if (fused) {
-    candidates = tuner.candidates(I.params, I.paramsStored, I.paramsSplit, I.whyNoWgmma.empty());
-    if (candidates.empty()) {
+    candidates = tuner.candidates(I.params, I.paramsStored, I.paramsSplit, I.whyNoWgmma.empty(), I.generated.get());
+    if (candidates.empty() && options.generatedKernels == GeneratedKernelUse::Only) {
+      fused = false;
+      why = "only generated kernels requested (CudaEvaluatorOptions::generatedKernels / INR_GENERATED_KERNELS), and "
+            "there are none that fit: " + I.generatedReport;
+    } else if (candidates.empty()) {
       fused = false;
       if (options.storedEncoding == 2 && I.params.fusedFourier && I.paramsSplit.hopperSplitGemm < 0)
         why = "CudaEvaluatorOptions::storedEncoding 2 (the split encoding) needs the wgmma kernel " +
@@ -543,6 +577,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
   I.smallConfig = choice.small;
   I.launchReport = choice.report;
   if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
+  I.launchReport += " [generated kernels: " + I.generatedReport + "]";
   I.launchReport += persistence;
   I.prepareTangents(model, options, tuner, candidates);
 }
@@ -559,8 +594,8 @@ std::string CudaInrEvaluator::name() const {
              ? "cuda-fused-fp16 (" + configName(I.config) + ", " +
                    std::to_string(I.config.sharedBytes / 1024) + " KB smem, " +
                    std::to_string(I.config.gridBlocks / std::max(1, I.device.multiprocessors)) + " blocks/SM; under " +
-                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallConfig) + ") on " +
-                   I.device.name
+                   std::to_string(Impl::kSmallBatchThreshold) + " queries " + configName(I.smallConfig) +
+                   "; generated kernels: " + I.generatedReport + ") on " + I.device.name
              : "cuda-generic-fp32 (" + (I.program.fusable ? std::string("forced") : I.program.whyNotFused) + ") on " +
                    I.device.name;
 }
@@ -570,6 +605,12 @@ std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport;
 bool CudaInrEvaluator::usesWgmma() const {
   return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.wgmma || impl_->smallConfig.wgmma);
 }
+
+bool CudaInrEvaluator::usesGeneratedKernel() const {
+  return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.generated || impl_->smallConfig.generated);
+}
+
+std::string CudaInrEvaluator::generatedKernelReport() const { return impl_->generatedReport; }
 
 std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
 

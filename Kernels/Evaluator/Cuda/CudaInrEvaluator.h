@@ -12,6 +12,7 @@
 #include <cuda_runtime.h>
 
 #include <memory>
+#include <string>
 
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Evaluator/FieldEvaluator.h"
@@ -28,6 +29,15 @@ enum class FusedMma { Auto, MmaSync, Wgmma };
 // the per-thread fp32 forward mode (CudaPerThreadMlp) always (PerThread), or the tangent rows
 // only (FusedTangents: the constructor throws, saying why, where they cannot run).
 enum class CudaGradientPath { Auto, FusedTangents, PerThread };
+
+// Kernels generated for the model (issue 50; Evaluator/MlpKernelSource.h, Cuda/GeneratedKernels.h):
+// the fused mma.sync kernel with the network's program as compile-time constants, compiled at
+// construction by NVRTC for this GPU and cached on disk. Auto: they join the autotuned
+// candidates beside the built-in kernels (after them: without timing the built-in kernel runs);
+// Only: they are the only candidates (a Fused path throws where they cannot be built); Off: not
+// built. The environment variable INR_GENERATED_KERNELS (off, auto or only) sets the default.
+enum class GeneratedKernelUse { Auto, Off, Only };
+GeneratedKernelUse generatedKernelUseFromEnvironment();
 
 struct CudaEvaluatorOptions {
   int device = 0;
@@ -87,6 +97,11 @@ struct CudaEvaluatorOptions {
   // (1), one lane (0), or both autotuned (-1). The same bits either way.
   int hashGridPairs = -1;
   CudaGradientPath gradientPath = CudaGradientPath::Auto;
+  GeneratedKernelUse generatedKernels = generatedKernelUseFromEnvironment();
+  // Where the generated kernels' cubins are kept: "" = the environment variable
+  // INR_KERNEL_CACHE_DIR, else $XDG_CACHE_HOME/inr-volume/kernels, else
+  // ~/.cache/inr-volume/kernels; "none" = no disk cache (compiled at every construction).
+  std::string kernelCacheDir;
 };
 
 class CudaInrEvaluator final : public FieldEvaluator, public DeviceFieldEvaluator {
@@ -127,6 +142,10 @@ public:
   std::string launchReport() const;
   // Whether the fused launches (either batch size) use the wgmma kernel.
   bool usesWgmma() const;
+  // Whether the fused launches (either batch size) use a kernel generated for this model, and
+  // what became of the generated kernels ("N kernels for sm_90, ..." or why there are none).
+  bool usesGeneratedKernel() const;
+  std::string generatedKernelReport() const;
   std::string describeProgram() const;
 
 private:

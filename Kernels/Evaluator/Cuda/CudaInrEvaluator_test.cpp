@@ -427,5 +427,88 @@ TEST(CudaInrEvaluator, DeviceCountBoundsTheBatch) {
   }
 }
 
+// The kernels generated for each model (issue 50: the mma.sync kernel with the program as
+// compile-time constants, compiled by NVRTC at construction) in two configurations (tile 128 x
+// K 64 and tile 32 x K 32: four and one warp row groups, both weight chunks) and, for a fused
+// Fourier encoding, both forms: the same code as the interpreter with constants, so the same
+// bits as the interpreter in the same configuration (values, and values with gradients), within
+// the interpreter's bounds of the fp16 emulation and of the CPU reference.
+TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
+  REQUIRE_GPU();
+  for (const auto& [name, model] : allModels()) {
+    const MlpProgram program = MlpProgram::compile(model.architecture);
+    if (!program.fusable) continue;
+    bool fusedFourier = false;
+    for (const MlpInstr& in : program.instrs) fusedFourier |= in.fourierInput >= 0;
+    const auto pts = randomQueryPoints(model, 20011, 3);  // not a multiple of the tile
+    constexpr std::size_t kEmulated = 4001;
+    std::vector<float> ref(pts.size());
+    CpuInrEvaluator(model).evaluate(pts.data(), pts.size(), ref.data());
+    const std::vector<float> emu = emulated(model, pts, kEmulated);
+    const float lo = *std::min_element(ref.begin(), ref.end()), hi = *std::max_element(ref.begin(), ref.end());
+    const double scale = std::max(1.0, double(hi - lo));
+    for (const auto& [tile, kc] : {std::pair<int, int>{128, 64}, {32, 32}})
+      for (const int stored : {0, 1}) {
+        if (stored && !fusedFourier) continue;
+        auto options = [&](GeneratedKernelUse use) {
+          CudaEvaluatorOptions o = fixedFused(FusedMma::MmaSync);
+          o.tileQueries = tile;
+          o.weightChunk = kc;
+          o.generatedKernels = use;
+          o.tangentAutotuneBatch = 0;
+          if (fusedFourier) o.storedEncoding = stored;
+          return o;
+        };
+        const std::string which = name + " tile " + std::to_string(tile) + " x K " + std::to_string(kc) +
+                                  (stored ? " stored encoding" : "");
+        const CudaInrEvaluator interpreter(model, options(GeneratedKernelUse::Off));
+        std::unique_ptr<CudaInrEvaluator> made;
+        try {
+          made = std::make_unique<CudaInrEvaluator>(model, options(GeneratedKernelUse::Only));
+        } catch (const std::runtime_error& e) {
+          FAIL() << which << ": no generated kernel: " << e.what();
+        }
+        const CudaInrEvaluator& generated = *made;
+        ASSERT_TRUE(generated.usesGeneratedKernel()) << which << ": " << generated.launchReport();
+        ASSERT_FALSE(interpreter.usesGeneratedKernel()) << which << ": " << interpreter.launchReport();
+        std::vector<float> a(pts.size(), NAN), b(pts.size(), NAN);
+        interpreter.evaluate(pts.data(), pts.size(), a.data());
+        generated.evaluate(pts.data(), pts.size(), b.data());
+        for (std::size_t q = 0; q < pts.size(); ++q) ASSERT_EQ(a[q], b[q]) << which << " query " << q;
+        const Err e = compare(b, ref), em = compare(std::vector<float>(b.begin(), b.begin() + kEmulated), emu);
+        std::printf("%-30s %s: vs fp32 max %.3g mean %.3g; vs emulation mean %.3g [%s]\n", which.c_str(),
+                    generated.launchReport().substr(0, 60).c_str(), e.maxAbs, e.meanAbs, em.meanAbs,
+                    generated.generatedKernelReport().c_str());
+        EXPECT_LT(e.meanAbs, 2e-3 * scale) << which;
+        EXPECT_LT(e.maxAbs, 3e-2 * scale) << which;
+        EXPECT_LT(em.meanAbs, 5e-4) << which;
+        // Value + gradient (the tangent rows), where the model runs them.
+        if (!interpreter.usesFusedTangents()) continue;
+        ASSERT_TRUE(generated.usesFusedTangents()) << which << ": " << generated.gradientPath();
+        ASSERT_NE(generated.gradientPath().find("generated tile"), std::string::npos) << which << ": " << generated.gradientPath();
+        const std::size_t n = 5003;
+        std::vector<float> va(n), vb(n), ga(3 * n), gb(3 * n);
+        interpreter.evaluateWithGradient(pts.data(), n, va.data(), ga.data());
+        generated.evaluateWithGradient(pts.data(), n, vb.data(), gb.data());
+        for (std::size_t q = 0; q < n; ++q) {
+          ASSERT_EQ(va[q], vb[q]) << which << " value with gradient, query " << q;
+          for (int k = 0; k < 3; ++k) ASSERT_EQ(ga[3 * q + k], gb[3 * q + k]) << which << " gradient " << k << ", query " << q;
+        }
+      }
+  }
+}
+
+// Turned off, or impossible to build, the generated kernels leave the built-in ones running and
+// the report says why.
+TEST(CudaInrEvaluator, GeneratedKernelsOffLeaveTheInterpreter) {
+  REQUIRE_GPU();
+  CudaEvaluatorOptions o;
+  o.generatedKernels = GeneratedKernelUse::Off;
+  o.autotuneBatch = 0;
+  const CudaInrEvaluator gpu(bench::sirenPaper(), o);
+  EXPECT_FALSE(gpu.usesGeneratedKernel());
+  EXPECT_NE(gpu.name().find("generated kernels: off"), std::string::npos) << gpu.name();
+}
+
 }  // namespace
 }  // namespace inr

@@ -23,8 +23,7 @@
 // several slots and issues every load before it uses any.
 #include <cuda_fp16.h>
 
-#include <cstring>
-
+#include "Common/RtcCompat.h"
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
 #include "Evaluator/Encodings.h"

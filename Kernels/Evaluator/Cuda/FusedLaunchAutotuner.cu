@@ -14,7 +14,7 @@ namespace inr::cuda {
 std::string configName(const FusedConfig& c) {
   const std::string hash = c.hashGridPairs < 0 ? "" : c.hashGridPairs ? ", hash lane pairs" : ", hash lane per row";
   if (!c.wgmma)
-    return "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
+    return std::string(c.generated ? "generated " : "") + "tile " + std::to_string(c.tile) + " x K " + std::to_string(c.kc) + (c.storedEncoding ? ", stored encoding" : "") +
            (c.tangents ? ", tangent rows" : "") + hash;
   return "wgmma " + std::to_string(c.consumers) + "x" + std::to_string(kHopperRows) + " x N " +
          std::to_string(c.kc) + ", " + std::to_string(c.stages) + " slots" + (c.pingPong ? ", ping-pong" : "") +
@@ -37,9 +37,11 @@ std::size_t sharedLimit(const CudaDeviceInfo& device, FusedKernel kernel) {
 }  // namespace
 
 std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, const FusedParams& stored,
-                                                          const FusedParams& split, bool wgmmaRuns) const {
+                                                          const FusedParams& split, bool wgmmaRuns,
+                                                          const GeneratedKernels* generated) const {
   const CudaEvaluatorOptions& options = options_;
   std::vector<FusedConfig> candidates;
+  const bool onlyGenerated = options.generatedKernels == GeneratedKernelUse::Only;
   // mma.sync candidates first: without autotuning the first that fits runs, and that stays
   // the kernel (and arithmetic) of earlier versions; the wgmma kernel wins only by timing.
   if (options.mma != FusedMma::Wgmma)
@@ -59,7 +61,31 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
           int perSm = 0;
           INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
           if (perSm < 1) continue;
+          if (onlyGenerated) continue;
           candidates.push_back({false, t, kc, 0, false, storedEncoding, false, b, perSm * device_.multiprocessors, 0.0});
+        }
+      }
+  // The same configurations on the kernels generated for the model (the same shared memory; no
+  // static shared memory for the program, so a larger limit; their own register counts).
+  if (generated && generated->available() && options.mma != FusedMma::Wgmma)
+    for (int t : {128, 64, 32})
+      for (int kc : {64, 32}) {
+        if ((options.tileQueries && options.tileQueries != t) || (options.weightChunk && options.weightChunk != kc)) continue;
+        for (const bool storedEncoding : {true, false}) {
+          if (storedEncoding && !P.fusedFourier) continue;
+          if (P.fusedFourier && options.storedEncoding >= 0 && options.storedEncoding != int(storedEncoding)) continue;
+          const FusedKernel kernel = generated->kernel(t, kc, storedEncoding, false);
+          if (!kernel) continue;
+          const std::size_t limit = sharedLimit(device_, kernel);
+          INR_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, int(limit)));
+          const std::size_t b = fusedSharedBytes(t, kc, storedEncoding ? stored : P);
+          if (b > limit) continue;
+          int perSm = 0;
+          INR_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&perSm, kernel, t * 4, b));
+          if (perSm < 1) continue;
+          FusedConfig c{false, t, kc, 0, false, storedEncoding, false, b, perSm * device_.multiprocessors, 0.0};
+          c.generated = true;
+          candidates.push_back(c);
         }
       }
   // wgmma (consumers x 64 queries per round): two consumers, then one; per chunk width (widest
@@ -78,7 +104,7 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
   // kernel's dynamic shared-memory limit is set to all it may have, as for mma.sync (the fused
   // and the stored form share a kernel with different sizes, and another evaluator's launches
   // may need more than this one's; the split form has its own, hopperKernel(nc, consumers, true)).
-  if (wgmmaRuns)
+  if (wgmmaRuns && !onlyGenerated)
     for (const int consumers : {2, 1}) {
       if (options.wgmmaConsumers && options.wgmmaConsumers != consumers) continue;
       for (const int nc : {128, 64}) {
@@ -134,7 +160,8 @@ std::vector<FusedConfig> FusedLaunchAutotuner::candidates(const FusedParams& P, 
   return both;
 }
 
-std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vector<FusedConfig>& candidates) const {
+std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vector<FusedConfig>& candidates,
+                                                                 const GeneratedKernels* generated) const {
   std::vector<FusedConfig> out;
   for (FusedConfig c : candidates) {
     if (c.wgmma) continue;
@@ -142,10 +169,12 @@ std::vector<FusedConfig> FusedLaunchAutotuner::tangentCandidates(const std::vect
     // rows gather query by query (runTangentRowInstr) whatever it is, so each is taken once.
     c.hashGridPairs = -1;
     const auto same = [&](const FusedConfig& o) {
-      return o.tile == c.tile && o.kc == c.kc && o.storedEncoding == c.storedEncoding;
+      return o.tile == c.tile && o.kc == c.kc && o.storedEncoding == c.storedEncoding && o.generated == c.generated;
     };
     if (std::any_of(out.begin(), out.end(), same)) continue;
-    const FusedKernel kernel = mmaSyncTangentKernel(c.tile, c.kc);
+    const FusedKernel kernel = c.generated ? (generated ? generated->kernel(c.tile, c.kc, c.storedEncoding, true) : nullptr)
+                                           : mmaSyncTangentKernel(c.tile, c.kc);
+    if (!kernel) continue;
     // Its limit, not this candidate's size: the stored and the fused encoding share the kernel
     // with two sizes, and the larger must still launch after the smaller was set.
     const std::size_t limit = sharedLimit(device_, kernel);

@@ -18,6 +18,7 @@
 #include "Common/Cuda/CudaDevice.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
+#include "Evaluator/Cuda/GeneratedKernels.h"
 #include "Model/InrModel.h"
 
 namespace inr::cuda {
@@ -46,6 +47,8 @@ struct FusedConfig {
   bool tangents = false;
   int consumers = 2;  // wgmma: consumer warpgroups per block (tile = 64 x consumers, or 64 with splitColumns)
   bool splitColumns = false;  // wgmma, two consumers: both on one tile, splitting its column chunks
+  // mma.sync: the kernel generated for this model (GeneratedKernels.h) instead of the interpreter.
+  bool generated = false;
 };
 
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane
@@ -71,15 +74,19 @@ public:
   // first, then a lane per row). `params`: the program as compiled; `storedParams`:
   // the same with any Fourier encoding stored; `splitParams`: stored with one split for the
   // wgmma kernel (hopperSplitGemm -1: none). Sets each kernel's dynamic shared-memory limit.
+  // `generated`: the kernels generated for the model (null: none), each mma.sync configuration's
+  // after all the interpreter's (CudaEvaluatorOptions::generatedKernels Only: those alone).
   std::vector<FusedConfig> candidates(const FusedParams& params, const FusedParams& storedParams,
-                                      const FusedParams& splitParams, bool wgmmaRuns) const;
+                                      const FusedParams& splitParams, bool wgmmaRuns,
+                                      const GeneratedKernels* generated = nullptr) const;
 
   // The value + gradient configurations: each mma.sync candidate as the kernel with tangent rows
   // (the same shared memory; its own register count, so its own resident blocks), its dynamic
   // shared-memory limit set; once per tile, chunk and encoding (a hash grid's two gather lane
   // arrangements are one for the tangent rows). Empty when no candidate is mma.sync (wgmma
   // requested).
-  std::vector<FusedConfig> tangentCandidates(const std::vector<FusedConfig>& candidates) const;
+  std::vector<FusedConfig> tangentCandidates(const std::vector<FusedConfig>& candidates,
+                                             const GeneratedKernels* generated = nullptr) const;
 
   struct Choice {
     FusedConfig large;  // launches of kSmallBatchThreshold queries or more

@@ -3,10 +3,9 @@
 // tile's coordinates, shared-memory loads that stay where they stand, ldmatrix and mma.sync
 // (the Hopper kernel loads its A operand with ldmatrix too), and compile-time tags.
 #include <cuda_fp16.h>
-#include <cstdint>
-#include <type_traits>
 
 #include "Common/Activation.h"
+#include "Common/RtcCompat.h"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
 
 namespace inr::cuda {

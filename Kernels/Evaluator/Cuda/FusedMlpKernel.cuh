@@ -23,13 +23,21 @@
 // units, FusedMlpKernel{Values,Tangents}K{64,32}.cu, one mmaSyncKernelFor each, so they compile
 // in parallel; the evaluator reaches them through mmaSyncKernel() and mmaSyncTangentKernel()
 // (FusedMlpKernels.h, FusedMlpKernel.cu). Include this header in those files only.
+// The kernel body, fusedMlpTiles, reads the program through a policy: SharedMemoryProgram (the
+// interpreter above: the instructions copied from FusedParams to shared memory and decoded as
+// its loop runs) or ConstantProgram (a kernel generated for one network and compiled at run time
+// by NVRTC, Evaluator/MlpKernelSource.h: the instructions and the buffer layout are compile-time
+// constants, the loop over them is unrolled, and every branch on an instruction's fields folds
+// away). Both run the same code, so they compute the same bits.
 #include <cuda_fp16.h>
 #include <cuda_pipeline.h>
 
 #include "Evaluator/Cuda/FusedMlpDevice.cuh"
-#include "Evaluator/Cuda/FusedMlpKernels.h"
 #include "Evaluator/Cuda/FusedMlpParams.cuh"
 #include "Evaluator/Cuda/FusedMlpRowInstructions.cuh"
+#if !defined(__CUDACC_RTC__)
+#include "Evaluator/Cuda/FusedMlpKernels.h"
+#endif
 
 namespace inr::cuda {
 
@@ -48,12 +56,90 @@ __device__ inline void stageWeightChunk(const FusedParams& P, int ip, int nPad, 
   __pipeline_commit();
 }
 
-// At most 128 registers per thread for every tile size (min. 512 threads per SM): smaller tiles
-// exist so that two or four blocks share an SM and one's epilogue overlaps another's GEMM.
-template <int WR, int KC, bool kTangents>
-__global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
-                                                                  const unsigned* __restrict__ deviceCount,
-                                                                  float* __restrict__ out, const int* __restrict__ scatter) {
+// The interpreter's program: the instructions and the buffer layout in shared memory (uniform,
+// indexable without local-memory spills), loaded once per block by fusedMlpKernel, each
+// instruction copied to registers and decoded as the loop reaches it.
+struct SharedMemoryProgram {
+  const MlpInstr* instrs;
+  int numInstrs;
+  const int* start;  // per buffer, halves from the first
+  const int* ld;     // per buffer, halves per row
+  __device__ const MlpInstr& instr(int i) const { return instrs[i]; }
+  __device__ const int* bufferStart() const { return start; }
+  __device__ const int* bufferLd() const { return ld; }
+  // f(in, ip) for every instruction in order (in: a copy, so its fields stay in registers).
+  template <class F>
+  __device__ __forceinline__ void forEachInstruction(F&& f) const {
+    for (int ip = 0; ip < numInstrs; ++ip) {
+      const MlpInstr in = instrs[ip];
+      f(in, ip);
+    }
+  }
+  // Halves of the activation buffers and rows of the weight stage for tiles of M rows.
+  __device__ static int activationHalves(const FusedParams& P, int M) {
+    int halves = 0;
+    for (int b = 0; b < P.numBuffers; ++b) halves += M * P.bufferLd[b];
+    return halves;
+  }
+  __device__ static int weightStageRows(const FusedParams& P) { return stageRows(P); }
+  __device__ static bool fusedFourier(const FusedParams& P) { return P.fusedFourier != 0; }
+  static constexpr bool kHashGrid = true;  // any instruction may be one
+};
+
+// A generated kernel's program (Evaluator/MlpKernelSource.h): Desc holds the instructions
+// (static constexpr MlpInstr instr(int)), kNumInstrs, kNumBuffers, ld(b) (halves per row of
+// buffer b), kMaxGemmOutPad, kFusedFourier and kHashGrid, all compile-time constants of one network; the
+// FusedParams it runs with describe the same program (the host checks that: GeneratedKernels.h).
+// The loop over the instructions is unrolled, each instruction a constexpr object, so the
+// kernel's code for it is what that instruction needs and nothing decodes it at run time.
+template <class Desc, int M>
+struct ConstantProgram {
+  static_assert(Desc::kNumInstrs > 0 && Desc::kNumInstrs <= kMaxFusedInstrs, "a fused program has 1..64 instructions");
+  static_assert(Desc::kNumBuffers >= 1 && Desc::kNumBuffers <= kMaxBuffers, "a fused program has 1..4 buffers");
+  int start[kMaxBuffers], ld[kMaxBuffers];  // constants; arrays for RowTile (indices fold too)
+  __device__ ConstantProgram() {
+    int at = 0;
+#pragma unroll
+    for (int b = 0; b < kMaxBuffers; ++b) {
+      start[b] = at;
+      ld[b] = b < Desc::kNumBuffers ? Desc::ld(b) : 0;
+      at += b < Desc::kNumBuffers ? M * Desc::ld(b) : 0;
+    }
+  }
+  __device__ static constexpr MlpInstr instr(int i) { return Desc::instr(i); }
+  __device__ const int* bufferStart() const { return start; }
+  __device__ const int* bufferLd() const { return ld; }
+  template <int I, class F>
+  __device__ __forceinline__ static void unrolled(F& f) {
+    if constexpr (I < Desc::kNumInstrs) {
+      constexpr MlpInstr in = Desc::instr(I);
+      f(in, I);
+      unrolled<I + 1>(f);
+    }
+  }
+  template <class F>
+  __device__ __forceinline__ void forEachInstruction(F&& f) const {
+    unrolled<0>(f);
+  }
+  __device__ static constexpr int activationHalves(const FusedParams&, int m) {
+    int halves = 0;
+    for (int b = 0; b < Desc::kNumBuffers; ++b) halves += m * Desc::ld(b);
+    return halves;
+  }
+  __device__ static constexpr int weightStageRows(const FusedParams&) {
+    return (Desc::kMaxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
+  }
+  __device__ static constexpr bool fusedFourier(const FusedParams&) { return Desc::kFusedFourier != 0; }
+  static constexpr bool kHashGrid = Desc::kHashGrid != 0;  // whether an instruction is a hash grid
+};
+
+// The kernel body: the persistent grid's tile loop, the program read through `prog`
+// (SharedMemoryProgram or ConstantProgram, above; synchronised before the call where it is
+// loaded into shared memory).
+template <int WR, int KC, bool kTangents, class Program>
+__device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedParams& P, const float4* __restrict__ points,
+                                              int n, const unsigned* __restrict__ deviceCount, float* __restrict__ out,
+                                              const int* __restrict__ scatter) {
   // deviceCount: the batch size as written by an earlier kernel (n is then its upper bound), so
   // a producer-consumer loop needs no host round trip per batch.
   if (deviceCount) n = min(n, int(*deviceCount));
@@ -63,32 +149,20 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
   constexpr int THREADS = WR * 128;
   constexpr int kStride = KC + 8;  // halves per staged weight row
   extern __shared__ __align__(128) unsigned char smem[];
-  // The program and the buffer layout are read from shared memory (uniform, indexable without
-  // local-memory spills), loaded once per block.
-  __shared__ MlpInstr program[kMaxFusedInstrs];
-  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
+  const int* const bufferStart = prog.bufferStart();
+  const int* const bufferLd = prog.bufferLd();
   __half* const actBase = reinterpret_cast<__half*>(smem);
-  for (int i = threadIdx.x; i < P.numInstrs; i += THREADS) program[i] = P.instrs[i];
-  if (threadIdx.x == 0) {
-    int at = 0;
-    for (int b = 0; b < kMaxBuffers; ++b) {
-      bufferStart[b] = at;
-      bufferLd[b] = P.bufferLd[b];
-      if (b < P.numBuffers) at += M * P.bufferLd[b];
-    }
-  }
-  int actHalves = 0;
-  for (int b = 0; b < P.numBuffers; ++b) actHalves += M * P.bufferLd[b];
-  const int stageHalves = stageRows(P) * kStride;
+  const int actHalves = Program::activationHalves(P, M);
+  const int stageHalves = Program::weightStageRows(P) * kStride;
   __half* const wstage = actBase + actHalves;
   __half* const encStage = wstage + 2 * stageHalves;  // a fused Fourier encoding's chunk, if any
-  float* const coords = reinterpret_cast<float*>(encStage + encodingStageHalves(M, KC, P));
+  float* const coords = reinterpret_cast<float*>(encStage + (Program::fusedFourier(P) ? M * (KC + 8) : 0));
   float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
   float* const dotWeights = dotPart + M * 4;  // the final dot's weights (zero-padded), if any
-  for (int ip = 0; ip < P.numInstrs; ++ip)
-    if (P.instrs[ip].dotNext)
-      for (int c = threadIdx.x; c < P.instrs[ip].nPad; c += THREADS)
-        dotWeights[c] = P.floatWeights[P.instrs[ip].dotOffset + c];
+  prog.forEachInstruction([&](const MlpInstr& in, int) __attribute__((always_inline)) {
+    if (in.dotNext)
+      for (int c = threadIdx.x; c < in.nPad; c += THREADS) dotWeights[c] = P.floatWeights[in.dotOffset + c];
+  });
   __syncthreads();
 
   const int tid = threadIdx.x;
@@ -104,15 +178,14 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
     loadTileCoords<M, THREADS, kTangents>(P, points, base, rows, coords, tid);
     __syncthreads();
 
-    for (int ip = 0; ip < P.numInstrs; ++ip) {
-      const MlpInstr in = program[ip];  // a copy: fields stay in registers inside the loops
+    prog.forEachInstruction([&](const MlpInstr& in, int ip) __attribute__((always_inline)) {
       // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
-      if (in.fusedIntoPrevious || in.fusedIntoNext) continue;  // uniform
+      if (in.fusedIntoPrevious || in.fusedIntoNext) return;  // uniform
       if (in.op != MlpOp::Gemm) {
-        runRowInstr<M, THREADS, kTangents>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base}, tid, points, out,
-                                           scatter);
+        runRowInstr<M, THREADS, kTangents, Program::kHashGrid>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base},
+                                                               tid, points, out, scatter);
         __syncthreads();
-        continue;
+        return;
       }
       const int ldDst = in.dst >= 0 ? bufferLd[in.dst] : 0;
       __half* dst = in.dst >= 0 ? actBase + bufferStart[in.dst] : nullptr;
@@ -179,7 +252,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
               }
             };
             auto stage = [&](int gemm, int chunk) {
-              stageWeightChunk<THREADS, KC>(P, gemm, program[gemm].nPad, wstage, stageHalves, chunk, tid);
+              stageWeightChunk<THREADS, KC>(P, gemm, prog.instr(gemm).nPad, wstage, stageHalves, chunk, tid);
             };
             if (!firstChunkStaged) stage(ip, 0);  // else prefetched by the previous GEMM
             firstChunkStaged = false;
@@ -191,7 +264,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                 __pipeline_wait_prior(0);
               }
               if (encoded) {  // this chunk's columns of the encoding, two per thread and step
-                const MlpInstr& f = program[in.fourierInput];
+                const MlpInstr& f = prog.instr(in.fourierInput);
                 for (int idx = tid; idx < M * (KC / 2); idx += THREADS) {
                   const int r = idx / (KC / 2), k = 2 * (idx % (KC / 2)), col = chunk * KC + k;
                   // A tangent row: the element's derivative at its query's value row's inputs.
@@ -298,7 +371,7 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
               if (in.dotNext) {
                 // The network's final linear (next instruction): dot of the fp32 activations with
                 // its weights, reduced over the quad's lanes, then over the 4 column warps.
-                const MlpInstr& fin = program[ip + 1];
+                const MlpInstr& fin = prog.instr(ip + 1);
                 float part[2][2] = {{0.f, 0.f}, {0.f, 0.f}};
                 forEachPair([&](int mt, int half, int, int, int col, float v0, float v1) {
                   const float2 w = ldsFloat2InPlace(dotWeights + col);
@@ -315,10 +388,15 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
                   }
                 __syncthreads();
                 const float dotBias = P.floatWeights[fin.biasOffset];
+                // The column groups' partial sums, M apart (named here: NVRTC's front end crashes
+                // on the constexpr M used inside the lambda below).
+                const float* const part1 = dotPart + M;
+                const float* const part2 = dotPart + 2 * M;
+                const float* const part3 = dotPart + 3 * M;
                 for (int q = tid; q < rows; q += THREADS) {
                   auto pre = [&](int d) {  // direction d's dot product (the value's with the bias)
                     const int r = Rows::row(q, d);
-                    return dotPart[r] + dotPart[M + r] + dotPart[2 * M + r] + dotPart[3 * M + r] + (d == 0 ? dotBias : 0.f);
+                    return dotPart[r] + part1[r] + part2[r] + part3[r] + (d == 0 ? dotBias : 0.f);
                   };
                   emitOutput<kTangents>(P, fin.act, pre, base + q, points, out, scatter);
                 }
@@ -338,10 +416,35 @@ __global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P
           }
       }
       __syncthreads();
-    }
+    });
   }
 }
 
+// The interpreter. At most 128 registers per thread for every tile size (min. 512 threads per
+// SM): smaller tiles exist so that two or four blocks share an SM and one's epilogue overlaps
+// another's GEMM.
+template <int WR, int KC, bool kTangents>
+__global__ void __launch_bounds__(WR * 128, 4 / WR) fusedMlpKernel(FusedParams P, const float4* __restrict__ points, int n,
+                                                                  const unsigned* __restrict__ deviceCount,
+                                                                  float* __restrict__ out, const int* __restrict__ scatter) {
+  constexpr int M = 32 * WR;
+  __shared__ MlpInstr program[kMaxFusedInstrs];
+  __shared__ int bufferStart[kMaxBuffers], bufferLd[kMaxBuffers];
+  for (int i = threadIdx.x; i < P.numInstrs; i += WR * 128) program[i] = P.instrs[i];
+  if (threadIdx.x == 0) {
+    int at = 0;
+    for (int b = 0; b < kMaxBuffers; ++b) {
+      bufferStart[b] = at;
+      bufferLd[b] = P.bufferLd[b];
+      if (b < P.numBuffers) at += M * P.bufferLd[b];
+    }
+  }
+  __syncthreads();
+  fusedMlpTiles<WR, KC, kTangents>(SharedMemoryProgram{program, P.numInstrs, bufferStart, bufferLd}, P, points, n,
+                                   deviceCount, out, scatter);
+}
+
+#if !defined(__CUDACC_RTC__)
 // Tile of 32*WR rows, 4*WR warps; weight chunks of KC columns (declared in FusedMlpKernels.h).
 template <bool kTangents, int KC>
 FusedKernel mmaSyncKernelFor(int tile) {
@@ -351,5 +454,6 @@ FusedKernel mmaSyncKernelFor(int tile) {
     default: return fusedMlpKernel<1, KC, kTangents>;
   }
 }
+#endif
 
 }  // namespace inr::cuda

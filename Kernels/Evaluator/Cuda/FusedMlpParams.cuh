@@ -4,17 +4,22 @@
 // the mma.sync kernel's weight packing and its shared-memory size. Host and device code read
 // these; the kernels themselves are FusedMlpKernel.cu (mma.sync) and FusedMlpKernelHopper.cu
 // (wgmma), their entry points FusedMlpKernels.h.
+// The host-only parts (the packing, the shared-memory size) are left out under NVRTC, which
+// compiles the device code of a generated kernel (Evaluator/MlpKernelSource.h).
 #include <cuda_fp16.h>
-#include <cstddef>
-#include <cstdint>
+
+#include "Common/RtcCompat.h"
+#include "Evaluator/MlpInstr.h"
+#if !defined(__CUDACC_RTC__)
 #include <vector>
 
 #include "Evaluator/MlpProgram.h"
+#endif
 
 namespace inr::cuda {
 
-constexpr int kMaxBuffers = MlpProgram::kMaxFusedBuffers;
-constexpr int kMaxFusedInstrs = 64;
+constexpr int kMaxBuffers = 4;  // MlpProgram::kMaxFusedBuffers (static_assert below)
+using inr::kMaxFusedInstrs;
 constexpr int kStageRowAlign = 64;  // weight stage rows: GEMM outputs rounded up to 4 warps x 16
 
 struct OutputMap {
@@ -82,6 +87,9 @@ struct FusedParams {
 
 __host__ __device__ constexpr int kcIndex(int kc) { return kc == 64 ? 0 : 1; }
 
+#if !defined(__CUDACC_RTC__)
+static_assert(kMaxBuffers == MlpProgram::kMaxFusedBuffers, "the fused kernels' buffer limit is the program's");
+
 // The GEMM weights ([nPad][kPad] fp16 in MlpProgram::halfWeights) repacked chunk by chunk exactly
 // as the kernel's stage holds them: per K-chunk of KC, nPad rows of KC + 8 halves (zeros past
 // kPad and in the 8 padding columns). Staging a chunk is then one contiguous copy.
@@ -103,6 +111,8 @@ inline std::vector<std::uint16_t> packStagedWeights(const MlpProgram& prog, int 
   return packed;
 }
 
+#endif  // !__CUDACC_RTC__
+
 __host__ __device__ inline int stageRows(const FusedParams& P) {
   return (P.maxGemmOutPad + kStageRowAlign - 1) / kStageRowAlign * kStageRowAlign;
 }
@@ -114,11 +124,13 @@ __host__ __device__ inline int encodingStageHalves(int M, int KC, const FusedPar
   return P.fusedFourier ? M * (KC + 8) : 0;
 }
 
+#if !defined(__CUDACC_RTC__)
 inline std::size_t fusedSharedBytes(int M, int KC, const FusedParams& P) {
   std::size_t halves = 0;
   for (int b = 0; b < P.numBuffers; ++b) halves += std::size_t(M) * P.bufferLd[b];
   halves += std::size_t(2) * stageRows(P) * (KC + 8) + encodingStageHalves(M, KC, P);
   return halves * 2 + (std::size_t(M) * 8 + MlpProgram::kMaxFusedGemmOut) * 4;
 }
+#endif
 
 }  // namespace inr::cuda

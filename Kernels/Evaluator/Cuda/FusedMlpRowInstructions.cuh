@@ -46,7 +46,7 @@ struct InstrBuffers {
 // tangents, as emulateFusedTangents does (MlpProgramEmulation.cpp). LoadInput and Combine treat
 // every row alike (linear), so runRowInstr runs them for tangent rows too.
 template <int M, int THREADS>
-__device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+__device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                           float* __restrict__ out) {
   using L = TileRows<true>;
   constexpr int Q = M / 4;
@@ -146,8 +146,12 @@ __device__ inline void runTangentRowInstr(const FusedParams& P, const MlpInstr& 
 // LoadInput, DenseFp32, Fourier, HashGrid, Activation, Combine, OutputDot and Output on M rows with THREADS
 // threads (tid: this thread's index among them); the caller synchronises afterwards. With
 // kTangents (the rows of TileRows<true>), runTangentRowInstr runs what needs a query's rows together.
-template <int M, int THREADS, bool kTangents = false>
-__device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
+// kHashGrid false: the program has no hash grid, so the gathers (FusedHashGrid.cuh, a dozen
+// template instantiations) are not compiled at all (a generated kernel: the optimiser would
+// otherwise spend about as long on them as on the rest of the kernel). Force-inlined: a generated
+// kernel calls it once per row instruction, with that instruction's constants.
+template <int M, int THREADS, bool kTangents = false, bool kHashGrid = true>
+__device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                    const float4* __restrict__ points, float* __restrict__ out,
                                    const int* __restrict__ scatter) {
   if constexpr (kTangents) {
@@ -240,14 +244,16 @@ __device__ inline void runRowInstr(const FusedParams& P, const MlpInstr& in, con
       break;
     }
     case MlpOp::HashGrid: {
-      // The features from the fp16 tables (FusedHashGrid.cuh), rounded to fp16 like every buffer.
-      const HashGridColumns cols(in);
-      hashGridRows<M, THREADS>(HashGridView{P.floatWeights + in.floatOffset}, P.hashTables + in.halfOffset, in.inWidth,
-                               P.hashGridPairs != 0, coords, b.src, b.ldSrc, b.dst, b.ldDst, cols.featureAt, tid);
-      // Included inputs and zero padding: only those columns.
-      for (int r = warp; r < M; r += WARPS) {
-        for (int c = lane; c < cols.inputs; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
-        for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
+      if constexpr (kHashGrid) {
+        // The features from the fp16 tables (FusedHashGrid.cuh), rounded to fp16 like every buffer.
+        const HashGridColumns cols(in);
+        hashGridRows<M, THREADS>(HashGridView{P.floatWeights + in.floatOffset}, P.hashTables + in.halfOffset, in.inWidth,
+                                 P.hashGridPairs != 0, coords, b.src, b.ldSrc, b.dst, b.ldDst, cols.featureAt, tid);
+        // Included inputs and zero padding: only those columns.
+        for (int r = warp; r < M; r += WARPS) {
+          for (int c = lane; c < cols.inputs; c += 32) b.dst[r * b.ldDst + cols.inputAt + c] = __float2half(input(r, c));
+          for (int c = in.outWidth + lane; c < in.nPad; c += 32) b.dst[r * b.ldDst + c] = __float2half(0.f);
+        }
       }
       break;
     }

@@ -1,0 +1,174 @@
+// The source of the fused kernels generated per network (Evaluator/MlpKernelSource.h), without a
+// GPU: deterministic, rejecting programs the kernel cannot run with a clear error, and compiling
+// with NVRTC (to PTX, which needs no GPU) for compute_90 and compute_80 for every shipped model
+// and the paper-size synthetic ones, exactly as the evaluator generates it at model load.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "Evaluator/Cuda/NvrtcCompiler.h"
+#include "Evaluator/MlpKernelSource.h"
+#include "Evaluator/MlpProgram.h"
+#include "TestSupport/HashGridModels.h"
+#include "TestSupport/PaperArchitectures.h"
+#include "TestSupport/ShippedModels.h"
+
+namespace inr {
+namespace {
+
+std::vector<std::pair<std::string, InrModel>> everyModel() {
+  std::vector<std::pair<std::string, InrModel>> out;
+  out.emplace_back("SIREN paper", bench::sirenPaper());
+  out.emplace_back("FFN paper", bench::ffnPaper());
+  out.emplace_back("CoordNet paper", bench::coordNetPaper());
+  out.emplace_back("HashGrid 3D + 2x64", test::hashGridModel(test::hashGridMlp(3, 16, 16, 16, 1.5, 64, 2)));
+  for (const char* folder : {"models", "real"})
+    for (const auto& path : test::shippedModels(folder))
+      out.emplace_back(std::filesystem::path(path).filename().string(), InrModel::loadFile(path));
+  return out;
+}
+
+// The line of `source` holding `text`, for a failure message.
+std::string lineWith(const std::string& source, const std::string& text) {
+  const std::size_t at = source.find(text);
+  if (at == std::string::npos) return "(not found)";
+  const std::size_t begin = source.rfind('\n', at) + 1, end = source.find('\n', at);
+  return source.substr(begin, end - begin);
+}
+
+TEST(GeneratedKernelSource, IsDeterministicAndFollowsTheProgram) {
+  const MlpProgram siren = MlpProgram::compile(bench::sirenPaper().architecture);
+  const ModelKernelSource a = generateModelKernels(siren), b = generateModelKernels(MlpProgram::compile(bench::sirenPaper().architecture));
+  EXPECT_EQ(a.source, b.source);
+  // Every kernel is there under its name, one form (no fused encoding) with tangents.
+  ASSERT_EQ(a.forms.size(), 1u);
+  EXPECT_EQ(a.kernels.size(), 12u);
+  for (const GeneratedKernelSpec& k : a.kernels)
+    EXPECT_NE(a.source.find("void __launch_bounds__(" + std::to_string(k.tile * 4) + ", " + std::to_string(128 / k.tile) + ") " +
+                            generatedKernelName(k) + "("),
+              std::string::npos)
+        << generatedKernelName(k);
+  // The FFN's fused encoding gives the stored form too (as the interpreter's candidates have it).
+  const ModelKernelSource ffn = generateModelKernels(MlpProgram::compile(bench::ffnPaper().architecture));
+  ASSERT_EQ(ffn.forms.size(), 2u);
+  EXPECT_NE(ffn.source.find("kFusedFourier = 1"), std::string::npos);
+  EXPECT_NE(ffn.source.find("kFusedFourier = 0"), std::string::npos);
+  // A constant of the program changed changes the text: the residual scale, exactly (an exact
+  // hexadecimal literal; 0.5 = 0x800000 x 2^-24).
+  MlpProgram changed = siren;
+  int gemm = -1;
+  for (std::size_t i = 0; i < changed.instrs.size() && gemm < 0; ++i)
+    if (changed.instrs[i].op == MlpOp::Gemm) gemm = int(i);
+  ASSERT_GE(gemm, 0);
+  changed.instrs[std::size_t(gemm)].combineScale = 0.5f;
+  const std::string c = generateModelKernels(changed).source;
+  EXPECT_NE(c, a.source);
+  EXPECT_NE(c.find("in.combineScale = 0x800000p-24f;  // 0.5"), std::string::npos) << lineWith(c, "combineScale");
+  // Widths and activations are written as the program has them.
+  const MlpInstr& g = siren.instrs[std::size_t(gemm)];
+  EXPECT_NE(a.source.find("in.nPad = " + std::to_string(g.nPad) + ";"), std::string::npos);
+  EXPECT_NE(a.source.find("in.act = MlpAct::Sine;"), std::string::npos);
+  // No hash grid in the SIREN (its gathers are left out of the kernel), one in a hash-grid network.
+  EXPECT_NE(a.source.find("kHashGrid = 0"), std::string::npos);
+  EXPECT_NE(generateModelKernels(MlpProgram::compile(test::hashGridModel(test::hashGridMlp(3, 8, 12, 16, 1.5, 64, 2)).architecture))
+                .source.find("kHashGrid = 1"),
+            std::string::npos);
+}
+
+TEST(GeneratedKernelSource, RejectsAProgramTheKernelCannotRun) {
+  const MlpProgram siren = MlpProgram::compile(bench::sirenPaper().architecture);
+  auto message = [](const MlpProgram& p) -> std::string {
+    try {
+      generateModelKernels(p);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  MlpProgram p = siren;
+  p.instrs[1].dst = 7;  // no such buffer
+  EXPECT_NE(message(p).find("instruction 1"), std::string::npos) << message(p);
+  EXPECT_NE(message(p).find("dst buffer 7"), std::string::npos) << message(p);
+  p = siren;
+  p.instrs[1].kPad = 20;  // not a multiple of 16
+  EXPECT_NE(message(p).find("padded"), std::string::npos) << message(p);
+  p = siren;
+  p.instrs[1].combineScale = INFINITY;
+  EXPECT_NE(message(p).find("non-finite scale"), std::string::npos) << message(p);
+  p = siren;
+  p.fusable = false;
+  p.whyNotFused = "a test's reason";
+  EXPECT_NE(message(p).find("a test's reason"), std::string::npos) << message(p);
+  p = siren;
+  p.instrs.resize(kMaxFusedInstrs + 1, p.instrs.back());
+  EXPECT_NE(message(p).find("up to 64"), std::string::npos) << message(p);
+  p = siren;
+  p.instrs.back().op = MlpOp::Activation;
+  p.instrs.back().fusedIntoPrevious = 0;
+  EXPECT_FALSE(message(p).empty());
+  // And the shipped programs pass.
+  EXPECT_EQ(message(siren), "");
+  // A kernel the generator does not know.
+  EXPECT_THROW(generateFusedKernelSource({siren}, {{0, 96, 64, false}}), std::invalid_argument);
+  EXPECT_THROW(generateFusedKernelSource({siren}, {{1, 128, 64, false}}), std::invalid_argument);
+}
+
+// What NVRTC says about a source that does not compile: the error names the file and quotes the
+// log's first lines (how the evaluator's report says why it fell back).
+TEST(GeneratedKernelSource, NvrtcErrorsQuoteTheLog) {
+  const cuda::NvrtcOutput out = cuda::compileWithNvrtc("extern \"C\" __global__ void k() { undeclared_name(); }\n",
+                                                       "broken.cu", "compute_90");
+  EXPECT_FALSE(out.ok);
+  EXPECT_NE(out.error.find("broken.cu"), std::string::npos) << out.error;
+  EXPECT_NE(out.error.find("undeclared_name"), std::string::npos) << out.error;
+}
+
+// Every model's generated kernels, exactly the evaluator's set, through NVRTC's front end for
+// Hopper and Ampere (every template instantiated with the model's constants and checked); and
+// one kernel of the paper SIREN (values, tile 128, chunk 64) and one with tangent rows of the
+// paper FFN (its stored form) compiled to PTX (NVRTC's optimiser: tens of seconds per kernel on
+// a CI machine, so not for every model). The PTX has the kernel's entry.
+TEST(GeneratedKernelSource, CompilesWithNvrtcForEveryModel) {
+  ASSERT_FALSE(cuda::cudaToolkitIncludeDir().empty()) << "no CUDA include folder with cuda_fp16.h (INR_CUDA_INCLUDE_DIR)";
+  std::printf("NVRTC %s, CUDA headers %s\n", cuda::nvrtcVersionString().c_str(), cuda::cudaToolkitIncludeDir().c_str());
+  for (const auto& [name, model] : everyModel()) {
+    const MlpProgram program = MlpProgram::compile(model.architecture);
+    if (!program.fusable || int(program.instrs.size()) > kMaxFusedInstrs) {
+      std::printf("%-36s not fusable: %s\n", name.c_str(), program.whyNotFused.c_str());
+      continue;
+    }
+    const ModelKernelSource m = generateModelKernels(program);
+    for (const char* arch : {"compute_90", "compute_80"}) {
+      const cuda::NvrtcOutput out = cuda::compileWithNvrtc(m.source, name + ".cu", arch, true);
+      ASSERT_TRUE(out.ok) << name << " " << arch << ": " << out.error << "\n" << out.log;
+      std::printf("%-36s %s: %zu kernels through the front end, %.2f s\n", name.c_str(), arch, m.kernels.size(), out.seconds);
+    }
+  }
+  struct Full {
+    InrModel model;
+    GeneratedKernelSpec kernel;
+  };
+  for (const Full& f : {Full{bench::sirenPaper(), {0, 128, 64, false}}, Full{bench::ffnPaper(), {1, 64, 32, true}}}) {
+    const MlpProgram program = MlpProgram::compile(f.model.architecture);
+    std::vector<MlpProgram> forms = {program};
+    if (f.kernel.form == 1) forms.push_back(program.withEncodingsStored());
+    const std::string source = generateFusedKernelSource(forms, {f.kernel});
+    for (const char* arch : {"compute_90", "compute_80"}) {
+      const cuda::NvrtcOutput out = cuda::compileWithNvrtc(source, generatedKernelName(f.kernel) + ".cu", arch);
+      ASSERT_TRUE(out.ok) << generatedKernelName(f.kernel) << " " << arch << ": " << out.error << "\n" << out.log;
+      EXPECT_NE(out.image.find(".entry " + generatedKernelName(f.kernel)), std::string::npos) << arch;
+      std::printf("%s %s: %zu KB PTX, %.2f s\n", generatedKernelName(f.kernel).c_str(), arch, out.image.size() / 1024,
+                  out.seconds);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace inr
