@@ -546,16 +546,14 @@ void TransferFunctionTable::buildTransfer2D(const TransferFunction& tf) {
       throw std::invalid_argument("2D transfer function: pixel (" + std::to_string((k / 4) % t.width) + ", " +
                                   std::to_string((k / 4) / t.width) + ") is not finite");
   }
-  // Cell-centred pixels (TransferFunction::transfer2D): the table's entries sit at the centres, and
-  // beyond the outer centres the lookup clamps, as a texture does at its edges. One column or row
-  // is doubled so the bilinear lookup has two.
+  // The pixels are the table's entries, end to end over the ranges (TransferFunction::transfer2D);
+  // beyond the ends the lookup clamps. One column or row is doubled so the bilinear lookup has two.
   const int W = std::max(t.width, 2), H = std::max(t.height, 2);
-  const double dx = (t.scalarHi - t.scalarLo) / t.width, dg = (t.gradientHi - t.gradientLo) / t.height;
-  lo_ = float(t.width > 1 ? t.scalarLo + 0.5 * dx : t.scalarLo);
-  hi_ = float(t.width > 1 ? t.scalarHi - 0.5 * dx : t.scalarHi);
+  lo_ = float(t.scalarLo);
+  hi_ = float(t.scalarHi);
   if (!(hi_ > lo_)) hi_ = lo_ + std::max(std::abs(lo_) * 1e-6f, 1e-30f);  // (float rounding of a tiny range)
-  gradientLo_ = float(t.height > 1 ? t.gradientLo + 0.5 * dg : t.gradientLo);
-  gradientHi_ = float(t.height > 1 ? t.gradientHi - 0.5 * dg : t.gradientHi);
+  gradientLo_ = float(t.gradientLo);
+  gradientHi_ = float(t.gradientHi);
   if (!(gradientHi_ > gradientLo_)) gradientHi_ = gradientLo_ + std::max(std::abs(gradientLo_) * 1e-6f, 1e-30f);
   size_ = W;
   gradientSize_ = H;

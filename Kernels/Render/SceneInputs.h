@@ -63,11 +63,11 @@ struct TransferFunction {
   // |grad f|, model space as for gradient opacity), looked up bilinearly, clamped at the edges. On
   // (width and height > 0) it replaces `color`, `opacity` and `gradientOpacity`; the opacity is
   // per `unitDistance`, as the scalar opacity's. Pixel (i, j) is rgba[4 (j width + i) ...]: colour
-  // (not premultiplied) and opacity, row j = 0 the smallest magnitude. Pixels are cells, as
-  // vtkPVTransferFunction2D lays them out (origin = the range's low corner, spacing = range /
-  // dimensions): column i spans scalars [scalarLo + i dx, scalarLo + (i + 1) dx], dx = (scalarHi -
-  // scalarLo) / width, and its value holds at the cell's centre (VTK's texture lookup over the
-  // range); rows likewise over [gradientLo, gradientHi].
+  // (not premultiplied) and opacity, row j = 0 the smallest magnitude. The pixels are samples
+  // spread over the ranges end to end, as the engine's 1D table and VTK's GPU mapper (which
+  // resamples the image to its texture with the first and last pixels at the ends of the range)
+  // place them: column i at scalarLo + i (scalarHi - scalarLo) / (width - 1), row j at gradientLo +
+  // j (gradientHi - gradientLo) / (height - 1); one column or row is constant along its axis.
   struct Transfer2D {
     int width = 0, height = 0;
     std::vector<float> rgba;

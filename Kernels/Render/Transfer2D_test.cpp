@@ -32,8 +32,8 @@ double blobGradientNorm(double v) {
   return 2.0 / test::kBlobWidth * v * std::sqrt(-std::log(v));
 }
 
-// A 2D transfer function from a function of (scalar, gradient magnitude) sampled at the pixels'
-// centres.
+// A 2D transfer function from a function of (scalar, gradient magnitude) sampled at the pixels
+// (end to end over the ranges).
 template <typename F>
 TransferFunction::Transfer2D sampled2D(int width, int height, double sLo, double sHi, double gLo, double gHi, F&& f) {
   TransferFunction::Transfer2D t;
@@ -46,7 +46,8 @@ TransferFunction::Transfer2D sampled2D(int width, int height, double sLo, double
   t.rgba.resize(std::size_t(4) * width * height);
   for (int j = 0; j < height; ++j) {
     for (int i = 0; i < width; ++i) {
-      const double s = sLo + (i + 0.5) * (sHi - sLo) / width, g = gLo + (j + 0.5) * (gHi - gLo) / height;
+      const double s = width > 1 ? sLo + i * (sHi - sLo) / (width - 1) : sLo;
+      const double g = height > 1 ? gLo + j * (gHi - gLo) / (height - 1) : gLo;
       const std::array<double, 4> c = f(s, g);
       for (int k = 0; k < 4; ++k) t.rgba[std::size_t(4) * (std::size_t(j) * width + i) + k] = float(c[k]);
     }
@@ -105,10 +106,10 @@ test::SceneSetup firstRowScene(int size) {
   return s;
 }
 
-TEST(Transfer2D, TableIsBilinearOverPixelCentresAndClamps) {
-  // 3 x 2 pixels over scalars [0, 3] and magnitudes [0, 2]: centres at s = 0.5, 1.5, 2.5, g = 0.5, 1.5.
+TEST(Transfer2D, TableIsBilinearOverThePixelsAndClamps) {
+  // 3 x 2 pixels over scalars [0.5, 2.5] and magnitudes [0.5, 1.5]: at s = 0.5, 1.5, 2.5, g = 0.5, 1.5.
   TransferFunction tf;
-  tf.transfer2D = sampled2D(3, 2, 0.0, 3.0, 0.0, 2.0, [](double s, double g) {
+  tf.transfer2D = sampled2D(3, 2, 0.5, 2.5, 0.5, 1.5, [](double s, double g) {
     return std::array<double, 4>{s / 3.0, g / 2.0, 0.5, 0.1 * s + 0.2 * g};
   });
   EXPECT_TRUE(tf.usesTransfer2D());
@@ -130,7 +131,7 @@ TEST(Transfer2D, TableIsBilinearOverPixelCentresAndClamps) {
       EXPECT_NEAR(c.y, g / 2.0, 1e-6);
     }
   }
-  // Beyond the outer centres: the edge pixels (a texture clamped to its edge); NaN: the low end.
+  // Beyond the ends: the edge pixels (a texture clamped to its edge); NaN: the low end.
   EXPECT_NEAR(lookupTransferFunction2D(v, -5.f, 9.f).w, opacity(0.5, 1.5), 1e-6);
   EXPECT_NEAR(lookupTransferFunction2D(v, 0.2f, 0.1f).w, opacity(0.5, 0.5), 1e-6);
   EXPECT_NEAR(lookupTransferFunction2D(v, NAN, NAN).w, opacity(0.5, 0.5), 1e-6);
@@ -265,8 +266,8 @@ TEST(Transfer2D, JsonFileWithNumbersOrAPng) {
 using test::BlobRender;
 
 // A 1D transfer function and the 2D one with its table in every row, lined up with the 1D table's
-// entries (1024 columns whose centres are the 1D entries): the same medium, the same table
-// entries, so the same majorants and random streams.
+// entries (1024 columns at the 1D entries): the same medium, the same table entries, so the same
+// majorants and random streams.
 test::SceneSetup oneDimensionalScene(int size, bool shadows) {
   test::SceneSetup s = test::orthographicCubeView(size, 5);
   TransferFunction tf;
@@ -283,12 +284,11 @@ test::SceneSetup oneDimensionalScene(int size, bool shadows) {
 test::SceneSetup rowsAreTheOneDimensionalTable(test::SceneSetup s) {
   const TransferFunctionTable table(s.scene.transferFunction);
   const TransferFunctionView v = table.view();
-  const double dx = (double(v.hi) - v.lo) / (v.size - 1);
   TransferFunction::Transfer2D t;
   t.width = v.size;
   t.height = 3;
-  t.scalarLo = v.lo - 0.5 * dx;
-  t.scalarHi = v.hi + 0.5 * dx;
+  t.scalarLo = v.lo;
+  t.scalarHi = v.hi;
   t.gradientLo = 0.0;
   t.gradientHi = 2.0;
   for (int j = 0; j < t.height; ++j)
@@ -309,10 +309,11 @@ TEST(Transfer2DRender, GradientFreeTableReproducesTheOneDimensionalImage) {
     const test::SceneSetup one = oneDimensionalScene(24, shadows);
     const test::SceneSetup two = rowsAreTheOneDimensionalTable(one);
     ASSERT_TRUE(two.scene.transferFunction.usesTransfer2D());
-    // The tables' 1D entries (so the majorants) agree to float rounding of the columns' centres.
+    // The tables' 1D entries (so the majorants) are the same.
     const TransferFunctionTable t1(one.scene.transferFunction), t2(two.scene.transferFunction);
-    EXPECT_NEAR(t2.view().lo, t1.view().lo, 1e-6f);
-    EXPECT_NEAR(t2.view().hi, t1.view().hi, 1e-6f);
+    EXPECT_EQ(t2.view().lo, t1.view().lo);
+    EXPECT_EQ(t2.view().hi, t1.view().hi);
+    for (int i = 0; i < t1.view().size; ++i) ASSERT_EQ(t2.view().rgba[i].w, t1.view().rgba[i].w) << i;
     struct Case {
       const char* name;
       TrackingOptions options;
