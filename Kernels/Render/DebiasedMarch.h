@@ -213,8 +213,8 @@ INR_HD MarchPoint debiasedPoint(const TransferFunctionView& tf, const PointState
   MarchPoint p;
   const float s = pts.sample[slot];
   if (!isFiniteValue(s)) return p;
-  const Vec4f c = lookupTransferFunction(tf, s);
-  p.sigma = opacityToExtinction(sampleOpacity(tf, c.w, pts.opacityScale, slot), tf.invUnitDistance);
+  const Vec4f c = sampleColourOpacity(tf, s, pts.opacityScale, slot);  // (1D or 2D transfer function)
+  p.sigma = opacityToExtinction(c.w, tf.invUnitDistance);
   p.colour = Vec3f{c.x, c.y, c.z};
   return p;
 }
@@ -293,8 +293,8 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
   if (leftKnown) {
     const float s = rs.lastCombValue[i];
     if (isFiniteValue(s)) {
-      const Vec4f c = lookupTransferFunction(tf, s);
-      leftEnd.sigma = opacityToExtinction(tf.gradientOpacity ? c.w * rs.leftScale[i] : c.w, tf.invUnitDistance);
+      const Vec4f c = sampleColourOpacity(tf, s, usesGradient(tf) ? rs.leftScale[i] : 1.f);
+      leftEnd.sigma = opacityToExtinction(c.w, tf.invUnitDistance);
       leftEnd.colour = Vec3f{c.x, c.y, c.z};
     }
   }
@@ -331,7 +331,7 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
     if (pts.kind[closeSlot] & kPointComb) {
       leftKnown = true;
       rs.lastCombValue[i] = pts.sample[closeSlot];
-      rs.leftScale[i] = tf.gradientOpacity ? pts.opacityScale[closeSlot] : 1.f;
+      rs.leftScale[i] = usesGradient(tf) ? pts.opacityScale[closeSlot] : 1.f;
       leftEnd = debiasedPoint(tf, pts, closeSlot);
     } else {
       leftKnown = false;

@@ -160,7 +160,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
     ++iterations;
     queries += k;
     batch_.evaluate(evaluator_);
-    if (medium.tf.gradientOpacity) {  // the factor where it can change the outcome (Evaluate.h)
+    if (usesGradient(medium.tf)) {  // the gradient term where it can change the outcome (Evaluate.h)
       if (points)
         batch_.evaluatePointOpacityScales(evaluator_, medium.tf);
       else
@@ -303,7 +303,7 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
       float v = 0.f;
       evaluator_.evaluate(&q, 1, &v);
       // As the wavefront's evaluation stage (Render/Evaluate.h).
-      if (medium.tf.gradientOpacity && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
+      if (usesGradient(medium.tf) && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
             float unused;
             evaluator_.evaluateWithGradient(&q, 1, &unused, g);
           }))

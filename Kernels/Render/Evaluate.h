@@ -20,12 +20,13 @@ INR_HD void storeQueryResult(const RayStateView& rs, int ray, float value) {
   if (!isFiniteValue(value)) rs.flags[ray] |= kRayBadSample;
 }
 
-// Gradient opacity (TransferFunctionView::gradientOpacity): the factor stored beside a query's
-// value (the ray's or the point's opacityScale) is the function at |g|, g the network's
-// model-space gradient there. The stage code multiplies the sample's scalar opacity by it
-// (sampleOpacity, Render/TransferFunctionTable.h), so the extinction never exceeds the scalar
-// opacity's: the majorants hold as they are.
-INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return gradientOpacityAt(tf, length(g)); }
+// Gradient opacity and 2D transfer functions (usesGradient): the term stored beside a query's
+// value (the ray's or the point's opacityScale) is gradientTermAt |g|, g the network's model-space
+// gradient there: the gradient opacity factor, which the stage code multiplies the sample's scalar
+// opacity by, or |g| itself, with which it looks the 2D table up (sampleColourOpacity,
+// Render/TransferFunctionTable.h). Either way the extinction never exceeds the 1D table's (the
+// scalar opacity; a 2D table's column maxima): the majorants hold as they are.
+INR_HD float gradientTermOf(const TransferFunctionView& tf, Vec3f g) { return gradientTermAt(tf, length(g)); }
 
 // Gradients cost several values, so the evaluation stage asks for them in a second pass only for
 // the queries whose outcome the factor can change, once their values are back. A sample the scalar
@@ -34,9 +35,11 @@ INR_HD float gradientOpacityOf(const TransferFunctionView& tf, Vec3f g) { return
 // xi * majorant >= sigma(alpha)) is rejected for any factor <= 1, since sigma(alpha * A) <=
 // sigma(alpha): only the candidates it accepts need A (thinning: those are then accepted with the
 // probability sigma(alpha A) / sigma(alpha), as the exact test collisionProduct < sigma(alpha A)
-// does). Ratio-tracked shadow rays use every sample's sigma. The others get factor 0, which gives
-// them the outcome they have for any factor (empty, rejected) however sigma rounds where the
-// stage code recomputes it.
+// does). Ratio-tracked shadow rays use every sample's sigma. The others get the empty term
+// (emptyGradientTerm: factor 0), which gives them the outcome they have for any gradient (empty,
+// rejected) however sigma rounds where the stage code recomputes it. With a 2D transfer function
+// alpha is its column maximum at the value (the 1D table), which bounds the opacity at every
+// gradient magnitude: the same reasoning holds.
 INR_HD bool sampleNeedsOpacityScale(const TransferFunctionView& tf, float value) {
   return sampleHasExtinction(tf, value);
 }
@@ -51,17 +54,18 @@ INR_HD bool candidateNeedsOpacityScale(const FrameConstants& fc, const TransferF
   return ratioShadow || rs.collisionProduct[i] < sigma;
 }
 
-// The naive trackers' form of that second pass, one candidate at a time: ray i's factor for its
-// candidate of value `value`, asking gradientAt(g) for the model-space gradient only where the
-// factor can change the outcome (0 elsewhere, as the batches give). Returns whether it asked.
+// The naive trackers' form of that second pass, one candidate at a time: ray i's gradient term for
+// its candidate of value `value`, asking gradientAt(g) for the model-space gradient only where the
+// term can change the outcome (the empty term elsewhere, as the batches give). Returns whether it
+// asked.
 template <typename GradientAt>
 INR_HD bool storeCandidateOpacityScale(const FrameConstants& fc, const TransferFunctionView& tf, const RayStateView& rs,
                                        int i, float value, GradientAt&& gradientAt) {
-  rs.opacityScale[i] = 0.f;
+  rs.opacityScale[i] = emptyGradientTerm(tf);
   if (!candidateNeedsOpacityScale(fc, tf, rs, i, value)) return false;
   float g[3];
   gradientAt(g);
-  rs.opacityScale[i] = gradientOpacityOf(tf, Vec3f{g[0], g[1], g[2]});
+  rs.opacityScale[i] = gradientTermOf(tf, Vec3f{g[0], g[1], g[2]});
   return true;
 }
 

@@ -45,7 +45,7 @@ TEST(GradientOpacity, TableFollowsTheFunctionAndIsOffWhenEmpty) {
   EXPECT_NEAR(gradientOpacityAt(v, 7.f), 1.f, 1e-6f);        // beyond the last node: clamped
   EXPECT_NEAR(gradientOpacityAt(v, INFINITY), 1.f, 1e-6f);   // an overflowed gradient: the last entry
   EXPECT_NEAR(gradientOpacityAt(v, NAN), 0.2f, 1e-6f);       // NaN: the first entry
-  EXPECT_NEAR(gradientOpacityOf(v, Vec3f{0.6f, 0.f, 0.8f}), 0.6f, 1e-5f);  // of |g| = 1
+  EXPECT_NEAR(gradientTermOf(v, Vec3f{0.6f, 0.f, 0.8f}), 0.6f, 1e-5f);  // of |g| = 1
   // Factors above 1 are clamped as scalar opacities are (the majorants rely on factor <= 1).
   tf.gradientOpacity = {{0.0, 3.0}, {1.0, 3.0}};
   EXPECT_EQ(gradientOpacityAt(TransferFunctionTable(tf).view(), 0.5f), 1.f);

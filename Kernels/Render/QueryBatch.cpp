@@ -111,7 +111,7 @@ template <typename Needs>
 void QueryBatch::evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf,
                                             Needs&& needs) {
   withOpacityScales_ = true;
-  opacityScales_.assign(count_, 0.f);  // (the queries the factor cannot change: Evaluate.h)
+  opacityScales_.assign(count_, emptyGradientTerm(tf));  // (the queries no gradient can change: Evaluate.h)
   needGradient_.clear();
   for (std::size_t k = 0; k < count_; ++k)  // serial: in batch order, whatever the thread count
     if (needs(k)) needGradient_.push_back(k);
@@ -125,7 +125,7 @@ void QueryBatch::evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, con
   evaluator.evaluateWithGradient(gradientPoints_.data(), m, gradientValues_.data(), gradients_.data());
   const float* g = gradients_.data();
   for (std::size_t j = 0; j < m; ++j)
-    opacityScales_[needGradient_[j]] = gradientOpacityOf(tf, Vec3f{g[3 * j], g[3 * j + 1], g[3 * j + 2]});
+    opacityScales_[needGradient_[j]] = gradientTermOf(tf, Vec3f{g[3 * j], g[3 * j + 1], g[3 * j + 2]});
 }
 
 void QueryBatch::evaluateOpacityScales(const FieldEvaluator& evaluator, const FrameConstants& fc,

@@ -47,13 +47,13 @@ private:
   std::vector<int> rays_;
   std::vector<float> values_;
   std::vector<float> gradients_;  // gradient shading and gradient opacity: 3 per query
-  std::vector<float> opacityScales_;  // gradient opacity: the factor per query
+  std::vector<float> opacityScales_;  // gradient opacity or 2D TF: the gradient term per query
   bool withOpacityScales_ = false;    // opacityScales_ holds this batch's factors
   std::size_t gradientQueries_ = 0;
   std::vector<std::size_t> needGradient_;  // gradient opacity: the queries that need their factor
   std::vector<QueryPoint> gradientPoints_;
   std::vector<float> gradientValues_;
-  // Computes opacityScales_ for the queries `needs(k)` selects (0 for the others).
+  // Computes opacityScales_ for the queries `needs(k)` selects (the empty term for the others).
   template <typename Needs>
   void evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf, Needs&& needs);
   std::vector<std::size_t> chunkOffsets_;

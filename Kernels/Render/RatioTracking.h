@@ -76,7 +76,7 @@ namespace inr {
 //   sinceBreak  preintegrated (PreintegratedMarch.h): length from the macrocell's previous comb
 //             point (or where the ray entered the cell) to this point
 //   sample    the network's value there (or the pruned estimate); NaN while pending
-//   opacityScale  the gradient opacity factor there (RayStateView::opacityScale)
+//   opacityScale  the gradient term there (RayStateView::opacityScale)
 //   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
 //   kind      PointKind bits
 //   level, step  debiased (DebiasedMarch.h): the level of the point's comb interval and the point's
@@ -135,8 +135,9 @@ INR_HD RngStream ratioPointStream(const RngStream& ray, float t) {
 // transmittance at rate mu = residualScale x the majorant >= sigma: every factor in [0, 1], still
 // unbiased. That needs residualScale >= 1: below it the residual points are too sparse to carry
 // the transmittance alone (none at all at 0, the plain jittered marcher), so the control stays.
+// A 2D transfer function switches it the same way (its opacity follows |grad f| too).
 INR_HD bool marchUsesControl(const FrameConstants& fc, const TransferFunctionView& tf) {
-  return tf.gradientOpacity == nullptr || fc.residualScale < 1.f;
+  return !usesGradient(tf) || fc.residualScale < 1.f;
 }
 
 // Whether the estimate keeps one picked point's colour (weighted by the emission weights' total)
@@ -176,8 +177,8 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
     if (!(kind & kPointPruned)) onEvaluated(slot, s);
     if (ended) continue;  // (the remaining points still refine)
     const float t = pts.t[slot];
-    const Vec4f c = isFiniteValue(s) ? lookupTransferFunction(medium.tf, s) : Vec4f{0.f, 0.f, 0.f, 0.f};
-    const float sigma = opacityToExtinction(sampleOpacity(medium.tf, c.w, pts.opacityScale, slot), medium.tf.invUnitDistance);
+    const Vec4f c = isFiniteValue(s) ? sampleColourOpacity(medium.tf, s, pts.opacityScale, slot) : Vec4f{0.f, 0.f, 0.f, 0.f};
+    const float sigma = opacityToExtinction(c.w, medium.tf.invUnitDistance);
     RngStream pointRng = ratioPointStream(ray, t);
     const float pick = pointRng.next();
     float w = 0.f;  // this point's emission weight

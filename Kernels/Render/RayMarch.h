@@ -77,17 +77,18 @@ INR_HD Vec3f marchShadowSample(Vec3f p, Vec3f toLight, const MarchShadowRay& r, 
   return p + toLight * ((float(q) + 0.5f) * r.ds);
 }
 
-// Whether a sample of value v with gradient opacity factor opacityScale can contribute (and so
-// needs a shadow ray).
+// Whether a sample of value v with gradient term opacityScale (gradientTermAt; 1 when the TF does
+// not use the gradient) can contribute (and so needs a shadow ray).
 INR_HD bool marchSampleEmits(const TransferFunctionView& tf, float v, float opacityScale = 1.f) {
+  if (tf.rgba2D) return isFiniteValue(v) && sampleColourOpacity(tf, v, opacityScale).w > 0.f;
   return opacityScale > 0.f && sampleHasExtinction(tf, v);
 }
 
-// The extinction of a shadow-ray sample of value v with gradient opacity factor opacityScale (0
-// for a NaN output: empty space).
+// The extinction of a shadow-ray sample of value v with gradient term opacityScale (0 for a NaN
+// output: empty space).
 INR_HD float marchExtinction(const TransferFunctionView& tf, float v, float opacityScale = 1.f) {
   if (!isFiniteValue(v)) return 0.f;
-  return opacityToExtinction(lookupTransferFunction(tf, v).w * opacityScale, tf.invUnitDistance);
+  return opacityToExtinction(sampleColourOpacity(tf, v, opacityScale).w, tf.invUnitDistance);
 }
 
 INR_HD float expm1Of(float x) { return expm1f(x); }
@@ -100,12 +101,12 @@ struct MarchCompositor {
   Real T = 1, r = 0, g = 0, b = 0;
 
   // A sample of value v over ds; lightFactor: the share of its emission that reaches the eye's
-  // side of the light (1 without shadows); opacityScale: its gradient opacity factor (1 without,
-  // Render/Evaluate.h). NaN outputs are empty space, as in the delta tracker.
+  // side of the light (1 without shadows); opacityScale: its gradient term (gradientTermAt; 1
+  // when the TF does not use the gradient, Render/Evaluate.h). NaN outputs are empty space, as in
+  // the delta tracker.
   INR_HD void add(const TransferFunctionView& tf, float v, float ds, Real lightFactor, float opacityScale = 1.f) {
     if (!isFiniteValue(v)) return;
-    Vec4f c = lookupTransferFunction(tf, v);
-    c.w *= opacityScale;
+    const Vec4f c = sampleColourOpacity(tf, v, opacityScale);
     emit(c, tf, ds, lightFactor, Vec3f{c.x, c.y, c.z});
   }
 
@@ -114,8 +115,7 @@ struct MarchCompositor {
   INR_HD void addLit(const TransferFunctionView& tf, float v, float ds, float ambient, const SampleLight& light,
                      float lightT, float opacityScale = 1.f) {
     if (!isFiniteValue(v)) return;
-    Vec4f c = lookupTransferFunction(tf, v);
-    c.w *= opacityScale;
+    const Vec4f c = sampleColourOpacity(tf, v, opacityScale);
     emit(c, tf, ds, Real(1), litColour(Vec3f{c.x, c.y, c.z}, ambient, light, lightT));
   }
 

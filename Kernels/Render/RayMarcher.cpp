@@ -42,8 +42,9 @@ void RayMarchRenderer::setScene(const RenderScene& scene) {
   validateLighting(scene);
   if (scene.shading.enabled && !evaluator_.providesGradient())
     throw std::invalid_argument("shading: the evaluator " + evaluator_.name() + " computes no gradients");
-  if (scene.transferFunction.usesGradientOpacity() && !evaluator_.providesGradient())
-    throw std::invalid_argument("gradient opacity: the evaluator " + evaluator_.name() + " computes no gradients");
+  if (scene.transferFunction.usesGradient() && !evaluator_.providesGradient())
+    throw std::invalid_argument(scene.transferFunction.gradientUseName() + ": the evaluator " + evaluator_.name() +
+                                " computes no gradients");
   scene_ = scene;
   tfTable_ = std::make_unique<TransferFunctionTable>(scene.transferFunction);
   haveScene_ = true;
@@ -70,16 +71,16 @@ FrameStats RayMarchRenderer::renderFrame() {
   if (cam.transformed) toLight = normalize(applyLinear(cam.modelFromWorld, toLight));  // model space
   const bool shadows = scene_.shadows;
   const float ambient = scene_.ambient;
-  // Gradient shading and gradient opacity: every sample's value comes with its gradient
-  // (Shading.h, Evaluate.h); shadow samples too with gradient opacity.
+  // Gradient shading, gradient opacity and 2D transfer functions: every sample's value comes with
+  // its gradient (Shading.h, Evaluate.h); shadow samples too when the TF uses the gradient.
   const ShadingConstants shading = shadingConstants(scene_.shading, cam);
-  const bool gradientOpacity = tf.gradientOpacity != nullptr;
+  const bool gradientOpacity = usesGradient(tf);
   const bool withGradients = shading.enabled || gradientOpacity;
   st.pixels = std::size_t(n);
   std::vector<float> gradients, shadowGradients;
-  // Sample k's gradient opacity factor from its gradient in g (1 without gradient opacity).
+  // Sample k's gradient term from its gradient in g (1, unread, when the TF does not use it).
   auto opacityScaleAt = [&](const std::vector<float>& g, std::size_t k) {
-    return gradientOpacity ? gradientOpacityOf(tf, Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]}) : 1.f;
+    return gradientOpacity ? gradientTermOf(tf, Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]}) : 1.f;
   };
 
   std::vector<MarchRay> segs;

@@ -59,9 +59,9 @@ enum class ShadowEstimator : int {
 //   tEnd               end of the segment: box exit, depth limit or light exit
 //   rngCounter         draw index of the ray's counter-based stream
 //   sample             scalar returned by the evaluator for the pending query; NaN while pending
-//   opacityScale       the gradient opacity factor at the pending query (TransferFunctionView::
-//                      gradientOpacity), written with `sample`; only written and read when the TF
-//                      has a gradient opacity function
+//   opacityScale       the gradient term at the pending query (gradientTermAt: the gradient
+//                      opacity factor, or |grad f| for a 2D transfer function), written with
+//                      `sample`; only written and read when the TF uses the gradient (usesGradient)
 //   collisionProduct   delta tracking: xi * majorant, drawn when the candidate is emitted, so the
 //                      acceptance test after evaluation is `collisionProduct < sigma(sample)` and
 //                      neither xi nor the majorant has to be stored; ratio-tracked shadow rays

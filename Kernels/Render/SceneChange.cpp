@@ -41,6 +41,7 @@ bool sameCamera(const Camera& a, const Camera& b) {
 }
 
 bool sameTransferFunction(const TransferFunction& a, const TransferFunction& b) {
+  if (!(a.transfer2D == b.transfer2D)) return false;
   if (a.unitDistance != b.unitDistance || a.colorSpace != b.colorSpace ||
       a.color.size() != b.color.size() || a.opacity.size() != b.opacity.size()) {
     return false;

@@ -10,6 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "Common/ImageIO.h"
+
 namespace inr {
 
 // ---------------------------------------------------------------- camera
@@ -272,6 +274,68 @@ TransferFunction TransferFunction::fromParaViewJsonFile(const std::string& path)
   return fromParaViewJson(ss.str(), path);
 }
 
+TransferFunction::Transfer2D TransferFunction::transfer2DFromJsonFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open 2D transfer function file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(ss.str());
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object (a 2D transfer function)");
+  auto range = [&](const char* key) {
+    if (!j.contains(key) || !j[key].is_array() || j[key].size() != 2 || !j[key][0].is_number() ||
+        !j[key][1].is_number())
+      throw std::runtime_error(path + ": '" + key + "' must be a list of two numbers [lo, hi]");
+    const double lo = j[key][0].get<double>(), hi = j[key][1].get<double>();
+    if (!(std::isfinite(lo) && std::isfinite(hi) && hi > lo))
+      throw std::runtime_error(path + ": '" + key + "' must be finite with hi > lo");
+    return std::array<double, 2>{lo, hi};
+  };
+  Transfer2D t;
+  const auto sr = range("ScalarRange"), gr = range("GradientRange");
+  t.scalarLo = sr[0];
+  t.scalarHi = sr[1];
+  t.gradientLo = gr[0];
+  t.gradientHi = gr[1];
+  if (j.contains("Image")) {
+    if (!j["Image"].is_string()) throw std::runtime_error(path + ": 'Image' must be a file name (an RGBA PNG)");
+    std::string image = j["Image"].get<std::string>();
+    const auto slash = path.find_last_of('/');
+    if (!image.empty() && image[0] != '/' && slash != std::string::npos) image = path.substr(0, slash + 1) + image;
+    const ImageRGBA png = readPng(image);  // (throws naming the image)
+    t.width = png.width;
+    t.height = png.height;
+    t.rgba.resize(std::size_t(4) * png.width * png.height);
+    for (int y = 0; y < png.height; ++y)  // the PNG's bottom row is row 0 (the smallest magnitude)
+      for (int x = 0; x < png.width; ++x)
+        for (int c = 0; c < 4; ++c)
+          t.rgba[std::size_t(4) * (std::size_t(png.height - 1 - y) * png.width + x) + c] = png.pixel(x, y)[c];
+    return t;
+  }
+  if (!j.contains("Width") || !j["Width"].is_number_integer() || !j.contains("Height") ||
+      !j["Height"].is_number_integer())
+    throw std::runtime_error(path + ": needs 'Image' (a PNG) or integer 'Width' and 'Height' with 'RGBA'");
+  const long long w = j["Width"].get<long long>(), h = j["Height"].get<long long>();
+  if (w < 1 || h < 1 || w * h > TransferFunctionTable::kMaxTransfer2DPixels)
+    throw std::runtime_error(path + ": 'Width' x 'Height' must be at least 1 x 1 and at most " +
+                             std::to_string(TransferFunctionTable::kMaxTransfer2DPixels) + " pixels");
+  if (!j.contains("RGBA") || !j["RGBA"].is_array() || j["RGBA"].size() != std::size_t(4 * w * h))
+    throw std::runtime_error(path + ": 'RGBA' must be a list of Width x Height x 4 = " + std::to_string(4 * w * h) +
+                             " numbers");
+  t.width = int(w);
+  t.height = int(h);
+  t.rgba.reserve(std::size_t(4 * w * h));
+  for (const auto& v : j["RGBA"]) {
+    if (!v.is_number()) throw std::runtime_error(path + ": 'RGBA' entry " + std::to_string(t.rgba.size()) + " is not a number");
+    t.rgba.push_back(v.get<float>());
+  }
+  return t;
+}
+
 TransferFunction TransferFunction::fromParaViewJson(const std::string& text,
                                                     const std::string& label) {
   nlohmann::json j;
@@ -419,6 +483,10 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
   if (!(tf.unitDistance > 0.0)) {
     throw std::invalid_argument("scalar opacity unit distance must be > 0");
   }
+  if (tf.usesTransfer2D()) {  // (colour, opacity and gradient opacity are not used)
+    buildTransfer2D(tf);
+    return;
+  }
   // A NaN/inf point (a script's or a broken pipeline's) would reach the pixels as NaN colours
   // (colour) or silently as empty space (opacity): refuse it, naming it.
   const double fmax = double(std::numeric_limits<float>::max());
@@ -452,8 +520,69 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
     const auto c = tf.colorAt(x);
     const float a = float(std::clamp(tf.opacityAt(x), 0.0, 1.0));
     rgba_[i] = Vec4f{float(c[0]), float(c[1]), float(c[2]), a};
-    maxOpacity_ = std::max(maxOpacity_, a);
   }
+  buildBounds();
+  buildGradientOpacity(tf);
+}
+
+void TransferFunctionTable::buildTransfer2D(const TransferFunction& tf) {
+  const TransferFunction::Transfer2D& t = tf.transfer2D;
+  const double fmax = double(std::numeric_limits<float>::max());
+  if ((long long)t.width * t.height > kMaxTransfer2DPixels)
+    throw std::invalid_argument("2D transfer function: " + std::to_string(t.width) + " x " + std::to_string(t.height) +
+                                " pixels, at most " + std::to_string(kMaxTransfer2DPixels));
+  if (t.rgba.size() != std::size_t(4) * t.width * t.height)
+    throw std::invalid_argument("2D transfer function: " + std::to_string(t.rgba.size()) + " RGBA values for " +
+                                std::to_string(t.width) + " x " + std::to_string(t.height) + " pixels (4 each)");
+  auto checkRange = [&](double lo, double hi, const char* what) {
+    if (!(std::abs(lo) <= fmax && std::abs(hi) <= fmax && hi > lo))
+      throw std::invalid_argument(std::string("2D transfer function: the ") + what +
+                                  " range must be finite (in float range) with hi > lo");
+  };
+  checkRange(t.scalarLo, t.scalarHi, "scalar");
+  checkRange(t.gradientLo, t.gradientHi, "gradient magnitude");
+  for (std::size_t k = 0; k < t.rgba.size(); ++k) {
+    if (!std::isfinite(t.rgba[k]))
+      throw std::invalid_argument("2D transfer function: pixel (" + std::to_string((k / 4) % t.width) + ", " +
+                                  std::to_string((k / 4) / t.width) + ") is not finite");
+  }
+  // The pixels are the table's entries, end to end over the ranges (TransferFunction::transfer2D);
+  // beyond the ends the lookup clamps. One column or row is doubled so the bilinear lookup has two.
+  const int W = std::max(t.width, 2), H = std::max(t.height, 2);
+  lo_ = float(t.scalarLo);
+  hi_ = float(t.scalarHi);
+  if (!(hi_ > lo_)) hi_ = lo_ + std::max(std::abs(lo_) * 1e-6f, 1e-30f);  // (float rounding of a tiny range)
+  gradientLo_ = float(t.gradientLo);
+  gradientHi_ = float(t.gradientHi);
+  if (!(gradientHi_ > gradientLo_)) gradientHi_ = gradientLo_ + std::max(std::abs(gradientLo_) * 1e-6f, 1e-30f);
+  size_ = W;
+  gradientSize_ = H;
+  invUnitDistance_ = float(std::min(1.0 / tf.unitDistance, 1e30));
+  rgba2D_.resize(std::size_t(W) * H);
+  for (int j = 0; j < H; ++j) {
+    for (int i = 0; i < W; ++i) {
+      const float* p = &t.rgba[std::size_t(4) * (std::size_t(std::min(j, t.height - 1)) * t.width + std::min(i, t.width - 1))];
+      rgba2D_[std::size_t(j) * W + i] = Vec4f{p[0], p[1], p[2], std::clamp(p[3], 0.f, 1.f)};
+    }
+  }
+  // The 1D table: each column's largest opacity (the bound every scalar-only decision uses) with
+  // that entry's colour (what the isosurface and slice blend modes, which have no gradient axis,
+  // show).
+  rgba_.resize(W);
+  for (int i = 0; i < W; ++i) {
+    Vec4f best = rgba2D_[i];
+    for (int j = 1; j < H; ++j) {
+      const Vec4f c = rgba2D_[std::size_t(j) * W + i];
+      if (c.w > best.w) best = c;
+    }
+    rgba_[i] = best;
+  }
+  buildBounds();
+}
+
+void TransferFunctionTable::buildBounds() {
+  const int size = size_;
+  for (int i = 0; i < size; ++i) maxOpacity_ = std::max(maxOpacity_, rgba_[i].w);
   // Sparse table: level L holds max over [i, i + 2^L) (clamped at the end).
   levels_ = floorLog2(unsigned(size)) + 1;
   opacityMax_.resize(std::size_t(levels_) * size);
@@ -496,6 +625,9 @@ TransferFunctionTable::TransferFunctionTable(const TransferFunction& tf, int siz
     }
     extinctionIntegral_[i] = Vec4f{float(integral[0]), float(integral[1]), float(integral[2]), float(integral[3])};
   }
+}
+
+void TransferFunctionTable::buildGradientOpacity(const TransferFunction& tf) {
   // Gradient opacity: its nodes exactly (a ramp however narrow beside a far node), and samples
   // between two nodes whose segment bends (midpoint or sharpness), so linear interpolation between
   // the points follows the function.
@@ -534,6 +666,12 @@ TransferFunctionView TransferFunctionTable::view() const {
     v.gradientOpacity = gradientOpacity_.data();
     v.gradientOpacityX = gradientOpacityX_.data();
     v.gradientOpacitySize = int(gradientOpacity_.size());
+  }
+  if (!rgba2D_.empty()) {
+    v.rgba2D = rgba2D_.data();
+    v.gradientSize = gradientSize_;
+    v.gradientLo = gradientLo_;
+    v.gradientHi = gradientHi_;
   }
   return v;
 }

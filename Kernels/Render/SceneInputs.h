@@ -58,6 +58,27 @@ struct TransferFunction {
   // asked for. On, every sample the renderers take needs the network's gradient as well as its
   // value (Render/Evaluate.h), and homogeneity pruning stands down (its estimates carry no gradient).
   std::vector<OpacityPoint> gradientOpacity;
+  // 2D transfer function (vtkVolumeProperty's TF_2D mode: ParaView's Use Transfer2D with Use
+  // Gradient For Transfer2D): colour and opacity as an RGBA image over (scalar, gradient magnitude
+  // |grad f|, model space as for gradient opacity), looked up bilinearly, clamped at the edges. On
+  // (width and height > 0) it replaces `color`, `opacity` and `gradientOpacity`; the opacity is
+  // per `unitDistance`, as the scalar opacity's. Pixel (i, j) is rgba[4 (j width + i) ...]: colour
+  // (not premultiplied) and opacity, row j = 0 the smallest magnitude. The pixels are samples
+  // spread over the ranges end to end, as the engine's 1D table and VTK's GPU mapper (which
+  // resamples the image to its texture with the first and last pixels at the ends of the range)
+  // place them: column i at scalarLo + i (scalarHi - scalarLo) / (width - 1), row j at gradientLo +
+  // j (gradientHi - gradientLo) / (height - 1); one column or row is constant along its axis.
+  struct Transfer2D {
+    int width = 0, height = 0;
+    std::vector<float> rgba;
+    double scalarLo = 0.0, scalarHi = 1.0;
+    double gradientLo = 0.0, gradientHi = 1.0;
+    bool operator==(const Transfer2D& o) const {
+      return width == o.width && height == o.height && rgba == o.rgba && scalarLo == o.scalarLo &&
+             scalarHi == o.scalarHi && gradientLo == o.gradientLo && gradientHi == o.gradientHi;
+    }
+  };
+  Transfer2D transfer2D;
   double unitDistance = 1.0;
   // ParaView's "ColorSpace" (RGB, Lab, Diverging, HSV...). Only RGB interpolation is
   // implemented; others are interpolated in RGB and `colorSpaceWarning` says so.
@@ -85,6 +106,16 @@ struct TransferFunction {
   double opacityAt(double x) const;       // the piecewise (midpoint/sharpness) function
   double gradientOpacityAt(double gradientNorm) const;  // 1 without a gradient opacity function
   bool usesGradientOpacity() const { return !gradientOpacity.empty(); }
+  bool usesTransfer2D() const { return transfer2D.width > 0 && transfer2D.height > 0; }
+  // Whether samples need the network's gradient: gradient opacity or a 2D transfer function.
+  bool usesGradient() const { return usesGradientOpacity() || usesTransfer2D(); }
+  std::string gradientUseName() const { return usesTransfer2D() ? "2D transfer function" : "gradient opacity"; }
+  // A 2D transfer function from a JSON file (Docs/transfer-functions.md): `ScalarRange` [lo, hi],
+  // `GradientRange` [lo, hi], and either `Width`, `Height` and `RGBA` (width x height x 4 numbers
+  // in [0, 1], row 0 the smallest gradient magnitude) or `Image`, an RGBA PNG (a path relative to
+  // the JSON file; its bottom row the smallest magnitude, as ParaView's 2D editor draws it).
+  // Throws std::runtime_error naming the file and the problem.
+  static Transfer2D transfer2DFromJsonFile(const std::string& path);
   std::array<double, 3> colorAt(double x) const;
 };
 
@@ -94,8 +125,12 @@ class TransferFunctionTable {
 public:
   // Throws std::invalid_argument naming the point when a point is not finite, or when the gradient
   // opacity's magnitudes do not increase. Opacities and gradient opacity factors are clamped to
-  // [0, 1].
+  // [0, 1]. A 2D transfer function (TransferFunction::transfer2D) gives the table its own
+  // resolution (its columns are the 1D table's entries, `size` is not used); a malformed one
+  // (sizes, non-finite pixels or ranges, an empty range) throws naming the problem.
   explicit TransferFunctionTable(const TransferFunction& tf, int size = 1024);
+  // The most pixels a 2D transfer function may have.
+  static constexpr long long kMaxTransfer2DPixels = 1ll << 22;
   TransferFunctionView view() const;
   float maxOpacity() const { return maxOpacity_; }
 
@@ -105,9 +140,15 @@ public:
   static constexpr int kMaxGradientOpacityPoints = 4096;
 
 private:
+  void buildTransfer2D(const TransferFunction& tf);       // the 2D table and its 1D column maxima
+  void buildBounds();                                      // from rgba_: range maxima, pre-integration
+  void buildGradientOpacity(const TransferFunction& tf);
   std::vector<Vec4f> rgba_;
   std::vector<float> opacityMax_;
   std::vector<float> gradientOpacity_, gradientOpacityX_;  // empty: no gradient opacity
+  std::vector<Vec4f> rgba2D_;                                // empty: no 2D transfer function
+  int gradientSize_ = 0;
+  float gradientLo_ = 0.f, gradientHi_ = 1.f;
   std::vector<float> entryExtinction_;      // pre-integration (TransferFunctionView)
   std::vector<Vec4f> extinctionIntegral_;
   int size_ = 0, levels_ = 0;

@@ -39,7 +39,24 @@ struct TransferFunctionView {
   // linearly, then converted: w) and of that extinction times the colour (xyz).
   const float* entryExtinction = nullptr;
   const Vec4f* extinctionIntegral = nullptr;
+  // 2D transfer function (TransferFunction::transfer2D): colour and opacity over (scalar, gradient
+  // magnitude |grad f|), size x gradientSize entries, entry (i, j) at rgba2D[j * size + i]: column i
+  // at the scalar of the 1D table's entry i, row j at gradientLo + j (gradientHi - gradientLo) /
+  // (gradientSize - 1), interpolated bilinearly and clamped at the edges (a texture's lookup).
+  // Null: off. On, it replaces colour, scalar opacity and gradient opacity (gradientOpacity is
+  // null), and the 1D table (rgba) holds each column's largest opacity with that entry's colour:
+  // bilinear interpolation never exceeds the columns' maxima interpolated linearly, so every bound
+  // the stage code takes from the scalar alone (majorants, maxExtinctionOver, which candidates need
+  // a gradient) holds whatever the gradient.
+  const Vec4f* rgba2D = nullptr;
+  int gradientSize = 0;
+  float gradientLo = 0.f, gradientHi = 1.f;
 };
+
+// Whether a sample's colour or opacity depends on the network's gradient there (gradient opacity
+// or a 2D transfer function): every sample the renderers take then needs its gradient term
+// (Render/Evaluate.h) as well as its value.
+INR_HD bool usesGradient(const TransferFunctionView& tf) { return tf.gradientOpacity != nullptr || tf.rgba2D != nullptr; }
 
 INR_HD float opacityToExtinction(float alpha, float invUnitDistance) {
   const float a = clampf(alpha, 0.f, kMaxTableOpacity);
@@ -53,15 +70,17 @@ INR_HD float tableCoordinate(const TransferFunctionView& tf, float s) {
   return minf(x, float(tf.size - 1));
 }
 
+INR_HD Vec4f lerp4(const Vec4f& a, const Vec4f& b, float f) {
+  return Vec4f{a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.z + (b.z - a.z) * f, a.w + (b.w - a.w) * f};
+}
+
 INR_HD Vec4f lookupTransferFunction(const TransferFunctionView& tf, float s) {
   const float x = tableCoordinate(tf, s);
   int i = int(x);
   if (i > tf.size - 2) i = tf.size - 2;
   if (i < 0) i = 0;
   const float f = x - float(i);
-  const Vec4f a = tf.rgba[i], b = tf.rgba[i + 1];
-  return Vec4f{a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, a.z + (b.z - a.z) * f,
-               a.w + (b.w - a.w) * f};
+  return lerp4(tf.rgba[i], tf.rgba[i + 1], f);
 }
 
 // The gradient opacity factor in [0, 1] for gradient magnitude g (model space); 1 when the TF has
@@ -85,11 +104,53 @@ INR_HD float gradientOpacityAt(const TransferFunctionView& tf, float g) {
   return y[lo] + (y[hi] - y[lo]) * ((g - x[lo]) / (x[hi] - x[lo]));
 }
 
-// A sample's opacity: the scalar opacity alpha times the gradient opacity factor the evaluation
-// stage stored beside its value (`opacityScale`, Render/Evaluate.h). Without a gradient opacity
-// the factor is not read (it is never written then) and alpha is returned as it is.
-INR_HD float sampleOpacity(const TransferFunctionView& tf, float alpha, const float* opacityScale, int slot) {
-  return tf.gradientOpacity ? alpha * opacityScale[slot] : alpha;
+// The 2D transfer function's colour and opacity at scalar s and gradient magnitude g (tf.rgba2D
+// must be set). Both coordinates clamp to the table's edges; NaN maps to the low end, as in the
+// scalar table.
+INR_HD Vec4f lookupTransferFunction2D(const TransferFunctionView& tf, float s, float g) {
+  const float x = tableCoordinate(tf, s);
+  int i = int(x);
+  if (i > tf.size - 2) i = tf.size - 2;
+  if (i < 0) i = 0;
+  const float fx = x - float(i);
+  float y = (g - tf.gradientLo) / (tf.gradientHi - tf.gradientLo) * float(tf.gradientSize - 1);
+  if (!(y > 0.f)) y = 0.f;
+  y = minf(y, float(tf.gradientSize - 1));
+  int j = int(y);
+  if (j > tf.gradientSize - 2) j = tf.gradientSize - 2;
+  if (j < 0) j = 0;
+  const float fy = y - float(j);
+  const Vec4f* row0 = tf.rgba2D + j * tf.size;
+  const Vec4f* row1 = row0 + tf.size;
+  return lerp4(lerp4(row0[i], row0[i + 1], fx), lerp4(row1[i], row1[i + 1], fx), fy);
+}
+
+// The gradient term the evaluation stage stores beside a sample's value (`opacityScale`,
+// Render/Evaluate.h) for gradient magnitude g: the gradient opacity factor, or with a 2D transfer
+// function the magnitude itself (the table is looked up with the value, sampleColourOpacity).
+INR_HD float gradientTermAt(const TransferFunctionView& tf, float g) {
+  return tf.rgba2D ? g : gradientOpacityAt(tf, g);
+}
+
+// The term stored for a sample whose outcome no gradient can change (Render/Evaluate.h): one that
+// makes it empty (factor 0; with a 2D TF a negative magnitude).
+INR_HD float emptyGradientTerm(const TransferFunctionView& tf) { return tf.rgba2D ? -1.f : 0.f; }
+
+// A sample's colour and opacity, the one transfer-function lookup of the stage code: value s
+// (finite) and gradient term `term` (gradientTermAt). Without a gradient dependence the 1D table
+// (the term is not read); with gradient opacity its scalar opacity times the factor; with a 2D
+// transfer function the 2D table at (s, |grad f|), empty for the empty term.
+INR_HD Vec4f sampleColourOpacity(const TransferFunctionView& tf, float s, float term) {
+  if (tf.rgba2D) return term < 0.f ? Vec4f{0.f, 0.f, 0.f, 0.f} : lookupTransferFunction2D(tf, s, term);
+  Vec4f c = lookupTransferFunction(tf, s);
+  if (tf.gradientOpacity) c.w *= term;
+  return c;
+}
+
+// The same with the term read from terms[slot] (the ray's or the point's opacityScale), only when
+// the TF depends on the gradient (the stage code writes the terms only then).
+INR_HD Vec4f sampleColourOpacity(const TransferFunctionView& tf, float s, const float* terms, int slot) {
+  return sampleColourOpacity(tf, s, usesGradient(tf) ? terms[slot] : 1.f);
 }
 
 INR_HD float extinctionAt(const TransferFunctionView& tf, float s) {

@@ -25,8 +25,8 @@ INR_HD bool resolveCandidate(const FrameConstants& fc, const TrackingMedium& med
   const bool valid = !(flags & kRayBadSample);
   flags &= std::uint8_t(~kRayBadSample);
   // An invalid network output is treated as empty space (a null collision).
-  const Vec4f c = valid ? lookupTransferFunction(medium.tf, rs.sample[i]) : Vec4f{0.f, 0.f, 0.f, 0.f};
-  const float sigma = opacityToExtinction(sampleOpacity(medium.tf, c.w, rs.opacityScale, i), medium.tf.invUnitDistance);
+  const Vec4f c = valid ? sampleColourOpacity(medium.tf, rs.sample[i], rs.opacityScale, i) : Vec4f{0.f, 0.f, 0.f, 0.f};
+  const float sigma = opacityToExtinction(c.w, medium.tf.invUnitDistance);
   rs.sample[i] = NAN;
   if (flags & kRayShadow) {
     if (fc.shadowEstimator == ShadowEstimator::Ratio) {

@@ -113,8 +113,9 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   const CameraView view = validateScene(scene, settings_);
   if (scene.shading.enabled && !fieldHasGradient())
     throw std::invalid_argument("shading: this renderer's field evaluator computes no gradients");
-  if (scene.transferFunction.usesGradientOpacity() && !fieldHasGradient())
-    throw std::invalid_argument("gradient opacity: this renderer's field evaluator computes no gradients");
+  if (scene.transferFunction.usesGradient() && !fieldHasGradient())
+    throw std::invalid_argument(scene.transferFunction.gradientUseName() +
+                                ": this renderer's field evaluator computes no gradients");
   SceneChange change = diffScenes(haveScene_ ? &scene_ : nullptr, scene);
   change.time = change.time || macrocellTime() != scene.time;  // the grid may be shared
   const auto t0 = Clock::now();
@@ -163,7 +164,7 @@ void WavefrontRenderer::setQueryReduction(const QueryReductionSettings& settings
 }
 
 bool WavefrontRenderer::pruningActive() const {
-  return queryReduction_.pruning() && !scene_.transferFunction.usesGradientOpacity();
+  return queryReduction_.pruning() && !scene_.transferFunction.usesGradient();
 }
 
 PruneView WavefrontRenderer::pruneThresholds() const {
@@ -199,11 +200,11 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   fc.maxRngDraws = rngDrawBudget(options_.maxCollisionsPerRay);
   fc.estimator = options_.estimator;
   // The pre-integrated march has no single emission point for a shadow ray or a lit colour, and
-  // no control for a gradient opacity factor (PreintegratedMarch.h): ratio tracking renders those
-  // scenes, with the comb density as its majorant scale. The debiased march has no single
-  // emission point either (DebiasedMarch.h).
+  // no control for a gradient opacity factor or a 2D transfer function's gradient axis
+  // (PreintegratedMarch.h): ratio tracking renders those scenes, with the comb density as its
+  // majorant scale. The debiased march has no single emission point either (DebiasedMarch.h).
   if (fc.estimator == PrimaryEstimator::Preintegrated &&
-      (fc.shadows || fc.shading.enabled || scene_.transferFunction.usesGradientOpacity()))
+      (fc.shadows || fc.shading.enabled || scene_.transferFunction.usesGradient()))
     fc.estimator = PrimaryEstimator::Ratio;
   if (fc.estimator == PrimaryEstimator::Debiased && (fc.shadows || fc.shading.enabled))
     fc.estimator = PrimaryEstimator::Ratio;

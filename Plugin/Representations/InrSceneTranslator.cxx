@@ -6,6 +6,8 @@
 #include "vtkDataObject.h"
 #include "vtkDataSet.h"
 #include "vtkFieldData.h"
+#include "vtkImageData.h"
+#include "vtkPointData.h"
 #include "vtkInformation.h"
 #include "vtkLight.h"
 #include "vtkLightCollection.h"
@@ -314,6 +316,65 @@ std::vector<inr::TransferFunction::OpacityPoint> InrSceneTranslator::GradientOpa
   return nodes;
 }
 
+inr::TransferFunction::Transfer2D InrSceneTranslator::Transfer2D(vtkVolumeProperty* prop, std::string& problem)
+{
+  problem.clear();
+  inr::TransferFunction::Transfer2D t;
+  if (!prop || prop->GetTransferFunctionMode() != vtkVolumeProperty::TF_2D)
+  {
+    return t;
+  }
+  vtkImageData* image = prop->GetTransferFunction2D(0);
+  vtkDataArray* scalars = image ? image->GetPointData()->GetScalars() : nullptr;
+  int dims[3] = { 0, 0, 0 };
+  if (image)
+  {
+    image->GetDimensions(dims);
+  }
+  if (!scalars || scalars->GetNumberOfComponents() != 4 || dims[0] < 1 || dims[1] < 1 || dims[2] != 1 ||
+    scalars->GetNumberOfTuples() != vtkIdType(dims[0]) * dims[1])
+  {
+    problem = "its image has no RGBA scalars of one value per pixel in one slice";
+    return t;
+  }
+  if (vtkIdType(dims[0]) * dims[1] > inr::TransferFunctionTable::kMaxTransfer2DPixels)
+  {
+    problem = "its image has more than " + std::to_string(inr::TransferFunctionTable::kMaxTransfer2DPixels) + " pixels";
+    return t;
+  }
+  double origin[3], spacing[3];
+  image->GetOrigin(origin);
+  image->GetSpacing(spacing);
+  t.scalarLo = origin[0];
+  t.scalarHi = origin[0] + spacing[0] * dims[0];
+  t.gradientLo = origin[1];
+  t.gradientHi = origin[1] + spacing[1] * dims[1];
+  if (!(std::isfinite(t.scalarLo) && std::isfinite(t.scalarHi) && t.scalarHi > t.scalarLo &&
+        std::isfinite(t.gradientLo) && std::isfinite(t.gradientHi) && t.gradientHi > t.gradientLo))
+  {
+    problem = "its image spans no value or gradient range (origin and spacing: the 2D transfer "
+              "function's Range must be wider than a point)";
+    return t;
+  }
+  t.rgba.resize(std::size_t(4) * dims[0] * dims[1]);
+  for (vtkIdType p = 0; p < vtkIdType(dims[0]) * dims[1]; ++p)
+  {
+    for (int c = 0; c < 4; ++c)
+    {
+      const double v = scalars->GetComponent(p, c);
+      if (!std::isfinite(v))
+      {
+        problem = "its pixel " + std::to_string(p % dims[0]) + ", " + std::to_string(p / dims[0]) + " is not finite";
+        return inr::TransferFunction::Transfer2D{};
+      }
+      t.rgba[std::size_t(4) * p + c] = static_cast<float>(v);
+    }
+  }
+  t.width = dims[0];
+  t.height = dims[1];
+  return t;
+}
+
 inr::TransferFunction InrSceneTranslator::DefaultTransferFunction(
   const double valueRange[2], double unitDistance)
 {
@@ -359,6 +420,24 @@ const inr::TransferFunction& InrSceneTranslator::UpdateTransferFunction(
   this->CachedRange[1] = valueRange[1];
   // With the default colour map too; read every time (a few nodes), so no key has to follow it.
   this->TF.gradientOpacity = GradientOpacity(prop);
+  // The 2D transfer function, with the property's colours, unless the default colour map is asked
+  // for; converted again when its image (or the property: the mode) changed.
+  vtkImageData* image = prop ? prop->GetTransferFunction2D(0) : nullptr;
+  if (useDefault || !prop)
+  {
+    this->Cached2D = {};
+    this->Transfer2DProblem.clear();
+    this->Image2D = nullptr;
+  }
+  else if (image != this->Image2D || (image && image->GetMTime() != this->Image2DTime) ||
+    prop->GetMTime() != this->Property2DTime)
+  {
+    this->Cached2D = Transfer2D(prop, this->Transfer2DProblem);
+    this->Image2D = image;
+    this->Image2DTime = image ? image->GetMTime() : 0;
+    this->Property2DTime = prop->GetMTime();
+  }
+  this->TF.transfer2D = this->Cached2D;
   return this->TF;
 }
 

@@ -118,11 +118,22 @@ public:
   static std::vector<inr::TransferFunction::OpacityPoint> GradientOpacity(vtkVolumeProperty* prop);
   static inr::TransferFunction DefaultTransferFunction(
     const double valueRange[2], double unitDistance);
+  /// The property's 2D transfer function (vtkVolumeProperty::TF_2D, ParaView's Use Transfer2D):
+  /// its image (GetTransferFunction2D: RGBA, one value per pixel) over the image's own extent,
+  /// origin + [0, dimensions] x spacing (vtkPVTransferFunction2D's Range), x the value and y the
+  /// gradient magnitude |grad f|. None (width 0) when the property is in another mode; also when
+  /// the image is missing or unusable, `problem` then says why (else it is cleared). The y axis is
+  /// always the gradient magnitude: the network has no second array (Use Gradient For Transfer2D
+  /// off falls back to it, as VTK's mapper does where the array is missing).
+  static inr::TransferFunction::Transfer2D Transfer2D(vtkVolumeProperty* property, std::string& problem);
   /// Cached: the default TF when `useDefault` or there is no property (unit distance 1 then),
   /// else the sampled one; converts again only when the inputs changed.
   const inr::TransferFunction& UpdateTransferFunction(
     vtkVolumeProperty* property, bool useDefault, const double valueRange[2]);
   const inr::TransferFunction& GetTransferFunction() const { return this->TF; }
+  /// Why the property's 2D transfer function was left out at the last UpdateTransferFunction
+  /// (Transfer2D), or "".
+  const std::string& GetTransfer2DProblem() const { return this->Transfer2DProblem; }
   /// How many times UpdateTransferFunction converted (cache misses).
   int GetTransferFunctionConversions() const { return this->Conversions; }
   ///@}
@@ -148,6 +159,11 @@ private:
   double CachedRange[2] = { 0, 0 };
   double CachedUnitDistance = 0;
   vtkMTimeType ColorTime = 0, OpacityTime = 0, PropertyTime = 0;
+  // The 2D transfer function, converted again only when its image or the property changed.
+  inr::TransferFunction::Transfer2D Cached2D;
+  std::string Transfer2DProblem;
+  const void* Image2D = nullptr;
+  vtkMTimeType Image2DTime = 0, Property2DTime = 0;
 };
 
 #endif

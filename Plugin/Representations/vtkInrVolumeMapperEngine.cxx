@@ -178,6 +178,16 @@ inr::RenderScene vtkInrVolumeMapper::Internals::TranslateScene(vtkInrVolumeMappe
   InrSceneTranslator::ValueRange(input->GetFieldData(), valueRange);
   scene.transferFunction = this->translator.UpdateTransferFunction(
     vol->GetProperty(), self->UseDefaultTransferFunction != 0, valueRange);
+  const std::string& problem2D = this->translator.GetTransfer2DProblem();
+  if (problem2D != this->warned2D)
+  {
+    this->warned2D = problem2D;
+    if (!problem2D.empty())
+    {
+      this->engines.warning("INR Volume: Use Transfer2D is on but its 2D transfer function is left out (" +
+        problem2D + "): the volume is rendered with the colour map and opacity.");
+    }
+  }
   const inr::InrModel& model = this->engines.Model();
   scene.time =
     InrSceneTranslator::Time(input, 0.5 * (model.domain.timeBegin + model.domain.timeEnd));

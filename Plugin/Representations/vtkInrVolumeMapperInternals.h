@@ -192,6 +192,7 @@ struct vtkInrVolumeMapper::Internals
   const InrMapperReport& ReportEngineCounters(vtkInrVolumeMapper* self, bool joinFine);
   bool uploadedCoarse = false;  // the uploaded texture came from the coarse session
   bool warnedLightsLeftOut = false;  // Shade's lights the engine left out: said once
+  std::string warned2D;  // the 2D transfer function's problem last said (said again when it changes)
   inr::RenderSession* Shown() const
   {
     return this->report.shownCoarse && this->engines.coarse.session ? this->engines.coarse.session.get()

@@ -772,6 +772,71 @@ def check_blend_isosurface(inr, data):
         expect(0.0 < cropped < 0.9 * whole, "--crop with --blend composite should clip the volume")
 
 
+def check_tf2d(inr, data):
+    """--tf2d: a 2D transfer function opaque only at low gradient magnitudes and its mirror (opaque
+    only at high ones) both show the model, differently, and ask for gradients; one transparent
+    everywhere shows the background; a malformed file fails naming the file and the key."""
+    model = os.path.join(data, "models", "siren_blobs.inr")
+    j = json.loads(run(inr, "info", model, "--json").stdout)
+    lo, hi = j["sampled_value_range"]["min"], j["sampled_value_range"]["max"]
+    b = j["bounds"]
+    # The median gradient magnitude (central differences of eval at a lattice of points) splits
+    # the gradient axis.
+    h = 1e-3 * (b[1] - b[0])
+    pts, n = [], 6
+    for i in range(n):
+        for k in range(n):
+            for m in range(n):
+                c = [b[0] + (i + 0.5) / n * (b[1] - b[0]), b[2] + (k + 0.5) / n * (b[3] - b[2]),
+                     b[4] + (m + 0.5) / n * (b[5] - b[4])]
+                for a in range(3):
+                    for sgn in (1, -1):
+                        q = list(c)
+                        q[a] += sgn * h
+                        pts.append(q)
+    p = run(inr, "eval", model, "--time", "0", stdin="\n".join("%r %r %r" % tuple(q) for q in pts) + "\n")
+    expect(p.returncode == 0, p.stderr)
+    v = [float(x) for x in p.stdout.split()]
+    mags = sorted(math.sqrt(sum(((v[6 * e + 2 * a] - v[6 * e + 2 * a + 1]) / (2 * h)) ** 2 for a in range(3)))
+                  for e in range(n ** 3))
+    g_mid = mags[len(mags) // 2]
+    with tempfile.TemporaryDirectory() as d:
+        out, stats = os.path.join(d, "t.pfm"), os.path.join(d, "t.json")
+
+        def render(rows, seed=1):
+            """rows: opacity of row 0 (|grad f| = 0) and row 1 (2 x the median); colour by value."""
+            tf = {"ScalarRange": [lo, hi], "GradientRange": [0.0, 2.0 * g_mid], "Width": 2, "Height": 2,
+                  "RGBA": [0.2, 0.4, 1.0, rows[0], 1.0, 0.6, 0.2, rows[0], 0.2, 0.4, 1.0, rows[1], 1.0, 0.6, 0.2, rows[1]]}
+            path = os.path.join(d, "tf2d.json")
+            json.dump(tf, open(path, "w"))
+            p = run(inr, "render", model, "--tf2d", path, "--size", "32x32", "--frames", "8", "--backend", "cpu",
+                    "--quiet", "--seed", str(seed), "--stats-json", stats, "-o", out)
+            expect(p.returncode == 0, p.stderr)
+            return read_pfm_rgb(out), json.load(open(stats))
+
+        def difference(a, b):
+            return sum(abs(x - y) for ra, rb in zip(a, b) for ca, cb in zip(ra, rb) for x, y in zip(ca, cb))
+
+        low, low_stats = render([0.05, 0.0])
+        high, _ = render([0.0, 0.05])
+        empty, _ = render([0.0, 0.0])
+        bright = lambda img: sum(sum(c) for r in img for c in r)  # noqa: E731
+        low_again, _ = render([0.05, 0.0], seed=2)
+        diff, noise = difference(low, high), difference(low, low_again)  # (noise: another seed)
+        print("tf2d: median |grad f| %.4g; brightness low-gradient %.2f, high-gradient %.2f, transparent %.2f, "
+              "difference %.2f (another seed: %.2f); gradient queries %d" % (g_mid, bright(low), bright(high), bright(empty), diff, noise,
+                                                         low_stats["total"]["gradient_opacity_queries"]))
+        expect(bright(low) > 1.0 and bright(high) > 1.0, "both 2D transfer functions show the model")
+        expect(diff > 3.0 * noise, "the gradient axis changes the picture beyond the noise")
+        expect(bright(empty) == 0.0, "a transparent 2D transfer function shows the background")
+        expect(low_stats["total"]["gradient_opacity_queries"] > 0, "the samples asked for gradients")
+        bad = os.path.join(d, "bad.json")
+        open(bad, "w").write('{"GradientRange": [0, 1], "Width": 1, "Height": 1, "RGBA": [0, 0, 0, 0]}')
+        p = run(inr, "render", model, "--tf2d", bad, "--size", "8x8", "--backend", "cpu", "--quiet", "-o", out)
+        expect(p.returncode != 0 and bad in p.stderr and "ScalarRange" in p.stderr,
+               "a file without ScalarRange must fail naming it: %d %s" % (p.returncode, p.stderr))
+
+
 # Composites the bricks in the reverse of their visibility order and prints the PSNR against the
 # whole render: argv = script, whole, bricks...
 REVERSED_ORDER = """

@@ -531,6 +531,74 @@ TEST(InrSceneTranslator, GradientOpacityFromTheVolumeProperty)
   EXPECT_TRUE(translator.UpdateTransferFunction(prop, false, range).gradientOpacity.empty()) << "disabled";
 }
 
+// A 2D transfer function as vtkPVTransferFunction2D builds one: RGBA float pixels, origin the
+// range's low corner, spacing the range over the dimensions.
+vtkSmartPointer<vtkImageData> transferFunction2DImage(int w, int h, const double range[4])
+{
+  auto image = vtkSmartPointer<vtkImageData>::New();
+  image->SetDimensions(w, h, 1);
+  image->SetOrigin(range[0], range[2], 0.0);
+  image->SetSpacing((range[1] - range[0]) / w, (range[3] - range[2]) / h, 1.0);
+  image->AllocateScalars(VTK_FLOAT, 4);
+  for (int j = 0; j < h; ++j)
+  {
+    for (int i = 0; i < w; ++i)
+    {
+      float* p = static_cast<float*>(image->GetScalarPointer(i, j, 0));
+      p[0] = float(i) / w;
+      p[1] = float(j) / h;
+      p[2] = 0.5f;
+      p[3] = 0.1f * float(i + j);
+    }
+  }
+  return image;
+}
+
+TEST(InrSceneTranslator, Transfer2DFromTheVolumeProperty)
+{
+  const double valueRange[2] = { 0.0, 1.0 };
+  const double range[4] = { -1.0, 3.0, 0.0, 8.0 };
+  vtkNew<vtkVolumeProperty> prop;
+  InrSceneTranslator translator;
+  auto image = transferFunction2DImage(4, 3, range);
+  prop->SetTransferFunction2D(image);
+  // In the 1D mode (ParaView's Use Transfer2D off) the image is not used.
+  EXPECT_FALSE(translator.UpdateTransferFunction(prop, false, valueRange).usesTransfer2D());
+  prop->SetTransferFunctionModeTo2D();
+  const inr::TransferFunction& tf = translator.UpdateTransferFunction(prop, false, valueRange);
+  ASSERT_TRUE(tf.usesTransfer2D());
+  EXPECT_TRUE(translator.GetTransfer2DProblem().empty());
+  EXPECT_EQ(tf.transfer2D.width, 4);
+  EXPECT_EQ(tf.transfer2D.height, 3);
+  EXPECT_DOUBLE_EQ(tf.transfer2D.scalarLo, -1.0);
+  EXPECT_DOUBLE_EQ(tf.transfer2D.scalarHi, 3.0);
+  EXPECT_DOUBLE_EQ(tf.transfer2D.gradientLo, 0.0);
+  EXPECT_DOUBLE_EQ(tf.transfer2D.gradientHi, 8.0);
+  EXPECT_FLOAT_EQ(tf.transfer2D.rgba[4 * (2 * 4 + 3) + 3], 0.5f);  // pixel (3, 2)
+  EXPECT_FLOAT_EQ(tf.transfer2D.rgba[4 * (1 * 4 + 2) + 0], 0.5f);  // pixel (2, 1): red i / w
+  EXPECT_TRUE(tf.gradientOpacity.empty()) << "the 2D mode has no gradient opacity, as in VTK";
+  // An edit of the image reaches the next render.
+  static_cast<float*>(image->GetScalarPointer(0, 0, 0))[3] = 0.75f;
+  image->Modified();
+  EXPECT_FLOAT_EQ(translator.UpdateTransferFunction(prop, false, valueRange).transfer2D.rgba[3], 0.75f);
+  // The default colour map leaves it out; so does an unusable image, saying why.
+  EXPECT_FALSE(translator.UpdateTransferFunction(prop, true, valueRange).usesTransfer2D());
+  const double flat[4] = { 2.0, 2.0, 0.0, 1.0 };
+  prop->SetTransferFunction2D(transferFunction2DImage(4, 3, flat));
+  EXPECT_FALSE(translator.UpdateTransferFunction(prop, false, valueRange).usesTransfer2D());
+  EXPECT_NE(translator.GetTransfer2DProblem().find("range"), std::string::npos) << translator.GetTransfer2DProblem();
+  vtkNew<vtkImageData> rgb;
+  rgb->SetDimensions(2, 2, 1);
+  rgb->AllocateScalars(VTK_FLOAT, 3);
+  prop->SetTransferFunction2D(rgb);
+  EXPECT_FALSE(translator.UpdateTransferFunction(prop, false, valueRange).usesTransfer2D());
+  EXPECT_NE(translator.GetTransfer2DProblem().find("RGBA"), std::string::npos) << translator.GetTransfer2DProblem();
+  // Back in the 1D mode: none, and no problem to report.
+  prop->SetTransferFunctionModeTo1D();
+  EXPECT_FALSE(translator.UpdateTransferFunction(prop, false, valueRange).usesTransfer2D());
+  EXPECT_TRUE(translator.GetTransfer2DProblem().empty());
+}
+
 TEST(InrSceneTranslator, FieldDataTimeAndRange)
 {
   vtkNew<vtkImageData> image;

@@ -124,6 +124,7 @@ RenderScene sceneFor(const RenderJob& job, const InrModel& model, const Box3f& b
   }
   if (job.transferFunctionRange) scene.transferFunction.rescale((*job.transferFunctionRange)[0], (*job.transferFunctionRange)[1]);
   scene.transferFunction.gradientOpacity = job.gradientOpacity;
+  if (!job.transfer2DFile.empty()) scene.transferFunction.transfer2D = TransferFunction::transfer2DFromJsonFile(job.transfer2DFile);
   scene.transferFunction.unitDistance = job.opacityUnitDistance.value_or(length(box.hi - box.lo) / 64.0);
   scene.background = job.background;
   scene.shadows = job.shadows;

@@ -30,6 +30,10 @@ const char* kRenderUsageHead =
     "                           |grad f| (scalar units per model-space unit), nodes (G, A) with\n"
     "                           increasing G and A in [0, 1]; flat regions fade. The samples it\n"
     "                           can change then ask the network for their gradient too\n"
+    "  --tf2d FILE              2D transfer function JSON: colour and opacity over (value, |grad f|),\n"
+    "                           as ParaView's Use Transfer2D; replaces --tf's colour and opacity and\n"
+    "                           --gradient-opacity (keys: Docs/transfer-functions.md). Every sample\n"
+    "                           asks the network for its gradient too\n"
     "  --background R,G,B       background colour (default 0,0,0)\n"
     "  --shadows                ray-traced shadows from a directional light\n"
     "  --light X,Y,Z            direction towards the light (default: above-left of the camera)\n"
@@ -501,6 +505,8 @@ void parseScene(const Args& args, RenderJob& job) {
   }
   job.transferFunctionFile = args.get("tf");
   if (args.has("tf") && job.transferFunctionFile.empty()) throw UsageError("--tf needs a file name");
+  job.transfer2DFile = args.get("tf2d");
+  if (args.has("tf2d") && job.transfer2DFile.empty()) throw UsageError("--tf2d needs a file name");
   if (args.has("tf-range")) {
     const auto r = args.getList("tf-range", 2);
     if (!(r[1] > r[0])) throw UsageError("--tf-range LO,HI needs LO < HI");
@@ -600,7 +606,7 @@ std::string renderUsage() {
 
 RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
   const Args args(arguments,
-                  {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf-range", "gradient-opacity",
+                  {"time", "size", "frames", "seed", "camera", "parallel-scale", "tf", "tf2d", "tf-range", "gradient-opacity",
                    "opacity-unit-distance", "background", "light", "ambient", "shadow-estimator", "method", "sample-share",
                    "stats-json", "macrocells", "time-slices", "bounds-padding", "skip-block", "ghost-passes", "step",
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",

@@ -61,6 +61,8 @@ struct RenderJob {
   // --gradient-opacity G,A,...: gradient opacity nodes (|grad f|, factor), increasing magnitudes;
   // empty: off (TransferFunction::gradientOpacity).
   std::vector<TransferFunction::OpacityPoint> gradientOpacity;
+  // --tf2d FILE: a 2D transfer function (TransferFunction::transfer2DFromJsonFile); empty: none.
+  std::string transfer2DFile;
   std::optional<double> opacityUnitDistance;  // default: box diagonal / 64
   std::array<float, 3> background{0.f, 0.f, 0.f};
   bool shadows = false;

@@ -94,6 +94,12 @@ TEST(RenderJob, GradientOpacityNodesAndTheirErrors) {
   EXPECT_NE(usageError(withModel({"--gradient-opacity", "2,0,1,1"})).find("increase"), std::string::npos);
 }
 
+TEST(RenderJob, Transfer2DFileIsKept) {
+  EXPECT_TRUE(parseRenderJob(withModel({})).transfer2DFile.empty());
+  EXPECT_EQ(parseRenderJob(withModel({"--tf2d", "boxes.json"})).transfer2DFile, "boxes.json");
+  EXPECT_NE(usageError(withModel({"--tf2d", ""})).find("--tf2d needs a file name"), std::string::npos);
+}
+
 TEST(RenderJob, OptionsReachTheirFields) {
   const RenderJob job = parseRenderJob(withModel(
       {"--size", "40x30", "--seed", "7", "--frames", "5", "--time", "0.25", "--camera", "1,2,3,0,0,0,0,0,1,40",

@@ -163,8 +163,9 @@ __global__ void sumPrunedKernel(RayStateView rs, unsigned long long* stats) {
 }
 
 // Gradient opacity (Render/Evaluate.h), after the values of the first min(*count, maxN) queries
-// landed in samples[slots[k]]: lists the queries whose outcome the factor can change (their point
-// and slot, *listed of them) for a value + gradient batch, and gives the others factor 0.
+// landed in samples[slots[k]]: lists the queries whose outcome the gradient term can change (their
+// point and slot, *listed of them) for a value + gradient batch, and gives the others the empty
+// term (factor 0). 2D transfer functions take the same path (the term is |grad f|).
 // points: ratio / march points (slots are point slots); else delta-tracking candidates (rays).
 __global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView tf, RayStateView rs, bool points,
                                          const unsigned* count, int maxN, const float4* queries, const int* slots,
@@ -176,7 +177,7 @@ __global__ void listOpacityQueriesKernel(FrameConstants fc, TransferFunctionView
   const float v = samples[slot];
   const bool needs = points ? sampleNeedsOpacityScale(tf, v) : candidateNeedsOpacityScale(fc, tf, rs, slot, v);
   if (!needs) {
-    opacityScales[slot] = 0.f;
+    opacityScales[slot] = emptyGradientTerm(tf);
     return;
   }
   const unsigned j = atomicAdd(listed, 1u);
@@ -193,7 +194,7 @@ __global__ void scatterOpacityKernel(const unsigned* listed, int maxN, const int
   if (j == 0) stats[kStatGradientOpacityQueries] += (unsigned long long)n;
   if (j >= n) return;
   const float4 r = results[j];
-  opacityScales[slots[j]] = gradientOpacityOf(tf, Vec3f{r.y, r.z, r.w});
+  opacityScales[slots[j]] = gradientTermOf(tf, Vec3f{r.y, r.z, r.w});
 }
 
 __global__ void resetPixelsKernel(AccumulationView acc) {
@@ -321,7 +322,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   };
   float* sampleOut = ratio ? launch.points.sample : rs.sample;
   float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
-  const bool gradientOpacity = medium.tf.gradientOpacity != nullptr;
+  const bool gradientOpacity = usesGradient(medium.tf);  // (or a 2D TF)
   if (gradientOpacity) growGradientOpacity(slots);
   enqueueTraverse(0);
   for (int it = 0;; ++it) {
@@ -557,7 +558,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   const std::size_t slots = std::size_t(n) * std::size_t(ratio ? fc.pointsPerIteration : 1);
   const auto tSetup = Clock::now();
   if (ratio) I.growSlots(slots, std::size_t(n));
-  if (medium.tf.gradientOpacity) I.growGradientOpacity(slots);
+  if (usesGradient(medium.tf)) I.growGradientOpacity(slots);
   if (fc.shading.enabled) I.growShading(std::size_t(n));
   I.setupMs += msSince(tSetup);  // (I.setupMs was reset above: this frame's allocations)
 

@@ -37,7 +37,7 @@ __device__ bool naiveTrack(const FrameConstants& fc, const TrackingMedium& mediu
     const QueryPoint q = pendingQuery(rs, i, fc.time);
     const float v = cuda::perThreadEvaluate(net, q.x, q.y, q.z, q.t, tid);
     // As the wavefront's evaluation stage (Render/Evaluate.h); the view holds tangent planes then.
-    if (medium.tf.gradientOpacity && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
+    if (usesGradient(medium.tf) && storeCandidateOpacityScale(fc, medium.tf, rs, i, v, [&](float* g) {
           cuda::perThreadForward<true>(net, q.x, q.y, q.z, q.t, tid, g);
         }))
       ++gradientQueries;
@@ -104,7 +104,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   const RayStateView& rs = f.rs;
   const int n = rs.count;
   // Threads per launch: the option, bounded so the per-thread scratch stays under 2 GiB.
-  const bool shading = fc.shading.enabled != 0 || medium.tf.gradientOpacity != nullptr;  // gradients
+  const bool shading = fc.shading.enabled != 0 || usesGradient(medium.tf);  // gradients
   const std::size_t perThread = network.scratchBytesPerThread() * (shading ? 4 : 1);
   int chunk = std::min(n, std::max(1, pipeline_.naiveRaysPerLaunch));
   chunk = int(std::max<std::size_t>(1024, std::min<std::size_t>(chunk, (std::size_t(2) << 30) / perThread)));

@@ -76,11 +76,12 @@ __device__ __forceinline__ MarchShadowRay shadowRayOf(const MarchShadowParams& s
 // Each primary sample's shadow-ray sample count (0 when it cannot emit); count has total + 1
 // entries (the last 0, so that the exclusive scan's last entry is the chunk's shadow points).
 // tau (the optical depth towards the light) starts at 0.
-// Gradient opacity (Render/Evaluate.h): sample j's factor from its (value, gradient), 1 without.
+// Gradient opacity and 2D TFs (Render/Evaluate.h): sample j's gradient term from its (value,
+// gradient), 1 without.
 __device__ __forceinline__ float marchOpacityScale(const TransferFunctionView& tf, const float4* valueGradients, int j) {
   if (!valueGradients) return 1.f;
   const float4 vg = valueGradients[j];
-  return gradientOpacityOf(tf, Vec3f{vg.y, vg.z, vg.w});
+  return gradientTermOf(tf, Vec3f{vg.y, vg.z, vg.w});
 }
 
 // gradients: each sample's (value, gradient) with gradient opacity, else null.
@@ -304,7 +305,7 @@ FrameStats CudaRayMarcher::renderFrame() {
   }
   // Gradient shading and gradient opacity: every sample's value comes with its gradient, shadow
   // samples' too with gradient opacity, as in the CPU marcher.
-  const bool gradientOpacity = tf.gradientOpacity != nullptr;
+  const bool gradientOpacity = usesGradient(tf);  // (or a 2D TF)
   MarchShading shading;
   shading.constants = shadingConstants(scene_.shading, p.cam);
   shading.toLight = sp.toLight;
@@ -380,7 +381,7 @@ void CudaRayMarcher::castShadows(int total, const TransferFunctionView& tf, cons
     I.shadowScanTemp.resize(bytes);
   }
   const int sampleBlocks = (total + 1 + 127) / 128;
-  const bool gradientOpacity = tf.gradientOpacity != nullptr;
+  const bool gradientOpacity = usesGradient(tf);  // (or a 2D TF)
   shadowCountKernel<<<sampleBlocks, 128, 0, s>>>(total, I.points.get(), I.values.get(),
                                                  gradientOpacity ? I.valueGradients.get() : nullptr, tf, sp,
                                                  I.shadowCount.get(), I.tau.get(), I.shadowRays.get());

@@ -30,6 +30,10 @@ public:
       view_.gradientOpacity = gradientOpacity_.get();
       view_.gradientOpacityX = gradientOpacityX_.get();
     }
+    if (h.rgba2D) {
+      rgba2D_.upload(h.rgba2D, std::size_t(h.size) * std::size_t(h.gradientSize), s);
+      view_.rgba2D = rgba2D_.get();
+    }
     // The host table must stay alive until the copies ran (they are asynchronous from pageable
     // memory only in name: the runtime stages them before returning). Synchronise anyway.
     INR_CUDA_CHECK(cudaStreamSynchronize(s));
@@ -43,6 +47,7 @@ private:
   DeviceBuffer<float> entryExtinction_;
   DeviceBuffer<Vec4f> extinctionIntegral_;
   DeviceBuffer<float> gradientOpacity_, gradientOpacityX_;
+  DeviceBuffer<Vec4f> rgba2D_;
   TransferFunctionView view_{};
 };
 
