@@ -418,7 +418,15 @@ void CudaInrEvaluator::Impl::launchTangents(const FusedConfig& c, const float4* 
   }
   const FusedKernel kernel =
       c.generated ? generated->kernel(c.tile, c.kc, c.storedEncoding, true) : cuda::mmaSyncTangentKernel(c.tile, c.kc);
-  kernel<<<grid, c.tile * 4, c.sharedBytes, stream>>>(P, points, n, deviceCount, reinterpret_cast<float*>(out), nullptr);
+  // Through the runtime's launch call, never kernel<<<...>>>: a generated kernel is a library's
+  // handle, not a host stub that the chevrons would call.
+  cudaLaunchConfig_t launch{};
+  launch.gridDim = dim3(unsigned(grid));
+  launch.blockDim = dim3(unsigned(c.tile * 4));
+  launch.dynamicSmemBytes = c.sharedBytes;
+  launch.stream = stream;
+  INR_CUDA_CHECK(cudaLaunchKernelEx(&launch, kernel, P, points, n, deviceCount, reinterpret_cast<float*>(out),
+                                    static_cast<const int*>(nullptr)));
   INR_CUDA_CHECK_LAUNCH("fusedMlpKernel (tangent rows)");
 }
 
