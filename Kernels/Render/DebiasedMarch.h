@@ -82,7 +82,7 @@ template <bool kPruning>
 INR_HD void storeDebiasedPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts, int i,
                                int count, float t, float gap, std::uint8_t kind, int level, int step, int cell,
                                RngStream& rng) {
-  const int slot = pointSlot(rs.count, i, count);
+  const int slot = pointSlot(pts, rs.count, i, count);
   pts.t[slot] = t;
   pts.gap[slot] = gap;
   pts.cell[slot] = cell;
@@ -258,12 +258,12 @@ INR_HD Vec4f marchInterval(const TransferFunctionView& tf, const RayStateView& r
   bool havePrevious = leftKnown;
   MarchPoint previous = leftEnd;
   float previousAt = 0.f;  // the previous point's length from the left end
-  const int closeSlot = pointSlot(rs.count, i, e);
+  const int closeSlot = pointSlot(pts, rs.count, i, e);
   const bool markerEnd = (pts.kind[closeSlot] & kPointCellExit) != 0;
   const int first = (s0 + stride - 1) / stride * stride;  // the level's first step in the interval
   for (int p = j + (first - s0); p <= e; p += stride) {
     if (p == e && markerEnd) break;
-    const int slot = pointSlot(rs.count, i, p);
+    const int slot = pointSlot(pts, rs.count, i, p);
     const MarchPoint here = debiasedPoint(tf, pts, slot);
     const float at = pts.gap[slot];
     span(havePrevious ? previous : here, here, at - previousAt);
@@ -288,7 +288,7 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
                                   OnEvaluated&& onEvaluated) {
   const TransferFunctionView& tf = medium.tf;
   for (int j = 0; j < count; ++j) {
-    const int slot = pointSlot(rs.count, i, j);
+    const int slot = pointSlot(pts, rs.count, i, j);
     if (!(pts.kind[slot] & kPointPruned)) onEvaluated(slot, pts.sample[slot]);
   }
   float T = rs.visibility[i];
@@ -310,10 +310,10 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
   for (int j = 0; j < count && !ended;) {
     // The interval: points j..e-1 inside, closed by point e: its comb point at step 2^level, or
     // the ray's marker, the batch's last point (every batch ends at one of them).
-    const int firstSlot = pointSlot(rs.count, i, j);
+    const int firstSlot = pointSlot(pts, rs.count, i, j);
     const int level = pts.level[firstSlot], s0 = pts.step[firstSlot];
     const int e = j + (1 << level) - s0 < count ? j + (1 << level) - s0 : count - 1;
-    const int closeSlot = pointSlot(rs.count, i, e);
+    const int closeSlot = pointSlot(pts, rs.count, i, e);
     Vec4f emission{0.f, 0.f, 0.f, 0.f};
     float transmittance = 0.f;
     float weight = 1.f;  // r^-k
@@ -390,7 +390,7 @@ INR_HD void traverseDebiasedRayWith(const FrameConstants& fc, const TrackingMedi
     pending = drawDebiasedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
     int queries = 0;
     for (int j = 0; j < pending; ++j) {
-      const int slot = pointSlot(rs.count, i, j);
+      const int slot = pointSlot(pts, rs.count, i, j);
       if (pts.kind[slot] & kPointCellExit) {
         // (no query)
       } else if (pts.kind[slot] & kPointPruned) {
