@@ -57,7 +57,6 @@
 // clamps; shared with delta tracking, whose acceptance probability clamps the same way).
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 
 #include "Evaluator/FieldEvaluator.h"
@@ -103,7 +102,7 @@ enum PointKind : std::uint8_t {
 struct PointStateView {
   int count = 0;  // slots: rays x pointsPerIteration
   // The layout (pointSlot): 0, by point index (slot j x rays + i); > 0, by ray with this many
-  // points per ray (slot i x perRay + j).
+  // points per ray (slot i x perRay + j; what the renderers use).
   int perRay = 0;
   INR_POINT_STATE_FIELDS(INR_DECLARE_POINT_VIEW_FIELD)
 };
@@ -111,15 +110,9 @@ struct PointStateView {
 
 // Slot of point j of ray i among `rays` rays. By point index, the lanes of a warp (consecutive
 // rays) touch consecutive words at the same j; by ray, a ray's points share cache lines, which
-// stay whole when the lanes' rays are scattered or draw many points each.
-// (Experiment: INR_POINT_LAYOUT=ray picks the layout by ray; by point index otherwise.)
-inline int pointLayoutPerRay(int pointsPerIteration) {
-  static const bool byRay = [] {
-    const char* e = std::getenv("INR_POINT_LAYOUT");
-    return e && e[0] == 'r';
-  }();
-  return byRay ? pointsPerIteration : 0;
-}
+// stay whole when the lanes' rays are scattered (the later passes' lists) or draw many points
+// each (the debiased march). The renderers lay the points out by ray (Benchmarks/RESULTS-archive.md,
+// "The debiased march's traversal", has both layouts side by side).
 INR_HD int pointSlot(const PointStateView& pts, int rays, int i, int j) {
   return pts.perRay > 0 ? i * pts.perRay + j : j * rays + i;
 }

@@ -300,7 +300,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   launch.ratio = ratio;
   if (ratio) {
     launch.points = pointState.view();
-    launch.points.perRay = pointLayoutPerRay(fc.pointsPerIteration);
+    launch.points.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
   }
   launch.n = rs.count;  // upper bound of the rays the next traversal lists
   auto enqueueTraverse = [&](int it) {
