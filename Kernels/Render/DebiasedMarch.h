@@ -76,14 +76,14 @@ INR_HD int debiasedLevel(const FrameConstants& fc, float u) {
 
 // ---- drawing the points
 
-// Stores point `count` of ray i; pruning may answer it at once (no query is emitted here).
+// Stores point `count` of ray i (`gap`: the non-empty length from its interval's left end); pruning
+// may answer it at once (no query is emitted here).
 template <bool kPruning>
 INR_HD void storeDebiasedPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts, int i,
                                int count, float t, float gap, std::uint8_t kind, int level, int step, int cell,
                                RngStream& rng) {
-  const int slot = pointSlot(rs.count, i, count);
+  const int slot = pointSlot(pts, rs.count, i, count);
   pts.t[slot] = t;
-  pts.majorant[slot] = 0.f;
   pts.gap[slot] = gap;
   pts.cell[slot] = cell;
   pts.level[slot] = std::uint8_t(level);
@@ -105,7 +105,9 @@ INR_HD int drawDebiasedPoints(const FrameConstants& fc, const TrackingMedium& me
   float t = rs.t[i];
   float phase = rs.combPhase[i];  // comb coordinate from t to the next point (NaN: the comb has not started)
   int level = rs.marchLevel[i], step = rs.marchStep[i];
-  float gap = 0.f;  // non-empty length since the last point (a batch starts at a comb point or the ray's start)
+  // Non-empty length from the open interval's left end (its comb point, or the ray's start: a batch
+  // starts at one of them).
+  float gap = 0.f;
   int count = 0, committed = 0;
   std::uint32_t committedCounter = rng.counter;
   bool capped = false, full = false;
@@ -159,8 +161,8 @@ INR_HD int drawDebiasedPoints(const FrameConstants& fc, const TrackingMedium& me
         storeDebiasedPoint<kPruning>(medium, rs, pts, i, count, t, gap, comb ? kPointComb : 0, level, step,
                                      walker.cellIndex(), rng);
         ++count;
-        gap = 0.f;
         if (comb) {  // the next interval
+          gap = 0.f;
           level = debiasedLevel(fc, rng.next());
           step = 1;
           phase = 1.f / float(1 << level);
@@ -232,39 +234,44 @@ INR_HD float marchSpan(const MarchPoint& a, const MarchPoint& b, float length, V
   return 0.5f * length * both;
 }
 
-// One level's march over an interval: its points are the left end (when known) and the interval's
-// points j..e (slots of ray i) whose step is a multiple of `stride`; the marker closing the ray
-// stands for the level's last point, a missing left end for its first (the medium at the ray's
-// ends taken as at the nearest point). Returns the emission (xyz colour, w coverage) and sets
-// the transmittance.
+// One level's march over an interval: its points are the left end (when known) and those of the
+// interval's points (slots j..e of ray i, at steps s0, s0 + 1, ... from slot j on) whose step is a
+// multiple of `stride`; only they are read (the points' lengths from the interval's left end give
+// each span's length), so the levels of an interval of n points read about 2 n points in all,
+// not n per level. The marker closing the ray stands for the level's last point, a missing left
+// end for its first (the medium at the ray's ends taken as at the nearest point). Returns the
+// emission (xyz colour, w coverage) and sets the transmittance.
 INR_HD Vec4f marchInterval(const TransferFunctionView& tf, const RayStateView& rs, const PointStateView& pts, int i,
-                           int j, int e, int stride, bool leftKnown, const MarchPoint& leftEnd, float& transmittance) {
+                           int j, int e, int s0, int stride, bool leftKnown, const MarchPoint& leftEnd,
+                           float& transmittance) {
   Vec4f emission{0.f, 0.f, 0.f, 0.f};
   float T = 1.f;
-  bool havePrevious = leftKnown;
-  MarchPoint previous = leftEnd;
-  float length = 0.f;  // non-empty length since the level's previous point
-  for (int p = j; p <= e; ++p) {
-    const int slot = pointSlot(rs.count, i, p);
-    length += pts.gap[slot];
-    const bool marker = (pts.kind[slot] & kPointCellExit) != 0;
-    if (!marker && pts.step[slot] % stride != 0) continue;
-    if (marker && !havePrevious) break;  // no point at this level: nothing to march
-    const MarchPoint here = marker ? previous : debiasedPoint(tf, pts, slot);
-    if (!havePrevious) {
-      previous = here;
-      havePrevious = true;
-    }
+  auto span = [&](const MarchPoint& a, const MarchPoint& b, float length) {
     Vec3f colour;
-    const float depth = marchSpan(previous, here, length, colour);
+    const float depth = marchSpan(a, b, length, colour);
     if (depth > 0.f) {
       const float opacity = -expm1f(-depth), w = T * opacity;
       emission = Vec4f{emission.x + w * colour.x, emission.y + w * colour.y, emission.z + w * colour.z, emission.w + w};
       T *= 1.f - opacity;
     }
+  };
+  bool havePrevious = leftKnown;
+  MarchPoint previous = leftEnd;
+  float previousAt = 0.f;  // the previous point's length from the left end
+  const int closeSlot = pointSlot(pts, rs.count, i, e);
+  const bool markerEnd = (pts.kind[closeSlot] & kPointCellExit) != 0;
+  const int first = (s0 + stride - 1) / stride * stride;  // the level's first step in the interval
+  for (int p = j + (first - s0); p <= e; p += stride) {
+    if (p == e && markerEnd) break;
+    const int slot = pointSlot(pts, rs.count, i, p);
+    const MarchPoint here = debiasedPoint(tf, pts, slot);
+    const float at = pts.gap[slot];
+    span(havePrevious ? previous : here, here, at - previousAt);
+    havePrevious = true;
     previous = here;
-    length = 0.f;
+    previousAt = at;
   }
+  if (markerEnd && havePrevious) span(previous, previous, pts.gap[closeSlot] - previousAt);
   transmittance = T;
   return emission;
 }
@@ -281,7 +288,7 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
                                   OnEvaluated&& onEvaluated) {
   const TransferFunctionView& tf = medium.tf;
   for (int j = 0; j < count; ++j) {
-    const int slot = pointSlot(rs.count, i, j);
+    const int slot = pointSlot(pts, rs.count, i, j);
     if (!(pts.kind[slot] & kPointPruned)) onEvaluated(slot, pts.sample[slot]);
   }
   float T = rs.visibility[i];
@@ -301,18 +308,18 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
   const float inverseRatio = 1.f / fc.levelRatio;
   bool ended = false;
   for (int j = 0; j < count && !ended;) {
-    // The interval: points j..e-1 inside, closed by point e (a comb point or the ray's marker).
-    int e = j;
-    while (e < count && !(pts.kind[pointSlot(rs.count, i, e)] & (kPointComb | kPointCellExit))) ++e;
-    if (e == count) break;  // (never: every batch ends at a comb point or the marker)
-    const int closeSlot = pointSlot(rs.count, i, e);
-    const int level = pts.level[closeSlot];
+    // The interval: points j..e-1 inside, closed by point e: its comb point at step 2^level, or
+    // the ray's marker, the batch's last point (every batch ends at one of them).
+    const int firstSlot = pointSlot(pts, rs.count, i, j);
+    const int level = pts.level[firstSlot], s0 = pts.step[firstSlot];
+    const int e = j + (1 << level) - s0 < count ? j + (1 << level) - s0 : count - 1;
+    const int closeSlot = pointSlot(pts, rs.count, i, e);
     Vec4f emission{0.f, 0.f, 0.f, 0.f};
     float transmittance = 0.f;
     float weight = 1.f;  // r^-k
     for (int k = 0; k <= level; ++k) {
       float tk;
-      const Vec4f ek = marchInterval(tf, rs, pts, i, j, e, 1 << (level - k), leftKnown, leftEnd, tk);
+      const Vec4f ek = marchInterval(tf, rs, pts, i, j, e, s0, 1 << (level - k), leftKnown, leftEnd, tk);
       const float c = k < level ? weight * (1.f - inverseRatio) : weight;
       emission = Vec4f{emission.x + c * ek.x, emission.y + c * ek.y, emission.z + c * ek.z, emission.w + c * ek.w};
       transmittance += c * tk;
@@ -383,7 +390,7 @@ INR_HD void traverseDebiasedRayWith(const FrameConstants& fc, const TrackingMedi
     pending = drawDebiasedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
     int queries = 0;
     for (int j = 0; j < pending; ++j) {
-      const int slot = pointSlot(rs.count, i, j);
+      const int slot = pointSlot(pts, rs.count, i, j);
       if (pts.kind[slot] & kPointCellExit) {
         // (no query)
       } else if (pts.kind[slot] & kPointPruned) {

@@ -232,6 +232,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
       st.setupMs += msSince(tSetup);
     }
     pointsView = points_.view();
+    pointsView.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
   }
   runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
                   st.gradientOpacityQueries, truncated);

@@ -125,7 +125,7 @@ TEST(GradientOpacity, UnbiasedMarchDropsItsControlUnderTheFactor) {
     const float value[2] = {0.9f, residualValue}, factor[2] = {1.f, residualFactor};
     const std::uint8_t kind[2] = {kPointComb, 0};
     for (int j = 0; j < 2; ++j) {
-      const int slot = pointSlot(1, 0, j);
+      const int slot = pointSlot(pts, 1, 0, j);
       pts.t[slot] = t[j];
       pts.majorant[slot] = rate[j];
       pts.gap[slot] = gap[j];

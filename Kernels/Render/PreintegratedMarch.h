@@ -211,7 +211,7 @@ template <bool kPruning>
 INR_HD void storePreintegratedPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts,
                                     int i, int count, float t, float rate, float sinceBreak, std::uint8_t kind,
                                     int cell, RngStream& rng) {
-  const int slot = pointSlot(rs.count, i, count);
+  const int slot = pointSlot(pts, rs.count, i, count);
   pts.t[slot] = t;
   pts.majorant[slot] = rate;
   pts.sinceBreak[slot] = sinceBreak;
@@ -384,7 +384,7 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
                                        OnEvaluated&& onEvaluated) {
   const TransferFunctionView& tf = medium.tf;
   for (int j = 0; j < count; ++j) {
-    const int slot = pointSlot(rs.count, i, j);
+    const int slot = pointSlot(pts, rs.count, i, j);
     if (!(pts.kind[slot] & kPointPruned)) onEvaluated(slot, pts.sample[slot]);
   }
   float T = rs.visibility[i];
@@ -397,9 +397,9 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
   for (int j = 0; j < count && !ended;) {
     // The segment: residual points j..e-1, closed by point e (a comb point or the cell's marker).
     int e = j;
-    while (e < count && !(pts.kind[pointSlot(rs.count, i, e)] & (kPointComb | kPointCellExit))) ++e;
+    while (e < count && !(pts.kind[pointSlot(pts, rs.count, i, e)] & (kPointComb | kPointCellExit))) ++e;
     if (e == count) break;  // (never: every batch ends at a comb point or a marker)
-    const int closeSlot = pointSlot(rs.count, i, e);
+    const int closeSlot = pointSlot(pts, rs.count, i, e);
     const bool atComb = (pts.kind[closeSlot] & kPointComb) != 0;
     const float length = pts.sinceBreak[closeSlot];
     SegmentControl control;
@@ -423,7 +423,7 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
     }
     float product = 1.f;  // residual factors so far in this segment
     for (int r = j; r < e; ++r) {
-      const int slot = pointSlot(rs.count, i, r);
+      const int slot = pointSlot(pts, rs.count, i, r);
       const float s = pts.sample[slot], mu = pts.majorant[slot], v = pts.sinceBreak[slot];
       const Vec4f c = isFiniteValue(s) ? lookupTransferFunction(tf, s) : Vec4f{0.f, 0.f, 0.f, 0.f};
       const float sigma = opacityToExtinction(c.w, tf.invUnitDistance);
@@ -510,7 +510,7 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
     pending = drawPreintegratedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
     int queries = 0;
     for (int j = 0; j < pending; ++j) {
-      const int slot = pointSlot(rs.count, i, j);
+      const int slot = pointSlot(pts, rs.count, i, j);
       if (pts.kind[slot] & kPointCellExit) {
         // (no query)
       } else if (pts.kind[slot] & kPointPruned) {

@@ -58,12 +58,12 @@ std::size_t QueryBatch::gatherPoints(const RayStateView& rs, const PointStateVie
       n,
       [&](int i) -> std::size_t {
         std::size_t k = 0;
-        for (int j = 0, m = pending(i); j < m; ++j) k += (pts.kind[pointSlot(n, i, j)] & kPointPruned) ? 0 : 1;
+        for (int j = 0, m = pending(i); j < m; ++j) k += (pts.kind[pointSlot(pts, n, i, j)] & kPointPruned) ? 0 : 1;
         return k;
       },
       [&](int i, std::size_t& k) {
         for (int j = 0, m = pending(i); j < m; ++j) {
-          const int slot = pointSlot(n, i, j);
+          const int slot = pointSlot(pts, n, i, j);
           if (pts.kind[slot] & kPointPruned) continue;  // answered already
           points_[k] = ratioPointQuery(rs, pts, i, slot, time);
           rays_[k] = slot;

@@ -101,13 +101,21 @@ enum PointKind : std::uint8_t {
 #define INR_DECLARE_POINT_VIEW_FIELD(type, name) type* name = nullptr;
 struct PointStateView {
   int count = 0;  // slots: rays x pointsPerIteration
+  // The layout (pointSlot): 0, by point index (slot j x rays + i); > 0, by ray with this many
+  // points per ray (slot i x perRay + j; what the renderers use).
+  int perRay = 0;
   INR_POINT_STATE_FIELDS(INR_DECLARE_POINT_VIEW_FIELD)
 };
 #undef INR_DECLARE_POINT_VIEW_FIELD
 
-// Slot of point j of ray i among `rays` rays (struct-of-arrays by point index: on the GPU the
-// lanes of a warp, consecutive rays, touch consecutive words).
-INR_HD int pointSlot(int rays, int i, int j) { return j * rays + i; }
+// Slot of point j of ray i among `rays` rays. By point index, the lanes of a warp (consecutive
+// rays) touch consecutive words at the same j; by ray, a ray's points share cache lines, which
+// stay whole when the lanes' rays are scattered (the later passes' lists) or draw many points
+// each (the debiased march). The renderers lay the points out by ray (Benchmarks/RESULTS-archive.md,
+// "The debiased march's traversal", has both layouts side by side).
+INR_HD int pointSlot(const PointStateView& pts, int rays, int i, int j) {
+  return pts.perRay > 0 ? i * pts.perRay + j : j * rays + i;
+}
 
 INR_HD std::uint32_t floatBits(float f) {
 #if defined(__CUDA_ARCH__)
@@ -171,7 +179,7 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
   const bool pickOne = pickOnePoint(fc);
   bool ended = false;
   for (int j = 0; j < count; ++j) {
-    const int slot = pointSlot(rs.count, i, j);
+    const int slot = pointSlot(pts, rs.count, i, j);
     const float s = pts.sample[slot], mu = pts.majorant[slot];
     const std::uint8_t kind = pts.kind[slot];
     if (!(kind & kPointPruned)) onEvaluated(slot, s);
@@ -245,7 +253,7 @@ template <bool kPruning, typename EmitQuery>
 INR_HD bool storeRatioPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts, int i,
                             int count, float t, float rate, float gap, std::uint8_t kind, int cell, RngStream& rng,
                             EmitQuery&& emitQuery) {
-  const int slot = pointSlot(rs.count, i, count);
+  const int slot = pointSlot(pts, rs.count, i, count);
   pts.t[slot] = t;
   pts.majorant[slot] = rate;
   pts.gap[slot] = gap;

@@ -298,7 +298,10 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   launch.refine = refine;
   launch.refineView = refineView;
   launch.ratio = ratio;
-  if (ratio) launch.points = pointState.view();
+  if (ratio) {
+    launch.points = pointState.view();
+    launch.points.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
+  }
   launch.n = rs.count;  // upper bound of the rays the next traversal lists
   auto enqueueTraverse = [&](int it) {
     const int cur = it & 1, prev = cur ^ 1;
