@@ -234,49 +234,48 @@ INR_HD float marchSpan(const MarchPoint& a, const MarchPoint& b, float length, V
   return 0.5f * length * both;
 }
 
-// One level's march over an interval, a point at a time: its points are the left end (when
-// known) and those of the interval's points whose step is a multiple of the level's stride; only
-// they are read (a point's length from the interval's left end gives each span's length), so the
-// levels of an interval of n points read about 2 n points in all. The marker closing the ray
-// stands for the level's last point, a missing left end for its first (the medium at the ray's
-// ends taken as at the nearest point). emission: xyz colour, w coverage.
-struct LevelMarch {
+// One level's march over an interval: its points are the left end (when known) and those of the
+// interval's points (slots j..e of ray i, at steps s0, s0 + 1, ... from slot j on) whose step is a
+// multiple of `stride`; only they are read (the points' lengths from the interval's left end give
+// each span's length), so the levels of an interval of n points read about 2 n points in all,
+// not n per level. The marker closing the ray stands for the level's last point, a missing left
+// end for its first (the medium at the ray's ends taken as at the nearest point). Returns the
+// emission (xyz colour, w coverage) and sets the transmittance.
+INR_HD Vec4f marchInterval(const TransferFunctionView& tf, const RayStateView& rs, const PointStateView& pts, int i,
+                           int j, int e, int s0, int stride, bool leftKnown, const MarchPoint& leftEnd,
+                           float& transmittance) {
   Vec4f emission{0.f, 0.f, 0.f, 0.f};
-  float transmittance = 1.f;
-  MarchPoint previous;
-  float previousAt = 0.f;  // the previous point's length from the left end
-  bool havePrevious = false;
-
-  INR_HD void start(bool leftKnown, const MarchPoint& leftEnd) {
-    emission = Vec4f{0.f, 0.f, 0.f, 0.f};
-    transmittance = 1.f;
-    previous = leftEnd;
-    previousAt = 0.f;
-    havePrevious = leftKnown;
-  }
-  // The span from the previous point to `here`, `at` from the left end.
-  INR_HD void add(const MarchPoint& here, float at) {
-    if (!havePrevious) previous = here;  // (a copy, not `havePrevious ? previous : here`: a select
-                                         // between two objects' addresses put both on the stack)
-    span(previous, here, at - previousAt);
-    havePrevious = true;
-    previous = here;
-    previousAt = at;
-  }
-  // The ray's end at `at`, the medium there as at the previous point.
-  INR_HD void close(float at) {
-    if (havePrevious) span(previous, previous, at - previousAt);
-  }
-  INR_HD void span(const MarchPoint& a, const MarchPoint& b, float length) {
+  float T = 1.f;
+  auto span = [&](const MarchPoint& a, const MarchPoint& b, float length) {
     Vec3f colour;
     const float depth = marchSpan(a, b, length, colour);
     if (depth > 0.f) {
-      const float opacity = -expm1f(-depth), w = transmittance * opacity;
+      const float opacity = -expm1f(-depth), w = T * opacity;
       emission = Vec4f{emission.x + w * colour.x, emission.y + w * colour.y, emission.z + w * colour.z, emission.w + w};
-      transmittance *= 1.f - opacity;
+      T *= 1.f - opacity;
     }
+  };
+  bool havePrevious = leftKnown;
+  MarchPoint previous = leftEnd;
+  float previousAt = 0.f;  // the previous point's length from the left end
+  const int closeSlot = pointSlot(pts, rs.count, i, e);
+  const bool markerEnd = (pts.kind[closeSlot] & kPointCellExit) != 0;
+  const int first = (s0 + stride - 1) / stride * stride;  // the level's first step in the interval
+  for (int p = j + (first - s0); p <= e; p += stride) {
+    if (p == e && markerEnd) break;
+    const int slot = pointSlot(pts, rs.count, i, p);
+    const MarchPoint here = debiasedPoint(tf, pts, slot);
+    const float at = pts.gap[slot];
+    if (!havePrevious) previous = here;  // (a copy: `havePrevious ? previous : here` selected between
+    havePrevious = true;                 // two objects' addresses and put both on the stack)
+    span(previous, here, at - previousAt);
+    previous = here;
+    previousAt = at;
   }
-};
+  if (markerEnd && havePrevious) span(previous, previous, pts.gap[closeSlot] - previousAt);
+  transmittance = T;
+  return emission;
+}
 
 // Folds ray i's batch (`count` points in slot order) into its estimate: radiance (premultiplied
 // colour, w = coverage), visibility = T, collisionProduct = the sum of the intervals' |emission
@@ -309,82 +308,52 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
   }
   const float inverseRatio = 1.f / fc.levelRatio;
   bool ended = false;
-  // One loop iteration per point of a level (the lookup and the span, which the lanes of a warp
-  // run together) or per level's end; the intervals and their levels are its state, not nested
-  // loops: with nested loops a warp's lanes, whose intervals differ in level and length, ran their
-  // innermost iterations apart, one lane at a time.
-  int j = 0;           // the open interval's first point (points j..e-1 inside, closed by point e:
-  int e = -1;          // its comb point at step 2^level, or the ray's marker, the batch's last point)
-  int level = 0, s0 = 0, k = 0, stride = 1, p = 0, closeSlot = 0;
-  bool markerEnd = false, open = false;
-  Vec4f emission{0.f, 0.f, 0.f, 0.f};  // the interval's estimate: sum over levels of C_k x the level's
-  float transmittance = 0.f, weight = 1.f;  // (weight = r^-k)
-  LevelMarch march;
-  while (!ended) {
-    if (!open) {  // the next interval, from its first point
-      if (j >= count) break;
-      const int firstSlot = pointSlot(pts, rs.count, i, j);
-      level = pts.level[firstSlot];
-      s0 = pts.step[firstSlot];
-      e = j + (1 << level) - s0 < count ? j + (1 << level) - s0 : count - 1;
-      closeSlot = pointSlot(pts, rs.count, i, e);
-      markerEnd = (pts.kind[closeSlot] & kPointCellExit) != 0;
-      emission = Vec4f{0.f, 0.f, 0.f, 0.f};
-      transmittance = 0.f;
-      weight = 1.f;
-      k = 0;
-      open = true;
-    } else if (p < e || (p == e && !markerEnd)) {  // a point of level k
-      const int slot = pointSlot(pts, rs.count, i, p);
-      march.add(debiasedPoint(tf, pts, slot), pts.gap[slot]);
-      p += stride;
-      continue;
-    } else {  // level k is complete
-      if (markerEnd) march.close(pts.gap[closeSlot]);
+  for (int j = 0; j < count && !ended;) {
+    // The interval: points j..e-1 inside, closed by point e: its comb point at step 2^level, or
+    // the ray's marker, the batch's last point (every batch ends at one of them).
+    const int firstSlot = pointSlot(pts, rs.count, i, j);
+    const int level = pts.level[firstSlot], s0 = pts.step[firstSlot];
+    const int e = j + (1 << level) - s0 < count ? j + (1 << level) - s0 : count - 1;
+    const int closeSlot = pointSlot(pts, rs.count, i, e);
+    Vec4f emission{0.f, 0.f, 0.f, 0.f};
+    float transmittance = 0.f;
+    float weight = 1.f;  // r^-k
+    for (int k = 0; k <= level; ++k) {
+      float tk;
+      const Vec4f ek = marchInterval(tf, rs, pts, i, j, e, s0, 1 << (level - k), leftKnown, leftEnd, tk);
       const float c = k < level ? weight * (1.f - inverseRatio) : weight;
-      emission = Vec4f{emission.x + c * march.emission.x, emission.y + c * march.emission.y,
-                       emission.z + c * march.emission.z, emission.w + c * march.emission.w};
-      transmittance += c * march.transmittance;
+      emission = Vec4f{emission.x + c * ek.x, emission.y + c * ek.y, emission.z + c * ek.z, emission.w + c * ek.w};
+      transmittance += c * tk;
       weight *= inverseRatio;
-      if (k < level) {
-        ++k;
-      } else {  // the interval is complete: fold it into the ray
-        open = false;
-        const float w = T * emission.w;
-        L = Vec4f{L.x + T * emission.x, L.y + T * emission.y, L.z + T * emission.z, L.w + w};
-        T *= transmittance;
-        const float tClose = pts.t[closeSlot];
-        RngStream intervalRng = ratioPointStream(ray, tClose);
-        intervalRng.seed ^= 0x3c6ef372u;
-        if (w != 0.f) {
-          absSum += fabsf(w);
-          if (intervalRng.next() * absSum < fabsf(w)) hitT = tClose;  // reservoir: the hit point
-        }
-        if (pts.kind[closeSlot] & kPointComb) {
-          leftKnown = true;
-          rs.lastCombValue[i] = pts.sample[closeSlot];
-          rs.leftScale[i] = usesGradient(tf) ? pts.opacityScale[closeSlot] : 1.f;
-          leftEnd = debiasedPoint(tf, pts, closeSlot);
-        } else {
-          leftKnown = false;
-        }
-        const float magnitude = fabsf(T);
-        if (magnitude < fc.rouletteThreshold) {  // survivors continue with |T| = threshold: unbiased
-          if (intervalRng.next() * fc.rouletteThreshold < magnitude) {
-            T = T < 0.f ? -fc.rouletteThreshold : fc.rouletteThreshold;
-          } else {
-            T = 0.f;
-            ended = true;
-          }
-        }
-        j = e + 1;
-        continue;
+    }
+    const float w = T * emission.w;
+    L = Vec4f{L.x + T * emission.x, L.y + T * emission.y, L.z + T * emission.z, L.w + w};
+    T *= transmittance;
+    const float tClose = pts.t[closeSlot];
+    RngStream intervalRng = ratioPointStream(ray, tClose);
+    intervalRng.seed ^= 0x3c6ef372u;
+    if (w != 0.f) {
+      absSum += fabsf(w);
+      if (intervalRng.next() * absSum < fabsf(w)) hitT = tClose;  // reservoir: the hit point
+    }
+    if (pts.kind[closeSlot] & kPointComb) {
+      leftKnown = true;
+      rs.lastCombValue[i] = pts.sample[closeSlot];
+      rs.leftScale[i] = usesGradient(tf) ? pts.opacityScale[closeSlot] : 1.f;
+      leftEnd = debiasedPoint(tf, pts, closeSlot);
+    } else {
+      leftKnown = false;
+    }
+    const float magnitude = fabsf(T);
+    if (magnitude < fc.rouletteThreshold) {  // survivors continue with |T| = threshold: unbiased
+      if (intervalRng.next() * fc.rouletteThreshold < magnitude) {
+        T = T < 0.f ? -fc.rouletteThreshold : fc.rouletteThreshold;
+      } else {
+        T = 0.f;
+        ended = true;
       }
     }
-    // Level k starts: its first step in the interval.
-    stride = 1 << (level - k);
-    p = j + ((s0 + stride - 1) / stride * stride - s0);
-    march.start(leftKnown, leftEnd);
+    j = e + 1;
   }
   rs.visibility[i] = T;
   rs.radiance[i] = L;
