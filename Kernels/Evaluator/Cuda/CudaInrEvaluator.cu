@@ -136,11 +136,11 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 GeneratedKernelUse generatedKernelUseFromEnvironment() {
   const char* v = std::getenv("INR_GENERATED_KERNELS");
-  if (!v) return GeneratedKernelUse::Auto;
+  if (!v) return GeneratedKernelUse::Off;
   const std::string s(v);
-  if (s == "off" || s == "0") return GeneratedKernelUse::Off;
+  if (s == "auto" || s == "1") return GeneratedKernelUse::Auto;
   if (s == "only") return GeneratedKernelUse::Only;
-  return GeneratedKernelUse::Auto;
+  return GeneratedKernelUse::Off;
 }
 
 struct CudaInrEvaluator::Impl {

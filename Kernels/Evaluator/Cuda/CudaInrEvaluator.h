@@ -35,7 +35,10 @@ enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 // construction by NVRTC for this GPU and cached on disk. Auto: they join the autotuned
 // candidates beside the built-in kernels (after them: without timing the built-in kernel runs);
 // Only: they are the only candidates (a Fused path throws where they cannot be built); Off: not
-// built. The environment variable INR_GENERATED_KERNELS (off, auto or only) sets the default.
+// built. The environment variable INR_GENERATED_KERNELS (off, auto or only) sets the default,
+// off where it is unset: the compilation runs in the constructor, so with a cold cache it holds up
+// the first render for seconds (Benchmarks/RESULTS-archive.md, "Generated kernels: the cold
+// start"), and the generated kernels' speed has not been measured yet.
 enum class GeneratedKernelUse { Auto, Off, Only };
 GeneratedKernelUse generatedKernelUseFromEnvironment();
 
