@@ -54,7 +54,7 @@
 #include <cstdint>
 
 #include "Render/CounterRng.h"
-#include "Render/PreintegratedMarch.h"  // kPointCellExit
+#include "Render/PreintegratedMarch.h"  // kPointCellExit, traverseBatchedRay
 #include "Render/Pruning.h"
 #include "Render/RatioTracking.h"
 #include "Render/RayState.h"
@@ -365,61 +365,20 @@ INR_HD bool resolveDebiasedPoints(const FrameConstants& fc, const TrackingMedium
 
 // ---- one traversal pass
 
-// Fold in the points the evaluator answered, then draw the next batch and hand its queries to
-// emitQuery(slot); points that pruning answered alone are folded in at once and the walk goes on.
-// At the end of the walk the ray's frame estimate is complete (kRayHit when it gathered emission,
-// rs.t = the hit point for reprojection).
+// The debiased march's pass (traverseBatchedRay, PreintegratedMarch.h); onEvaluated(slot, value)
+// for each point the network answered.
 template <typename Walker, bool kPruning, typename OnEvaluated, typename EmitQuery>
 INR_HD void traverseDebiasedRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
                                     const PointStateView& pts, int i, OnEvaluated&& onEvaluated, EmitQuery&& emitQuery) {
-  std::uint8_t flags = rs.flags[i];
-  if (!(flags & kRayActive)) return;
-  RngStream rng{pixelStreamKey(fc, i), fc.frame, fc.seed, rs.rngCounter[i]};
-  int pending = (flags & kRayPending) ? int(rs.pointCount[i]) : 0;
-  bool finished = false;
-  for (;;) {
-    if (pending > 0 && resolveDebiasedPoints(fc, medium, rs, pts, i, pending, rng, onEvaluated)) {
-      finished = true;
-      break;
-    }
-    pending = 0;
-    if (!(rs.t[i] < rs.tEnd[i])) {
-      finished = true;
-      break;
-    }
-    bool left = false;
-    pending = drawDebiasedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
-    int queries = 0;
-    for (int j = 0; j < pending; ++j) {
-      const int slot = pointSlot(pts, rs.count, i, j);
-      if (pts.kind[slot] & kPointCellExit) {
-        // (no query)
-      } else if (pts.kind[slot] & kPointPruned) {
-        rs.pruned[i] += 1u;
-      } else {
-        emitQuery(slot);
-        ++queries;
-      }
-    }
-    if (queries > 0) break;  // wait for the evaluator
-    if (pending == 0) {  // (left with nothing drawn)
-      finished = true;
-      break;
-    }
-  }
-  if (finished) {
-    flags &= std::uint8_t(~(kRayActive | kRayPending));
-    if (rs.collisionProduct[i] > 0.f) {
-      flags |= kRayHit;
-      rs.t[i] = rs.hitT[i];
-    }
-    rs.pointCount[i] = 0;
-  } else {
-    flags |= kRayPending;
-    rs.pointCount[i] = std::uint8_t(pending);
-  }
-  rs.flags[i] = flags;
-  rs.rngCounter[i] = rng.counter;
+  traverseBatchedRay(
+      fc, rs, pts, i,
+      [&](int count, const RngStream& rng) {
+        return resolveDebiasedPoints(fc, medium, rs, pts, i, count, rng, onEvaluated);
+      },
+      [&](std::uint8_t& flags, RngStream& rng, bool& left) {
+        return drawDebiasedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
+      },
+      emitQuery);
 }
 
 }  // namespace inr

@@ -483,21 +483,23 @@ INR_HD bool resolvePreintegratedPoints(const FrameConstants& fc, const TrackingM
 
 // ---- one traversal pass
 
-// Fold in the points the evaluator answered, then draw the next batch and hand its queries to
-// emitQuery(slot); points that pruning answered alone are folded in at once and the walk goes on.
-// At the end of the walk the ray's frame estimate is complete (kRayHit when it gathered emission,
-// rs.t = the reservoir's hit point for reprojection).
-template <typename Walker, bool kPruning, typename OnEvaluated, typename EmitQuery>
-INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
-                                         const PointStateView& pts, int i, OnEvaluated&& onEvaluated,
-                                         EmitQuery&& emitQuery) {
+// One traversal pass of a ray whose batches end where its walk commits its state (the
+// pre-integrated march's and the debiased march's, DebiasedMarch.h): `resolve(count, rng)` folds
+// the answered batch in (true when roulette ended the ray), `draw(flags, rng, left)` draws the next
+// batch from rs.t on and returns its size (0 only at the ray's end, rs.t = tEnd). Its queries go to
+// emitQuery(slot); points answered without a query (pruning, the ray's end marker) are folded in at
+// once and the walk goes on. At the end of the walk the ray's frame estimate is complete (kRayHit
+// when it gathered emission, rs.t = the reservoir's hit point for reprojection).
+template <typename Resolve, typename Draw, typename EmitQuery>
+INR_HD void traverseBatchedRay(const FrameConstants& fc, const RayStateView& rs, const PointStateView& pts, int i,
+                               Resolve&& resolve, Draw&& draw, EmitQuery&& emitQuery) {
   std::uint8_t flags = rs.flags[i];
   if (!(flags & kRayActive)) return;
   RngStream rng{pixelStreamKey(fc, i), fc.frame, fc.seed, rs.rngCounter[i]};
   int pending = (flags & kRayPending) ? int(rs.pointCount[i]) : 0;
   bool finished = false;
   for (;;) {
-    if (pending > 0 && resolvePreintegratedPoints(fc, medium, rs, pts, i, pending, rng, onEvaluated)) {
+    if (pending > 0 && resolve(pending, rng)) {
       finished = true;
       break;
     }
@@ -507,7 +509,7 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
       break;
     }
     bool left = false;
-    pending = drawPreintegratedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
+    pending = draw(flags, rng, left);
     int queries = 0;
     for (int j = 0; j < pending; ++j) {
       const int slot = pointSlot(pts, rs.count, i, j);
@@ -521,7 +523,11 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
       }
     }
     if (queries > 0) break;  // wait for the evaluator
-    // else: all answered already (pruning, markers) or none: fold them in and go on
+    if (pending == 0) {      // (left with nothing drawn)
+      finished = true;
+      break;
+    }
+    // else: all answered already (pruning, markers): fold them in and go on
   }
   if (finished) {
     flags &= std::uint8_t(~(kRayActive | kRayPending));
@@ -536,6 +542,23 @@ INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const Trackin
   }
   rs.flags[i] = flags;
   rs.rngCounter[i] = rng.counter;
+}
+
+// The pre-integrated march's pass (traverseBatchedRay); onEvaluated(slot, value) for each point the
+// network answered.
+template <typename Walker, bool kPruning, typename OnEvaluated, typename EmitQuery>
+INR_HD void traversePreintegratedRayWith(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
+                                         const PointStateView& pts, int i, OnEvaluated&& onEvaluated,
+                                         EmitQuery&& emitQuery) {
+  traverseBatchedRay(
+      fc, rs, pts, i,
+      [&](int count, const RngStream& rng) {
+        return resolvePreintegratedPoints(fc, medium, rs, pts, i, count, rng, onEvaluated);
+      },
+      [&](std::uint8_t& flags, RngStream& rng, bool& left) {
+        return drawPreintegratedPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, left);
+      },
+      emitQuery);
 }
 
 }  // namespace inr
