@@ -499,8 +499,8 @@ struct RunSummary {
   Config config;
   int frames = 0;
   double seconds = 0, time35 = NAN, time40 = NAN, heatmapMean = NAN;
-  Quality at400, end;
-  FrameStats total;
+  Quality at400, end, first;
+  FrameStats total, firstFrame;  // firstFrame: frame 1 alone (it carries the update and buffer setup)
 };
 
 RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, const Reference& ref,
@@ -514,6 +514,7 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
   for (int frame = 1;; ++frame) {
     const FrameStats st = s->renderFrame();
     r.total += st;
+    if (frame == 1) r.firstFrame = st;
     r.seconds += st.totalMs * 1e-3;
     r.frames = frame;
     const bool last = (r.seconds >= o.seconds && frame >= o.minFrames) || frame >= o.maxFrames;
@@ -526,6 +527,7 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
       if (std::isnan(r.time35) && q.volume >= 35.0) r.time35 = r.seconds;
       if (std::isnan(r.time40) && q.volume >= 40.0) r.time40 = r.seconds;
       if (frame == 400) r.at400 = q;
+      if (frame == 1) r.first = q;
       if (last) r.end = q;
       if (snapshot) {
         writePng(imageDir + "/" + fileStem(c.label) + "_at_" + fmt(o.snapshotSeconds) + "s.png", img);
@@ -777,6 +779,9 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
                 r.total.evaluateMs / f, (r.total.shadowTraverseMs + r.total.shadowEvaluateMs) / f,
                 r.total.finalizeMs / f, r.total.totalMs / f, double(r.total.iterations) / f,
                 double(r.total.queries) / f);
+    const FrameStats& f1 = r.firstFrame;
+    std::printf("   %-22s first frame: total %.3f ms (update %.3f, setup %.3f, other %.3f)  %.2f dB volume\n", "",
+                f1.totalMs, f1.updateMs, f1.setupMs, f1.otherMs, r.first.volume);
     std::fflush(stdout);
     runs.push_back(std::move(r));
   }

@@ -221,7 +221,7 @@ TEST(DebiasedMarch, IdenticalImagesForOneAndManyThreads) {
 
 TEST(DebiasedMarch, ShadowsAndShadingRunRatioTracking) {
   // No single emission point for a shadow ray: the renderer runs ratio tracking instead, with the
-  // comb density as its majorant scale; the image is ratio tracking's bit for bit.
+  // comb density as its majorant scale (fallbackMajorantScale 0); the image is ratio tracking's bit for bit.
   test::FunctionField f(test::smoothField);
   SceneSetup setup = sharpScene(24);
   test::lightScene(setup.scene, true);
@@ -229,6 +229,26 @@ TEST(DebiasedMarch, ShadowsAndShadingRunRatioTracking) {
   ratio.estimator = PrimaryEstimator::Ratio;
   const Rendered a = render(f, setup, debiased(3.0), 2), b = render(f, setup, ratio, 2);
   EXPECT_TRUE(a.image.data == b.image.data);
+}
+
+TEST(DebiasedMarch, FallbackTakesItsOwnMajorantScale) {
+  // With fallbackMajorantScale set, the ratio tracking that renders a shadowed scene takes that
+  // scale, not the comb's: the image is ratio tracking's at that scale bit for bit, and not the
+  // one at the comb's scale (so the option is not ignored).
+  test::FunctionField f(test::smoothField);
+  SceneSetup setup = sharpScene(24);
+  test::lightScene(setup.scene, true);
+  TrackingOptions asked = debiased(2.0);
+  asked.fallbackMajorantScale = 5.0;
+  TrackingOptions atFallback = debiased(5.0), atComb = debiased(2.0);
+  atFallback.estimator = atComb.estimator = PrimaryEstimator::Ratio;
+  const Rendered a = render(f, setup, asked, 2), b = render(f, setup, atFallback, 2), c = render(f, setup, atComb, 2);
+  EXPECT_TRUE(a.image.data == b.image.data);
+  EXPECT_FALSE(a.image.data == c.image.data);
+  // Without shadows or shading the debiased march runs and the fallback scale changes nothing.
+  SceneSetup plain = sharpScene(24);
+  TrackingOptions noFallback = debiased(2.0);
+  EXPECT_TRUE(render(f, plain, asked, 2).image.data == render(f, plain, noFallback, 2).image.data);
 }
 
 TEST(DebiasedMarch, OptionsAreValidatedAndNamed) {
@@ -242,6 +262,11 @@ TEST(DebiasedMarch, OptionsAreValidatedAndNamed) {
   for (int level : {-1, TrackingOptions::kMaxDebiasedLevel + 1}) {
     TrackingOptions t = debiased(4.0, level);
     EXPECT_THROW(t.validate(), std::invalid_argument) << level;
+  }
+  for (double scale : {0.5, -1.0, 2000.0, double(NAN)}) {
+    TrackingOptions t = debiased(4.0);
+    t.fallbackMajorantScale = scale;
+    EXPECT_THROW(t.validate(), std::invalid_argument) << scale;
   }
 }
 

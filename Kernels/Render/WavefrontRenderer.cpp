@@ -58,6 +58,9 @@ void TrackingOptions::validate() const {
     throw std::invalid_argument("residual scale must be in [0, 1024], got " + std::to_string(residualScale));
   if (!(majorantScale >= 1.0 && majorantScale <= 1024.0))
     throw std::invalid_argument("majorant scale must be in [1, 1024], got " + std::to_string(majorantScale));
+  if (!(fallbackMajorantScale == 0.0 || (fallbackMajorantScale >= 1.0 && fallbackMajorantScale <= 1024.0)))
+    throw std::invalid_argument("fallback majorant scale must be 0 or in [1, 1024], got " +
+                                std::to_string(fallbackMajorantScale));
   if (!(combMinimumSteps >= 0.0 && combMinimumSteps <= 65536.0))
     throw std::invalid_argument("comb minimum steps must be in [0, 65536], got " + std::to_string(combMinimumSteps));
   if (pointsPerIteration < 1 || pointsPerIteration > kMaxPointsPerIteration)
@@ -69,9 +72,14 @@ void TrackingOptions::validate() const {
 
 TrackingOptions TrackingOptions::recommended() {
   TrackingOptions t;
-  t.estimator = PrimaryEstimator::Ratio;
-  t.majorantScale = 8.0;
+  t.estimator = PrimaryEstimator::Debiased;
+  t.majorantScale = 2.0;
+  t.levelRatio = 0.25;
+  t.maxLevel = 5;
+  t.combMinimumSteps = 192.0;
+  t.stratifiedJitter = true;
   t.pointsPerIteration = 32;
+  t.fallbackMajorantScale = 8.0;
   return t;
 }
 
@@ -201,17 +209,19 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   fc.estimator = options_.estimator;
   // The pre-integrated march has no single emission point for a shadow ray or a lit colour, and
   // no control for a gradient opacity factor or a 2D transfer function's gradient axis
-  // (PreintegratedMarch.h): ratio tracking renders those scenes, with the comb density as its
-  // majorant scale. The debiased march has no single emission point either (DebiasedMarch.h).
+  // (PreintegratedMarch.h): ratio tracking renders those scenes, at fallbackMajorantScale (or the
+  // comb density when that is 0). The debiased march has no single emission point either
+  // (DebiasedMarch.h).
   if (fc.estimator == PrimaryEstimator::Preintegrated &&
       (fc.shadows || fc.shading.enabled || scene_.transferFunction.usesGradient()))
     fc.estimator = PrimaryEstimator::Ratio;
   if (fc.estimator == PrimaryEstimator::Debiased && (fc.shadows || fc.shading.enabled))
     fc.estimator = PrimaryEstimator::Ratio;
+  const bool fellBack = fc.estimator != options_.estimator && options_.fallbackMajorantScale > 0.0;
   if (fc.pixelJitter && options_.stratifiedJitter) fc.pixelJitter = 2;
   fc.levelRatio = float(options_.levelRatio);
   fc.maxLevel = options_.maxLevel;
-  fc.majorantScale = float(options_.majorantScale);
+  fc.majorantScale = float(fellBack ? options_.fallbackMajorantScale : options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
   {
     const Vec3f extent = fc.box.hi - fc.box.lo;

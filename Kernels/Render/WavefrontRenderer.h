@@ -83,12 +83,19 @@ struct TrackingOptions {
   // each pixel's frames instead of independent draws (RayInit.h, stratifiedJitter): every frame
   // stays unbiased, and the antialiasing's share of the error falls about as 1 / frames.
   bool stratifiedJitter = false;
+  // Ratio tracking's majorant scale where a march (preintegrated, debiased) renders a scene as
+  // ratio tracking instead (shadows, shading; for preintegrated also gradient opacity and 2D
+  // transfer functions); 0 = majorantScale. Why: a march's comb density (majorantScale) is chosen
+  // for the march, and ratio tracking's best density is another (0 or in [1, 1024]).
+  double fallbackMajorantScale = 0.0;
   // Throws std::invalid_argument naming the first option out of its range.
   void validate() const;
   // What `inr render`, pvpython and the ParaView GUI use: the struct's own defaults (the paper's
   // delta tracking, which the regression fingerprints and the delta-specific tests pin) with the
   // estimator chosen by the time-to-a-clean-image benchmark (Benchmarks/RESULTS.md, "Time to a
-  // clean image"): ratio tracking, majorant scale 8, 32 points per iteration.
+  // clean image"): the debiased march (majorant scale 2, level ratio 0.25, at most 5 levels, a
+  // comb floor of 192 steps per box diagonal, stratified jitter, 32 points per iteration), and
+  // ratio tracking at majorant scale 8 where it falls back (shadows, shading).
   static TrackingOptions recommended();
 };
 

@@ -118,7 +118,7 @@ void InrSyncTrackingOptions(inr::RenderSession& session, const inr::TrackingOpti
   if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
     held.refineMacrocells != want.refineMacrocells || held.estimator != want.estimator ||
     held.majorantScale != want.majorantScale || held.residualScale != want.residualScale ||
-    held.pointsPerIteration != want.pointsPerIteration)
+    held.pointsPerIteration != want.pointsPerIteration || held.stratifiedJitter != want.stratifiedJitter)
   {
     session.setTrackingOptions(want);
   }
@@ -213,6 +213,7 @@ void InrEngineOptions::Check(const std::function<void(const std::string&)>& erro
   trackingField("Majorant Scale (InrMajorantScale)", &inr::TrackingOptions::majorantScale);
   trackingField("Residual Scale (InrResidualScale)", &inr::TrackingOptions::residualScale);
   trackingField("Points Per Iteration (InrPointsPerIteration)", &inr::TrackingOptions::pointsPerIteration);
+  this->trackingValid.stratifiedJitter = this->trackingAsked.stratifiedJitter;  // (either value is valid)
   this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
 }
 

@@ -122,6 +122,10 @@ public:
   double GetResidualScale();
   void SetPointsPerIteration(int points);
   int GetPointsPerIteration();
+  ///  - StratifiedJitter (--jitter stratified / random): sub-pixel jitter from a low-discrepancy
+  ///    sequence per pixel (1) or independent draws (0); default from recommended().
+  void SetStratifiedJitter(int on);
+  int GetStratifiedJitter();
   /// The macrocell options the engine holds (read back from it after the last Render), e.g.
   /// "dims=32x32x32 slices=16 skip_block=4 bounds_padding=0 ghost_passes=0 refine=1"; "" before.
   const char* GetMacrocellsInUse();

@@ -287,6 +287,8 @@ INR_STORED_OPTION(ResidualScale, double, options.trackingAsked.residualScale, v,
   this->Internal->options.trackingAsked.residualScale)
 INR_STORED_OPTION(PointsPerIteration, int, options.trackingAsked.pointsPerIteration, v,
   this->Internal->options.trackingAsked.pointsPerIteration)
+INR_STORED_OPTION(StratifiedJitter, int, options.trackingAsked.stratifiedJitter, v != 0,
+  this->Internal->options.trackingAsked.stratifiedJitter ? 1 : 0)
 #undef INR_STORED_OPTION
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()

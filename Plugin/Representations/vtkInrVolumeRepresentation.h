@@ -57,6 +57,7 @@ public:
   void SetInrMajorantScale(double);
   void SetInrResidualScale(double);
   void SetInrPointsPerIteration(int);
+  void SetInrStratifiedJitter(int);
   void SetInrProgressiveRefinement(int);
   ///@}
 

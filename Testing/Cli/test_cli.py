@@ -330,16 +330,20 @@ def check_estimator_xml_defaults(inr, data):
            "InrEstimator entries %r" % entries)
     expect(entries[est.get("default_values")] == e["name"],
            "InrEstimator default %r, CLI default %r" % (entries[est.get("default_values")], e["name"]))
-    # Pinned by name (as ShippedDefaults.EstimatorIsRatioTrackingAtScale8With32PointsPerBatch pins
-    # TrackingOptions::recommended()): reverting the CLI and the XML together must fail too.
-    expect((e["name"], e["majorant_scale"], e["points_per_iteration"]) == ("ratio", 8.0, 32),
-           "the shipped default estimator is ratio tracking, K 8, 32 points per batch; the CLI runs %r" % e)
+    # Pinned by name (as ShippedDefaults.EstimatorIsTheDebiasedMarchWithRatioTrackingAtScale8WhereItFallsBack
+    # pins TrackingOptions::recommended()): reverting the CLI and the XML together must fail too.
+    expect((e["name"], e["majorant_scale"], e["points_per_iteration"], e["level_ratio"], e["max_level"],
+            e["comb_minimum_steps"], e["jitter"], e["fallback_majorant_scale"]) ==
+           ("debiased", 2.0, 32, 0.25, 5, 192.0, "stratified", 8.0),
+           "the shipped default estimator is the debiased march (K 2, r 0.25, 5 levels, S 192, stratified "
+           "jitter, 32 points per batch, ratio K 8 where it falls back); the CLI runs %r" % e)
     for prop, key, cast in (("InrMajorantScale", "majorant_scale", float), ("InrResidualScale", "residual_scale", float),
                             ("InrPointsPerIteration", "points_per_iteration", int)):
         got = cast(props[prop].get("default_values"))
         expect(got == e[key], "%s: XML default %r, CLI default %r" % (prop, got, e[key]))
     for args, what in ((["--estimator", "ratios"], "--estimator"), (["--majorant-scale", "0.5"], "majorant scale"),
                        (["--points-per-iteration", "65"], "points per iteration"),
+                       (["--fallback-majorant-scale", "0.5"], "fallback majorant scale"),
                        (["--estimator", "delta", "--method", "raymarch"], "--estimator")):
         p = run(inr, "render", model, "--size", "8x8", *args, "-o", "/nonexistent/x.png")
         expect(p.returncode != 0 and what in p.stderr, "%s: %s" % (" ".join(args), p.stderr))
@@ -401,8 +405,7 @@ def brick_composite(inr, data, n, shadows):
     equal the whole box rendered at once (--brick 0/1) to >= 40 dB over the volume's pixels, seen
     obliquely so that bricks overlap in depth; with 4 bricks, composited in the reverse order they
     do not (the check can fail). Each render converges to 48 dB, which takes the same frames at any
-    size: 24x24 under INR_TEST_SMALL (measured there: composites 43-44 dB, reversed 37.7 and
-    30.7 dB without and with shadows, as at 40x40)."""
+    size: 24x24 under INR_TEST_SMALL."""
     model = os.path.join(data, "models", "siren_blobs.inr")
     script = os.path.join(data, os.pardir, os.pardir, "Benchmarks", "composite_bricks.py")
     common = ["--size", "24x24" if SMALL else "40x40", "--camera", "4.5,-2.5,3,1,0,0.5,0,0,1,30", "--backend", "cpu",
@@ -421,12 +424,14 @@ def brick_composite(inr, data, n, shadows):
                % (n, " with shadows" if shadows else "", p.stdout, p.stderr))
         expect(os.path.getsize(os.path.join(d, "c%d.png" % n)) > 0, "no composite PNG")
         if n == 4:
-            # Back to front (the order reversed) must not pass: the order matters in this view.
+            # Back to front (the order reversed) must fail the composite's own 40 dB bound, by a
+            # dB at least: the order matters in this view (RESULTS-archive, "Test bounds (the
+            # debiased march as the default)").
             p = subprocess.run([sys.executable, "-c", REVERSED_ORDER, script, whole, *parts],
                                capture_output=True, text=True, timeout=120)
             expect(p.returncode == 0, "reverse-order check failed to run: " + p.stderr)
             print("reversed order: %s dB" % p.stdout.split()[-1])
-            expect(float(p.stdout.split()[-1]) < 38.0, "4 bricks composited back to front still match: " + p.stdout)
+            expect(float(p.stdout.split()[-1]) < 39.0, "4 bricks composited back to front still match: " + p.stdout)
 
 
 # Four ctest tests (2 and 4 bricks, without and with shadows), so that each stays well inside its

@@ -193,6 +193,7 @@ int main(int argc, char* argv[])
   mapper->SetBackend(vtkInrVolumeMapper::BACKEND_CPU);
   mapper->SetSeed(seed);
   mapper->SetEstimator(0);  // the baselines are delta-tracking images (the paper's estimator)
+  mapper->SetStratifiedJitter(0);  // ... recorded with independent sub-pixel jitter
   mapper->SetMacrocellResolution(16);
   mapper->SetTemporalSlices(16);
   mapper->SetConvergenceTarget(0.0);

@@ -137,10 +137,11 @@ def show_inr(reader, view, seed, maximum_frames, frames_per_render, macrocells=N
     display.Representation = "INR Volume"
     apply_colormap(display, view)
     display.InrSeed = seed
-    # The baselines are delta-tracking images (the paper's estimator, recorded before ratio
-    # tracking became the default): the comparisons pin it. The default is covered by
-    # plugin_default_convergence and the GUI tests.
+    # The baselines are delta-tracking images (the paper's estimator, recorded with independent
+    # sub-pixel jitter before other estimators became the default): the comparisons pin both. The
+    # default is covered by plugin_default_convergence and the GUI tests.
     display.InrEstimator = 0
+    display.InrStratifiedJitter = 0
     display.InrConvergenceTarget = 0.0
     display.InrMaximumFrames = maximum_frames
     display.InrFramesPerRender = frames_per_render
@@ -210,6 +211,7 @@ def refine_in_one_render(display, frames, seed=7, macrocells=16):
     tracking, as the baselines were recorded (see show_inr)."""
     display.InrSeed = seed
     display.InrEstimator = 0
+    display.InrStratifiedJitter = 0
     display.InrConvergenceTarget = 0.0
     display.InrMaximumFrames = frames
     display.InrFramesPerRender = frames

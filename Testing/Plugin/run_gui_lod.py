@@ -24,7 +24,9 @@ script logs each render's state and keeps screenshots. Checks:
   - each playback time step was rendered once (the animation tick's own render: the GUI's
     refinement waits while the animation plays), on the coarse interactive macrocells;
   - after the interaction stopped the view refined by itself at full resolution (accumulated
-    frames grew to at least 3 after the last interactive frame).
+    frames grew to at least 2 after the last interactive frame: the refinement goes on past its
+    first step; --settle-ms leaves time for two full-resolution frames of the shipped default
+    estimator on 2 cores, RESULTS-archive.md "Test bounds (the debiased march as the default)").
 """
 import argparse
 import os
@@ -55,7 +57,7 @@ ap.add_argument("--pause-ms", type=int, default=1500,
                 help="the mouse rests this long in the middle of the drag, button down (0: no pause)")
 ap.add_argument("--play-ms", type=int, default=20000, help="pause while the animation plays")
 ap.add_argument("--timeout", type=float, default=240, help="seconds paraview may run")
-ap.add_argument("--settle-ms", type=int, default=10000, help="pause after the interaction")
+ap.add_argument("--settle-ms", type=int, default=40000, help="pause after the interaction")
 args = ap.parse_args()
 here = os.path.dirname(os.path.abspath(__file__))
 os.makedirs(args.out, exist_ok=True)
@@ -210,7 +212,7 @@ last_interactive = max((i for i, r in enumerate(renders) if r["interactive"]), d
 after = [r for r in renders[last_interactive + 1:] if r["w"] == vw and r["h"] == vh]
 print("after the interaction:", len(after), "still renders, accumulated frames",
       [r["frames"] for r in after][:6], "...", [r["frames"] for r in after][-3:])
-check(bool(after) and max(r["frames"] for r in after) >= 3, "the view refined after the interaction stopped")
+check(bool(after) and max(r["frames"] for r in after) >= 2, "the view refined after the interaction stopped")
 
 # The interactive screenshot is one sample per pixel of a reduced image: sparse, so a lower bar.
 for name, least in (("gui_lod_still.png", 0.01), ("gui_lod_interactive.png", 0.002)):

@@ -423,7 +423,8 @@ int runRenderJob(const RenderJob& job) {
                            {"level_ratio", t.levelRatio},
                            {"max_level", t.maxLevel},
                            {"comb_minimum_steps", t.combMinimumSteps},
-                           {"jitter", t.stratifiedJitter ? "stratified" : "random"}};
+                           {"jitter", t.stratifiedJitter ? "stratified" : "random"},
+                           {"fallback_majorant_scale", t.fallbackMajorantScale}};
   }
   report["width"] = settings.width;
   report["height"] = settings.height;

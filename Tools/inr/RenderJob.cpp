@@ -170,7 +170,7 @@ const char* kRenderUsageTail =
 TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
   for (const char* option :
        {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold", "level-ratio",
-        "max-level", "comb-minimum-steps", "jitter"}) {
+        "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale"}) {
     if (args.has(option) && method != "delta")
       throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
   }
@@ -186,6 +186,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
   t.levelRatio = args.getDouble("level-ratio", t.levelRatio);
   t.maxLevel = int(args.getInt("max-level", t.maxLevel));
   t.combMinimumSteps = args.getDouble("comb-minimum-steps", t.combMinimumSteps);
+  t.fallbackMajorantScale = args.getDouble("fallback-majorant-scale", t.fallbackMajorantScale);
   if (args.has("jitter")) {
     const std::string j = args.get("jitter");
     if (j != "random" && j != "stratified") throw UsageError("--jitter must be random or stratified, got '" + j + "'");
@@ -195,7 +196,8 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
     t.validate();
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
-                                 "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps: ") +
+                                 "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps / "
+                                 "--fallback-majorant-scale: ") +
                      e.what());
   }
   return t;
@@ -203,7 +205,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
 
 std::string estimatorUsage() {
   const TrackingOptions d = TrackingOptions::recommended();
-  char text[4096];
+  char text[6144];
   std::snprintf(
       text, sizeof text,
       "estimator (--method delta, the wavefront tracker; shadow rays keep --shadow-estimator):\n"
@@ -232,10 +234,13 @@ std::string estimatorUsage() {
       "                           non-empty macrocells (default %g; 0 = the majorant's density alone)\n"
       "  --jitter random|stratified  sub-pixel jitter over frames: independent, or a low-discrepancy\n"
       "                           sequence per pixel (unbiased per frame, less antialiasing noise over\n"
-      "                           frames) (default %s)\n",
+      "                           frames) (default %s)\n"
+      "  --fallback-majorant-scale K  preintegrated, debiased: ratio tracking's majorant scale where they\n"
+      "                           render as ratio tracking (shadows, shading), 0 or in [1, 1024] (default\n"
+      "                           %g; 0 = --majorant-scale)\n",
       primaryEstimatorName(d.estimator), d.majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
       d.pointsPerIteration, d.rouletteThreshold, d.levelRatio, TrackingOptions::kMaxDebiasedLevel, d.maxLevel,
-      d.combMinimumSteps, d.stratifiedJitter ? "stratified" : "random");
+      d.combMinimumSteps, d.stratifiedJitter ? "stratified" : "random", d.fallbackMajorantScale);
   return text;
 }
 
@@ -359,7 +364,7 @@ void parseBlendMode(const Args& args, RenderJob& job) {
   if (args.has("method")) throw UsageError("--method applies to --blend composite, not " + mode);
   if (job.split != SplitKind::None) throw UsageError(std::string(job.splitOption()) + " applies to --blend composite, not " + mode);
   for (const char* option : {"converge", "shadows", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
+                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
                              "reproject", "no-reproject", "prune-epsilon", "prune-falloff", "ghost-passes",
                              "gradient-opacity", "step", "shadow-step", "shadow-estimator"}) {
     if (args.has(option)) throw UsageError(std::string("--") + option + " applies to --blend composite, not " + mode);
@@ -612,7 +617,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
+                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
                    "iso-tolerance", "slice-origin", "slice-normal", "crop"},
                   {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
                    "reproject", "no-reproject", "slice-opaque"});
