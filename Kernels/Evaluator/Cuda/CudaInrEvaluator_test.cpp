@@ -447,6 +447,7 @@ TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
     const std::vector<float> emu = emulated(model, pts, kEmulated);
     const float lo = *std::min_element(ref.begin(), ref.end()), hi = *std::max_element(ref.begin(), ref.end());
     const double scale = std::max(1.0, double(hi - lo));
+    int configurationsRun = 0;
     for (const auto& [tile, kc] : {std::pair<int, int>{128, 64}, {32, 32}})
       for (const int stored : {0, 1}) {
         if (stored && !fusedFourier) continue;
@@ -461,7 +462,17 @@ TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
         };
         const std::string which = name + " tile " + std::to_string(tile) + " x K " + std::to_string(kc) +
                                   (stored ? " stored encoding" : "");
-        const CudaInrEvaluator interpreter(model, options(GeneratedKernelUse::Off));
+        // A configuration the model's shared memory does not fit is impossible for the interpreter
+        // too (the constructor says so): it is left out, said, and each model must run one.
+        std::unique_ptr<CudaInrEvaluator> interpreted;
+        try {
+          interpreted = std::make_unique<CudaInrEvaluator>(model, options(GeneratedKernelUse::Off));
+        } catch (const std::exception& e) {
+          std::printf("%-30s not built for this model (the interpreter neither): %s\n", which.c_str(), e.what());
+          continue;
+        }
+        const CudaInrEvaluator& interpreter = *interpreted;
+        ++configurationsRun;
         std::unique_ptr<CudaInrEvaluator> made;
         try {
           made = std::make_unique<CudaInrEvaluator>(model, options(GeneratedKernelUse::Only));
@@ -495,6 +506,7 @@ TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
           for (int k = 0; k < 3; ++k) ASSERT_EQ(ga[3 * q + k], gb[3 * q + k]) << which << " gradient " << k << ", query " << q;
         }
       }
+    EXPECT_GE(configurationsRun, 1) << name << ": no configuration of the test fits the model";
   }
 }
 
