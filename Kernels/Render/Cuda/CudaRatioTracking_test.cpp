@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "Evaluator/CpuInrEvaluator.h"
@@ -138,23 +139,37 @@ TEST(CudaRatioTracking, ImageDoesNotDependOnPointsPerIteration) {
   }
 }
 
+// A shipped test model as both GPU tests render it: its evaluators (CPU fp32 and the GPU's), box,
+// time range and the test scene; the macrocell grids and renderers are the tests' own.
+struct ShippedCase {
+  InrModel model;
+  CpuInrEvaluator cpuEval;
+  CudaInrEvaluator gpuEval;
+  Box3f box;
+  RenderScene scene;
+  double t0, t1;
+  explicit ShippedCase(const std::string& path)
+      : model(InrModel::loadFile(path)), cpuEval(model), gpuEval(model), box(modelWorldBox(model)),
+        scene(test::testScene(model, valueRangeFor(model, cpuEval), false)), t0(model.domain.timeBegin),
+        t1(model.domain.timeEnd) {}
+};
+
 // The shipped networks (fp16 tensor-core evaluator) with ratio tracking: the GPU image agrees
 // with the CPU's (fp32) like delta tracking's does, and converges to delta tracking's image.
 TEST(CudaRatioTracking, ShippedModelsMatchCpuAndDeltaTracking) {
   REQUIRE_GPU();
   const int size = envInt("INR_GPU_TEST_SIZE", 64), frames = envInt("INR_GPU_TEST_FRAMES", 256);
   for (const auto& path : test::shippedModels()) {
-    const InrModel model = InrModel::loadFile(path);
-    const CpuInrEvaluator cpuEval(model);
-    const CudaInrEvaluator gpuEval(model);
-    const auto range = valueRangeFor(model, cpuEval);
-    const Box3f box = modelWorldBox(model);
+    const ShippedCase c(path);
+    const CpuInrEvaluator& cpuEval = c.cpuEval;
+    const CudaInrEvaluator& gpuEval = c.gpuEval;
+    const Box3f box = c.box;
+    const RenderScene& scene = c.scene;
+    const double t0 = c.t0, t1 = c.t1;
     RenderSettings settings;
     settings.width = settings.height = size;
     settings.seed = 9;
     settings.pixelJitter = false;
-    const RenderScene scene = test::testScene(model, range, false);
-    const double t0 = model.domain.timeBegin, t1 = model.domain.timeEnd;
     CudaMacrocellGrid deltaGrid(gpuEval, box, t0, t1, test::testMacrocells());
     CudaDeltaTrackingRenderer delta(gpuEval, deltaGrid);
     test::renderFrames(delta, settings, scene, 8 * frames);
@@ -191,28 +206,21 @@ TEST(CudaRatioTracking, ShippedDefaultsConvergeToDeltaTracking) {
   REQUIRE_GPU();
   const int size = envInt("INR_GPU_TEST_SIZE", 64);
   for (const auto& path : test::shippedModels()) {
-    const InrModel model = InrModel::loadFile(path);
-    const CpuInrEvaluator cpuEval(model);
-    const CudaInrEvaluator gpuEval(model);
-    const auto range = valueRangeFor(model, cpuEval);
-    const Box3f box = modelWorldBox(model);
-    RenderSettings settings;
+    const ShippedCase c(path);
+    RenderSettings settings;  // (jittered: the shipped default's own stratified jitter is tested)
     settings.width = settings.height = size;
     settings.seed = 21;
-    const RenderScene scene = test::testScene(model, range, false);
-    const double t0 = model.domain.timeBegin, t1 = model.domain.timeEnd;
-    CudaMacrocellGrid deltaGrid(gpuEval, box, t0, t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer delta(gpuEval, deltaGrid);
-    test::renderFrames(delta, settings, scene, 1);
+    CudaMacrocellGrid deltaGrid(c.gpuEval, c.box, c.t0, c.t1, test::testMacrocells());
+    CudaDeltaTrackingRenderer delta(c.gpuEval, deltaGrid);
+    test::renderFrames(delta, settings, c.scene, 1);
     const ImageRGBA oneDeltaFrame = delta.image();
     for (int k = 1; k < 16384; ++k) delta.renderFrame();
     const ImageRGBA reference = delta.image(), coverage = delta.premultipliedImage();
 
-    CudaMacrocellGrid grid(gpuEval, box, t0, t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer shipped(gpuEval, grid, TrackingOptions::recommended());
-    RenderSettings own = settings;
-    own.seed = 22;
-    const FrameStats first = test::renderFrames(shipped, own, scene, 1);
+    CudaMacrocellGrid grid(c.gpuEval, c.box, c.t0, c.t1, test::testMacrocells());
+    CudaDeltaTrackingRenderer shipped(c.gpuEval, grid, TrackingOptions::recommended());
+    settings.seed = 22;
+    const FrameStats first = test::renderFrames(shipped, settings, c.scene, 1);
     const double oneFrame = test::psnrOverCoverage(shipped.image(), reference, coverage);
     for (int k = 1; k < 512; ++k) shipped.renderFrame();
     const double converged = test::psnrOverCoverage(shipped.image(), reference, coverage);
