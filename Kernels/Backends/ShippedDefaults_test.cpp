@@ -80,7 +80,8 @@ std::size_t coveredPixels(const ImageRGBA& premultiplied) {
 // >= 40 dB over the volume's pixels against an independent reference: a fine ray march (a
 // quadrature, nothing shared with the tracker's estimator; step 1/2048 of the box diagonal, its
 // start jittered by its own seed over a few frames), whose step error is far below the bound.
-// The control: one frame of delta tracking is below 40 dB in the same comparison, so the bound can fail.
+// The control: one frame of delta tracking is below 40 dB in the same comparison, so the bound can
+// fail.
 void convergesToRayMarchedReference(const char* name) {
   const ShippedScene shipped(name);
   auto referenceSession = shipped.session(TrackingOptions{}, 9001);

@@ -221,7 +221,8 @@ TEST(DebiasedMarch, IdenticalImagesForOneAndManyThreads) {
 
 TEST(DebiasedMarch, ShadowsAndShadingRunRatioTracking) {
   // No single emission point for a shadow ray: the renderer runs ratio tracking instead, with the
-  // comb density as its majorant scale (fallbackMajorantScale 0); the image is ratio tracking's bit for bit.
+  // comb density as its majorant scale (fallbackMajorantScale 0); the image is ratio tracking's
+  // bit for bit.
   test::FunctionField f(test::smoothField);
   SceneSetup setup = sharpScene(24);
   test::lightScene(setup.scene, true);

@@ -467,7 +467,9 @@ TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
         std::unique_ptr<CudaInrEvaluator> interpreted;
         try {
           interpreted = std::make_unique<CudaInrEvaluator>(model, options(GeneratedKernelUse::Off));
-        } catch (const std::exception& e) {
+        } catch (const std::runtime_error& e) {
+          // Only that refusal: any other failure of the interpreter fails the test.
+          if (std::string(e.what()).find("impossible for this model") == std::string::npos) throw;
           std::printf("%-30s not built for this model (the interpreter neither): %s\n", which.c_str(), e.what());
           continue;
         }
