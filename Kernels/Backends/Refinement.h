@@ -4,12 +4,12 @@
 //
 // The convergence estimate is an estimated PSNR, in dB, of the displayed image against the
 // converged one, over the pixels the volume covers (accumulated alpha > 0): background and rays
-// that never met the volume do not dilute it. Each pixel keeps its frame estimates' sample
-// variance (Welford, Finalize.h); the variance of its running mean is the expected squared error
-// of what is shown. Their mean over the covered pixels is the estimated MSE (RGB in [0, 1]), and
-// the PSNR is -10 log10(MSE). The renderers reduce the sums where the pixels live
-// (FrameStats::varianceSum, coveredPixels), so nothing per pixel leaves the GPU for this.
-// 40 dB means an RMS error of 1% of full scale per channel.
+// that never met the volume do not dilute it. Each pixel's frames fall in two independent halves
+// (Finalize.h); the halves' difference estimates the variance of the pixel's running mean, the
+// expected squared error of what is shown. Their mean over the covered pixels is the estimated
+// MSE (RGB in [0, 1]), and the PSNR is -10 log10(MSE). The renderers reduce the sums where the
+// pixels live (FrameStats::varianceSum, coveredPixels), so nothing per pixel leaves the GPU for
+// this. 40 dB means an RMS error of 1% of full scale per channel.
 #include <functional>
 #include <limits>
 

@@ -37,4 +37,19 @@ struct RngStream {
   INR_HD float next() { return counterUniform(pixel, frame, seed, counter++); }
 };
 
+// Which of the accumulation's two halves frame `frame` belongs to: the parity of its set bits
+// (the Thue-Morse sequence). Frames 2j and 2j + 1 always fall in different halves, so one
+// renderer's halves stay within one frame of each other, and so do the halves of a sample share
+// that takes every 2^k-th frame (SampleShare). The halves are independent estimates of the pixel
+// (the stratified jitter, RayInit.h, draws each from its own random start), which is what makes the
+// convergence estimate honest under stratification (Finalize.h, pixelConvergence).
+INR_HD std::uint32_t frameHalf(std::uint32_t frame) {
+  frame ^= frame >> 16;
+  frame ^= frame >> 8;
+  frame ^= frame >> 4;
+  frame ^= frame >> 2;
+  frame ^= frame >> 1;
+  return frame & 1u;
+}
+
 }  // namespace inr

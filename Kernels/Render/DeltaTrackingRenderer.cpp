@@ -352,7 +352,7 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
 BlueNoiseMaskView DeltaTrackingRenderer::blueNoiseMask() { return shippedBlueNoiseMask().view(); }
 
 void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
-                                                  std::uint32_t maxHistory) {
+                                                  std::uint32_t maxHistory, const Vec3f& background) {
   const int n = int(pixels_.count);
   std::swap(history_, pixels_);  // the old accumulation becomes the history
   pixels_.resize(history_.count);  // every pixel is written by the gather below
@@ -365,7 +365,7 @@ void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, con
     reprojectionOffers(oldView, newView, box, history, j,
                        [&](int i, std::uint64_t key) { keys[i] = std::min(keys[i], key); });
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory);
+  for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory, background);
 }
 
 void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,

@@ -50,8 +50,8 @@ private:
   void endGhostPasses(FrameStats& total) override { total.updateMs = applyDirtyMajorants(); }
 
   BlueNoiseMaskView blueNoiseMask() override;
-  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
-                             std::uint32_t maxHistory) override;
+  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView, std::uint32_t maxHistory,
+                             const Vec3f& background) override;
 
   FrameConstants frameConstants(std::uint32_t frame) {
     return WavefrontRenderer::frameConstants(frame, scene_.depthLimit.data());

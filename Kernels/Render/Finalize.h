@@ -3,11 +3,13 @@
 // into the accumulation buffer (running mean) and compute the convergence residual r_i (paper
 // Eq. divergence): the mean absolute RGB difference between the new displayed colour and the
 // previous running average, both composited over the background as the user sees them. It also
-// keeps each pixel's sample variance (Welford), from which the variance of the displayed mean —
-// the pixel's expected squared error — follows; the convergence estimate aggregates it over the
-// pixels the volume covers (Backends/Refinement.h).
+// keeps the mean of the pixel's frames in the accumulation's second half (frameHalf, CounterRng.h),
+// from which the variance of the displayed mean — the pixel's expected squared error — follows;
+// the convergence estimate aggregates it over the pixels the volume covers
+// (Backends/Refinement.h).
 #include <cstdint>
 
+#include "Render/CounterRng.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -17,7 +19,7 @@ INR_HD void resetPixel(const AccumulationView& acc, int i) {
   acc.accum[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
   acc.sampleCount[i] = 0u;
   acc.residual[i] = 1.f;
-  acc.m2[i] = 0.f;
+  acc.halfMean[i] = Vec4f{0.f, 0.f, 0.f, 0.f};
   acc.skip[i] = -1;
   acc.hitPoint[i] = Vec3f{0.f, 0.f, 0.f};
 }
@@ -31,13 +33,32 @@ struct PixelConvergence {
                        // volume (the histogram scheme ranks those), else -1
 };
 
-// What pixel i adds to the convergence sums in its current state.
-INR_HD PixelConvergence pixelConvergence(const AccumulationView& acc, int i) {
+INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
+  return Vec3f{c.x + (1.f - c.w) * bg.x, c.y + (1.f - c.w) * bg.y, c.z + (1.f - c.w) * bg.z};
+}
+
+// What pixel i adds to the convergence sums in its current state, its colours shown over
+// `background`. The error of the displayed mean M of n frames comes from the means A and B of
+// the accumulation's two halves (n_A + n_B = n frames): their frame estimates are independent of
+// each other (each half's sub-pixel positions have their own random start), so
+// E|A - B|^2 = Var A + Var B, and for frames of equal variance Var M = E|A - B|^2 n_A n_B / n^2.
+// Unlike the frames' sample variance (Var M = s^2 / n), this holds when the frames within a half
+// are not independent: the stratified jitter spreads them evenly over the pixel, which makes M
+// better than s^2 / n says (that estimate was 3.6 dB pessimistic at the shipped defaults).
+INR_HD PixelConvergence pixelConvergence(const AccumulationView& acc, int i, const Vec3f& background) {
   PixelConvergence pc{acc.residual[i], 0.f, acc.accum[i].w > 0.f ? 1 : 0, -1};
   if (pc.covered) {
-    // Unknown after one sample: infinite until a second arrives.
-    const std::uint32_t count = acc.sampleCount[i];
-    pc.meanVariance = count > 1 ? acc.m2[i] / (3.f * float(count) * float(count - 1)) : INFINITY;
+    // Unknown until both halves hold a frame: infinite until then.
+    const Vec4f h = acc.halfMean[i];
+    const float n = float(acc.sampleCount[i]), nB = h.w, nA = n - nB;
+    if (nA >= 1.f && nB >= 1.f) {
+      const Vec3f m = overBackground(acc.accum[i], background);
+      const float ax = (n * m.x - nB * h.x) / nA, ay = (n * m.y - nB * h.y) / nA, az = (n * m.z - nB * h.z) / nA;
+      const float dx = ax - h.x, dy = ay - h.y, dz = az - h.z;
+      pc.meanVariance = (dx * dx + dy * dy + dz * dz) * (1.f / 3.f) * (nA * nB / (n * n));
+    } else {
+      pc.meanVariance = INFINITY;
+    }
   }
   return pc;
 }
@@ -62,16 +83,12 @@ INR_HD Vec4f frameEstimate(const FrameConstants& fc, const RayStateView& rs, int
   return c;
 }
 
-INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
-  return Vec3f{c.x + (1.f - c.w) * bg.x, c.y + (1.f - c.w) * bg.y, c.z + (1.f - c.w) * bg.z};
-}
-
 // Returns what the pixel adds to the convergence sums (the backends reduce them).
 // Pixels that ray budgeting skipped keep their accumulation and add their current state.
 INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateView& rs,
                                       const AccumulationView& acc, int i) {
   const std::uint8_t flags = rs.flags[i];
-  if (flags & kRayBudgetSkipped) return pixelConvergence(acc, i);
+  if (flags & kRayBudgetSkipped) return pixelConvergence(acc, i, fc.background);
   const Vec4f c = frameEstimate(fc, rs, i);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
@@ -85,10 +102,12 @@ INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateVi
     const float w = 1.f / float(n + 1);
     acc.accum[i] = Vec4f{prev.x + (c.x - prev.x) * w, prev.y + (c.y - prev.y) * w,
                          prev.z + (c.z - prev.z) * w, prev.w + (c.w - prev.w) * w};
-    // Welford: the displayed colour is affine in the premultiplied one, so its new mean is
-    // b + (a - b) w and the update (a - b)(a - mean') = (a - b)^2 (1 - w).
-    const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-    acc.m2[i] += (dx * dx + dy * dy + dz * dz) * (1.f - w);
+  }
+  if (frameHalf(fc.frame)) {  // the second half's running mean, in the displayed colour
+    const Vec4f h = acc.halfMean[i];
+    const Vec3f a = overBackground(c, fc.background);
+    const float count = h.w + 1.f, w = 1.f / count;
+    acc.halfMean[i] = Vec4f{h.x + (a.x - h.x) * w, h.y + (a.y - h.y) * w, h.z + (a.z - h.z) * w, count};
   }
   const std::uint32_t count = n + 1;
   acc.sampleCount[i] = count;
@@ -101,7 +120,7 @@ INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateVi
     const float w = 1.f / floorf(hits);
     acc.hitPoint[i] = Vec3f{h.x + (p.x - h.x) * w, h.y + (p.y - h.y) * w, h.z + (p.z - h.z) * w};
   }
-  PixelConvergence pc = pixelConvergence(acc, i);
+  PixelConvergence pc = pixelConvergence(acc, i, fc.background);
   if (flags & (kRayEntered | kRayHit)) pc.residualBin = residualBin(pc.residual);
   return pc;
 }

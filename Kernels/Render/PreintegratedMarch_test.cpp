@@ -191,9 +191,10 @@ TEST(PreintegratedMarch, ConvergesToDeltaTracking) {
   EXPECT_LT(psnrBiased, 40.0);
 }
 
-// The convergence estimate (the pixels' sample variances, FrameStats::varianceSum) predicts the
-// error against the converged image within 1 dB. The measured error against the reference holds
-// the reference's own (independent) error too, which its own estimate gives: that is taken off.
+// The convergence estimate (from the halves of the pixels' frames, FrameStats::varianceSum)
+// predicts the error against the converged image within 1 dB. The measured error against the
+// reference holds the reference's own (independent) error too, which its own estimate gives: that
+// is taken off.
 TEST(PreintegratedMarch, ConvergenceEstimateIsHonest) {
   test::FunctionField f(test::smoothField);
   const Reference& ref = sharpReference();

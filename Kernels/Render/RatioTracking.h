@@ -271,14 +271,16 @@ INR_HD bool storeRatioPoint(const TrackingMedium& medium, const RayStateView& rs
 }
 
 // The phase of a march ray's comb in this frame: uniform in [0, 1) for every pixel and frame
-// (so each frame's estimate is unbiased), and a golden-ratio sequence over the frames of one pixel
-// (a per-pixel random start, Cranley-Patterson rotated), so successive frames place their combs
-// evenly between each other's and the error falls faster than 1 / sqrt(frames) where the
-// integrand is smooth. Drawn from the ray's stream for the count only (bounded work).
+// (so each frame's estimate is unbiased), and a golden-ratio sequence over the frames of each
+// half of the accumulation (frameHalf, CounterRng.h; a random start per pixel and half,
+// Cranley-Patterson rotated), so successive frames place their combs evenly between each other's
+// and the error falls faster than 1 / sqrt(frames) where the integrand is smooth, while the two
+// halves stay independent (the convergence estimate, Finalize.h). Drawn from the ray's stream for
+// the count only (bounded work).
 INR_HD float combOffset(const FrameConstants& fc, RngStream& rng) {
   rng.next();
-  const float start = counterUniform(rng.pixel, 0u, fc.seed ^ 0x68e31da4u, 0u);
-  const float u = start + float(fc.frame % 16777216u) * 0.61803398875f;
+  const float start = counterUniform(rng.pixel, frameHalf(fc.frame), fc.seed ^ 0x68e31da4u, 0u);
+  const float u = start + float((fc.frame >> 1) % 16777216u) * 0.61803398875f;
   return u - floorf(u);
 }
 

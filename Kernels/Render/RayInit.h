@@ -10,17 +10,19 @@
 namespace inr {
 
 // The stratified sub-pixel jitter (FrameConstants::pixelJitter 2) of frame `frame` of the pixel
-// with stream key `key`: the R2 sequence over the pixel's frames (Roberts 2018: the additive
-// recurrence with the plastic number's inverse powers, evenly spread in 2D for any number of
-// terms), rotated by a random start per pixel (Cranley-Patterson). Each frame's position is
-// uniform in the pixel, so each frame's estimate stays unbiased; successive frames fill the pixel
-// evenly, so the antialiasing's share of the error falls about as 1 / frames instead of
-// 1 / sqrt(frames). In 32-bit fixed point, exact for every frame number.
+// with stream key `key`: frame j of each half (frameHalf; j = frame / 2) takes term j of the R2
+// sequence (Roberts 2018: the additive recurrence with the plastic number's inverse powers, evenly
+// spread in 2D for any number of terms), rotated by a random start per pixel and half
+// (Cranley-Patterson). Each frame's position is uniform in the pixel, so each frame's estimate
+// stays unbiased; a half's frames fill the pixel evenly, so the antialiasing's share of the error
+// falls about as 1 / frames instead of 1 / sqrt(frames); the two halves' positions are
+// independent of each other. In 32-bit fixed point, exact for every frame number.
 INR_HD void stratifiedJitter(std::uint32_t key, std::uint32_t frame, std::uint32_t seed, float& u0, float& u1) {
-  const std::uint32_t start0 = counterHash(key, 0u, seed ^ 0x5851f42du, 0u);
-  const std::uint32_t start1 = counterHash(key, 0u, seed ^ 0x5851f42du, 1u);
-  const std::uint32_t x = start0 + frame * 3242174889u;  // 2^32 / 1.32471795724 (the plastic number)
-  const std::uint32_t y = start1 + frame * 2447445414u;  // 2^32 / 1.32471795724^2
+  const std::uint32_t half = frameHalf(frame), j = frame >> 1;
+  const std::uint32_t start0 = counterHash(key, half, seed ^ 0x5851f42du, 0u);
+  const std::uint32_t start1 = counterHash(key, half, seed ^ 0x5851f42du, 1u);
+  const std::uint32_t x = start0 + j * 3242174889u;  // 2^32 / 1.32471795724 (the plastic number)
+  const std::uint32_t y = start1 + j * 2447445414u;  // 2^32 / 1.32471795724^2
   u0 = float(x >> 8) * (1.0f / 16777216.0f);
   u1 = float(y >> 8) * (1.0f / 16777216.0f);
 }

@@ -127,8 +127,10 @@ enum class ShadowEstimator : int {
 //   accum        running mean of premultiplied RGBA (alpha = coverage)
 //   sampleCount  frames accumulated into the pixel
 //   residual     r_i of the last frame that rendered the pixel
-//   m2           Welford's sum of squared deviations of the displayed colour's frame estimates
-//                (summed over R, G, B): the pixel's sample variance is m2 / (3 (n - 1))
+//   halfMean     running mean of the displayed colour (RGB, over the background) of the pixel's
+//                frames in the accumulation's second half (frameHalf, CounterRng.h), and their
+//                count (w); the first half's follow from accum and sampleCount. The two halves'
+//                difference gives the error of the mean (Finalize.h, pixelConvergence)
 //   skip         histogram budgeting's countdown (paper Eq. 6): frames still to skip; -1 = the
 //                pixel was rendered last, decide at the next initialisation
 //   hitPoint     mean world position of the pixel's real collisions (reprojection after camera
@@ -137,7 +139,7 @@ enum class ShadowEstimator : int {
   X(Vec4f, accum)                 \
   X(std::uint32_t, sampleCount)   \
   X(float, residual)              \
-  X(float, m2)                    \
+  X(Vec4f, halfMean)              \
   X(std::int32_t, skip)           \
   X(Vec3f, hitPoint)
 

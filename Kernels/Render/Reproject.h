@@ -13,10 +13,10 @@
 //      pixel centre wins (sharper), across buckets the nearer surface wins (occlusion).
 //   2. gather (per new pixel i): resample the old accumulation (the history) bilinearly where
 //      the winner's hit point lies in the old view, capping the frame count at `maxHistory` so
-//      new samples soon outweigh what reprojection blurred (the variance sum is scaled so the
-//      pixel keeps its sample variance); the residual is the largest of the sources'. New
-//      pixels nobody offered to (disoccluded, or outside the box before) restart with residual 1:
-//      every budgeting scheme renders them first.
+//      new samples soon outweigh what reprojection blurred (the pixel keeps the sources' blended
+//      per-frame variance, written back into its halves' means); the residual is the largest of
+//      the sources'. New pixels nobody offered to (disoccluded, or outside the box before)
+//      restart with residual 1: every budgeting scheme renders them first.
 // The approximation is the paper's: it degrades under large rotations, and mean hit points of
 // translucent pixels are only representative depths.
 #include <cstdint>
@@ -104,6 +104,40 @@ INR_HD void reprojectionOffers(const CameraView& oldView, const CameraView& newV
   }
 }
 
+// What old pixel o adds, with weight w, to a new pixel's blended per-frame variance, its second
+// half's direction from the mean and that half's share of the frames (reprojectionGather).
+INR_HD void addHalves(const AccumulationView& history, int o, const Vec3f& background, float w, float& variance,
+                      Vec3f& halfOffset, float& halfShare) {
+  const std::uint32_t n = history.sampleCount[o];
+  if (n == 0u) return;
+  const Vec4f h = history.halfMean[o];
+  const float meanVariance = pixelConvergence(history, o, background).meanVariance;
+  if (meanVariance < INFINITY) variance += w * meanVariance * float(n);  // else unknown yet: as none
+  if (h.w > 0.f) {
+    const Vec3f m = overBackground(history.accum[o], background);
+    halfOffset = Vec3f{halfOffset.x + w * (h.x - m.x), halfOffset.y + w * (h.y - m.y), halfOffset.z + w * (h.z - m.z)};
+  }
+  halfShare += w * h.w / float(n);
+}
+
+// The second half's mean for a reprojected pixel of `kept` frames whose blended colour is `accum`
+// and whose frames have the per-frame variance `variance`: the kept frames split between the
+// halves by `share`, and the second half's mean lies off the mean, in the blended direction
+// `offset` (grey where that is zero), as far as makes the pixel's estimate (pixelConvergence)
+// variance / kept. With M the mean and B the second half's, A - B = n (M - B) / n_A, so that
+// estimate is |M - B|^2 / 3 * n_B / n_A.
+INR_HD Vec4f reprojectedHalfMean(const Vec4f& accum, std::uint32_t kept, float variance, const Vec3f& offset,
+                                 float share, const Vec3f& background) {
+  const Vec3f m = overBackground(accum, background);
+  const float n = float(kept), nB = minf(floorf(n * share + 0.5f), n), nA = n - nB;
+  if (!(nA >= 1.f && nB >= 1.f)) return Vec4f{m.x, m.y, m.z, nB};
+  const float wanted = 3.f * (variance / n) * nA / nB;  // |M - B|^2
+  const float length2 = offset.x * offset.x + offset.y * offset.y + offset.z * offset.z;
+  const Vec3f d = length2 > 0.f ? offset : Vec3f{1.f, 1.f, 1.f};
+  const float scale = sqrtf(wanted / (length2 > 0.f ? length2 : 3.f));
+  return Vec4f{m.x + d.x * scale, m.y + d.y * scale, m.z + d.z * scale, nB};
+}
+
 // Pass 2 for new pixel i with the minimum key it was offered: the winner's hit point is the
 // pixel's representative (model-space) point; its motion between the views gives where pixel i was in
 // the old image, and the old accumulation is resampled there bilinearly (nearest-pixel copies would misplace every pixel
@@ -112,7 +146,7 @@ INR_HD void reprojectionOffers(const CameraView& oldView, const CameraView& newV
 // kept (empty is a valid value of the image).
 INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newView, const Box3f& box,
                                const AccumulationView& history, const AccumulationView& acc, int i, std::uint64_t key,
-                               std::uint32_t maxHistory) {
+                               std::uint32_t maxHistory, const Vec3f& background) {
   if (key == kNoReprojection) {
     resetPixel(acc, i);
     return;
@@ -141,7 +175,12 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
     y0f = oy - 0.5f - float(y0);
   }
   Vec4f sum{0.f, 0.f, 0.f, 0.f};
-  float weight = 0.f, variance = 0.f, residual = 0.f;
+  // Besides the colour, the sources' per-frame variance (their displayed mean's variance times
+  // their frame count, Finalize.h) is blended, as is the direction of their second half's mean
+  // from their mean and that half's share of the frames. Blending the halves' means themselves
+  // would average the neighbours' independent errors away and make the estimate optimistic.
+  Vec3f halfOffset{0.f, 0.f, 0.f};
+  float weight = 0.f, variance = 0.f, halfShare = 0.f, residual = 0.f;
   std::uint32_t fewest = 0xffffffffu;
   for (int k = 0; k < (bilinear ? 4 : 1); ++k) {
     const int x = bilinear ? x0 + (k & 1) : x0, y = bilinear ? y0 + (k >> 1) : y0;
@@ -158,7 +197,7 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
     const Vec4f c = history.accum[o];
     sum = Vec4f{sum.x + w * c.x, sum.y + w * c.y, sum.z + w * c.z, sum.w + w * c.w};
     weight += w;
-    variance += w * (n > 1u ? history.m2[o] / float(n - 1u) : 0.f);
+    addHalves(history, o, background, w, variance, halfOffset, halfShare);
     residual = maxf(residual, history.residual[o]);
     fewest = n < fewest ? n : fewest;
   }
@@ -166,7 +205,9 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
     sum = history.accum[j];
     weight = 1.f;
     const std::uint32_t n = history.sampleCount[j];
-    variance = n > 1u ? history.m2[j] / float(n - 1u) : 0.f;
+    variance = halfShare = 0.f;
+    halfOffset = Vec3f{0.f, 0.f, 0.f};
+    addHalves(history, j, background, 1.f, variance, halfOffset, halfShare);
     residual = history.residual[j];
     fewest = n;
   }
@@ -176,7 +217,8 @@ INR_HD void reprojectionGather(const CameraView& oldView, const CameraView& newV
   acc.accum[i] = Vec4f{sum.x * inv, sum.y * inv, sum.z * inv, sum.w * inv};
   acc.sampleCount[i] = kept;
   acc.residual[i] = residual;
-  acc.m2[i] = kept > 1u ? variance * inv * float(kept - 1u) : 0.f;  // keeps the sample variance
+  acc.halfMean[i] = reprojectedHalfMean(acc.accum[i], kept, variance * inv, halfOffset,
+                                        halfShare * inv, background);
   acc.skip[i] = -1;
   acc.hitPoint[i] = hit ? p : history.hitPoint[j];
 }

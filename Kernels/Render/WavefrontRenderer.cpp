@@ -83,6 +83,13 @@ TrackingOptions TrackingOptions::recommended() {
   return t;
 }
 
+TrackingOptions TrackingOptions::recommendedFor(PrimaryEstimator e) {
+  TrackingOptions t = recommended();
+  t.estimator = e;
+  if (e == PrimaryEstimator::Ratio || e == PrimaryEstimator::March) t.majorantScale = t.fallbackMajorantScale;
+  return t;
+}
+
 WavefrontRenderer::WavefrontRenderer(TrackingOptions options) : options_(options) {
   options_.validate();
   warn_ = [](const std::string& message) { std::fprintf(stderr, "INR Volume: warning: %s\n", message.c_str()); };
@@ -154,7 +161,8 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   // would blend them in, so an image-space split restarts instead.
   if (change.camera && !others.resetsAccumulation() && queryReduction_.reproject && frameIndex_ > 0 &&
       settings_.pixelShare.count == 1) {
-    reprojectAccumulation(oldView, view, std::uint32_t(queryReduction_.reprojectHistory));
+    reprojectAccumulation(oldView, view, std::uint32_t(queryReduction_.reprojectHistory),
+                          Vec3f{scene_.background[0], scene_.background[1], scene_.background[2]});
     frameIndex_ = std::min(frameIndex_, queryReduction_.reprojectHistory);
     ++counters_.reprojections;
   } else if (change.resetsAccumulation()) {

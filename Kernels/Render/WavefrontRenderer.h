@@ -97,6 +97,11 @@ struct TrackingOptions {
   // comb floor of 192 steps per box diagonal, stratified jitter, 32 points per iteration), and
   // ratio tracking at majorant scale 8 where it falls back (shadows, shading).
   static TrackingOptions recommended();
+  // recommended() with estimator `e` at its own majorant scale: 8 for ratio tracking and the
+  // march (where the benchmark measured them best), 2 for the debiased and pre-integrated marches
+  // (whose comb floor sets most of their density). What `inr render --estimator E` and the
+  // plugin's Sample Density 0 give.
+  static TrackingOptions recommendedFor(PrimaryEstimator e);
 };
 
 // "delta" / "ratio" / "march" / "preintegrated" / "debiased" (the CLI's --estimator, the plugin's InrEstimator); parse throws
@@ -192,9 +197,10 @@ protected:
   virtual void endGhostPasses(FrameStats& total) = 0;  // apply refinements to the majorants
   // The blue-noise mask in the backend's memory (STBN budgeting; shippedBlueNoiseMask()).
   virtual BlueNoiseMaskView blueNoiseMask() = 0;
-  // Reprojection (Reproject.h) of the accumulation rendered from `oldView` into `newView`.
-  virtual void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
-                                     std::uint32_t maxHistory) = 0;
+  // Reprojection (Reproject.h) of the accumulation rendered from `oldView` into `newView`; the
+  // colours are shown over `background`.
+  virtual void reprojectAccumulation(const CameraView& oldView, const CameraView& newView, std::uint32_t maxHistory,
+                                     const Vec3f& background) = 0;
 
   // Backends call this at the end of their constructor (the hooks are theirs): storage for the
   // default settings' image, accumulation cleared.

@@ -84,9 +84,9 @@ __global__ void reprojectScatterKernel(CameraView oldView, CameraView newView, B
 
 __global__ void reprojectGatherKernel(CameraView oldView, CameraView newView, Box3f box, AccumulationView history,
                                       AccumulationView acc, const unsigned long long* keys,
-                                      std::uint32_t maxHistory) {
+                                      std::uint32_t maxHistory, Vec3f background) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < acc.count) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory);
+  if (i < acc.count) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory, background);
 }
 
 __global__ void ghostInitKernel(FrameConstants fc, MajorantGridView grid, RayStateView rs, int stride) {
@@ -627,7 +627,7 @@ BlueNoiseMaskView CudaDeltaTrackingRenderer::blueNoiseMask() {
 }
 
 void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
-                                                      std::uint32_t maxHistory) {
+                                                      std::uint32_t maxHistory, const Vec3f& background) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const std::size_t n = I.pixels.count;
@@ -655,7 +655,7 @@ void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView,
                                                                         I.reprojectKeys.get());
   INR_CUDA_CHECK_LAUNCH("reprojectScatterKernel");
   reprojectGatherKernel<<<blocksFor(acc.count), kThreads, 0, s>>>(oldView, newView, volumeBox(), history, acc,
-                                                                  I.reprojectKeys.get(), maxHistory);
+                                                                  I.reprojectKeys.get(), maxHistory, background);
   INR_CUDA_CHECK_LAUNCH("reprojectGatherKernel");
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
 }

@@ -108,8 +108,8 @@ private:
                       FrameStats& total) override;
   void endGhostPasses(FrameStats& total) override;
   BlueNoiseMaskView blueNoiseMask() override;
-  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
-                             std::uint32_t maxHistory) override;
+  void reprojectAccumulation(const CameraView& oldView, const CameraView& newView, std::uint32_t maxHistory,
+                             const Vec3f& background) override;
   // What every frame's launches read: constants, medium, refinement view (counting into the
   // frame's statistics), ray state. Callers bring the majorants up to date first.
   struct FrameSetup {
