@@ -31,6 +31,17 @@ TEST(ShippedDefaults, EstimatorIsTheDebiasedMarchWithRatioTrackingAtScale8WhereI
   EXPECT_EQ(t.pointsPerIteration, 32);
   EXPECT_EQ(t.fallbackMajorantScale, 8.0);
   EXPECT_NO_THROW(t.validate());
+  // Each estimator chosen by name takes its own density, everything else as shipped.
+  for (PrimaryEstimator e : {PrimaryEstimator::Delta, PrimaryEstimator::Ratio, PrimaryEstimator::March,
+                             PrimaryEstimator::Preintegrated, PrimaryEstimator::Debiased}) {
+    const TrackingOptions own = TrackingOptions::recommendedFor(e);
+    EXPECT_EQ(own.estimator, e);
+    const bool tracker = e == PrimaryEstimator::Ratio || e == PrimaryEstimator::March;
+    EXPECT_EQ(own.majorantScale, tracker ? 8.0 : 2.0) << primaryEstimatorName(e);
+    EXPECT_EQ(own.combMinimumSteps, t.combMinimumSteps);
+    EXPECT_EQ(own.pointsPerIteration, t.pointsPerIteration);
+    EXPECT_NO_THROW(own.validate());
+  }
   // The refinement stop the GUI and `inr render --converge` use.
   const RefinementOptions r;
   EXPECT_EQ(r.convergenceTarget, 41.0);

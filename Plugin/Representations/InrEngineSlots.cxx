@@ -210,7 +210,20 @@ void InrEngineOptions::Check(const std::function<void(const std::string&)>& erro
       });
   };
   trackingField("Estimator (InrEstimator)", &inr::TrackingOptions::estimator);
-  trackingField("Majorant Scale (InrMajorantScale)", &inr::TrackingOptions::majorantScale);
+  {
+    // 0: the estimator's own density (after the estimator above, so that it follows a change).
+    const double asked = this->trackingAsked.majorantScale == 0.0
+      ? inr::TrackingOptions::recommendedFor(this->trackingValid.estimator).majorantScale
+      : this->trackingAsked.majorantScale;
+    accept("Majorant Scale (InrMajorantScale)", asked, this->trackingValid.majorantScale,
+      this->trackingRefused.majorantScale,
+      [this](double scale)
+      {
+        inr::TrackingOptions t = this->trackingValid;
+        t.majorantScale = scale;
+        t.validate();
+      });
+  }
   trackingField("Residual Scale (InrResidualScale)", &inr::TrackingOptions::residualScale);
   trackingField("Points Per Iteration (InrPointsPerIteration)", &inr::TrackingOptions::pointsPerIteration);
   this->trackingValid.stratifiedJitter = this->trackingAsked.stratifiedJitter;  // (either value is valid)

@@ -110,12 +110,20 @@ struct InrEngineOptions
 {
   inr::MacrocellOptions macrocellsAsked, macrocellsValid, macrocellsRefused;
   // The estimator starts as inr render's (TrackingOptions::recommended()); the XML declares the
-  // same defaults (test cli.estimator_xml_defaults).
-  inr::TrackingOptions trackingAsked = inr::TrackingOptions::recommended();
-  inr::TrackingOptions trackingValid = trackingAsked, trackingRefused = trackingAsked;
+  // same defaults (test cli.estimator_xml_defaults). The asked majorant scale 0 is the estimator's
+  // own (TrackingOptions::recommendedFor), resolved by Check() whenever the estimator changes.
+  inr::TrackingOptions trackingAsked = EstimatorsOwnScale(inr::TrackingOptions::recommended());
+  inr::TrackingOptions trackingValid = inr::TrackingOptions::recommended(), trackingRefused = trackingValid;
   // Query reduction: what the user asked for (validated by the engine when pushed).
   inr::QueryReductionSettings queryReduction;
   void Check(const std::function<void(const std::string&)>& error);
+
+private:
+  static inr::TrackingOptions EstimatorsOwnScale(inr::TrackingOptions t)
+  {
+    t.majorantScale = 0.0;
+    return t;
+  }
 };
 
 /// The coarse session's evaluator on the CPU backend: the fine session's network, or, during the

@@ -109,11 +109,13 @@ public:
   int GetGhostPasses();
   void SetRefineMacrocells(int on);
   int GetRefineMacrocells();
-  ///  - Estimator (--estimator; 0 delta, 1 ratio, 2 march), MajorantScale (--majorant-scale,
-  ///    [1, 1024]), ResidualScale (--residual-scale, [0, 1024]), PointsPerIteration
-  ///    (--points-per-iteration, 1..64): how primary rays turn tentative collisions into an image
-  ///    (Docs/cli.md, "Estimators"); defaults inr::TrackingOptions::recommended(). Apply from the
-  ///    next frame and keep the accumulation: every estimator converges to the same image.
+  ///  - Estimator (--estimator; 0 delta, 1 ratio, 2 march, 3 preintegrated, 4 debiased),
+  ///    MajorantScale (--majorant-scale, [1, 1024]; 0 = the estimator's own,
+  ///    inr::TrackingOptions::recommendedFor), ResidualScale (--residual-scale, [0, 1024]),
+  ///    PointsPerIteration (--points-per-iteration, 1..64): how primary rays turn tentative
+  ///    collisions into an image (Docs/cli.md, "Estimators"); defaults
+  ///    inr::TrackingOptions::recommended(). Apply from the next frame and keep the accumulation:
+  ///    every estimator converges to the same image.
   void SetEstimator(int estimator);
   int GetEstimator();
   void SetMajorantScale(double scale);

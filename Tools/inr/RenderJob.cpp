@@ -179,6 +179,9 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--estimator: ") + e.what());
   }
+  // An estimator named without a density takes its own (ratio tracking its 8, not the debiased
+  // march's 2).
+  if (args.has("estimator")) t.majorantScale = TrackingOptions::recommendedFor(t.estimator).majorantScale;
   t.majorantScale = args.getDouble("majorant-scale", t.majorantScale);
   t.residualScale = args.getDouble("residual-scale", t.residualScale);
   t.pointsPerIteration = int(args.getInt("points-per-iteration", t.pointsPerIteration));
@@ -220,8 +223,9 @@ std::string estimatorUsage() {
       "                           tracking with shadows or shading). All converge to the same image; ratio\n"
       "                           and the marches spend cheap queries for far less noise (default %s)\n"
       "  --majorant-scale K       ratio: tentative collisions at K x the macrocell majorant; marches: comb\n"
-      "                           points per unit of majorant optical depth; in [1, 1024] (default %g);\n"
-      "                           higher = more queries per frame, less noise\n"
+      "                           points per unit of majorant optical depth; in [1, 1024] (default %g;\n"
+      "                           with --estimator ratio or march %g); higher = more queries per frame,\n"
+      "                           less noise\n"
       "  --residual-scale KR      marches: residual points at KR x the majorant, in [0, 1024] (default %g;\n"
       "                           0 = no correction: a plain jittered marcher, biased)\n"
       "  --points-per-iteration P ratio: points a ray hands the evaluator per wavefront iteration, 1..%d\n"
@@ -238,7 +242,8 @@ std::string estimatorUsage() {
       "  --fallback-majorant-scale K  preintegrated, debiased: ratio tracking's majorant scale where they\n"
       "                           render as ratio tracking (shadows, shading), 0 or in [1, 1024] (default\n"
       "                           %g; 0 = --majorant-scale)\n",
-      primaryEstimatorName(d.estimator), d.majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
+      primaryEstimatorName(d.estimator), d.majorantScale,
+      TrackingOptions::recommendedFor(PrimaryEstimator::Ratio).majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
       d.pointsPerIteration, d.rouletteThreshold, d.levelRatio, TrackingOptions::kMaxDebiasedLevel, d.maxLevel,
       d.combMinimumSteps, d.stratifiedJitter ? "stratified" : "random", d.fallbackMajorantScale);
   return text;
