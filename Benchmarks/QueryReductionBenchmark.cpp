@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "Backends/Refinement.h"
 #include "Backends/RenderSession.h"
 #include "BenchmarkSupport.h"
 #include "Common/ImageIO.h"
@@ -84,6 +85,10 @@ const char* kUsage =
     "  --macrocells M          M^3 macrocells (default 64)\n"
     "  --slices T              temporal macrocell slices (default 16; 1 for static models)\n"
     "  --time T                world time (default: middle of the model's time range)\n"
+    "  --warm-time T           each configuration's session first renders one frame at world time T,\n"
+    "                          then moves to --time: its first measured frame is a time change in a\n"
+    "                          warm session (what ParaView's first render after a time change is),\n"
+    "                          not a session's first frame (default: off)\n"
     "  --gradient-opacity-median G,A[,G,A...]  gradient opacity on every render (reference, configs,\n"
     "                          marcher): factor A at |grad f| = G x the model's median |grad f| over its\n"
     "                          box at the scene's time (the CPU evaluator's gradient), so one list fits\n"
@@ -107,7 +112,7 @@ struct Options {
   int orbitSteps = -1, orbitFrames = 4, orbitWarmup = 32, orbitReferenceFrames = -1;
   double orbitDegrees = 1.0;
   int macrocells = 64, slices = 16;
-  double time = NAN;
+  double time = NAN, warmTime = NAN;
   std::vector<double> gradientOpacityMedian;  // G, A pairs, G in multiples of the median |grad f|
   std::string out = "query-reduction-results";
   bool append = false;
@@ -399,7 +404,7 @@ struct Outputs {
       if (fresh) f << header;
     };
     open(curves, "curves.csv", "model,config,family,frame,seconds,psnr_volume,psnr_image,rays,budget_skipped,pruned,"
-                               "queries\n");
+                               "queries,estimated_psnr_volume\n");
     open(summary, "summary.csv",
          "model,backend,size,config,family,rho,max_skip,alpha,epsilon,delta,frames,seconds,fps,time_to_35,time_to_40,"
          "psnr_400_volume,psnr_end_volume,psnr_end_image,mad_end_volume,rays_per_frame,budget_skipped_per_frame,"
@@ -508,6 +513,13 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
   RunSummary r;
   r.config = c;
   auto s = makeSession(m, o, c.q, 1u, o.configJitter, c.tracking);
+  if (!std::isnan(o.warmTime)) {  // the session has shown another time: frame 1 is a time change
+    RenderScene warm = m.scene;
+    warm.time = o.warmTime;
+    s->setScene(warm);
+    s->renderFrame();
+    s->setScene(m.scene);
+  }
   const bool everyFrame = o.psnrSchedule == "all";
   RayHeatmap heat(o.heatmapFrames);
   bool snapshotWritten = false;
@@ -536,7 +548,7 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
     }
     out.curves << m.name << ',' << c.label << ',' << c.family << ',' << frame << ',' << csvNum(r.seconds) << ','
                << csvNum(q.volume) << ',' << csvNum(q.image) << ',' << st.rays << ',' << st.budgetSkipped << ','
-               << st.pruned << ',' << st.queries << '\n';
+               << st.pruned << ',' << st.queries << ',' << csvNum(convergenceEstimate(st)) << '\n';
     if (last) break;
   }
   if (!heat.empty()) {
@@ -817,6 +829,7 @@ int main(int argc, char** argv) {
       else if (a == "--macrocells") o.macrocells = std::stoi(cl.value());
       else if (a == "--slices") o.slices = std::stoi(cl.value());
       else if (a == "--time") o.time = std::stod(cl.value());
+      else if (a == "--warm-time") o.warmTime = std::stod(cl.value());
       else if (a == "--gradient-opacity-median") o.gradientOpacityMedian = gradientOpacityPairs(cl.value());
       else if (a == "--out") o.out = cl.value();
       else if (a == "--append") o.append = true;
