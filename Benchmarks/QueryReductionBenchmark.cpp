@@ -331,6 +331,9 @@ struct Reference {
   ImageRGBA image;     // composited over the background (what is compared)
   ImageRGBA coverage;  // premultiplied: alpha > 0 marks the volume's pixels
   double coveredFraction = 0;
+  // Its own convergence estimate: an image with error e measured against it shows
+  // e + the reference's error, so e = -10 log10(10^(-measured / 10) - 10^(-estimated / 10)).
+  double estimatedPsnr = NAN;
 };
 
 struct Quality {
@@ -409,7 +412,8 @@ struct Outputs {
          "model,backend,size,config,family,rho,max_skip,alpha,epsilon,delta,frames,seconds,fps,time_to_35,time_to_40,"
          "psnr_400_volume,psnr_end_volume,psnr_end_image,mad_end_volume,rays_per_frame,budget_skipped_per_frame,"
          "pruned_per_frame,queries_per_frame,heatmap_mean,reference_frames,covered_fraction,estimator,majorant_scale,"
-         "points_per_iteration,residual_scale,iterations_per_frame,traverse_ms_per_frame,evaluate_ms_per_frame\n");
+         "points_per_iteration,residual_scale,iterations_per_frame,traverse_ms_per_frame,evaluate_ms_per_frame,"
+         "reference_estimated_psnr_volume\n");
     open(raymarch, "raymarch.csv", "model,backend,size,step_divisor,step,seconds,psnr_volume,psnr_image,mad_volume,"
                                    "queries\n");
     open(orbit, "orbit.csv", "model,mode,step,degrees,frame_in_step,accumulated_frames,seconds,psnr_volume,"
@@ -566,9 +570,11 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
 
 Reference renderReference(RenderSession& s, int frames, double* seconds) {
   double ms = 0;
-  for (int k = 0; k < frames; ++k) ms += s.renderFrame().totalMs;
+  FrameStats last;
+  for (int k = 0; k < frames; ++k) ms += (last = s.renderFrame()).totalMs;
   if (seconds) *seconds = ms * 1e-3;
   Reference ref;
+  ref.estimatedPsnr = convergenceEstimate(last);
   ref.image = s.image();
   ref.coverage = s.premultipliedImage();
   ref.coveredFraction = coveredFraction(ref.coverage);
@@ -753,8 +759,8 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
   double refSeconds = 0;
   const Reference ref = renderReference(*refSession, o.referenceFrames, &refSeconds);
   writePng(imageDir + "/reference.png", ref.image);
-  std::printf("   reference: %d frames in %.2f s; the volume covers %.1f%% of the image\n", o.referenceFrames,
-              refSeconds, 100.0 * ref.coveredFraction);
+  std::printf("   reference: %d frames in %.2f s; the volume covers %.1f%% of the image; its estimated error "
+              "%.2f dB\n", o.referenceFrames, refSeconds, 100.0 * ref.coveredFraction, ref.estimatedPsnr);
   std::fflush(stdout);
 
   std::vector<RunSummary> runs;
@@ -776,7 +782,7 @@ void benchModel(const std::string& path, const Options& o, Outputs& out, const s
                 << csvNum(c.tracking.majorantScale) << ',' << c.tracking.pointsPerIteration << ','
                 << csvNum(c.tracking.residualScale) << ','
                 << csvNum(r.total.iterations / n) << ',' << csvNum(r.total.traverseMs / n) << ','
-                << csvNum(r.total.evaluateMs / n) << '\n';
+                << csvNum(r.total.evaluateMs / n) << ',' << csvNum(ref.estimatedPsnr) << '\n';
     out.summary.flush();
     std::printf("   %-22s %6d frames %7.3f s  t35 %s s  t40 %s s  end %.2f dB  (%.1f iterations, %.0f queries, "
                 "%.3f ms per frame: traverse %.3f, evaluate %.3f)\n",
