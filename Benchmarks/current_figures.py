@@ -264,6 +264,20 @@ def tti_row(r):
     return "debiased march to 35 / 40 dB: " + ", ".join(parts)
 
 
+def honest_estimate_row(r):
+    rel = "issue47-honest-estimate/cpu-96/honesty.csv"
+    rows = [x for x in r.rows(rel) if x["reference_dominates"] == "0"]
+    diffs = [float(x["estimated_minus_corrected"]) for x in rows]
+    models = sorted({x["model"] for x in rows})
+    test = re.findall(r"measured ([\d.]+) dB .*sample variance says ([\d.]+) dB",
+                      r.text("issue47-honest-estimate/cpu-tests.txt"))
+    before = [float(m) - float(v) for m, v in test]
+    return (f"estimate minus measured error (the reference's own error taken off), 4–128 frames, default and ratio "
+            f"tracking: {min(diffs):+.2f} to {max(diffs):+.2f} dB over {len(rows)} points on {', '.join(models)} "
+            f"(before, the frames' sample variance: {min(before):.1f}–{max(before):.1f} dB pessimistic under the "
+            "stratified jitter, the unit test's scene)")
+
+
 def raymarch_row(r):
     parts = []
     for m in TTI_MODELS:
@@ -415,6 +429,9 @@ FIGURES = [
            tti_row, "H100", "303f8fb", "2026-12-06",
            ("The debiased march as the default", "the-debiased-march-as-the-default-issue-47"),
            "target: 40 dB no slower than the march's frame; met on the FFN only"),
+    Figure("Convergence estimate against the measured error, 96², CPU, `*_small` models", honest_estimate_row,
+           "2-core dev box", "933f73e", "2026-12-06",
+           ("Honest convergence estimate", "honest-convergence-estimate-under-the-stratified-jitter-issue-47")),
     Figure("Ray marching, one frame", raymarch_row, "H100", "303f8fb", "2026-12-06",
            ("The debiased march as the default", "the-debiased-march-as-the-default-issue-47")),
     Figure("Gradient opacity: time to a clean image, 1024², a ramp fading flat regions", go_tti_row,
