@@ -331,8 +331,8 @@ struct Reference {
   ImageRGBA image;     // composited over the background (what is compared)
   ImageRGBA coverage;  // premultiplied: alpha > 0 marks the volume's pixels
   double coveredFraction = 0;
-  // Its own convergence estimate: an image with error e measured against it shows
-  // e + the reference's error, so e = -10 log10(10^(-measured / 10) - 10^(-estimated / 10)).
+  // Its own convergence estimate: an image measured against it shows its own error plus the
+  // reference's (as mean squared errors), so estimate_honesty.py takes the reference's off.
   double estimatedPsnr = NAN;
 };
 

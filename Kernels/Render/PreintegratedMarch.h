@@ -265,9 +265,9 @@ INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMediu
           break;
         }
         // The ray's first comb point: a phase drawn afresh each frame (not the first march's
-        // golden-ratio sequence over frames), so the frames are independent estimates and the
-        // convergence estimate (the pixels' sample variances) stays honest; with the sequence it
-        // was 1 dB pessimistic after 64 frames on the test field.
+        // golden-ratio sequence over each half's frames, combOffset), so the frames are
+        // independent estimates. The convergence estimate no longer needs that (it compares the
+        // accumulation's halves, Finalize.h); whether the sequence helps here is not measured.
         if (combPhase != combPhase) combPhase = rng.next();
         combNext = t + combPhase * spacing;
         residualNext = mu > 0.f ? candidateDistance(rng, mu, t) : INFINITY;

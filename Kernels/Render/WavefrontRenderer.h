@@ -97,9 +97,9 @@ struct TrackingOptions {
   // comb floor of 192 steps per box diagonal, stratified jitter, 32 points per iteration), and
   // ratio tracking at majorant scale 8 where it falls back (shadows, shading).
   static TrackingOptions recommended();
-  // recommended() with estimator `e` at its own majorant scale: 8 for ratio tracking and the
-  // march (where the benchmark measured them best), 2 for the debiased and pre-integrated marches
-  // (whose comb floor sets most of their density). What `inr render --estimator E` and the
+  // recommended() with estimator `e` at its own majorant scale: fallbackMajorantScale for ratio
+  // tracking and the march (RESULTS-archive, "The debiased march as the default"), majorantScale
+  // for the debiased and pre-integrated marches (whose comb floor sets most of their density). What `inr render --estimator E` and the
   // plugin's Sample Density 0 give.
   static TrackingOptions recommendedFor(PrimaryEstimator e);
 };

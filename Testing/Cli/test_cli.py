@@ -499,9 +499,9 @@ def check_pixel_share_composite(inr, data):
                     # A share's rays meet the evaluator in other batches than the whole image's,
                     # which rounds a value's last bits differently now and then; with shadows a
                     # pixel's longer paths make that flip a tentative collision's decision in a
-                    # pixel or two (2 of 709 measured, by up to 0.04). So here: all but 1% of the
-                    # volume's pixels equal to 1e-4 (a wrong mapping of frames or streams changes
-                    # nearly all of them).
+                    # pixel or two (RESULTS-archive, "Honest convergence estimate"). So here: all
+                    # but 1% of the volume's pixels equal to 1e-4 (a wrong mapping of frames or
+                    # streams changes nearly all of them).
                     p = subprocess.run([sys.executable, "-c", DIFFERING_PIXELS, whole, *parts],
                                        capture_output=True, text=True, timeout=120)
                     print("%d shares with shadows: %s" % (n, p.stdout.strip()))
