@@ -278,6 +278,16 @@ def honest_estimate_row(r):
             "stratified jitter, the unit test's scene)")
 
 
+def honest_estimate_gpu_row(r):
+    rows = []
+    for m in TTI_MODELS:
+        rows += [x for x in r.rows(f"issue47-honest-estimate/h100-current-macrocells/{m}/honesty.csv")
+                 if x["reference_dominates"] == "0" and x["estimated_minus_corrected"] not in ("-inf", "inf")]
+    diffs = [float(x["estimated_minus_corrected"]) for x in rows]
+    return (f"estimate minus measured error, 2–64 frames, default, debiased S 64–128 and ratio K 8: "
+            f"{min(diffs):+.2f} to {max(diffs):+.2f} dB over {len(rows)} points on the four shipped models")
+
+
 def raymarch_row(r):
     parts = []
     for m in TTI_MODELS:
@@ -431,6 +441,9 @@ FIGURES = [
            "target: 40 dB no slower than the march's frame; met on the FFN only"),
     Figure("Convergence estimate against the measured error, 96², CPU, `*_small` models", honest_estimate_row,
            "2-core dev box", "933f73e", "2026-12-06",
+           ("Honest convergence estimate", "honest-convergence-estimate-under-the-stratified-jitter-issue-47")),
+    Figure("Convergence estimate against the measured error, 1024², GPU, shipped models", honest_estimate_gpu_row,
+           "H100", "3956453", "2026-12-06",
            ("Honest convergence estimate", "honest-convergence-estimate-under-the-stratified-jitter-issue-47")),
     Figure("Ray marching, one frame", raymarch_row, "H100", "303f8fb", "2026-12-06",
            ("The debiased march as the default", "the-debiased-march-as-the-default-issue-47")),
