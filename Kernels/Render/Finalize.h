@@ -44,7 +44,8 @@ INR_HD Vec3f overBackground(const Vec4f& c, const Vec3f& bg) {
 // E|A - B|^2 = Var A + Var B, and for frames of equal variance Var M = E|A - B|^2 n_A n_B / n^2.
 // Unlike the frames' sample variance (Var M = s^2 / n), this holds when the frames within a half
 // are not independent: the stratified jitter spreads them evenly over the pixel, which makes M
-// better than s^2 / n says (that estimate was 3.6 dB pessimistic at the shipped defaults).
+// better than s^2 / n says (RESULTS-archive, "Honest convergence estimate under the stratified
+// jitter", has both side by side).
 INR_HD PixelConvergence pixelConvergence(const AccumulationView& acc, int i, const Vec3f& background) {
   PixelConvergence pc{acc.residual[i], 0.f, acc.accum[i].w > 0.f ? 1 : 0, -1};
   if (pc.covered) {
@@ -92,11 +93,12 @@ INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateVi
   const Vec4f c = frameEstimate(fc, rs, i);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
+  const Vec3f a = overBackground(c, fc.background);  // this frame's colour as shown
   if (n == 0) {
     acc.residual[i] = 1.f;  // nothing to compare with: maximally unstable
     acc.accum[i] = c;
   } else {
-    const Vec3f a = overBackground(c, fc.background), b = overBackground(prev, fc.background);
+    const Vec3f b = overBackground(prev, fc.background);
     const float r = (fabsf(a.x - b.x) + fabsf(a.y - b.y) + fabsf(a.z - b.z)) * (1.f / 3.f);
     acc.residual[i] = clampf(r, 0.f, 1.f);
     const float w = 1.f / float(n + 1);
@@ -105,7 +107,6 @@ INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateVi
   }
   if (frameHalf(fc.frame)) {  // the second half's running mean, in the displayed colour
     const Vec4f h = acc.halfMean[i];
-    const Vec3f a = overBackground(c, fc.background);
     const float count = h.w + 1.f, w = 1.f / count;
     acc.halfMean[i] = Vec4f{h.x + (a.x - h.x) * w, h.y + (a.y - h.y) * w, h.z + (a.z - h.z) * w, count};
   }
