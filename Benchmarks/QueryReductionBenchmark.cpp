@@ -65,11 +65,12 @@ const char* kUsage =
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
     "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
     "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R[:S]]]]] |\n"
-    "                          debiased[:K[:Q[:L[:P[:S]]]]] (ratio tracking with\n"
+    "                          debiased[:K[:Q[:L[:P[:S[:J[:D]]]]]]] (ratio tracking with\n"
     "                          majorant scale K; unbiased ray marching, with the pre-integrated control\n"
     "                          for preint, comb density K and residual scale KR; points per iteration\n"
     "                          P, roulette threshold R, preint's comb at least every diagonal / S;\n"
-    "                          the debiased march with comb density K, level ratio Q, max level L; join\n"
+    "                          the debiased march with comb density K, level ratio Q, max level L,\n"
+    "                          stratified jitter J (0/1), the floor only to majorant / D (D > 0); join\n"
     "                          with '+', e.g. ratio:4+prune:0.02; default:\n"
     "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
@@ -246,7 +247,7 @@ Config parseSingleConfig(const std::string& spec) {
               std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
     if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
   } else if (f == "debiased") {
-    arity(1, 7);
+    arity(1, 8);
     c.family = f;
     c.tracking.estimator = PrimaryEstimator::Debiased;
     c.tracking.majorantScale = num(1, c.tracking.majorantScale);
@@ -255,11 +256,13 @@ Config parseSingleConfig(const std::string& spec) {
     c.tracking.pointsPerIteration = int(num(4, 32));
     c.tracking.combMinimumSteps = num(5, c.tracking.combMinimumSteps);
     c.tracking.stratifiedJitter = num(6, 0) != 0;
+    c.tracking.combFloorDepth = num(7, 0);
     c.tracking.validate();
     c.label = std::string(c.tracking.stratifiedJitter ? "s" : "") + f + ":" + fmt(c.tracking.majorantScale) + ":" +
               fmt(c.tracking.levelRatio) + ":" +
               std::to_string(c.tracking.maxLevel) + ":" + std::to_string(c.tracking.pointsPerIteration);
     if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
+    if (c.tracking.combFloorDepth > 0) c.label += ":d" + fmt(c.tracking.combFloorDepth);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -270,7 +273,7 @@ Config parseSingleConfig(const std::string& spec) {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
                                 "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]], "
-                                "preint[:K[:KR[:P[:R[:S]]]]], debiased[:K[:Q[:L[:P[:S]]]]])");
+                                "preint[:K[:KR[:P[:R[:S]]]]], debiased[:K[:Q[:L[:P[:S[:J[:D]]]]]]])");
   }
   c.q.validate();
   return c;
@@ -373,7 +376,8 @@ struct ModelCase {
 
 std::unique_ptr<RenderSession> makeSession(const ModelCase& m, const Options& o, const QueryReductionSettings& q,
                                            std::uint32_t seed, bool jitter = true,
-                                           const TrackingOptions& tracking = TrackingOptions{}) {
+                                           const TrackingOptions& tracking = TrackingOptions{},
+                                           const RenderScene* firstScene = nullptr) {
   RenderSessionOptions so;
   so.tracking = tracking;
   so.backend = parseRenderBackend(o.backend);
@@ -387,7 +391,7 @@ std::unique_ptr<RenderSession> makeSession(const ModelCase& m, const Options& o,
   rs.seed = seed;
   rs.pixelJitter = jitter;
   s->setSettings(rs);
-  s->setScene(m.scene);
+  s->setScene(firstScene ? *firstScene : m.scene);  // (the first scene builds its macrocell slices)
   return s;
 }
 
@@ -516,11 +520,13 @@ RunSummary runConfig(const ModelCase& m, const Options& o, const Config& c, cons
                      Outputs& out, const std::string& imageDir) {
   RunSummary r;
   r.config = c;
-  auto s = makeSession(m, o, c.q, 1u, o.configJitter, c.tracking);
-  if (!std::isnan(o.warmTime)) {  // the session has shown another time: frame 1 is a time change
-    RenderScene warm = m.scene;
-    warm.time = o.warmTime;
-    s->setScene(warm);
+  // With --warm-time the session starts at another time and renders a frame there, so frame 1 is
+  // a time change: its update builds the macrocell slices of the scene's time (unless the warm
+  // time shares them) and interpolates the working grid, as ParaView's first visit to a time does.
+  RenderScene warm = m.scene;
+  if (!std::isnan(o.warmTime)) warm.time = o.warmTime;
+  auto s = makeSession(m, o, c.q, 1u, o.configJitter, c.tracking, &warm);
+  if (!std::isnan(o.warmTime)) {
     s->renderFrame();
     s->setScene(m.scene);
   }

@@ -22,8 +22,9 @@
 //
 // The comb. Along the ray's non-empty macrocells comb points come at k points per unit of
 // majorant optical depth (k = FrameConstants::majorantScale, at least combMinimumDensity per
-// unit length), a random phase per frame: the comb coordinate tau advances at k x the majorant
-// (empty cells do not advance it, their extinction is 0). Interval j runs from comb point j - 1
+// unit length where the cell is not faint: combDensity), a random phase per frame: the comb
+// coordinate tau advances at the cell's density (empty cells do not advance it, their extinction
+// is 0). Interval j runs from comb point j - 1
 // to comb point j (the first from where the ray enters its first non-empty cell); at level K it
 // holds 2^K - 1 interior points at even steps of tau, and level k < K uses those of them whose
 // index is a multiple of 2^(K-k): the levels are nested, level K's points serve all of them.
@@ -126,7 +127,7 @@ INR_HD int drawDebiasedPoints(const FrameConstants& fc, const TrackingMedium& me
     float m, segmentEnd;
     if (!walker.segment(tEnd, t, m, segmentEnd)) break;
     if (m > 0.f) {
-      const float density = maxf(m * fc.majorantScale, fc.combMinimumDensity);  // comb points per unit length
+      const float density = combDensity(fc, m);  // comb points per unit length
       if (phase != phase) {
         // The ray's first non-empty cell: the comb's phase u, and the level of the interval that
         // ends at the first comb point (the interval [u - 1, u] of the comb coordinate, clipped

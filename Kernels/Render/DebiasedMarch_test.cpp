@@ -318,6 +318,44 @@ TEST(DebiasedMarch, FallbackTakesItsOwnMajorantScale) {
   EXPECT_TRUE(render(f, plain, asked, 2).image.data == render(f, plain, noFallback, 2).image.data);
 }
 
+// The comb floor that follows the transfer function (TrackingOptions::combFloorDepth): the density
+// is the majorant's, at least the floor, but the floor only up to majorant / D.
+TEST(DebiasedMarch, CombFloorFollowsTheMajorant) {
+  FrameConstants fc;
+  fc.majorantScale = 2.f;
+  fc.combMinimumDensity = 100.f;
+  for (float m : {0.01f, 1.f, 30.f, 1000.f}) EXPECT_EQ(combDensity(fc, m), std::max(2.f * m, 100.f)) << m;
+  fc.combFloorDepth = 0.05f;
+  EXPECT_FLOAT_EQ(combDensity(fc, 0.01f), 0.2f);   // faint: 0.05 of optical depth per interval
+  EXPECT_FLOAT_EQ(combDensity(fc, 1.f), 20.f);
+  EXPECT_FLOAT_EQ(combDensity(fc, 30.f), 100.f);   // the floor, reached at m = 5
+  EXPECT_FLOAT_EQ(combDensity(fc, 1000.f), 2000.f);  // the majorant's own density above the floor
+}
+
+// Where the transfer function is faint, the floor's points cost queries for error nobody sees:
+// following the majorant, the same scene takes far fewer queries a frame and still converges to
+// ratio tracking's image; the control (the floor everywhere) shows what was spent.
+TEST(DebiasedMarch, FaintCellsTakeFewerFloorPointsAndStillConverge) {
+  test::FunctionField f(test::smoothField);
+  SceneSetup faint = sharpScene(24);
+  // The sharp transfer function with a faint band below its opaque one: most non-empty cells
+  // hold little optical depth.
+  faint.scene.transferFunction.opacity = {{0.0, 0.0}, {0.2, 0.0}, {0.22, 0.01}, {0.72, 0.01}, {0.74, 0.95},
+                                          {0.78, 0.95}, {0.8, 0.01}, {1.0, 0.01}};
+  const Rendered ref = render(f, faint, test::ratioTracking(8.0, 32), 2048);
+  TrackingOptions everywhere = debiased(2.0, 5, 0.25, 64.0), following = everywhere;
+  following.combFloorDepth = 0.05;
+  const Rendered all = render(f, faint, everywhere, 256), few = render(f, faint, following, 256);
+  const double perFrameAll = double(all.total.queries) / 256.0, perFrameFew = double(few.total.queries) / 256.0;
+  const double psnrAll = psnrAgainst(all, ref), psnrFew = psnrAgainst(few, ref);
+  std::printf("floor everywhere: %.0f queries a frame, %.2f dB after 256 frames; following the majorant (D 0.05): "
+              "%.0f queries, %.2f dB\n",
+              perFrameAll, psnrAll, perFrameFew, psnrFew);
+  EXPECT_LT(perFrameFew, 0.7 * perFrameAll);
+  EXPECT_GE(psnrFew, 45.0);
+  EXPECT_GE(psnrAll, 45.0);
+}
+
 TEST(DebiasedMarch, OptionsAreValidatedAndNamed) {
   EXPECT_NO_THROW(debiased(4.0).validate());
   EXPECT_EQ(parsePrimaryEstimator("debiased"), PrimaryEstimator::Debiased);
@@ -334,6 +372,11 @@ TEST(DebiasedMarch, OptionsAreValidatedAndNamed) {
     TrackingOptions t = debiased(4.0);
     t.fallbackMajorantScale = scale;
     EXPECT_THROW(t.validate(), std::invalid_argument) << scale;
+  }
+  for (double depth : {-0.1, 17.0, double(NAN)}) {
+    TrackingOptions t = debiased(4.0);
+    t.combFloorDepth = depth;
+    EXPECT_THROW(t.validate(), std::invalid_argument) << depth;
   }
 }
 

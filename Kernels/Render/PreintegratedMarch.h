@@ -71,6 +71,16 @@
 
 namespace inr {
 
+// Comb points per unit length in a macrocell of majorant m (> 0), for both marches: majorantScale
+// per unit of majorant optical depth, at least the floor; with combFloorDepth > 0 the floor only
+// up to m / combFloorDepth, so a faint cell (majorant optical depth below combFloorDepth per floor
+// interval) keeps combFloorDepth of it per interval (TrackingOptions::combFloorDepth says why).
+INR_HD float combDensity(const FrameConstants& fc, float m) {
+  float floorDensity = fc.combMinimumDensity;
+  if (fc.combFloorDepth > 0.f) floorDensity = minf(floorDensity, m / fc.combFloorDepth);
+  return maxf(m * fc.majorantScale, floorDensity);
+}
+
 // ---- the pre-integrated control
 
 // Table coordinate (entry units, not clamped: the control is constant beyond the table's ends)
@@ -257,7 +267,7 @@ INR_HD int drawPreintegratedPoints(const FrameConstants& fc, const TrackingMediu
     if (m > 0.f) {
       // As the first march: the comb is regular in majorant optical depth and its phase carries
       // over from macrocell to macrocell; residual points restart at each cell (memoryless).
-      const float density = maxf(m * fc.majorantScale, fc.combMinimumDensity), spacing = 1.f / density;
+      const float density = combDensity(fc, m), spacing = 1.f / density;
       const float mu = m * fc.residualScale;
       if (combNext != combNext) {
         if (drawCapReached(fc, rng, flags, left)) {

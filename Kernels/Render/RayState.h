@@ -175,7 +175,8 @@ struct FrameConstants {
   PrimaryEstimator estimator = PrimaryEstimator::Delta;
   float majorantScale = 1.f;       // ratio: points at this x the cell majorant; march: comb density
   float residualScale = 1.f;       // march: residual points at this x the cell majorant
-  float combMinimumDensity = 0.f;  // preintegrated: comb points per unit length at least (model space)
+  float combMinimumDensity = 0.f;  // preintegrated, debiased: comb points per unit length at least (model space)
+  float combFloorDepth = 0.f;      // > 0: the floor applies only up to majorant / combFloorDepth (combDensity)
   float rouletteThreshold = 0.05f; // Russian roulette below this transmittance estimate
   // debiased (DebiasedMarch.h): a comb interval is refined at least k + 1 times with probability
   // levelRatio^(k+1) given k, at most maxLevel times

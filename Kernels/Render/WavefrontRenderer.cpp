@@ -63,6 +63,8 @@ void TrackingOptions::validate() const {
                                 std::to_string(fallbackMajorantScale));
   if (!(combMinimumSteps >= 0.0 && combMinimumSteps <= 65536.0))
     throw std::invalid_argument("comb minimum steps must be in [0, 65536], got " + std::to_string(combMinimumSteps));
+  if (!(combFloorDepth >= 0.0 && combFloorDepth <= 16.0))
+    throw std::invalid_argument("comb floor depth must be in [0, 16], got " + std::to_string(combFloorDepth));
   if (pointsPerIteration < 1 || pointsPerIteration > kMaxPointsPerIteration)
     throw std::invalid_argument("points per iteration must be in [1, " + std::to_string(kMaxPointsPerIteration) +
                                 "], got " + std::to_string(pointsPerIteration));
@@ -235,6 +237,7 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
     const Vec3f extent = fc.box.hi - fc.box.lo;
     const float diagonal = std::sqrt(extent.x * extent.x + extent.y * extent.y + extent.z * extent.z);
     fc.combMinimumDensity = diagonal > 0.f ? float(options_.combMinimumSteps) / diagonal : 0.f;
+    fc.combFloorDepth = float(options_.combFloorDepth);
   }
   fc.rouletteThreshold = float(options_.rouletteThreshold);
   const long long pixels = std::max(1ll, (long long)settings_.width * settings_.height);

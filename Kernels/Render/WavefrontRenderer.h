@@ -69,6 +69,13 @@ struct TrackingOptions {
   // then correct; a floor on the density lets the control follow the network everywhere the
   // transfer function shows something, as a ray marcher's step does.
   double combMinimumSteps = 0.0;
+  // The comb floor follows the transfer function: in a macrocell whose majorant optical depth over
+  // a floor interval (diagonal / combMinimumSteps) is below combFloorDepth, the floor's density
+  // falls to majorant / combFloorDepth (0: the floor everywhere). Why: the floor exists to resolve
+  // the network where the transfer function shows something; a faint cell's whole optical depth
+  // bounds what a coarser comb can miss there, so floor points in it cost queries for error
+  // nobody sees (DebiasedMarch.h, combDensity). In [0, 16].
+  double combFloorDepth = 0.0;
   // Debiased (DebiasedMarch.h): the comb takes majorantScale points per unit of majorant optical
   // depth (and combMinimumSteps); each comb interval is refined (its step halved) once more with
   // probability levelRatio, at most maxLevel times. Below 1/2 the expected points per interval are

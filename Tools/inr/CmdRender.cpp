@@ -423,6 +423,7 @@ int runRenderJob(const RenderJob& job) {
                            {"level_ratio", t.levelRatio},
                            {"max_level", t.maxLevel},
                            {"comb_minimum_steps", t.combMinimumSteps},
+                           {"comb_floor_depth", t.combFloorDepth},
                            {"jitter", t.stratifiedJitter ? "stratified" : "random"},
                            {"fallback_majorant_scale", t.fallbackMajorantScale}};
   }

@@ -170,7 +170,7 @@ const char* kRenderUsageTail =
 TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
   for (const char* option :
        {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold", "level-ratio",
-        "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale"}) {
+        "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale"}) {
     if (args.has(option) && method != "delta")
       throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
   }
@@ -189,6 +189,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
   t.levelRatio = args.getDouble("level-ratio", t.levelRatio);
   t.maxLevel = int(args.getInt("max-level", t.maxLevel));
   t.combMinimumSteps = args.getDouble("comb-minimum-steps", t.combMinimumSteps);
+  t.combFloorDepth = args.getDouble("comb-floor-depth", t.combFloorDepth);
   t.fallbackMajorantScale = args.getDouble("fallback-majorant-scale", t.fallbackMajorantScale);
   if (args.has("jitter")) {
     const std::string j = args.get("jitter");
@@ -199,7 +200,7 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
     t.validate();
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
-                                 "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps / "
+                                 "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps / --comb-floor-depth / "
                                  "--fallback-majorant-scale: ") +
                      e.what());
   }
@@ -236,6 +237,9 @@ std::string estimatorUsage() {
       "  --max-level L            debiased: at most L halvings, 0..%d (default %d; 0 = the plain march, biased)\n"
       "  --comb-minimum-steps S   debiased, preintegrated: comb points at least every box diagonal / S in\n"
       "                           non-empty macrocells (default %g; 0 = the majorant's density alone)\n"
+      "  --comb-floor-depth D     debiased, preintegrated: the floor only up to the cell's majorant / D, so\n"
+      "                           faint cells keep about D of majorant optical depth per comb interval,\n"
+      "                           in [0, 16] (default %g; 0 = the floor in every non-empty cell)\n"
       "  --jitter random|stratified  sub-pixel jitter over frames: independent, or a low-discrepancy\n"
       "                           sequence per pixel (unbiased per frame, less antialiasing noise over\n"
       "                           frames) (default %s)\n"
@@ -245,7 +249,7 @@ std::string estimatorUsage() {
       primaryEstimatorName(d.estimator), d.majorantScale,
       TrackingOptions::recommendedFor(PrimaryEstimator::Ratio).majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
       d.pointsPerIteration, d.rouletteThreshold, d.levelRatio, TrackingOptions::kMaxDebiasedLevel, d.maxLevel,
-      d.combMinimumSteps, d.stratifiedJitter ? "stratified" : "random", d.fallbackMajorantScale);
+      d.combMinimumSteps, d.combFloorDepth, d.stratifiedJitter ? "stratified" : "random", d.fallbackMajorantScale);
   return text;
 }
 
@@ -369,7 +373,7 @@ void parseBlendMode(const Args& args, RenderJob& job) {
   if (args.has("method")) throw UsageError("--method applies to --blend composite, not " + mode);
   if (job.split != SplitKind::None) throw UsageError(std::string(job.splitOption()) + " applies to --blend composite, not " + mode);
   for (const char* option : {"converge", "shadows", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
+                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
                              "reproject", "no-reproject", "prune-epsilon", "prune-falloff", "ghost-passes",
                              "gradient-opacity", "step", "shadow-step", "shadow-estimator"}) {
     if (args.has(option)) throw UsageError(std::string("--") + option + " applies to --blend composite, not " + mode);
@@ -622,7 +626,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "jitter", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
+                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
                    "iso-tolerance", "slice-origin", "slice-normal", "crop"},
                   {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
                    "reproject", "no-reproject", "slice-opaque"});
