@@ -67,7 +67,7 @@ private:
   MacrocellGrid& macrocells_;
   MajorantArrays majorants_;
   RayStateArrays<HostArray> rays_;
-  PointStateArrays<HostArray> points_;  // ratio tracking: rays x pointsPerIteration (sized on use)
+  PointStateArrays<HostScratchArray> points_;  // ratio tracking: rays x pointsPerIteration (sized on use)
   PixelStateArrays<HostArray> pixels_;
   PixelStateArrays<HostArray> history_;       // reprojection's copy of the old accumulation
   std::vector<std::uint64_t> reprojectKeys_;  // reprojection's per-pixel minimum offer

@@ -6,6 +6,10 @@
 // not survive) and `arrayData(array)` (the element pointer); they are found by argument-dependent
 // lookup, so this header knows no backend.
 #include <cstddef>
+#include <memory>
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "Render/RatioTracking.h"
@@ -19,6 +23,42 @@ using HostArray = std::vector<T>;
 template <typename T>
 void resizeArray(HostArray<T>& a, std::size_t n) {
   a.assign(n, T{});
+}
+
+// A default-initialising allocator: a resize leaves trivial elements unwritten.
+template <typename T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  DefaultInitAllocator() noexcept = default;
+  template <typename U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+// Host storage whose resize writes nothing (the stages initialise: resizeArray's contract). Why:
+// zero-filling a frame's point slots (rays x points per iteration, tens of MB at 1024^2) was most
+// of a first CPU frame's buffer setup; slots a ray never uses are then never touched at all.
+template <typename T>
+using HostScratchArray = std::vector<T, DefaultInitAllocator<T>>;
+
+template <typename T>
+void resizeArray(HostScratchArray<T>& a, std::size_t n) {
+  a.clear();  // (nothing to copy when the storage grows)
+  a.resize(n);
+}
+template <typename T>
+T* arrayData(HostScratchArray<T>& a) {
+  return a.data();
 }
 template <typename T>
 T* arrayData(HostArray<T>& a) {
