@@ -129,10 +129,67 @@ const std::string& InrMapperRanks::Note(bool rebuilt, bool cuda, int cudaDevice)
 
 void InrMapperRanks::Share(inr::RenderSettings& settings) const
 {
-  if (this->ranks.count > 1)
+  if (this->SplitsSamples())
+  {
+    settings.sampleShare = inr::SampleShare{ this->ranks.rank, this->ranks.count };
+  }
+  else if (this->ranks.count > 1)
   {
     settings.pixelShare = inr::PixelShare{ this->ranks.rank, this->ranks.count };
   }
+}
+
+void InrMapperRanks::ShareRefinement(inr::RefinementOptions& options) const
+{
+  if (!this->SplitsSamples())
+  {
+    return;
+  }
+  const int n = this->ranks.count;
+  options.maximumFrames = std::max(1, (options.maximumFrames + n - 1) / n);
+  options.minimumFrames = std::max(2, (options.minimumFrames + n - 1) / n);
+  options.framesPerRender = std::max(1, (options.framesPerRender + n - 1) / n);
+  if (options.convergenceTarget > 0.0)
+  {
+    options.convergenceTarget = std::max(1e-3, options.convergenceTarget - 10.0 * std::log10(double(n)));
+  }
+}
+
+int InrMapperRanks::CombineImage(int width, int height, int frames, std::vector<float>& image)
+{
+  if (!this->SplitsSamples() || this->imageCombined)
+  {
+    return 0;
+  }
+  this->imageCombined = true;
+  int total = InrParallelRendering::CombineSampleShares(width, height, frames, image);
+  if (total == 0 && frames > 0 && image.size() == std::size_t(width) * std::size_t(height) * 4)
+  {
+    total = frames;  // the ranks' sizes differ: this rank's own frames, an unbiased image still
+  }
+  if (total > 0)
+  {
+    // This rank's pixels of the whole: IceT blends the ranks' disjoint pixels in any order.
+    const int n = this->ranks.count, r = this->ranks.rank;
+    const std::size_t w = std::size_t(width);
+    for (std::size_t y = 0; y < std::size_t(height); ++y)
+    {
+      for (std::size_t x = 0; x < w; ++x)
+      {
+        if (int((x + y) % std::size_t(n)) != r)
+        {
+          std::fill_n(image.begin() + std::ptrdiff_t(4 * (y * w + x)), 4, 0.0f);
+        }
+      }
+    }
+  }
+  return total;
+}
+
+void InrMapperRanks::FinishRender()
+{
+  std::vector<float> none;
+  this->CombineImage(0, 0, 0, none);
 }
 
 // Whether to read is decided by all ranks together (PlanDepthComposite) since the reduction is
@@ -223,7 +280,10 @@ void InrMapperRanks::Reduce(const Local& local, InrMapperReport& report) const
   mine.converged = local.rendered ? int(local.converged) : 1;
   mine.frames = local.rendered ? local.frames : std::numeric_limits<int>::max();
   mine.estimate = local.rendered ? local.estimate : std::numeric_limits<double>::infinity();
-  InrParallelRendering::Refinement all = InrParallelRendering::ReduceRefinement(mine);
+  InrParallelRendering::Refinement all = this->SplitsSamples()
+    ? InrParallelRendering::ReduceSampleShares(
+        InrParallelRendering::Refinement{ mine.converged, local.rendered ? local.frames : 0, mine.estimate })
+    : InrParallelRendering::ReduceRefinement(mine);
   if (all.frames == std::numeric_limits<int>::max())
   {
     all = InrParallelRendering::Refinement{ 0, 0, 0.0 };  // no rank drew anything

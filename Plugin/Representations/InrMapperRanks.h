@@ -1,9 +1,10 @@
 // The mapper across MPI ranks (pvbatch / pvserver with several ranks; with one process everything
-// here is the identity): which GPU this rank takes, which pixels it traces, the depth that clips
-// its rays (composited over every rank's geometry) and the refinement state reduced over the
-// ranks after each render. The collectives live here; InrParallelRendering.h holds the MPI calls
-// themselves. Every rank must reach CompositeDepth and Reduce once per render, whatever it draws:
-// vtkInrVolumeMapper::Render calls them first thing and on every way out.
+// here is the identity): which GPU this rank takes, which frames or pixels it traces, the depth
+// that clips its rays (composited over every rank's geometry), the ranks' images combined (sample
+// shares) and the refinement state reduced over the ranks after each render. The collectives live here; InrParallelRendering.h holds the MPI calls
+// themselves. Every rank must reach CompositeDepth, CombineImage (or FinishRender) and Reduce once
+// per render, in that order, whatever it draws: vtkInrVolumeMapper::Render calls them first thing
+// and on every way out.
 #ifndef InrMapperRanks_h
 #define InrMapperRanks_h
 
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "InrParallelRendering.h"
+#include "Backends/Refinement.h"
 #include "Render/SceneInputs.h"
 
 struct InrMapperReport;
@@ -38,11 +40,43 @@ public:
   /// PrepareRender built the session from the environment).
   const std::string& Note(bool rebuilt, bool cuda, int cudaDevice);
 
-  /// The image-space split: rank r of N traces the pixels (x + y) mod N = r of the picture at full
-  /// depth (RenderSettings::pixelShare) with the seed one rank would use, so the ranks'
-  /// premultiplied images add up to the single-rank image (IceT blends them; disjoint pixels blend
-  /// the same in any order). Unchanged with one rank.
+  /// How several ranks share the view (vtkInrVolumeMapper::RankSplit).
+  /// - Samples: every rank renders every pixel for its own frames (RenderSettings::sampleShare:
+  ///   N ranks of F frames draw the numbers one renderer draws over N x F frames); after each
+  ///   render the ranks' images are averaged weighted by their frames (CombineImage), and each
+  ///   rank draws the pixels (x + y) mod N = r of that average, so IceT's blend of disjoint pixels
+  ///   shows it whole. Why: a frame is a chain of latency-bound iterations over the whole image,
+  ///   so fewer frames of every pixel scale where fewer pixels of every frame do not.
+  /// - Pixels: rank r traces only the pixels (x + y) mod N = r at full depth
+  ///   (RenderSettings::pixelShare) with the seed one rank would use, so the ranks' premultiplied
+  ///   images add up to the single-rank image.
+  enum class Split
+  {
+    Samples = 0,
+    Pixels = 1
+  };
+  void SetSplit(Split split) { this->split = split; }
+  /// Sample shares in use: several ranks and Split::Samples.
+  bool SplitsSamples() const { return this->ranks.count > 1 && this->split == Split::Samples; }
+
+  /// This rank's share in the render settings. Unchanged with one rank.
   void Share(inr::RenderSettings& settings) const;
+  /// Sample shares: the stop rule of one rank for a whole: at most maximumFrames / N frames of its
+  /// own (rounded up), and the target lowered by 10 log10 N dB (N ranks' frames average to an
+  /// image with 1/N of one rank's squared error). Unchanged otherwise.
+  void ShareRefinement(inr::RefinementOptions& options) const;
+
+  /// Marks the start of a render (CombineImage not yet reached).
+  void BeginRender() { this->imageCombined = false; }
+  /// Sample shares: replaces `image` (this rank's premultiplied RGBA, the mean of its `frames`
+  /// frames; empty where it has none to give) by the mean over all ranks' frames, keeping only
+  /// this rank's pixels (the others transparent); returns all ranks' frames (0: nothing to draw,
+  /// image untouched). Collective: once per render on every rank (FinishRender calls it on the
+  /// ways out that draw nothing).
+  int CombineImage(int width, int height, int frames, std::vector<float>& image);
+  /// On every way out of a render: the CombineImage this rank did not reach (it brings no
+  /// frames), then nothing else.
+  void FinishRender();
 
   /// The depth that clips the rays over the render tile (GL rows), in `depth`; false when there is
   /// no limit. One process: the window's depth buffer where geometry was drawn before the volume
@@ -71,6 +105,8 @@ public:
 
 private:
   InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
+  Split split = Split::Samples;
+  bool imageCombined = false;
   int localRank = -1;  // this rank's index on its node (-1: unknown), and where it came from
   std::string localRankSource;
   bool haveLocalRank = false;

@@ -8,6 +8,7 @@
 #endif
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 
@@ -110,6 +111,75 @@ Refinement ReduceRefinement(const Refinement& local)
   double estimateMin = local.estimate;
   c->AllReduce(&local.estimate, &estimateMin, 1, vtkCommunicator::MIN_OP);
   return Refinement{ intsMin[0], intsMin[1], estimateMin };
+}
+
+Refinement ReduceSampleShares(const Refinement& local)
+{
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  if (!c || c->GetNumberOfProcesses() < 2)
+  {
+    return local;
+  }
+  int converged = local.converged;
+  int convergedMin = converged;
+  c->AllReduce(&converged, &convergedMin, 1, vtkCommunicator::MIN_OP);
+  // The estimate as a mean squared error (+inf dB: 0; -inf dB, a pixel with one sample: +inf).
+  const double f = local.frames > 0 ? double(local.frames) : 0.0;
+  const double mse = std::pow(10.0, -local.estimate / 10.0);
+  const double sums[2] = { f, f > 0.0 ? f * f * mse : 0.0 };
+  double all[2] = { 0.0, 0.0 };
+  c->AllReduce(sums, all, 2, vtkCommunicator::SUM_OP);
+  Refinement r;
+  r.converged = convergedMin;
+  r.frames = int(all[0] + 0.5);
+  r.estimate = all[0] > 0.0 ? -10.0 * std::log10(all[1] / (all[0] * all[0])) : 0.0;
+  return r;
+}
+
+int CombineSampleShares(int width, int height, int frames, std::vector<float>& image)
+{
+  vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
+  const std::size_t values = std::size_t(std::max(width, 0)) * std::size_t(std::max(height, 0)) * 4;
+  const bool brings = frames > 0 && image.size() == values && values > 0;
+  if (!c || c->GetNumberOfProcesses() < 2)
+  {
+    return brings ? frames : 0;
+  }
+  // The size of the ranks with frames, as PlanDepthComposite agrees on one: a maximum and a
+  // negated minimum that agree only when every such rank has that size.
+  const int lowest = std::numeric_limits<int>::min() / 2;
+  const int local[4] = { brings ? width : lowest, brings ? -width : lowest, brings ? height : lowest,
+    brings ? -height : lowest };
+  int all[4];
+  c->AllReduce(local, all, 4, vtkCommunicator::MAX_OP);
+  if (all[0] == lowest || all[0] != -all[1] || all[2] != -all[3])
+  {
+    return 0;
+  }
+  const std::size_t n = std::size_t(all[0]) * std::size_t(all[2]) * 4;
+  // The frame-weighted sum and the frames in one reduction (float holds frame counts exactly).
+  std::vector<float> mine(n + 1, 0.0f), sum(n + 1, 0.0f);
+  if (brings && n == values)
+  {
+    const float w = float(frames);
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      mine[i] = w * image[i];
+    }
+    mine[n] = w;
+  }
+  c->AllReduce(mine.data(), sum.data(), static_cast<vtkIdType>(n + 1), vtkCommunicator::SUM_OP);
+  const float total = sum[n];
+  if (!(total > 0.0f))
+  {
+    return 0;
+  }
+  image.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    image[i] = sum[i] / total;
+  }
+  return int(total + 0.5f);
 }
 
 DepthPlan PlanDepthComposite(bool localGeometry, int width, int height, const PixelRect& localRect)

@@ -59,6 +59,20 @@ struct Refinement
 };
 Refinement ReduceRefinement(const Refinement& local);
 
+/// Sample shares' refinement state: converged only when every rank has converged, the frames of
+/// all ranks together, and the estimated PSNR of their combined image (each rank's error falls
+/// with its frames squared over all frames squared: MSE = sum of f_r^2 MSE_r / (sum of f_r)^2;
+/// a rank without frames adds nothing). Collective like ReduceRefinement.
+Refinement ReduceSampleShares(const Refinement& local);
+
+/// Sample shares (every rank renders the whole view for its own frames): replaces `image` (this
+/// rank's premultiplied RGBA, width x height, the mean of its `frames` frames) by the mean over
+/// every rank's frames, sum of f_r x image_r / sum of f_r, and returns that sum. Ranks without
+/// frames, or whose size differs from the one the ranks with frames agree on, add nothing; 0
+/// (image untouched) when no rank brings frames or their sizes differ. Collective: every rank
+/// calls it once per render, whatever it draws.
+int CombineSampleShares(int width, int height, int frames, std::vector<float>& image);
+
 /// A rectangle of pixels [x0, x1) x [y0, y1) of a render tile; empty when x1 <= x0 or y1 <= y0.
 struct PixelRect
 {

@@ -176,6 +176,9 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // Under MPI every rank reaches this point in every render (IceT composites all of them):
   // whatever happens below, the refinement state is reduced over the ranks once on the way out.
   Internals::RankReduction reduction{ I, this };
+  I.ranks.SetSplit(this->RankSplit == RANK_SPLIT_PIXELS ? InrMapperRanks::Split::Pixels
+                                                         : InrMapperRanks::Split::Samples);
+  I.ranks.BeginRender();
   // The depth limit before anything can return: under MPI its composite is collective, and a
   // rank that draws nothing must still bring its geometry to the others' rays.
   I.depthValid = I.ranks.CompositeDepth(ren, vol, I.depth);
@@ -410,6 +413,18 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     return;
   }
+  if (this->ranks.SplitsSamples())
+  {
+    int viewport[2] = { width, height };
+    ren->GetTiledSize(&viewport[0], &viewport[1]);
+    this->UploadSampleShares(window, width, height, viewport[0] != width || viewport[1] != height);
+    std::string error;
+    if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
+    {
+      vtkErrorWithObjectMacro(self, << error);
+    }
+    return;
+  }
   // The worker holds the fine session (KeepsImage), or its first frame of a new image is still to
   // come: the image on screen stays (the previous one, or the coarse one) rather than a blank view.
   if (this->worker.KeepsImage() ||
@@ -477,4 +492,32 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     vtkErrorWithObjectMacro(self, << error);
   }
+}
+
+void vtkInrVolumeMapper::Internals::UploadSampleShares(
+  vtkOpenGLRenderWindow* window, int width, int height, bool upscaled)
+{
+  // Every render on every rank: another rank's new frames change this rank's pixels too.
+  std::vector<float> image;
+  int frames = 0;
+  inr::RenderSession* shown = this->worker.KeepsImage() ? nullptr : this->Shown();
+  if (shown && shown->accumulatedFrames() > 0)
+  {
+    frames = shown->accumulatedFrames();
+    image = shown->premultipliedImage().data;
+  }
+  const int total = this->ranks.CombineImage(width, height, frames, image);
+  if (total == 0)
+  {
+    return;  // no rank has frames: the texture keeps what it shows
+  }
+  if (!this->compositor.Fits(window, width, height))
+  {
+    this->interop.Release();  // (GL cannot give a texture new storage while CUDA holds it)
+  }
+  this->compositor.Upload(window, width, height, total, image.data(), upscaled);
+  this->imageTransfer = "image through host memory: the ranks' sample shares averaged";
+  this->uploadedEpoch = -1;
+  this->uploadedCoarse = this->report.shownCoarse;
+  this->uploadedWindow = window;
 }

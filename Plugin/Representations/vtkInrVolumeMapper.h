@@ -185,6 +185,21 @@ public:
   ///@}
 
   ///@{
+  /// How several MPI ranks (mpirun pvbatch / pvserver) share the view: RANK_SPLIT_SAMPLES (every
+  /// rank renders every pixel for its own frames; the ranks' images are averaged after each
+  /// render, weighted by their frames) or RANK_SPLIT_PIXELS (each rank traces an interleaved
+  /// share of the pixels). Nothing changes with one process. InrMapperRanks::Split says why
+  /// samples are the default.
+  enum
+  {
+    RANK_SPLIT_SAMPLES = 0,
+    RANK_SPLIT_PIXELS = 1
+  };
+  vtkSetClampMacro(RankSplit, int, RANK_SPLIT_SAMPLES, RANK_SPLIT_PIXELS);
+  vtkGetMacro(RankSplit, int);
+  ///@}
+
+  ///@{
   /// Query reduction (paper sec. 4.2; inr::QueryReductionSettings, whose defaults these start
   /// from: the one place defaults are defined). Pushed into the engine on the next Render(); an
   /// invalid combination is reported once (vtkErrorMacro, naming the parameter and its range) and
@@ -444,6 +459,7 @@ private:
   double RefinementTimeBudget = 50.0;
   int ProgressiveRefinement = 1;
   int Seed = 1;
+  int RankSplit = RANK_SPLIT_SAMPLES;
   int UseDefaultTransferFunction = 0;
   int InteractiveLevelOfDetail = LOD_INTERACTION_AND_TIME;
   double InteractiveFrameTime = 100.0;

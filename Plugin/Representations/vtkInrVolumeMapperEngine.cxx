@@ -312,10 +312,11 @@ bool vtkInrVolumeMapper::Internals::Refine(vtkInrVolumeMapper* self,
 
     // A step on the worker does not hold the view: it gets the whole budget; a frame here what
     // is left of it now.
-    const inr::RefinementOptions options = this->decision.Refinement(in,
+    inr::RefinementOptions options = this->decision.Refinement(in,
       this->decision.budget == InrRenderDecision::Budget::Remaining
         ? this->EngineTimeBudget(self->RefinementTimeBudget)
         : 0.0);
+    this->ranks.ShareRefinement(options);
     if (this->decision.budget != InrRenderDecision::Budget::None)
     {
       this->lastEngineBudgetMs = options.timeBudgetMs;

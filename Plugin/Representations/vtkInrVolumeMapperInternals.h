@@ -358,6 +358,9 @@ struct vtkInrVolumeMapper::Internals
   bool Refine(vtkInrVolumeMapper* self, const inr::RenderScene& scene,
     const InrRenderDecision::Inputs& in);
   void Composite(vtkInrVolumeMapper* self, vtkRenderer* ren, int width, int height);
+  // Sample shares over several ranks: this rank's image averaged with every rank's (a collective
+  // each render), its pixels of the average uploaded; the texture is then blended as Composite's.
+  void UploadSampleShares(vtkOpenGLRenderWindow* window, int width, int height, bool upscaled);
   // Render's scope: inside it, progress is muted where renders are prepared (SetInsideRender).
   struct InsideRender
   {
@@ -376,7 +379,11 @@ struct vtkInrVolumeMapper::Internals
     Internals& I;
     vtkInrVolumeMapper* self;
     bool rendered = false;
-    ~RankReduction() { I.ReduceOverRanks(self, rendered); }
+    ~RankReduction()
+    {
+      I.ranks.FinishRender();  // (the image combine that a render drawing nothing did not reach)
+      I.ReduceOverRanks(self, rendered);
+    }
   };
   // True (warned once) while VTK's dual depth peeling renders the volume inside its peels.
   bool InsideDepthPeeling(vtkInrVolumeMapper* self, vtkVolume* vol);

@@ -49,6 +49,7 @@ public:
   void SetInrFramesPerRender(int);
   void SetInrRefinementTimeBudget(double);
   void SetInrSeed(int);
+  void SetInrRankSplit(int);
   void SetInrSkipBlock(int);
   void SetInrBoundsPadding(double);
   void SetInrGhostPasses(int);

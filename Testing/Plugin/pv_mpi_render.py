@@ -4,6 +4,7 @@ to OUT/shadows0.png, OUT/shadows1.png and OUT/ranks.json for run_mpi_split.py to
 rank counts.
 
   mpirun -np N pvbatch pv_mpi_render.py --model M.inr --out DIR [--frames 64] [--size 200 200]
+      [--split samples|pixels] [--no-refine]
 """
 import json
 import os
@@ -17,6 +18,9 @@ ap = C.argument_parser()
 ap.add_argument("--frames", type=int, default=64)
 ap.add_argument("--size", type=int, nargs=2, default=[200, 200])
 ap.add_argument("--time", type=float, default=2.5)
+ap.add_argument("--split", choices=["samples", "pixels"], default="samples", help="Rank Split")
+ap.add_argument("--no-refine", action="store_true",
+                help="Refine Macrocells off: sample shares then draw exactly one renderer's numbers")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
@@ -32,6 +36,9 @@ display = simple.Show(reader, view)
 C.apply_colormap(display, view)
 display.Representation = "INR Volume"
 C.refine_in_one_render(display, args.frames)
+display.InrRankSplit = 0 if args.split == "samples" else 1
+if args.no_refine:
+    display.InrRefineMacrocells = 0
 scene.AnimationTime = args.time
 
 report = {"frames": args.frames, "renders": []}
@@ -43,7 +50,8 @@ for shadows in (1, 0):  # each render after the first restarts the accumulation:
     frames = C.info(display, "InrAccumulatedFrames")
     converged = C.info(display, "InrConverged")
     print(f"shadows {shadows}: {frames} frames, converged {converged}; ranks in use:\n{ranks_text}")
-    # The reduced state: the fewest frames of all ranks, converged only when every rank is.
+    # The reduced state: the fewest frames of all ranks (pixel shares) or all ranks' frames
+    # together (sample shares), converged only when every rank is.
     check(frames == args.frames, f"shadows {shadows}: every rank accumulated {frames} frames (asked {args.frames})")
     check(converged == 1, f"shadows {shadows}: converged on every rank")
     ranks = []
