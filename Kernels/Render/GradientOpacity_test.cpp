@@ -14,6 +14,7 @@
 #include "Render/DeltaTrackingRenderer.h"
 #include "Render/Evaluate.h"
 #include "Render/RayMarcher.h"
+#include "Render/RatioTracking.h"
 #include "Render/RayStateArrays.h"
 #include "Render/SceneChange.h"
 #include "TestSupport/BlobRenders.h"

@@ -2,7 +2,7 @@
 // Stage II for unbiased ray marching with a pre-integrated control (PrimaryEstimator::
 // Preintegrated), written once for the CPU and CUDA backends.
 //
-// Why: the first unbiased march (PrimaryEstimator::March, RatioTracking.h) takes the extinction
+// Why: the first unbiased march (PrimaryEstimator::March, UnbiasedMarch.h) takes the extinction
 // at the last comb point as its control, constant until the next one. The shipped transfer
 // functions have sharp opacity edges, so that control is poor exactly where the opacity changes
 // and its residual correction is noisy there. Here the control follows the network between comb

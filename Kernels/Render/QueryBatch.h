@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
-#include "Render/RatioTracking.h"
+#include "Render/TrackingPoints.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -25,7 +25,7 @@ public:
   // Queries the last evaluate*OpacityScales asked a gradient for.
   std::size_t gradientQueries() const { return gradientQueries_; }
   void scatter(const RayStateView& rs) const;
-  // Ratio tracking (RatioTracking.h): the pending points that need the network (majorant > 0),
+  // Ratio tracking and the marches (TrackingPoints.h): the pending points that need the network (majorant > 0),
   // in ray order, then point order; rayIndices() then holds their slots.
   std::size_t gatherPoints(const RayStateView& rs, const PointStateView& pts, float time);
   void scatterPoints(const PointStateView& pts) const;

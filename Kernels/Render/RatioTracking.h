@@ -4,8 +4,9 @@
 //
 // Why: delta tracking's collision estimator buys one binary event per ray (the pixel's frame
 // estimate is a colour or nothing), and on the GPU every event costs a wavefront iteration.
-// Ratio tracking used as an emission estimator (the "expected value" estimator of
-// ../shared/notes/estimators.md) keeps every tentative collision: along the ray, tentative points
+// Ratio tracking used as an emission estimator (the "expected value" estimator; Novak, Georgiev,
+// Hanika and Jarosz, "Monte Carlo methods for volumetric light transport simulation", Eurographics
+// 2018 STAR, surveys both) keeps every tentative collision: along the ray, tentative points
 // x_1 < x_2 < ... come from a Poisson process of rate mu = k * (cell majorant) (k =
 // FrameConstants::majorantScale), and at each one
 //     L += T * (sigma_j / mu_j) * c_j,      T <- T * (1 - sigma_j / mu_j),
@@ -34,135 +35,26 @@
 // Shading (Shading.h) picks one point the same way, with or without shadows: its lit colour needs
 // the network's gradient there, one query per ray rather than one per point.
 //
-// Unbiased ray marching (PrimaryEstimator::March) uses the same point machinery with two kinds of
-// points per macrocell segment of majorant m: a jittered comb of spacing 1 / (k m) (one uniform
-// offset per segment) for the emission integral, and residual ratio-tracking points at rate
-// mu_r = k_r m (FrameConstants::residualScale) for the transmittance. The control extinction
-// sigma~ is piecewise constant: the extinction at the last comb point (half the majorant before
-// the first one; 0 in empty space), so
-//     T(t) = exp(-int_0^t sigma~) * prod over residual points y < t of (1 - (sigma(y) - sigma~(y)) / mu_r)
-// is unbiased for exp(-int sigma) for any sigma~ fixed before the residual points are drawn (the
-// Poisson generating functional; the residual process is independent of the comb), and
-//     L = sum over comb points x of T(x) sigma(x) c(x) / (k m)
-// is unbiased for int T sigma c because a jittered comb is an unbiased quadrature of any fixed
-// integrand. Where the field is smooth the control is close to sigma, the residual factors stay
-// near 1 and the comb's error falls like a marcher's: ray-marching efficiency per query without
-// a bias floor. Factors can leave [0, 1] where the control is poor; the estimate stays unbiased
-// (roulette works on |T|, the shadow reservoir on |weights|). Under gradient opacity (with k_r >=
-// 1) the control is 0 throughout (marchUsesControl below): sigma~ = 0 is as valid a choice, and
-// every factor then lies in [0, 1].
+// The unbiased ray march (PrimaryEstimator::March, UnbiasedMarch.h) draws its own points and
+// weighs them its own way; folding them in, the reservoir, roulette and the traversal pass are
+// shared with ratio tracking here. The points themselves: TrackingPoints.h.
 //
 // Majorants from lattice samples can underestimate sigma (refinement widens them as samples
 // arrive); the weight sigma / mu is then clamped at 1 (the only bias, as Falcor's ratio tracker
 // clamps; shared with delta tracking, whose acceptance probability clamps the same way).
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 
-#include "Evaluator/FieldEvaluator.h"
 #include "Render/CounterRng.h"
-#include "Render/Pruning.h"
-#include "Render/RayState.h"
-#include "Render/Traverse.h"
+#include "Render/TrackingPoints.h"
+#include "Render/UnbiasedMarch.h"
 
 namespace inr {
-
-// The per-point fields, declared once (storage in Render/RayStateArrays.h).
-//   t         ray parameter of the point
-//   majorant  ratio tracking and residual points: the rate mu it was drawn with; comb points:
-//             their spacing
-//   gap       march: length of non-empty macrocells between the previous point and this one
-//             (where the control extinction applies)
-//   sinceBreak  preintegrated (PreintegratedMarch.h): length from the macrocell's previous comb
-//             point (or where the ray entered the cell) to this point
-//   sample    the network's value there (or the pruned estimate); NaN while pending
-//   opacityScale  the gradient term there (RayStateView::opacityScale)
-//   cell      linear index of the macrocell the point was drawn in (refinement, pruning's EMA)
-//   kind      PointKind bits
-//   level, step  debiased (DebiasedMarch.h): the level of the point's comb interval and the point's
-//             index in it (1 .. 2^level, 2^level the closing comb point)
-#define INR_POINT_STATE_FIELDS(X) \
-  X(float, t)                     \
-  X(float, majorant)              \
-  X(float, gap)                   \
-  X(float, sinceBreak)            \
-  X(float, sample)                \
-  X(float, opacityScale)          \
-  X(int, cell)                    \
-  X(std::uint8_t, kind)           \
-  X(std::uint8_t, level)          \
-  X(std::uint8_t, step)
-
-enum PointKind : std::uint8_t {
-  kPointComb = 1u << 0,          // march: an emission (comb) point, else a transmittance point
-  kPointPruned = 1u << 1,        // answered by pruning without a query (no refinement, no EMA)
-};
-
-#define INR_DECLARE_POINT_VIEW_FIELD(type, name) type* name = nullptr;
-struct PointStateView {
-  int count = 0;  // slots: rays x pointsPerIteration
-  // The layout (pointSlot): 0, by point index (slot j x rays + i); > 0, by ray with this many
-  // points per ray (slot i x perRay + j; what the renderers use).
-  int perRay = 0;
-  INR_POINT_STATE_FIELDS(INR_DECLARE_POINT_VIEW_FIELD)
-};
-#undef INR_DECLARE_POINT_VIEW_FIELD
-
-// Slot of point j of ray i among `rays` rays. By point index, the lanes of a warp (consecutive
-// rays) touch consecutive words at the same j; by ray, a ray's points share cache lines, which
-// stay whole when the lanes' rays are scattered (the later passes' lists) or draw many points
-// each (the debiased march). The renderers lay the points out by ray (Benchmarks/RESULTS-archive.md,
-// "The debiased march's traversal", has both layouts side by side).
-INR_HD int pointSlot(const PointStateView& pts, int rays, int i, int j) {
-  return pts.perRay > 0 ? i * pts.perRay + j : j * rays + i;
-}
-
-INR_HD std::uint32_t floatBits(float f) {
-#if defined(__CUDA_ARCH__)
-  return __float_as_uint(f);
-#else
-  std::uint32_t u;
-  std::memcpy(&u, &f, sizeof u);
-  return u;
-#endif
-}
-
-// The resolve-time stream of the point at ray parameter t: keyed by the ray's stream and the
-// position's bits (distinct for the distinct points of a ray), so it does not depend on how the
-// points were batched.
-INR_HD RngStream ratioPointStream(const RngStream& ray, float t) {
-  return RngStream{ray.pixel, ray.frame, ray.seed ^ 0x85ebca6bu, floatBits(t)};
-}
-
-// Whether unbiased ray marching uses its control extinction (the extinction at the last comb
-// point). Under gradient opacity the factor switches the extinction on and off from one sample to
-// the next wherever |grad f| crosses the function's ramp, so a piecewise-constant control is
-// poor there and its residual factors 1 - (sigma - control) / mu leave [0, 1] by far: a product
-// of them now and then weighs a pixel many times over (fireflies that set the image back by
-// several dB). Without the control (0) the residual points are plain ratio tracking of the
-// transmittance at rate mu = residualScale x the majorant >= sigma: every factor in [0, 1], still
-// unbiased. That needs residualScale >= 1: below it the residual points are too sparse to carry
-// the transmittance alone (none at all at 0, the plain jittered marcher), so the control stays.
-// A 2D transfer function switches it the same way (its opacity follows |grad f| too).
-INR_HD bool marchUsesControl(const FrameConstants& fc, const TransferFunctionView& tf) {
-  return !usesGradient(tf) || fc.residualScale < 1.f;
-}
-
-// Whether the estimate keeps one picked point's colour (weighted by the emission weights' total)
-// instead of the weighted sum of all: when something is computed at that point alone, the
-// shadow ray's visibility or the shading's gradient.
-INR_HD bool pickOnePoint(const FrameConstants& fc) { return fc.shadows || fc.shading.enabled; }
-
-// World point of slot `slot` (ray i) at the frame's time: what the evaluator is asked.
-INR_HD QueryPoint ratioPointQuery(const RayStateView& rs, const PointStateView& pts, int i, int slot, float time) {
-  const Vec3f p = rs.origin[i] + rs.direction[i] * pts.t[slot];
-  return QueryPoint{p.x, p.y, p.z, time};
-}
 
 // Folds ray i's `count` pending points, in order, into its estimate: radiance (colour sum or,
 // with shadows, the picked colour with its sign), radiance.w = W (the emission weights' sum,
 // coverage), collisionProduct = the weights' absolute sum (the shadow reservoir's total),
-// visibility = T, lastExtinction = march's control, hitT. `onEvaluated(slot, value)` is called
+// visibility = T, lastExtinction = the march's control (UnbiasedMarch.h), hitT. `onEvaluated(slot, value)` is called
 // for each point the network answered (refinement, pruning's EMA on the GPU; the CPU does that in
 // its batch loop). Returns true when roulette ended the ray.
 template <typename OnEvaluated>
@@ -191,24 +83,7 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
     const float pick = pointRng.next();
     float w = 0.f;  // this point's emission weight
     if (march) {
-      // Until the ray's first comb point the control is half the macrocell majorant (`gap` then
-      // holds the majorant optical depth since the last point); from then on the extinction at
-      // the last comb point (`gap` a length).
-      const bool known = control == control;
-      if (marchUsesControl(fc, medium.tf)) {
-        T *= expf(-(known ? control * pts.gap[slot] : 0.5f * pts.gap[slot]));
-        if (kind & kPointComb) {
-          w = T * sigma * mu;  // mu: the comb's spacing
-          control = sigma;
-        } else {
-          const float controlHere = known ? control : 0.5f * mu / maxf(fc.residualScale, fc.majorantScale);
-          T *= 1.f - (sigma - controlHere) / mu;
-        }
-      } else if (kind & kPointComb) {
-        w = T * sigma * mu;
-      } else {
-        T *= 1.f - minf(1.f, sigma / mu);
-      }
+      w = foldMarchPoint(fc, medium.tf, kind, sigma, mu, pts.gap[slot], T, control);
     } else {
       const float r = minf(1.f, sigma / mu);
       w = T * r;
@@ -247,128 +122,26 @@ INR_HD bool resolveRatioPoints(const FrameConstants& fc, const TrackingMedium& m
   return ended;
 }
 
-// Stores a drawn point in slot `count` of ray i: pruning may answer it at once (then it needs no
-// query), else emitQuery(slot) is called. Returns whether it needs the network.
-template <bool kPruning, typename EmitQuery>
-INR_HD bool storeRatioPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts, int i,
-                            int count, float t, float rate, float gap, std::uint8_t kind, int cell, RngStream& rng,
-                            EmitQuery&& emitQuery) {
-  const int slot = pointSlot(pts, rs.count, i, count);
-  pts.t[slot] = t;
-  pts.majorant[slot] = rate;
-  pts.gap[slot] = gap;
-  pts.cell[slot] = cell;
-  float estimate = NAN;
-  const bool pruned = kPruning && prunes(medium.prune, cell, rng) && isFiniteValue(estimate = medium.prune.expected[cell]);
-  pts.kind[slot] = std::uint8_t(kind | (pruned ? kPointPruned : 0));
-  pts.sample[slot] = estimate;
-  if (pruned) {
-    rs.pruned[i] += 1u;
-    return false;
-  }
-  emitQuery(slot);
-  return true;
-}
-
-// The phase of a march ray's comb in this frame: uniform in [0, 1) for every pixel and frame
-// (so each frame's estimate is unbiased), and a golden-ratio sequence over the frames of each
-// half of the accumulation (frameHalf, CounterRng.h; a random start per pixel and half,
-// Cranley-Patterson rotated), so successive frames place their combs evenly between each other's
-// and the error falls faster than 1 / sqrt(frames) where the integrand is smooth, while the two
-// halves stay independent (the convergence estimate, Finalize.h). Drawn from the ray's stream for
-// the count only (bounded work).
-INR_HD float combOffset(const FrameConstants& fc, RngStream& rng) {
-  rng.next();
-  const float start = counterUniform(rng.pixel, frameHalf(fc.frame), fc.seed ^ 0x68e31da4u, 0u);
-  const float u = start + float((fc.frame >> 1) % 16777216u) * 0.61803398875f;
-  return u - floorf(u);
-}
-
-// The per-frame work cap (FrameConstants::maxRngDraws): true when ray i may draw no more; then
-// it is flagged capped and leaves its walk.
-INR_HD bool drawCapReached(const FrameConstants& fc, const RngStream& rng, std::uint8_t& flags, bool& left) {
-  if (rng.counter < fc.maxRngDraws) return false;
-  flags |= kRayCapped;
-  left = true;
-  return true;
-}
-
 // Draws ray i's next tentative points from rs.t on (at most fc.pointsPerIteration), resuming the
-// walker. Points pruning answers get their sample at once; the others call emitQuery(slot) and
-// are counted in `queries`. Sets `left` when the ray reached its segment's end or its draw cap
-// (rs.t is then tEnd). Returns the number of points drawn.
+// walker: ratio tracking's, at rate majorantScale x the cell majorant (the march's:
+// drawMarchPoints). Points pruning answers get their sample at once; the others call
+// emitQuery(slot) and are counted in `queries`. Sets `left` when the ray reached its segment's end
+// or its draw cap (rs.t is then tEnd). Returns the number of points drawn.
 template <typename Walker, bool kPruning, typename EmitQuery>
 INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& medium, const RayStateView& rs,
                            const PointStateView& pts, int i, std::uint8_t& flags, RngStream& rng, int& queries,
                            bool& left, EmitQuery&& emitQuery) {
-  const bool march = fc.estimator == PrimaryEstimator::March;
+  if (fc.estimator == PrimaryEstimator::March)
+    return drawMarchPoints<Walker, kPruning>(fc, medium, rs, pts, i, flags, rng, queries, left, emitQuery);
   const float tEnd = rs.tEnd[i];
   float t = rs.t[i];
-  // March: the next comb and residual points of the current segment (NaN: the walk is at a
-  // segment's start and draws them afresh).
-  float combNext = rs.combNext[i], residualNext = rs.residualNext[i], combPhase = rs.combPhase[i];
-  float gap = 0.f;          // non-empty length since the last point
-  bool controlKnown = rs.controlKnown[i] != 0;  // march: the ray has had a comb point
   int count = 0;
   left = false;
   Walker walker(medium.grid, rs, i);
   for (;;) {
     float m, segmentEnd;
     if (!walker.segment(tEnd, t, m, segmentEnd)) break;
-    if (march && m > 0.f) {
-      // The comb is regular in majorant optical depth (k points per unit), continuous along the
-      // ray across macrocells: its phase (the fraction of a comb interval still to go) carries
-      // over from segment to segment, so cells shorter than the spacing keep the stratification.
-      // Until the ray's first comb point the control is half the majorant, and the residual
-      // points there come at the comb's density (at least), so their factors
-      // 1 - (sigma - m / 2) / mu stay near 1. The control then carries over empty space (where
-      // it does not apply: gaps count non-empty length only) to the next comb point.
-      const float density = m * fc.majorantScale, spacing = 1.f / density;
-      const float muKnown = m * fc.residualScale, muUnknown = m * maxf(fc.residualScale, fc.majorantScale);
-      bool& known = controlKnown;
-      if (combNext != combNext) {  // a segment's start: its first comb and residual points
-        if (drawCapReached(fc, rng, flags, left)) break;
-        if (combPhase != combPhase) combPhase = combOffset(fc, rng);  // the ray's first comb point
-        combNext = t + combPhase * spacing;
-        const float mu = known ? muKnown : muUnknown;
-        residualNext = mu > 0.f ? candidateDistance(rng, mu, t) : INFINITY;
-      }
-      for (;;) {
-        const bool comb = combNext <= residualNext;
-        const float next = comb ? combNext : residualNext;
-        if (!(next < segmentEnd)) break;
-        if (drawCapReached(fc, rng, flags, left)) break;  // bounded work per frame
-        gap += (next - t) * (known ? 1.f : m);
-        t = next;
-        const float muNow = known ? muKnown : muUnknown;
-        const std::uint8_t kind = comb ? kPointComb : 0;
-        if (storeRatioPoint<kPruning>(medium, rs, pts, i, count, t, comb ? spacing : muNow, gap, kind,
-                                      walker.cellIndex(), rng, emitQuery))
-          ++queries;
-        gap = 0.f;
-        if (comb) {
-          combNext += spacing;
-          if (!known) {  // the control is known from here on: the residual process at its own rate
-            known = true;
-            residualNext = muKnown > 0.f ? candidateDistance(rng, muKnown, t) : INFINITY;
-          }
-        } else {
-          residualNext = candidateDistance(rng, muNow, t);
-        }
-        if (++count == fc.pointsPerIteration) {  // the batch is full: resume here next iteration
-          walker.store(rs, i);
-          rs.t[i] = t;
-          rs.combNext[i] = combNext;
-          rs.residualNext[i] = residualNext;
-          rs.combPhase[i] = combPhase;
-          rs.controlKnown[i] = controlKnown ? 1 : 0;
-          return count;
-        }
-      }
-      if (left) break;
-      gap += (segmentEnd - t) * (known ? 1.f : m);
-      combPhase = (combNext - segmentEnd) * density;  // what is left of the comb interval
-    } else if (m > 0.f) {
+    if (m > 0.f) {
       const float mu = m * fc.majorantScale;
       for (;;) {
         if (drawCapReached(fc, rng, flags, left)) break;  // bounded work per frame
@@ -385,14 +158,11 @@ INR_HD int drawRatioPoints(const FrameConstants& fc, const TrackingMedium& mediu
       }
       if (left) break;
     }
-    combNext = NAN;
     if (!walker.advance(segmentEnd, tEnd)) break;
     t = segmentEnd;
   }
   left = true;
   rs.t[i] = tEnd;
-  rs.controlKnown[i] = controlKnown ? 1 : 0;
-  rs.combPhase[i] = combPhase;
   return count;
 }
 
@@ -450,18 +220,6 @@ INR_HD void traverseRatioRayWith(const FrameConstants& fc, const TrackingMedium&
   }
   rs.flags[i] = flags;
   rs.rngCounter[i] = rng.counter;
-}
-
-// Pruning's expected-scalar update (Eq. ev_ema) from an evaluated point: the point's cell and
-// position, as expectedAfterQuery does for a delta-tracking query. False for a non-finite value.
-INR_HD bool expectedAfterPoint(const TrackingMedium& medium, const RayStateView& rs, const PointStateView& pts,
-                               int i, int slot, float value, int& cell, float& estimate) {
-  if (!isFiniteValue(value)) return false;
-  cell = pts.cell[slot];
-  const Int3 c = cellCoordinates(medium.grid.dims, cell);
-  const Vec3f p = rs.origin[i] + rs.direction[i] * pts.t[slot];
-  estimate = emaExpected(medium.prune.expected[cell], value, cellCentreWeight(medium.grid, c, p));
-  return true;
 }
 
 }  // namespace inr

@@ -34,7 +34,7 @@ enum RayFlag : std::uint8_t {
 enum class PrimaryEstimator : int {
   Delta = 0,  // the paper's delta tracking, collision estimator: one binary event per ray
   Ratio = 1,  // ratio-tracking emission weights at every tentative collision (RatioTracking.h)
-  March = 2,  // unbiased ray marching: comb emission, residual ratio-tracked transmittance (same)
+  March = 2,  // unbiased ray marching: comb emission, residual ratio-tracked transmittance (UnbiasedMarch.h)
   // Unbiased ray marching with a pre-integrated control: the network linear between comb points,
   // the transfer function integrated exactly over that, residual points correct the rest
   // (PreintegratedMarch.h)

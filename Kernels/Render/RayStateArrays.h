@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "Render/RatioTracking.h"
+#include "Render/TrackingPoints.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -90,7 +90,7 @@ T* arrayData(HostArray<T>& a) {
 INR_DEFINE_STATE_ARRAYS(RayStateArrays, RayStateView, INR_RAY_STATE_FIELDS)
 // Reset the accumulation (resetPixel) after a resize.
 INR_DEFINE_STATE_ARRAYS(PixelStateArrays, AccumulationView, INR_PIXEL_STATE_FIELDS)
-// Ratio tracking's pending points (RatioTracking.h): rays x pointsPerIteration slots.
+// The pending points of ratio tracking and the marches (TrackingPoints.h): rays x pointsPerIteration slots.
 INR_DEFINE_STATE_ARRAYS(PointStateArrays, PointStateView, INR_POINT_STATE_FIELDS)
 
 #undef INR_DEFINE_STATE_ARRAYS

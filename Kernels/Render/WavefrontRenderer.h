@@ -54,7 +54,7 @@ struct TrackingOptions {
   // points, and a segment (Poisson(residualScale / majorantScale) residual points and a comb
   // point) that does not fit in one cuts the ray off (PreintegratedMarch.h).
   static constexpr int kMinPreintegratedPoints = 16;
-  // March (unbiased ray marching, RatioTracking.h) puts a comb of majorantScale points per unit
+  // March (unbiased ray marching, UnbiasedMarch.h) puts a comb of majorantScale points per unit
   // of majorant optical depth in each macrocell and residual ratio-tracking points at
   // residualScale x the majorant (0: none: a plain jittered marcher, biased). Preintegrated
   // (PreintegratedMarch.h) takes the same two scales for its comb and its residual points; with
