@@ -42,7 +42,7 @@
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/ValueRange.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/Cuda/CudaRayMarcher.h"
 #include "Render/Cuda/DeviceTransferFunction.h"
@@ -134,7 +134,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   mo.dims = Int3{o.macrocells, o.macrocells, o.macrocells};
   mo.temporalSlices = o.slices;
   CudaMacrocellGrid grid(eval, box, model.domain.timeBegin, model.domain.timeEnd, mo);
-  CudaDeltaTrackingRenderer renderer(eval, grid);
+  CudaWavefrontRenderer renderer(eval, grid);
   TraversalOptions traversal;
   traversal.kind = o.traversal;
   renderer.setTraversal(traversal);
@@ -183,7 +183,7 @@ void benchModel(const std::string& name, const InrModel& model, const Options& o
   const double scaleNaive = double(o.size) * o.size / (double(o.naiveSize) * o.naiveSize);
   {
     CudaMacrocellGrid g2(eval, box, model.domain.timeBegin, model.domain.timeEnd, mo);
-    CudaDeltaTrackingRenderer naive(eval, g2);
+    CudaWavefrontRenderer naive(eval, g2);
     RenderSettings s2;
     s2.width = s2.height = o.naiveSize;
     naive.setSettings(s2);

@@ -30,7 +30,7 @@
 #include "Common/ImageIO.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Render/CameraView.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/MajorantGrid.h"
 #include "Render/ModelBox.h"
@@ -211,7 +211,7 @@ void runModel(const std::string& path, const Options& o) {
   std::fflush(stdout);
 
   // Background: converged delta tracking, pruning and budgeting off.
-  DeltaTrackingRenderer renderer(evaluator, grid);
+  CpuWavefrontRenderer renderer(evaluator, grid);
   QueryReductionSettings q;
   q.budget = BudgetScheme::None;
   q.reproject = false;

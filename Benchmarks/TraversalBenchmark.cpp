@@ -26,7 +26,7 @@
 #include "Common/Cuda/CudaDevice.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/Cuda/DeviceTraversal.h"
 #include "Render/ModelBox.h"
@@ -68,7 +68,7 @@ void benchModel(const std::string& name, const InrModel& model, int m, const Opt
   mo.temporalSlices = o.slices;
   CudaMacrocellGrid grid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, mo);
   grid.buildAllSlices();  // time steps below interpolate, never build
-  CudaDeltaTrackingRenderer renderer(eval, grid);
+  CudaWavefrontRenderer renderer(eval, grid);
   RenderSettings settings;
   settings.width = settings.height = o.size;
   renderer.setSettings(settings);

@@ -13,7 +13,7 @@
 #include "Common/Cuda/CudaDevice.h"
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #endif
 
@@ -85,7 +85,7 @@ protected:
 
 // Runs any host FieldEvaluator: its own CpuInrEvaluator, another session's, or a stand-in of the
 // network (a GridField: RenderSession::workingMeanField).
-class CpuRenderSession final : public BackendSession<FieldEvaluator, MacrocellGrid, DeltaTrackingRenderer> {
+class CpuRenderSession final : public BackendSession<FieldEvaluator, MacrocellGrid, CpuWavefrontRenderer> {
 public:
   CpuRenderSession(const InrModel& model, std::shared_ptr<const FieldEvaluator> evaluator,
                    const RenderSessionOptions& o, std::string note)
@@ -109,7 +109,7 @@ private:
 #ifdef INR_HAVE_CUDA
 // GPU slice builds report progress per slice (their lattice batches run asynchronously).
 class CudaRenderSession final
-    : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaDeltaTrackingRenderer> {
+    : public BackendSession<CudaInrEvaluator, CudaMacrocellGrid, CudaWavefrontRenderer> {
 public:
   CudaRenderSession(const InrModel& model, std::shared_ptr<const CudaInrEvaluator> evaluator,
                     const RenderSessionOptions& o)

@@ -27,7 +27,7 @@
 #include "Common/ImageIO.h"
 #include "Evaluator/FieldEvaluator.h"
 #include "Model/InrModel.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/GridField.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/QueryReduction.h"

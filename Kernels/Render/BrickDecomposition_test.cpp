@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "Render/BrickDecomposition.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
 
@@ -116,7 +116,7 @@ double rms(const std::vector<float>& a, const std::vector<float>& b) {
 
 struct BrickRender {
   MacrocellGrid grid;
-  DeltaTrackingRenderer renderer;
+  CpuWavefrontRenderer renderer;
   BrickRender(const FieldEvaluator& f, Int3 cells) : grid(f, test::kCubeBox, 0, 1, options(cells)), renderer(f, grid) {}
   static MacrocellOptions options(Int3 cells) {
     MacrocellOptions o;

@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/Finalize.h"
 #include "Render/RayInit.h"
 #include "Render/RayStateArrays.h"
@@ -179,7 +179,7 @@ struct Converged {
 };
 
 Converged render(BlobScene& s, const QueryReductionSettings& q, int frames, std::uint32_t seed, FrameStats* total = nullptr) {
-  DeltaTrackingRenderer r(s.field, s.grid);
+  CpuWavefrontRenderer r(s.field, s.grid);
   r.setQueryReduction(q);
   RenderSettings settings = s.settings;
   settings.seed = seed;
@@ -225,7 +225,7 @@ TEST(Budgeting, ReprojectedTranslationMatchesAFreshConvergedRenderInItsFirstFram
   const Converged reference = render(fresh, {}, 1024, 31);
 
   for (bool reproject : {true, false}) {
-    DeltaTrackingRenderer r(s.field, s.grid);
+    CpuWavefrontRenderer r(s.field, s.grid);
     QueryReductionSettings q;
     q.reproject = reproject;
     r.setQueryReduction(q);

@@ -5,7 +5,7 @@
 #include <array>
 #include <cmath>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/Reproject.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
@@ -53,7 +53,7 @@ Matrix inverseSimilarity(const Matrix& m, double s) {
 struct Fixture {
   test::FunctionField field{test::smoothField};
   MacrocellGrid grid{field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2)};
-  DeltaTrackingRenderer renderer{field, grid};
+  CpuWavefrontRenderer renderer{field, grid};
   test::SceneSetup setup = test::obliqueCubeScene(40, 7);
   Fixture() {
     setup.settings.height = 30;

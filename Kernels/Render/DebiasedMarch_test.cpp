@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "Render/DebiasedMarch.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/RayInit.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
@@ -61,7 +61,7 @@ struct Rendered {
 
 Rendered render(const FieldEvaluator& f, const SceneSetup& setup, TrackingOptions options, int frames) {
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-  DeltaTrackingRenderer r(f, grid, options);
+  CpuWavefrontRenderer r(f, grid, options);
   Rendered out;
   out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
   out.image = r.image();
@@ -209,7 +209,7 @@ TEST(DebiasedMarch, ConvergenceEstimateIsHonestWithTheStratifiedJitter) {
   const double referenceMse = estimatedMse(ref);
 
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-  DeltaTrackingRenderer r(f, grid, shipped);
+  CpuWavefrontRenderer r(f, grid, shipped);
   r.setSettings(setup.settings);
   r.setScene(setup.scene);
   const int pixels = setup.settings.width * setup.settings.height;

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/RayMarcher.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
@@ -50,7 +50,7 @@ struct TopDownRender {
     scene.camera = topDown();
   }
   MacrocellGrid grid;
-  DeltaTrackingRenderer renderer;
+  CpuWavefrontRenderer renderer;
   RenderSettings settings;
   RenderScene scene;
 };
@@ -58,7 +58,7 @@ struct TopDownRender {
 TEST(DeltaTracking, HomogeneousMediumTransmittance) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   TopDownRender t(f, 11);
-  DeltaTrackingRenderer& r = t.renderer;
+  CpuWavefrontRenderer& r = t.renderer;
   t.scene.transferFunction = flatOpacity(0.3, 0.5);
   r.setScene(t.scene);
   const int frames = 20;
@@ -77,7 +77,7 @@ TEST(DeltaTracking, PiecewiseMediumUsesLocalMajorants) {
   // exp(-sigma1 - sigma2) for the unit thickness of each.
   test::FunctionField f([](const QueryPoint& p) { return p.z > 0.f ? 1.0f : 0.25f; });
   TopDownRender t(f, 5);
-  DeltaTrackingRenderer& r = t.renderer;
+  CpuWavefrontRenderer& r = t.renderer;
   t.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
   t.scene.transferFunction.unitDistance = 1.0;
   r.setScene(t.scene);
@@ -112,7 +112,7 @@ double psnrAgainstRayMarching(bool shadows, int frames, const RayMarchOptions& r
   test::FunctionField f(test::smoothField);
   const SceneSetup setup = smoothScene(32, shadows);
   MacrocellGrid grid(f, kBox, 0, 1, cells(16));
-  DeltaTrackingRenderer dt(f, grid);
+  CpuWavefrontRenderer dt(f, grid);
   test::renderFrames(dt, setup.settings, setup.scene, frames);
   RayMarchRenderer rm(f, kBox, ro);
   test::renderFrames(rm, setup.settings, setup.scene, 1);
@@ -147,7 +147,7 @@ std::vector<float> renderWithThreads(int threads, bool naive) {
   MacrocellGrid grid(f, kBox, 0, 1, cells(8));
   TrackingOptions topt;
   topt.ghostPassesOnUpdate = 2;
-  DeltaTrackingRenderer r(f, grid, topt);
+  CpuWavefrontRenderer r(f, grid, topt);
   r.setSettings(setup.settings);
   r.setScene(setup.scene);
   for (int k = 0; k < 3; ++k) naive ? r.renderFrameNaive() : r.renderFrame();
@@ -170,7 +170,7 @@ TEST(DeltaTracking, NaiveTrackerIsTheSameEstimator) {
 TEST(DeltaTracking, EmptyTransferFunctionRendersBackgroundWithoutQueries) {
   test::FunctionField f(test::smoothField);
   MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer r(f, grid);
+  CpuWavefrontRenderer r(f, grid);
   SceneSetup setup = smoothScene(32, true);
   setup.scene.transferFunction = TransferFunction::transparent(0.0, 1.0);
   r.setSettings(setup.settings);
@@ -191,7 +191,7 @@ TEST(DeltaTracking, EmptyTransferFunctionRendersBackgroundWithoutQueries) {
 TEST(DeltaTracking, DepthLimitStopsRays) {
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   TopDownRender t(f);
-  DeltaTrackingRenderer& r = t.renderer;
+  CpuWavefrontRenderer& r = t.renderer;
   RenderScene& scene = t.scene;
   scene.transferFunction = flatOpacity(0.3, 0.5);
   const float tEnter = float(scene.camera.position[2]) - 1.f;  // parallel rays start at the eye plane
@@ -222,7 +222,7 @@ TEST(DeltaTracking, DepthLimitStopsRays) {
 TEST(DeltaTracking, ResidualAndAccumulation) {
   test::FunctionField f(test::smoothField);
   MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer r(f, grid);
+  CpuWavefrontRenderer r(f, grid);
   const SceneSetup setup = smoothScene(24, false);
   r.setSettings(setup.settings);
   r.setScene(setup.scene);
@@ -257,7 +257,7 @@ TEST(DeltaTracking, RatioTrackedShadowsAgreeWithDeltaShadows) {
   test::FunctionField f(test::smoothField);
   SceneSetup setup = smoothScene(24, true);
   MacrocellGrid grid(f, kBox, 0, 1, cells(8));
-  DeltaTrackingRenderer a(f, grid), b(f, grid);
+  CpuWavefrontRenderer a(f, grid), b(f, grid);
   a.setSettings(setup.settings);
   b.setSettings(setup.settings);
   a.setScene(setup.scene);

@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/MajorantGrid.h"
 #include "TestSupport/TestFields.h"
@@ -368,7 +368,7 @@ Result render(const Scene& s, Int3 dims, int block, bool naive) {
   TrackingOptions topt;
   topt.ghostPassesOnUpdate = 1;  // ghost majorants (own blocks) and refinement of empty cells
   topt.ghostPixelStride = 2;
-  DeltaTrackingRenderer r(f, grid, topt);
+  CpuWavefrontRenderer r(f, grid, topt);
   r.setSettings(s.settings);
   r.setScene(s.scene);
   Result out;

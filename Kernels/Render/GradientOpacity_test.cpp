@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/Evaluate.h"
 #include "Render/RayMarcher.h"
 #include "Render/RatioTracking.h"

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Render/MacrocellGrid.h"
 #include "TestSupport/HashGridModels.h"
@@ -208,7 +208,7 @@ float worstUnderestimate(const MacrocellGrid& grid, const FieldEvaluator& f) {
 }
 
 // A size x size view of the whole box with a preset transfer function over [lo, hi].
-void frameTheBox(DeltaTrackingRenderer& r, int size, float lo, float hi, float opacity, double unitDistance) {
+void frameTheBox(CpuWavefrontRenderer& r, int size, float lo, float hi, float opacity, double unitDistance) {
   RenderSettings s;
   s.width = s.height = size;
   r.setSettings(s);
@@ -224,7 +224,7 @@ TEST(MacrocellGrid, GhostPassesAndRefinementMakeBoundsConservative) {
   MacrocellGrid grid(f, kBox, 0.0, 1.0, options(8, 1));
   TrackingOptions topt;
   topt.ghostPixelStride = 1;
-  DeltaTrackingRenderer r(f, grid, topt);
+  CpuWavefrontRenderer r(f, grid, topt);
   frameTheBox(r, 64, 0.f, 1.f, 0.2f, 0.1);
   const float before = worstUnderestimate(grid, f);
   EXPECT_GT(before, 0.2f);  // the bump's peak is missed by the lattice
@@ -276,7 +276,7 @@ TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
   const test::FunctionField bump(bumpField);
   Recorder rec(bump);
   MacrocellGrid grid(rec, kBox, 0.0, 1.0, options(8, 1));
-  DeltaTrackingRenderer r(rec, grid);
+  CpuWavefrontRenderer r(rec, grid);
   rec.recording = true;
   frameTheBox(r, 48, 0.f, 1.f, 0.3f, 0.2);
   for (int k = 0; k < 3; ++k) r.renderFrame();
@@ -382,7 +382,7 @@ TEST(MacrocellGrid, HashGridHighFrequencyLevelsKeepRefinedBoundsValid) {
 
   TrackingOptions topt;
   topt.ghostPixelStride = 1;
-  DeltaTrackingRenderer r(rec, grid, topt);
+  CpuWavefrontRenderer r(rec, grid, topt);
   const std::array<float, 2> range = grid.workingValueRange();
   frameTheBox(r, 48, range[0], range[1], 0.3f, 0.2);
   rec.recording = true;

@@ -9,7 +9,7 @@
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/ModelBox.h"
 #include "Render/RayMarcher.h"
 #include "TestSupport/ShippedModels.h"
@@ -42,7 +42,7 @@ Comparison convergedVsRayMarched(const std::string& path, bool shadows, int size
   const RenderScene scene = test::testScene(model, range, shadows);
 
   MacrocellGrid grid(evaluator, box, model.domain.timeBegin, model.domain.timeEnd, test::testMacrocells());
-  DeltaTrackingRenderer dt(evaluator, grid);
+  CpuWavefrontRenderer dt(evaluator, grid);
   const FrameStats total = test::renderFrames(dt, settings, scene, frames);
 
   RayMarchOptions ropts;

@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <random>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/PreintegratedMarch.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
@@ -53,7 +53,7 @@ struct Rendered {
 
 Rendered render(const FieldEvaluator& f, const SceneSetup& setup, TrackingOptions options, int frames) {
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-  DeltaTrackingRenderer r(f, grid, options);
+  CpuWavefrontRenderer r(f, grid, options);
   Rendered out;
   out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
   out.image = r.image();

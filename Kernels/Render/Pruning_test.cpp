@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/Evaluate.h"
 #include "Render/Pruning.h"
 #include "TestSupport/TestFields.h"
@@ -187,7 +187,7 @@ struct RenderRun {
 
 RenderRun render(const FieldEvaluator& f, const test::SceneSetup& s, const QueryReductionSettings& q, int frames) {
   MacrocellGrid grid(f, kBox, 0, 1, cells16());
-  DeltaTrackingRenderer r(f, grid);
+  CpuWavefrontRenderer r(f, grid);
   r.setSettings(s.settings);
   r.setQueryReduction(q);
   r.setScene(s.scene);
@@ -307,7 +307,7 @@ TEST(Pruning, IdenticalImagesForOneAndManyThreads) {
 TEST(Pruning, EstimatesStartAtTheMeansAndRestartAtTimeChanges) {
   test::FunctionField f(plateauField);
   MacrocellGrid grid(f, kBox, 0, 1, cells16());
-  DeltaTrackingRenderer r(f, grid);
+  CpuWavefrontRenderer r(f, grid);
   const test::SceneSetup s = plateauScene(32, false);
   r.setSettings(s.settings);
   r.setQueryReduction(pruningAt(0.01, 0.01));

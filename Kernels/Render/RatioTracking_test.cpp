@@ -8,7 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
 
@@ -51,7 +51,7 @@ struct Rendered {
 Rendered render(const FieldEvaluator& f, const SceneSetup& setup, TrackingOptions options, int frames,
                 const QueryReductionSettings& q = QueryReductionSettings{}) {
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-  DeltaTrackingRenderer r(f, grid, options);
+  CpuWavefrontRenderer r(f, grid, options);
   r.setQueryReduction(q);
   Rendered out;
   out.total = test::renderFrames(r, setup.settings, setup.scene, frames);
@@ -174,7 +174,7 @@ TEST(RatioTracking, WorkIsBoundedInOpaqueMedia) {
     TrackingOptions t = test::ratioTracking(scale, 64);
     t.maxCollisionsPerRay = 64;
     MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-    DeltaTrackingRenderer r(f, grid, t);
+    CpuWavefrontRenderer r(f, grid, t);
     r.setWarningHandler([&](const std::string& m) { warning = m; });
     const FrameStats st = test::renderFrames(r, setup.settings, setup.scene, 1);
     EXPECT_EQ(test::nonFinitePixels(r.image()), 0u);
@@ -243,7 +243,7 @@ TEST(RatioTracking, MarchWorkIsBoundedInOpaqueMedia) {
   TrackingOptions t = test::unbiasedMarch(4.0, 1.0, 64);
   t.maxCollisionsPerRay = 64;
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 4));
-  DeltaTrackingRenderer r(f, grid, t);
+  CpuWavefrontRenderer r(f, grid, t);
   r.setWarningHandler([](const std::string&) {});
   const FrameStats st = test::renderFrames(r, setup.settings, setup.scene, 1);
   EXPECT_LE(st.queries, std::size_t(48 * 48) * (2 * 64 + 32));
@@ -274,7 +274,7 @@ TEST(RatioTracking, OptionsAreValidated) {
   // A renderer refuses them and keeps its options.
   test::FunctionField f([](const QueryPoint&) { return 0.5f; });
   MacrocellGrid grid(f, test::kCubeBox, 0, 1, test::cubeMacrocells(4, 1));
-  DeltaTrackingRenderer r(f, grid, test::ratioTracking(2.0));
+  CpuWavefrontRenderer r(f, grid, test::ratioTracking(2.0));
   TrackingOptions bad = test::ratioTracking(2.0);
   bad.majorantScale = NAN;
   EXPECT_THROW(r.setTrackingOptions(bad), std::invalid_argument);

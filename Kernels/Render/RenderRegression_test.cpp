@@ -5,7 +5,7 @@
 
 #include <cstdio>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "TestSupport/RenderRegressionCases.h"
 #include "TestSupport/TestFields.h"
 
@@ -32,9 +32,9 @@ TEST(RenderRegression, ImagesAndCountsBitIdenticalToRecorded) {
     const regression::Case& c = cases[k];
     test::FunctionField f(c.sparse ? test::sparseField : test::smoothField);
     MacrocellGrid grid(f, box, 0.0, 2.0, regression::macrocells(c));
-    DeltaTrackingRenderer r(f, grid, regression::tracking(c));
+    CpuWavefrontRenderer r(f, grid, regression::tracking(c));
     const std::uint64_t h = regression::fingerprint(r, regression::scene(c, box, 0.f, 1.f, 0.7), 1.3,
-                                                    [&](DeltaTrackingRenderer& rr) {
+                                                    [&](CpuWavefrontRenderer& rr) {
                                                       return c.naive ? rr.renderFrameNaive() : rr.renderFrame();
                                                     });
     if (regression::recording()) std::printf("    0x%016llxull,  // %s\n", (unsigned long long)h, c.name);

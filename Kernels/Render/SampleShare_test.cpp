@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/RayMarcher.h"
 #include "TestSupport/SampleShareCheck.h"
@@ -31,7 +31,7 @@ test::ShareRenderer cpuRenderer(const FieldEvaluator& field, const SceneSetup& s
   tracking.refineMacrocells = false;
   return [&field, s, tracking, reduction](const RenderSettings& settings, int frames) {
     MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-    DeltaTrackingRenderer r(field, grid, tracking);
+    CpuWavefrontRenderer r(field, grid, tracking);
     r.setQueryReduction(reduction);
     test::ShareRun run;
     run.frames = test::renderEachFrame(r, settings, s.scene, frames);
@@ -72,7 +72,7 @@ TEST(SampleShare, WithRefinementTheSharesStayCloseToOneRenderer) {
   const SceneSetup s = test::sampleShareScene(20, true);
   const auto render = [&](const RenderSettings& settings, int frames) {
     MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-    DeltaTrackingRenderer r(field, grid);  // refinement on (the default)
+    CpuWavefrontRenderer r(field, grid);  // refinement on (the default)
     test::renderEachFrame(r, settings, s.scene, frames);
     return r.premultipliedImage().data;
   };
@@ -149,7 +149,7 @@ TEST(SampleShare, GhostPassesAreTheSameOnEveryShare) {
   const SceneSetup s = test::sampleShareScene(20, false);
   const auto ghost = [&](SampleShare share) {
     MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-    DeltaTrackingRenderer r(field, grid);
+    CpuWavefrontRenderer r(field, grid);
     RenderSettings settings = s.settings;
     settings.sampleShare = share;
     r.setSettings(settings);
@@ -168,7 +168,7 @@ TEST(SampleShare, GhostPassesAreTheSameOnEveryShare) {
 TEST(SampleShare, RefusesBadSharesAndASecondSplit) {
   const test::FunctionField field(test::smoothField);
   MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(field, grid);
+  CpuWavefrontRenderer r(field, grid);
   const auto refusal = [&](const RenderSettings& settings) -> std::string {
     try {
       r.setSettings(settings);

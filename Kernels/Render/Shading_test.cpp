@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/RayMarcher.h"
 #include "Render/SceneChange.h"
 #include "Render/Shading.h"

@@ -16,7 +16,7 @@
 #include <string>
 
 #include "Common/ImageIO.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/Evaluate.h"
 #include "Render/RayMarcher.h"
 #include "Render/SceneChange.h"

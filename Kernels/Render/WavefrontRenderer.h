@@ -2,7 +2,7 @@
 // The backend-neutral half of the wavefront delta-tracking renderer (paper §4.1), written once:
 // image settings, the scene-change policy (SceneChange.h: what a new scene costs), frame
 // numbering, the accumulation's reset rules, the ghost-pass sweep and the counters of the work
-// scene changes did. The CPU (DeltaTrackingRenderer) and CUDA (CudaDeltaTrackingRenderer)
+// scene changes did. The CPU (CpuWavefrontRenderer) and CUDA (CudaWavefrontRenderer)
 // backends derive from it: they own the storage (ray and pixel state from Render/RayState.h,
 // majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
 #include <array>

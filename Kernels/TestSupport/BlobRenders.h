@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/RayMarcher.h"
 #include "TestSupport/TestFields.h"
 #include "TestSupport/TestScene.h"
@@ -27,7 +27,7 @@ inline BlobRender trackedBlob(const SceneSetup& setup, const TrackingOptions& op
                               const QueryReductionSettings& reduction = {}) {
   FunctionField f(blobField, "blob", blobGradient);
   MacrocellGrid grid(f, kCubeBox, 0, 1, cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid, options);
+  CpuWavefrontRenderer r(f, grid, options);
   r.setQueryReduction(reduction);
   f.resetCounts();
   BlobRender out;
@@ -58,7 +58,7 @@ inline BlobRender marchedBlob(const SceneSetup& setup) {
 inline void expectRefusedWithoutGradient(const SceneSetup& setup, const std::string& what) {
   FunctionField f(blobField);  // no gradient
   MacrocellGrid grid(f, kCubeBox, 0, 1, cubeMacrocells(8, 2));
-  DeltaTrackingRenderer r(f, grid);
+  CpuWavefrontRenderer r(f, grid);
   RayMarchRenderer rm(f, kCubeBox);
   r.setSettings(setup.settings);
   rm.setSettings(setup.settings);

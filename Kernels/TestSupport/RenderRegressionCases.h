@@ -12,7 +12,7 @@
 
 #include "Render/MacrocellGrid.h"
 #include "Render/SceneInputs.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 
 namespace inr::regression {
 

@@ -9,7 +9,7 @@
 
 #include "Common/ImageIO.h"
 #include "Model/InrModel.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/ModelBox.h"
 #include "Render/QueryReduction.h"
@@ -78,7 +78,7 @@ inline bool naiveImageEqualsWavefront(const FieldEvaluator& field, const SceneSe
                                       const MacrocellOptions& macrocells, int frames = 3) {
   MacrocellGrid gridA(field, kCubeBox, 0, 1, macrocells);
   MacrocellGrid gridB(field, kCubeBox, 0, 1, macrocells);
-  DeltaTrackingRenderer wavefront(field, gridA), naive(field, gridB);
+  CpuWavefrontRenderer wavefront(field, gridA), naive(field, gridB);
   wavefront.setSettings(setup.settings);
   wavefront.setScene(setup.scene);
   naive.setSettings(setup.settings);

@@ -26,7 +26,7 @@
 #include "Backends/SessionRayMarcher.h"
 #include "Backends/SessionSurfaceRenderer.h"
 #include "Render/BrickDecomposition.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/ModelBox.h"
 #include "Render/QueryReduction.h"
 #include "Render/RayMarcher.h"

@@ -7,9 +7,9 @@
 #include <cstdlib>
 
 #include "Render/Cuda/AnalyticDeviceField.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/TestScene.h"
 
@@ -45,8 +45,8 @@ TEST(CudaBudgeting, SameDecisionsAndConvergedImagesAsTheCpu) {
   for (BudgetScheme b : {BudgetScheme::Histogram, BudgetScheme::Stbn, BudgetScheme::WeightedStbn}) {
     CudaMacrocellGrid gpuGrid(field, kBox, 0, 1, cells());
     MacrocellGrid cpuGrid(field, kBox, 0, 1, cells());
-    CudaDeltaTrackingRenderer gpu(field, gpuGrid);
-    DeltaTrackingRenderer cpu(field, cpuGrid);
+    CudaWavefrontRenderer gpu(field, gpuGrid);
+    CpuWavefrontRenderer cpu(field, cpuGrid);
     gpu.setQueryReduction(scheme(b, 0.5));
     cpu.setQueryReduction(scheme(b, 0.5));
     gpu.setSettings(s.settings);
@@ -87,8 +87,8 @@ TEST(CudaBudgeting, ReprojectionMatchesTheCpu) {
   }
   CudaMacrocellGrid gpuGrid(field, kBox, 0, 1, cells());
   MacrocellGrid cpuGrid(field, kBox, 0, 1, cells());
-  CudaDeltaTrackingRenderer gpu(field, gpuGrid);
-  DeltaTrackingRenderer cpu(field, cpuGrid);
+  CudaWavefrontRenderer gpu(field, gpuGrid);
+  CpuWavefrontRenderer cpu(field, cpuGrid);
   QueryReductionSettings q;
   q.reproject = true;
   gpu.setQueryReduction(q);

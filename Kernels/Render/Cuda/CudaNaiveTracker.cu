@@ -1,4 +1,4 @@
-// The naive GPU baseline of the CUDA backend (CudaDeltaTrackingRenderer::renderFrameNaive): one
+// The naive GPU baseline of the CUDA backend (CudaWavefrontRenderer::renderFrameNaive): one
 // thread per ray runs ray initialisation, delta tracking with the network evaluated inside its
 // own loop (a per-thread fp32 MLP, CudaPerThreadMlp), shadows and finalisation — what a GPU delta
 // tracker written for voxel data does when its texture fetch becomes a network inference. Same
@@ -9,7 +9,7 @@
 
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/Cuda/CudaPerThreadMlp.cuh"
-#include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
+#include "Render/Cuda/CudaWavefrontRendererImpl.cuh"
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Evaluate.h"
 #include "Render/Finalize.h"
@@ -89,7 +89,7 @@ __global__ void naiveKernel(FrameConstants fc, TrackingMedium medium, RayStateVi
 
 }  // namespace
 
-FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& network) {
+FrameStats CudaWavefrontRenderer::renderFrameNaive(const CudaPerThreadMlp& network) {
   FrameStats st = beginFrame("naive", "renderFrameNaive");
   const double updateBeforeFrame = st.updateMs;
   Impl& I = *impl_;
@@ -122,7 +122,7 @@ FrameStats CudaDeltaTrackingRenderer::renderFrameNaive(const CudaPerThreadMlp& n
   st.queries = std::size_t(I.hostStats[kStatNaiveQueries]);
   st.shadowQueries = std::size_t(I.hostStats[kStatNaiveShadowQueries]);
   if (I.hostStats[kStatNaiveCut]) {
-    std::fprintf(stderr, "CudaDeltaTrackingRenderer (naive): %llu rays hit the step cap and were cut off\n",
+    std::fprintf(stderr, "CudaWavefrontRenderer (naive): %llu rays hit the step cap and were cut off\n",
                  I.hostStats[kStatNaiveCut]);
   }
   endFrame(st, I.hostStats[kStatNaiveCut] != 0);

@@ -19,11 +19,11 @@
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/Cuda/AnalyticDeviceField.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/Cuda/CudaRayMarcher.h"
 #include "Render/Cuda/DeviceTransferFunction.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/ModelBox.h"
 #include "Render/RayMarcher.h"
 #include "TestSupport/RequireGpu.h"
@@ -165,7 +165,7 @@ TEST(CudaPipeline, SkipBlockLevelIsTheMaxOfItsCells) {
 
     TrackingOptions topts;
     topts.ghostPassesOnUpdate = 0;  // run below, where their refinements can be counted
-    CudaDeltaTrackingRenderer r(eval, grid, topts);
+    CudaWavefrontRenderer r(eval, grid, topts);
     RenderSettings settings;
     settings.width = settings.height = 48;
     r.setSettings(settings);
@@ -213,7 +213,7 @@ TEST(CudaPipeline, ImagesIdenticalWithSkippingOnAndOff) {
     CudaMacrocellGrid grid(eval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, o);
     TrackingOptions topts;
     topts.ghostPassesOnUpdate = 1;
-    CudaDeltaTrackingRenderer r(eval, grid, topts);
+    CudaWavefrontRenderer r(eval, grid, topts);
     RenderSettings settings;
     settings.width = 65;
     settings.height = 63;
@@ -260,11 +260,11 @@ TEST(CudaPipeline, ConvergedGpuImageMatchesCpuImage) {
       const RenderScene scene = testScene(model, range, shadows);
 
       MacrocellGrid cpuGrid(cpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
-      DeltaTrackingRenderer cpu(cpuEval, cpuGrid);
+      CpuWavefrontRenderer cpu(cpuEval, cpuGrid);
       const FrameStats cpuTotal = test::renderFrames(cpu, settings, scene, frames);
 
       CudaMacrocellGrid gpuGrid(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, testMacrocells());
-      CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid);
+      CudaWavefrontRenderer gpu(gpuEval, gpuGrid);
       const FrameStats gpuTotal = test::renderFrames(gpu, settings, scene, frames);
 
       const ImageRGBA a = gpu.image(), b = cpu.image();
@@ -323,7 +323,7 @@ TEST(CudaPipeline, NaiveTrackerConvergesToWavefrontImage) {
     auto render = [&](bool naive) {
       CudaMacrocellGrid grid(gpuEval, modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd,
                              testMacrocells());
-      CudaDeltaTrackingRenderer r(gpuEval, grid);
+      CudaWavefrontRenderer r(gpuEval, grid);
       r.setSettings(settings);
       r.setScene(scene);
       for (int k = 0; k < 128; ++k) naive ? r.renderFrameNaive(naiveNet) : r.renderFrame();
@@ -500,7 +500,7 @@ protected:
 };
 
 TEST_F(GpuSceneTest, EmptyTransferFunctionCostsNoQueries) {
-  CudaDeltaTrackingRenderer r(*eval, *grid);
+  CudaWavefrontRenderer r(*eval, *grid);
   RenderSettings settings;
   settings.width = settings.height = 64;
   r.setSettings(settings);
@@ -524,7 +524,7 @@ TEST_F(GpuSceneTest, EmptyTransferFunctionCostsNoQueries) {
 }
 
 TEST_F(GpuSceneTest, SceneChangesDoOnlyTheWorkTheyNeed) {
-  CudaDeltaTrackingRenderer r(*eval, *grid);
+  CudaWavefrontRenderer r(*eval, *grid);
   RenderSettings settings;
   settings.width = settings.height = 32;
   r.setSettings(settings);
@@ -672,7 +672,7 @@ TEST(CudaPipeline, PruningWithNoCellInTheBandIsIdenticalToOff) {
   REQUIRE_GPU();
   const test::AnalyticDeviceField field;
   auto gpu = [&](const QueryReductionSettings& q) {
-    return renderPruned<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(field, q, 48, 3);
+    return renderPruned<CudaMacrocellGrid, CudaWavefrontRenderer>(field, q, 48, 3);
   };
   const PruningRun off = gpu(QueryReductionSettings{}), again = gpu(QueryReductionSettings{});
   if (off.image.data != again.image.data || off.stats.totalQueries() != again.stats.totalQueries())
@@ -706,9 +706,9 @@ TEST(CudaPipeline, PrunedGpuImageMatchesPrunedCpuImage) {
   // epsilon 0.08 + falloff 0.02 of the range prunes about a third of the candidates here (CPU:
   // 34.5% over 64 frames, 64^2).
   const QueryReductionSettings q = test::pruningAt(0.08, 0.02);
-  const PruningRun cpu = renderPruned<MacrocellGrid, DeltaTrackingRenderer>(
+  const PruningRun cpu = renderPruned<MacrocellGrid, CpuWavefrontRenderer>(
       static_cast<const FieldEvaluator&>(field), q, size, frames);
-  const PruningRun gpu = renderPruned<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
+  const PruningRun gpu = renderPruned<CudaMacrocellGrid, CudaWavefrontRenderer>(
       static_cast<const DeviceFieldEvaluator&>(field), q, size, frames);
   // Over the pixels the volume covers (premultiplied images: background is 0 in both).
   const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.image);

@@ -14,9 +14,9 @@
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/Cuda/AnalyticDeviceField.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/ModelBox.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/ShippedModels.h"
@@ -90,13 +90,13 @@ TEST(CudaRatioTracking, GpuImageMatchesCpuImageOnAnalyticField) {
   for (const TrackingOptions& options : estimators(16)) {
     for (bool shadows : {false, true}) {
       const int frames = shadows ? 64 : 4;
-      const RatioRun cpu = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(host, options, shadows, 64, frames);
-      const RatioRun gpu = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(device, options, shadows, 64, frames);
+      const RatioRun cpu = renderAnalytic<MacrocellGrid, CpuWavefrontRenderer>(host, options, shadows, 64, frames);
+      const RatioRun gpu = renderAnalytic<CudaMacrocellGrid, CudaWavefrontRenderer>(device, options, shadows, 64, frames);
       const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
       double control = NAN;
       if (shadows) {
-        const RatioRun a = renderAnalytic<MacrocellGrid, DeltaTrackingRenderer>(host, TrackingOptions{}, true, 64, frames);
-        const RatioRun b = renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(device, TrackingOptions{}, true, 64,
+        const RatioRun a = renderAnalytic<MacrocellGrid, CpuWavefrontRenderer>(host, TrackingOptions{}, true, 64, frames);
+        const RatioRun b = renderAnalytic<CudaMacrocellGrid, CudaWavefrontRenderer>(device, TrackingOptions{}, true, 64,
                                                                                         frames);
         control = test::psnrOverCoverage(b.image, a.image, a.premultiplied);
       }
@@ -123,7 +123,7 @@ TEST(CudaRatioTracking, ImageDoesNotDependOnPointsPerIteration) {
       TrackingOptions t = options;
       t.pointsPerIteration = points;
       t.refineMacrocells = false;
-      return renderAnalytic<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
+      return renderAnalytic<CudaMacrocellGrid, CudaWavefrontRenderer>(
           static_cast<const DeviceFieldEvaluator&>(field), t, false, 64, 2);
     };
     const RatioRun one = gpu(1), again = gpu(1);
@@ -171,16 +171,16 @@ TEST(CudaRatioTracking, ShippedModelsMatchCpuAndDeltaTracking) {
     settings.seed = 9;
     settings.pixelJitter = false;
     CudaMacrocellGrid deltaGrid(gpuEval, box, t0, t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer delta(gpuEval, deltaGrid);
+    CudaWavefrontRenderer delta(gpuEval, deltaGrid);
     test::renderFrames(delta, settings, scene, 8 * frames);
     const ImageRGBA reference = delta.image(), coverage = delta.premultipliedImage();
 
     for (const TrackingOptions& options : estimators(16)) {
       MacrocellGrid cpuGrid(cpuEval, box, t0, t1, test::testMacrocells());
-      DeltaTrackingRenderer cpu(cpuEval, cpuGrid, options);
+      CpuWavefrontRenderer cpu(cpuEval, cpuGrid, options);
       test::renderFrames(cpu, settings, scene, frames / 4);
       CudaMacrocellGrid gpuGrid(gpuEval, box, t0, t1, test::testMacrocells());
-      CudaDeltaTrackingRenderer gpu(gpuEval, gpuGrid, options);
+      CudaWavefrontRenderer gpu(gpuEval, gpuGrid, options);
       const FrameStats g = test::renderFrames(gpu, settings, scene, frames / 4);
       const double vsCpu = test::psnrOverCoverage(gpu.image(), cpu.image(), cpu.premultipliedImage());
       const double vsDelta = test::psnrOverCoverage(gpu.image(), reference, coverage);
@@ -211,14 +211,14 @@ TEST(CudaRatioTracking, ShippedDefaultsConvergeToDeltaTracking) {
     settings.width = settings.height = size;
     settings.seed = 21;
     CudaMacrocellGrid deltaGrid(c.gpuEval, c.box, c.t0, c.t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer delta(c.gpuEval, deltaGrid);
+    CudaWavefrontRenderer delta(c.gpuEval, deltaGrid);
     test::renderFrames(delta, settings, c.scene, 1);
     const ImageRGBA oneDeltaFrame = delta.image();
     for (int k = 1; k < 16384; ++k) delta.renderFrame();
     const ImageRGBA reference = delta.image(), coverage = delta.premultipliedImage();
 
     CudaMacrocellGrid grid(c.gpuEval, c.box, c.t0, c.t1, test::testMacrocells());
-    CudaDeltaTrackingRenderer shipped(c.gpuEval, grid, TrackingOptions::recommended());
+    CudaWavefrontRenderer shipped(c.gpuEval, grid, TrackingOptions::recommended());
     settings.seed = 22;
     const FrameStats first = test::renderFrames(shipped, settings, c.scene, 1);
     const double oneFrame = test::psnrOverCoverage(shipped.image(), reference, coverage);

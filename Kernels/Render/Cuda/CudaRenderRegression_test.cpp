@@ -13,7 +13,7 @@
 #include "Evaluator/Cuda/CudaPerThreadMlp.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/ModelBox.h"
 #include "TestSupport/RenderRegressionCases.h"
@@ -53,10 +53,10 @@ TEST(CudaRenderRegression, ImagesAndCountsBitIdenticalToRecorded) {
   for (std::size_t k = 0; k < cases.size(); ++k) {
     const regression::Case& c = cases[k];
     CudaMacrocellGrid grid(eval, box, model.domain.timeBegin, model.domain.timeEnd, regression::macrocells(c));
-    CudaDeltaTrackingRenderer r(eval, grid, regression::tracking(c));
+    CudaWavefrontRenderer r(eval, grid, regression::tracking(c));
     const std::uint64_t h =
         regression::fingerprint(r, regression::scene(c, box, range[0], range[1], t0 + 0.35 * span), t0 + 0.65 * span,
-                                [&](CudaDeltaTrackingRenderer& rr) {
+                                [&](CudaWavefrontRenderer& rr) {
                                   return c.naive ? rr.renderFrameNaive(naiveNet) : rr.renderFrame();
                                 },
                                 /*withRefinementCounts=*/false);

@@ -12,7 +12,7 @@
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/Cuda/AnalyticDeviceField.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
 #include "Render/Cuda/CudaRayMarcher.h"
 #include "Render/ModelBox.h"
@@ -33,7 +33,7 @@ test::ShareRenderer gpuRenderer(const DeviceFieldEvaluator& field, const Box3f& 
   tracking.refineMacrocells = false;
   return [&field, box, t0, t1, cells, scene, tracking](const RenderSettings& settings, int frames) {
     CudaMacrocellGrid grid(field, box, t0, t1, cells);
-    CudaDeltaTrackingRenderer r(field, grid, tracking);
+    CudaWavefrontRenderer r(field, grid, tracking);
     test::ShareRun run;
     run.frames = test::renderEachFrame(r, settings, scene, frames);
     run.image = r.premultipliedImage();

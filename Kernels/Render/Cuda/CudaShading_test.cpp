@@ -20,9 +20,9 @@
 #include "Evaluator/MlpProgram.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/CudaMacrocellGrid.h"
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 #include "Render/ModelBox.h"
 #include "TestSupport/DevicePoints.h"
 #include "TestSupport/FusedTangents.h"
@@ -292,10 +292,10 @@ TEST(CudaShading, ShadedGpuImageMatchesShadedCpuImage) {
     for (const bool kit : {false, true}) {
       const RenderScene scene = shadedScene(model, range, true, kit);
       const ShadedRun cpu =
-          renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
+          renderShaded<MacrocellGrid, CpuWavefrontRenderer>(cpuEval, model, scene, options, size, frames);
       const ShadedRun gpu =
-          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, scene, options, size, frames);
-      const ShadedRun flat = renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(
+          renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(gpuEval, model, scene, options, size, frames);
+      const ShadedRun flat = renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(
           gpuEval, model, shadedScene(model, range, false), options, size, frames);
       const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, cpu.premultiplied);
       const double flatPsnr = test::psnrOverCoverage(flat.image, cpu.image, cpu.premultiplied);
@@ -330,11 +330,11 @@ TEST(CudaShading, GradientOpacityGpuImageMatchesCpuImage) {
       const double g = test::medianGradientNorm(cpuEval, model, float(scene.time));
       scene.transferFunction.gradientOpacity = {{0.5 * g, 0.0}, {2.0 * g, 1.0}};
       const ShadedRun cpu =
-          renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
+          renderShaded<MacrocellGrid, CpuWavefrontRenderer>(cpuEval, model, scene, options, size, frames);
       const ShadedRun gpu =
-          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, scene, options, size, frames);
+          renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(gpuEval, model, scene, options, size, frames);
       const ShadedRun off =
-          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, without, options, size, frames);
+          renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(gpuEval, model, without, options, size, frames);
       const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, off.premultiplied);
       const double offPsnr = test::psnrOverCoverage(off.image, cpu.image, off.premultiplied);
       std::printf("%-32s %s%s, gradient opacity (median |grad| %.3g), %dx%d, %d frames: GPU vs CPU %.2f dB "
@@ -391,11 +391,11 @@ TEST(CudaShading, Transfer2DGpuImageMatchesCpuImage) {
       const double g = test::medianGradientNorm(cpuEval, model, float(scene.time));
       scene.transferFunction.transfer2D = gradientFaded2D(without.transferFunction, g);
       const ShadedRun cpu =
-          renderShaded<MacrocellGrid, DeltaTrackingRenderer>(cpuEval, model, scene, options, size, frames);
+          renderShaded<MacrocellGrid, CpuWavefrontRenderer>(cpuEval, model, scene, options, size, frames);
       const ShadedRun gpu =
-          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, scene, options, size, frames);
+          renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(gpuEval, model, scene, options, size, frames);
       const ShadedRun off =
-          renderShaded<CudaMacrocellGrid, CudaDeltaTrackingRenderer>(gpuEval, model, without, options, size, frames);
+          renderShaded<CudaMacrocellGrid, CudaWavefrontRenderer>(gpuEval, model, without, options, size, frames);
       const double psnr = test::psnrOverCoverage(gpu.image, cpu.image, off.premultiplied);
       const double offPsnr = test::psnrOverCoverage(off.image, cpu.image, off.premultiplied);
       std::printf("%-32s %s%s, 2D transfer function (median |grad| %.3g), %dx%d, %d frames: GPU vs CPU %.2f dB "

@@ -1,4 +1,4 @@
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 
 #include <cub/block/block_reduce.cuh>
 
@@ -10,7 +10,7 @@
 #include "Common/DeviceMemory.h"
 #include "Common/Stopwatch.h"
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
-#include "Render/Cuda/CudaDeltaTrackingRendererImpl.cuh"
+#include "Render/Cuda/CudaWavefrontRendererImpl.cuh"
 #include "Render/Cuda/DeviceRefine.cuh"
 #include "Render/Evaluate.h"
 #include "Render/Finalize.h"
@@ -213,7 +213,7 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 // Ratio tracking's slot buffers for `slots` points and `rays` listed rays, all or nothing: the new
 // ones are allocated beside the current ones and swapped in only when every one fits, so that a
 // lack of memory leaves the buffers (and the device memory in use) as they were.
-void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t rays) {
+void CudaWavefrontRenderer::Impl::growSlots(std::size_t slots, std::size_t rays) {
   const DeviceAllocationPurpose purpose(
       "ratio tracking's query slots (" + std::to_string(rays) + " rays x " + std::to_string(slots / std::max<std::size_t>(1, rays)) +
           " points per iteration)",
@@ -246,7 +246,7 @@ void CudaDeltaTrackingRenderer::Impl::growSlots(std::size_t slots, std::size_t r
 }
 
 // Gradient opacity's buffers for `slots` queries, all or nothing (as growSlots).
-void CudaDeltaTrackingRenderer::Impl::growGradientOpacity(std::size_t slots) {
+void CudaWavefrontRenderer::Impl::growGradientOpacity(std::size_t slots) {
   const DeviceAllocationPurpose purpose(
       "gradient opacity's value-and-gradient queries (" + std::to_string(slots) + " slots)",
       "turn Gradient Opacity off, lower Points Per Batch (InrPointsPerIteration) or the image resolution");
@@ -269,14 +269,14 @@ void CudaDeltaTrackingRenderer::Impl::growGradientOpacity(std::size_t slots) {
 }
 
 // Gradient shading's results for `rays` rays (one buffer: resize keeps it as it was on failure).
-void CudaDeltaTrackingRenderer::Impl::growShading(std::size_t rays) {
+void CudaWavefrontRenderer::Impl::growShading(std::size_t rays) {
   const DeviceAllocationPurpose purpose(
       "gradient shading's values and gradients (" + std::to_string(rays) + " rays)",
       "turn Shade off (inr render without --shade) or lower the image resolution");
   shadingResults.growTo(rays);
 }
 
-void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
+void CudaWavefrontRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
                                             const TrackingMedium& medium, bool refine,
                                             const DeviceRefineView& refineView, int maxIterations,
                                             cuda::Stage traverseStage, cuda::Stage evaluateStage, int& iterations,
@@ -367,7 +367,7 @@ void CudaDeltaTrackingRenderer::Impl::track(const DeviceFieldEvaluator& evaluato
   }
 }
 
-CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
+CudaWavefrontRenderer::CudaWavefrontRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
                                                      TrackingOptions options, CudaPipelineOptions pipeline)
     : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells), pipeline_(pipeline),
       impl_(std::make_unique<Impl>()) {
@@ -391,11 +391,11 @@ CudaDeltaTrackingRenderer::CudaDeltaTrackingRenderer(const DeviceFieldEvaluator&
   allocatePixels();
 }
 
-CudaDeltaTrackingRenderer::~CudaDeltaTrackingRenderer() = default;
+CudaWavefrontRenderer::~CudaWavefrontRenderer() = default;
 
-const DeviceTraversal& CudaDeltaTrackingRenderer::traversal() const { return *impl_->traversal; }
+const DeviceTraversal& CudaWavefrontRenderer::traversal() const { return *impl_->traversal; }
 
-void CudaDeltaTrackingRenderer::setTraversal(const TraversalOptions& options) {
+void CudaWavefrontRenderer::setTraversal(const TraversalOptions& options) {
   std::string reason;
   std::unique_ptr<DeviceTraversal> t = makeDeviceTraversal(options, reason);
   if (!t->supportsRatioTracking()) reason += "; ratio-tracked primary rays run through the DDA";
@@ -404,19 +404,19 @@ void CudaDeltaTrackingRenderer::setTraversal(const TraversalOptions& options) {
   traversalChoice_ = reason;
 }
 
-void CudaDeltaTrackingRenderer::rebuildTraversal() {
+void CudaWavefrontRenderer::rebuildTraversal() {
   Impl& I = *impl_;
   I.traversal->majorantsChanged(macrocells_.view(I.majorants.get(), I.blocks()), I.stream);
   I.pendingBuildMs += I.traversal->buildInfo().lastBuildMs;
   I.traversalStale = false;
 }
 
-void CudaDeltaTrackingRenderer::reservePixels(int width, int height) {
+void CudaWavefrontRenderer::reservePixels(int width, int height) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
   stagePixels(std::size_t(width) * std::size_t(height), std::to_string(width) + "x" + std::to_string(height));
 }
 
-void CudaDeltaTrackingRenderer::stagePixels(std::size_t n, const std::string& imageSize) {
+void CudaWavefrontRenderer::stagePixels(std::size_t n, const std::string& imageSize) {
   if (n > (std::size_t(1) << 30))
     throw std::invalid_argument("image too large for the GPU pipeline (more than 2^30 pixels)");
   Impl& I = *impl_;
@@ -441,13 +441,13 @@ void CudaDeltaTrackingRenderer::stagePixels(std::size_t n, const std::string& im
   I.staged = std::move(next);
 }
 
-std::string CudaDeltaTrackingRenderer::takeMemoryNote() {
+std::string CudaWavefrontRenderer::takeMemoryNote() {
   std::string note;
   std::swap(note, impl_->memoryNote);
   return note;
 }
 
-void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
+void CudaWavefrontRenderer::resizePixels(std::size_t n) {
   Impl& I = *impl_;
   stagePixels(n, std::to_string(n) + "-pixel");
   if (I.staged.ready && I.staged.count == n) {
@@ -462,7 +462,7 @@ void CudaDeltaTrackingRenderer::resizePixels(std::size_t n) {
   I.rays.flags.zero(I.stream);
 }
 
-void CudaDeltaTrackingRenderer::clearAccumulation() {
+void CudaWavefrontRenderer::clearAccumulation() {
   Impl& I = *impl_;
   const AccumulationView acc = I.pixels.view();
   resetPixelsKernel<<<blocksFor(acc.count), kThreads, 0, I.stream>>>(acc);
@@ -470,27 +470,27 @@ void CudaDeltaTrackingRenderer::clearAccumulation() {
   INR_CUDA_CHECK(cudaStreamSynchronize(I.stream));
 }
 
-std::vector<Vec4f> CudaDeltaTrackingRenderer::accumulation() const { return impl_->pixels.accum.download(impl_->stream); }
+std::vector<Vec4f> CudaWavefrontRenderer::accumulation() const { return impl_->pixels.accum.download(impl_->stream); }
 
-void CudaDeltaTrackingRenderer::copyAccumulation(cudaArray* target) const {
+void CudaWavefrontRenderer::copyAccumulation(cudaArray* target) const {
   const std::size_t w = std::size_t(settings().width), h = std::size_t(settings().height);
-  if (!target) throw std::invalid_argument("CudaDeltaTrackingRenderer::copyAccumulation: no target array");
+  if (!target) throw std::invalid_argument("CudaWavefrontRenderer::copyAccumulation: no target array");
   if (impl_->pixels.accum.size() < w * h)
-    throw std::logic_error("CudaDeltaTrackingRenderer::copyAccumulation: no image of the current size yet");
+    throw std::logic_error("CudaWavefrontRenderer::copyAccumulation: no image of the current size yet");
   const std::size_t row = w * sizeof(Vec4f);
   INR_CUDA_CHECK(cudaMemcpy2DToArrayAsync(target, 0, 0, impl_->pixels.accum.get(), row, row, h,
                                           cudaMemcpyDeviceToDevice, impl_->stream));
   INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream));
 }
 
-void CudaDeltaTrackingRenderer::transferFunctionChanged() { impl_->tf.upload(*tfTable_, impl_->stream); }
+void CudaWavefrontRenderer::transferFunctionChanged() { impl_->tf.upload(*tfTable_, impl_->stream); }
 
-void CudaDeltaTrackingRenderer::recomputeMajorants() {
+void CudaWavefrontRenderer::recomputeMajorants() {
   macrocells_.computeMajorants(impl_->tf.view(), impl_->majorants.get(), impl_->blocks());
   rebuildTraversal();  // part of the scene update (time step, transfer-function edit)
 }
 
-void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
+void CudaWavefrontRenderer::depthLimitChanged(const std::vector<float>& depthLimit) {
   const DeviceAllocationPurpose purpose(
       "the opaque geometry's depth limit (" + std::to_string(depthLimit.size()) + " pixels)",
       "lower the image resolution");
@@ -500,9 +500,9 @@ void CudaDeltaTrackingRenderer::depthLimitChanged(const std::vector<float>& dept
     impl_->depth.upload(depthLimit, impl_->stream);
 }
 
-void CudaDeltaTrackingRenderer::sceneUpdateDone() { INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
+void CudaWavefrontRenderer::sceneUpdateDone() { INR_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
 
-CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int frame) {
+CudaWavefrontRenderer::FrameSetup CudaWavefrontRenderer::frameSetup(int frame) {
   Impl& I = *impl_;
   FrameSetup f;
   f.fc = WavefrontRenderer::frameConstants(std::uint32_t(frame), I.depth.get());
@@ -514,7 +514,7 @@ CudaDeltaTrackingRenderer::FrameSetup CudaDeltaTrackingRenderer::frameSetup(int 
   return f;
 }
 
-void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
+void CudaWavefrontRenderer::readFrameStats(FrameStats& st) {
   Impl& I = *impl_;
   I.downloadStats();
   st.rays = std::size_t(I.hostStats[kStatRays]);
@@ -533,7 +533,7 @@ void CudaDeltaTrackingRenderer::readFrameStats(FrameStats& st) {
   if (st.refinements > 0) I.traversalStale = true;
 }
 
-FrameStats CudaDeltaTrackingRenderer::renderFrame() {
+FrameStats CudaWavefrontRenderer::renderFrame() {
   FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
   const double updateBeforeFrame = st.updateMs;
   Impl& I = *impl_;
@@ -619,14 +619,14 @@ FrameStats CudaDeltaTrackingRenderer::renderFrame() {
   return st;
 }
 
-BlueNoiseMaskView CudaDeltaTrackingRenderer::blueNoiseMask() {
+BlueNoiseMaskView CudaWavefrontRenderer::blueNoiseMask() {
   Impl& I = *impl_;
   const BlueNoiseMask& mask = shippedBlueNoiseMask();
   if (I.blueNoise.empty()) I.blueNoise.upload(mask.texels, I.stream);
   return BlueNoiseMaskView{I.blueNoise.get(), mask.width, mask.height, mask.depth};
 }
 
-void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+void CudaWavefrontRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
                                                       std::uint32_t maxHistory, const Vec3f& background) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
@@ -660,7 +660,7 @@ void CudaDeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView,
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
 }
 
-void CudaDeltaTrackingRenderer::beginGhostPasses() {
+void CudaWavefrontRenderer::beginGhostPasses() {
   Impl& I = *impl_;
   I.timer.reset(false);
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
@@ -672,7 +672,7 @@ void CudaDeltaTrackingRenderer::beginGhostPasses() {
   I.clearStats();
 }
 
-void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
+void CudaWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                                                FrameStats& total) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
@@ -688,7 +688,7 @@ void CudaDeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& tabl
           total.iterations, total.queries);
 }
 
-void CudaDeltaTrackingRenderer::endGhostPasses(FrameStats& total) {
+void CudaWavefrontRenderer::endGhostPasses(FrameStats& total) {
   Impl& I = *impl_;
   const auto tUpdate = Clock::now();
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
@@ -698,17 +698,17 @@ void CudaDeltaTrackingRenderer::endGhostPasses(FrameStats& total) {
   total.updateMs = msSince(tUpdate);
 }
 
-std::vector<float> CudaDeltaTrackingRenderer::residual() const { return impl_->pixels.residual.download(impl_->stream); }
+std::vector<float> CudaWavefrontRenderer::residual() const { return impl_->pixels.residual.download(impl_->stream); }
 
-std::vector<float> CudaDeltaTrackingRenderer::majorants() const { return impl_->majorants.download(impl_->stream); }
+std::vector<float> CudaWavefrontRenderer::majorants() const { return impl_->majorants.download(impl_->stream); }
 
-std::vector<float> CudaDeltaTrackingRenderer::blockMajorants() const {
+std::vector<float> CudaWavefrontRenderer::blockMajorants() const {
   return impl_->blockMajorants.download(impl_->stream);
 }
 
-bool CudaDeltaTrackingRenderer::fieldHasGradient() const { return evaluator_.providesDeviceGradient(); }
+bool CudaWavefrontRenderer::fieldHasGradient() const { return evaluator_.providesDeviceGradient(); }
 
-void CudaDeltaTrackingRenderer::shadeHits(const FrameConstants& fc) {
+void CudaWavefrontRenderer::shadeHits(const FrameConstants& fc) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const RayStateView rs = I.rays.view();

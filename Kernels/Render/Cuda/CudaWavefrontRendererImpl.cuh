@@ -1,12 +1,12 @@
 #pragma once
-// Private to the CUDA backend's translation units (CudaDeltaTrackingRenderer.cu, the naive
+// Private to the CUDA backend's translation units (CudaWavefrontRenderer.cu, the naive
 // baseline in CudaNaiveTracker.cu): the renderer's device state and the small launch helpers.
 #include <algorithm>
 #include <memory>
 #include <string>
 
 #include "Common/Cuda/DeviceBuffer.h"
-#include "Render/Cuda/CudaDeltaTrackingRenderer.h"
+#include "Render/Cuda/CudaWavefrontRenderer.h"
 #include "Render/Cuda/DeviceTransferFunction.h"
 #include "Render/Cuda/DeviceTraversal.h"
 #include "Render/Cuda/StageTimer.h"
@@ -39,7 +39,7 @@ enum StatSlot { kStatRays = 0, kStatShadowRays = 1, kStatRefinements = 2, kStatN
 enum SumSlot { kSumResidual = 0, kSumVariance = 1, kSumCount = 2 };
 }  // namespace pipeline
 
-struct CudaDeltaTrackingRenderer::Impl {
+struct CudaWavefrontRenderer::Impl {
   ~Impl() {
     for (cudaEvent_t e : countReady)
       if (e) cudaEventDestroy(e);

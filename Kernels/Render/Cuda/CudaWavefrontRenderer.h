@@ -44,12 +44,12 @@ struct CudaPipelineOptions {
 
 using CudaPipelineCounters = RendererCounters;
 
-class CudaDeltaTrackingRenderer final : public WavefrontRenderer {
+class CudaWavefrontRenderer final : public WavefrontRenderer {
 public:
   // `macrocells` (and the evaluator) must outlive the renderer; all work runs on the grid's stream.
-  CudaDeltaTrackingRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
+  CudaWavefrontRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
                             TrackingOptions options = {}, CudaPipelineOptions pipeline = {});
-  ~CudaDeltaTrackingRenderer() override;
+  ~CudaWavefrontRenderer() override;
 
   FrameStats renderFrame() override;
   // Baseline: per-thread delta tracking with the network evaluated inside each thread's loop.
@@ -68,7 +68,7 @@ public:
   // The traversal running and why it was chosen, e.g. "dda (auto: the GPU has no RT cores; ...)".
   const std::string& traversalChoice() const { return traversalChoice_; }
 
-  struct Impl;  // device state (CudaDeltaTrackingRendererImpl.cuh)
+  struct Impl;  // device state (CudaWavefrontRendererImpl.cuh)
 
   // Allocates the per-pixel device state of a width x height image beside the current one, so
   // that a later setSettings to that size only swaps it in. Throws DeviceOutOfMemory (naming the

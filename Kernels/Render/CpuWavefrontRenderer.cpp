@@ -1,4 +1,4 @@
-#include "Render/DeltaTrackingRenderer.h"
+#include "Render/CpuWavefrontRenderer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -69,32 +69,32 @@ FrameStats& FrameStats::operator+=(const FrameStats& o) {
   return *this;
 }
 
-DeltaTrackingRenderer::DeltaTrackingRenderer(const FieldEvaluator& evaluator,
+CpuWavefrontRenderer::CpuWavefrontRenderer(const FieldEvaluator& evaluator,
                                              MacrocellGrid& macrocells, TrackingOptions options)
     : WavefrontRenderer(options), evaluator_(evaluator), macrocells_(macrocells) {
   allocatePixels();
 }
 
-void DeltaTrackingRenderer::resizePixels(std::size_t n) {
+void CpuWavefrontRenderer::resizePixels(std::size_t n) {
   rays_.resize(n);
   pixels_.resize(n);
 }
 
-void DeltaTrackingRenderer::clearAccumulation() {
+void CpuWavefrontRenderer::clearAccumulation() {
   const AccumulationView acc = pixels_.view();
   const int n = acc.count;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) resetPixel(acc, i);
 }
 
-double DeltaTrackingRenderer::applyDirtyMajorants() {
+double CpuWavefrontRenderer::applyDirtyMajorants() {
   const auto t0 = Clock::now();
   const std::vector<int> dirty = macrocells_.takeDirtyCells();
   if (!dirty.empty()) macrocells_.updateMajorants(tfTable_->view(), dirty, majorants_);
   return msSince(t0);
 }
 
-void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
+void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
                                             const PointStateView* points, int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
                                             std::size_t& refinements, std::size_t& gradientQueries,
@@ -196,7 +196,7 @@ void DeltaTrackingRenderer::runTrackingLoop(const FrameConstants& fc, const Trac
   }
 }
 
-FrameStats DeltaTrackingRenderer::renderFrame() {
+FrameStats CpuWavefrontRenderer::renderFrame() {
   FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
   const double updateBeforeFrame = st.updateMs;
   const auto tFrame = Clock::now();
@@ -282,7 +282,7 @@ FrameStats DeltaTrackingRenderer::renderFrame() {
   return st;
 }
 
-FrameStats DeltaTrackingRenderer::renderFrameNaive() {
+FrameStats CpuWavefrontRenderer::renderFrameNaive() {
   FrameStats st = beginFrame("naive", "renderFrameNaive");
   const double updateBeforeFrame = st.updateMs;
   const auto tFrame = Clock::now();
@@ -349,9 +349,9 @@ FrameStats DeltaTrackingRenderer::renderFrameNaive() {
   return st;
 }
 
-BlueNoiseMaskView DeltaTrackingRenderer::blueNoiseMask() { return shippedBlueNoiseMask().view(); }
+BlueNoiseMaskView CpuWavefrontRenderer::blueNoiseMask() { return shippedBlueNoiseMask().view(); }
 
-void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
+void CpuWavefrontRenderer::reprojectAccumulation(const CameraView& oldView, const CameraView& newView,
                                                   std::uint32_t maxHistory, const Vec3f& background) {
   const int n = int(pixels_.count);
   std::swap(history_, pixels_);  // the old accumulation becomes the history
@@ -368,7 +368,7 @@ void DeltaTrackingRenderer::reprojectAccumulation(const CameraView& oldView, con
   for (int i = 0; i < n; ++i) reprojectionGather(oldView, newView, box, history, acc, i, keys[i], maxHistory, background);
 }
 
-void DeltaTrackingRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,
+void CpuWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc,
                                            int stride, FrameStats& total) {
   MajorantArrays ghostMajorants;
   macrocells_.computeMajorants(table.view(), ghostMajorants);

@@ -19,10 +19,10 @@
 
 namespace inr {
 
-class DeltaTrackingRenderer final : public WavefrontRenderer {
+class CpuWavefrontRenderer final : public WavefrontRenderer {
 public:
   // `macrocells` must outlive the renderer; it is shared so a session keeps its built slices.
-  DeltaTrackingRenderer(const FieldEvaluator& evaluator, MacrocellGrid& macrocells,
+  CpuWavefrontRenderer(const FieldEvaluator& evaluator, MacrocellGrid& macrocells,
                         TrackingOptions options = {});
 
   FrameStats renderFrame() override;
