@@ -162,7 +162,17 @@ int InrMapperRanks::CombineImage(int width, int height, int frames, std::vector<
     return 0;
   }
   this->imageCombined = true;
-  int total = InrParallelRendering::CombineSampleShares(width, height, frames, image);
+  // A reduced interactive image has another size than the tile: all of it travels.
+  const bool tileSized = width == this->imageRectWidth && height == this->imageRectHeight;
+  const InrParallelRendering::PixelRect rect =
+    tileSized ? this->imageRect : InrParallelRendering::PixelRect{ 0, 0, width, height };
+  int total = InrParallelRendering::CombineSampleShares(width, height, rect, frames, image);
+  if (std::getenv("INR_VOLUME_DEBUG"))
+  {
+    std::cerr << "INR Volume: rank " << this->ranks.rank << " sample shares: " << frames
+              << " own frames, " << total << " in all, over " << std::max(0, rect.x1 - rect.x0) << "x"
+              << std::max(0, rect.y1 - rect.y0) << " of " << width << "x" << height << " pixels\n";
+  }
   if (total == 0 && frames > 0 && image.size() == std::size_t(width) * std::size_t(height) * 4)
   {
     total = frames;  // the ranks' sizes differ: this rank's own frames, an unbiased image still
@@ -210,6 +220,13 @@ bool InrMapperRanks::CompositeDepth(vtkRenderer* ren, vtkVolume* vol, std::vecto
   }
   const InrParallelRendering::DepthPlan plan = InrParallelRendering::PlanDepthComposite(
     localGeometry, width, height, volumeRect(ren, vol, width, height));
+  // What sample shares send of a tile-sized image (CombineImage): the volume's rectangle, in the
+  // engine's rows (0 at the top; GL's 0 is the bottom).
+  this->imageRect = plan.sameSize
+    ? InrParallelRendering::PixelRect{ plan.rect.x0, height - plan.rect.y1, plan.rect.x1, height - plan.rect.y0 }
+    : InrParallelRendering::PixelRect{ 0, 0, width, height };
+  this->imageRectWidth = width;
+  this->imageRectHeight = height;
   if (!plan.anyGeometry || width <= 0 || height <= 0)
   {
     return false;

@@ -107,6 +107,10 @@ private:
   InrParallelRendering::Ranks ranks = InrParallelRendering::GlobalRanks();
   Split split = Split::Samples;
   bool imageCombined = false;
+  // The pixels the volume can cover in a tile of imageRectWidth x imageRectHeight (CompositeDepth;
+  // engine rows), what CombineImage sends.
+  InrParallelRendering::PixelRect imageRect;
+  int imageRectWidth = -1, imageRectHeight = -1;
   int localRank = -1;  // this rank's index on its node (-1: unknown), and where it came from
   std::string localRankSource;
   bool haveLocalRank = false;

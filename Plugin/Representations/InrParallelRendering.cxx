@@ -136,7 +136,7 @@ Refinement ReduceSampleShares(const Refinement& local)
   return r;
 }
 
-int CombineSampleShares(int width, int height, int frames, std::vector<float>& image)
+int CombineSampleShares(int width, int height, const PixelRect& rect, int frames, std::vector<float>& image)
 {
   vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
   const std::size_t values = std::size_t(std::max(width, 0)) * std::size_t(std::max(height, 0)) * 4;
@@ -145,28 +145,42 @@ int CombineSampleShares(int width, int height, int frames, std::vector<float>& i
   {
     return brings ? frames : 0;
   }
-  // The size of the ranks with frames, as PlanDepthComposite agrees on one: a maximum and a
-  // negated minimum that agree only when every such rank has that size.
+  // The size of the ranks with frames, as PlanDepthComposite agrees on one (a maximum and a
+  // negated minimum agree only when every such rank has that size), and the union of their
+  // rectangles (clipped to the image): what travels.
   const int lowest = std::numeric_limits<int>::min() / 2;
-  const int local[4] = { brings ? width : lowest, brings ? -width : lowest, brings ? height : lowest,
-    brings ? -height : lowest };
-  int all[4];
-  c->AllReduce(local, all, 4, vtkCommunicator::MAX_OP);
+  const PixelRect r{ std::max(rect.x0, 0), std::max(rect.y0, 0), std::min(rect.x1, width),
+    std::min(rect.y1, height) };
+  const bool sends = brings && !r.Empty();
+  const int local[8] = { brings ? width : lowest, brings ? -width : lowest, brings ? height : lowest,
+    brings ? -height : lowest, sends ? -r.x0 : lowest, sends ? -r.y0 : lowest, sends ? r.x1 : lowest,
+    sends ? r.y1 : lowest };
+  int all[8];
+  c->AllReduce(local, all, 8, vtkCommunicator::MAX_OP);
   if (all[0] == lowest || all[0] != -all[1] || all[2] != -all[3])
   {
     return 0;
   }
-  const std::size_t n = std::size_t(all[0]) * std::size_t(all[2]) * 4;
-  // The frame-weighted sum and the frames in one reduction (float holds frame counts exactly).
+  const int w = all[0], h = all[2];
+  const PixelRect u = all[4] == lowest ? PixelRect{} : PixelRect{ -all[4], -all[5], all[6], all[7] };
+  const int rw = std::max(0, u.x1 - u.x0), rh = std::max(0, u.y1 - u.y0);
+  const std::size_t n = std::size_t(rw) * std::size_t(rh) * 4;
+  // The frame-weighted sum over the rectangle and the frames, in one reduction (float holds frame
+  // counts exactly).
   std::vector<float> mine(n + 1, 0.0f), sum(n + 1, 0.0f);
-  if (brings && n == values)
+  if (brings)
   {
-    const float w = float(frames);
-    for (std::size_t i = 0; i < n; ++i)
+    const float f = float(frames);
+    for (int y = 0; y < rh; ++y)
     {
-      mine[i] = w * image[i];
+      const float* row = image.data() + (std::size_t(u.y0 + y) * std::size_t(w) + std::size_t(u.x0)) * 4;
+      float* out = mine.data() + std::size_t(y) * std::size_t(rw) * 4;
+      for (std::size_t k = 0; k < std::size_t(rw) * 4; ++k)
+      {
+        out[k] = f * row[k];
+      }
     }
-    mine[n] = w;
+    mine[n] = f;
   }
   c->AllReduce(mine.data(), sum.data(), static_cast<vtkIdType>(n + 1), vtkCommunicator::SUM_OP);
   const float total = sum[n];
@@ -174,10 +188,15 @@ int CombineSampleShares(int width, int height, int frames, std::vector<float>& i
   {
     return 0;
   }
-  image.resize(n);
-  for (std::size_t i = 0; i < n; ++i)
+  image.assign(std::size_t(w) * std::size_t(h) * 4, 0.0f);  // nothing outside the rectangle
+  for (int y = 0; y < rh; ++y)
   {
-    image[i] = sum[i] / total;
+    const float* in = sum.data() + std::size_t(y) * std::size_t(rw) * 4;
+    float* row = image.data() + (std::size_t(u.y0 + y) * std::size_t(w) + std::size_t(u.x0)) * 4;
+    for (std::size_t k = 0; k < std::size_t(rw) * 4; ++k)
+    {
+      row[k] = in[k] / total;
+    }
   }
   return int(total + 0.5f);
 }

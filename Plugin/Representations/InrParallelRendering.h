@@ -65,20 +65,21 @@ Refinement ReduceRefinement(const Refinement& local);
 /// a rank without frames adds nothing). Collective like ReduceRefinement.
 Refinement ReduceSampleShares(const Refinement& local);
 
-/// Sample shares (every rank renders the whole view for its own frames): replaces `image` (this
-/// rank's premultiplied RGBA, width x height, the mean of its `frames` frames) by the mean over
-/// every rank's frames, sum of f_r x image_r / sum of f_r, and returns that sum. Ranks without
-/// frames, or whose size differs from the one the ranks with frames agree on, add nothing; 0
-/// (image untouched) when no rank brings frames or their sizes differ. Collective: every rank
-/// calls it once per render, whatever it draws.
-int CombineSampleShares(int width, int height, int frames, std::vector<float>& image);
-
 /// A rectangle of pixels [x0, x1) x [y0, y1) of a render tile; empty when x1 <= x0 or y1 <= y0.
 struct PixelRect
 {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   bool Empty() const { return x1 <= x0 || y1 <= y0; }
 };
+
+/// Sample shares (every rank renders the whole view for its own frames): replaces `image` (this
+/// rank's premultiplied RGBA, width x height, row 0 at the top, the mean of its `frames` frames)
+/// by the mean over every rank's frames, sum of f_r x image_r / sum of f_r, and returns that sum.
+/// Only the union of the ranks' `rect`s travels (the pixels the volume can cover; transparent
+/// outside). Ranks without frames, or whose size differs from the one the ranks with frames
+/// agree on, add nothing; 0 (image untouched) when no rank brings frames or their sizes differ.
+/// Collective: every rank calls it once per render, whatever it draws.
+int CombineSampleShares(int width, int height, const PixelRect& rect, int frames, std::vector<float>& image);
 
 /// What all ranks agree on before the depth composite: whether any rank drew geometry before its
 /// volumes (then every rank takes part in MinOverRanks, also one without geometry of its own),
