@@ -1,10 +1,10 @@
 // The mapper across MPI ranks (pvbatch / pvserver with several ranks; with one process everything
 // here is the identity): which GPU this rank takes, which frames or pixels it traces, the depth
 // that clips its rays (composited over every rank's geometry), the ranks' images combined (sample
-// shares) and the refinement state reduced over the ranks after each render. The collectives live here; InrParallelRendering.h holds the MPI calls
-// themselves. Every rank must reach CompositeDepth, CombineImage (or FinishRender) and Reduce once
-// per render, in that order, whatever it draws: vtkInrVolumeMapper::Render calls them first thing
-// and on every way out.
+// shares) and the refinement state reduced over the ranks after each render. The collectives
+// live here; InrParallelRendering.h holds the MPI calls themselves. Every rank must reach
+// CompositeDepth, CombineImage (or FinishRender) and Reduce once per render, in that order,
+// whatever it draws: vtkInrVolumeMapper::Render calls them first thing and on every way out.
 #ifndef InrMapperRanks_h
 #define InrMapperRanks_h
 

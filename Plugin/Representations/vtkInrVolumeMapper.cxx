@@ -413,15 +413,16 @@ void vtkInrVolumeMapper::Internals::Composite(
   {
     return;
   }
+  // A reduced (interactive) image is stretched over the viewport: filter it linearly.
+  int viewport[2] = { width, height };
+  ren->GetTiledSize(&viewport[0], &viewport[1]);
+  const bool upscaled = viewport[0] != width || viewport[1] != height;
   if (this->ranks.SplitsSamples())
   {
-    int viewport[2] = { width, height };
-    ren->GetTiledSize(&viewport[0], &viewport[1]);
-    this->UploadSampleShares(window, width, height, viewport[0] != width || viewport[1] != height);
-    std::string error;
-    if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
+    this->UploadSampleShares(window, width, height, upscaled);
+    if (this->uploadedWindow == window)
     {
-      vtkErrorWithObjectMacro(self, << error);
+      this->BlendTexture(self, window);
     }
     return;
   }
@@ -430,10 +431,9 @@ void vtkInrVolumeMapper::Internals::Composite(
   if (this->worker.KeepsImage() ||
     (this->worker.StartsRefine() && this->engines.fine.session->accumulatedFrames() == 0))
   {
-    std::string error;
-    if (this->uploadedWindow == window && !this->compositor.Blend(window, &error))
+    if (this->uploadedWindow == window)
     {
-      vtkErrorWithObjectMacro(self, << error);
+      this->BlendTexture(self, window);
     }
     return;
   }
@@ -450,10 +450,6 @@ void vtkInrVolumeMapper::Internals::Composite(
         this->report.step.framesRendered > 0 || epoch != this->uploadedEpoch ||
           this->report.shownCoarse != this->uploadedCoarse))
   {
-    // A reduced (interactive) image is stretched over the viewport: filter it linearly.
-    int viewport[2] = { width, height };
-    ren->GetTiledSize(&viewport[0], &viewport[1]);
-    const bool upscaled = viewport[0] != width || viewport[1] != height;
     if (!this->compositor.Fits(window, width, height))
     {
       // GL cannot give a texture new storage while CUDA holds it registered.
@@ -487,6 +483,11 @@ void vtkInrVolumeMapper::Internals::Composite(
     this->uploadedCoarse = this->report.shownCoarse;
     this->uploadedWindow = window;
   }
+  this->BlendTexture(self, window);
+}
+
+void vtkInrVolumeMapper::Internals::BlendTexture(vtkInrVolumeMapper* self, vtkOpenGLRenderWindow* window)
+{
   std::string error;
   if (!this->compositor.Blend(window, &error))
   {
