@@ -23,6 +23,10 @@ public:
   void setSettings(const RenderSettings& settings) override { renderer_.setSettings(settings); }
   void setScene(const RenderScene& scene, const BlendScene& blend) override { renderer_.setScene(scene, blend); }
   FrameStats renderFrame() override { return renderer_.renderFrame(); }
+  bool renderFramePart(double budgetMs, FrameStats* stats) override { return renderer_.renderFramePart(budgetMs, stats); }
+  double frameProgress() const override { return renderer_.frameProgress(); }
+  bool macrocellsBuiltFor(double time) const override { return renderer_.macrocellsBuiltFor(time); }
+  void buildMacrocellsFor(double time) override { renderer_.buildMacrocellsFor(time); }
   void resetAccumulation() override { renderer_.resetAccumulation(); }
   int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
   ImageRGBA image() const override { return renderer_.image(); }
@@ -51,6 +55,14 @@ public:
   void setSettings(const RenderSettings& settings) override { renderer_.setSettings(settings); }
   void setScene(const RenderScene& scene, const BlendScene& blend) override { renderer_.setScene(scene, blend); }
   FrameStats renderFrame() override { return renderer_.renderFrame(); }
+  bool renderFramePart(double, FrameStats* stats) override {
+    const FrameStats st = renderer_.renderFrame();
+    if (stats) *stats = st;
+    return true;
+  }
+  double frameProgress() const override { return 0.0; }
+  bool macrocellsBuiltFor(double time) const override { return renderer_.macrocellsBuiltFor(time); }
+  void buildMacrocellsFor(double time) override { renderer_.buildMacrocellsFor(time); }
   void resetAccumulation() override { renderer_.resetAccumulation(); }
   int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
   ImageRGBA image() const override { return renderer_.image(); }

@@ -26,6 +26,14 @@ public:
   virtual void setSettings(const RenderSettings& settings) = 0;
   virtual void setScene(const RenderScene& scene, const BlendScene& blend) = 0;
   virtual FrameStats renderFrame() = 0;
+  // The frame in parts within a time budget (SurfaceRenderer::renderFramePart): true once it is
+  // complete. The GPU renderer draws a whole frame per call (its frames take milliseconds).
+  virtual bool renderFramePart(double budgetMs, FrameStats* stats) = 0;
+  virtual double frameProgress() const = 0;  // the share of the frame in progress rendered
+  // The isosurface's candidate macrocells at `time`: built (setScene then builds nothing), and
+  // their build alone (SurfaceRenderer::buildMacrocellsFor).
+  virtual bool macrocellsBuiltFor(double time) const = 0;
+  virtual void buildMacrocellsFor(double time) = 0;
   virtual void resetAccumulation() = 0;
   virtual int accumulatedFrames() const = 0;
   virtual ImageRGBA image() const = 0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "Common/Stopwatch.h"
@@ -149,6 +150,19 @@ void SurfaceRenderer::setScene(const RenderScene& scene, const BlendScene& blend
   resetAccumulation();
 }
 
+bool SurfaceRenderer::macrocellsBuiltFor(double time) const {
+  if (!grid_) return false;
+  int k0 = 0, k1 = 0;
+  float w = 0.f;
+  grid_->interpolationWeights(time, k0, k1, w);
+  return grid_->sliceBuilt(k0) && (w == 0.f || grid_->sliceBuilt(k1));
+}
+
+void SurfaceRenderer::buildMacrocellsFor(double time) {
+  if (!grid_) grid_ = std::make_unique<MacrocellGrid>(evaluator_, box_, timeBegin_, timeEnd_, options_.macrocells);
+  grid_->buildSlicesFor(time);
+}
+
 void SurfaceRenderer::updateCandidates() {
   if (!grid_) grid_ = std::make_unique<MacrocellGrid>(evaluator_, box_, timeBegin_, timeEnd_, options_.macrocells);
   grid_->setTime(scene_.time);
@@ -174,16 +188,46 @@ void SurfaceRenderer::resetAccumulation() {
   std::fill(accum_.begin(), accum_.end(), Vec4f{0, 0, 0, 0});
   std::fill(depth_.begin(), depth_.end(), INFINITY);
   frameIndex_ = 0;
+  partNext_ = 0;  // a frame in progress is dropped with the accumulation it was adding to
+  isoChunkN_ = 0;
 }
 
 FrameStats SurfaceRenderer::renderFrame() {
+  FrameStats st;
+  renderFramePart(std::numeric_limits<double>::infinity(), &st);
+  return st;
+}
+
+bool SurfaceRenderer::renderFramePart(double budgetMs, FrameStats* stats) {
   if (!haveScene_) throw std::logic_error("renderFrame: setScene first");
-  FrameStats st = blend_.mode == BlendMode::Slice ? renderSlice() : renderIsosurface();
+  const auto start = Clock::now();
+  const int n = settings_.width * settings_.height;
+  if (partNext_ == 0) {
+    partStats_ = FrameStats{};
+    partStats_.method = blend_.mode == BlendMode::Slice ? "slice" : "isosurface";
+    partStats_.frame = frameIndex_;
+    partStats_.pixels = std::size_t(n);
+    partWallMs_ = 0.0;
+  }
+  if (blend_.mode == BlendMode::Slice)
+    renderSliceChunks(start, budgetMs);
+  else
+    renderIsosurfaceChunks(start, budgetMs);
+  partWallMs_ += msSince(start);
+  if (partNext_ < n) return false;
+  partNext_ = 0;
+  FrameStats st = partStats_;
   st.updateMs = pendingUpdateMs_;
-  st.closeTiming(pendingUpdateMs_, st.totalMs);
+  st.closeTiming(pendingUpdateMs_, partWallMs_);
   pendingUpdateMs_ = 0.0;
   ++frameIndex_;
-  return st;
+  if (stats) *stats = st;
+  return true;
+}
+
+double SurfaceRenderer::frameProgress() const {
+  const double n = double(settings_.width) * double(settings_.height);
+  return n > 0.0 ? double(partNext_) / n : 0.0;
 }
 
 namespace {
@@ -233,14 +277,10 @@ SliceConstants SurfaceRenderer::sliceConstants() const {
   return sc;
 }
 
-FrameStats SurfaceRenderer::renderSlice() {
-  const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "slice";
-  st.frame = frameIndex_;
+void SurfaceRenderer::renderSliceChunks(Clock::time_point start, double budgetMs) {
+  FrameStats& st = partStats_;
   const SliceConstants sc = sliceConstants();
   const int n = settings_.width * settings_.height;
-  st.pixels = std::size_t(n);
   std::vector<QueryPoint> points;
   std::vector<int> pixelOf;
   std::vector<float> values, gradients;
@@ -248,7 +288,8 @@ FrameStats SurfaceRenderer::renderSlice() {
   const int chunkMax = std::max(1, options_.chunkPixels);
   std::vector<std::uint8_t> hit(std::size_t(std::min(n, chunkMax)));
   std::vector<Vec3f> hitPoint(hit.size());
-  for (int chunk0 = 0; chunk0 < n; chunk0 += chunkMax) {
+  const int firstChunk = partNext_;  // rendered whatever the budget: every call makes progress
+  for (int chunk0 = firstChunk; chunk0 < n && (chunk0 == firstChunk || msSince(start) < budgetMs);) {
     const int chunkN = std::min(chunkMax, n - chunk0);
     auto t0 = Clock::now();
 #pragma omp parallel for schedule(static) if (chunkN >= kParallelMinItems)
@@ -297,9 +338,9 @@ FrameStats SurfaceRenderer::renderSlice() {
     for (int k = 0; k < chunkN; ++k)
       if (!hit[k]) accum_[chunk0 + k] = accumulateMean(accum_[chunk0 + k], Vec4f{0, 0, 0, 0}, frameIndex_);
     st.finalizeMs += msSince(t0);
+    partNext_ = chunk0 + chunkN;
+    chunk0 += chunkN;
   }
-  st.closeTiming(0.0, msSince(tFrame));
-  return st;
 }
 
 SurfaceConstants SurfaceRenderer::surfaceConstants() const {
@@ -322,37 +363,41 @@ SurfaceConstants SurfaceRenderer::surfaceConstants() const {
   return sc;
 }
 
-FrameStats SurfaceRenderer::renderIsosurface() {
-  const auto tFrame = Clock::now();
-  FrameStats st;
-  st.method = "isosurface";
-  st.frame = frameIndex_;
+void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double budgetMs) {
+  FrameStats& st = partStats_;
   const SurfaceConstants sc = surfaceConstants();
   const int n = settings_.width * settings_.height;
   const int K = sc.samplesPerIteration;
-  st.pixels = std::size_t(n);
   const int chunkMax = std::max(1, options_.chunkPixels);
   const std::size_t slots = std::size_t(std::min(n, chunkMax));
-  std::vector<SurfaceRay> rays(slots);
+  std::vector<SurfaceRay>& rays = isoRays_;
+  std::vector<int>& active = isoActive_;
+  rays.resize(slots);
   std::vector<float> ts(slots * K);
   std::vector<std::uint8_t> breaks(slots * K);
   std::vector<int> counts(slots), first(slots);
-  std::vector<int> active, shading;
+  std::vector<int> shading;
   std::vector<QueryPoint> points, gradientPoints;
   std::vector<float> values, gradientValues, gradients;
 
-  for (int chunk0 = 0; chunk0 < n; chunk0 += chunkMax) {
-    const int chunkN = std::min(chunkMax, n - chunk0);
+  // One march iteration (one evaluator batch) at least per call: every call makes progress.
+  for (bool firstStep = true; partNext_ < n && (firstStep || msSince(start) < budgetMs); firstStep = false) {
+    const int chunk0 = partNext_;
     auto t0 = Clock::now();
+    if (isoChunkN_ == 0) {  // a new chunk of pixels: its rays
+      isoChunkN_ = std::min(chunkMax, n - chunk0);
+      const int chunkN = isoChunkN_;
 #pragma omp parallel for schedule(static) if (chunkN >= kParallelMinItems)
-    for (int k = 0; k < chunkN; ++k) surfaceInitRay(sc, chunk0 + k, rays[k]);
-    active.clear();
-    for (int k = 0; k < chunkN; ++k)
-      if (rays[k].phase != kSurfaceDone) active.push_back(k);
-    st.rays += active.size();
-    st.initMs += msSince(t0);
+      for (int k = 0; k < chunkN; ++k) surfaceInitRay(sc, chunk0 + k, rays[k]);
+      active.clear();
+      for (int k = 0; k < chunkN; ++k)
+        if (rays[k].phase != kSurfaceDone) active.push_back(k);
+      st.rays += active.size();
+      st.initMs += msSince(t0);
+    }
 
-    while (!active.empty()) {
+    std::size_t total = 0;
+    if (!active.empty()) {
       // Emit: each active ray's samples into its K slots, then packed into one batch.
       t0 = Clock::now();
       const long m = long(active.size());
@@ -361,7 +406,6 @@ FrameStats SurfaceRenderer::renderIsosurface() {
         const int k = active[a];
         counts[k] = surfaceEmit(sc, rays[k], &ts[std::size_t(k) * K], &breaks[std::size_t(k) * K]);
       }
-      std::size_t total = 0;
       for (int k : active) {
         first[k] = int(total);
         total += std::size_t(counts[k]);
@@ -377,7 +421,8 @@ FrameStats SurfaceRenderer::renderIsosurface() {
         }
       }
       st.traverseMs += msSince(t0);
-      if (total == 0) break;  // every ray finished its walk
+    }
+    if (total > 0) {
       t0 = Clock::now();
       values.resize(total);
       evaluator_.evaluate(points.data(), total, values.data());
@@ -387,6 +432,7 @@ FrameStats SurfaceRenderer::renderIsosurface() {
 
       // Consume; hits that need their gradient wait for the shading batch.
       t0 = Clock::now();
+      const long m = long(active.size());
 #pragma omp parallel for schedule(static) if (m >= kParallelMinItems / 4)
       for (long a = 0; a < m; ++a) {
         const int k = active[a];
@@ -422,17 +468,19 @@ FrameStats SurfaceRenderer::renderIsosurface() {
         if (rays[k].phase != kSurfaceDone) active[kept++] = k;
       active.resize(kept);
     }
+    if (total > 0 && !active.empty()) continue;  // the chunk's march goes on
 
+    // Every ray of the chunk finished its walk: its pixels.
     t0 = Clock::now();
-    for (int k = 0; k < chunkN; ++k) {
+    for (int k = 0; k < isoChunkN_; ++k) {
       const int i = chunk0 + k;
       accum_[i] = accumulateMean(accum_[i], surfaceEstimate(rays[k]), frameIndex_);
       depth_[i] = rays[k].firstHitWorld;
     }
     st.finalizeMs += msSince(t0);
+    partNext_ = chunk0 + isoChunkN_;
+    isoChunkN_ = 0;
   }
-  st.closeTiming(0.0, msSince(tFrame));
-  return st;
 }
 
 ImageRGBA SurfaceRenderer::premultipliedImage() const {

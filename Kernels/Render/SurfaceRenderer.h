@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "Common/ImageIO.h"
+#include "Common/Stopwatch.h"
 #include "Evaluator/FieldEvaluator.h"
 #include "Render/MacrocellGrid.h"
 #include "Render/RenderStats.h"
@@ -96,6 +97,20 @@ public:
   // (BlendScene::validate, shading without gradients, shadows, a depth limit of the wrong size).
   void setScene(const RenderScene& scene, const BlendScene& blend);
   FrameStats renderFrame();
+  // A frame in parts, for a caller that must return within a time budget (the GUI's event loop):
+  // renders the current frame's next part until `budgetMs` has passed (at least one step: a chunk
+  // of SurfaceOptions::chunkPixels for the slice, one march iteration of a chunk's rays for the
+  // isosurface) and returns true once the frame is complete
+  // (accumulated; `stats`, if given, then holds the whole frame's figures). Until then the image
+  // mixes the finished pixels of this frame with the previous accumulation's. New settings, a new
+  // scene or resetAccumulation drop a frame in progress. renderFrame() is one call with no budget.
+  bool renderFramePart(double budgetMs, FrameStats* stats);
+  double frameProgress() const;  // the share of the frame in progress rendered (0: none started)
+  // Whether an isosurface scene at `time` finds the slices of its candidate macrocells built
+  // (else setScene builds them: lattice queries, the slow part of a new time or a first
+  // isosurface), and that build alone, for a caller that does it off its event loop.
+  bool macrocellsBuiltFor(double time) const;
+  void buildMacrocellsFor(double time);
   void resetAccumulation();
   int accumulatedFrames() const { return frameIndex_; }
   ImageRGBA image() const;               // over the background
@@ -131,8 +146,10 @@ public:
   void frameRenderedElsewhere() { ++frameIndex_; }
 
 private:
-  FrameStats renderSlice();
-  FrameStats renderIsosurface();
+  // The frame in progress from pixel partNext_ on, chunk by chunk, while less than `budgetMs` has
+  // passed since `start`; its figures add up in partStats_.
+  void renderSliceChunks(Clock::time_point start, double budgetMs);
+  void renderIsosurfaceChunks(Clock::time_point start, double budgetMs);
   void updateCandidates();
 
   const FieldEvaluator& evaluator_;
@@ -153,6 +170,14 @@ private:
   std::vector<Vec4f> accum_;
   std::vector<float> depth_;
   int frameIndex_ = 0;
+  int partNext_ = 0;         // the frame in progress: its first pixel not rendered yet (0: none)
+  FrameStats partStats_;     // ... its figures so far
+  double partWallMs_ = 0.0;  // ... and its wall time so far
+  // The isosurface's chunk in progress (from pixel partNext_ on): its pixels (0: none) and its
+  // rays, kept between calls, so that a part may end after any march iteration.
+  int isoChunkN_ = 0;
+  std::vector<SurfaceRay> isoRays_;
+  std::vector<int> isoActive_;
 };
 
 }  // namespace inr

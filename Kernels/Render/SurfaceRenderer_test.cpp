@@ -555,6 +555,109 @@ TEST(IsosurfaceBlend, OpaqueGeometryHidesWhatLiesBehindIt) {
   EXPECT_EQ(changedRight, 0);
 }
 
+// A frame in parts (renderFramePart with no time to spare: one step per call, a chunk of pixels
+// for the slice, one march iteration for the isosurface) is the whole frame bit for bit, with the
+// same figures; until its last part it is not accumulated. A new scene in the middle drops the
+// part-frame (control: it would otherwise finish early, with the old scene's pixels in it).
+void expectPartsMakeTheFrame(const RenderScene& scene, const BlendScene& blend, FunctionField& field,
+                             int minParts, int maxParts) {
+  SurfaceOptions options;
+  options.chunkPixels = 500;  // 48^2 pixels: 5 chunks
+  const RenderSettings settings = imageOf(48);
+  SurfaceRenderer whole(field, kCubeBox, 0.0, 1.0, options), parts(field, kCubeBox, 0.0, 1.0, options);
+  whole.setSettings(settings);
+  whole.setScene(scene, blend);
+  const FrameStats wholeStats = whole.renderFrame();
+  parts.setSettings(settings);
+  parts.setScene(scene, blend);
+  auto renderInParts = [&](FrameStats* stats) {
+    int calls = 0;
+    double progress = 0.0;
+    bool done = false;
+    while (!done && calls < 10000) {
+      done = parts.renderFramePart(0.0, stats);
+      ++calls;
+      if (!done) {
+        EXPECT_GE(parts.frameProgress(), progress);
+        progress = parts.frameProgress();
+        EXPECT_EQ(parts.accumulatedFrames(), 0);
+      }
+    }
+    return calls;
+  };
+  FrameStats partStats;
+  const int calls = renderInParts(&partStats);
+  EXPECT_GE(calls, minParts);
+  EXPECT_LE(calls, maxParts);
+  EXPECT_EQ(parts.accumulatedFrames(), 1);
+  EXPECT_EQ(parts.frameProgress(), 0.0);
+  EXPECT_EQ(partStats.queries, wholeStats.queries);
+  EXPECT_EQ(partStats.shadingQueries, wholeStats.shadingQueries);
+  EXPECT_EQ(partStats.iterations, wholeStats.iterations);
+  EXPECT_EQ(partStats.pixels, wholeStats.pixels);
+  EXPECT_EQ(parts.premultipliedImage().data, whole.premultipliedImage().data);
+  EXPECT_EQ(parts.surfaceDepth(), whole.surfaceDepth());
+  // A new scene after a few parts: the frame starts over (as many parts again).
+  parts.renderFramePart(0.0, nullptr);
+  parts.renderFramePart(0.0, nullptr);
+  parts.renderFramePart(0.0, nullptr);
+  RenderScene moved = scene;
+  moved.camera.position[0] += 0.3;
+  parts.setScene(moved, blend);
+  EXPECT_EQ(parts.frameProgress(), 0.0);
+  whole.setScene(moved, blend);
+  const FrameStats movedStats = whole.renderFrame();
+  FrameStats movedParts;
+  renderInParts(&movedParts);
+  EXPECT_EQ(movedParts.queries, movedStats.queries);
+  EXPECT_EQ(parts.premultipliedImage().data, whole.premultipliedImage().data);
+}
+
+TEST(SliceBlend, FrameInPartsIsTheWholeFrame) {
+  SliceCase c;
+  FunctionField field(test::smoothField, "smooth");
+  expectPartsMakeTheFrame(c.scene, c.blend, field, 5, 5);  // one chunk of pixels per part
+}
+
+TEST(IsosurfaceBlend, FrameInPartsIsTheWholeFrame) {
+  IsoCase c;
+  c.scene.shading.enabled = true;
+  FunctionField field(distanceField, "distance", distanceGradient);
+  // One march iteration per part, and one more for a chunk whose last step found no sample left
+  // to query: between the whole frame's iterations and that plus the 5 chunks.
+  SurfaceOptions options;
+  options.chunkPixels = 500;
+  SurfaceRenderer probe(field, kCubeBox, 0.0, 1.0, options);
+  probe.setSettings(imageOf(48));
+  probe.setScene(c.scene, c.blend);
+  const int iterations = probe.renderFrame().iterations;
+  EXPECT_GT(iterations, 5 * 3);  // several iterations per chunk: parts end inside chunks
+  expectPartsMakeTheFrame(c.scene, c.blend, field, iterations, iterations + 5);
+}
+
+// The candidate macrocells built ahead (what a GUI does off its event loop): setScene at that
+// time then queries nothing; at a time between other slices it builds them (the control).
+TEST(IsosurfaceBlend, MacrocellsBuiltAheadLeaveSetSceneNoQueries) {
+  IsoCase c;
+  c.options.macrocells.temporalSlices = 4;
+  FunctionField field(distanceField, "distance", distanceGradient);
+  SurfaceRenderer renderer(field, kCubeBox, 0.0, 1.0, c.options);
+  renderer.setSettings(c.settings);
+  c.scene.time = 0.2;
+  EXPECT_FALSE(renderer.macrocellsBuiltFor(0.2));
+  renderer.buildMacrocellsFor(0.2);
+  EXPECT_TRUE(renderer.macrocellsBuiltFor(0.2));
+  EXPECT_GT(field.points(), 0u);
+  field.resetCounts();
+  renderer.setScene(c.scene, c.blend);
+  EXPECT_EQ(field.points(), 0u);
+  EXPECT_FALSE(renderer.macrocellsBuiltFor(0.9));  // the last two slices are not built yet
+  c.scene.time = 0.9;
+  renderer.setScene(c.scene, c.blend);
+  EXPECT_GT(field.points(), 0u);
+  EXPECT_TRUE(renderer.macrocellsBuiltFor(0.9));
+}
+
 TEST(BlendScene, ParaViewCroppingBoxAndValidation) {
   const Box3f b = paraviewCroppingBox(Box3f{{-1.f, 0.f, 2.f}, {1.f, 4.f, 6.f}}, {0.5, -1.0, 0.0}, {0.5, 1.0, 2.0});
   EXPECT_FLOAT_EQ(b.lo.x, 0.f);

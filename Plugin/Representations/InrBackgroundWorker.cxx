@@ -151,6 +151,16 @@ bool InrBackgroundWorker::StartFineRefine()
   return true;
 }
 
+bool InrBackgroundWorker::StartSurfaceBuild(std::function<void()> work)
+{
+  if (this->job != Job::None || !this->engines.fine.session)
+  {
+    return false;
+  }
+  this->Launch(Job::SurfaceBuild, this->engines.fine.session.get(), std::move(work));
+  return true;
+}
+
 inr::RefinementDriver::Step InrBackgroundWorker::TakeRefineStep()
 {
   inr::RefinementDriver::Step step = this->refineStep;
@@ -167,7 +177,7 @@ void InrBackgroundWorker::Join()
   const Job was = this->job;
   this->builder.join();
   this->job = Job::None;
-  const bool onFine = was == Job::FineSlices || was == Job::FineRefine;
+  const bool onFine = was == Job::FineSlices || was == Job::FineRefine || was == Job::SurfaceBuild;
   InrEngineSlot& slot = onFine ? this->engines.fine : this->engines.coarse;
   if (was == Job::FineRefine)
   {

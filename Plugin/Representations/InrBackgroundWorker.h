@@ -8,7 +8,9 @@
 //  - every coarse slice not built yet (StartCoarseAhead), slice by slice, so that a render that
 //    needs the coarse session stops it within one slice;
 //  - one refinement step of the fine session (StartFineRefine), so that a still render of the GUI
-//    draws the image of the steps finished so far instead of waiting for a whole frame.
+//    draws the image of the steps finished so far instead of waiting for a whole frame;
+//  - the candidate macrocells of the isosurface blend mode at a new time (StartSurfaceBuild,
+//    through the fine session's network), while renders draw the image they have.
 // The session a job works on belongs to the worker until the job is joined: nothing else touches
 // it meanwhile (what the panel reads of the fine session is kept: KeptFrames, KeptEstimate).
 //
@@ -56,6 +58,7 @@ public:
   bool StartFineBuild(double time);
   bool StartCoarseAhead(int resolution);
   bool StartFineRefine();
+  bool StartSurfaceBuild(std::function<void()> work);
   inr::RefinementDriver::Step TakeRefineStep();
   ///@}
 
@@ -66,12 +69,18 @@ public:
   void JoinFineBuild();
   void JoinBackgroundBuild();
   void FinishBackgroundBuild();
+  /// Asks a build ahead to stop after its current slice, without waiting for it.
+  void AskToStop() { this->stopBuild = true; }
   ///@}
 
   ///@{
   /// The running job (not joined yet): on the fine session (a slice build or a refinement step),
   /// building the coarse slices ahead; whether it is done, and its progress in [0, 1].
-  bool FineBusy() const { return this->job == Job::FineSlices || this->job == Job::FineRefine; }
+  bool FineBusy() const
+  {
+    return this->job == Job::FineSlices || this->job == Job::FineRefine || this->job == Job::SurfaceBuild;
+  }
+  bool SurfaceBuilding() const { return this->job == Job::SurfaceBuild; }
   bool FineBuilding() const { return this->job == Job::FineSlices; }
   bool FineRefining() const { return this->job == Job::FineRefine; }
   bool CoarseBusy() const { return this->job == Job::CoarseAhead; }
@@ -146,7 +155,8 @@ private:
     None,
     FineSlices,
     CoarseAhead,
-    FineRefine
+    FineRefine,
+    SurfaceBuild
   };
   void Launch(Job what, inr::RenderSession* session, std::function<void()> work);
   void Join();

@@ -237,6 +237,10 @@ void vtkInrVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     reduction.rendered = I.RenderSurface(this, ren, vol, input, tile);
     return;
   }
+  if (I.worker.SurfaceBuilding())
+  {
+    I.worker.JoinBackgroundBuild();  // the isosurface's macrocell build holds the fine session
+  }
   if (I.surface.active)
   {
     I.surface.active = false;
@@ -324,7 +328,10 @@ bool vtkInrVolumeMapper::GetBackgroundMacrocellBuilds()
 int vtkInrVolumeMapper::GetBackgroundWorkRunning()
 {
   const InrEngines& e = this->Internal->engines;
-  return (e.worker.FineRefining() || e.worker.CoarseBusy()) && !e.worker.BuildDone() ? 1 : 0;
+  return (e.worker.FineRefining() || e.worker.CoarseBusy() || e.worker.SurfaceBuilding()) &&
+      !e.worker.BuildDone()
+    ? 1
+    : 0;
 }
 
 bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self) const

@@ -269,6 +269,8 @@ public:
   ///    are still renders; a script asking for N frames per render always gets full resolution).
   ///  - InteractiveFrameTime (ms, default 100): the budget; the render window's desired frame
   ///    time (1000 / DesiredUpdateRate) when that is smaller. It trades resolution for speed.
+  ///    It is also a GUI still render's budget in the isosurface and slice blend modes: a full
+  ///    frame that would not fit it is drawn reduced first, then in parts over the next renders.
   ///  - InteractiveUpdateRate (frames per second, default 1, as vtkSmartVolumeMapper's).
   /// Environment INR_VOLUME_LOD_LOG=1 prints one line per render (interactive or still,
   /// resolution, milliseconds).

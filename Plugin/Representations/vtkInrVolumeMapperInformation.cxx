@@ -21,10 +21,11 @@ const InrMapperReport& vtkInrVolumeMapper::Internals::Report(vtkInrVolumeMapper*
                                             : this->engines.fine.refinement.estimate();
   if (this->surface.active)
   {
-    // Isosurface and slice: exact in their first frame, nothing left to refine (a reduced drag
-    // frame is followed by a still one).
+    // Isosurface and slice: exact in their first frame, nothing left to refine once their frames
+    // are all drawn (a reduced drag frame is followed by a still one; a still frame drawn in
+    // parts by the renders after it).
     r.frames = this->surface.frames;
-    r.localConverged = !this->surface.interactive;
+    r.localConverged = !this->surface.interactive && this->surface.complete;
     r.estimate = std::numeric_limits<double>::infinity();
   }
   else if (this->cropEmpty)

@@ -262,12 +262,29 @@ struct vtkInrVolumeMapper::Internals
     bool active = false;       // the last render drew a surface mode (the panel's figures)
     bool interactive = false;  // ... at a reduced resolution (a camera drag)
     bool drew = false;         // ... and its image holds something (not "nothing to draw")
+    // A still render of the GUI draws a full frame in parts: until its first frame is complete,
+    // the texture shows `preview`, a reduced frame of the same scene (and its ray distances).
+    bool previewing = false;
+    inr::ImageRGBA preview;
+    std::vector<float> previewDepth;
+    int previewWidth = 0, previewHeight = 0;
+    int want = 1;              // the frames this scene accumulates (FramesPerRender)
+    double buildTime = 0.0;    // the time whose macrocells the worker builds (StartSurfaceBuild)
+    bool complete = true;      // ... all rendered: nothing left to refine
     int frames = 0;
     double queries = 0.0;
-    double msPerPixel = 0.0;   // of the last full-resolution frame (sizes drag frames)
+    double msPerPixel = 0.0;   // of the last finished frame, update left out (sizes reduced frames)
     std::string state;         // the refinement-state line of surface modes
   };
   SurfaceBlend surface;
+  // The worker may be building the surface renderer's macrocells: it stops before the renderer
+  // (a member after the worker's) goes.
+  ~Internals() { this->worker.JoinBackgroundBuild(); }
+  // A render while the worker builds the isosurface's macrocells or finishes other work
+  // (RenderSurface): the texture as it is, `what` in the state; false when it holds nothing of
+  // this window's.
+  bool DrawWhileBuilding(vtkInrVolumeMapper* self, vtkRenderer* ren, Clock::time_point renderStart,
+    const std::string& what);
   // Draws this render's isosurface or slice (Render's surface path); false: nothing drawn.
   bool RenderSurface(vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input,
     const Viewport& tile);

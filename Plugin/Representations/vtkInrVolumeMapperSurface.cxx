@@ -12,6 +12,9 @@ namespace
 // 8-bit framebuffer); anti-aliased edges and translucent surfaces do not, as VTK's translucent
 // geometry does not.
 constexpr float kOpaqueSurfaceAlpha = 254.5f / 255.0f;
+// A reduced frame (a drag's, or the first of a still frame drawn in parts) keeps at least this
+// share of each side: below it the picture says little, and its cost is mostly fixed.
+constexpr double kSmallestSurfaceScale = 0.125;
 
 bool sameBox(const inr::Box3f& a, const inr::Box3f& b)
 {
@@ -86,10 +89,61 @@ bool vtkInrVolumeMapper::Internals::CropSettings(vtkInrVolumeMapper* self, inr::
   return true;
 }
 
+namespace
+{
+// The size whose frame fits `budgetMs` at `msPerPixel` (one ray per pixel: the work scales with
+// the pixels), at least an eighth of each side; `width` and `height` are left as they are when
+// the whole frame fits. A cost not measured yet (0) gives the smallest size, which measures it.
+bool ReducedSize(double msPerPixel, double budgetMs, int& width, int& height)
+{
+  const double full = msPerPixel * double(width) * double(height);
+  const double scale = msPerPixel <= 0.0
+    ? kSmallestSurfaceScale
+    : std::max(kSmallestSurfaceScale, std::min(1.0, std::sqrt(budgetMs / std::max(full, 1e-9))));
+  if (scale >= 1.0)
+  {
+    return false;
+  }
+  width = std::max(1, int(std::lround(width * scale)));
+  height = std::max(1, int(std::lround(height * scale)));
+  return true;
+}
+}
+
+// A render while the worker builds the isosurface's macrocells, or finishes the composite's
+// work: the texture as it is (the last picture of this view) and the state saying `what`.
+bool vtkInrVolumeMapper::Internals::DrawWhileBuilding(vtkInrVolumeMapper* self, vtkRenderer* ren,
+  Clock::time_point renderStart, const std::string& what)
+{
+  SurfaceBlend& s = this->surface;
+  s.drew = true;
+  s.complete = false;
+  s.previewing = false;
+  s.frames = 0;
+  s.state = std::string(inr::blendModeName(this->blend.blend.mode)) + ": " + what;
+  this->report.interactive = false;
+  this->report.renderMs = msSince(renderStart);
+  auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
+  if (!window || this->uploadedWindow != window)
+  {
+    return false;  // nothing of this view's drawn yet
+  }
+  // The surfaces' depth goes with a surface image (uploadedEpoch -1), none with a composite one.
+  std::string error;
+  if (!this->compositor.Blend(window, &error, /*writeDepth=*/this->uploadedEpoch == -1))
+  {
+    vtkErrorWithObjectMacro(self, << error);
+  }
+  return true;
+}
+
 // The isosurface or slice of this render: the fine session's surface renderer (made again when
 // the engine was rebuilt or its macrocell grid changed), handed the scene only when it changed (a
-// new scene restarts its image, which is exact in its first frame), a camera drag drawn at a
-// reduced resolution where a full frame would not fit the interactive frame time.
+// new scene restarts its image, which is exact in its first frame). A camera drag is drawn at a
+// reduced resolution where a full frame would not fit the interactive frame time. A still render
+// of the GUI (something renders again while the state is not converged) spends at most about
+// InteractiveFrameTime: where the full frame would take longer, it draws a reduced frame first
+// and the full one in parts (SessionSurfaceRenderer::renderFramePart) over the following renders.
 bool vtkInrVolumeMapper::Internals::RenderSurface(
   vtkInrVolumeMapper* self, vtkRenderer* ren, vtkVolume* vol, vtkDataSet* input, const Viewport& tile)
 {
@@ -98,6 +152,24 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
   const bool wasActive = s.active;
   s.active = true;
   s.interactive = false;
+  // In the GUI (something renders again while the state is not converged) a render must not wait
+  // for long work: frames in parts, the isosurface's macrocells built on the worker. Scripts,
+  // captures and tiles of a larger picture draw whole frames now.
+  const bool inGui = vtkInrVolumeMapper::GetBackgroundMacrocellBuilds() && self->ProgressiveRefinement &&
+    !self->Capturing && this->window.fullWidth == 0 && this->ranks.Ranks().count <= 1;
+  if (inGui && this->worker.SurfaceBuilding() && !this->worker.BuildDone())
+  {
+    return this->DrawWhileBuilding(self, ren, renderStart,
+      "building the candidate macrocells at time " + std::to_string(s.buildTime) + " (" +
+        std::to_string(int(100.0 * this->worker.BuildProgress())) + "%)");
+  }
+  if (inGui && (this->worker.FineBusy() || this->worker.CoarseBusy()) && !this->worker.BuildDone())
+  {
+    // The composite's work on the worker (a refinement step, macrocell slices) ends first: a
+    // build ahead at its current slice, the others by themselves, while renders draw what they have.
+    this->worker.AskToStop();
+    return this->DrawWhileBuilding(self, ren, renderStart, "waiting for the composite's work on the worker");
+  }
   // The surface renderer evaluates the fine session's network: nothing else may meanwhile.
   this->worker.JoinBackgroundBuild();
   inr::RenderSession& session = *this->engines.fine.session;
@@ -117,20 +189,19 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
   if (self->InteractiveLevelOfDetail != LOD_OFF && !self->Capturing && this->window.fullWidth == 0 &&
     rate >= self->InteractiveUpdateRate && s.msPerPixel > 0.0)
   {
-    // A camera drag: the resolution whose frame fits the interactive frame time, from the last
-    // full frame's time per pixel (the work scales with the pixels: one ray each).
+    // A camera drag: the resolution whose frame fits the interactive frame time.
     const double budget = std::min(self->InteractiveFrameTime, rate > 0.0 ? 1000.0 / rate : 1e9);
-    const double full = s.msPerPixel * double(width) * double(height);
-    const double scale = std::max(0.125, std::min(1.0, std::sqrt(budget / std::max(full, 1e-9))));
-    if (scale < 1.0)
+    if (ReducedSize(s.msPerPixel, budget, width, height))
     {
-      width = std::max(1, int(std::lround(width * scale)));
-      height = std::max(1, int(std::lround(height * scale)));
       scene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, width, height);
       s.interactive = true;
     }
   }
+  const bool inParts = inGui && !s.interactive;
+  const double budget = self->InteractiveFrameTime;
   int framesRendered = 0;
+  bool previewDrawn = false;  // this render drew a reduced frame of a new scene
+  std::string previewSize;
   try
   {
     if (!s.renderer || s.engineBuild != this->engines.engineBuilds ||
@@ -140,6 +211,13 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
       options.macrocells.dims = inr::Int3{ self->MacrocellResolution, self->MacrocellResolution,
         self->MacrocellResolution };
       options.macrocells.temporalSlices = slices;
+      if (session.backend() == inr::RenderBackend::Cpu)
+      {
+        // A part of a GUI render's frame is one march iteration over a chunk's rays at least: a
+        // quarter of the default chunk keeps that step well inside Interactive Frame Time on a
+        // CPU (the GPU renderer draws whole frames).
+        options.chunkPixels = inr::SurfaceOptions{}.chunkPixels / 4;
+      }
       s.renderer = inr::SessionSurfaceRenderer::create(
         session, inr::modelWorldBox(model), model.domain.timeBegin, model.domain.timeEnd, options);
       s.engineBuild = this->engines.engineBuilds;
@@ -147,61 +225,154 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
       s.temporalSlices = slices;
       s.haveSettings = s.haveScene = false;
     }
+    // Hands the renderer `settings` and `frameScene` where they differ from what it holds (either
+    // restarts its image); true when they did.
+    auto handOver = [&](const inr::RenderSettings& settings, const inr::RenderScene& frameScene)
+    {
+      bool restarted = false;
+      if (!s.haveSettings || settings.width != s.settings.width ||
+        settings.height != s.settings.height || settings.seed != s.settings.seed ||
+        !(settings.window == s.settings.window))
+      {
+        s.renderer->setSettings(settings);
+        s.settings = settings;
+        s.haveSettings = true;
+        s.haveScene = false;  // the depth limit is the new size's
+        restarted = true;
+      }
+      if (!s.haveScene || inr::diffScenes(&s.scene, frameScene).any() ||
+        !sameBlend(s.blend, this->blend.blend))
+      {
+        s.renderer->setScene(frameScene, this->blend.blend);
+        s.scene = frameScene;
+        s.blend = this->blend.blend;
+        s.haveScene = true;
+        s.queries = 0.0;
+        restarted = true;
+      }
+      return restarted;
+    };
+    // Counts a finished frame: its queries, and its time per pixel without the macrocell update
+    // (what sizes reduced frames).
+    auto finished = [&](const inr::FrameStats& st, int pixels)
+    {
+      s.queries += double(st.queries + st.shadingQueries);
+      s.msPerPixel = std::max(0.0, st.totalMs - st.updateMs) / std::max(1.0, double(pixels));
+    };
     inr::RenderSettings settings;
     settings.width = width;
     settings.height = height;
     settings.seed = static_cast<std::uint32_t>(self->Seed);
     settings.window = s.interactive ? inr::ImageWindow{} : this->window;
-    if (!s.haveSettings || settings.width != s.settings.width || settings.height != s.settings.height ||
-      settings.seed != s.settings.seed || !(settings.window == s.settings.window))
-    {
-      s.renderer->setSettings(settings);
-      s.settings = settings;
-      s.haveSettings = true;
-      s.haveScene = false;  // the depth limit is the new size's
-    }
     s.drew = !this->blend.nothingToDraw;
-    if (s.drew)
+    // Exact in the first frame; later ones (FramesPerRender, jittered) anti-alias it.
+    s.want = std::min(self->MaximumFrames,
+      s.interactive || !self->ProgressiveRefinement ? 1 : std::max(1, self->FramesPerRender));
+    if (s.drew && !inParts)
     {
-      const bool changed = !s.haveScene || inr::diffScenes(&s.scene, scene).any() ||
-        !sameBlend(s.blend, this->blend.blend);
-      if (changed)
-      {
-        s.renderer->setScene(scene, this->blend.blend);
-        s.scene = scene;
-        s.blend = this->blend.blend;
-        s.haveScene = true;
-        s.queries = 0.0;
-      }
-      // Exact in the first frame; later ones (FramesPerRender, jittered) anti-alias it.
-      const int want = std::min(self->MaximumFrames,
-        s.interactive || !self->ProgressiveRefinement ? 1 : std::max(1, self->FramesPerRender));
-      while (s.renderer->accumulatedFrames() < want)
+      s.previewing = false;
+      handOver(settings, scene);
+      while (s.renderer->accumulatedFrames() < s.want)
       {
         const inr::FrameStats st = s.renderer->renderFrame();
-        s.queries += double(st.queries + st.shadingQueries);
+        finished(st, width * height);
         ++framesRendered;
-        if (!s.interactive)
+      }
+    }
+    else if (s.drew && this->blend.blend.mode == inr::BlendMode::Isosurface &&
+      !s.renderer->macrocellsBuiltFor(scene.time))
+    {
+      // A first isosurface, or a new time: its candidate macrocells are built on the worker
+      // (lattice queries through the network, seconds on a CPU) while renders draw what they have.
+      inr::SessionSurfaceRenderer* renderer = s.renderer.get();
+      const double time = scene.time;
+      if (this->worker.StartSurfaceBuild([renderer, time]() { renderer->buildMacrocellsFor(time); }))
+      {
+        s.buildTime = time;
+        return this->DrawWhileBuilding(self, ren, renderStart,
+          "building the candidate macrocells at time " + std::to_string(time));
+      }
+    }
+    if (s.drew && inParts)
+    {
+      const bool sameTarget = s.haveSettings && s.haveScene && settings.width == s.settings.width &&
+        settings.height == s.settings.height && settings.seed == s.settings.seed &&
+        settings.window == s.settings.window && !inr::diffScenes(&s.scene, scene).any() &&
+        sameBlend(s.blend, this->blend.blend);
+      int pw = width, ph = height;
+      if (!sameTarget && ReducedSize(s.msPerPixel, budget, pw, ph))
+      {
+        // A new scene whose full frame would not fit the budget: a reduced frame of it now, the
+        // full frame in parts from the next render on.
+        inr::RenderSettings reduced = settings;
+        reduced.width = pw;
+        reduced.height = ph;
+        inr::RenderScene reducedScene = scene;
+        reducedScene.depthLimit = resampleDepthLimit(scene.depthLimit, tile.width, tile.height, pw, ph);
+        handOver(reduced, reducedScene);
+        const inr::FrameStats st = s.renderer->renderFrame();
+        finished(st, pw * ph);
+        s.preview = s.renderer->premultipliedImage();
+        s.previewDepth = s.renderer->surfaceDepth();
+        s.previewWidth = pw;
+        s.previewHeight = ph;
+        s.previewing = previewDrawn = true;
+        handOver(settings, scene);
+      }
+      else if (!sameTarget)
+      {
+        // A new scene whose full frame fits the budget: drawn whole now.
+        handOver(settings, scene);
+        const inr::FrameStats st = s.renderer->renderFrame();
+        finished(st, width * height);
+        ++framesRendered;
+        s.previewing = false;
+      }
+      // The frames in parts, one part at least, then while the budget lasts (none in a render
+      // that drew a reduced frame). A frame after the first may be shown part-made: its pixels
+      // hold means of one frame more or less, all exact.
+      for (bool first = true; !previewDrawn && s.renderer->accumulatedFrames() < s.want &&
+           (first || msSince(renderStart) < budget);
+           first = false)
+      {
+        inr::FrameStats st;
+        if (s.renderer->renderFramePart(std::max(0.0, budget - msSince(renderStart)), &st))
         {
-          s.msPerPixel = st.totalMs / std::max(1.0, double(width) * double(height));
+          finished(st, width * height);
+          ++framesRendered;
+          s.previewing = false;
         }
+      }
+      if (s.previewing)
+      {
+        previewSize = std::to_string(s.previewWidth) + "x" + std::to_string(s.previewHeight);
       }
     }
   }
   catch (const std::exception& e)
   {
     s.drew = false;
+    s.previewing = false;
+    s.haveScene = false;  // the next render tries again
     vtkErrorWithObjectMacro(self, << "INR Volume: Blend Mode " << modeName << ": " << e.what());
     return false;
   }
   s.frames = s.drew ? s.renderer->accumulatedFrames() : 0;
+  s.complete = s.drew && s.frames >= s.want;
+  const std::string fullSize = std::to_string(width) + "x" + std::to_string(height);
+  const int percent = int(100.0 * (s.drew ? s.renderer->frameProgress() : 0.0));
   s.state = !s.drew ? this->blend.empty
-    : s.interactive ? std::string("interacting: reduced ") + std::to_string(width) + "x" +
-        std::to_string(height) + " " + modeName
-                    : std::string(modeName) + ": exact in one frame (" + std::to_string(s.frames) +
+    : s.interactive ? std::string("interacting: reduced ") + fullSize + " " + modeName
+    : s.previewing ? std::string(modeName) + ": a reduced " + previewSize + " frame shown, the " +
+        fullSize + " frame " + std::to_string(percent) + "% drawn"
+    : !s.complete ? std::string(modeName) + ": exact, anti-aliasing (" + std::to_string(s.frames) +
+        " of " + std::to_string(s.want) + " frames)"
+                  : std::string(modeName) + ": exact in one frame (" + std::to_string(s.frames) +
         (s.frames == 1 ? " frame" : " frames, anti-aliased") + ")";
-  this->report.imageWidth = width;
-  this->report.imageHeight = height;
+  const int shownWidth = s.previewing ? s.previewWidth : width;
+  const int shownHeight = s.previewing ? s.previewHeight : height;
+  this->report.imageWidth = shownWidth;
+  this->report.imageHeight = shownHeight;
   this->report.interactive = s.interactive;
   if (!s.drew)
   {
@@ -213,18 +384,21 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
   {
     return false;
   }
-  if (framesRendered > 0 || !wasActive ||
-    this->compositor.NeedsUpload(window, width, height, s.frames, false))
+  if (framesRendered > 0 || previewDrawn || !wasActive ||
+    this->compositor.NeedsUpload(window, shownWidth, shownHeight, s.frames, false))
   {
-    const inr::ImageRGBA image = s.renderer->premultipliedImage();
-    int viewport[2] = { width, height };
+    // The reduced frame while the full one is in parts (the renderer's image is then part-made),
+    // else the renderer's image.
+    const inr::ImageRGBA image = s.previewing ? s.preview : s.renderer->premultipliedImage();
+    const std::vector<float> distance = s.previewing ? s.previewDepth : s.renderer->surfaceDepth();
+    int viewport[2] = { shownWidth, shownHeight };
     ren->GetTiledSize(&viewport[0], &viewport[1]);
-    const bool upscaled = viewport[0] != width || viewport[1] != height;
-    if (!this->compositor.Fits(window, width, height))
+    const bool upscaled = viewport[0] != shownWidth || viewport[1] != shownHeight;
+    if (!this->compositor.Fits(window, shownWidth, shownHeight))
     {
       this->interop.Release();  // GL cannot give a texture new storage while CUDA holds it
     }
-    this->compositor.Upload(window, width, height, s.frames, image.data.data(), upscaled);
+    this->compositor.Upload(window, shownWidth, shownHeight, s.frames, image.data.data(), upscaled);
     this->uploadedWindow = window;
     this->uploadedEpoch = -1;  // a composite image after this must be uploaded again
     // Where the surfaces are opaque their depth goes to the depth buffer, as opaque geometry's
@@ -237,13 +411,12 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
     double eye[3], fwd[3];
     cam->GetPosition(eye);
     cam->GetDirectionOfProjection(fwd);
-    const std::vector<float> distance = s.renderer->surfaceDepth();
-    if (distance.size() == std::size_t(width) * std::size_t(height))
+    if (distance.size() == std::size_t(shownWidth) * std::size_t(shownHeight))
     {
       const std::vector<float> depth = InrFramebufferCompositor::RayDistancesToDepth(
-        distance.data(), image.data.data(), width, height, kOpaqueSurfaceAlpha,
+        distance.data(), image.data.data(), shownWidth, shownHeight, kOpaqueSurfaceAlpha,
         projection->GetData(), eye, fwd, cam->GetParallelProjection() != 0);
-      this->compositor.UploadDepth(window, width, height, depth.data());
+      this->compositor.UploadDepth(window, shownWidth, shownHeight, depth.data());
     }
   }
   std::string error;

@@ -106,7 +106,7 @@ def on_end(obj, event):
         inr = rep.SMProxy.GetProperty("InrConverged").GetParent()
         frames = get(inr, "InrAccumulatedFrames")
         interactive = get(inr, "InrLastRenderInteractive")
-        line += (f" frames={frames} interactive={interactive}"
+        line += (f" mapper_ms={get(inr, 'InrLastRenderTime'):.1f} frames={frames} interactive={interactive}"
                  f" state={get(inr, 'InrRefinementState').replace(' ', '_')}")
         key = (blend, iso, crop, normal)
         if not interactive and frames >= 1 and key not in state["keys"]:

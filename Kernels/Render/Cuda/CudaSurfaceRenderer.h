@@ -39,6 +39,8 @@ public:
   FrameStats renderFrame();
   void resetAccumulation();
   int accumulatedFrames() const { return host_.accumulatedFrames(); }
+  bool macrocellsBuiltFor(double time) const { return host_.macrocellsBuiltFor(time); }
+  void buildMacrocellsFor(double time) { host_.buildMacrocellsFor(time); }
   ImageRGBA image() const;
   ImageRGBA premultipliedImage() const;
   std::vector<float> surfaceDepth() const;
