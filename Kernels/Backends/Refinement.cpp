@@ -74,6 +74,7 @@ RefinementDriver::Step RefinementDriver::advance(RenderSession& session, bool na
   };
   while (!converged_ && wanted()) {
     const FrameStats st = naive ? session.renderFrameNaive() : session.renderFrame();
+    if (st.stopped) break;  // asked to stop (RenderSession::setStopRequest): no frame, the step ends
     step.total += st;
     ++step.framesRendered;
     frames = session.accumulatedFrames();

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 
 #include <cmath>
 #include <cstdio>
@@ -73,6 +74,33 @@ TEST(Refinement, FramesPerRequestAndFrameLimit) {
   EXPECT_TRUE(d.converged());
   EXPECT_EQ(d.advance(*f.session).framesRendered, 0);
   EXPECT_EQ(f.session->accumulatedFrames(), 7);
+}
+
+// A stop request (RenderSession::setStopRequest, a GUI worker's step whose scene is no longer
+// wanted): the CPU frame returns unaccumulated, the driver's step ends with no frame, and the
+// frames after it are those of a session never stopped, bit for bit (the stopped frame drew
+// nothing from the image's random sequence). Control: the same request cleared renders.
+TEST(Refinement, StoppedFrameLeavesNoTrace) {
+  Fixture f, never;
+  RefinementOptions o;
+  o.convergenceTarget = 0.0;
+  o.framesPerRender = 2;
+  RefinementDriver d(o);
+  std::atomic<bool> stop{true};
+  f.session->setStopRequest(&stop);
+  const FrameStats st = f.session->renderFrame();
+  EXPECT_TRUE(st.stopped);
+  EXPECT_EQ(f.session->accumulatedFrames(), 0);
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 0);
+  EXPECT_EQ(f.session->accumulatedFrames(), 0);
+  stop = false;
+  EXPECT_EQ(d.advance(*f.session).framesRendered, 2);
+  RefinementDriver dNever(o);
+  EXPECT_EQ(dNever.advance(*never.session).framesRendered, 2);
+  EXPECT_EQ(f.session->image().data, never.session->image().data);
+  f.session->setStopRequest(nullptr);
+  EXPECT_FALSE(f.session->renderFrame().stopped);
+  EXPECT_EQ(f.session->accumulatedFrames(), 3);
 }
 
 // Refinement by time (a fake clock: each frame takes 10 ms of it): a request adds frames while the

@@ -48,6 +48,7 @@ public:
   void setTrackingOptions(const TrackingOptions& t) override { renderer_.setTrackingOptions(t); }
   const TrackingOptions& trackingOptions() const override { return renderer_.trackingOptions(); }
   void resetAccumulation() override { renderer_.resetAccumulation(); }
+  void setStopRequest(const std::atomic<bool>* stop) override { renderer_.setStopRequest(stop); }
   int accumulatedFrames() const override { return renderer_.accumulatedFrames(); }
   ImageRGBA image() const override { return renderer_.image(); }
   ImageRGBA premultipliedImage() const override { return renderer_.premultipliedImage(); }

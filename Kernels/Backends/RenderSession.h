@@ -19,6 +19,7 @@
 // sharedEvaluator() as RenderSessionOptions::evaluator when creating another (the ParaView
 // mapper's fine and coarse level-of-detail sessions do). Ownership is shared: the evaluator lives
 // as long as the last session holding it.
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <string>
@@ -125,6 +126,9 @@ public:
   virtual void setTrackingOptions(const TrackingOptions& options) = 0;
   virtual const TrackingOptions& trackingOptions() const = 0;
   virtual void resetAccumulation() = 0;
+  // A flag another thread may raise to stop the frame in progress (WavefrontRenderer::
+  // setStopRequest: the CPU's frames stop, unaccumulated; the GPU's run to their end).
+  virtual void setStopRequest(const std::atomic<bool>* stop) = 0;
   virtual int accumulatedFrames() const = 0;
   virtual ImageRGBA image() const = 0;               // composited over the background
   virtual ImageRGBA premultipliedImage() const = 0;  // volume only

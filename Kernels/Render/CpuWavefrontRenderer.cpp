@@ -105,6 +105,7 @@ void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const Track
   const bool pruning = medium.prune.expected != nullptr;
   auto noop = [](auto&&...) {};
   for (int loopIterations = 0;; ++loopIterations) {
+    if (stopRequested()) break;  // renderFrame returns the frame unaccumulated
     auto t0 = Clock::now();
     if (points && fc.estimator == PrimaryEstimator::Debiased) {
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
@@ -237,7 +238,7 @@ FrameStats CpuWavefrontRenderer::renderFrame() {
   runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
                   st.gradientOpacityQueries, truncated);
 
-  if (fc.shadows) {
+  if (fc.shadows && !stopRequested()) {
     t0 = Clock::now();
     std::size_t shadowRays = 0;
 #pragma omp parallel for schedule(static) reduction(+ : shadowRays) if (n >= kParallelMinItems)
@@ -249,6 +250,13 @@ FrameStats CpuWavefrontRenderer::renderFrame() {
     st.shadowTraverseMs += msSince(t0);
     runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
                     st.shadowEvaluateMs, st.refinements, st.gradientOpacityQueries, truncated);
+  }
+  if (stopRequested()) {
+    // Stopped: the rays' state is the next frame's to set up again, the image and the frame
+    // counters stay as they were (the next frame draws the same random numbers).
+    st.stopped = true;
+    st.closeTiming(updateBeforeFrame, msSince(tFrame));
+    return st;
   }
   if (fc.shading.enabled) {
     t0 = Clock::now();

@@ -8,6 +8,9 @@ namespace inr {
 struct FrameStats {
   std::string method;          // "delta", "naive", "raymarch", "ghost"
   int frame = 0;               // accumulation index of this frame (0 = first)
+  // The frame was stopped before it was accumulated (WavefrontRenderer::setStopRequest): nothing
+  // of it is in the image and it counts as no frame; its counts and times are what it spent.
+  bool stopped = false;
   std::size_t pixels = 0;
   std::size_t rays = 0;        // primary rays that entered the volume
   std::size_t queries = 0;     // primary-ray INR queries

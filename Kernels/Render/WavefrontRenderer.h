@@ -6,6 +6,7 @@
 // backends derive from it: they own the storage (ray and pixel state from Render/RayState.h,
 // majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -176,6 +177,12 @@ public:
   const RenderSettings& settings() const { return settings_; }
   // Where the once-per-cause warnings go (work caps hit); default: stderr.
   void setWarningHandler(std::function<void(const std::string&)> handler) { warn_ = std::move(handler); }
+  // A flag another thread may raise to stop the frame in progress (a GUI's worker whose scene is
+  // no longer wanted); null: none. The CPU renderer looks at it before each tracking iteration
+  // and returns the frame unaccumulated (FrameStats::stopped); the GPU renderer's frames, which
+  // take milliseconds, run to their end.
+  void setStopRequest(const std::atomic<bool>* stop) { stop_ = stop; }
+  bool stopRequested() const { return stop_ && stop_->load(std::memory_order_relaxed); }
 
 protected:
   explicit WavefrontRenderer(TrackingOptions options);
@@ -253,6 +260,7 @@ private:
   mutable bool pruneRangeValid_ = false;
   std::uint32_t ghostPasses_ = 0;
   std::function<void(const std::string&)> warn_;
+  const std::atomic<bool>* stop_ = nullptr;
   bool warnedCapped_ = false, warnedTruncated_ = false;
   double pendingUpdateMs_ = 0.0;  // time/TF update work, reported with the next frame
 };

@@ -184,12 +184,14 @@ bool pqInrPanelDecorators::InrVolumeHonours(const char* name)
 {
   // Colouring by the model's value (the Coloring group), the colour and opacity maps (the
   // transfer function), the volume's opacity unit distance, the transform (the mapper reads
-  // the volume's matrix), the volume's lighting (gradient shading: InrSceneTranslator) and the
-  // blend modes with their isovalues, slice plane and cropping box (InrBlendTranslator).
+  // the volume's matrix), the volume's lighting (gradient shading: InrSceneTranslator), the
+  // blend modes with their isovalues, slice plane and cropping box (InrBlendTranslator) and the
+  // 2D transfer function over the gradient magnitude (InrSceneTranslator::Transfer2D).
   static const char* const honoured[] = { "ColorArrayName", "LookupTable", "ScalarOpacityFunction",
     "ScalarOpacityUnitDistance", "UseSeparateColorMap", "Position", "Scale", "Orientation",
     "Origin", "Shade", "Ambient", "Diffuse", "Specular", "SpecularPower", "BlendMode",
-    "IsosurfaceValues", "SliceFunction", "UseCropping", "CroppingOrigin", "CroppingScale" };
+    "IsosurfaceValues", "SliceFunction", "UseCropping", "CroppingOrigin", "CroppingScale",
+    "UseTransfer2D" };
   for (const char* h : honoured)
   {
     if (name && std::strcmp(name, h) == 0)

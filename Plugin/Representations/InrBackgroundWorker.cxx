@@ -146,6 +146,9 @@ bool InrBackgroundWorker::StartFineRefine()
   inr::RenderSession* session = this->engines.fine.session.get();
   inr::RefinementDriver* refinement = &this->engines.fine.refinement;
   this->refineRun = {};
+  // A render whose scene differs stops the step within a tracking iteration (JoinBackgroundBuild,
+  // AskToStop) instead of waiting for its frame: that frame would be thrown away.
+  session->setStopRequest(&this->stopBuild);
   this->Launch(Job::FineRefine, session,
     [this, session, refinement]() { this->refineRun = refinement->advance(*session); });
   return true;
@@ -182,6 +185,10 @@ void InrBackgroundWorker::Join()
   if (was == Job::FineRefine)
   {
     this->refineStep = this->refineRun;
+    if (slot.session)
+    {
+      slot.session->setStopRequest(nullptr);
+    }
   }
   if (slot.session)
   {

@@ -8,7 +8,8 @@
 //  - every coarse slice not built yet (StartCoarseAhead), slice by slice, so that a render that
 //    needs the coarse session stops it within one slice;
 //  - one refinement step of the fine session (StartFineRefine), so that a still render of the GUI
-//    draws the image of the steps finished so far instead of waiting for a whole frame;
+//    draws the image of the steps finished so far instead of waiting for a whole frame (a render
+//    with another scene stops the step within a tracking iteration: JoinBackgroundBuild);
 //  - the candidate macrocells of the isosurface blend mode at a new time (StartSurfaceBuild,
 //    through the fine session's network), while renders draw the image they have.
 // The session a job works on belongs to the worker until the job is joined: nothing else touches
@@ -64,8 +65,9 @@ public:
 
   ///@{
   /// JoinFineBuild waits for a job on the fine session; JoinBackgroundBuild stops a build ahead
-  /// (after its current slice) and waits for whichever job runs; FinishBackgroundBuild lets
-  /// either finish.
+  /// (after its current slice) or a refinement step (within a tracking iteration: its frame in
+  /// progress is dropped) and waits for whichever job runs; FinishBackgroundBuild lets either
+  /// finish.
   void JoinFineBuild();
   void JoinBackgroundBuild();
   void FinishBackgroundBuild();
@@ -165,7 +167,7 @@ private:
   std::thread builder;
   Job job = Job::None;
   std::atomic<bool> buildDone{ false };
-  std::atomic<bool> stopBuild{ false };  // asks a build ahead to stop after its current slice
+  std::atomic<bool> stopBuild{ false };  // asks a build ahead or a refinement step to stop
   std::atomic<double> buildProgress{ 0.0 };
   std::atomic<double> coarseAheadRunMs{ 0.0 };
   double coarseAheadMs = 0.0;

@@ -93,7 +93,7 @@ namespace
 {
 // The size whose frame fits `budgetMs` at `msPerPixel` (one ray per pixel: the work scales with
 // the pixels), at least an eighth of each side; `width` and `height` are left as they are when
-// the whole frame fits. A cost not measured yet (0) gives the smallest size, which measures it.
+// the whole frame fits. A cost not measured yet gives the smallest size, which measures it.
 bool ReducedSize(double msPerPixel, double budgetMs, int& width, int& height)
 {
   const double full = msPerPixel * double(width) * double(height);

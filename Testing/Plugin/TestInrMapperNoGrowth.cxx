@@ -3,8 +3,12 @@
 // property's transfer function (colour, scalar opacity, unit distance), one Render() each. The
 // resident set (/proc/self/statm) may not grow by more than kBoundMiB after the first 100 changes
 // of each kind (warm-up: slices built lazily, the driver's and allocators' pools), the engine is
-// built once and every render shows the volume.
-// Usage: TestInrMapperNoGrowth MODEL.inr [--changes N]
+// built once and every render shows the volume. A step of the resident set after the warm-up
+// names the mappings that grew (/proc/self/smaps: a heap arena, a driver's mapping, ...), so
+// that a run on another machine (issue 52, item 4: the many-core host's step) says what it was.
+// Usage: TestInrMapperNoGrowth MODEL.inr [--changes N] [--leak-kib K]
+// --leak-kib K (the control): every time change also leaks K KiB, touched, so that the checks
+// must fail and the step's report must name the heap.
 #include "vtkColorTransferFunction.h"
 #include "vtkInrVolumeMapper.h"
 #include "vtkInrVolumeReader.h"
@@ -16,11 +20,15 @@
 #include "vtkVolumeProperty.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace
 {
@@ -32,6 +40,58 @@ double residentMiB()
   double size = 0, resident = 0;
   f >> size >> resident;
   return resident * 4096.0 / (1024.0 * 1024.0);
+}
+
+// Resident KiB of /proc/self/smaps summed per mapped name ("[heap]", a library, a driver's
+// device file; "anonymous" for the unnamed mappings: mmap'd blocks and the heaps of threads'
+// malloc arenas): where a step of the resident set happened, printed when one happens so that a
+// run on another machine says what grew.
+std::map<std::string, long> residentByMapping()
+{
+  std::map<std::string, long> out;
+  std::ifstream f("/proc/self/smaps");
+  std::string line, name;
+  while (std::getline(f, line))
+  {
+    const std::size_t dash = line.find('-');
+    if (!line.empty() && std::isxdigit(static_cast<unsigned char>(line[0])) && dash != std::string::npos &&
+      line.find(':') > dash + 1 && line.compare(0, 4, "Rss:") != 0)
+    {
+      // "start-end perms offset dev inode [name]": the sixth field, if any.
+      std::istringstream in(line);
+      std::string field;
+      name = "anonymous";
+      for (int i = 0; in >> field; ++i)
+      {
+        if (i == 5)
+        {
+          name = field;
+        }
+      }
+    }
+    else if (line.compare(0, 4, "Rss:") == 0)
+    {
+      std::istringstream in(line.substr(4));
+      long kib = 0;
+      in >> kib;
+      out[name] += kib;
+    }
+  }
+  return out;
+}
+
+// The names whose resident size grew by more than 256 KiB between two snapshots.
+void printGrowth(const std::map<std::string, long>& before, const std::map<std::string, long>& after)
+{
+  for (const auto& [mapping, kib] : after)
+  {
+    const auto was = before.find(mapping);
+    const long grew = kib - (was == before.end() ? 0 : was->second);
+    if (grew > 256)
+    {
+      std::printf("  grew %ld KiB: %s\n", grew, mapping.c_str());
+    }
+  }
 }
 
 int failures = 0;
@@ -73,11 +133,16 @@ int main(int argc, char* argv[])
     return 2;
   }
   int changes = 1000;
+  int leakKiB = 0;
   for (int i = 2; i + 1 < argc; ++i)
   {
     if (std::string(argv[i]) == "--changes")
     {
       changes = std::max(200, std::atoi(argv[i + 1]));
+    }
+    else if (std::string(argv[i]) == "--leak-kib")
+    {
+      leakKiB = std::max(0, std::atoi(argv[i + 1]));
     }
   }
   const int warmup = 100;
@@ -122,20 +187,45 @@ int main(int argc, char* argv[])
   double warmTime = 0, maxTime = 0, warmTf = 0, maxTf = 0;
   std::string curve;  // where growth happens, if it does (a step or a slope)
   int noFrame = 0;
+  std::vector<std::vector<char>> held;  // the control's leak (--leak-kib)
+  // After the warm-up, a step of more than 1 MiB between two samples names the mappings that grew.
+  std::map<std::string, long> mappings;
+  double lastSample = 0.0;
+  auto sample = [&](int k, const char* phase)
+  {
+    const double now = residentMiB();
+    if (k >= warmup && now - lastSample > 1.0)
+    {
+      std::map<std::string, long> next = residentByMapping();
+      std::printf("step of %.2f MiB at %s change %d:\n", now - lastSample, phase, k);
+      printGrowth(mappings, next);
+      mappings.swap(next);
+    }
+    else if (k == warmup - 1)
+    {
+      mappings = residentByMapping();
+    }
+    lastSample = now;
+    return now;
+  };
   // 1000 time changes, cycling through 50 times over the range (every slice gets built early).
   for (int k = 0; k < changes; ++k)
   {
     const double t = timeRange[0] + (timeRange[1] - timeRange[0]) * double(k % 50) / 49.0;
     reader->UpdateTimeStep(t);
     win->Render();
+    if (leakKiB > 0)
+    {
+      held.emplace_back(std::size_t(leakKiB) * 1024, char(k));  // resident, kept to the end
+    }
     noFrame += mapper->GetAccumulatedFrames() < 1 ? 1 : 0;
     if (k == warmup - 1)
     {
-      warmTime = residentMiB();
+      warmTime = sample(k, "time");
     }
     else if (k >= warmup && k % 10 == 0)
     {
-      maxTime = std::max(maxTime, residentMiB());
+      maxTime = std::max(maxTime, sample(k, "time"));
     }
     if ((k + 1) % 100 == 0)
     {
@@ -152,11 +242,11 @@ int main(int argc, char* argv[])
     noFrame += mapper->GetAccumulatedFrames() < 1 ? 1 : 0;
     if (k == warmup - 1)
     {
-      warmTf = residentMiB();
+      warmTf = sample(warmup, "TF");  // (the mappings' snapshot stays the time changes')
     }
     else if (k >= warmup && k % 10 == 0)
     {
-      maxTf = std::max(maxTf, residentMiB());
+      maxTf = std::max(maxTf, sample(k, "TF"));
     }
   }
   maxTf = std::max(maxTf, residentMiB());
