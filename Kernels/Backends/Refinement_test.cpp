@@ -9,8 +9,10 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "Backends/Refinement.h"
+#include "Render/QueryBatch.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/ModelBox.h"
@@ -101,6 +103,33 @@ TEST(Refinement, StoppedFrameLeavesNoTrace) {
   f.session->setStopRequest(nullptr);
   EXPECT_FALSE(f.session->renderFrame().stopped);
   EXPECT_EQ(f.session->accumulatedFrames(), 3);
+}
+
+// Under a stop request that is not raised, the CPU evaluates each tracking iteration in
+// sub-batches (QueryBatch::evaluateUnlessStopped). The frame is the frame without a request, bit
+// for bit; and what that rests on: the session's evaluator gives every point the value one call
+// over all of them gives, for a batch of several sub-batches (here 3.5).
+TEST(Refinement, FramesUnderAStopRequestAreTheFramesWithout) {
+  Fixture f, plain;
+  std::atomic<bool> stop{false};
+  f.session->setStopRequest(&stop);
+  const FrameStats st = f.session->renderFrame();
+  plain.session->renderFrame();
+  EXPECT_FALSE(st.stopped);
+  EXPECT_EQ(f.session->image().data, plain.session->image().data);
+
+  const std::size_t n = QueryBatch::kStoppableQueries * 7 / 2;
+  std::vector<QueryPoint> points(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float u = float(i) / float(n);
+    points[i] = QueryPoint{std::sin(40.f * u), std::cos(23.f * u), 2.f * u - 1.f, u};
+  }
+  const FieldEvaluator& evaluator = f.session->evaluator();
+  std::vector<float> whole(n), parts(n);
+  evaluator.evaluate(points.data(), n, whole.data());
+  for (std::size_t first = 0; first < n; first += QueryBatch::kStoppableQueries)
+    evaluator.evaluate(points.data() + first, std::min(QueryBatch::kStoppableQueries, n - first), parts.data() + first);
+  EXPECT_EQ(whole, parts);
 }
 
 // Refinement by time (a fake clock: each frame takes 10 ms of it): a request adds frames while the

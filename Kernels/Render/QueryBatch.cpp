@@ -107,6 +107,16 @@ void QueryBatch::evaluate(const FieldEvaluator& evaluator) {
   if (count_ > 0) evaluator.evaluate(points_.data(), count_, values_.data());
 }
 
+bool QueryBatch::evaluateUnlessStopped(const FieldEvaluator& evaluator, const std::atomic<bool>& stop) {
+  withOpacityScales_ = false;
+  for (std::size_t first = 0; first < count_; first += kStoppableQueries) {
+    if (stop.load(std::memory_order_relaxed)) return false;
+    const std::size_t n = std::min(kStoppableQueries, count_ - first);
+    evaluator.evaluate(points_.data() + first, n, values_.data() + first);
+  }
+  return true;
+}
+
 template <typename Needs>
 void QueryBatch::evaluateOpacityScalesWhere(const FieldEvaluator& evaluator, const TransferFunctionView& tf,
                                             Needs&& needs) {

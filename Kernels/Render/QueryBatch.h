@@ -2,6 +2,7 @@
 // CPU side of stage III: gather the pending queries of all rays into one dense batch in ray order
 // (deterministic for any thread count), evaluate it with one FieldEvaluator call, scatter the
 // results back into the ray state.
+#include <atomic>
 #include <cstddef>
 #include <vector>
 
@@ -16,6 +17,11 @@ public:
   // Collects the pending rays' queries; returns their number.
   std::size_t gather(const RayStateView& rs, float time);
   void evaluate(const FieldEvaluator& evaluator);
+  // The same in sub-batches of kStoppableQueries, looking at `stop` before each: false when it
+  // was raised (the values are then incomplete: the caller drops the frame). Sub-batches are a
+  // multiple of the CPU evaluator's GEMM chunk, which evaluates every point as one call would.
+  static constexpr std::size_t kStoppableQueries = std::size_t(1) << 16;
+  bool evaluateUnlessStopped(const FieldEvaluator& evaluator, const std::atomic<bool>& stop);
   // Gradient opacity (Render/Evaluate.h), after evaluate: the factor of each query whose outcome
   // it can change (delta-tracking candidates: the entries are rays; points: point slots), their
   // gradients in one evaluator call; 0 for the others. The scatters then store it beside the value.

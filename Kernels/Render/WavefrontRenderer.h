@@ -179,12 +179,14 @@ public:
   void setWarningHandler(std::function<void(const std::string&)> handler) { warn_ = std::move(handler); }
   // A flag another thread may raise to stop the frame in progress (a GUI's worker whose scene is
   // no longer wanted); null: none. The CPU renderer looks at it before each tracking iteration
-  // and returns the frame unaccumulated (FrameStats::stopped); the GPU renderer's frames, which
-  // take milliseconds, run to their end.
+  // and between sub-batches of an iteration's evaluation (QueryBatch::evaluateUnlessStopped) and
+  // returns the frame unaccumulated (FrameStats::stopped); the GPU renderer's frames, which take
+  // milliseconds, run to their end.
   void setStopRequest(const std::atomic<bool>* stop) { stop_ = stop; }
   bool stopRequested() const { return stop_ && stop_->load(std::memory_order_relaxed); }
 
 protected:
+  const std::atomic<bool>* stop_ = nullptr;  // setStopRequest's flag, or none
   explicit WavefrontRenderer(TrackingOptions options);
 
   // --- backend hooks
@@ -260,7 +262,6 @@ private:
   mutable bool pruneRangeValid_ = false;
   std::uint32_t ghostPasses_ = 0;
   std::function<void(const std::string&)> warn_;
-  const std::atomic<bool>* stop_ = nullptr;
   bool warnedCapped_ = false, warnedTruncated_ = false;
   double pendingUpdateMs_ = 0.0;  // time/TF update work, reported with the next frame
 };
