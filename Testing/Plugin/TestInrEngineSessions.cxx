@@ -12,6 +12,7 @@
 // Before the fix the coarse session's options were built by hand in a second place and took the
 // traversal from nowhere (Auto whatever the user chose), and it built an evaluator of its own.
 // Usage: TestInrEngineSessions MODEL.inr
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
@@ -30,15 +31,8 @@
 
 namespace
 {
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 // A session's option line without its macrocell dims (the one field level of detail changes).
 std::string withoutDims(const std::string& line)

@@ -22,6 +22,7 @@
 //  - a camera drag after a still render of the time draws the stand-in of the network
 //    (InteractiveStandIn: the fine macrocells' means); with the option off it draws the network.
 // Usage: TestInrLevelOfDetail MODEL.inr
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
@@ -84,15 +85,8 @@ double coveredPsnr(const std::vector<unsigned char>& expected,
   return mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 999.0;
 }
 
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 // The window's RGB pixels (what the user sees), read back without rendering again.
 std::vector<unsigned char> grab(vtkRenderWindow* win)

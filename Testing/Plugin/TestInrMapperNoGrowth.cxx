@@ -9,6 +9,7 @@
 // Usage: TestInrMapperNoGrowth MODEL.inr [--changes N] [--leak-kib K]
 // --leak-kib K (the control): every time change also leaks K KiB, touched, so that the checks
 // must fail and the step's report must name the heap.
+#include "InrPluginTestChecks.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkInrVolumeMapper.h"
 #include "vtkInrVolumeReader.h"
@@ -94,15 +95,8 @@ void printGrowth(const std::map<std::string, long>& before, const std::map<std::
   }
 }
 
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 // Edit k of the transfer function: the opacity ramp's top, a node's midpoint/sharpness, a colour
 // point and the unit distance all move; every third edit has one node more.

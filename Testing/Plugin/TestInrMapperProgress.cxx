@@ -9,6 +9,7 @@
 //    mapper's events as its own, same values, with a short text ("INR macrocells") that fits
 //    ParaView's progress bar.
 // Usage: TestInrMapperProgress MODEL.inr
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkCommand.h"
@@ -32,15 +33,8 @@
 
 namespace
 {
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 // Records an algorithm's ProgressEvents whose progress text starts with `prefix` (the executive's
 // own 0 / 1 around RequestData carry no such text, or an older one: those are filtered by the

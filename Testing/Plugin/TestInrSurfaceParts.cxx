@@ -10,6 +10,7 @@
 //    go (background work off) pixel for pixel, with the state converged.
 // Also: every render stays within a few times the budget (CPU time, not asserted: printed).
 // Usage: TestInrSurfaceParts MODEL.inr [OUT_DIR: the reduced and the final window as PNG files]
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkContourValues.h"
@@ -34,15 +35,8 @@
 
 namespace
 {
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 constexpr int kSize = 160;
 

@@ -4,6 +4,7 @@
 // CASE: ea | shadows | time | tf | depth | refine. Image cases compare the window's 8-bit RGB
 // with the baseline through VTK's regression test *and* a strict metric of our own (PSNR and
 // max abs error thresholds below); a missing baseline is a failure, never "not run".
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkActor.h"
 #include "vtkCamera.h"
@@ -41,15 +42,8 @@ const double kMinPsnr = 40.0;
 const int kMaxAbsError = 64;
 const int kSize = 160;
 
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 void setTransferFunction(vtkVolumeProperty* prop, bool alternative)
 {

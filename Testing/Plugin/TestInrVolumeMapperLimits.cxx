@@ -11,6 +11,7 @@
 //   translucent  translucent geometry in the renderer: one warning, however many renders; with
 //                the renderer depth-peeling volumes: one more warning, nothing drawn
 // Images are written to OUTDIR for inspection.
+#include "InrPluginTestChecks.h"
 #include "InrPluginTestScene.h"
 #include "vtkActor.h"
 #include "vtkCallbackCommand.h"
@@ -46,15 +47,8 @@ namespace
 const double kMinPsnr = 40.0;
 const double kBackground[3] = { 0.32, 0.34, 0.43 };
 
-int failures = 0;
-void check(bool ok, const std::string& what)
-{
-  std::printf("%s: %s\n", ok ? "ok" : "FAIL", what.c_str());
-  if (!ok)
-  {
-    ++failures;
-  }
-}
+using inr_plugin_test::check;
+using inr_plugin_test::failures;
 
 void setTransferFunction(vtkVolumeProperty* prop)
 {
