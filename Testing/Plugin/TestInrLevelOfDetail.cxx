@@ -191,9 +191,11 @@ int main(int argc, char* argv[])
   int mostFramesAfterSettling = 0;
   // The scale is judged on the engine's time, whose budget here (1 ms less the window's fixed
   // cost, at most half of it) the first guess may undershoot: the scale grows by at most 1.25x
-  // per change, so allow a few adjustments; after them the resolution may change once (the
+  // per change, so allow a few adjustments; after them the resolution may drop once (the
   // engine's sub-millisecond times are noisy on a loaded machine: two slow frames drop the scale)
-  // but must not flip back and forth (the deterministic rules: plugin_mapper_policy).
+  // and come back once when the time measured at the smaller scale says it fits, but must not
+  // flip back and forth (the deterministic rules: plugin_mapper_policy; RESULTS-archive, "A drag's
+  // scale may drop and come back once").
   constexpr int kDragSteps = 14, kSettleSteps = 6;
   for (int step = 1; step <= kDragSteps; ++step)
   {
@@ -216,9 +218,9 @@ int main(int argc, char* argv[])
       "drag step " + std::to_string(step) + ": an interactive, reduced frame");
     check(mapper->GetConverged() == 0, "an interactive frame never counts as converged");
   }
-  check(changesAfterSettling <= 1,
+  check(changesAfterSettling <= 2,
     "the reduced resolution holds during the drag after the first adjustments (" +
-      std::to_string(changesAfterSettling) + " changes, at most 1)");
+      std::to_string(changesAfterSettling) + " changes, at most 2: a drop and its return)");
   check(mostFramesAfterSettling >= 2, "reprojection keeps accumulating at that resolution");
   const std::vector<unsigned char> reduced = grab(win);
 

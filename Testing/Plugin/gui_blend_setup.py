@@ -101,7 +101,8 @@ def on_end(obj, event):
     plane = rep.SMProxy.GetProperty("SliceFunction").GetProxy(0)
     normal = plane.GetProperty("Normal") if plane else None
     normal = ",".join(f"{normal.GetElement(i):.3g}" for i in range(3)) if normal else "-"
-    line = f"render block_ms={ms:.1f} type={kind.replace(' ', '_')} blend={blend} iso={iso or '-'} crop={crop} normal={normal}"
+    line = (f"render block_ms={ms:.1f} type={kind.replace(' ', '_')} blend={blend} iso={iso or '-'} crop={crop} "
+            f"normal={normal} time={view.ViewTime:.6g}")
     if kind == "INR Volume":
         inr = rep.SMProxy.GetProperty("InrConverged").GetParent()
         frames = get(inr, "InrAccumulatedFrames")

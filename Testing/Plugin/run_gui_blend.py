@@ -3,8 +3,9 @@
     pvpython run_gui_blend.py --paraview PARAVIEW --model MODEL.inr --isovalue V --crop-x X --out DIR
 
 Starts `paraview --script=gui_blend_setup.py --test-script=DIR/gui_blend.xml` (the recorded
-session, written from gui_blend.xml.in): File > Open, Apply, INR Volume; Blend Mode Isosurface
-with the value V added in Isosurfaces; Blend Mode Slice with the plane turned to face the camera;
+session, written from gui_blend.xml.in): File > Open, Apply, INR Volume; Use Transfer2D shown with
+the panel's gear on; Blend Mode Isosurface with the value V added in Isosurfaces, then the next
+time step and back; Blend Mode Slice with the plane turned to face the camera;
 Composite with Use Cropping, the box moved by X along x (--crop-x X); back to Surface. Checks:
   - paraview played the whole session (exit status 0, every widget found) with its panel checks:
     as INR Volume, Blend Mode and Use Cropping are shown; Isosurfaces only with Blend Mode
@@ -13,6 +14,9 @@ Composite with Use Cropping, the box moved by X along x (--crop-x X); back to Su
   - NO warning and NO error reached the output window (each message is printed);
   - every change reached the view and re-rendered it: an isosurface frame with V among the
     isovalues, a slice frame, a cropped composite frame (the refinement state read back says so);
+  - the GUI's still renders of the surface modes (a reduced frame, the full one in parts, the
+    isosurface's macrocells built on the worker) end exact: the last isosurface and slice
+    settings' last state, and exact isosurface frames at both times;
   - the pictures: the isosurface and the slice cover part of the view, and the cropped composite
     differs from the uncropped one.
 The longest render after each change is printed (not judged: a shared machine's times are not
@@ -111,13 +115,18 @@ check(bool(cropped), f"a composite frame cropped to the box moved along x (Cropp
 # parts and the worker's macrocell build of the GUI's still renders (issue 48) lead to it.
 runs = []  # (key, states) in the order the settings came
 for r in inr:
-    key = (r["blend"], r["iso"], r["crop"], r["normal"])
+    key = (r["blend"], r["iso"], r["crop"], r["normal"], r.get("time", "-"))
     if not runs or runs[-1][0] != key:
         runs.append((key, []))
     runs[-1][1].append(r.get("state", ""))
 last_of_mode = [states for i, (key, states) in enumerate(runs)
                 if key[0] in ("Isosurface", "Slice") and (i + 1 == len(runs) or runs[i + 1][0][0] != key[0])]
 ends = [states[-1] for states in last_of_mode]
+# The view's time moved while in Isosurface mode: the new time's candidate macrocells are built on
+# the worker, and the isosurface is exact there too.
+iso_times = {r.get("time") for r in inr if r["blend"] == "Isosurface" and "exact_in_one_frame" in r.get("state", "")}
+check(len(iso_times) >= 2, f"exact isosurface frames at two times at least (the time moved in Isosurface "
+      f"mode; times {sorted(iso_times)})")
 check(len(ends) == 2 and all("exact_in_one_frame" in st for st in ends),
       f"the last isosurface and slice settings end with their exact frame (last states {ends}; "
       f"renders before it {[len(st) for st in last_of_mode]})")
@@ -126,15 +135,15 @@ check(len(ends) == 2 and all("exact_in_one_frame" in st for st in ends),
 # change, from the first render of the new setting to the next change.
 changes = []
 for r in inr:
-    key = (r["blend"], r["iso"], r["crop"], r["normal"])
+    key = (r["blend"], r["iso"], r["crop"], r["normal"], r.get("time", "-"))
     if not changes or changes[-1][0] != key:
         changes.append((key, [], []))
     changes[-1][1].append(float(r["block_ms"]))
     changes[-1][2].append(float(r.get("mapper_ms", "nan")))
 timed = C.TimedChecks(check, args.judge_times)
-for (blend, values, crop, normal), ms, mapper_ms in changes:
+for (blend, values, crop, normal, t), ms, mapper_ms in changes:
     timed(max(ms) <= BLOCK_BOUND_MS, f"{blend} (isovalues {values}, cropping {crop}"
-          f"{', normal ' + normal if blend == 'Slice' else ''}): {len(ms)} renders, "
+          f"{', normal ' + normal if blend == 'Slice' else ''}, time {t}): {len(ms)} renders, "
           f"longest {max(ms):.0f} ms (bound {BLOCK_BOUND_MS:.0f} ms; INR Volume's mapper in it "
           f"{mapper_ms[ms.index(max(ms))]:.0f} ms, its longest {max(mapper_ms):.0f} ms)")
 
@@ -167,12 +176,13 @@ if sl and (sl[-1]["blend"], sl[-1]["iso"], sl[-1]["crop"], sl[-1]["normal"]) in 
 else:
     check(False, "a picture of the slice")
 # The composite before and after cropping, both the first still frame (same seed and frame: the
-# pixels whose rays do not meet the cut-away part are alike), and the covered share drops.
+# pixels whose rays do not meet the cut-away part are alike), and the covered share drops. The
+# uncropped one is the last before cropping.
 whole = [k for k in shots if k[0] == "Composite" and k[2] == "0"]
 crop = [k for k in shots if k[0] == "Composite" and k[2] == crop_key]
 if whole and crop:
     import numpy as np
-    share_whole, a = covered(whole[0])
+    share_whole, a = covered(whole[-1])
     share_crop, b = covered(crop[-1])
     differ = float(np.mean(np.any(np.abs(a - b) > 8, axis=2))) if a.shape == b.shape else 1.0
     check(differ >= 0.005, f"the cropped composite differs from the uncropped one ({100 * differ:.1f}% of the pixels)")
