@@ -158,14 +158,15 @@ bool SurfaceRenderer::macrocellsBuiltFor(double time) const {
   return grid_->sliceBuilt(k0) && (w == 0.f || grid_->sliceBuilt(k1));
 }
 
-void SurfaceRenderer::buildMacrocellsFor(double time) {
+MacrocellGrid& SurfaceRenderer::candidateGrid() {
   if (!grid_) grid_ = std::make_unique<MacrocellGrid>(evaluator_, box_, timeBegin_, timeEnd_, options_.macrocells);
-  grid_->buildSlicesFor(time);
+  return *grid_;
 }
 
+void SurfaceRenderer::buildMacrocellsFor(double time) { candidateGrid().buildSlicesFor(time); }
+
 void SurfaceRenderer::updateCandidates() {
-  if (!grid_) grid_ = std::make_unique<MacrocellGrid>(evaluator_, box_, timeBegin_, timeEnd_, options_.macrocells);
-  grid_->setTime(scene_.time);
+  candidateGrid().setTime(scene_.time);
   const std::vector<float>& mn = grid_->workingMin();
   const std::vector<float>& mx = grid_->workingMax();
   candidates_.cell.assign(mn.size(), 0.f);
@@ -202,7 +203,7 @@ bool SurfaceRenderer::renderFramePart(double budgetMs, FrameStats* stats) {
   if (!haveScene_) throw std::logic_error("renderFrame: setScene first");
   const auto start = Clock::now();
   const int n = settings_.width * settings_.height;
-  if (partNext_ == 0) {
+  if (!framePartStarted()) {
     partStats_ = FrameStats{};
     partStats_.method = blend_.mode == BlendMode::Slice ? "slice" : "isosurface";
     partStats_.frame = frameIndex_;

@@ -151,6 +151,9 @@ private:
   void renderSliceChunks(Clock::time_point start, double budgetMs);
   void renderIsosurfaceChunks(Clock::time_point start, double budgetMs);
   void updateCandidates();
+  MacrocellGrid& candidateGrid();  // grid_, made on first use
+  // Whether a frame in progress has begun (a chunk finished, or an isosurface chunk under way).
+  bool framePartStarted() const { return partNext_ > 0 || isoChunkN_ > 0; }
 
   const FieldEvaluator& evaluator_;
   Box3f box_;

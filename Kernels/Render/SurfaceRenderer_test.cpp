@@ -560,9 +560,9 @@ TEST(IsosurfaceBlend, OpaqueGeometryHidesWhatLiesBehindIt) {
 // same figures; until its last part it is not accumulated. A new scene in the middle drops the
 // part-frame (control: it would otherwise finish early, with the old scene's pixels in it).
 void expectPartsMakeTheFrame(const RenderScene& scene, const BlendScene& blend, FunctionField& field,
-                             int minParts, int maxParts) {
+                             int minParts, int maxParts, int chunkPixels = 500) {
   SurfaceOptions options;
-  options.chunkPixels = 500;  // 48^2 pixels: 5 chunks
+  options.chunkPixels = chunkPixels;  // 500: 48^2 pixels in 5 chunks
   const RenderSettings settings = imageOf(48);
   SurfaceRenderer whole(field, kCubeBox, 0.0, 1.0, options), parts(field, kCubeBox, 0.0, 1.0, options);
   whole.setSettings(settings);
@@ -624,15 +624,19 @@ TEST(IsosurfaceBlend, FrameInPartsIsTheWholeFrame) {
   c.scene.shading.enabled = true;
   FunctionField field(distanceField, "distance", distanceGradient);
   // One march iteration per part, and one more for a chunk whose last step found no sample left
-  // to query: between the whole frame's iterations and that plus the 5 chunks.
-  SurfaceOptions options;
-  options.chunkPixels = 500;
-  SurfaceRenderer probe(field, kCubeBox, 0.0, 1.0, options);
-  probe.setSettings(imageOf(48));
-  probe.setScene(c.scene, c.blend);
-  const int iterations = probe.renderFrame().iterations;
-  EXPECT_GT(iterations, 5 * 3);  // several iterations per chunk: parts end inside chunks
-  expectPartsMakeTheFrame(c.scene, c.blend, field, iterations, iterations + 5);
+  // to query: between the whole frame's iterations and that plus the chunks. With 5 chunks, and
+  // with one chunk for the whole picture (its figures must add up over parts inside one chunk).
+  for (const int chunkPixels : {500, 48 * 48}) {
+    SurfaceOptions options;
+    options.chunkPixels = chunkPixels;
+    SurfaceRenderer probe(field, kCubeBox, 0.0, 1.0, options);
+    probe.setSettings(imageOf(48));
+    probe.setScene(c.scene, c.blend);
+    const int iterations = probe.renderFrame().iterations;
+    const int chunks = (48 * 48 + chunkPixels - 1) / chunkPixels;
+    EXPECT_GT(iterations, chunks * 3);  // several iterations per chunk: parts end inside chunks
+    expectPartsMakeTheFrame(c.scene, c.blend, field, iterations, iterations + chunks, chunkPixels);
+  }
 }
 
 // The candidate macrocells built ahead (what a GUI does off its event loop): setScene at that
