@@ -106,7 +106,7 @@ TEST(Refinement, StoppedFrameLeavesNoTrace) {
 }
 
 // Under a stop request that is not raised, the CPU evaluates each tracking iteration in
-// sub-batches (QueryBatch::evaluateUnlessStopped). The frame is the frame without a request, bit
+// sub-batches (QueryBatch::evaluate with the stop flag). The frame is the frame without a request, bit
 // for bit; and what that rests on: the session's evaluator gives every point the value one call
 // over all of them gives, for a batch of several sub-batches (here 3.5).
 TEST(Refinement, FramesUnderAStopRequestAreTheFramesWithout) {

@@ -160,15 +160,11 @@ void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const Track
     }
     ++iterations;
     queries += k;
-    if (stop_) {
-      // A GUI worker's frame: stoppable between sub-batches (WavefrontRenderer::setStopRequest);
-      // a stopped frame is dropped before its values reach the rays or the macrocells.
-      if (!batch_.evaluateUnlessStopped(evaluator_, *stop_)) {
-        evaluateMs += msSince(t0);
-        break;
-      }
-    } else {
-      batch_.evaluate(evaluator_);
+    // A GUI worker's frame (a stop request) is stoppable between sub-batches; a stopped frame is
+    // dropped before its values reach the rays or the macrocells.
+    if (!batch_.evaluate(evaluator_, stop_)) {
+      evaluateMs += msSince(t0);
+      break;
     }
     if (usesGradient(medium.tf)) {  // the gradient term where it can change the outcome (Evaluate.h)
       if (points)

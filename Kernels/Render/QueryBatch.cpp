@@ -102,16 +102,12 @@ void QueryBatch::shade(const FieldEvaluator& evaluator, const FrameConstants& fc
   for (long long k = 0; k < n; ++k) shadeRay(fc, rs, rays_[k], Vec3f{g[3 * k], g[3 * k + 1], g[3 * k + 2]});
 }
 
-void QueryBatch::evaluate(const FieldEvaluator& evaluator) {
+bool QueryBatch::evaluate(const FieldEvaluator& evaluator, const std::atomic<bool>* stop) {
   withOpacityScales_ = false;
-  if (count_ > 0) evaluator.evaluate(points_.data(), count_, values_.data());
-}
-
-bool QueryBatch::evaluateUnlessStopped(const FieldEvaluator& evaluator, const std::atomic<bool>& stop) {
-  withOpacityScales_ = false;
-  for (std::size_t first = 0; first < count_; first += kStoppableQueries) {
-    if (stop.load(std::memory_order_relaxed)) return false;
-    const std::size_t n = std::min(kStoppableQueries, count_ - first);
+  const std::size_t step = stop ? kStoppableQueries : count_;
+  for (std::size_t first = 0; first < count_; first += step) {
+    if (stop && stop->load(std::memory_order_relaxed)) return false;
+    const std::size_t n = std::min(step, count_ - first);
     evaluator.evaluate(points_.data() + first, n, values_.data() + first);
   }
   return true;

@@ -16,12 +16,12 @@ class QueryBatch {
 public:
   // Collects the pending rays' queries; returns their number.
   std::size_t gather(const RayStateView& rs, float time);
-  void evaluate(const FieldEvaluator& evaluator);
-  // The same in sub-batches of kStoppableQueries, looking at `stop` before each: false when it
-  // was raised (the values are then incomplete: the caller drops the frame). Sub-batches are a
-  // multiple of the CPU evaluator's GEMM chunk, which evaluates every point as one call would.
+  // One evaluator call; with a `stop` flag, sub-batches of kStoppableQueries instead, the flag
+  // looked at before each: false when it was raised (the values are then incomplete: the caller
+  // drops the frame). Sub-batches are a multiple of the CPU evaluator's GEMM chunk, which
+  // evaluates every point as one call would.
   static constexpr std::size_t kStoppableQueries = std::size_t(1) << 16;
-  bool evaluateUnlessStopped(const FieldEvaluator& evaluator, const std::atomic<bool>& stop);
+  bool evaluate(const FieldEvaluator& evaluator, const std::atomic<bool>* stop = nullptr);
   // Gradient opacity (Render/Evaluate.h), after evaluate: the factor of each query whose outcome
   // it can change (delta-tracking candidates: the entries are rays; points: point slots), their
   // gradients in one evaluator call; 0 for the others. The scatters then store it beside the value.

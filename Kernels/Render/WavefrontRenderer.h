@@ -179,7 +179,7 @@ public:
   void setWarningHandler(std::function<void(const std::string&)> handler) { warn_ = std::move(handler); }
   // A flag another thread may raise to stop the frame in progress (a GUI's worker whose scene is
   // no longer wanted); null: none. The CPU renderer looks at it before each tracking iteration
-  // and between sub-batches of an iteration's evaluation (QueryBatch::evaluateUnlessStopped) and
+  // and between sub-batches of an iteration's evaluation (QueryBatch::evaluate) and
   // returns the frame unaccumulated (FrameStats::stopped); the GPU renderer's frames, which take
   // milliseconds, run to their end.
   void setStopRequest(const std::atomic<bool>* stop) { stop_ = stop; }
