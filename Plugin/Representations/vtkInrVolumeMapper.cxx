@@ -493,10 +493,11 @@ void vtkInrVolumeMapper::Internals::Composite(
   this->BlendTexture(self, window);
 }
 
-void vtkInrVolumeMapper::Internals::BlendTexture(vtkInrVolumeMapper* self, vtkOpenGLRenderWindow* window)
+void vtkInrVolumeMapper::Internals::BlendTexture(
+  vtkInrVolumeMapper* self, vtkOpenGLRenderWindow* window, bool writeDepth)
 {
   std::string error;
-  if (!this->compositor.Blend(window, &error))
+  if (!this->compositor.Blend(window, &error, writeDepth))
   {
     vtkErrorWithObjectMacro(self, << error);
   }

@@ -378,8 +378,9 @@ struct vtkInrVolumeMapper::Internals
   // Sample shares over several ranks: this rank's image averaged with every rank's (a collective
   // each render), its pixels of the average uploaded; the texture is then blended as Composite's.
   void UploadSampleShares(vtkOpenGLRenderWindow* window, int width, int height, bool upscaled);
-  // Draws the loaded texture over the framebuffer (the composite blend), an error if it cannot.
-  void BlendTexture(vtkInrVolumeMapper* self, vtkOpenGLRenderWindow* window);
+  // Draws the loaded texture over the framebuffer (the composite blend; `writeDepth`: the loaded
+  // depth where the image is opaque, as the surface modes do), an error if it cannot.
+  void BlendTexture(vtkInrVolumeMapper* self, vtkOpenGLRenderWindow* window, bool writeDepth = false);
   // Render's scope: inside it, progress is muted where renders are prepared (SetInsideRender).
   struct InsideRender
   {

@@ -129,11 +129,7 @@ bool vtkInrVolumeMapper::Internals::DrawWhileBuilding(vtkInrVolumeMapper* self, 
     return false;  // nothing of this view's drawn yet
   }
   // The surfaces' depth goes with a surface image (uploadedEpoch -1), none with a composite one.
-  std::string error;
-  if (!this->compositor.Blend(window, &error, /*writeDepth=*/this->uploadedEpoch == -1))
-  {
-    vtkErrorWithObjectMacro(self, << error);
-  }
+  this->BlendTexture(self, window, /*writeDepth=*/this->uploadedEpoch == -1);
   return true;
 }
 
@@ -225,14 +221,24 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
       s.temporalSlices = slices;
       s.haveSettings = s.haveScene = false;
     }
+    // Whether the renderer holds `settings` / `frameScene` with this render's blend already.
+    auto holdsSettings = [&](const inr::RenderSettings& settings)
+    {
+      return s.haveSettings && settings.width == s.settings.width &&
+        settings.height == s.settings.height && settings.seed == s.settings.seed &&
+        settings.window == s.settings.window;
+    };
+    auto holdsScene = [&](const inr::RenderScene& frameScene)
+    {
+      return s.haveScene && !inr::diffScenes(&s.scene, frameScene).any() &&
+        sameBlend(s.blend, this->blend.blend);
+    };
     // Hands the renderer `settings` and `frameScene` where they differ from what it holds (either
     // restarts its image); true when they did.
     auto handOver = [&](const inr::RenderSettings& settings, const inr::RenderScene& frameScene)
     {
       bool restarted = false;
-      if (!s.haveSettings || settings.width != s.settings.width ||
-        settings.height != s.settings.height || settings.seed != s.settings.seed ||
-        !(settings.window == s.settings.window))
+      if (!holdsSettings(settings))
       {
         s.renderer->setSettings(settings);
         s.settings = settings;
@@ -240,8 +246,7 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
         s.haveScene = false;  // the depth limit is the new size's
         restarted = true;
       }
-      if (!s.haveScene || inr::diffScenes(&s.scene, frameScene).any() ||
-        !sameBlend(s.blend, this->blend.blend))
+      if (!holdsScene(frameScene))
       {
         s.renderer->setScene(frameScene, this->blend.blend);
         s.scene = frameScene;
@@ -295,10 +300,7 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
     }
     if (s.drew && inParts)
     {
-      const bool sameTarget = s.haveSettings && s.haveScene && settings.width == s.settings.width &&
-        settings.height == s.settings.height && settings.seed == s.settings.seed &&
-        settings.window == s.settings.window && !inr::diffScenes(&s.scene, scene).any() &&
-        sameBlend(s.blend, this->blend.blend);
+      const bool sameTarget = holdsSettings(settings) && holdsScene(scene);
       int pw = width, ph = height;
       if (!sameTarget && ReducedSize(s.msPerPixel, budget, pw, ph))
       {
@@ -419,11 +421,7 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
       this->compositor.UploadDepth(window, shownWidth, shownHeight, depth.data());
     }
   }
-  std::string error;
-  if (!this->compositor.Blend(window, &error, /*writeDepth=*/true))
-  {
-    vtkErrorWithObjectMacro(self, << error);
-  }
+  this->BlendTexture(self, window, /*writeDepth=*/true);
   this->report.renderMs = msSince(renderStart);
   return true;
 }
