@@ -341,14 +341,16 @@ bool vtkInrVolumeMapper::Internals::BuildsInBackground(vtkInrVolumeMapper* self)
       this->LodSettings(self), this->engines.fine.session->backend() == inr::RenderBackend::Cpu);
 }
 
+bool vtkInrVolumeMapper::Internals::RendersAgainByItself(vtkInrVolumeMapper* self) const
+{
+  return backgroundBuilds && self->ProgressiveRefinement && !self->Capturing &&
+    this->ranks.Ranks().count <= 1;
+}
+
 bool vtkInrVolumeMapper::Internals::DefersFirstRender(vtkInrVolumeMapper* self) const
 {
-  // Only where something renders again by itself: the GUI's refinement behaviour (it turns
-  // background builds on) renders while the state is not converged, and only with progressive
-  // refinement on. Never for a capture or a tile of a larger picture (they must draw now), and
-  // once per mapper.
-  return this->firstRender == FirstRender::NotReached && backgroundBuilds && self->ProgressiveRefinement &&
-    !self->Capturing && this->ranks.Ranks().count <= 1;
+  // Only where something renders again by itself, and once per mapper.
+  return this->firstRender == FirstRender::NotReached && this->RendersAgainByItself(self);
 }
 
 // What the render decision reads (InrRenderDecision::Inputs): the level-of-detail policy's

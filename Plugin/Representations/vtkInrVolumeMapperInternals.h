@@ -219,6 +219,10 @@ struct vtkInrVolumeMapper::Internals
   // Whether long macrocell builds go to the worker thread (the GUI: background builds on, CPU
   // backend, GUI-like refinement; InrLevelOfDetail::BuildsFineInBackground).
   bool BuildsInBackground(vtkInrVolumeMapper* self) const;
+  // Whether something renders this view again by itself while the state is not converged (the
+  // GUI's refinement behaviour turns background builds on; progressive refinement; not a capture,
+  // which must draw now; one rank), so a render may leave work to the next one.
+  bool RendersAgainByItself(vtkInrVolumeMapper* self) const;
   // Whether this render is the GUI's first of this mapper, put off to the next one
   // (firstRender).
   bool DefersFirstRender(vtkInrVolumeMapper* self) const;

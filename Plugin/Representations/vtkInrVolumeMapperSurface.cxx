@@ -151,8 +151,7 @@ bool vtkInrVolumeMapper::Internals::RenderSurface(
   // In the GUI (something renders again while the state is not converged) a render must not wait
   // for long work: frames in parts, the isosurface's macrocells built on the worker. Scripts,
   // captures and tiles of a larger picture draw whole frames now.
-  const bool inGui = vtkInrVolumeMapper::GetBackgroundMacrocellBuilds() && self->ProgressiveRefinement &&
-    !self->Capturing && this->window.fullWidth == 0 && this->ranks.Ranks().count <= 1;
+  const bool inGui = this->RendersAgainByItself(self) && this->window.fullWidth == 0;
   if (inGui && this->worker.SurfaceBuilding() && !this->worker.BuildDone())
   {
     return this->DrawWhileBuilding(self, ren, renderStart,
