@@ -128,6 +128,7 @@ struct SurfaceConstants {
   float step = 0.f;         // longest distance between march samples (model units)
   float tolerance = 0.f;    // a hit's bracket is at most this long (model units)
   int samplesPerIteration = 8;  // K: march samples / refinement points per ray per batch
+  int maxMarchSamples = kMaxSurfaceSamples;  // march samples per ray per batch at most (surfaceMarchSamples)
   int maxRefinements = 24;  // K-section rounds per hit at most (float resolution can stall one)
   float opaqueTransmittance = 1e-3f;  // stop once the remaining transmittance is at most this
   float time = 0.f;
@@ -247,12 +248,14 @@ INR_HD bool surfaceNextSegment(const SurfaceConstants& sc, SurfaceRay& r) {
   return true;
 }
 
-// March: up to K sample parameters into ts; breaks[k] = 1 when sample k does not follow the
-// previous sample without a gap (no crossing is looked for between them). Returns the count;
-// 0 means the ray has nothing left to sample.
-INR_HD int surfaceEmitMarch(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks) {
+// March: up to marchSamples sample parameters into ts; breaks[k] = 1 when sample k does not
+// follow the previous sample without a gap (no crossing is looked for between them). Returns the
+// count; 0 means the ray has nothing left to sample. The samples' positions do not depend on
+// marchSamples (a ray's march is the same however it is cut into batches), only the batches do.
+INR_HD int surfaceEmitMarch(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks,
+                            int marchSamples) {
   int n = 0;
-  while (n < sc.samplesPerIteration) {
+  while (n < marchSamples) {
     if (r.segN == 0 || r.segJ > r.segN) {
       if (!surfaceNextSegment(sc, r)) break;
     }
@@ -271,17 +274,30 @@ INR_HD int surfaceEmitRefine(const SurfaceConstants& sc, const SurfaceRay& r, fl
   return k;
 }
 
-// What a ray asks of the evaluator this iteration (march samples or refinement points); 0 when
-// it has finished (its phase is then kSurfaceDone).
-INR_HD int surfaceEmit(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks) {
+// What a ray asks of the evaluator this iteration: marchSamples march samples (in
+// [1, kMaxSurfaceSamples]; surfaceMarchSamples says how many) or K refinement points; 0 when it
+// has finished (its phase is then kSurfaceDone). ts and breaks hold max(marchSamples, K) entries.
+INR_HD int surfaceEmit(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks, int marchSamples) {
   if (r.phase == kSurfaceRefine) {
     for (int j = 0; j < sc.samplesPerIteration; ++j) breaks[j] = 0;
     return surfaceEmitRefine(sc, r, ts);
   }
   if (r.phase != kSurfaceMarch) return 0;
-  const int n = surfaceEmitMarch(sc, r, ts, breaks);
+  const int n = surfaceEmitMarch(sc, r, ts, breaks, marchSamples);
   if (n == 0) r.phase = kSurfaceDone;
   return n;
+}
+
+// March samples per ray for an iteration with `active` of `slots` rays still marching: K while
+// most rays march, growing as rays finish so that a batch keeps about slots x K points, up to
+// maxMarchSamples. Why: a frame's last iterations carry a few long rays (grazing a surface,
+// crossing many candidate cells); at K samples each they cost as many launches and host round
+// trips as the first, full iterations. The image does not depend on it (surfaceEmitMarch).
+INR_HD int surfaceMarchSamples(int K, int maxMarchSamples, long slots, long active) {
+  const int cap = maxMarchSamples > K ? maxMarchSamples : K;
+  if (active <= 0) return cap;
+  const long grown = slots * long(K) / active;
+  return grown >= cap ? cap : (grown > K ? int(grown) : K);
 }
 
 INR_HD bool surfaceSide(float v, float iso) { return v >= iso; }

@@ -82,6 +82,9 @@ void SurfaceOptions::validate() const {
     throw std::invalid_argument("surface toleranceFraction must be in (0, 1]");
   if (samplesPerIteration < 1 || samplesPerIteration > kMaxSurfaceSamples)
     throw std::invalid_argument("surface samplesPerIteration must be in [1, " + std::to_string(kMaxSurfaceSamples) + "]");
+  if (maxMarchSamples < samplesPerIteration || maxMarchSamples > kMaxSurfaceSamples)
+    throw std::invalid_argument("surface maxMarchSamples must be in [samplesPerIteration, " +
+                                std::to_string(kMaxSurfaceSamples) + "], got " + std::to_string(maxMarchSamples));
   if (maxRefinements < 1) throw std::invalid_argument("surface maxRefinements must be >= 1");
   if (!(opaqueTransmittance >= 0.f && opaqueTransmittance < 1.f))
     throw std::invalid_argument("surface opaqueTransmittance must be in [0, 1)");
@@ -359,6 +362,7 @@ SurfaceConstants SurfaceRenderer::surfaceConstants() const {
   sc.step = step_;
   sc.tolerance = tolerance_;
   sc.samplesPerIteration = options_.samplesPerIteration;
+  sc.maxMarchSamples = options_.maxMarchSamples;
   sc.maxRefinements = options_.maxRefinements;
   sc.opaqueTransmittance = options_.opaqueTransmittance;
   return sc;
@@ -398,27 +402,27 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
     }
 
     std::size_t total = 0;
+    int M = K;
     if (!active.empty()) {
-      // Emit: each active ray's samples into its K slots, then packed into one batch.
+      // Emit: each active ray's samples into its slots (M of them: the march samples per ray this
+      // iteration, K or more as the chunk's rays finish), then packed into one batch.
       t0 = Clock::now();
       const long m = long(active.size());
+      M = surfaceMarchSamples(K, sc.maxMarchSamples, isoChunkN_, m);
 #pragma omp parallel for schedule(dynamic, 256) if (m >= kParallelMinItems / 4)
+      for (long a = 0; a < m; ++a)
+        counts[a] = surfaceEmit(sc, rays[active[a]], &ts[std::size_t(a) * M], &breaks[std::size_t(a) * M], M);
       for (long a = 0; a < m; ++a) {
-        const int k = active[a];
-        counts[k] = surfaceEmit(sc, rays[k], &ts[std::size_t(k) * K], &breaks[std::size_t(k) * K]);
-      }
-      for (int k : active) {
-        first[k] = int(total);
-        total += std::size_t(counts[k]);
+        first[a] = int(total);
+        total += std::size_t(counts[a]);
       }
       points.resize(total);
 #pragma omp parallel for schedule(static) if (m >= kParallelMinItems / 4)
       for (long a = 0; a < m; ++a) {
-        const int k = active[a];
-        const SurfaceRay& r = rays[k];
-        for (int j = 0; j < counts[k]; ++j) {
-          const Vec3f p = surfacePoint(r, ts[std::size_t(k) * K + j]);
-          points[std::size_t(first[k] + j)] = QueryPoint{p.x, p.y, p.z, sc.time};
+        const SurfaceRay& r = rays[active[a]];
+        for (int j = 0; j < counts[a]; ++j) {
+          const Vec3f p = surfacePoint(r, ts[std::size_t(a) * M + j]);
+          points[std::size_t(first[a] + j)] = QueryPoint{p.x, p.y, p.z, sc.time};
         }
       }
       st.traverseMs += msSince(t0);
@@ -436,10 +440,9 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
       const long m = long(active.size());
 #pragma omp parallel for schedule(static) if (m >= kParallelMinItems / 4)
       for (long a = 0; a < m; ++a) {
-        const int k = active[a];
-        if (counts[k] > 0)
-          surfaceConsume(sc, rays[k], &ts[std::size_t(k) * K], &breaks[std::size_t(k) * K], &values[first[k]],
-                         counts[k]);
+        if (counts[a] > 0)
+          surfaceConsume(sc, rays[active[a]], &ts[std::size_t(a) * M], &breaks[std::size_t(a) * M], &values[first[a]],
+                         counts[a]);
       }
       shading.clear();
       for (int k : active)

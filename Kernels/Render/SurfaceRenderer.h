@@ -64,6 +64,10 @@ struct SurfaceOptions {
   // tolerance = toleranceFraction * step of a crossing, along the ray.
   float toleranceFraction = 1e-3f;
   int samplesPerIteration = 8;  // K: march samples / refinement points per ray per batch (<= 32)
+  // As a frame's rays finish, the march samples per remaining ray and batch grow from K up to this
+  // (in [K, 32]), so the batch keeps about its size and the frame's tail takes fewer iterations
+  // (launches and round trips on the GPU). The image is the same for any value; K turns it off.
+  int maxMarchSamples = kMaxSurfaceSamples;
   int maxRefinements = 24;      // K-section rounds per hit at most
   float opaqueTransmittance = 1e-3f;  // a ray stops once less than this share of light passes
   int chunkPixels = 16384;      // pixels whose rays share the evaluator batches

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <stdexcept>
 #include <vector>
@@ -637,6 +638,41 @@ TEST(IsosurfaceBlend, FrameInPartsIsTheWholeFrame) {
     EXPECT_GT(iterations, chunks * 3);  // several iterations per chunk: parts end inside chunks
     expectPartsMakeTheFrame(c.scene, c.blend, field, iterations, iterations + chunks, chunkPixels);
   }
+}
+
+// As a frame's rays finish, the remaining rays take more march samples per batch
+// (SurfaceOptions::maxMarchSamples): fewer iterations, the same image, depth and hits. Control:
+// with the growth off (maxMarchSamples = K) the frame takes more iterations.
+TEST(IsosurfaceBlend, MarchSamplesGrowAsRaysFinishWithoutChangingTheImage) {
+  IsoCase c;
+  c.blend.isovalues = {0.3, 0.5};
+  c.scene.shading.enabled = true;
+  c.scene.transferFunction = twoPointTf(0.0, {1, 0.5, 0.2}, 0.4, 1.0, {0.2, 0.5, 1}, 1.0);
+  FunctionField field(distanceField, "distance", distanceGradient);
+  for (const int chunkPixels : {700, 48 * 48}) {
+    SurfaceOptions fixed, growing;
+    fixed.chunkPixels = growing.chunkPixels = chunkPixels;
+    fixed.maxMarchSamples = fixed.samplesPerIteration;
+    growing.maxMarchSamples = kMaxSurfaceSamples;
+    SurfaceRenderer a(field, kCubeBox, 0.0, 1.0, fixed), b(field, kCubeBox, 0.0, 1.0, growing);
+    a.setSettings(c.settings);
+    b.setSettings(c.settings);
+    a.setScene(c.scene, c.blend);
+    b.setScene(c.scene, c.blend);
+    const FrameStats sa = a.renderFrame(), sb = b.renderFrame();
+    std::printf("march samples growing: chunk %d, iterations %d (fixed K: %d), queries %zu (%zu)\n", chunkPixels,
+                sb.iterations, sa.iterations, sb.queries, sa.queries);
+    // The refinements (K points each, whatever the growth) bound what the growth can save here.
+    EXPECT_LT(sb.iterations, sa.iterations) << "chunk " << chunkPixels;
+    EXPECT_EQ(sb.shadingQueries, sa.shadingQueries);
+    EXPECT_EQ(sb.rays, sa.rays);
+    EXPECT_EQ(b.premultipliedImage().data, a.premultipliedImage().data);
+    EXPECT_EQ(b.surfaceDepth(), a.surfaceDepth());
+    EXPECT_GT(sa.shadingQueries, 500u);  // the scene has surfaces to find
+  }
+  SurfaceOptions bad;
+  bad.maxMarchSamples = bad.samplesPerIteration - 1;
+  EXPECT_THROW(SurfaceRenderer(field, kCubeBox, 0.0, 1.0, bad), std::invalid_argument);
 }
 
 // The candidate macrocells built ahead (what a GUI does off its event loop): setScene at that

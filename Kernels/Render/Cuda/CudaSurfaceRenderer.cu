@@ -1,6 +1,7 @@
 #include "Render/Cuda/CudaSurfaceRenderer.h"
 
 #include <cub/device/device_scan.cuh>
+#include <cub/device/device_select.cuh>
 
 #include <algorithm>
 #include <cmath>
@@ -72,56 +73,65 @@ __global__ void sliceColourKernel(SliceConstants sc, int n, const float4* points
 
 // ---- Isosurface ----
 
-__global__ void surfaceInitKernel(SurfaceConstants sc, int n, SurfaceRay* rays, unsigned* entered) {
+// Pixel i's ray; index[i] = i (the input of the first active-ray selection).
+__global__ void surfaceInitKernel(SurfaceConstants sc, int n, SurfaceRay* rays, int* index) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   SurfaceRay r;
   surfaceInitRay(sc, i, r);
   rays[i] = r;
-  if (r.phase != kSurfaceDone) atomicAdd(entered, 1u);
+  index[i] = i;
 }
 
-// Each ray's samples into its K slots and its count; count has n + 1 entries (the last 0, so the
-// exclusive scan's last entry is the batch's size).
-__global__ void surfaceEmitKernel(SurfaceConstants sc, int n, SurfaceRay* rays, float* ts, std::uint8_t* breaks,
-                                  int* count) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i > n) return;
-  if (i == n) {
-    count[i] = 0;
+// Selects the rays that still march (DeviceSelect::If over a list of ray indices).
+struct SurfaceRayActive {
+  const SurfaceRay* rays;
+  __device__ bool operator()(int i) const { return rays[i].phase != kSurfaceDone; }
+};
+
+// Each active ray's samples into its M slots and its count. The launch covers `bound` entries, an
+// upper bound of the active count *activeCount known on the host (the last one it read); count has
+// bound + 1 entries, those from *activeCount on 0, so the exclusive scan's entry `bound` is the
+// batch's size.
+__global__ void surfaceEmitKernel(SurfaceConstants sc, int bound, const unsigned* activeCount, const int* active,
+                                  SurfaceRay* rays, int M, float* ts, std::uint8_t* breaks, int* count) {
+  const int a = blockIdx.x * blockDim.x + threadIdx.x;
+  if (a > bound) return;
+  if (a >= int(*activeCount)) {
+    count[a] = 0;
     return;
   }
-  const int K = sc.samplesPerIteration;
+  const int i = active[a];
   SurfaceRay r = rays[i];
-  count[i] = surfaceEmit(sc, r, ts + std::size_t(i) * K, breaks + std::size_t(i) * K);
+  count[a] = surfaceEmit(sc, r, ts + std::size_t(a) * M, breaks + std::size_t(a) * M, M);
   rays[i] = r;
 }
 
-__global__ void surfacePointsKernel(SurfaceConstants sc, int n, const SurfaceRay* rays, const float* ts, const int* count,
-                                    const int* offsets, float4* points) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
-  const int c = count[i];
+__global__ void surfacePointsKernel(SurfaceConstants sc, int m, const int* active, const SurfaceRay* rays, int M,
+                                    const float* ts, const int* count, const int* offsets, float4* points) {
+  const int a = blockIdx.x * blockDim.x + threadIdx.x;
+  if (a >= m) return;
+  const int c = count[a];
   if (c == 0) return;
-  const int K = sc.samplesPerIteration;
+  const int i = active[a];
   const Vec3f o = rays[i].o, d = rays[i].d;
   for (int j = 0; j < c; ++j) {
-    const Vec3f p = o + d * ts[std::size_t(i) * K + j];
-    points[offsets[i] + j] = make_float4(p.x, p.y, p.z, sc.time);
+    const Vec3f p = o + d * ts[std::size_t(a) * M + j];
+    points[offsets[a] + j] = make_float4(p.x, p.y, p.z, sc.time);
   }
 }
 
-// Consumes each ray's values; a hit that needs lighting is appended to the gradient batch.
-__global__ void surfaceConsumeKernel(SurfaceConstants sc, int n, SurfaceRay* rays, const float* ts,
-                                     const std::uint8_t* breaks, const int* count, const int* offsets,
+// Consumes each active ray's values; a hit that needs lighting is appended to the gradient batch.
+__global__ void surfaceConsumeKernel(SurfaceConstants sc, int m, const int* active, SurfaceRay* rays, int M,
+                                     const float* ts, const std::uint8_t* breaks, const int* count, const int* offsets,
                                      const float* values, float4* hitPoints, int* hitRay, unsigned* hitCount) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= n) return;
-  const int c = count[i];
+  const int a = blockIdx.x * blockDim.x + threadIdx.x;
+  if (a >= m) return;
+  const int c = count[a];
   if (c == 0) return;
-  const int K = sc.samplesPerIteration;
+  const int i = active[a];
   SurfaceRay r = rays[i];
-  surfaceConsume(sc, r, ts + std::size_t(i) * K, breaks + std::size_t(i) * K, values + offsets[i], c);
+  surfaceConsume(sc, r, ts + std::size_t(a) * M, breaks + std::size_t(a) * M, values + offsets[a], c);
   if (r.phase == kSurfaceHit) {
     const int k = int(atomicAdd(hitCount, 1u));
     const Vec3f p = surfacePoint(r, r.hitT);
@@ -168,9 +178,10 @@ struct CudaSurfaceRenderer::Impl {
   cuda::DeviceBuffer<float> ts;
   cuda::DeviceBuffer<std::uint8_t> breaks;
   cuda::DeviceBuffer<int> count, offsets, hitRay;
-  cuda::DeviceBuffer<unsigned char> scanTemp;
+  cuda::DeviceBuffer<int> active, selected;  // the rays still marching, and the next selection's
+  cuda::DeviceBuffer<unsigned char> scanTemp;  // the scan's and the selection's
   cuda::DeviceBuffer<float4> hitPoints;
-  cuda::DeviceBuffer<unsigned> counters;  // [0] batch / hits of the iteration, [1] rays entered
+  cuda::DeviceBuffer<unsigned> counters;  // [0] batch / hits of the iteration, [1] active rays
   cuda::PinnedHost<int> total{1};
   cuda::PinnedHost<unsigned> countersHost{2};
 };
@@ -301,28 +312,52 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     I.offsets.resize(std::size_t(n) + 1);
     I.hitRay.resize(std::size_t(n));
     I.hitPoints.resize(std::size_t(n));
-    std::size_t bytes = 0;
-    INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, I.count.get(), I.offsets.get(), n + 1, s));
-    I.scanTemp.resize(bytes);
+    I.active.resize(std::size_t(n));
+    I.selected.resize(std::size_t(n));
+    std::size_t scanBytes = 0, selectBytes = 0;
+    INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, scanBytes, I.count.get(), I.offsets.get(), n + 1, s));
+    INR_CUDA_CHECK(cub::DeviceSelect::If(nullptr, selectBytes, I.selected.get(), I.active.get(), I.counters.get() + 1, n,
+                                         SurfaceRayActive{I.rays.get()}, s));
+    I.scanTemp.resize(std::max(scanBytes, selectBytes));
   } else if (I.ts.size() < std::size_t(n) * K) {
     I.ts.resize(std::size_t(n) * K);
     I.breaks.resize(std::size_t(n) * K);
   }
   I.counters.zero(s);
+  // The rays that enter a candidate cell, selected into the active list (counters[1]).
+  auto select = [&](const int* from, int items, int* to) {
+    std::size_t bytes = I.scanTemp.size();
+    INR_CUDA_CHECK(cub::DeviceSelect::If(I.scanTemp.get(), bytes, from, to, I.counters.get() + 1, items,
+                                         SurfaceRayActive{I.rays.get()}, s));
+  };
   auto t0 = Clock::now();
-  surfaceInitKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.counters.get() + 1);
+  surfaceInitKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.selected.get());
   INR_CUDA_CHECK_LAUNCH("surfaceInitKernel");
+  select(I.selected.get(), n, I.active.get());
   st.initMs += msSince(t0);
+  // Each iteration: the active rays' samples (M per ray, growing as rays finish), one batch, the
+  // values consumed, the rays still marching selected. One host round trip per iteration (the
+  // batch's size and the active count); the emit launch covers the last active count the host
+  // read, an upper bound of the current one.
+  int bound = n;
+  bool firstIteration = true;
   for (;;) {
     t0 = Clock::now();
-    surfaceEmitKernel<<<blocksFor(n + 1), kThreads, 0, s>>>(sc, n, I.rays.get(), I.ts.get(), I.breaks.get(),
-                                                            I.count.get());
+    const int M = surfaceMarchSamples(K, sc.maxMarchSamples, n, bound);
+    surfaceEmitKernel<<<blocksFor(bound + 1), kThreads, 0, s>>>(sc, bound, I.counters.get() + 1, I.active.get(),
+                                                                I.rays.get(), M, I.ts.get(), I.breaks.get(),
+                                                                I.count.get());
     INR_CUDA_CHECK_LAUNCH("surfaceEmitKernel");
     std::size_t bytes = I.scanTemp.size();
-    INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.scanTemp.get(), bytes, I.count.get(), I.offsets.get(), n + 1, s));
-    INR_CUDA_CHECK(cudaMemcpyAsync(I.total.get(), I.offsets.get() + n, sizeof(int), cudaMemcpyDeviceToHost, s));
+    INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.scanTemp.get(), bytes, I.count.get(), I.offsets.get(), bound + 1, s));
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.total.get(), I.offsets.get() + bound, sizeof(int), cudaMemcpyDeviceToHost, s));
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.countersHost.get() + 1, I.counters.get() + 1, sizeof(unsigned),
+                                   cudaMemcpyDeviceToHost, s));
     INR_CUDA_CHECK(cudaStreamSynchronize(s));
     const int total = I.total[0];
+    const int m = int(I.countersHost[1]);
+    if (firstIteration) st.rays = std::size_t(m);  // the rays that entered a candidate cell
+    firstIteration = false;
     st.traverseMs += msSince(t0);
     if (total == 0) break;  // every ray has finished
     t0 = Clock::now();
@@ -330,8 +365,8 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
       I.points.resize(std::size_t(total));
       I.values.resize(std::size_t(total));
     }
-    surfacePointsKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.ts.get(), I.count.get(),
-                                                          I.offsets.get(), I.points.get());
+    surfacePointsKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.active.get(), I.rays.get(), M, I.ts.get(),
+                                                          I.count.get(), I.offsets.get(), I.points.get());
     INR_CUDA_CHECK_LAUNCH("surfacePointsKernel");
     evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
     st.queries += std::size_t(total);
@@ -339,9 +374,10 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     st.evaluateMs += msSince(t0);  // launch time: the stream runs on
     t0 = Clock::now();
     INR_CUDA_CHECK(cudaMemsetAsync(I.counters.get(), 0, sizeof(unsigned), s));
-    surfaceConsumeKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.ts.get(), I.breaks.get(),
-                                                           I.count.get(), I.offsets.get(), I.values.get(),
-                                                           I.hitPoints.get(), I.hitRay.get(), I.counters.get());
+    surfaceConsumeKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.active.get(), I.rays.get(), M, I.ts.get(),
+                                                           I.breaks.get(), I.count.get(), I.offsets.get(),
+                                                           I.values.get(), I.hitPoints.get(), I.hitRay.get(),
+                                                           I.counters.get());
     INR_CUDA_CHECK_LAUNCH("surfaceConsumeKernel");
     st.traverseMs += msSince(t0);
     if (sc.shade) {
@@ -356,14 +392,17 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
       st.shadingQueries += I.countersHost[0];
       st.shadingMs += msSince(t0);
     }
+    t0 = Clock::now();
+    select(I.active.get(), m, I.selected.get());  // the rays still marching, in their order
+    I.active.swap(I.selected);
+    bound = m;
+    st.traverseMs += msSince(t0);
   }
   t0 = Clock::now();
   surfaceFinalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(n, I.rays.get(), I.accum.get(), I.depth.get(),
                                                           host_.accumulatedFrames());
   INR_CUDA_CHECK_LAUNCH("surfaceFinalizeKernel");
-  INR_CUDA_CHECK(cudaMemcpyAsync(I.countersHost.get() + 1, I.counters.get() + 1, sizeof(unsigned), cudaMemcpyDeviceToHost, s));
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
-  st.rays = I.countersHost[1];
   st.finalizeMs += msSince(t0);
   st.closeTiming(0.0, msSince(tFrame));
   return st;
