@@ -2,8 +2,10 @@
 """Frame times of the isosurface and slice blend modes (issue 48) on the shipped `*_small` models.
 
 usage: blend_cpu_benchmark.py INR_EXECUTABLE DATA_DIR OUT_DIR [--size N] [--frames F] [--backend B]
+       [--models NAME ...]
 
-For each model in DATA_DIR/real/*_small.inr with its shipped transfer function, renders
+For each model in DATA_DIR/real/*_small.inr (or DATA_DIR/real/NAME.inr for each --models NAME: the
+paper-size models on a GPU) with its shipped transfer function, renders
   - the isosurface at one isovalue: the highest value below which the TF's opacity falls under
     half its maximum (the edge of what the composite picture shows) when it lies in the inner 80 %
     of the model's sampled value range (`inr info`: a TF shared with a larger model may reach past
@@ -66,11 +68,15 @@ def main():
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--backend", default="cpu")
+    ap.add_argument("--models", nargs="*", default=None,
+                    help="model names under DATA_DIR/real (default: every *_small model)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
     rows = []
-    for model in sorted(glob.glob(os.path.join(a.data, "real", "*_small.inr"))):
+    models = ([os.path.join(a.data, "real", m + ".inr") for m in a.models] if a.models
+              else sorted(glob.glob(os.path.join(a.data, "real", "*_small.inr"))))
+    for model in models:
         name = os.path.basename(model)[:-4]
         tf = model[:-4] + ".tf.json"
         info = json.loads(subprocess.run([a.inr, "info", model, "--json"], capture_output=True, text=True,

@@ -50,8 +50,9 @@ struct SessionFixture {
     o.backend = RenderBackend::Cpu;
     o.macrocells.dims = Int3{cells, cells, cells};
     o.macrocells.temporalSlices = slices;
-    // Batches of 16 tiles, so a slice reports in several steps (as a large grid does by default).
-    o.macrocells.maxBatch = 16 * MacrocellLayout::kTilePoints;
+    // Batches of 10 lattice planes of a 16^3 grid (4 cell layers; one layer of a 32^3 grid), so a
+    // slice reports in several steps (as a large grid does by default).
+    o.macrocells.maxBatch = 10 * 33 * 33;
     return o;
   }
   std::unique_ptr<RenderSession> open(const RenderSessionOptions& o) {
@@ -75,7 +76,7 @@ struct SessionFixture {
 TEST(RenderSessionProgress, FirstSceneAndUnbuiltTimesReportOneBuildEach) {
   SessionFixture f;
   ASSERT_TRUE(f.model.domain.usesTime());
-  auto session = f.open(f.options(32, 5));  // 32^3 cells = 512 tiles: 32 batches per slice
+  auto session = f.open(f.options(32, 5));  // 32^3 cells: 32 batches (one layer each) per slice
   ProgressLog log;
   session->setProgressHandler(log.handler());
   session->setScene(f.scene);  // the first time: slice 0
@@ -111,7 +112,7 @@ TEST(RenderSessionProgress, EagerBuildReportsFromTheStart) {
   ProgressLog log;
   o.progress = log.handler();
   auto session = f.open(o);  // every slice built while the session is created
-  log.expectOneBuild(4 * 4 + 1, "eager build");  // 64 tiles: 4 batches per slice, 4 slices
+  log.expectOneBuild(4 * 4 + 1, "eager build");  // 16^3 cells: 4 batches per slice, 4 slices
   EXPECT_EQ(session->macrocellInfo().slicesBuilt, 4);
   EXPECT_EQ(log.phases.front(), "building macrocells: 4 of 4 time slices, 16x16x16 cells");
   log.clear();

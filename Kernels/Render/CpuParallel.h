@@ -7,7 +7,7 @@ namespace inr {
 // for) worker threads costs far more than the work (on a busy machine, small test scenes ran many
 // times slower with every loop parallel).
 constexpr int kParallelMinItems = 8192;
-// Lattice tiles (729 queries each) per parallel region worth splitting.
-constexpr int kParallelMinTiles = 16;
+// Skip blocks (each a maximum over up to 64 cells) per parallel region worth splitting.
+constexpr int kParallelMinBlocks = 16;
 
 }  // namespace inr

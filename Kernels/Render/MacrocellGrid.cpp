@@ -10,7 +10,7 @@ namespace inr {
 void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, float* blocks) {
   const Int3 bd = blockGridDims(dims, shift);
   const int n = bd.x * bd.y * bd.z;
-#pragma omp parallel for schedule(static) if (n >= kParallelMinTiles)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinBlocks)
   for (int b = 0; b < n; ++b) {
     const Int3 bc{b % bd.x, (b / bd.x) % bd.y, b / (bd.x * bd.y)};
     blocks[b] = blockMaxMajorant(majorants, dims, shift, bc);
@@ -40,13 +40,12 @@ void MacrocellGrid::setSlice(int k, std::vector<float> mn, std::vector<float> mx
   s.built = true;
 }
 
-// Lattice sampling of one temporal slice (MacrocellLayout's tiles, points and stencil). Tiles
-// are independent (the GPU build runs them as kernels over device arrays); here they are batched
-// into large evaluator calls.
+// Lattice sampling of one temporal slice (MacrocellLayout's lattice, slabs and stencil), slab by
+// slab; the GPU build runs the same arithmetic as kernels over device arrays.
 void MacrocellGrid::buildSlice(int k) {
-  constexpr int P = MacrocellLayout::kTilePoints;
-  const long long tiles = layout_.tileCount;
-  const long long tilesPerBatch = std::max<long long>(1, (long long)(options_.maxBatch / P));
+  const MacrocellLayout& l = layout_;
+  const long long plane = l.latticePlanePoints;
+  const int layers = latticeSlabLayers(l, (long long)options_.maxBatch);
   const float t = float(sliceTime(k));
   const int cells = layout_.cellCount;
 
@@ -55,30 +54,31 @@ void MacrocellGrid::buildSlice(int k) {
   s.max.assign(cells, 0.f);
   s.mean.assign(cells, 0.f);
   const CellBoundsArrays out{s.min.data(), s.max.data(), s.mean.data()};
-  std::vector<QueryPoint> points(std::size_t(std::min(tiles, tilesPerBatch)) * P);
+  std::vector<QueryPoint> points(std::size_t((2 * layers + 1) * plane));
   std::vector<float> values(points.size());
 
-  for (long long first = 0; first < tiles; first += tilesPerBatch) {
-    const long long count = std::min(tilesPerBatch, tiles - first);
-#pragma omp parallel for schedule(static) if (count >= kParallelMinTiles)
-    for (long long b = 0; b < count; ++b) {
-      QueryPoint* tilePoints = &points[std::size_t(b) * P];
-      for (int q = 0; q < P; ++q) {
-        const Vec3f x = latticePoint(layout_, first + b, q);
-        tilePoints[q] = QueryPoint{x.x, x.y, x.z, t};
-      }
+  for (int z0 = 0; z0 < l.dims.z; z0 += layers) {
+    const int z1 = std::min(l.dims.z, z0 + layers);
+    // Planes 2 z0 .. 2 z1; after the first slab, plane 2 z0 is the last slab's last: moved to the front.
+    const int plane0 = 2 * z0;
+    const int fresh0 = z0 == 0 ? 0 : 1;
+    if (fresh0) std::copy_n(values.begin() + std::ptrdiff_t(2 * layers * plane), plane, values.begin());
+    const long long first = fresh0 * plane, count = (2 * (z1 - z0) + 1 - fresh0) * plane;
+#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
+    for (long long q = 0; q < count; ++q) {
+      const Vec3f x = slabLatticePoint(l, plane0, first + q);
+      points[std::size_t(q)] = QueryPoint{x.x, x.y, x.z, t};
     }
-    evaluator_.evaluate(points.data(), std::size_t(count) * P, values.data());
-    stats_.evaluations += std::size_t(count) * P;
-#pragma omp parallel for schedule(static) if (count >= kParallelMinTiles)
-    for (long long b = 0; b < count; ++b) {
-      const float* tileValues = &values[std::size_t(b) * P];
-      for (int local = 0; local < MacrocellLayout::kTileCellCount; ++local) {
-        int idx;
-        if (tileCellIndex(layout_, first + b, local, idx)) out.store(idx, reduceCellStencil(tileValues, local));
-      }
+    evaluator_.evaluate(points.data(), std::size_t(count), values.data() + first);
+    stats_.evaluations += std::size_t(count);
+    const int layerCells = l.dims.x * l.dims.y;
+    const long long slabCells = (long long)(z1 - z0) * layerCells;
+#pragma omp parallel for schedule(static) if (slabCells >= kParallelMinItems / 8)
+    for (long long c = 0; c < slabCells; ++c) {
+      const Int3 cell{int(c % l.dims.x), int((c / l.dims.x) % l.dims.y), z0 + int(c / layerCells)};
+      out.store(linearCellIndex(l.dims, cell), reduceCellStencil(l, values.data(), plane0, cell));
     }
-    reportSliceProgress(double(first + count) / double(tiles));  // per batch of maxBatch points
+    reportSliceProgress(double(z1) / double(l.dims.z));  // per slab of at most maxBatch points
   }
   s.built = true;
 }

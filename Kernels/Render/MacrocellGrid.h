@@ -34,9 +34,6 @@ void computeBlockMajorants(const Int3& dims, int shift, const float* majorants, 
 
 class MacrocellGrid final : public MacrocellGridBase {
 public:
-  static constexpr int kTileCells = MacrocellLayout::kTileCells;      // cells per tile edge
-  static constexpr int kTileLattice = MacrocellLayout::kTileLattice;  // 9 lattice points per tile edge
-
   struct Slice {
     std::vector<float> min, max, mean;
     bool built = false;

@@ -28,7 +28,7 @@ TEST(MacrocellGrid, LatticeBoundsExactForLinearField) {
   // A linear field's extrema over a cell are at its corners, which are lattice points: the
   // lattice bounds are exact, and the 27-point mean is the cell-centre value.
   test::FunctionField f([](const QueryPoint& p) { return 2.f * p.x - p.y + 0.5f * p.z + p.t; });
-  MacrocellGrid grid(f, kBox, 0.0, 1.0, options(6, 2));  // 6 = one full and one partial tile
+  MacrocellGrid grid(f, kBox, 0.0, 1.0, options(6, 2));
   grid.setTime(0.0);
   const Vec3f cs = grid.cellSize();
   for (int z = 0; z < 6; ++z)
@@ -42,6 +42,55 @@ TEST(MacrocellGrid, LatticeBoundsExactForLinearField) {
         ASSERT_NEAR(grid.workingMax()[c], hi, 1e-5);
         ASSERT_NEAR(grid.workingMean()[c], 0.5f * (lo + hi), 1e-5);
       }
+}
+
+// A slice built slab by slab (each lattice point evaluated once, a slab's first plane taken from
+// the last slab) holds each cell's min / max / mean over its own 27 stencil points, evaluated
+// directly here (up to the field's own float rounding, which the compiler may contract differently
+// in this loop); and the same bounds bit for bit whatever the slab size (one layer, several, a
+// partial last slab, the whole grid in one). The lattice is shared: (2 n + 1)^3 points per slice,
+// not 27 per cell.
+TEST(MacrocellGrid, SlabBuildEqualsEachCellsOwnStencil) {
+  test::FunctionField f(test::smoothField);
+  const Int3 dims{5, 3, 7};
+  std::vector<float> wholeMin, wholeMax, wholeMean;
+  for (const std::size_t planes : {std::size_t(1000), std::size_t(1), std::size_t(5), std::size_t(9)}) {
+    MacrocellOptions o = options(1, 1);
+    o.dims = dims;
+    o.maxBatch = planes * 11 * 7;  // lattice planes of 11 x 7 points
+    f.resetCounts();
+    MacrocellGrid grid(f, kBox, 0.0, 1.0, o);
+    grid.setTime(0.5);
+    EXPECT_EQ(f.points(), std::size_t(11 * 7 * 15)) << planes << " planes a batch";
+    const MacrocellGrid::Slice& s = grid.slice(0);
+    if (wholeMin.empty()) {  // the first: the whole grid in one batch
+      wholeMin = s.min, wholeMax = s.max, wholeMean = s.mean;
+    } else {
+      EXPECT_EQ(s.min, wholeMin) << planes << " planes a batch";
+      EXPECT_EQ(s.max, wholeMax) << planes << " planes a batch";
+      EXPECT_EQ(s.mean, wholeMean) << planes << " planes a batch";
+    }
+    const MacrocellLayout layout = MacrocellLayout::make(kBox, 0.0, 1.0, o);
+    for (int z = 0; z < dims.z; ++z)
+      for (int y = 0; y < dims.y; ++y)
+        for (int x = 0; x < dims.x; ++x) {
+          float mn = INFINITY, mx = -INFINITY;
+          double sum = 0.0;
+          for (int c = 2 * z; c <= 2 * z + 2; ++c)
+            for (int b = 2 * y; b <= 2 * y + 2; ++b)
+              for (int a = 2 * x; a <= 2 * x + 2; ++a) {
+                const Vec3f p = latticePoint(layout, a, b, c);
+                const float v = test::smoothField(QueryPoint{p.x, p.y, p.z, 0.5f});
+                mn = std::min(mn, v);
+                mx = std::max(mx, v);
+                sum += v;
+              }
+          const int cell = linearCellIndex(dims, Int3{x, y, z});
+          ASSERT_NEAR(s.min[cell], mn, 1e-6) << x << " " << y << " " << z << ", " << planes << " planes a batch";
+          ASSERT_NEAR(s.max[cell], mx, 1e-6);
+          ASSERT_NEAR(s.mean[cell], sum / 27.0, 1e-6);
+        }
+  }
 }
 
 TEST(MacrocellGrid, WorkingGridInterpolationExactAndLazy) {
@@ -78,7 +127,7 @@ TEST(MacrocellGrid, WorkingGridInterpolationExactAndLazy) {
   EXPECT_EQ(f.points(), 0u);
   grid.setTime(25.0);  // clamped to the last slice: built on demand
   EXPECT_TRUE(grid.slice(2).built);
-  EXPECT_EQ(f.points(), std::size_t(729));  // one tile of 9^3 lattice points
+  EXPECT_EQ(f.points(), std::size_t(125));  // 2^3 cells: a lattice of 5^3 points
 }
 
 TEST(MacrocellGrid, LazyBuildsOnlyNeededSlicesAndReportsProgress) {
@@ -92,7 +141,7 @@ TEST(MacrocellGrid, LazyBuildsOnlyNeededSlicesAndReportsProgress) {
   });
   lazy.setTime(0.5);  // between slices 3 and 4
   EXPECT_EQ(lazy.buildStats().slicesBuilt, 2);
-  EXPECT_EQ(f.points(), 2u * 8u * 729u);  // 2 slices x 8 tiles x 9^3
+  EXPECT_EQ(f.points(), 2u * 17u * 17u * 17u);  // 2 slices x a lattice of 17^3 points (8^3 cells)
   // One build over both slices: 0 first, then one report per lattice batch (one batch per slice
   // here), strictly increasing, ending at 1.
   EXPECT_EQ(fractions, (std::vector<double>{0.0, 0.5, 1.0}));
@@ -105,14 +154,15 @@ TEST(MacrocellGrid, LazyBuildsOnlyNeededSlicesAndReportsProgress) {
   eager.lazySlices = false;
   MacrocellGrid all(f, kBox, 0.0, 1.0, eager);
   EXPECT_EQ(all.buildStats().slicesBuilt, 8);
-  EXPECT_EQ(f.points(), 8u * 8u * 729u);
+  EXPECT_EQ(f.points(), 8u * 17u * 17u * 17u);
 }
 
 TEST(MacrocellGrid, ProgressPerLatticeBatch) {
-  // 16^3 cells = 64 tiles; batches of 8 tiles: 8 reports per slice, evenly spaced.
+  // 16^3 cells: lattice planes of 33^2 points; batches of 5 planes hold slabs of 2 cell layers:
+  // 8 reports per slice, evenly spaced.
   test::FunctionField f(test::smoothField);
   MacrocellOptions o = options(16, 4);
-  o.maxBatch = 8 * MacrocellLayout::kTilePoints;
+  o.maxBatch = 5 * 33 * 33;
   MacrocellGrid grid(f, kBox, 0.0, 1.0, o);
   std::vector<double> fractions;
   grid.setProgressHandler([&](double fr, const std::string&) { fractions.push_back(fr); });
@@ -285,16 +335,16 @@ TEST(MacrocellGrid, EverySampleTheRendererEvaluatedLiesInsideItsCell) {
 }
 
 // The layout and the per-point / per-cell helpers both grids run (Render/MacrocellLayout.h).
-TEST(MacrocellLayout, ValidatesAndSharesTheTileArithmetic) {
+TEST(MacrocellLayout, ValidatesAndSharesTheLatticeArithmetic) {
   MacrocellOptions o = options(4, 3);
-  o.dims = Int3{5, 9, 4};  // partial tiles along x and y
+  o.dims = Int3{5, 9, 4};
   o.skipBlockCells = 4;
   const MacrocellLayout l = MacrocellLayout::make(kBox, 0.0, 2.0, o);
   EXPECT_EQ(l.cellCount, 5 * 9 * 4);
-  EXPECT_EQ(l.tileDims.x, 2);
-  EXPECT_EQ(l.tileDims.y, 3);
-  EXPECT_EQ(l.tileDims.z, 1);
-  EXPECT_EQ(l.tileCount, 6);
+  EXPECT_EQ(l.latticeDims.x, 11);
+  EXPECT_EQ(l.latticeDims.y, 19);
+  EXPECT_EQ(l.latticeDims.z, 9);
+  EXPECT_EQ(l.latticePlanePoints, 11 * 19);
   EXPECT_EQ(l.blockCount(), 2 * 3 * 1);
   EXPECT_EQ(l.sliceTime(1), 1.0);
   EXPECT_EQ(l.majorantView(nullptr, nullptr).blockMajorant, nullptr);
@@ -311,37 +361,47 @@ TEST(MacrocellLayout, ValidatesAndSharesTheTileArithmetic) {
   EXPECT_THROW(MacrocellLayout::make(Box3f{{0, 0, 0}, {1, 0, 1}}, 0.0, 1.0, o), std::invalid_argument);
   EXPECT_THROW(l.checkSliceArrays(l.cellCount, l.cellCount, 1), std::invalid_argument);
 
-  // Last tile (1, 2, 0): half-cell lattice steps from its corner, clamped to the box beyond it.
-  const long long last = l.tileCount - 1;
-  const Vec3f first = latticePoint(l, last, 0);
-  EXPECT_EQ(first.x, kBox.lo.x + 4 * l.cellSize.x);
-  EXPECT_EQ(first.y, kBox.lo.y + 8 * l.cellSize.y);
-  const Vec3f far = latticePoint(l, last, MacrocellLayout::kTilePoints - 1);
+  // Half-cell lattice steps from the box's corner, the last point on the box's far corner; a
+  // slab's point q counts from its first plane, x fastest.
+  const Vec3f first = latticePoint(l, 0, 0, 0);
+  EXPECT_EQ(first.x, kBox.lo.x);
+  EXPECT_EQ(first.z, kBox.lo.z);
+  const Vec3f mid = latticePoint(l, 3, 8, 2);
+  EXPECT_EQ(mid.x, kBox.lo.x + 1.5f * l.cellSize.x);
+  EXPECT_EQ(mid.y, kBox.lo.y + 4.f * l.cellSize.y);
+  EXPECT_EQ(mid.z, kBox.lo.z + 1.f * l.cellSize.z);
+  const Vec3f far = latticePoint(l, 10, 18, 8);
   EXPECT_EQ(far.x, kBox.hi.x);
   EXPECT_EQ(far.y, kBox.hi.y);
-  EXPECT_EQ(far.z, kBox.hi.z);  // 4 cells: the tile ends at the box
-  int idx = -1, inside = 0;
-  for (int local = 0; local < MacrocellLayout::kTileCellCount; ++local) inside += tileCellIndex(l, last, local, idx);
-  EXPECT_EQ(inside, 1 * 1 * 4);  // one cell left along x and y
-  ASSERT_TRUE(tileCellIndex(l, last, 0, idx));
-  EXPECT_EQ(idx, linearCellIndex(l.dims, Int3{4, 8, 0}));
+  EXPECT_EQ(far.z, kBox.hi.z);
+  const Vec3f q = slabLatticePoint(l, 2, 3 + 8 * 11);
+  EXPECT_EQ(q.x, mid.x);
+  EXPECT_EQ(q.y, mid.y);
+  EXPECT_EQ(q.z, mid.z);
+  // Slabs: whole cell layers whose 2 layers + 1 planes fit the batch, at least one, at most all.
+  EXPECT_EQ(latticeSlabLayers(l, 5 * l.latticePlanePoints), 2);
+  EXPECT_EQ(latticeSlabLayers(l, 6 * l.latticePlanePoints - 1), 2);
+  EXPECT_EQ(latticeSlabLayers(l, 1), 1);
+  EXPECT_EQ(latticeSlabLayers(l, 1000 * l.latticePlanePoints), 4);
 
-  // Stencil of cell 0: lattice points (0..2)^3; non-finite values are skipped.
-  std::vector<float> v(MacrocellLayout::kTilePoints, 100.f);
-  const int L = MacrocellLayout::kTileLattice;
-  for (int c = 0; c < 3; ++c)
-    for (int bb = 0; bb < 3; ++bb)
-      for (int a = 0; a < 3; ++a) v[(c * L + bb) * L + a] = float(a + bb + c);
-  v[0] = NAN;
-  v[1] = INFINITY;
-  CellBounds r = reduceCellStencil(v.data(), 0);
+  // Stencil of cell (1, 2, 1) in a slab starting at plane 2: lattice points (2..4, 4..6, 2..4);
+  // non-finite values are skipped.
+  const long long X = l.latticeDims.x, P = l.latticePlanePoints;
+  std::vector<float> v(std::size_t(3 * P), 100.f);
+  auto at = [&](int a, int bb, int c) -> float& { return v[std::size_t((c - 2) * P + bb * X + a)]; };
+  for (int c = 2; c < 5; ++c)
+    for (int bb = 4; bb < 7; ++bb)
+      for (int a = 2; a < 5; ++a) at(a, bb, c) = float((a - 2) + (bb - 4) + (c - 2));
+  at(2, 4, 2) = NAN;
+  at(3, 4, 2) = INFINITY;
+  CellBounds r = reduceCellStencil(l, v.data(), 2, Int3{1, 2, 1});
   EXPECT_EQ(r.min, 1.f);
   EXPECT_EQ(r.max, 6.f);
   EXPECT_FLOAT_EQ(r.mean, (81.f - 0.f - 1.f) / 25.f);
-  for (int c = 0; c < 3; ++c)
-    for (int bb = 0; bb < 3; ++bb)
-      for (int a = 0; a < 3; ++a) v[(c * L + bb) * L + a] = NAN;
-  r = reduceCellStencil(v.data(), 0);
+  for (int c = 2; c < 5; ++c)
+    for (int bb = 4; bb < 7; ++bb)
+      for (int a = 2; a < 5; ++a) at(a, bb, c) = NAN;
+  r = reduceCellStencil(l, v.data(), 2, Int3{1, 2, 1});
   EXPECT_FALSE(validBounds(r));
 
   // Working cells: interpolation, padding, one empty side, both empty.

@@ -37,9 +37,8 @@ MacrocellLayout MacrocellLayout::make(const Box3f& box, double timeBegin, double
   l.cellCount = d.x * d.y * d.z;
   l.blockShift = skipBlockShift(options.skipBlockCells);
   if (l.blockShift >= 0) l.blockDims = blockGridDims(d, l.blockShift);
-  constexpr int C = kTileCells;
-  l.tileDims = Int3{(d.x + C - 1) / C, (d.y + C - 1) / C, (d.z + C - 1) / C};
-  l.tileCount = (long long)l.tileDims.x * l.tileDims.y * l.tileDims.z;
+  l.latticeDims = Int3{2 * d.x + 1, 2 * d.y + 1, 2 * d.z + 1};
+  l.latticePlanePoints = (long long)l.latticeDims.x * l.latticeDims.y;
   l.boundsPadding = options.boundsPadding;
   return l;
 }

@@ -29,7 +29,11 @@ struct MacrocellOptions {
   // extrema; padding trades looser majorants (more null collisions, more queries) for fewer
   // under-estimated cells before refinement catches them. 0 = off (the paper's default).
   double boundsPadding = 0.0;
-  std::size_t maxBatch = std::size_t(1) << 18;  // lattice points per evaluator call
+  // Lattice points per evaluator call, on the CPU and on the GPU (whole cell layers: at least one
+  // layer's three planes). The GPU's is larger: it fills the device and still fits any grid (64 MiB
+  // of points).
+  std::size_t maxBatch = std::size_t(1) << 18;
+  std::size_t gpuMaxBatch = std::size_t(1) << 22;
   // Empty-space skipping: cells per edge of the blocks of the coarse level computed with every
   // majorant grid (the maximum majorant of each block of B^3 cells). A ray reaching an empty
   // block steps a DDA over the blocks to the next non-empty one instead of walking every cell;
@@ -44,15 +48,12 @@ struct MacrocellOptions {
 int skipBlockShift(int skipBlockCells);
 
 // The grid's geometry, validated once (MacrocellLayout::make) and copied by value into kernels.
-// Slices are built tile by tile: tiles of kTileCells^3 cells, each sampling a kTileLattice^3
-// lattice at its cell boundaries and half-cell offsets; each cell reduces the 3^3 lattice points
-// covering it (its corners, edge and face midpoints and centre).
+// A slice samples one lattice at the cells' boundaries and half-cell offsets, (2 dims + 1) points
+// per axis, shared by neighbouring cells; each cell reduces the 3^3 lattice points covering it (its
+// corners, edge and face midpoints and centre). Slices are built in slabs of whole cell layers
+// along z (latticeSlabLayers), each slab's first lattice plane the previous slab's last, so every
+// lattice point is evaluated once.
 struct MacrocellLayout {
-  static constexpr int kTileCells = 4;                                       // cells per tile edge
-  static constexpr int kTileLattice = 2 * kTileCells + 1;                    // lattice points per tile edge
-  static constexpr int kTilePoints = kTileLattice * kTileLattice * kTileLattice;  // per tile
-  static constexpr int kTileCellCount = kTileCells * kTileCells * kTileCells;    // per tile
-
   Box3f box;
   Int3 dims{0, 0, 0};
   Vec3f cellSize{0.f, 0.f, 0.f};  // (box.hi - box.lo) / dims
@@ -61,8 +62,8 @@ struct MacrocellLayout {
   int cellCount = 0;
   int blockShift = -1;            // coarse level: log2 of the block edge in cells, -1 = off
   Int3 blockDims{0, 0, 0};        // blocks per axis (0 when off)
-  Int3 tileDims{0, 0, 0};         // tiles per axis (the last ones may be partial)
-  long long tileCount = 0;
+  Int3 latticeDims{0, 0, 0};      // lattice points per axis: 2 dims + 1
+  long long latticePlanePoints = 0;  // lattice points per plane of constant z
   double boundsPadding = 0.0;
 
   // Validates (std::invalid_argument: non-positive dims, slices or box extent, negative padding,
@@ -130,49 +131,43 @@ struct CellBoundsArrays {
   }
 };
 
-// Tile coordinates of linear tile index `tile` (x fastest).
-INR_HD Int3 tileCoords(const MacrocellLayout& l, long long tile) {
-  return Int3{int(tile % l.tileDims.x), int((tile / l.tileDims.x) % l.tileDims.y),
-              int(tile / ((long long)l.tileDims.x * l.tileDims.y))};
-}
-
-// Lattice point q (x fastest over kTileLattice^3) of tile `tile`: half-cell steps from the
-// tile's first corner. Points past a partial tile's last cell are clamped to the box (evaluated,
-// never used).
-INR_HD Vec3f latticePoint(const MacrocellLayout& l, long long tile, int q) {
-  constexpr int C = MacrocellLayout::kTileCells, L = MacrocellLayout::kTileLattice;
-  const Int3 it = tileCoords(l, tile);
-  const int a = q % L, b = (q / L) % L, c = q / (L * L);
-  const float x = addRn(l.box.lo.x, mulRn(addRn(float(it.x * C), 0.5f * a), l.cellSize.x));
-  const float y = addRn(l.box.lo.y, mulRn(addRn(float(it.y * C), 0.5f * b), l.cellSize.y));
-  const float z = addRn(l.box.lo.z, mulRn(addRn(float(it.z * C), 0.5f * c), l.cellSize.z));
+// Lattice point (gx, gy, gz), each in [0, 2 dims]: half-cell steps from the box's low corner,
+// clamped to the box (the last point's rounding may pass it).
+INR_HD Vec3f latticePoint(const MacrocellLayout& l, int gx, int gy, int gz) {
+  const float x = addRn(l.box.lo.x, mulRn(0.5f * float(gx), l.cellSize.x));
+  const float y = addRn(l.box.lo.y, mulRn(0.5f * float(gy), l.cellSize.y));
+  const float z = addRn(l.box.lo.z, mulRn(0.5f * float(gz), l.cellSize.z));
   return Vec3f{minf(l.box.hi.x, x), minf(l.box.hi.y, y), minf(l.box.hi.z, z)};
 }
 
-// Linear index of cell `local` (x fastest over kTileCells^3) of tile `tile`; false when the
-// cell lies past the grid (partial tiles).
-INR_HD bool tileCellIndex(const MacrocellLayout& l, long long tile, int local, int& index) {
-  constexpr int C = MacrocellLayout::kTileCells;
-  const Int3 it = tileCoords(l, tile);
-  const Int3 cell{it.x * C + local % C, it.y * C + (local / C) % C, it.z * C + local / (C * C)};
-  if (cell.x >= l.dims.x || cell.y >= l.dims.y || cell.z >= l.dims.z) return false;
-  index = linearCellIndex(l.dims, cell);
-  return true;
+// Point q (x fastest) of the lattice planes from plane0 on.
+INR_HD Vec3f slabLatticePoint(const MacrocellLayout& l, int plane0, long long q) {
+  const long long inPlane = q % l.latticePlanePoints;
+  return latticePoint(l, int(inPlane % l.latticeDims.x), int(inPlane / l.latticeDims.x),
+                      plane0 + int(q / l.latticePlanePoints));
 }
 
-// Bounds of cell `local` of a tile from the tile's kTileLattice^3 lattice values: min, max and
-// mean over its 3^3 stencil, skipping non-finite values (a NaN output says nothing about
-// bounds); no finite value gives an empty range (majorant 0 until refinement sees a value).
-INR_HD CellBounds reduceCellStencil(const float* tileValues, int local) {
-  constexpr int C = MacrocellLayout::kTileCells, L = MacrocellLayout::kTileLattice;
-  const int cx = local % C, cy = (local / C) % C, cz = local / (C * C);
+// Cell layers per slab so a slab's lattice planes (2 layers + 1) hold at most maxPoints points
+// (at least one layer), and at most the grid's.
+INR_HD int latticeSlabLayers(const MacrocellLayout& l, long long maxPoints) {
+  const long long planes = maxPoints / l.latticePlanePoints;
+  const long long layers = (planes - 1) / 2;
+  return layers < 1 ? 1 : (layers > l.dims.z ? l.dims.z : int(layers));
+}
+
+// Bounds of cell `cell` from the values of the lattice planes from plane0 on (x fastest; the
+// cell's planes 2 cell.z .. 2 cell.z + 2 among them): min, max and mean over its 3^3 stencil,
+// skipping non-finite values (a NaN output says nothing about bounds); no finite value gives an
+// empty range (majorant 0 until refinement sees a value).
+INR_HD CellBounds reduceCellStencil(const MacrocellLayout& l, const float* slabValues, int plane0, Int3 cell) {
+  const long long X = l.latticeDims.x, plane = l.latticePlanePoints;
   float mn = INFINITY, mx = -INFINITY;
   double sum = 0.0;
   int n = 0;
-  for (int c = 2 * cz; c <= 2 * cz + 2; ++c)
-    for (int b = 2 * cy; b <= 2 * cy + 2; ++b)
-      for (int a = 2 * cx; a <= 2 * cx + 2; ++a) {
-        const float s = tileValues[(c * L + b) * L + a];
+  for (int c = 2 * cell.z; c <= 2 * cell.z + 2; ++c)
+    for (int b = 2 * cell.y; b <= 2 * cell.y + 2; ++b)
+      for (int a = 2 * cell.x; a <= 2 * cell.x + 2; ++a) {
+        const float s = slabValues[(c - plane0) * plane + b * X + a];
         if (!isFiniteValue(s)) continue;
         mn = minf(s, mn);
         mx = maxf(s, mx);

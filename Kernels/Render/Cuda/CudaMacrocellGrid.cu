@@ -14,32 +14,24 @@ namespace inr {
 
 namespace {
 
-constexpr int P = MacrocellLayout::kTilePoints;
-// Lattice points per evaluator call on the GPU (64 MiB of float4): large enough to fill the
-// device, small enough for any grid.
-constexpr long long kGpuLatticeBatch = 1ll << 22;
-
-// Lattice points of tiles [firstTile, firstTile + tileCount), in MacrocellGrid::buildSlice's
-// order and arithmetic (MacrocellLayout's latticePoint).
-__global__ void latticePointsKernel(MacrocellLayout layout, long long firstTile, long long tileCount, float time,
+// Lattice points [first, first + count) of the planes from plane0 on, in MacrocellGrid::
+// buildSlice's order and arithmetic (MacrocellLayout's slabLatticePoint).
+__global__ void latticePointsKernel(MacrocellLayout layout, int plane0, long long first, long long count, float time,
                                     float4* points) {
-  const long long idx = (long long)blockIdx.x * blockDim.x + threadIdx.x;
-  if (idx >= tileCount * P) return;
-  const long long b = idx / P;
-  const Vec3f x = latticePoint(layout, firstTile + b, int(idx - b * P));
-  points[idx] = make_float4(x.x, x.y, x.z, time);
+  const long long q = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= count) return;
+  const Vec3f x = slabLatticePoint(layout, plane0, first + q);
+  points[q] = make_float4(x.x, x.y, x.z, time);
 }
 
-// One thread per cell of the batch's tiles: MacrocellLayout's stencil reduction.
-__global__ void latticeReduceKernel(MacrocellLayout layout, long long firstTile, long long tileCount,
-                                    const float* values, CellBoundsArrays out) {
-  constexpr int CC = MacrocellLayout::kTileCellCount;
-  const long long idx = (long long)blockIdx.x * blockDim.x + threadIdx.x;
-  if (idx >= tileCount * CC) return;
-  const long long b = idx / CC;
-  const int local = int(idx - b * CC);
-  int cell;
-  if (tileCellIndex(layout, firstTile + b, local, cell)) out.store(cell, reduceCellStencil(values + b * P, local));
+// One thread per cell of the slab's layers [z0, z1): MacrocellLayout's stencil reduction.
+__global__ void latticeReduceKernel(MacrocellLayout layout, int z0, int z1, int plane0, const float* values,
+                                    CellBoundsArrays out) {
+  const long long layerCells = (long long)layout.dims.x * layout.dims.y;
+  const long long c = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (c >= (z1 - z0) * layerCells) return;
+  const Int3 cell{int(c % layout.dims.x), int((c / layout.dims.x) % layout.dims.y), z0 + int(c / layerCells)};
+  out.store(linearCellIndex(layout.dims, cell), reduceCellStencil(layout, values, plane0, cell));
 }
 
 // MacrocellGrid::interpolateWorkingGrid, per cell (MacrocellLayout's interpolateCell).
@@ -168,11 +160,12 @@ void CudaMacrocellGrid::setSlice(int k, const std::vector<float>& mn, const std:
 
 void CudaMacrocellGrid::buildSlice(int k) {
   Impl& I = *impl_;
-  const long long tiles = layout_.tileCount;
-  const long long tilesPerBatch = std::max<long long>(1, kGpuLatticeBatch / P);
+  const MacrocellLayout& l = layout_;
+  const long long plane = l.latticePlanePoints;
+  const int layers = latticeSlabLayers(l, (long long)options_.gpuMaxBatch);
+  const std::size_t batch = std::size_t((2 * layers + 1) * plane);
   const float time = float(sliceTime(k));
   Impl::Slice& s = I.slices[k];
-  const long long batchTiles = std::min(tiles, tilesPerBatch);
   try {
     const DeviceAllocationPurpose purpose(
         "temporal macrocell slice " + std::to_string(k + 1) + " of " + std::to_string(layout_.temporalSlices) +
@@ -182,25 +175,31 @@ void CudaMacrocellGrid::buildSlice(int k) {
     s.min.resize(layout_.cellCount);
     s.max.resize(layout_.cellCount);
     s.mean.resize(layout_.cellCount);
-    if (I.points.size() < std::size_t(batchTiles * P)) {
-      I.points.resize(std::size_t(batchTiles * P));
-      I.values.resize(std::size_t(batchTiles * P));
+    if (I.points.size() < batch) {
+      I.points.resize(batch);
+      I.values.resize(batch);
     }
   } catch (const DeviceOutOfMemory&) {
     s = Impl::Slice{};  // nothing half-built stays allocated; a later build tries again
     throw;
   }
   const CellBoundsArrays out{s.min.get(), s.max.get(), s.mean.get()};
-  for (long long first = 0; first < tiles; first += tilesPerBatch) {
-    const long long count = std::min(tilesPerBatch, tiles - first);
-    const long long n = count * P;
-    latticePointsKernel<<<blocksFor(n, 256), 256, 0, stream_>>>(layout_, first, count, time, I.points.get());
+  for (int z0 = 0; z0 < l.dims.z; z0 += layers) {
+    const int z1 = std::min(l.dims.z, z0 + layers);
+    // Planes 2 z0 .. 2 z1; after the first slab, plane 2 z0 is the last slab's last: moved to the front.
+    const int plane0 = 2 * z0;
+    const int fresh0 = z0 == 0 ? 0 : 1;
+    if (fresh0)
+      INR_CUDA_CHECK(cudaMemcpyAsync(I.values.get(), I.values.get() + 2 * layers * plane, sizeof(float) * plane,
+                                     cudaMemcpyDeviceToDevice, stream_));
+    const long long first = fresh0 * plane, count = (2 * (z1 - z0) + 1 - fresh0) * plane;
+    latticePointsKernel<<<blocksFor(count, 256), 256, 0, stream_>>>(l, plane0, first, count, time, I.points.get());
     INR_CUDA_CHECK_LAUNCH("latticePointsKernel");
-    evaluator_.evaluateDevice(I.points.get(), int(n), I.values.get(), nullptr, stream_);
-    latticeReduceKernel<<<blocksFor(count * MacrocellLayout::kTileCellCount, 256), 256, 0, stream_>>>(
-        layout_, first, count, I.values.get(), out);
+    evaluator_.evaluateDevice(I.points.get(), int(count), I.values.get() + first, nullptr, stream_);
+    latticeReduceKernel<<<blocksFor((long long)(z1 - z0) * l.dims.x * l.dims.y, 256), 256, 0, stream_>>>(
+        l, z0, z1, plane0, I.values.get(), out);
     INR_CUDA_CHECK_LAUNCH("latticeReduceKernel");
-    stats_.evaluations += std::size_t(n);
+    stats_.evaluations += std::size_t(count);
   }
   INR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   s.built = true;

@@ -55,8 +55,12 @@ TEST(CudaPipeline, MacrocellGridsMatchCpu) {
     const CpuInrEvaluator cpuEval(model);
     const Box3f box = modelWorldBox(model);
     MacrocellOptions o;
-    o.dims = Int3{18, 16, 13};  // partial tiles on every axis
+    o.dims = Int3{18, 16, 13};
     o.temporalSlices = 5;
+    // Slabs of 2 cell layers on the CPU, 3 on the GPU (lattice planes of 37 x 33 points): the
+    // planes carried from slab to slab, at other places on each.
+    o.maxBatch = 5 * 37 * 33;
+    o.gpuMaxBatch = 7 * 37 * 33;
     CudaMacrocellGrid gpu(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
     MacrocellGrid sameEval(gpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
     MacrocellGrid cpuRef(cpuEval, box, model.domain.timeBegin, model.domain.timeEnd, o);
