@@ -16,6 +16,7 @@
 #include "vtkTimeStamp.h"
 #include "vtkUnsignedCharArray.h"
 
+#include "Backends/PreviewEvaluator.h"
 #include "Evaluator/CpuInrEvaluator.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
@@ -26,33 +27,7 @@
 #include <fstream>
 #include <memory>
 #include <sys/stat.h>
-#include <thread>
 #include <vector>
-
-namespace
-{
-// The preview is evaluated in chunks of this many points, halved from the evaluator's own chunk
-// while there are fewer than two chunks per core: a default 8^3 preview is two 256-point chunks,
-// which the evaluator runs on one core, and every time step of an animation evaluates it.
-std::size_t previewEvaluatorChunk(std::size_t n)
-{
-  const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
-  std::size_t chunk = static_cast<std::size_t>(inr::CpuEvaluatorOptions{}.chunkSize);
-  while (chunk > 16 && n / chunk < 2 * cores)
-  {
-    chunk /= 2;
-  }
-  return chunk;
-}
-
-// Points per progress step of the preview: about 1/32 of them, at least 64 Ki (small previews
-// report once), a multiple of the evaluator's chunk.
-std::size_t previewChunkPoints(std::size_t n, std::size_t evaluatorChunk)
-{
-  const std::size_t wanted = std::max<std::size_t>(std::size_t(1) << 16, (n + 31) / 32);
-  return (wanted + evaluatorChunk - 1) / evaluatorChunk * evaluatorChunk;
-}
-}
 
 // What identifies one version of the model file on disk: a rewrite in place changes the size or
 // the modification time (nanoseconds where the file system keeps them), a replacement by rename
@@ -99,9 +74,9 @@ struct vtkInrVolumeReader::Internals
   std::string warnedFileProblem;  // the problem and file state last warned about
   vtkTimeStamp fileChanged;       // when GetMTime noticed the file change on disk
   inr::InrModel model;
-  // The preview's evaluator: the model's, with a chunk small enough to use every core.
-  std::unique_ptr<inr::CpuInrEvaluator> previewEvaluator;
-  std::size_t previewChunk = 0;
+  // The preview's evaluator (the GPU's where there is one, PreviewBackend), made for `model`.
+  std::unique_ptr<inr::PreviewEvaluator> previewEvaluator;
+  int previewBackend = -1;  // the PreviewBackend it was made for
   vtkSmartPointer<vtkUnsignedCharArray> bytes;  // shared by every output (same pointer over time)
 };
 
@@ -514,17 +489,27 @@ int vtkInrVolumeReader::RequestData(
   values->SetName("value");
   values->SetNumberOfTuples(static_cast<vtkIdType>(n));
   // Evaluated in chunks so that a large preview reports progress (ParaView's progress bar) and can
-  // be aborted between chunks. Chunks are whole multiples of the evaluator's own chunk, so every
-  // point is evaluated exactly as by one call over all of them.
-  const std::size_t evaluatorChunk = previewEvaluatorChunk(n);
-  if (!I.previewEvaluator || I.previewChunk != evaluatorChunk)
+  // be aborted between chunks; the chunks give the values of one call over every point.
+  if (!I.previewEvaluator || I.previewBackend != this->PreviewBackend)
   {
-    inr::CpuEvaluatorOptions options;
-    options.chunkSize = static_cast<int>(evaluatorChunk);
-    I.previewEvaluator = std::make_unique<inr::CpuInrEvaluator>(I.model, options);
-    I.previewChunk = evaluatorChunk;
+    inr::PreviewEvaluatorOptions options;
+    options.backend = this->PreviewBackend == 1 ? inr::RenderBackend::Cpu
+      : this->PreviewBackend == 2                ? inr::RenderBackend::Cuda
+                                                 : inr::RenderBackend::Auto;
+    try
+    {
+      I.previewEvaluator = std::make_unique<inr::PreviewEvaluator>(I.model, options);
+    }
+    catch (const std::exception& e)
+    {
+      vtkErrorMacro(<< I.loadedPath << ": Preview Backend: " << e.what()
+                    << " (choose Auto or CPU)");
+      return 0;
+    }
+    I.previewBackend = this->PreviewBackend;
+    this->PreviewBackendInUse = I.previewEvaluator->description();
   }
-  const std::size_t chunk = previewChunkPoints(n, evaluatorChunk);
+  const std::size_t chunk = I.previewEvaluator->chunkPoints(n);
   this->SetProgressText("INR Volume reader: sampling the preview grid");
   this->UpdateProgress(0.0);
   try
@@ -559,6 +544,8 @@ void vtkInrVolumeReader::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   os << indent << "FileName: " << (this->FileName ? this->FileName : "(none)") << "\n";
   os << indent << "PreviewResolution: " << this->PreviewResolution << "\n";
+  os << indent << "PreviewBackend: " << this->PreviewBackend << " (in use: " << this->PreviewBackendInUse
+     << ")\n";
   os << indent << "TimeRange: " << this->TimeRange[0] << " " << this->TimeRange[1] << "\n";
   os << indent << "ValueRange: " << this->ValueRange[0] << " " << this->ValueRange[1] << "\n";
 }

@@ -47,6 +47,15 @@ public:
   vtkGetMacro(PreviewResolution, int);
   ///@}
 
+  ///@{
+  /// Where the preview grid is evaluated: 0 = Auto (the GPU where a usable one is, else the
+  /// CPU), 1 = CPU, 2 = CUDA (an error when there is no usable GPU). PreviewBackendInUse says
+  /// which one the last preview ran on ("" before the first), and why not the GPU under Auto.
+  vtkSetClampMacro(PreviewBackend, int, 0, 2);
+  vtkGetMacro(PreviewBackend, int);
+  const char* GetPreviewBackendInUse() { return this->PreviewBackendInUse.c_str(); }
+  ///@}
+
   // No CanReadFile on purpose: ParaView picks this reader by the .inr extension, and a broken
   // file then gets the loader's precise message instead of "no reader found".
 
@@ -90,6 +99,8 @@ private:
 
   char* FileName = nullptr;
   int PreviewResolution = 8;
+  int PreviewBackend = 0;
+  std::string PreviewBackendInUse;
   double TimeRange[2] = { 0, 0 };
   double ValueRange[2] = { 0, 1 };
   std::string TransferFunctionJSON;

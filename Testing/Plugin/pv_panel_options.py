@@ -219,6 +219,18 @@ reader.PreviewResolution = 160  # about a second of sampling here: several 0.1 s
 reader.UpdatePipeline(9.3)
 seen = [p for text, p in progress if text.startswith("INR Volume reader")]
 check(len(seen) >= 1, f"preview resampling: ParaView's progress handler saw the reader ({seen} %)")
+# Where the preview ran: Auto takes the GPU where a usable one is, else the CPU with the reason.
+reader.UpdatePropertyInformation()
+in_use = reader.GetPropertyValue("PreviewBackendInUse")
+check(reader.PreviewBackend == "Auto", f"Preview Backend defaults to Auto ({reader.PreviewBackend})")
+check(in_use.startswith("CUDA: ") or in_use.startswith("CPU (CUDA unavailable: "),
+      f"Preview Backend In Use under Auto names the GPU or why not: {in_use!r}")
+reader.PreviewBackend = "CPU"
+reader.PreviewResolution = 12
+reader.UpdatePipeline(9.3)
+reader.UpdatePropertyInformation()
+in_use = reader.GetPropertyValue("PreviewBackendInUse")
+check(in_use == "CPU", f"Preview Backend CPU: the preview ran on the CPU ({in_use!r})")
 
 status = check.report()
 sys.stdout.flush()
