@@ -82,8 +82,8 @@ void SurfaceOptions::validate() const {
     throw std::invalid_argument("surface toleranceFraction must be in (0, 1]");
   if (samplesPerIteration < 1 || samplesPerIteration > kMaxSurfaceSamples)
     throw std::invalid_argument("surface samplesPerIteration must be in [1, " + std::to_string(kMaxSurfaceSamples) + "]");
-  if (maxMarchSamples < samplesPerIteration || maxMarchSamples > kMaxSurfaceSamples)
-    throw std::invalid_argument("surface maxMarchSamples must be in [samplesPerIteration, " +
+  if (maxMarchSamples != 0 && (maxMarchSamples < samplesPerIteration || maxMarchSamples > kMaxSurfaceSamples))
+    throw std::invalid_argument("surface maxMarchSamples must be 0 (the backend's choice) or in [samplesPerIteration, " +
                                 std::to_string(kMaxSurfaceSamples) + "], got " + std::to_string(maxMarchSamples));
   if (maxRefinements < 1) throw std::invalid_argument("surface maxRefinements must be >= 1");
   if (!(opaqueTransmittance >= 0.f && opaqueTransmittance < 1.f))
@@ -362,7 +362,7 @@ SurfaceConstants SurfaceRenderer::surfaceConstants() const {
   sc.step = step_;
   sc.tolerance = tolerance_;
   sc.samplesPerIteration = options_.samplesPerIteration;
-  sc.maxMarchSamples = options_.maxMarchSamples;
+  sc.maxMarchSamples = options_.maxMarchSamples > 0 ? options_.maxMarchSamples : options_.samplesPerIteration;
   sc.maxRefinements = options_.maxRefinements;
   sc.opaqueTransmittance = options_.opaqueTransmittance;
   return sc;

@@ -65,9 +65,11 @@ struct SurfaceOptions {
   float toleranceFraction = 1e-3f;
   int samplesPerIteration = 8;  // K: march samples / refinement points per ray per batch (<= 32)
   // As a frame's rays finish, the march samples per remaining ray and batch grow from K up to this
-  // (in [K, 32]), so the batch keeps about its size and the frame's tail takes fewer iterations
-  // (launches and round trips on the GPU). The image is the same for any value; K turns it off.
-  int maxMarchSamples = kMaxSurfaceSamples;
+  // (in [K, 32]), so the batch keeps about its size and the frame's tail takes fewer iterations.
+  // The image is the same for any value; K turns it off. 0 = the backend's choice: 32 on the GPU
+  // (an iteration costs launches and a host round trip), K on the CPU (an iteration costs little;
+  // the samples a ray draws past a crossing are queries spent for nothing).
+  int maxMarchSamples = 0;
   int maxRefinements = 24;      // K-section rounds per hit at most
   float opaqueTransmittance = 1e-3f;  // a ray stops once less than this share of light passes
   int chunkPixels = 16384;      // pixels whose rays share the evaluator batches
@@ -116,6 +118,7 @@ public:
   bool macrocellsBuiltFor(double time) const;
   void buildMacrocellsFor(double time);
   void resetAccumulation();
+  const SurfaceOptions& options() const { return options_; }
   int accumulatedFrames() const { return frameIndex_; }
   ImageRGBA image() const;               // over the background
   ImageRGBA premultipliedImage() const;  // the surfaces only

@@ -673,6 +673,11 @@ TEST(IsosurfaceBlend, MarchSamplesGrowAsRaysFinishWithoutChangingTheImage) {
   SurfaceOptions bad;
   bad.maxMarchSamples = bad.samplesPerIteration - 1;
   EXPECT_THROW(SurfaceRenderer(field, kCubeBox, 0.0, 1.0, bad), std::invalid_argument);
+  // The CPU's own choice (0): no growth.
+  SurfaceRenderer cpuDefault(field, kCubeBox, 0.0, 1.0);
+  cpuDefault.setSettings(c.settings);
+  cpuDefault.setScene(c.scene, c.blend);
+  EXPECT_EQ(cpuDefault.surfaceConstants().maxMarchSamples, cpuDefault.options().samplesPerIteration);
 }
 
 // The candidate macrocells built ahead (what a GUI does off its event loop): setScene at that

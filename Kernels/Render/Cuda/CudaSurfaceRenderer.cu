@@ -303,6 +303,7 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
   sc.cells.majorant = I.cells.get();
   sc.cells.blockMajorant = sc.cells.blockMajorant ? I.blocks.get() : nullptr;
   sc.isovalues = I.isovalues.get();
+  if (host_.options().maxMarchSamples == 0) sc.maxMarchSamples = kMaxSurfaceSamples;  // the GPU's choice
   const int n = host_.settings().width * host_.settings().height;
   const int K = sc.samplesPerIteration;
   st.pixels = std::size_t(n);

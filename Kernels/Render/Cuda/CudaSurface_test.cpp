@@ -95,8 +95,8 @@ TEST(CudaSurface, AnalyticFieldMatchesTheCpuRenderer) {
 }
 
 // The GPU's isosurface batches: the active rays only, with more march samples each as rays finish
-// (SurfaceOptions::maxMarchSamples). The image and depth are those of the frame without the
-// growth, bit for bit (each ray's march is the same), in fewer iterations.
+// (SurfaceOptions::maxMarchSamples, by default 32 on the GPU). The image and depth are those of
+// the frame without the growth, bit for bit (each ray's march is the same), in fewer iterations.
 TEST(CudaSurface, GrowingMarchBatchesKeepTheImage) {
   REQUIRE_GPU();
   test::AnalyticDeviceField field;
