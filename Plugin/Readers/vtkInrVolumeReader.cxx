@@ -496,18 +496,24 @@ int vtkInrVolumeReader::RequestData(
     options.backend = this->PreviewBackend == 1 ? inr::RenderBackend::Cpu
       : this->PreviewBackend == 2                ? inr::RenderBackend::Cuda
                                                  : inr::RenderBackend::Auto;
+    std::string refused;
     try
     {
       I.previewEvaluator = std::make_unique<inr::PreviewEvaluator>(I.model, options);
     }
     catch (const std::exception& e)
     {
-      vtkErrorMacro(<< I.loadedPath << ": Preview Backend: " << e.what()
-                    << " (choose Auto or CPU)");
-      return 0;
+      // CUDA asked for and not there: the preview still comes (on the CPU), and so does the
+      // model for the INR Volume representation downstream; the warning says why.
+      refused = e.what();
+      vtkWarningMacro(<< I.loadedPath << ": Preview Backend CUDA: " << refused
+                      << "; the preview grid is evaluated on the CPU (Preview Backend Auto or CPU says so "
+                         "without this warning)");
+      options.backend = inr::RenderBackend::Cpu;
+      I.previewEvaluator = std::make_unique<inr::PreviewEvaluator>(I.model, options);
     }
     I.previewBackend = this->PreviewBackend;
-    this->PreviewBackendInUse = I.previewEvaluator->description();
+    this->PreviewBackendInUse = refused.empty() ? I.previewEvaluator->description() : "CPU (" + refused + ")";
   }
   const std::size_t chunk = I.previewEvaluator->chunkPoints(n);
   this->SetProgressText("INR Volume reader: sampling the preview grid");

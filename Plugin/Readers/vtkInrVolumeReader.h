@@ -49,8 +49,9 @@ public:
 
   ///@{
   /// Where the preview grid is evaluated: 0 = Auto (the GPU where a usable one is, else the
-  /// CPU), 1 = CPU, 2 = CUDA (an error when there is no usable GPU). PreviewBackendInUse says
-  /// which one the last preview ran on ("" before the first), and why not the GPU under Auto.
+  /// CPU), 1 = CPU, 2 = CUDA (without a usable GPU: a warning naming why, and the CPU).
+  /// PreviewBackendInUse says which one the last preview ran on ("" before the first), and why
+  /// not the GPU.
   vtkSetClampMacro(PreviewBackend, int, 0, 2);
   vtkGetMacro(PreviewBackend, int);
   const char* GetPreviewBackendInUse() { return this->PreviewBackendInUse.c_str(); }

@@ -225,6 +225,20 @@ in_use = reader.GetPropertyValue("PreviewBackendInUse")
 check(reader.PreviewBackend == "Auto", f"Preview Backend defaults to Auto ({reader.PreviewBackend})")
 check(in_use.startswith("CUDA: ") or in_use.startswith("CPU (CUDA unavailable: "),
       f"Preview Backend In Use under Auto names the GPU or why not: {in_use!r}")
+if in_use.startswith("CPU (CUDA unavailable: "):
+    # CUDA asked for without a usable GPU: the preview (and the model downstream) still comes, on
+    # the CPU, and the property says why.
+    reader.PreviewBackend = "CUDA"
+    reader.PreviewResolution = 10
+    reader.UpdatePipeline(9.3)
+    reader.UpdatePropertyInformation()
+    cuda_in_use = reader.GetPropertyValue("PreviewBackendInUse")
+    data = reader.GetPointDataInformation().GetArray("value")
+    check(cuda_in_use.startswith("CPU (preview on the GPU requested but CUDA is unavailable"),
+          f"Preview Backend CUDA without a GPU: on the CPU, saying why ({cuda_in_use!r})")
+    check(data is not None and data.GetNumberOfTuples() == 1000,
+          f"Preview Backend CUDA without a GPU: the 10^3 preview is there "
+          f"({data.GetNumberOfTuples() if data is not None else None} values)")
 reader.PreviewBackend = "CPU"
 reader.PreviewResolution = 12
 reader.UpdatePipeline(9.3)
