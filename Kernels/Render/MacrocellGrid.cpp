@@ -44,7 +44,6 @@ void MacrocellGrid::setSlice(int k, std::vector<float> mn, std::vector<float> mx
 // slab; the GPU build runs the same arithmetic as kernels over device arrays.
 void MacrocellGrid::buildSlice(int k) {
   const MacrocellLayout& l = layout_;
-  const long long plane = l.latticePlanePoints;
   const int layers = latticeSlabLayers(l, (long long)options_.maxBatch);
   const float t = float(sliceTime(k));
   const int cells = layout_.cellCount;
@@ -54,31 +53,23 @@ void MacrocellGrid::buildSlice(int k) {
   s.max.assign(cells, 0.f);
   s.mean.assign(cells, 0.f);
   const CellBoundsArrays out{s.min.data(), s.max.data(), s.mean.data()};
-  std::vector<QueryPoint> points(std::size_t((2 * layers + 1) * plane));
+  std::vector<QueryPoint> points(std::size_t(latticeSlabPoints(l, layers)));
   std::vector<float> values(points.size());
 
   for (int z0 = 0; z0 < l.dims.z; z0 += layers) {
-    const int z1 = std::min(l.dims.z, z0 + layers);
-    // Planes 2 z0 .. 2 z1; after the first slab, plane 2 z0 is the last slab's last: moved to the front.
-    const int plane0 = 2 * z0;
-    const int fresh0 = z0 == 0 ? 0 : 1;
-    if (fresh0) std::copy_n(values.begin() + std::ptrdiff_t(2 * layers * plane), plane, values.begin());
-    const long long first = fresh0 * plane, count = (2 * (z1 - z0) + 1 - fresh0) * plane;
-#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-    for (long long q = 0; q < count; ++q) {
-      const Vec3f x = slabLatticePoint(l, plane0, first + q);
+    const LatticeSlab slab = latticeSlab(l, layers, z0);
+    if (slab.carryFrom >= 0) std::copy_n(values.begin() + std::ptrdiff_t(slab.carryFrom), l.latticePlanePoints, values.begin());
+#pragma omp parallel for schedule(static) if (slab.count >= kParallelMinItems)
+    for (long long q = 0; q < slab.count; ++q) {
+      const Vec3f x = slabLatticePoint(l, slab.plane0, slab.first + q);
       points[std::size_t(q)] = QueryPoint{x.x, x.y, x.z, t};
     }
-    evaluator_.evaluate(points.data(), std::size_t(count), values.data() + first);
-    stats_.evaluations += std::size_t(count);
-    const int layerCells = l.dims.x * l.dims.y;
-    const long long slabCells = (long long)(z1 - z0) * layerCells;
-#pragma omp parallel for schedule(static) if (slabCells >= kParallelMinItems / 8)
-    for (long long c = 0; c < slabCells; ++c) {
-      const Int3 cell{int(c % l.dims.x), int((c / l.dims.x) % l.dims.y), z0 + int(c / layerCells)};
-      out.store(linearCellIndex(l.dims, cell), reduceCellStencil(l, values.data(), plane0, cell));
-    }
-    reportSliceProgress(double(z1) / double(l.dims.z));  // per slab of at most maxBatch points
+    evaluator_.evaluate(points.data(), std::size_t(slab.count), values.data() + slab.first);
+    stats_.evaluations += std::size_t(slab.count);
+#pragma omp parallel for schedule(static) if (slab.cell1 - slab.cell0 >= kParallelMinItems / 8)
+    for (int c = slab.cell0; c < slab.cell1; ++c)
+      out.store(c, reduceCellStencil(l, values.data(), slab.plane0, cellCoordinates(l.dims, c)));
+    reportSliceProgress(double(slab.z1) / double(l.dims.z));  // per slab of at most maxBatch points
   }
   s.built = true;
 }

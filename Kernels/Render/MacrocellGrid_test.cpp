@@ -383,10 +383,26 @@ TEST(MacrocellLayout, ValidatesAndSharesTheLatticeArithmetic) {
   EXPECT_EQ(latticeSlabLayers(l, 6 * l.latticePlanePoints - 1), 2);
   EXPECT_EQ(latticeSlabLayers(l, 1), 1);
   EXPECT_EQ(latticeSlabLayers(l, 1000 * l.latticePlanePoints), 4);
+  const long long X = l.latticeDims.x, P = l.latticePlanePoints;
+  // Slabs of 3 layers over 4: the first evaluates its 7 planes; the second (one layer) carries
+  // the first's last plane to its front and evaluates the 2 planes after it.
+  EXPECT_EQ(latticeSlabPoints(l, 3), 7 * P);
+  const LatticeSlab s0 = latticeSlab(l, 3, 0), s1 = latticeSlab(l, 3, 3);
+  EXPECT_EQ(s0.carryFrom, -1);
+  EXPECT_EQ(s0.first, 0);
+  EXPECT_EQ(s0.count, 7 * P);
+  EXPECT_EQ(s0.cell0, 0);
+  EXPECT_EQ(s0.cell1, 3 * 5 * 9);
+  EXPECT_EQ(s1.z1, 4);
+  EXPECT_EQ(s1.plane0, 6);
+  EXPECT_EQ(s1.carryFrom, 6 * P);
+  EXPECT_EQ(s1.first, P);
+  EXPECT_EQ(s1.count, 2 * P);
+  EXPECT_EQ(s1.cell0, 3 * 5 * 9);
+  EXPECT_EQ(s1.cell1, l.cellCount);
 
   // Stencil of cell (1, 2, 1) in a slab starting at plane 2: lattice points (2..4, 4..6, 2..4);
   // non-finite values are skipped.
-  const long long X = l.latticeDims.x, P = l.latticePlanePoints;
   std::vector<float> v(std::size_t(3 * P), 100.f);
   auto at = [&](int a, int bb, int c) -> float& { return v[std::size_t((c - 2) * P + bb * X + a)]; };
   for (int c = 2; c < 5; ++c)

@@ -155,6 +155,36 @@ INR_HD int latticeSlabLayers(const MacrocellLayout& l, long long maxPoints) {
   return layers < 1 ? 1 : (layers > l.dims.z ? l.dims.z : int(layers));
 }
 
+// Lattice values a slab of `layers` cell layers holds: its 2 layers + 1 planes.
+INR_HD long long latticeSlabPoints(const MacrocellLayout& l, int layers) {
+  return (2ll * layers + 1) * l.latticePlanePoints;
+}
+
+// The slab of a slice build starting at cell layer z0 (of at most `layers` layers; every slab but
+// the last is full), in a buffer of latticeSlabPoints(l, layers) values holding its planes from
+// plane0 = 2 z0 on. After the first slab, the first plane is the previous slab's last: carried
+// from `carryFrom` in the buffer to its front (-1: nothing carried). The points to evaluate are
+// [first, first + count) of the slab's; its cells are the linear indices [cell0, cell1).
+struct LatticeSlab {
+  int z0 = 0, z1 = 0, plane0 = 0;
+  long long carryFrom = -1;
+  long long first = 0, count = 0;
+  int cell0 = 0, cell1 = 0;
+};
+INR_HD LatticeSlab latticeSlab(const MacrocellLayout& l, int layers, int z0) {
+  LatticeSlab s;
+  s.z0 = z0;
+  s.z1 = z0 + layers < l.dims.z ? z0 + layers : l.dims.z;
+  s.plane0 = 2 * z0;
+  const long long plane = l.latticePlanePoints;
+  if (z0 > 0) s.carryFrom = 2ll * layers * plane;
+  s.first = z0 > 0 ? plane : 0;
+  s.count = (2ll * (s.z1 - z0) + 1) * plane - s.first;
+  s.cell0 = z0 * l.dims.x * l.dims.y;
+  s.cell1 = s.z1 * l.dims.x * l.dims.y;
+  return s;
+}
+
 // Bounds of cell `cell` from the values of the lattice planes from plane0 on (x fastest; the
 // cell's planes 2 cell.z .. 2 cell.z + 2 among them): min, max and mean over its 3^3 stencil,
 // skipping non-finite values (a NaN output says nothing about bounds); no finite value gives an

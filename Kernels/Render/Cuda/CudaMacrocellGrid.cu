@@ -24,14 +24,11 @@ __global__ void latticePointsKernel(MacrocellLayout layout, int plane0, long lon
   points[q] = make_float4(x.x, x.y, x.z, time);
 }
 
-// One thread per cell of the slab's layers [z0, z1): MacrocellLayout's stencil reduction.
-__global__ void latticeReduceKernel(MacrocellLayout layout, int z0, int z1, int plane0, const float* values,
-                                    CellBoundsArrays out) {
-  const long long layerCells = (long long)layout.dims.x * layout.dims.y;
-  const long long c = (long long)blockIdx.x * blockDim.x + threadIdx.x;
-  if (c >= (z1 - z0) * layerCells) return;
-  const Int3 cell{int(c % layout.dims.x), int((c / layout.dims.x) % layout.dims.y), z0 + int(c / layerCells)};
-  out.store(linearCellIndex(layout.dims, cell), reduceCellStencil(layout, values, plane0, cell));
+// One thread per cell of the slab (linear indices [cell0, cell1)): MacrocellLayout's stencil reduction.
+__global__ void latticeReduceKernel(MacrocellLayout layout, LatticeSlab slab, const float* values, CellBoundsArrays out) {
+  const long long c = slab.cell0 + (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (c >= slab.cell1) return;
+  out.store(int(c), reduceCellStencil(layout, values, slab.plane0, cellCoordinates(layout.dims, int(c))));
 }
 
 // MacrocellGrid::interpolateWorkingGrid, per cell (MacrocellLayout's interpolateCell).
@@ -161,9 +158,8 @@ void CudaMacrocellGrid::setSlice(int k, const std::vector<float>& mn, const std:
 void CudaMacrocellGrid::buildSlice(int k) {
   Impl& I = *impl_;
   const MacrocellLayout& l = layout_;
-  const long long plane = l.latticePlanePoints;
   const int layers = latticeSlabLayers(l, (long long)options_.gpuMaxBatch);
-  const std::size_t batch = std::size_t((2 * layers + 1) * plane);
+  const std::size_t batch = std::size_t(latticeSlabPoints(l, layers));
   const float time = float(sliceTime(k));
   Impl::Slice& s = I.slices[k];
   try {
@@ -185,21 +181,17 @@ void CudaMacrocellGrid::buildSlice(int k) {
   }
   const CellBoundsArrays out{s.min.get(), s.max.get(), s.mean.get()};
   for (int z0 = 0; z0 < l.dims.z; z0 += layers) {
-    const int z1 = std::min(l.dims.z, z0 + layers);
-    // Planes 2 z0 .. 2 z1; after the first slab, plane 2 z0 is the last slab's last: moved to the front.
-    const int plane0 = 2 * z0;
-    const int fresh0 = z0 == 0 ? 0 : 1;
-    if (fresh0)
-      INR_CUDA_CHECK(cudaMemcpyAsync(I.values.get(), I.values.get() + 2 * layers * plane, sizeof(float) * plane,
-                                     cudaMemcpyDeviceToDevice, stream_));
-    const long long first = fresh0 * plane, count = (2 * (z1 - z0) + 1 - fresh0) * plane;
-    latticePointsKernel<<<blocksFor(count, 256), 256, 0, stream_>>>(l, plane0, first, count, time, I.points.get());
+    const LatticeSlab slab = latticeSlab(l, layers, z0);
+    if (slab.carryFrom >= 0)
+      INR_CUDA_CHECK(cudaMemcpyAsync(I.values.get(), I.values.get() + slab.carryFrom,
+                                     sizeof(float) * l.latticePlanePoints, cudaMemcpyDeviceToDevice, stream_));
+    latticePointsKernel<<<blocksFor(slab.count, 256), 256, 0, stream_>>>(l, slab.plane0, slab.first, slab.count, time,
+                                                                         I.points.get());
     INR_CUDA_CHECK_LAUNCH("latticePointsKernel");
-    evaluator_.evaluateDevice(I.points.get(), int(count), I.values.get() + first, nullptr, stream_);
-    latticeReduceKernel<<<blocksFor((long long)(z1 - z0) * l.dims.x * l.dims.y, 256), 256, 0, stream_>>>(
-        l, z0, z1, plane0, I.values.get(), out);
+    evaluator_.evaluateDevice(I.points.get(), int(slab.count), I.values.get() + slab.first, nullptr, stream_);
+    latticeReduceKernel<<<blocksFor(slab.cell1 - slab.cell0, 256), 256, 0, stream_>>>(l, slab, I.values.get(), out);
     INR_CUDA_CHECK_LAUNCH("latticeReduceKernel");
-    stats_.evaluations += std::size_t(count);
+    stats_.evaluations += std::size_t(slab.count);
   }
   INR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   s.built = true;

@@ -327,7 +327,7 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     I.breaks.resize(std::size_t(n) * K);
   }
   I.counters.zero(s);
-  // The rays that enter a candidate cell, selected into the active list (counters[1]).
+  // The rays of `from` still marching, in their order, into `to` (their count in counters[1]).
   auto select = [&](const int* from, int items, int* to) {
     std::size_t bytes = I.scanTemp.size();
     INR_CUDA_CHECK(cub::DeviceSelect::If(I.scanTemp.get(), bytes, from, to, I.counters.get() + 1, items,
@@ -343,7 +343,6 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
   // batch's size and the active count); the emit launch covers the last active count the host
   // read, an upper bound of the current one.
   int bound = n;
-  bool firstIteration = true;
   for (;;) {
     t0 = Clock::now();
     const int M = surfaceMarchSamples(K, sc.maxMarchSamples, n, bound);
@@ -359,8 +358,7 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     INR_CUDA_CHECK(cudaStreamSynchronize(s));
     const int total = I.total[0];
     const int m = int(I.countersHost[1]);
-    if (firstIteration) st.rays = std::size_t(m);  // the rays that entered a candidate cell
-    firstIteration = false;
+    if (st.iterations == 0) st.rays = std::size_t(m);  // the rays that entered a candidate cell
     st.traverseMs += msSince(t0);
     if (total == 0) break;  // every ray has finished
     t0 = Clock::now();
