@@ -52,20 +52,4 @@ INR_HD std::uint32_t frameHalf(std::uint32_t frame) {
   return frame & 1u;
 }
 
-// The uses of stratifiedFrameUniform (each its own random start).
-constexpr std::uint32_t kStratifiedCombPhase = 0u;  // the debiased march's comb phase (DebiasedMarch.h)
-
-// Uniform number `use` of a pixel's frame `frame`, stratified over the pixel's frames: frame j of
-// each half (frameHalf; j = frame / 2) takes term j of the golden-ratio sequence (the additive
-// recurrence with 1 / phi: any run of consecutive terms is evenly spread over [0, 1)), rotated by
-// a random start per pixel, half and use (Cranley-Patterson). Each frame's number is uniform, so
-// an estimator drawing it stays unbiased frame by frame; over many frames the numbers fill [0, 1)
-// evenly instead of at random, and the two halves stay independent of each other (the
-// convergence estimate's premise). In 32-bit fixed point, exact for every frame number.
-INR_HD float stratifiedFrameUniform(std::uint32_t key, std::uint32_t frame, std::uint32_t seed, std::uint32_t use) {
-  const std::uint32_t half = frameHalf(frame), j = frame >> 1;
-  const std::uint32_t x = counterHash(key, half, seed ^ 0x2545f491u, use) + j * 2654435769u;  // 2^32 / phi
-  return float(x >> 8) * (1.0f / 16777216.0f);
-}
-
 }  // namespace inr

@@ -136,11 +136,7 @@ INR_HD int drawDebiasedPoints(const FrameConstants& fc, const TrackingMedium& me
           capped = true;
           break;
         }
-        float u = rng.next();
-        // Stratified over frames (FrameConstants::combStratified): the comb's phase for this pixel
-        // sweeps [0, 1) evenly frame after frame, so the frames' combs together fill the ray
-        // evenly, as one finer comb would, instead of at random.
-        if (fc.combStratified) u = stratifiedFrameUniform(rng.pixel, rng.frame, rng.seed, kStratifiedCombPhase);
+        const float u = rng.next();
         level = debiasedLevel(fc, rng.next());
         const int n = 1 << level;
         step = int(ceilf((1.f - u) * float(n)));

@@ -182,7 +182,6 @@ struct FrameConstants {
   // levelRatio^(k+1) given k, at most maxLevel times
   float levelRatio = 0.3f;
   int maxLevel = 5;
-  int combStratified = 0;          // debiased: the comb's phase stratified over frames (TrackingOptions::stratifiedComb)
   int pointsPerIteration = 1;      // tentative collisions a ray hands the evaluator per iteration
   // Bounded work: a ray whose random stream reaches this many draws in a frame stops tracking
   // (kRayCapped; it counts as escaped). Every candidate collision takes two draws, so this caps

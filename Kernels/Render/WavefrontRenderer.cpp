@@ -231,7 +231,6 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
   if (fc.pixelJitter && options_.stratifiedJitter) fc.pixelJitter = 2;
   fc.levelRatio = float(options_.levelRatio);
   fc.maxLevel = options_.maxLevel;
-  fc.combStratified = options_.stratifiedComb ? 1 : 0;
   fc.majorantScale = float(fellBack ? options_.fallbackMajorantScale : options_.majorantScale);
   fc.residualScale = float(options_.residualScale);
   {

@@ -91,10 +91,6 @@ struct TrackingOptions {
   // each pixel's frames instead of independent draws (RayInit.h, stratifiedJitter): every frame
   // stays unbiased, and the antialiasing's share of the error falls about as 1 / frames.
   bool stratifiedJitter = false;
-  // Debiased: each pixel's comb phase from a low-discrepancy sequence over its frames instead of
-  // independent draws (CounterRng.h, stratifiedFrameUniform): every frame stays unbiased, and the
-  // frames' combs together fill each ray evenly, like one comb that many times denser.
-  bool stratifiedComb = false;
   // Ratio tracking's majorant scale where a march (preintegrated, debiased) renders a scene as
   // ratio tracking instead (shadows, shading; for preintegrated also gradient opacity and 2D
   // transfer functions); 0 = majorantScale. Why: a march's comb density (majorantScale) is chosen
