@@ -5,14 +5,16 @@
 
 #include <algorithm>
 #include <atomic>
-
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "Backends/Refinement.h"
 #include "Render/QueryBatch.h"
+#include "Render/QueryReduction.h"
 #include "Evaluator/ValueRange.h"
 #include "Model/InrModel.h"
 #include "Render/ModelBox.h"
@@ -103,6 +105,64 @@ TEST(Refinement, StoppedFrameLeavesNoTrace) {
   f.session->setStopRequest(nullptr);
   EXPECT_FALSE(f.session->renderFrame().stopped);
   EXPECT_EQ(f.session->accumulatedFrames(), 3);
+}
+
+// A stop request raised by another thread at any moment of a frame (during the macrocell update,
+// inside a traversal pass, inside an evaluation, after the frame): a frame it stopped returns
+// unaccumulated, and the frame after it is a never-stopped session's first frame, bit for bit:
+// the stopped frame's samples reached neither the macrocells' bounds nor, with pruning, the
+// expected scalars. Trial 0 raises the stop before the frame (it must stop it); the others at
+// moments spread over one frame's time, so that most land inside the tracking loop (how many
+// stopped their frame is printed: the moments depend on the machine, the assertions do not).
+TEST(Refinement, AStopAtAnyMomentLeavesNoTrace) {
+  RenderSettings s;
+  s.width = 240;
+  s.height = 180;
+  for (const bool pruning : {false, true}) {
+    SCOPED_TRACE(pruning ? "pruning" : "no pruning");
+    QueryReductionSettings q;
+    if (pruning) {
+      q.pruneEpsilon = 0.02;
+      q.pruneFalloff = 0.006;
+    }
+    auto prepare = [&](Fixture& f) {
+      f.session->setSettings(s);
+      f.session->setQueryReduction(q);
+    };
+    Fixture never;
+    prepare(never);
+    const auto t0 = std::chrono::steady_clock::now();
+    never.session->renderFrame();
+    const double frameUs = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+    constexpr int kTrials = 16;
+    int stoppedByTimedStops = 0;
+    for (int k = 0; k < kTrials; ++k) {
+      Fixture f;
+      prepare(f);
+      std::atomic<bool> stop{k == 0};
+      f.session->setStopRequest(&stop);
+      const auto delay = std::chrono::microseconds(static_cast<long long>(frameUs * k / (kTrials - 1)));
+      std::thread raiser([&stop, delay] {
+        std::this_thread::sleep_for(delay);
+        stop = true;
+      });
+      const FrameStats st = f.session->renderFrame();
+      raiser.join();
+      if (k == 0) EXPECT_TRUE(st.stopped);
+      if (st.stopped) {
+        stoppedByTimedStops += k > 0 ? 1 : 0;
+        EXPECT_EQ(f.session->accumulatedFrames(), 0);
+        f.session->setStopRequest(nullptr);
+        EXPECT_FALSE(f.session->renderFrame().stopped);
+      }
+      EXPECT_EQ(f.session->accumulatedFrames(), 1);
+      EXPECT_EQ(f.session->image().data, never.session->image().data)
+          << "stop raised " << delay.count() << " us into a frame of " << frameUs << " us"
+          << (st.stopped ? " (stopped it)" : " (after it)");
+    }
+    std::printf("%s: %d of %d stops raised during a frame of %.0f us stopped it\n", pruning ? "pruning" : "no pruning",
+                stoppedByTimedStops, kTrials - 1, frameUs);
+  }
 }
 
 // Under a stop request that is not raised, the CPU evaluates each tracking iteration in

@@ -97,45 +97,48 @@ double CpuWavefrontRenderer::applyDirtyMajorants() {
 void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
                                             const PointStateView* points, int& iterations, std::size_t& queries,
                                             double& traverseMs, double& evaluateMs,
-                                            std::size_t& refinements, std::size_t& gradientQueries,
-                                            bool& truncated) {
+                                            std::size_t& gradientQueries, bool& truncated) {
   const RayStateView rs = rays_.view();
   const int n = rs.count;
   const Int3 dims = macrocells_.dims();
   const bool pruning = medium.prune.expected != nullptr;
   auto noop = [](auto&&...) {};
+  // One traversal pass over the rays. Each ray looks at a GUI worker's stop request first, so a
+  // stopped frame waits for the rays under way, not for the whole pass.
+  auto traverseEach = [&](auto&& traverseOne) {
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
+    for (int i = 0; i < n; ++i)
+      if (!stopRequested()) traverseOne(i);
+  };
   for (int loopIterations = 0;; ++loopIterations) {
     if (stopRequested()) break;  // renderFrame returns the frame unaccumulated
     auto t0 = Clock::now();
     if (points && fc.estimator == PrimaryEstimator::Debiased) {
-#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-      for (int i = 0; i < n; ++i) {
+      traverseEach([&](int i) {
         if (pruning)
           traverseDebiasedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
         else
           traverseDebiasedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
-      }
+      });
     } else if (points && fc.estimator == PrimaryEstimator::Preintegrated) {
-#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-      for (int i = 0; i < n; ++i) {
+      traverseEach([&](int i) {
         if (pruning)
           traversePreintegratedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
         else
           traversePreintegratedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
-      }
+      });
     } else if (points) {
-#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-      for (int i = 0; i < n; ++i) {
+      traverseEach([&](int i) {
         if (pruning)
           traverseRatioRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
         else
           traverseRatioRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
-      }
+      });
     } else {
-#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-      for (int i = 0; i < n; ++i) traverseRay(fc, medium, rs, i);
+      traverseEach([&](int i) { traverseRay(fc, medium, rs, i); });
     }
     traverseMs += msSince(t0);
+    if (stopRequested()) break;  // mid-pass: the rays' state is the next frame's to set up again
 
     t0 = Clock::now();
     // Delta tracking: one query per pending ray (batch entries are ray indices); ratio tracking:
@@ -183,7 +186,7 @@ void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const Track
       // change between frames, so the image does not depend on the thread count.
       for (std::size_t q = 0; q < k; ++q) {
         const int cell = points ? points->cell[entries[q]] : linearCellIndex(dims, rs.cell[entries[q]]);
-        refinements += macrocells_.refine(cell, values[q]) ? 1 : 0;
+        if (macrocells_.wouldRefine(cell, values[q])) pendingRefinements_.emplace_back(cell, values[q]);
       }
     }
     if (pruning) {
@@ -240,7 +243,11 @@ FrameStats CpuWavefrontRenderer::renderFrame() {
     pointsView = points_.view();
     pointsView.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
   }
-  runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs, st.refinements,
+  pendingRefinements_.clear();
+  // Pruning's expected scalars learn inside the loop (the next traversal reads them): a frame that
+  // may be stopped keeps their values from before it, to put back.
+  if (prune.expected && stop_) expectedBeforeFrame_ = macrocells_.expected();
+  runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs,
                   st.gradientOpacityQueries, truncated);
 
   if (fc.shadows && !stopRequested()) {
@@ -254,15 +261,18 @@ FrameStats CpuWavefrontRenderer::renderFrame() {
     st.shadowRays = shadowRays;
     st.shadowTraverseMs += msSince(t0);
     runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
-                    st.shadowEvaluateMs, st.refinements, st.gradientOpacityQueries, truncated);
+                    st.shadowEvaluateMs, st.gradientOpacityQueries, truncated);
   }
   if (stopRequested()) {
     // Stopped: the rays' state is the next frame's to set up again, the image and the frame
     // counters stay as they were (the next frame draws the same random numbers).
     st.stopped = true;
+    pendingRefinements_.clear();
+    if (prune.expected) std::copy(expectedBeforeFrame_.begin(), expectedBeforeFrame_.end(), prune.expected);
     st.closeTiming(updateBeforeFrame, msSince(tFrame));
     return st;
   }
+  st.refinements += applyPendingRefinements();
   if (fc.shading.enabled) {
     t0 = Clock::now();
     st.shadingQueries = batch_.gatherShading(fc, rs);
@@ -391,8 +401,20 @@ void CpuWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, co
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
   bool truncated = false;
+  pendingRefinements_.clear();
   runTrackingLoop(fc, medium, nullptr, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
-                  total.refinements, total.gradientOpacityQueries, truncated);
+                  total.gradientOpacityQueries, truncated);
+  if (stopRequested())
+    pendingRefinements_.clear();
+  else
+    total.refinements += applyPendingRefinements();
+}
+
+std::size_t CpuWavefrontRenderer::applyPendingRefinements() {
+  std::size_t widened = 0;
+  for (const auto& [cell, value] : pendingRefinements_) widened += macrocells_.refine(cell, value) ? 1 : 0;
+  pendingRefinements_.clear();
+  return widened;
 }
 
 }  // namespace inr

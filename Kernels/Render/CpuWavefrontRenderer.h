@@ -9,6 +9,7 @@
 // It also hosts the naive baseline (renderFrameNaive): the same estimator and random streams,
 // but each ray evaluates the network inside its own loop, one point per call, no batching.
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "Evaluator/FieldEvaluator.h"
@@ -61,7 +62,9 @@ private:
   void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, const PointStateView* points,
                        int& iterations,
                        std::size_t& queries, double& traverseMs, double& evaluateMs,
-                       std::size_t& refinements, std::size_t& gradientQueries, bool& truncated);
+                       std::size_t& gradientQueries, bool& truncated);
+  // Applies pendingRefinements_ (and empties it); returns how many widened a cell.
+  std::size_t applyPendingRefinements();
 
   const FieldEvaluator& evaluator_;
   MacrocellGrid& macrocells_;
@@ -72,6 +75,12 @@ private:
   PixelStateArrays<HostArray> history_;       // reprojection's copy of the old accumulation
   std::vector<std::uint64_t> reprojectKeys_;  // reprojection's per-pixel minimum offer
   QueryBatch batch_;
+  // The macrocell widenings (cell, value) of the frame under way, applied in batch order when it
+  // completes: a stopped frame leaves the macrocells as they were, so the frames after it are a
+  // never-stopped session's. (Majorants change only between frames, so a completed frame's image
+  // is the same as with widenings applied as they come.)
+  std::vector<std::pair<int, float>> pendingRefinements_;
+  std::vector<float> expectedBeforeFrame_;  // pruning's expected scalars before a stoppable frame
 };
 
 }  // namespace inr

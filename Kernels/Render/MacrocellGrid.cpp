@@ -168,12 +168,17 @@ MajorantGridView MacrocellGrid::view(const MajorantArrays& majorants) const {
   return layout_.majorantView(majorants.cell.data(), haveBlocks ? majorants.block.data() : nullptr);
 }
 
-bool MacrocellGrid::refine(int cell, float value) {
+bool MacrocellGrid::wouldRefine(int cell, float value) const {
   if (!std::isfinite(value) || cell < 0 || cell >= layout_.cellCount) return false;
+  const float mn = workMin_[cell], mx = workMax_[cell];
+  return !(mn <= mx) || value < mn || value > mx;
+}
+
+bool MacrocellGrid::refine(int cell, float value) {
+  if (!wouldRefine(cell, value)) return false;
   float& mn = workMin_[cell];
   float& mx = workMax_[cell];
   const bool empty = !(mn <= mx);
-  if (!empty && value >= mn && value <= mx) return false;
   mn = empty ? value : std::min(mn, value);
   mx = empty ? value : std::max(mx, value);
   // Widen the contributing slices too: if both slices' bounds contain the value, so does every

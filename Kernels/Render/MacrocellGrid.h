@@ -75,6 +75,9 @@ public:
   // cell's working bounds, widen them (and the contributing slices, so the fix survives time
   // changes) and mark the cell dirty. Not thread-safe: callers run it serially (deterministic).
   bool refine(int cell, float value);
+  // Whether refine(cell, value) would widen the cell's bounds now (a finite value in the grid's
+  // cells, outside them).
+  bool wouldRefine(int cell, float value) const;
   std::vector<int> takeDirtyCells();
   std::size_t refinementCount() const { return refinements_; }
 
