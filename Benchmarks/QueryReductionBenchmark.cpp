@@ -65,12 +65,13 @@ const char* kUsage =
     "  --configs LIST          ';'-separated: none | defaults | histogram:RHO[:K] | stbn:RHO |\n"
     "                          weighted:RHO[:ALPHA] | prune:EPSILON[:DELTA] | delta | ratio[:K[:P[:R]]] |\n"
     "                          march[:K[:KR[:P[:R]]]] | preint[:K[:KR[:P[:R[:S]]]]] |\n"
-    "                          debiased[:K[:Q[:L[:P[:S[:J[:D]]]]]]] (ratio tracking with\n"
+    "                          debiased[:K[:Q[:L[:P[:S[:J[:D[:C]]]]]]]] (ratio tracking with\n"
     "                          majorant scale K; unbiased ray marching, with the pre-integrated control\n"
     "                          for preint, comb density K and residual scale KR; points per iteration\n"
     "                          P, roulette threshold R, preint's comb at least every diagonal / S;\n"
     "                          the debiased march with comb density K, level ratio Q, max level L,\n"
-    "                          stratified jitter J (0/1), the floor only to majorant / D (D > 0); join\n"
+    "                          stratified jitter J (0/1), the floor only to majorant / D (D > 0), the\n"
+    "                          jitter's control variate in the first C frames; join\n"
     "                          with '+', e.g. ratio:4+prune:0.02; default:\n"
     "                          the paper's set)\n"
     "  --psnr-schedule S       all (every frame; default CPU) or geometric (frames 1,2,3,4,5,6,8,10,..\n"
@@ -247,7 +248,7 @@ Config parseSingleConfig(const std::string& spec) {
               std::to_string(c.tracking.pointsPerIteration) + ":" + fmt(c.tracking.rouletteThreshold);
     if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
   } else if (f == "debiased") {
-    arity(1, 8);
+    arity(1, 9);
     c.family = f;
     c.tracking.estimator = PrimaryEstimator::Debiased;
     c.tracking.majorantScale = num(1, c.tracking.majorantScale);
@@ -257,12 +258,14 @@ Config parseSingleConfig(const std::string& spec) {
     c.tracking.combMinimumSteps = num(5, c.tracking.combMinimumSteps);
     c.tracking.stratifiedJitter = num(6, 0) != 0;
     c.tracking.combFloorDepth = num(7, 0);
+    c.tracking.jitterControlFrames = int(num(8, 0));
     c.tracking.validate();
     c.label = std::string(c.tracking.stratifiedJitter ? "s" : "") + f + ":" + fmt(c.tracking.majorantScale) + ":" +
               fmt(c.tracking.levelRatio) + ":" +
               std::to_string(c.tracking.maxLevel) + ":" + std::to_string(c.tracking.pointsPerIteration);
     if (c.tracking.combMinimumSteps > 0) c.label += ":" + fmt(c.tracking.combMinimumSteps);
     if (c.tracking.combFloorDepth > 0) c.label += ":d" + fmt(c.tracking.combFloorDepth);
+    if (c.tracking.jitterControlFrames > 0) c.label += ":cv" + std::to_string(c.tracking.jitterControlFrames);
   } else if (f == "prune") {
     arity(2, 3);
     c.family = "prune";
@@ -273,7 +276,7 @@ Config parseSingleConfig(const std::string& spec) {
     throw std::invalid_argument("unknown configuration '" + spec +
                                 "' (none, defaults, histogram:RHO[:K], stbn:RHO, weighted:RHO[:ALPHA], "
                                 "prune:EPSILON[:DELTA], delta, ratio[:K[:P[:R]]], march[:K[:KR[:P[:R]]]], "
-                                "preint[:K[:KR[:P[:R[:S]]]]], debiased[:K[:Q[:L[:P[:S[:J[:D]]]]]]])");
+                                "preint[:K[:KR[:P[:R[:S]]]]], debiased[:K[:Q[:L[:P[:S[:J[:D[:C]]]]]]]])");
   }
   c.q.validate();
   return c;

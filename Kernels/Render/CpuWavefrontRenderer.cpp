@@ -311,7 +311,8 @@ FrameStats CpuWavefrontRenderer::renderFrameNaive() {
   const auto tFrame = Clock::now();
   st.updateMs += applyDirtyMajorants();
 
-  const FrameConstants fc = frameConstants(frameKey());
+  FrameConstants fc = frameConstants(frameKey());
+  fc.jitterControl = 0;  // each pixel is finalized before its neighbours are traced
   const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), PruneView{}};
   const RayStateView rs = rays_.view();
   const AccumulationView acc = pixels_.view();

@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "Render/CounterRng.h"
+#include "Render/RayInit.h"
 #include "Render/RayState.h"
 
 namespace inr {
@@ -84,13 +85,57 @@ INR_HD Vec4f frameEstimate(const FrameConstants& fc, const RayStateView& rs, int
   return c;
 }
 
+// The sub-pixel jitter's control variate (FrameConstants::jitterControl). A frame samples pixel i
+// at a random point x of the pixel, so its estimate c carries the image's variation across the
+// pixel as noise: with the shipped transfer functions most of a first frame's error at 256²
+// (RESULTS-archive, "Where a first frame's error comes from on the CPU"). With g a slope of the
+// image at the pixel that does not depend on x, c - g . (x - centre) has c's expectation (x is
+// uniform in the pixel: E[x - centre] = 0) and lacks the part of that noise that is linear across
+// the pixel. g is a central difference per axis of this frame's estimates of the four neighbours
+// over their own sampled positions, which are independent of pixel i's draws; 0 on an axis where a
+// neighbour has none (the image's edge, a pixel budgeting skipped), a rule that does not look at
+// pixel i's own sample. Every frame stays unbiased; the frames of neighbouring pixels become
+// correlated, which the convergence estimate (per pixel, from the two halves) does not assume
+// otherwise. The finalize pass reads the neighbours' ray state and writes only the accumulation,
+// so one pass over the pixels serves on either backend.
+INR_HD Vec4f jitterControlled(const FrameConstants& fc, const RayStateView& rs, int i, const Vec4f& c) {
+  const int width = fc.camera.width, height = fc.camera.height;
+  const int px = i % width, py = i / width;
+  // Slope along one axis from the neighbours a (before) and b (after), in colour per pixel; false
+  // where it is 0 (a neighbour missing, or equal estimates: the background's pixels, most of a
+  // frame, skip the positions' draws).
+  auto slope = [&](int a, int b, bool alongX, Vec4f& g) {
+    if ((rs.flags[a] & kRayBudgetSkipped) || (rs.flags[b] & kRayBudgetSkipped)) return false;
+    const Vec4f ca = frameEstimate(fc, rs, a), cb = frameEstimate(fc, rs, b);
+    if (ca.x == cb.x && ca.y == cb.y && ca.z == cb.z && ca.w == cb.w) return false;
+    float a0, a1, b0, b1;
+    RngStream unused;
+    primaryJitter(fc, a, unused, a0, a1);
+    primaryJitter(fc, b, unused, b0, b1);
+    const float w = 1.f / (alongX ? 2.f + b0 - a0 : 2.f + b1 - a1);  // the positions' distance: > 1
+    g = Vec4f{(cb.x - ca.x) * w, (cb.y - ca.y) * w, (cb.z - ca.z) * w, (cb.w - ca.w) * w};
+    return true;
+  };
+  Vec4f gx{0.f, 0.f, 0.f, 0.f}, gy{0.f, 0.f, 0.f, 0.f};
+  const bool sx = px > 0 && px + 1 < width && slope(i - 1, i + 1, true, gx);
+  const bool sy = py > 0 && py + 1 < height && slope(i - width, i + width, false, gy);
+  if (!sx && !sy) return c;
+  float u0, u1;
+  RngStream rng;
+  primaryJitter(fc, i, rng, u0, u1);
+  const float dx = u0 - 0.5f, dy = u1 - 0.5f;
+  return Vec4f{c.x - gx.x * dx - gy.x * dy, c.y - gx.y * dx - gy.y * dy, c.z - gx.z * dx - gy.z * dy,
+               c.w - gx.w * dx - gy.w * dy};
+}
+
 // Returns what the pixel adds to the convergence sums (the backends reduce them).
 // Pixels that ray budgeting skipped keep their accumulation and add their current state.
 INR_HD PixelConvergence finalizePixel(const FrameConstants& fc, const RayStateView& rs,
                                       const AccumulationView& acc, int i) {
   const std::uint8_t flags = rs.flags[i];
   if (flags & kRayBudgetSkipped) return pixelConvergence(acc, i, fc.background);
-  const Vec4f c = frameEstimate(fc, rs, i);
+  Vec4f c = frameEstimate(fc, rs, i);
+  if (fc.jitterControl) c = jitterControlled(fc, rs, i, c);
   const std::uint32_t n = acc.sampleCount[i];
   const Vec4f prev = acc.accum[i];
   const Vec3f a = overBackground(c, fc.background);  // this frame's colour as shown

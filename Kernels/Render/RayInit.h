@@ -28,15 +28,24 @@ INR_HD void stratifiedJitter(std::uint32_t key, std::uint32_t frame, std::uint32
 }
 
 // Draw indices 0 and 1 of every pixel's stream are the sub-pixel jitter (drawn even when jitter
-// is off or stratified, so the tracking draws do not shift with that option).
+// is off or stratified, so the tracking draws do not shift with that option). Pixel i's position
+// in the pixel this frame, in [0, 1)^2 ((0.5, 0.5) without jitter); `rng` left after the two draws.
+INR_HD void primaryJitter(const FrameConstants& fc, int i, RngStream& rng, float& u0, float& u1) {
+  rng = RngStream{pixelStreamKey(fc, i), fc.frame, fc.seed, 0u};
+  u0 = rng.next();
+  u1 = rng.next();
+  if (fc.pixelJitter == 2) stratifiedJitter(rng.pixel, fc.frame, fc.seed, u0, u1);
+  if (!fc.pixelJitter) u0 = u1 = 0.5f;
+}
+
 INR_HD void initPrimaryRay(const FrameConstants& fc, const MajorantGridView& grid,
                            const RayStateView& rs, int i) {
-  RngStream rng{pixelStreamKey(fc, i), fc.frame, fc.seed, 0u};
-  float u0 = rng.next(), u1 = rng.next();
-  if (fc.pixelJitter == 2) stratifiedJitter(rng.pixel, fc.frame, fc.seed, u0, u1);
+  RngStream rng;
+  float u0, u1;
+  primaryJitter(fc, i, rng, u0, u1);
   const int px = i % fc.camera.width, py = i / fc.camera.width;
   Vec3f o, d;
-  cameraRayWorld(fc.camera, px, py, fc.pixelJitter ? u0 : 0.5f, fc.pixelJitter ? u1 : 0.5f, o, d);
+  cameraRayWorld(fc.camera, px, py, u0, u1, o, d);
   // Model space from here on; the depth limit is a world distance along the world ray.
   const float modelPerWorld = worldRayToModel(fc.camera, o, d);
 

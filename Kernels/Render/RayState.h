@@ -165,6 +165,8 @@ struct FrameConstants {
   std::uint32_t frame = 0, seed = 0;  // RNG key (with the pixel index)
   int pixelJitter = 1;                // jitter the sub-pixel position (antialiasing): 0 off, 1 random,
                                       // 2 stratified over frames (RayInit.h)
+  int jitterControl = 0;              // the jitter's control variate in the finalize stage (Finalize.h,
+                                      // jitterControlled; TrackingOptions::jitterControlFrames)
   int shadows = 0;
   float ambient = 0.2f;               // unlit share of the colour (shadows and shading, Shading.h)
   Vec3f toLight{0.f, 0.f, 1.f};       // unit model-space vector towards the (directional) light

@@ -39,6 +39,9 @@ std::uint32_t rngDrawBudget(int maxCollisionsPerRay) {
 void TrackingOptions::validate() const {
   if (maxCollisionsPerRay < 1) throw std::invalid_argument("maxCollisionsPerRay must be >= 1");
   if (maxIterations < 1) throw std::invalid_argument("maxIterations must be >= 1");
+  if (jitterControlFrames < 0 || jitterControlFrames > kMaxJitterControlFrames)
+    throw std::invalid_argument("jitter control frames must be in [0, " + std::to_string(kMaxJitterControlFrames) +
+                                "], got " + std::to_string(jitterControlFrames));
   if (ghostPassesOnUpdate < 0 || ghostPassesOnUpdate > kMaxGhostPasses) {
     throw std::invalid_argument("ghost passes must be in [0, " + std::to_string(kMaxGhostPasses) + "], got " +
                                 std::to_string(ghostPassesOnUpdate));
@@ -80,6 +83,7 @@ TrackingOptions TrackingOptions::recommended() {
   t.maxLevel = 5;
   t.combMinimumSteps = 192.0;
   t.stratifiedJitter = true;
+  t.jitterControlFrames = 8;
   t.pointsPerIteration = 32;
   t.fallbackMajorantScale = 8.0;
   return t;
@@ -229,6 +233,11 @@ FrameConstants WavefrontRenderer::frameConstants(std::uint32_t frame, const floa
     fc.estimator = PrimaryEstimator::Ratio;
   const bool fellBack = fc.estimator != options_.estimator && options_.fallbackMajorantScale > 0.0;
   if (fc.pixelJitter && options_.stratifiedJitter) fc.pixelJitter = 2;
+  // The accumulation's frame as one renderer counts it (a sample share's local frame j is another),
+  // so that sample shares add up to one renderer's image.
+  const std::uint32_t accumulatedFrame = sampleShareFrame(settings_.sampleShare, std::uint32_t(frameIndex_));
+  fc.jitterControl =
+      fc.pixelJitter && accumulatedFrame < std::uint32_t(options_.jitterControlFrames) && fc.shareCount == 1 ? 1 : 0;
   fc.levelRatio = float(options_.levelRatio);
   fc.maxLevel = options_.maxLevel;
   fc.majorantScale = float(fellBack ? options_.fallbackMajorantScale : options_.majorantScale);

@@ -425,6 +425,7 @@ int runRenderJob(const RenderJob& job) {
                            {"comb_minimum_steps", t.combMinimumSteps},
                            {"comb_floor_depth", t.combFloorDepth},
                            {"jitter", t.stratifiedJitter ? "stratified" : "random"},
+                           {"jitter_control_frames", t.jitterControlFrames},
                            {"fallback_majorant_scale", t.fallbackMajorantScale}};
   }
   report["width"] = settings.width;

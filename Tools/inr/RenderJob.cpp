@@ -170,7 +170,7 @@ const char* kRenderUsageTail =
 TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const std::string& method) {
   for (const char* option :
        {"estimator", "majorant-scale", "residual-scale", "points-per-iteration", "roulette-threshold", "level-ratio",
-        "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale"}) {
+        "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "jitter-control", "fallback-majorant-scale"}) {
     if (args.has(option) && method != "delta")
       throw UsageError(std::string("--") + option + " applies to --method delta (the wavefront tracker) only");
   }
@@ -196,12 +196,13 @@ TrackingOptions parseEstimatorOptions(const Args& args, TrackingOptions t, const
     if (j != "random" && j != "stratified") throw UsageError("--jitter must be random or stratified, got '" + j + "'");
     t.stratifiedJitter = j == "stratified";
   }
+  t.jitterControlFrames = int(args.getInt("jitter-control", t.jitterControlFrames));
   try {
     t.validate();
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--estimator / --majorant-scale / --residual-scale / --points-per-iteration / "
                                  "--roulette-threshold / --level-ratio / --max-level / --comb-minimum-steps / --comb-floor-depth / "
-                                 "--fallback-majorant-scale: ") +
+                                 "--jitter-control / --fallback-majorant-scale: ") +
                      e.what());
   }
   return t;
@@ -243,13 +244,18 @@ std::string estimatorUsage() {
       "  --jitter random|stratified  sub-pixel jitter over frames: independent, or a low-discrepancy\n"
       "                           sequence per pixel (unbiased per frame, less antialiasing noise over\n"
       "                           frames) (default %s)\n"
+      "  --jitter-control N       in the first N frames, subtract the image's slope (from the neighbours'\n"
+      "                           estimates of the same frame) times each sample's offset from its pixel\n"
+      "                           centre: unbiased, less antialiasing noise in those frames, 0..%d\n"
+      "                           (default %d; 0 = off)\n"
       "  --fallback-majorant-scale K  preintegrated, debiased: ratio tracking's majorant scale where they\n"
       "                           render as ratio tracking (shadows, shading), 0 or in [1, 1024] (default\n"
       "                           %g; 0 = --majorant-scale)\n",
       primaryEstimatorName(d.estimator), d.majorantScale,
       TrackingOptions::recommendedFor(PrimaryEstimator::Ratio).majorantScale, d.residualScale, TrackingOptions::kMaxPointsPerIteration,
       d.pointsPerIteration, d.rouletteThreshold, d.levelRatio, TrackingOptions::kMaxDebiasedLevel, d.maxLevel,
-      d.combMinimumSteps, d.combFloorDepth, d.stratifiedJitter ? "stratified" : "random", d.fallbackMajorantScale);
+      d.combMinimumSteps, d.combFloorDepth, d.stratifiedJitter ? "stratified" : "random", TrackingOptions::kMaxJitterControlFrames,
+      d.jitterControlFrames, d.fallbackMajorantScale);
   return text;
 }
 
@@ -373,7 +379,7 @@ void parseBlendMode(const Args& args, RenderJob& job) {
   if (args.has("method")) throw UsageError("--method applies to --blend composite, not " + mode);
   if (job.split != SplitKind::None) throw UsageError(std::string(job.splitOption()) + " applies to --blend composite, not " + mode);
   for (const char* option : {"converge", "shadows", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
+                             "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "jitter-control", "fallback-majorant-scale", "budget", "budget-fraction", "budget-max-skip", "budget-alpha",
                              "reproject", "no-reproject", "prune-epsilon", "prune-falloff", "ghost-passes",
                              "gradient-opacity", "step", "shadow-step", "shadow-estimator"}) {
     if (args.has(option)) throw UsageError(std::string("--") + option + " applies to --blend composite, not " + mode);
@@ -626,7 +632,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "shadow-step", "threads", "backend", "traversal", "gas-min-majorant", "output", "converge",
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
-                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
+                   "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "jitter-control", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
                    "iso-tolerance", "slice-origin", "slice-normal", "crop"},
                   {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
                    "reproject", "no-reproject", "slice-opaque"});

@@ -98,7 +98,8 @@ FrameStats CudaWavefrontRenderer::renderFrameNaive(const CudaPerThreadMlp& netwo
   I.clearStats();
   macrocells_.updateDirtyMajorants(I.tf.view(), I.majorants.get(), I.blocks());
   const FrameSetup f = frameSetup(frameKey());
-  const FrameConstants& fc = f.fc;
+  FrameConstants fc = f.fc;
+  fc.jitterControl = 0;  // a thread finalizes its pixel before its neighbours are traced
   TrackingMedium medium = f.medium;
   medium.prune = PruneView{};  // the baseline runs without query reduction (as the CPU's does)
   const RayStateView& rs = f.rs;
