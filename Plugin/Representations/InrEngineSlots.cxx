@@ -59,7 +59,8 @@ std::string InrDescribeMacrocells(const inr::RenderSession& session)
     << " skip_block=" << m.skipBlockCells << " bounds_padding=" << m.boundsPadding
     << " ghost_passes=" << t.ghostPassesOnUpdate << " refine=" << int(t.refineMacrocells)
     << " estimator=" << inr::primaryEstimatorName(t.estimator) << " majorant_scale=" << t.majorantScale
-    << " residual_scale=" << t.residualScale << " points_per_iteration=" << t.pointsPerIteration;
+    << " residual_scale=" << t.residualScale << " points_per_iteration=" << t.pointsPerIteration
+    << " jitter_control_frames=" << t.jitterControlFrames;
   return s.str();
 }
 
@@ -118,7 +119,8 @@ void InrSyncTrackingOptions(inr::RenderSession& session, const inr::TrackingOpti
   if (held.ghostPassesOnUpdate != want.ghostPassesOnUpdate ||
     held.refineMacrocells != want.refineMacrocells || held.estimator != want.estimator ||
     held.majorantScale != want.majorantScale || held.residualScale != want.residualScale ||
-    held.pointsPerIteration != want.pointsPerIteration || held.stratifiedJitter != want.stratifiedJitter)
+    held.pointsPerIteration != want.pointsPerIteration || held.stratifiedJitter != want.stratifiedJitter ||
+    held.jitterControlFrames != want.jitterControlFrames)
   {
     session.setTrackingOptions(want);
   }
@@ -226,6 +228,7 @@ void InrEngineOptions::Check(const std::function<void(const std::string&)>& erro
   }
   trackingField("Residual Scale (InrResidualScale)", &inr::TrackingOptions::residualScale);
   trackingField("Points Per Iteration (InrPointsPerIteration)", &inr::TrackingOptions::pointsPerIteration);
+  trackingField("Jitter Control Frames (InrJitterControlFrames)", &inr::TrackingOptions::jitterControlFrames);
   this->trackingValid.stratifiedJitter = this->trackingAsked.stratifiedJitter;  // (either value is valid)
   this->trackingValid.refineMacrocells = this->trackingAsked.refineMacrocells;
 }

@@ -128,6 +128,10 @@ public:
   ///    sequence per pixel (1) or independent draws (0); default from recommended().
   void SetStratifiedJitter(int on);
   int GetStratifiedJitter();
+  ///  - JitterControlFrames (--jitter-control N): the sub-pixel jitter's control variate in an
+  ///    accumulation's first N frames (0 = off); default from recommended().
+  void SetJitterControlFrames(int frames);
+  int GetJitterControlFrames();
   /// The macrocell options the engine holds (read back from it after the last Render), e.g.
   /// "dims=32x32x32 slices=16 skip_block=4 bounds_padding=0 ghost_passes=0 refine=1"; "" before.
   const char* GetMacrocellsInUse();

@@ -290,6 +290,8 @@ INR_STORED_OPTION(PointsPerIteration, int, options.trackingAsked.pointsPerIterat
   this->Internal->options.trackingAsked.pointsPerIteration)
 INR_STORED_OPTION(StratifiedJitter, int, options.trackingAsked.stratifiedJitter, v != 0,
   this->Internal->options.trackingAsked.stratifiedJitter ? 1 : 0)
+INR_STORED_OPTION(JitterControlFrames, int, options.trackingAsked.jitterControlFrames, v,
+  this->Internal->options.trackingAsked.jitterControlFrames)
 #undef INR_STORED_OPTION
 
 const char* vtkInrVolumeMapper::GetMacrocellsInUse()

@@ -59,6 +59,7 @@ public:
   void SetInrResidualScale(double);
   void SetInrPointsPerIteration(int);
   void SetInrStratifiedJitter(int);
+  void SetInrJitterControlFrames(int);
   void SetInrProgressiveRefinement(int);
   ///@}
 

@@ -338,7 +338,8 @@ def check_estimator_xml_defaults(inr, data):
            "the shipped default estimator is the debiased march (K 2, r 0.25, 5 levels, S 192, stratified "
            "jitter, 32 points per batch, ratio K 8 where it falls back); the CLI runs %r" % e)
     for prop, key, cast in (("InrResidualScale", "residual_scale", float),
-                            ("InrPointsPerIteration", "points_per_iteration", int)):
+                            ("InrPointsPerIteration", "points_per_iteration", int),
+                            ("InrJitterControlFrames", "jitter_control_frames", int)):
         got = cast(props[prop].get("default_values"))
         expect(got == e[key], "%s: XML default %r, CLI default %r" % (prop, got, e[key]))
     # The density: the XML's 0 is the estimator's own, as the CLI takes it when only --estimator
@@ -355,6 +356,7 @@ def check_estimator_xml_defaults(inr, data):
     for args, what in ((["--estimator", "ratios"], "--estimator"), (["--majorant-scale", "0.5"], "majorant scale"),
                        (["--points-per-iteration", "65"], "points per iteration"),
                        (["--fallback-majorant-scale", "0.5"], "fallback majorant scale"),
+                       (["--jitter-control", "-1"], "jitter control frames"),
                        (["--estimator", "delta", "--method", "raymarch"], "--estimator")):
         p = run(inr, "render", model, "--size", "8x8", *args, "-o", "/nonexistent/x.png")
         expect(p.returncode != 0 and what in p.stderr, "%s: %s" % (" ".join(args), p.stderr))

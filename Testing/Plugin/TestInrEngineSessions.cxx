@@ -81,6 +81,7 @@ int main(int argc, char* argv[])
   mapper->SetMajorantScale(2.0);
   mapper->SetResidualScale(0.5);
   mapper->SetPointsPerIteration(2);
+  mapper->SetJitterControlFrames(3);
   mapper->SetRayBudget(vtkInrVolumeMapper::BUDGET_STBN);
   mapper->SetBudgetFraction(0.5);
   mapper->SetBudgetMaxSkip(3);
@@ -128,7 +129,7 @@ int main(int argc, char* argv[])
   const std::string fine = mapper->GetEngineOptionsInUse();
   for (const char* field : { "backend=cpu", "traversal=dda", "skip_block=8", "bounds_padding=0.05",
          "ghost_passes=2", "refine=0", "estimator=delta", "majorant_scale=2", "residual_scale=0.5",
-         "points_per_iteration=2", "budget=stbn", "rho=0.5", "K=3", "alpha=0.25", "epsilon=0.01",
+         "points_per_iteration=2", "jitter_control_frames=3", "budget=stbn", "rho=0.5", "K=3", "alpha=0.25", "epsilon=0.01",
          "delta=0.005" })
   {
     check(has(fine, field), std::string("the fine session holds ") + field);
@@ -138,9 +139,11 @@ int main(int argc, char* argv[])
   // Changed on the live sessions (no rebuild): the coarse one follows.
   mapper->SetEstimator(1);  // ratio
   mapper->SetPointsPerIteration(3);
+  mapper->SetJitterControlFrames(0);
   check(timeChangeFrame(5.0), "the next time change is drawn by the coarse session");
   check(has(mapper->GetInteractiveEngineOptionsInUse(), "estimator=ratio") &&
-      has(mapper->GetInteractiveEngineOptionsInUse(), "points_per_iteration=3"),
+      has(mapper->GetInteractiveEngineOptionsInUse(), "points_per_iteration=3") &&
+      has(mapper->GetInteractiveEngineOptionsInUse(), "jitter_control_frames=0"),
     "an estimator change reaches the coarse session");
   compare("estimator changed");
 
