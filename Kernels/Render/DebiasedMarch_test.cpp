@@ -256,8 +256,8 @@ TEST(DebiasedMarch, ConvergenceEstimateIsHonestWithTheStratifiedJitter) {
 // The sub-pixel jitter's control variate (Finalize.h, jitterControlled) in an accumulation's
 // first frames (TrackingOptions::jitterControlFrames; 8 in the shipped defaults). A first frame
 // with it is closer to the converged image: its mean squared error (six seeds, against a
-// 512-frame image without the variate) falls by more than a fifth. And it keeps the limit: a
-// 256-frame image with it and one without (other seeds) differ by what their two estimated
+// 256-frame image without the variate) falls by more than a fifth. And it keeps the limit: a
+// 128-frame image with it and one without (other seeds) differ by what their two estimated
 // errors add up to, within 1 dB; a biased control would add its bias to that difference. The
 // control: without the variate the first frames' error is the larger one.
 TEST(DebiasedMarch, JitterControlVariateKeepsTheLimitAndCleansTheFirstFrames) {
@@ -276,20 +276,20 @@ TEST(DebiasedMarch, JitterControlVariateKeepsTheLimitAndCleansTheFirstFrames) {
   auto mse = [](const ImageRGBA& a, const Rendered& ref) {
     return std::pow(10.0, -test::psnrOverCoverage(a, ref.image, ref.premultiplied) / 10.0);
   };
-  const Rendered ref = render(f, seeded(977), without, 512);
+  const Rendered ref = render(f, seeded(977), without, 256);
   double firstWith = 0.0, firstWithout = 0.0;
   for (std::uint32_t seed = 1; seed <= 6; ++seed) {
     firstWith += mse(render(f, seeded(seed), withControl, 1).image, ref) / 6.0;
     firstWithout += mse(render(f, seeded(seed), without, 1).image, ref) / 6.0;
   }
-  std::printf("first frame against a 512-frame image: %.2f dB with the control variate, %.2f dB without\n",
+  std::printf("first frame against a 256-frame image: %.2f dB with the control variate, %.2f dB without\n",
               -10.0 * std::log10(firstWith), -10.0 * std::log10(firstWithout));
   EXPECT_LT(firstWith, 0.8 * firstWithout);
 
-  const Rendered a = render(f, seeded(31), withControl, 256), b = render(f, seeded(32), without, 256);
+  const Rendered a = render(f, seeded(31), withControl, 128), b = render(f, seeded(32), without, 128);
   const double expected = estimatedMse(a) + estimatedMse(b);
   const double measured = mse(a.image, b);
-  std::printf("256 frames with and without it: %.2f dB apart, their estimated errors add up to %.2f dB\n",
+  std::printf("128 frames with and without it: %.2f dB apart, their estimated errors add up to %.2f dB\n",
               -10.0 * std::log10(measured), -10.0 * std::log10(expected));
   EXPECT_NEAR(10.0 * std::log10(measured / expected), 0.0, 1.0);
 }
