@@ -90,7 +90,7 @@ std::size_t coveredPixels(const ImageRGBA& premultiplied) {
 // At the shipped defaults (the CLI's view of a shipped real-data model with its colour map) the
 // refinement loop stops at its target, and the image it stopped on is
 // >= 40 dB over the volume's pixels against an independent reference: a fine ray march (a
-// quadrature, nothing shared with the tracker's estimator; step 1/2048 of the box diagonal, its
+// quadrature, nothing shared with the tracker's estimator; step 1/1024 of the box diagonal, its
 // start jittered by its own seed over a few frames), whose step error is far below the bound.
 // The control: one frame of delta tracking is below 40 dB in the same comparison, so the bound can
 // fail.
@@ -99,7 +99,7 @@ void convergesToRayMarchedReference(const char* name) {
   auto referenceSession = shipped.session(TrackingOptions{}, 9001);
   RayMarchOptions march;
   const Box3f box = modelWorldBox(shipped.model);
-  march.step = float(length(box.hi - box.lo) / 2048.0);
+  march.step = float(length(box.hi - box.lo) / 1024.0);
   auto reference = SessionRayMarcher::create(*referenceSession, box, march);
   RenderSettings referenceSettings;
   referenceSettings.width = referenceSettings.height = kSide;
@@ -107,7 +107,7 @@ void convergesToRayMarchedReference(const char* name) {
   referenceSettings.pixelJitter = false;
   reference->setSettings(referenceSettings);
   reference->setScene(shipped.scene);
-  const int referenceFrames = 4;
+  const int referenceFrames = 2;
   ImageRGBA refPremultiplied;
   for (int k = 0; k < referenceFrames; ++k) reference->renderFrame();
   const ImageRGBA refImage = reference->image();
