@@ -277,6 +277,18 @@ def tti_cpu_row(r):
     return "default to 40 dB: " + ", ".join(parts)
 
 
+def test_command_row(r):
+    def minutes(rel):
+        m = re.search(r"^minutes ([\d.]+)$", r.text(rel), re.M)
+        if not m:
+            raise FigureError(f"results/{rel}: no 'minutes' line")
+        return float(m.group(1))
+    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36")]
+    busy = minutes("issue49-fresh-clone-busy-048656d/timing.txt")
+    return (f"{min(quiet):.1f}–{max(quiet):.1f} min quiet, {busy:.1f} min beside one busy process "
+            "(ctest, fuzz, sanitizer build and tests)")
+
+
 def honest_estimate_row(r):
     rel = "issue47-honest-estimate/cpu-96/honesty.csv"
     rows = [x for x in r.rows(rel) if x["reference_dominates"] == "0"]
@@ -457,6 +469,11 @@ FIGURES = [
            ("The sub-pixel jitter's control variate", "the-sub-pixel-jitters-control-variate-issue-47"),
            "target: 3× sooner than ratio K 8 to 40 dB; the FFN's is its first frame, within 0.1 dB of the "
            "reference's own error"),
+    Figure("Test command (`bash Tools/run-tests.sh`, README), fresh clone, 2 cores", test_command_row,
+           "2-core dev box", "773d2ab, 87aba36, 048656d", "2026-12-07",
+           ("A shorter reference for the default-convergence test",
+            "a-shorter-reference-for-the-default-convergence-test-issue-49"),
+           "target: 20 min beside one busy process; earlier sessions' 44 min were on a slower machine"),
     Figure("Convergence estimate against the measured error, 96², CPU, `*_small` models", honest_estimate_row,
            "2-core dev box", "933f73e", "2026-12-06",
            ("Honest convergence estimate", "honest-convergence-estimate-under-the-stratified-jitter-issue-47")),
@@ -512,8 +529,6 @@ UNBACKED = [
      "these compare the CPU emulation with the CPU reference, not PyTorch; no raw file of a PyTorch comparison"),
     ("What limits each evaluator kernel (ncu)", "tensor pipe 44%, epilogues 22% of a consumer's time, L2 93% (hash grid), …",
      "read by hand from the ncu pages under results/issue30-h100-summary/ncu and results/issue30-h200-source-profiles; no reader here yet"),
-    ("Test command time (`CI=true bash .ci/run`, fresh clone, 2 cores)", "16.1–18.7 min quiet, 21.5 min beside one busy process",
-     "timed by hand; no log committed"),
     ("Convergence estimate (`--converge 41`) against the measured error", "within 0.1 dB on four shipped models",
      "no raw output of convergence_check.py committed"),
     ("ParaView on a GPU (pvpython, 1024², CUDA backend)", "time change → converged 1.19–1.45× the engine; Play 19.7–20.2 steps/s",
