@@ -94,194 +94,236 @@ double CpuWavefrontRenderer::applyDirtyMajorants() {
   return msSince(t0);
 }
 
-void CpuWavefrontRenderer::runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium,
-                                            const PointStateView* points, int& iterations, std::size_t& queries,
-                                            double& traverseMs, double& evaluateMs,
-                                            std::size_t& gradientQueries, bool& truncated) {
-  const RayStateView rs = rays_.view();
-  const int n = rs.count;
-  const Int3 dims = macrocells_.dims();
-  const bool pruning = medium.prune.expected != nullptr;
-  auto noop = [](auto&&...) {};
+// The traverse-evaluate loop's steps on the CPU: each pass traverses every ray (OpenMP), the
+// listed queries go through the query batch, and their values reach the rays in batch order.
+class CpuWavefrontRenderer::TrackingSteps final : public TrackingLoopSteps {
+public:
+  // `points`: the point storage of a ratio-tracked or marched primary leg, else null (one query
+  // per pending ray). Times and gradient-opacity queries add to the given counters.
+  TrackingSteps(CpuWavefrontRenderer& r, const FrameConstants& fc, const TrackingMedium& medium,
+                const PointStateView* points, double& traverseMs, double& evaluateMs, std::size_t& gradientQueries)
+      : r_(r), fc_(fc), medium_(medium), points_(points), rs_(r.rays_.view()), traverseMs_(traverseMs),
+        evaluateMs_(evaluateMs), gradientQueries_(gradientQueries) {}
+
+  std::size_t listedQueries(int /*iteration*/) override {
+    if (r_.stopRequested()) return 0;  // renderFrame returns the frame unaccumulated
+    auto t0 = Clock::now();
+    traversePass();
+    traverseMs_ += msSince(t0);
+    if (r_.stopRequested()) return 0;  // mid-pass: the rays' state is the next frame's to set up again
+    t0 = Clock::now();
+    // Delta tracking: one query per pending ray (batch entries are ray indices); ratio tracking
+    // and the marches: the rays' points that need the network (entries are point slots, ray =
+    // slot mod n).
+    const std::size_t k = points_ ? r_.batch_.gatherPoints(rs_, *points_, fc_.time) : r_.batch_.gather(rs_, fc_.time);
+    evaluateMs_ += msSince(t0);
+    return k;
+  }
+
+  bool consume(int /*iteration*/, std::size_t k) override {
+    const auto t0 = Clock::now();
+    const bool done = evaluate(k);
+    evaluateMs_ += msSince(t0);
+    return done;
+  }
+
+  void cutOff(int /*iteration*/) override {
+    const std::size_t k = r_.batch_.size();
+    for (std::size_t q = 0; q < k; ++q) {
+      const int i = rayOf(q);
+      rs_.flags[i] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
+      rs_.sample[i] = NAN;
+      rs_.pointCount[i] = 0;
+    }
+  }
+
+private:
+  int rayOf(std::size_t q) const {
+    const int* entries = r_.batch_.rayIndices();
+    return points_ ? entries[q] % rs_.count : entries[q];
+  }
+
   // One traversal pass over the rays. Each ray looks at a GUI worker's stop request first, so a
   // stopped frame waits for the rays under way, not for the whole pass.
-  auto traverseEach = [&](auto&& traverseOne) {
+  void traversePass() {
+    const int n = rs_.count;
+    const bool pruning = medium_.prune.expected != nullptr;
+    const FrameConstants& fc = fc_;
+    const TrackingMedium& medium = medium_;
+    const RayStateView& rs = rs_;
+    auto noop = [](auto&&...) {};
+    auto traverseEach = [&](auto&& traverseOne) {
 #pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMinItems)
-    for (int i = 0; i < n; ++i)
-      if (!stopRequested()) traverseOne(i);
-  };
-  for (int loopIterations = 0;; ++loopIterations) {
-    if (stopRequested()) break;  // renderFrame returns the frame unaccumulated
-    auto t0 = Clock::now();
-    if (points && fc.estimator == PrimaryEstimator::Debiased) {
+      for (int i = 0; i < n; ++i)
+        if (!r_.stopRequested()) traverseOne(i);
+    };
+    if (points_ && fc.estimator == PrimaryEstimator::Debiased) {
       traverseEach([&](int i) {
         if (pruning)
-          traverseDebiasedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+          traverseDebiasedRayWith<DdaWalker, true>(fc, medium, rs, *points_, i, noop, noop);
         else
-          traverseDebiasedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+          traverseDebiasedRayWith<DdaWalker, false>(fc, medium, rs, *points_, i, noop, noop);
       });
-    } else if (points && fc.estimator == PrimaryEstimator::Preintegrated) {
+    } else if (points_ && fc.estimator == PrimaryEstimator::Preintegrated) {
       traverseEach([&](int i) {
         if (pruning)
-          traversePreintegratedRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+          traversePreintegratedRayWith<DdaWalker, true>(fc, medium, rs, *points_, i, noop, noop);
         else
-          traversePreintegratedRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+          traversePreintegratedRayWith<DdaWalker, false>(fc, medium, rs, *points_, i, noop, noop);
       });
-    } else if (points) {
+    } else if (points_) {
       traverseEach([&](int i) {
         if (pruning)
-          traverseRatioRayWith<DdaWalker, true>(fc, medium, rs, *points, i, noop, noop);
+          traverseRatioRayWith<DdaWalker, true>(fc, medium, rs, *points_, i, noop, noop);
         else
-          traverseRatioRayWith<DdaWalker, false>(fc, medium, rs, *points, i, noop, noop);
+          traverseRatioRayWith<DdaWalker, false>(fc, medium, rs, *points_, i, noop, noop);
       });
     } else {
       traverseEach([&](int i) { traverseRay(fc, medium, rs, i); });
     }
-    traverseMs += msSince(t0);
-    if (stopRequested()) break;  // mid-pass: the rays' state is the next frame's to set up again
+  }
 
-    t0 = Clock::now();
-    // Delta tracking: one query per pending ray (batch entries are ray indices); ratio tracking:
-    // the rays' points that need the network (entries are point slots, ray = slot mod n).
-    const std::size_t k = points ? batch_.gatherPoints(rs, *points, fc.time) : batch_.gather(rs, fc.time);
-    if (k == 0) {
-      evaluateMs += msSince(t0);
-      break;
-    }
-    const int* entries = batch_.rayIndices();
-    auto rayOf = [&](std::size_t q) { return points ? entries[q] % n : entries[q]; };
-    if (loopIterations >= options_.maxIterations) {  // bounded work: the pending rays stop here
-      for (std::size_t q = 0; q < k; ++q) {
-        const int i = rayOf(q);
-        rs.flags[i] &= std::uint8_t(~(kRayActive | kRayPending | kRayBadSample));
-        rs.sample[i] = NAN;
-        rs.pointCount[i] = 0;
-      }
-      truncated = true;
-      evaluateMs += msSince(t0);
-      break;
-    }
-    ++iterations;
-    queries += k;
+  // The batch's values to the rays; false when a stop request ended the evaluation.
+  bool evaluate(std::size_t k) {
+    QueryBatch& batch = r_.batch_;
     // A GUI worker's frame (a stop request) is stoppable between sub-batches; a stopped frame is
     // dropped before its values reach the rays or the macrocells.
-    if (!batch_.evaluate(evaluator_, stop_)) {
-      evaluateMs += msSince(t0);
-      break;
-    }
-    if (usesGradient(medium.tf)) {  // the gradient term where it can change the outcome (Evaluate.h)
-      if (points)
-        batch_.evaluatePointOpacityScales(evaluator_, medium.tf);
+    if (!batch.evaluate(r_.evaluator_, r_.stop_)) return false;
+    if (usesGradient(medium_.tf)) {  // the gradient term where it can change the outcome (Evaluate.h)
+      if (points_)
+        batch.evaluatePointOpacityScales(r_.evaluator_, medium_.tf);
       else
-        batch_.evaluateOpacityScales(evaluator_, fc, medium.tf, rs);
-      gradientQueries += batch_.gradientQueries();
+        batch.evaluateOpacityScales(r_.evaluator_, fc_, medium_.tf, rs_);
+      gradientQueries_ += batch.gradientQueries();
     }
-    if (points)
-      batch_.scatterPoints(*points);
+    if (points_)
+      batch.scatterPoints(*points_);
     else
-      batch_.scatter(rs);
-    const float* values = batch_.values();
-    if (options_.refineMacrocells) {
+      batch.scatter(rs_);
+    const float* values = batch.values();
+    const int* entries = batch.rayIndices();
+    if (r_.options_.refineMacrocells) {
       // Serial and in batch order: widening is order-independent anyway, and majorants only
       // change between frames, so the image does not depend on the thread count.
+      const Int3 dims = r_.macrocells_.dims();
       for (std::size_t q = 0; q < k; ++q) {
-        const int cell = points ? points->cell[entries[q]] : linearCellIndex(dims, rs.cell[entries[q]]);
-        if (macrocells_.wouldRefine(cell, values[q])) pendingRefinements_.emplace_back(cell, values[q]);
+        const int cell = points_ ? points_->cell[entries[q]] : linearCellIndex(dims, rs_.cell[entries[q]]);
+        if (r_.macrocells_.wouldRefine(cell, values[q])) r_.pendingRefinements_.emplace_back(cell, values[q]);
       }
     }
-    if (pruning) {
+    if (medium_.prune.expected) {
       // Pruning's expected scalars learn from every real evaluation (Eq. ev_ema): serial and in
       // batch (= ray) order, so they and the image do not depend on the thread count. Before
       // the next traversal reads them.
       for (std::size_t q = 0; q < k; ++q) {
         int cell;
         float estimate;
-        const bool learned = points ? expectedAfterPoint(medium, rs, *points, rayOf(q), entries[q], values[q], cell, estimate)
-                                    : expectedAfterQuery(medium, rs, entries[q], values[q], cell, estimate);
-        if (learned) medium.prune.expected[cell] = estimate;
+        const bool learned = points_ ? expectedAfterPoint(medium_, rs_, *points_, rayOf(q), entries[q], values[q], cell, estimate)
+                                     : expectedAfterQuery(medium_, rs_, entries[q], values[q], cell, estimate);
+        if (learned) medium_.prune.expected[cell] = estimate;
       }
     }
-    evaluateMs += msSince(t0);
+    return true;
   }
-}
 
-FrameStats CpuWavefrontRenderer::renderFrame() {
-  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
-  const double updateBeforeFrame = st.updateMs;
-  const auto tFrame = Clock::now();
+  CpuWavefrontRenderer& r_;
+  const FrameConstants fc_;
+  const TrackingMedium medium_;
+  const PointStateView* points_;
+  const RayStateView rs_;
+  double& traverseMs_;
+  double& evaluateMs_;
+  std::size_t& gradientQueries_;
+};
+
+FrameConstants CpuWavefrontRenderer::prepareFrame(FrameStats& st) {
   st.updateMs += applyDirtyMajorants();
-
   const FrameConstants fc = frameConstants(frameKey());
   const PruneView prune = pruningActive() ? macrocells_.pruneView(pruneThresholds()) : PruneView{};
-  const TrackingMedium medium{macrocells_.view(majorants_), tfTable_->view(), prune};
-  const RayStateView rs = rays_.view();
-  const int n = rs.count;
+  medium_ = TrackingMedium{macrocells_.view(majorants_), tfTable_->view(), prune};
+  if (fc.estimator != PrimaryEstimator::Delta) {  // ratio tracking and the marches: point storage
+    const std::size_t slots = std::size_t(rays_.count) * std::size_t(fc.pointsPerIteration);
+    if (points_.count != slots) {
+      const auto tSetup = Clock::now();
+      points_.resize(slots);
+      st.setupMs += msSince(tSetup);
+    }
+  }
+  pendingRefinements_.clear();
+  // Pruning's expected scalars learn inside the loop (the next traversal reads them): a frame that
+  // may be stopped keeps their values from before it, to put back.
+  if (prune.expected && stop_) expectedBeforeFrame_ = macrocells_.expected();
+  return fc;
+}
 
+void CpuWavefrontRenderer::initRays(const FrameConstants& fc, FrameStats& st) {
+  const RayStateView rs = rays_.view();
   const AccumulationView acc = pixels_.view();
-  auto t0 = Clock::now();
+  const MajorantGridView grid = medium_.grid;
+  const int n = rs.count;
+  const auto t0 = Clock::now();
   std::size_t active = 0, skipped = 0;
 #pragma omp parallel for schedule(static) reduction(+ : active, skipped) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) {
-    initBudgetedRay(fc, medium.grid, rs, acc, i);
+    initBudgetedRay(fc, grid, rs, acc, i);
     active += (rs.flags[i] & kRayActive) ? 1 : 0;
     skipped += (rs.flags[i] & kRayBudgetSkipped) ? 1 : 0;
   }
   st.rays = active;
   st.budgetSkipped = skipped;
   st.initMs = msSince(t0);
+}
 
-  bool truncated = false;
-  PointStateView pointsView{};
-  const bool withPoints = fc.estimator != PrimaryEstimator::Delta;  // ratio tracking, march
+std::unique_ptr<TrackingLoopSteps> CpuWavefrontRenderer::legSteps(const FrameConstants& fc, Leg leg, FrameStats& st) {
+  if (leg == Leg::Shadow)
+    return std::make_unique<TrackingSteps>(*this, fc, medium_, nullptr, st.shadowTraverseMs, st.shadowEvaluateMs,
+                                           st.gradientOpacityQueries);
+  const bool withPoints = fc.estimator != PrimaryEstimator::Delta;
   if (withPoints) {
-    const std::size_t slots = std::size_t(n) * std::size_t(fc.pointsPerIteration);
-    if (points_.count != slots) {
-      const auto tSetup = Clock::now();
-      points_.resize(slots);
-      st.setupMs += msSince(tSetup);
-    }
-    pointsView = points_.view();
-    pointsView.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
+    pointsView_ = points_.view();
+    pointsView_.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
   }
-  pendingRefinements_.clear();
-  // Pruning's expected scalars learn inside the loop (the next traversal reads them): a frame that
-  // may be stopped keeps their values from before it, to put back.
-  if (prune.expected && stop_) expectedBeforeFrame_ = macrocells_.expected();
-  runTrackingLoop(fc, medium, withPoints ? &pointsView : nullptr, st.iterations, st.queries, st.traverseMs, st.evaluateMs,
-                  st.gradientOpacityQueries, truncated);
+  return std::make_unique<TrackingSteps>(*this, fc, medium_, withPoints ? &pointsView_ : nullptr, st.traverseMs,
+                                         st.evaluateMs, st.gradientOpacityQueries);
+}
 
-  if (fc.shadows && !stopRequested()) {
-    t0 = Clock::now();
-    std::size_t shadowRays = 0;
+void CpuWavefrontRenderer::spawnShadowRays(const FrameConstants& fc, FrameStats& st) {
+  const RayStateView rs = rays_.view();
+  const MajorantGridView grid = medium_.grid;
+  const int n = rs.count;
+  const auto t0 = Clock::now();
+  std::size_t shadowRays = 0;
 #pragma omp parallel for schedule(static) reduction(+ : shadowRays) if (n >= kParallelMinItems)
-    for (int i = 0; i < n; ++i) {
-      spawnShadowRay(fc, medium.grid, rs, i);
-      shadowRays += (rs.flags[i] & kRayActive) ? 1 : 0;
-    }
-    st.shadowRays = shadowRays;
-    st.shadowTraverseMs += msSince(t0);
-    runTrackingLoop(fc, medium, nullptr, st.shadowIterations, st.shadowQueries, st.shadowTraverseMs,
-                    st.shadowEvaluateMs, st.gradientOpacityQueries, truncated);
+  for (int i = 0; i < n; ++i) {
+    spawnShadowRay(fc, grid, rs, i);
+    shadowRays += (rs.flags[i] & kRayActive) ? 1 : 0;
   }
-  if (stopRequested()) {
-    // Stopped: the rays' state is the next frame's to set up again, the image and the frame
-    // counters stay as they were (the next frame draws the same random numbers).
-    st.stopped = true;
-    pendingRefinements_.clear();
-    if (prune.expected) std::copy(expectedBeforeFrame_.begin(), expectedBeforeFrame_.end(), prune.expected);
-    st.closeTiming(updateBeforeFrame, msSince(tFrame));
-    return st;
-  }
-  st.refinements += applyPendingRefinements();
-  if (fc.shading.enabled) {
-    t0 = Clock::now();
-    st.shadingQueries = batch_.gatherShading(fc, rs);
-    batch_.shade(evaluator_, fc, rs);
-    st.shadingMs = msSince(t0);
-  }
-  if (prune.expected) st.pruned = sumPruned(rs);
+  st.shadowRays = shadowRays;
+  st.shadowTraverseMs += msSince(t0);
+}
 
-  t0 = Clock::now();
+void CpuWavefrontRenderer::dropFrame() {
+  pendingRefinements_.clear();
+  if (medium_.prune.expected)
+    std::copy(expectedBeforeFrame_.begin(), expectedBeforeFrame_.end(), medium_.prune.expected);
+}
+
+void CpuWavefrontRenderer::keepFrame(FrameStats& st) { st.refinements += applyPendingRefinements(); }
+
+void CpuWavefrontRenderer::shadeHits(const FrameConstants& fc, FrameStats& st) {
+  const auto t0 = Clock::now();
+  const RayStateView rs = rays_.view();
+  st.shadingQueries = batch_.gatherShading(fc, rs);
+  batch_.shade(evaluator_, fc, rs);
+  st.shadingMs = msSince(t0);
+}
+
+const std::uint32_t* CpuWavefrontRenderer::finalizePixels(const FrameConstants& fc, FrameStats& st) {
+  const RayStateView rs = rays_.view();
+  const AccumulationView acc = pixels_.view();
+  const int n = rs.count;
+  if (medium_.prune.expected) st.pruned = sumPruned(rs);
+  const auto t0 = Clock::now();
   double residualSum = 0.0, varianceSum = 0.0;
   std::size_t capped = 0, covered = 0;
   std::uint32_t histogram[kResidualBins] = {};
@@ -300,9 +342,8 @@ FrameStats CpuWavefrontRenderer::renderFrame() {
   st.coveredPixels = covered;
   st.cappedRays = capped;
   st.finalizeMs = msSince(t0);
-  endFrame(st, truncated, histogram);
-  st.closeTiming(updateBeforeFrame, msSince(tFrame));
-  return st;
+  std::copy(histogram, histogram + kResidualBins, residualHistogram_.begin());
+  return residualHistogram_.data();
 }
 
 FrameStats CpuWavefrontRenderer::renderFrameNaive() {
@@ -401,10 +442,11 @@ void CpuWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, co
   const int n = rs.count;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
-  bool truncated = false;
   pendingRefinements_.clear();
-  runTrackingLoop(fc, medium, nullptr, total.iterations, total.queries, total.traverseMs, total.evaluateMs,
-                  total.gradientOpacityQueries, truncated);
+  TrackingSteps steps(*this, fc, medium, nullptr, total.traverseMs, total.evaluateMs, total.gradientOpacityQueries);
+  const TrackingLoopOutcome out = runTrackingLoop(steps, options_.maxIterations);
+  total.iterations += out.iterations;
+  total.queries += out.queries;
   if (stopRequested())
     pendingRefinements_.clear();
   else

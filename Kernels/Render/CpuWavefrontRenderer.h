@@ -8,7 +8,9 @@
 //
 // It also hosts the naive baseline (renderFrameNaive): the same estimator and random streams,
 // but each ray evaluates the network inside its own loop, one point per call, no batching.
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -26,7 +28,6 @@ public:
   CpuWavefrontRenderer(const FieldEvaluator& evaluator, MacrocellGrid& macrocells,
                         TrackingOptions options = {});
 
-  FrameStats renderFrame() override;
   FrameStats renderFrameNaive();  // baseline: per-ray, one query per evaluator call
 
   std::vector<float> residual() const override { return pixels_.residual; }
@@ -54,15 +55,22 @@ private:
   void reprojectAccumulation(const CameraView& oldView, const CameraView& newView, std::uint32_t maxHistory,
                              const Vec3f& background) override;
 
+  // The frame's stages (WavefrontRenderer::renderFrame runs them).
+  FrameConstants prepareFrame(FrameStats& st) override;
+  void initRays(const FrameConstants& fc, FrameStats& st) override;
+  std::unique_ptr<TrackingLoopSteps> legSteps(const FrameConstants& fc, Leg leg, FrameStats& st) override;
+  void spawnShadowRays(const FrameConstants& fc, FrameStats& st) override;
+  bool stopsMidFrame() const override { return true; }
+  void dropFrame() override;
+  void keepFrame(FrameStats& st) override;
+  void shadeHits(const FrameConstants& fc, FrameStats& st) override;
+  const std::uint32_t* finalizePixels(const FrameConstants& fc, FrameStats& st) override;
+  class TrackingSteps;  // a leg's traverse-evaluate loop steps (CpuWavefrontRenderer.cpp)
+
   FrameConstants frameConstants(std::uint32_t frame) {
     return WavefrontRenderer::frameConstants(frame, scene_.depthLimit.data());
   }
   double applyDirtyMajorants();
-  // `points`: ratio tracking's point storage for a ratio-tracked primary leg, else null.
-  void runTrackingLoop(const FrameConstants& fc, const TrackingMedium& medium, const PointStateView* points,
-                       int& iterations,
-                       std::size_t& queries, double& traverseMs, double& evaluateMs,
-                       std::size_t& gradientQueries, bool& truncated);
   // Applies pendingRefinements_ (and empties it); returns how many widened a cell.
   std::size_t applyPendingRefinements();
 
@@ -81,6 +89,10 @@ private:
   // is the same as with widenings applied as they come.)
   std::vector<std::pair<int, float>> pendingRefinements_;
   std::vector<float> expectedBeforeFrame_;  // pruning's expected scalars before a stoppable frame
+  // The frame under way (prepareFrame): its medium and the primary leg's point view.
+  TrackingMedium medium_{};
+  PointStateView pointsView_{};
+  std::array<std::uint32_t, kResidualBins> residualHistogram_{};  // the last frame's (finalizePixels)
 };
 
 }  // namespace inr

@@ -332,6 +332,60 @@ FrameStats WavefrontRenderer::beginFrame(const char* method, const char* caller)
   return st;
 }
 
+TrackingLoopOutcome runTrackingLoop(TrackingLoopSteps& steps, int maxIterations) {
+  TrackingLoopOutcome out;
+  for (int iteration = 0;; ++iteration) {
+    const std::size_t k = steps.listedQueries(iteration);
+    if (k == 0) break;
+    if (iteration >= maxIterations) {  // bounded work: the pending rays stop here
+      steps.cutOff(iteration);
+      out.truncated = true;
+      break;
+    }
+    ++out.iterations;
+    out.queries += k;
+    if (!steps.consume(iteration, k)) break;
+  }
+  return out;
+}
+
+bool WavefrontRenderer::traceLeg(const FrameConstants& fc, Leg leg, FrameStats& st) {
+  const std::unique_ptr<TrackingLoopSteps> steps = legSteps(fc, leg, st);
+  const TrackingLoopOutcome out = runTrackingLoop(*steps, options_.maxIterations);
+  (leg == Leg::Shadow ? st.shadowIterations : st.iterations) += out.iterations;
+  (leg == Leg::Shadow ? st.shadowQueries : st.queries) += out.queries;
+  return out.truncated;
+}
+
+// The frame's script: every estimator and backend runs these stages in this order (paper §4.1:
+// initialise, traverse-evaluate to the end of each leg, shade, finalise).
+FrameStats WavefrontRenderer::renderFrame() {
+  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
+  const double updateBeforeFrame = st.updateMs;
+  const auto tFrame = Clock::now();
+  const FrameConstants fc = prepareFrame(st);
+  initRays(fc, st);
+  bool truncated = traceLeg(fc, Leg::Primary, st);
+  if (fc.shadows && !stoppedMidFrame()) {
+    spawnShadowRays(fc, st);
+    truncated = traceLeg(fc, Leg::Shadow, st) || truncated;
+  }
+  if (stoppedMidFrame()) {
+    // Stopped: the rays' state is the next frame's to set up again, the image and the frame
+    // counters stay as they were (the next frame draws the same random numbers).
+    st.stopped = true;
+    dropFrame();
+    st.closeTiming(updateBeforeFrame, msSince(tFrame));
+    return st;
+  }
+  keepFrame(st);
+  if (fc.shading.enabled) shadeHits(fc, st);
+  const std::uint32_t* histogram = finalizePixels(fc, st);
+  endFrame(st, truncated, histogram);
+  st.closeTiming(updateBeforeFrame, msSince(tFrame));
+  return st;
+}
+
 FrameStats WavefrontRenderer::runGhostPasses(int count) {
   if (!haveScene_) throw std::logic_error("runGhostPasses: setScene first");
   FrameStats total;

@@ -1,8 +1,9 @@
 #pragma once
-// The backend-neutral half of the wavefront delta-tracking renderer (paper §4.1), written once:
-// image settings, the scene-change policy (SceneChange.h: what a new scene costs), frame
-// numbering, the accumulation's reset rules, the ghost-pass sweep and the counters of the work
-// scene changes did. The CPU (CpuWavefrontRenderer) and CUDA (CudaWavefrontRenderer)
+// The backend-neutral half of the wavefront renderer (paper §4.1), written once: the frame's
+// script (renderFrame) and a leg's traverse-evaluate loop (runTrackingLoop), image settings, the
+// scene-change policy (SceneChange.h: what a new scene costs), frame numbering, the
+// accumulation's reset rules, the ghost-pass sweep and the counters of the work scene changes
+// did. The CPU (CpuWavefrontRenderer) and CUDA (CudaWavefrontRenderer)
 // backends derive from it: they own the storage (ray and pixel state from Render/RayState.h,
 // majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
 #include <array>
@@ -137,6 +138,34 @@ float residualThreshold(const std::uint32_t* histogram, double rho);
 // per collision, and 32 of slack for ratio tracking's roulette.
 std::uint32_t rngDrawBudget(int maxCollisionsPerRay);
 
+// One leg's traverse-evaluate loop (a frame's primary or shadow leg, a ghost pass), written once
+// (runTrackingLoop); a backend's steps execute it over its storage. Pass 0 traverses every ray of
+// the leg, each later pass the rays whose queries the pass before listed.
+class TrackingLoopSteps {
+public:
+  virtual ~TrackingLoopSteps() = default;
+  // How many queries traversal pass `iteration` listed (0: the leg is done, or a stop request
+  // ended it). The GPU's steps run a pass ahead: when this returns, the listed queries'
+  // evaluation and the next traversal pass are already queued (below the iteration cap), so the
+  // host waits for a count while the GPU works.
+  virtual std::size_t listedQueries(int iteration) = 0;
+  // The listed queries' values reach their rays (and the macrocells' refinement, pruning's
+  // expected scalars); false: a stop request ended the leg.
+  virtual bool consume(int iteration, std::size_t queries) = 0;
+  // The iteration cap: the rays with listed queries stop where they are (no collision recorded).
+  virtual void cutOff(int iteration) = 0;
+};
+
+struct TrackingLoopOutcome {
+  int iterations = 0;
+  std::size_t queries = 0;
+  bool truncated = false;  // the cap cut rays off
+};
+
+// Runs `steps` until no query is pending, a stop request, or `maxIterations` passes (bounded
+// work: the rays still pending then are cut off).
+TrackingLoopOutcome runTrackingLoop(TrackingLoopSteps& steps, int maxIterations);
+
 // Work the scene-change policy did (what tests and benchmarks check).
 struct RendererCounters {
   int workingGridUpdates = 0;   // time changes
@@ -158,7 +187,9 @@ public:
   void setSettings(const RenderSettings& settings);
   // Applies a scene doing only the work its changes need (SceneChange.h).
   void setScene(const RenderScene& scene);
-  virtual FrameStats renderFrame() = 0;  // one wavefront frame, accumulated
+  // One wavefront frame, accumulated: the frame's script, written once (WavefrontRenderer.cpp)
+  // over the backend's stages below.
+  FrameStats renderFrame();
   // Ghost passes: primary passes with cosine-bump TFs sweeping the value range, not displayed,
   // so under-estimated macrocells get visited and refined. Returns their summed stats.
   FrameStats runGhostPasses(int count);
@@ -229,6 +260,30 @@ protected:
   virtual void reprojectAccumulation(const CameraView& oldView, const CameraView& newView, std::uint32_t maxHistory,
                                      const Vec3f& background) = 0;
 
+  // --- the frame's stages, in the order renderFrame runs them; each adds its counts and times to
+  // the frame's statistics. A backend executes them over its storage: OpenMP loops over the
+  // INR_HD stage code on the CPU, kernels over the same code on the GPU.
+  enum class Leg { Primary, Shadow };
+  // Before any of the frame's work: the majorants up to date, the frame's medium chosen, the
+  // buffers it grows allocated (a lack of memory throws here, with the image, its accumulation
+  // and the ray state as they were). Returns the frame's constants.
+  virtual FrameConstants prepareFrame(FrameStats& st) = 0;
+  virtual void initRays(const FrameConstants& fc, FrameStats& st) = 0;  // stage I, budgeted
+  // The steps of a leg's traverse-evaluate loop (stages II and III), counting into `st`.
+  virtual std::unique_ptr<TrackingLoopSteps> legSteps(const FrameConstants& fc, Leg leg, FrameStats& st) = 0;
+  virtual void spawnShadowRays(const FrameConstants& fc, FrameStats& st) = 0;
+  // Whether a stop request (setStopRequest) ends the frame mid-way (the CPU's frames; the GPU's,
+  // which take milliseconds, run to their end). A stopped frame leaves no trace: dropFrame puts
+  // back what it learned; a completed one keeps it (keepFrame: the macrocells' widenings).
+  virtual bool stopsMidFrame() const { return false; }
+  virtual void dropFrame() {}
+  virtual void keepFrame(FrameStats& /*st*/) {}
+  virtual void shadeHits(const FrameConstants& fc, FrameStats& st) = 0;  // gradient shading (Shade.h)
+  // Stage IV and the frame's sums (convergence, pruned candidates, capped rays); returns the
+  // residual histogram of this frame's rendered pixels (kResidualBins counts) for the histogram
+  // scheme, or null.
+  virtual const std::uint32_t* finalizePixels(const FrameConstants& fc, FrameStats& st) = 0;
+
   // Backends call this at the end of their constructor (the hooks are theirs): storage for the
   // default settings' image, accumulation cleared.
   void allocatePixels();
@@ -265,6 +320,10 @@ protected:
   QueryReductionSettings queryReduction_;
 
 private:
+  // A leg of the frame: its steps run to the end; returns whether the iteration cap cut rays off.
+  bool traceLeg(const FrameConstants& fc, Leg leg, FrameStats& st);
+  bool stoppedMidFrame() const { return stopsMidFrame() && stopRequested(); }
+
   int frameIndex_ = 0;
   std::uint32_t frameKey_ = 0;
   std::uint32_t noiseFrame_ = 0;   // blue-noise slice counter: never restarts

@@ -204,12 +204,6 @@ __global__ void resetPixelsKernel(AccumulationView acc) {
 
 }  // namespace
 
-// The traverse-evaluate loop: returns when no query is pending (or at the iteration cap).
-// The host never waits on the GPU mid-loop: iteration i + 1's traversal and evaluation read
-// iteration i's query count on the device, with grids sized by the last count the host knows
-// (an upper bound: the rays a pass lists never outnumber the previous pass's queries, and a ray
-// has at most pointsPerIteration queries), while the host reads count i from pinned memory. When
-// count i is zero, the already queued iteration i + 1 is empty and costs two idle launches.
 // Ratio tracking's slot buffers for `slots` points and `rays` listed rays, all or nothing: the new
 // ones are allocated beside the current ones and swapped in only when every one fits, so that a
 // lack of memory leaves the buffers (and the device memory in use) as they were.
@@ -276,96 +270,134 @@ void CudaWavefrontRenderer::Impl::growShading(std::size_t rays) {
   shadingResults.growTo(rays);
 }
 
-void CudaWavefrontRenderer::Impl::track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
-                                            const TrackingMedium& medium, bool refine,
-                                            const DeviceRefineView& refineView, int maxIterations,
-                                            cuda::Stage traverseStage, cuda::Stage evaluateStage, int& iterations,
-                                            std::size_t& queries, bool ratio) {
-  const RayStateView rs = rays.view();
-  const int perRay = ratio ? fc.pointsPerIteration : 1;
-  const std::size_t slots = std::size_t(rs.count) * std::size_t(perRay);
-  if (ratio) {
-    const auto tSetup = Clock::now();
-    growSlots(slots, std::size_t(rs.count));
-    if (!traversal->supportsRatioTracking() && !ratioTraversal) ratioTraversal = makeDdaTraversal();
-    setupMs += msSince(tSetup);
+// The traverse-evaluate loop's steps on the GPU. The host never waits on the GPU mid-loop:
+// listedQueries(i) first queues iteration i's evaluation and iteration i + 1's traversal (below the
+// cap), which read iteration i's query count on the device, with grids sized by the last count
+// the host knows (an upper bound: the rays a pass lists never outnumber the previous pass's
+// queries, and a ray has at most pointsPerIteration queries), and only then reads count i from
+// pinned memory. When count i is zero, the already queued iteration i + 1 is empty and costs two
+// idle launches.
+class CudaWavefrontRenderer::Impl::TrackingSteps final : public TrackingLoopSteps {
+public:
+  // `ratio`: the leg is a ratio-tracked or marched primary leg (fc.pointsPerIteration points per
+  // ray); `refine`: evaluated samples widen under-estimated macrocells.
+  TrackingSteps(Impl& impl, const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
+                const TrackingMedium& medium, bool refine, const DeviceRefineView& refineView, int maxIterations,
+                cuda::Stage traverseStage, cuda::Stage evaluateStage, bool ratio)
+      : I(impl), evaluator_(evaluator), fc_(fc), maxIterations_(maxIterations), traverseStage_(traverseStage),
+        evaluateStage_(evaluateStage), ratio_(ratio) {
+    const RayStateView rs = I.rays.view();
+    perRay_ = ratio ? fc.pointsPerIteration : 1;
+    slots_ = std::size_t(rs.count) * std::size_t(perRay_);
+    if (ratio) {
+      const auto tSetup = Clock::now();
+      I.growSlots(slots_, std::size_t(rs.count));
+      if (!I.traversal->supportsRatioTracking() && !I.ratioTraversal) I.ratioTraversal = makeDdaTraversal();
+      I.setupMs += msSince(tSetup);
+    }
+    walker_ = ratio && !I.traversal->supportsRatioTracking() ? I.ratioTraversal.get() : I.traversal.get();
+    launch_.fc = fc;
+    launch_.medium = medium;
+    launch_.rs = rs;
+    launch_.refine = refine;
+    launch_.refineView = refineView;
+    launch_.ratio = ratio;
+    if (ratio) {
+      launch_.points = I.pointState.view();
+      launch_.points.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
+    }
+    launch_.n = rs.count;  // upper bound of the rays the next traversal lists
+    sampleOut_ = ratio ? launch_.points.sample : rs.sample;
+    opacityScaleOut_ = ratio ? launch_.points.opacityScale : rs.opacityScale;
+    gradientOpacity_ = usesGradient(medium.tf);  // (or a 2D TF)
+    if (gradientOpacity_) I.growGradientOpacity(slots_);
+    enqueueTraverse(0);
   }
-  const DeviceTraversal& walker = ratio && !traversal->supportsRatioTracking() ? *ratioTraversal : *traversal;
-  TraversalLaunch launch;
-  launch.fc = fc;
-  launch.medium = medium;
-  launch.rs = rs;
-  launch.refine = refine;
-  launch.refineView = refineView;
-  launch.ratio = ratio;
-  if (ratio) {
-    launch.points = pointState.view();
-    launch.points.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
-  }
-  launch.n = rs.count;  // upper bound of the rays the next traversal lists
-  auto enqueueTraverse = [&](int it) {
-    const int cur = it & 1, prev = cur ^ 1;
-    // The parity's counts and the traversal's work counter, zeroed together.
-    INR_CUDA_CHECK(cudaMemsetAsync(queryCount(cur), 0, 3 * sizeof(unsigned), stream));
-    launch.list = it ? (ratio ? rayList[prev].get() : queryRays[prev].get()) : nullptr;
-    launch.listCount = it ? (ratio ? rayCount(prev) : queryCount(prev)) : nullptr;
-    launch.resolvePrevious = it != 0;
-    launch.outPoints = points[cur].get();
-    launch.outRays = queryRays[cur].get();
-    launch.outCount = queryCount(cur);
-    launch.outRayList = ratio ? rayList[cur].get() : nullptr;
-    launch.outRayCount = ratio ? rayCount(cur) : nullptr;
-    launch.workCounter = queryCount(cur) + 1;
-    timer.begin(traverseStage, stream);
-    walker.traverse(launch, stream);
-    timer.end(stream);
-    INR_CUDA_CHECK(
-        cudaMemcpyAsync(hostCounter.get() + cur, queryCount(cur), sizeof(unsigned), cudaMemcpyDeviceToHost, stream));
-    INR_CUDA_CHECK(cudaEventRecord(countReady[cur], stream));
-  };
-  float* sampleOut = ratio ? launch.points.sample : rs.sample;
-  float* opacityScaleOut = ratio ? launch.points.opacityScale : rs.opacityScale;
-  const bool gradientOpacity = usesGradient(medium.tf);  // (or a 2D TF)
-  if (gradientOpacity) growGradientOpacity(slots);
-  enqueueTraverse(0);
-  for (int it = 0;; ++it) {
+
+  std::size_t listedQueries(int it) override {
     const int cur = it & 1;
-    if (it < maxIterations) {  // speculatively: evaluate iteration it, traverse iteration it + 1
-      const long long bound = std::min<long long>((long long)slots, (long long)launch.n * perRay);
-      timer.begin(evaluateStage, stream);
-      evaluator.evaluateDevice(points[cur].get(), queryCount(cur), int(bound), sampleOut, queryRays[cur].get(), stream);
-      if (gradientOpacity) {  // gradients where the factor can change the outcome (Render/Evaluate.h)
-        INR_CUDA_CHECK(cudaMemsetAsync(opacityListed.get(), 0, sizeof(unsigned), stream));
-        listOpacityQueriesKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
-            fc, medium.tf, rs, ratio, queryCount(cur), int(bound), points[cur].get(), queryRays[cur].get(), sampleOut,
-            opacityScaleOut, opacityPoints.get(), opacitySlots.get(), opacityListed.get());
-        INR_CUDA_CHECK_LAUNCH("listOpacityQueriesKernel");
-        evaluator.evaluateWithGradientDevice(opacityPoints.get(), opacityListed.get(), int(bound), fc.time,
-                                             valueGradients.get(), stream);
-        scatterOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(opacityListed.get(), int(bound),
-                                                                         opacitySlots.get(), valueGradients.get(),
-                                                                         medium.tf, opacityScaleOut, stats.get());
-        INR_CUDA_CHECK_LAUNCH("scatterOpacityKernel");
-      }
-      timer.end(stream);
+    if (it < maxIterations_) {  // speculatively: evaluate iteration it, traverse iteration it + 1
+      enqueueEvaluate(cur);
       enqueueTraverse(it + 1);
     }
-    INR_CUDA_CHECK(cudaEventSynchronize(countReady[cur]));
-    const int k = int(hostCounter[cur]);
-    if (k == 0) break;
-    if (it >= maxIterations) {
-      // Delta: the listed queries' rays; ratio: the listed rays.
-      cutoffKernel<<<blocksFor(k), kThreads, 0, stream>>>(rs, ratio ? rayList[cur].get() : queryRays[cur].get(),
-                                                            ratio ? rayCount(cur) : nullptr, k);
-      INR_CUDA_CHECK_LAUNCH("cutoffKernel");
-      truncated = true;
-      break;
-    }
-    ++iterations;
-    queries += std::size_t(k);
-    launch.n = k;
+    INR_CUDA_CHECK(cudaEventSynchronize(I.countReady[cur]));
+    return std::size_t(I.hostCounter[cur]);
   }
-}
+
+  bool consume(int /*it*/, std::size_t k) override {  // (its evaluation is already queued)
+    launch_.n = int(k);
+    return true;
+  }
+
+  void cutOff(int it) override {
+    const int cur = it & 1;
+    const int k = int(I.hostCounter[cur]);
+    // Delta: the listed queries' rays; ratio: the listed rays.
+    cutoffKernel<<<blocksFor(k), kThreads, 0, I.stream>>>(launch_.rs, ratio_ ? I.rayList[cur].get() : I.queryRays[cur].get(),
+                                                          ratio_ ? I.rayCount(cur) : nullptr, k);
+    INR_CUDA_CHECK_LAUNCH("cutoffKernel");
+  }
+
+private:
+  void enqueueTraverse(int it) {
+    const cudaStream_t stream = I.stream;
+    const int cur = it & 1, prev = cur ^ 1;
+    // The parity's counts and the traversal's work counter, zeroed together.
+    INR_CUDA_CHECK(cudaMemsetAsync(I.queryCount(cur), 0, 3 * sizeof(unsigned), stream));
+    launch_.list = it ? (ratio_ ? I.rayList[prev].get() : I.queryRays[prev].get()) : nullptr;
+    launch_.listCount = it ? (ratio_ ? I.rayCount(prev) : I.queryCount(prev)) : nullptr;
+    launch_.resolvePrevious = it != 0;
+    launch_.outPoints = I.points[cur].get();
+    launch_.outRays = I.queryRays[cur].get();
+    launch_.outCount = I.queryCount(cur);
+    launch_.outRayList = ratio_ ? I.rayList[cur].get() : nullptr;
+    launch_.outRayCount = ratio_ ? I.rayCount(cur) : nullptr;
+    launch_.workCounter = I.queryCount(cur) + 1;
+    I.timer.begin(traverseStage_, stream);
+    walker_->traverse(launch_, stream);
+    I.timer.end(stream);
+    INR_CUDA_CHECK(cudaMemcpyAsync(I.hostCounter.get() + cur, I.queryCount(cur), sizeof(unsigned),
+                                   cudaMemcpyDeviceToHost, stream));
+    INR_CUDA_CHECK(cudaEventRecord(I.countReady[cur], stream));
+  }
+
+  void enqueueEvaluate(int cur) {
+    const cudaStream_t stream = I.stream;
+    const long long bound = std::min<long long>((long long)slots_, (long long)launch_.n * perRay_);
+    I.timer.begin(evaluateStage_, stream);
+    evaluator_.evaluateDevice(I.points[cur].get(), I.queryCount(cur), int(bound), sampleOut_, I.queryRays[cur].get(),
+                              stream);
+    if (gradientOpacity_) {  // gradients where the factor can change the outcome (Render/Evaluate.h)
+      INR_CUDA_CHECK(cudaMemsetAsync(I.opacityListed.get(), 0, sizeof(unsigned), stream));
+      listOpacityQueriesKernel<<<blocksFor(bound), kThreads, 0, stream>>>(
+          fc_, launch_.medium.tf, launch_.rs, ratio_, I.queryCount(cur), int(bound), I.points[cur].get(),
+          I.queryRays[cur].get(), sampleOut_, opacityScaleOut_, I.opacityPoints.get(), I.opacitySlots.get(),
+          I.opacityListed.get());
+      INR_CUDA_CHECK_LAUNCH("listOpacityQueriesKernel");
+      evaluator_.evaluateWithGradientDevice(I.opacityPoints.get(), I.opacityListed.get(), int(bound), fc_.time,
+                                            I.valueGradients.get(), stream);
+      scatterOpacityKernel<<<blocksFor(bound), kThreads, 0, stream>>>(I.opacityListed.get(), int(bound),
+                                                                       I.opacitySlots.get(), I.valueGradients.get(),
+                                                                       launch_.medium.tf, opacityScaleOut_, I.stats.get());
+      INR_CUDA_CHECK_LAUNCH("scatterOpacityKernel");
+    }
+    I.timer.end(stream);
+  }
+
+  Impl& I;
+  const DeviceFieldEvaluator& evaluator_;
+  const FrameConstants fc_;
+  const int maxIterations_;
+  const cuda::Stage traverseStage_, evaluateStage_;
+  const bool ratio_;
+  int perRay_ = 1;
+  std::size_t slots_ = 0;
+  const DeviceTraversal* walker_ = nullptr;
+  TraversalLaunch launch_;
+  float* sampleOut_ = nullptr;
+  float* opacityScaleOut_ = nullptr;
+  bool gradientOpacity_ = false;
+};
 
 CudaWavefrontRenderer::CudaWavefrontRenderer(const DeviceFieldEvaluator& evaluator, CudaMacrocellGrid& macrocells,
                                                      TrackingOptions options, CudaPipelineOptions pipeline)
@@ -533,15 +565,11 @@ void CudaWavefrontRenderer::readFrameStats(FrameStats& st) {
   if (st.refinements > 0) I.traversalStale = true;
 }
 
-FrameStats CudaWavefrontRenderer::renderFrame() {
-  FrameStats st = beginFrame(primaryEstimatorName(options_.estimator), "renderFrame");
-  const double updateBeforeFrame = st.updateMs;
+FrameConstants CudaWavefrontRenderer::prepareFrame(FrameStats& /*st*/) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
-  const auto tFrame = Clock::now();
   I.setupMs = 0.0;
   I.timer.reset(pipeline_.stageTiming);
-  I.truncated = false;
   I.clearStats();
 
   I.timer.begin(cuda::kUpdate, s);
@@ -549,44 +577,59 @@ FrameStats CudaWavefrontRenderer::renderFrame() {
   if (I.traversalStale) rebuildTraversal();
   I.timer.end(s);
 
-  const FrameSetup f = frameSetup(frameKey());
-  const FrameConstants& fc = f.fc;
-  const TrackingMedium& medium = f.medium;
-  const DeviceRefineView& refine = f.refine;
-  const RayStateView& rs = f.rs;
-  const int n = rs.count;
+  frame_ = frameSetup(frameKey());
+  const FrameConstants& fc = frame_.fc;
+  const int n = frame_.rs.count;
   // Every buffer this frame grows is allocated before any of its work: a lack of GPU memory then
   // leaves the frame undone with the image, its accumulation and the ray state as they were.
   const bool ratio = fc.estimator != PrimaryEstimator::Delta;
   const std::size_t slots = std::size_t(n) * std::size_t(ratio ? fc.pointsPerIteration : 1);
   const auto tSetup = Clock::now();
   if (ratio) I.growSlots(slots, std::size_t(n));
-  if (usesGradient(medium.tf)) I.growGradientOpacity(slots);
+  if (usesGradient(frame_.medium.tf)) I.growGradientOpacity(slots);
   if (fc.shading.enabled) I.growShading(std::size_t(n));
   I.setupMs += msSince(tSetup);  // (I.setupMs was reset above: this frame's allocations)
+  return fc;
+}
 
+void CudaWavefrontRenderer::initRays(const FrameConstants& fc, FrameStats& /*st*/) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const RayStateView& rs = frame_.rs;
   I.timer.begin(cuda::kInit, s);
-  initKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.pixels.view(), I.stats.get());
+  initKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, frame_.medium.grid, rs, I.pixels.view(), I.stats.get());
   INR_CUDA_CHECK_LAUNCH("initKernel");
   I.timer.end(s);
+}
 
-  I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations, cuda::kTraverse,
-          cuda::kEvaluate, st.iterations, st.queries, ratio);
+std::unique_ptr<TrackingLoopSteps> CudaWavefrontRenderer::legSteps(const FrameConstants& fc, Leg leg,
+                                                                   FrameStats& /*st*/) {
+  const bool shadow = leg == Leg::Shadow;
+  return std::make_unique<Impl::TrackingSteps>(
+      *impl_, evaluator_, fc, frame_.medium, options_.refineMacrocells, frame_.refine, options_.maxIterations,
+      shadow ? cuda::kShadowTraverse : cuda::kTraverse, shadow ? cuda::kShadowEvaluate : cuda::kEvaluate,
+      !shadow && fc.estimator != PrimaryEstimator::Delta);
+}
 
-  if (fc.shadows) {
-    I.timer.begin(cuda::kShadowTraverse, s);
-    spawnShadowKernel<<<blocksFor(n), kThreads, 0, s>>>(fc, medium.grid, rs, I.stats.get());
-    INR_CUDA_CHECK_LAUNCH("spawnShadowKernel");
-    I.timer.end(s);
-    I.track(evaluator_, fc, medium, options_.refineMacrocells, refine, options_.maxIterations,
-            cuda::kShadowTraverse, cuda::kShadowEvaluate, st.shadowIterations, st.shadowQueries);
-  }
-  if (medium.prune.expected) {
+void CudaWavefrontRenderer::spawnShadowRays(const FrameConstants& fc, FrameStats& /*st*/) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const RayStateView& rs = frame_.rs;
+  I.timer.begin(cuda::kShadowTraverse, s);
+  spawnShadowKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, frame_.medium.grid, rs, I.stats.get());
+  INR_CUDA_CHECK_LAUNCH("spawnShadowKernel");
+  I.timer.end(s);
+}
+
+const std::uint32_t* CudaWavefrontRenderer::finalizePixels(const FrameConstants& fc, FrameStats& st) {
+  Impl& I = *impl_;
+  const cudaStream_t s = I.stream;
+  const RayStateView& rs = frame_.rs;
+  const int n = rs.count;
+  if (frame_.medium.prune.expected) {
     sumPrunedKernel<<<blocksFor(n), kThreads, 0, s>>>(rs, I.stats.get());
     INR_CUDA_CHECK_LAUNCH("sumPrunedKernel");
   }
-  if (fc.shading.enabled) shadeHits(fc);
-
   I.timer.begin(cuda::kFinalize, s);
   const bool histogram = queryReduction_.budget == BudgetScheme::Histogram;
   if (histogram) INR_CUDA_CHECK(cudaMemsetAsync(I.histogram.get(), 0, kResidualBins * sizeof(unsigned), s));
@@ -614,9 +657,7 @@ FrameStats CudaWavefrontRenderer::renderFrame() {
   st.traversalBytes = built.bytes;
   I.pendingBuildMs = 0;
   st.setupMs = I.setupMs;
-  endFrame(st, I.truncated, histogram ? I.hostHistogram.get() : nullptr);
-  st.closeTiming(updateBeforeFrame, msSince(tFrame));
-  return st;
+  return histogram ? I.hostHistogram.get() : nullptr;
 }
 
 BlueNoiseMaskView CudaWavefrontRenderer::blueNoiseMask() {
@@ -684,8 +725,11 @@ void CudaWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, c
   const RayStateView rs = I.rays.view();
   ghostInitKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, medium.grid, rs, stride);
   INR_CUDA_CHECK_LAUNCH("ghostInitKernel");
-  I.track(evaluator_, fc, medium, true, refine, options_.maxIterations, cuda::kTraverse, cuda::kEvaluate,
-          total.iterations, total.queries);
+  Impl::TrackingSteps steps(I, evaluator_, fc, medium, true, refine, options_.maxIterations, cuda::kTraverse,
+                            cuda::kEvaluate, false);
+  const TrackingLoopOutcome out = runTrackingLoop(steps, options_.maxIterations);
+  total.iterations += out.iterations;
+  total.queries += out.queries;
 }
 
 void CudaWavefrontRenderer::endGhostPasses(FrameStats& total) {
@@ -708,7 +752,7 @@ std::vector<float> CudaWavefrontRenderer::blockMajorants() const {
 
 bool CudaWavefrontRenderer::fieldHasGradient() const { return evaluator_.providesDeviceGradient(); }
 
-void CudaWavefrontRenderer::shadeHits(const FrameConstants& fc) {
+void CudaWavefrontRenderer::shadeHits(const FrameConstants& fc, FrameStats& /*st*/) {
   Impl& I = *impl_;
   const cudaStream_t s = I.stream;
   const RayStateView rs = I.rays.view();

@@ -51,7 +51,6 @@ public:
                             TrackingOptions options = {}, CudaPipelineOptions pipeline = {});
   ~CudaWavefrontRenderer() override;
 
-  FrameStats renderFrame() override;
   // Baseline: per-thread delta tracking with the network evaluated inside each thread's loop.
   FrameStats renderFrameNaive(const CudaPerThreadMlp& network);
 
@@ -100,9 +99,16 @@ private:
   std::array<float, 2> workingValueRange() const override { return macrocells_.workingValueRange(); }
   Vec3f cellSize() const override { return macrocells_.cellSize(); }
   bool fieldHasGradient() const override;
+  // The frame's stages (WavefrontRenderer::renderFrame runs them), as kernels on the grid's stream;
+  // finalizePixels reads the frame's statistics and stage times back.
+  FrameConstants prepareFrame(FrameStats& st) override;
+  void initRays(const FrameConstants& fc, FrameStats& st) override;
+  std::unique_ptr<TrackingLoopSteps> legSteps(const FrameConstants& fc, Leg leg, FrameStats& st) override;
+  void spawnShadowRays(const FrameConstants& fc, FrameStats& st) override;
   // Gradient shading's stage (Render/Shade.h) after the tracking loops: the lit rays' value +
   // gradient batch on the evaluator's per-thread forward mode, then the lighting.
-  void shadeHits(const FrameConstants& fc);
+  void shadeHits(const FrameConstants& fc, FrameStats& st) override;
+  const std::uint32_t* finalizePixels(const FrameConstants& fc, FrameStats& st) override;
   void beginGhostPasses() override;
   void traceGhostPass(const TransferFunctionTable& table, const FrameConstants& fc, int stride,
                       FrameStats& total) override;
@@ -119,6 +125,7 @@ private:
     RayStateView rs;
   };
   FrameSetup frameSetup(int frame);
+  FrameSetup frame_{};  // the frame under way (prepareFrame)
   void readFrameStats(FrameStats& st);
   // Rebuilds what the traversal keeps over the displayed majorants (the OptiX GAS) after they
   // changed; its time goes into the next frame's statistics.

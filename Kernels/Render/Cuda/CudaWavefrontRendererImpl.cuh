@@ -109,7 +109,6 @@ struct CudaWavefrontRenderer::Impl {
   cuda::DeviceBuffer<double> sums;
   cuda::PinnedHost<double> hostSums{pipeline::kSumCount};
   cuda::StageTimer timer;
-  bool truncated = false;
   double setupMs = 0.0;  // this frame's buffer (re)allocations (FrameStats::setupMs)
 
   // Zeroes the frame statistics (asynchronous).
@@ -131,10 +130,8 @@ struct CudaWavefrontRenderer::Impl {
   void growSlots(std::size_t slots, std::size_t rays);
   void growGradientOpacity(std::size_t slots);
   void growShading(std::size_t rays);
-  // `ratio`: the leg is a ratio-tracked primary leg (fc.pointsPerIteration points per ray).
-  void track(const DeviceFieldEvaluator& evaluator, const FrameConstants& fc, const TrackingMedium& medium, bool refine,
-             const DeviceRefineView& refineView, int maxIterations, cuda::Stage traverseStage,
-             cuda::Stage evaluateStage, int& iterations, std::size_t& queries, bool ratio = false);
+  // A leg's traverse-evaluate loop steps (CudaWavefrontRenderer.cu).
+  class TrackingSteps;
 };
 
 }  // namespace inr
