@@ -264,6 +264,50 @@ def tti_row(r):
     return "debiased march to 35 / 40 dB: " + ", ".join(parts)
 
 
+CV_GPU = "issue47-h100-time-to-image-2026-12-07/"
+
+
+def tti_cv_gpu_row(r):
+    """t35 / t40 of the default with and without the jitter's control variate and ratio K 8, and the
+    march steps, from the benchmark's printed tables (one file per model)."""
+    def t(m, config):
+        t35, t40 = r.match(CV_GPU + f"tti-{m}.txt", r"^   " + re.escape(config) + r"\s+\d+ frames\s+\S+ s\s+t35 (\S+) s\s+t40 (\S+) s")
+        ms = lambda v: "> 600" if v == "—" else f"{1000 * float(v):.0f}"  # noqa: E731
+        return ms(t35), ms(t40)
+
+    parts = []
+    for m in TTI_MODELS:
+        cv, plain, k8 = (t(m, c) for c in (DEFAULT_CONFIG + ":cv8", DEFAULT_CONFIG, "ratio:8:32:0.05"))
+        marches = []
+        for d in (64, 128, 256):
+            sec, db = r.match(CV_GPU + f"tti-{m}.txt", rf"^   raymarch step diag/{d}\s+(\S+) s\s+(\S+) dB volume")
+            marches.append((float(sec), float(db), d))
+        good = [x for x in marches if x[1] >= 40.0] or marches[-1:]
+        sec, db, d = min(good)
+        parts.append(f"{m} {cv[0]} / {cv[1]} ms (without the variate {plain[0]} / {plain[1]}; ratio K 8 {k8[0]} / {k8[1]}; "
+                     f"march diag/{d} {db:.1f} dB in {1000 * sec:.0f})")
+    return "default to 35 / 40 dB: " + ", ".join(parts)
+
+
+def blend_gpu_row(r):
+    rel = "gpu-tests-h100-2026-12-07/blend.log"
+    iso, sl = [], []
+    for m in ("siren_cylinder_vorticity_small", "ffn_mri_head_small", "coordnet_cylinder_u_small", "hashgrid_mri_head_small"):
+        iso.append(float(r.match(rel, r"^\| " + re.escape(m) + r" \| isosurface \| \S+ \| (\S+) \|")[0]))
+        sl.append(float(r.match(rel, r"^\| " + re.escape(m) + r" \| slice \|  \| (\S+) \|")[0]))
+    return (f"isosurface frame (median) {span(iso, 1)} ms (SIREN, FFN, CoordNet, hash grid: "
+            f"{', '.join(f'{v:.1f}' for v in iso)}); slice frame {span(sl, 1)} ms")
+
+
+def preview_gpu_row(r):
+    rel = "gpu-tests-h100-2026-12-07/preview_grid.csv"
+    parts = []
+    for m in TTI_MODELS:
+        ms = [r.num(rel, "median_ms", model=m + ".inr", resolution=res) for res in (128, 256)]
+        parts.append(f"{m} {ms[0]:.0f} / {ms[1]:.0f} ms")
+    return "128³ / 256³ grid, median of 3: " + ", ".join(parts)
+
+
 def tti_cpu_row(r):
     rel = "issue47-jitter-control-cpu/time-to-image-summary.csv"
     f = lambda v: f"{float(v):.2f} s" if v else "not in 3 s"  # noqa: E731
@@ -464,6 +508,18 @@ FIGURES = [
            tti_row, "H100", "303f8fb", "2026-12-06",
            ("The debiased march as the default", "the-debiased-march-as-the-default-issue-47"),
            "target: 40 dB no slower than the march's frame; met on the FFN only"),
+    Figure("Time to a clean image, 1024², shipped TFs, default estimator with the jitter's control variate",
+           tti_cv_gpu_row, "H100", "b9ba531", "2026-12-07",
+           ("GPU runs of 2026-12-07", "gpu-runs-of-2026-12-07-the-control-variate-blend-modes-the-preview-the-frame-script-issues-47-48-49-50"),
+           "2048-frame reference; target: 40 dB no slower than the march's frame; met on the FFN and, within "
+           "1 ms, the hash grid"),
+    Figure("Isosurface and slice frames, 1024², `*_small` models", blend_gpu_row, "H100",
+           "b9ba531", "2026-12-07",
+           ("GPU runs of 2026-12-07", "gpu-runs-of-2026-12-07-the-control-variate-blend-modes-the-preview-the-frame-script-issues-47-48-49-50"),
+           "targets: isosurface ≤ 3 ms (met on the FFN only), slice ≤ 1 ms (met)"),
+    Figure("The reader's preview grid on the GPU", preview_gpu_row, "H100", "b9ba531",
+           "2026-12-07", ("GPU runs of 2026-12-07", "gpu-runs-of-2026-12-07-the-control-variate-blend-modes-the-preview-the-frame-script-issues-47-48-49-50"),
+           "target: Preview Resolution 256 well under a second (met)"),
     Figure("Time to a clean image, 256², CPU, `*_small` models, default estimator with the jitter's control variate",
            tti_cpu_row, "2-core dev box", "9d5c319", "2026-12-07",
            ("The sub-pixel jitter's control variate", "the-sub-pixel-jitters-control-variate-issue-47"),
