@@ -28,7 +28,7 @@ TEST(ShippedDefaults, EstimatorIsTheDebiasedMarchWithRatioTrackingAtScale8WhereI
   EXPECT_EQ(t.maxLevel, 5);
   EXPECT_EQ(t.combMinimumSteps, 192.0);
   EXPECT_TRUE(t.stratifiedJitter);
-  EXPECT_EQ(t.jitterControlFrames, 8);
+  EXPECT_EQ(t.jitterControlFrames, 32);
   EXPECT_EQ(t.pointsPerIteration, 32);
   EXPECT_EQ(t.fallbackMajorantScale, 8.0);
   EXPECT_NO_THROW(t.validate());

@@ -254,7 +254,7 @@ TEST(DebiasedMarch, ConvergenceEstimateIsHonestWithTheStratifiedJitter) {
 }
 
 // The sub-pixel jitter's control variate (Finalize.h, jitterControlled) in an accumulation's
-// first frames (TrackingOptions::jitterControlFrames; 8 in the shipped defaults). A first frame
+// first frames (TrackingOptions::jitterControlFrames; 32 in the shipped defaults). A first frame
 // with it is closer to the converged image: its mean squared error (six seeds, against a
 // 256-frame image without the variate) falls by more than a fifth. And it keeps the limit: a
 // 128-frame image with it and one without (other seeds) differ by what their two estimated

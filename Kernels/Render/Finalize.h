@@ -91,41 +91,76 @@ INR_HD Vec4f frameEstimate(const FrameConstants& fc, const RayStateView& rs, int
 // (RESULTS-archive, "Where a first frame's error comes from on the CPU"). With g a slope of the
 // image at the pixel that does not depend on x, c - g . (x - centre) has c's expectation (x is
 // uniform in the pixel: E[x - centre] = 0) and lacks the part of that noise that is linear across
-// the pixel. g is a central difference per axis of this frame's estimates of the four neighbours
-// over their own sampled positions, which are independent of pixel i's draws; 0 on an axis where a
-// neighbour has none (the image's edge, a pixel budgeting skipped), a rule that does not look at
-// pixel i's own sample. Every frame stays unbiased; the frames of neighbouring pixels become
-// correlated, which the convergence estimate (per pixel, from the two halves) does not assume
-// otherwise. The finalize pass reads the neighbours' ray state and writes only the accumulation,
-// so one pass over the pixels serves on either backend.
+// the pixel. g is the slope of the least-squares plane through this frame's estimates of the (up
+// to) 8 neighbours at their own sampled positions, which are independent of pixel i's draws: no
+// control where fewer than 3 neighbours have an estimate (a pixel budgeting skipped has none), where
+// their positions do not span a plane, or where their estimates are all equal (the background's
+// pixels, most of a frame, skip the positions' draws) — rules that do not look at pixel i's own
+// sample. The plane's 8 neighbours carry less of their own Monte Carlo noise into g than central
+// differences of 4 (RESULTS-archive, "A plane through the 8 neighbours"). Every frame stays
+// unbiased; the frames of neighbouring pixels become correlated, which the convergence estimate
+// (per pixel, from the two halves) does not assume otherwise. The finalize pass reads the
+// neighbours' ray state and writes only the accumulation, so one pass over the pixels serves on
+// either backend.
 INR_HD Vec4f jitterControlled(const FrameConstants& fc, const RayStateView& rs, int i, const Vec4f& c) {
   const int width = fc.camera.width, height = fc.camera.height;
   const int px = i % width, py = i / width;
-  // Slope along one axis from the neighbours a (before) and b (after), in colour per pixel; false
-  // where it is 0 (a neighbour missing, or equal estimates: the background's pixels, most of a
-  // frame, skip the positions' draws).
-  auto slope = [&](int a, int b, bool alongX, Vec4f& g) {
-    if ((rs.flags[a] & kRayBudgetSkipped) || (rs.flags[b] & kRayBudgetSkipped)) return false;
-    const Vec4f ca = frameEstimate(fc, rs, a), cb = frameEstimate(fc, rs, b);
-    if (ca.x == cb.x && ca.y == cb.y && ca.z == cb.z && ca.w == cb.w) return false;
-    float a0, a1, b0, b1;
+  float xs[8], ys[8];  // the neighbours' sampled positions relative to pixel i's centre
+  Vec4f cs[8];
+  int n = 0;
+  bool differ = false;
+  for (int oy = -1; oy <= 1; ++oy)
+    for (int ox = -1; ox <= 1; ++ox) {
+      if ((ox == 0 && oy == 0) || px + ox < 0 || px + ox >= width || py + oy < 0 || py + oy >= height) continue;
+      const int j = i + oy * width + ox;
+      if (rs.flags[j] & kRayBudgetSkipped) continue;
+      cs[n] = frameEstimate(fc, rs, j);
+      differ = differ || (n > 0 && (cs[n].x != cs[0].x || cs[n].y != cs[0].y || cs[n].z != cs[0].z ||
+                                    cs[n].w != cs[0].w));
+      xs[n] = float(ox);
+      ys[n] = float(oy);
+      ++n;
+    }
+  if (!differ || n < 3) return c;
+  // Centred least squares: g = S^-1 sum (p - mean p)(c - mean c), S = sum (p - mean p)(p - mean p)^T.
+  float mx = 0.f, my = 0.f;
+  Vec4f mc{0.f, 0.f, 0.f, 0.f};
+  for (int k = 0; k < n; ++k) {
+    float a0, a1;
     RngStream unused;
-    primaryJitter(fc, a, unused, a0, a1);
-    primaryJitter(fc, b, unused, b0, b1);
-    const float w = 1.f / (alongX ? 2.f + b0 - a0 : 2.f + b1 - a1);  // the positions' distance: > 1
-    g = Vec4f{(cb.x - ca.x) * w, (cb.y - ca.y) * w, (cb.z - ca.z) * w, (cb.w - ca.w) * w};
-    return true;
-  };
-  Vec4f gx{0.f, 0.f, 0.f, 0.f}, gy{0.f, 0.f, 0.f, 0.f};
-  const bool sx = px > 0 && px + 1 < width && slope(i - 1, i + 1, true, gx);
-  const bool sy = py > 0 && py + 1 < height && slope(i - width, i + width, false, gy);
-  if (!sx && !sy) return c;
+    primaryJitter(fc, i + int(ys[k]) * width + int(xs[k]), unused, a0, a1);
+    xs[k] += a0 - 0.5f;
+    ys[k] += a1 - 0.5f;
+    mx += xs[k];
+    my += ys[k];
+    mc = Vec4f{mc.x + cs[k].x, mc.y + cs[k].y, mc.z + cs[k].z, mc.w + cs[k].w};
+  }
+  const float inv = 1.f / float(n);
+  mx *= inv;
+  my *= inv;
+  mc = Vec4f{mc.x * inv, mc.y * inv, mc.z * inv, mc.w * inv};
+  float sxx = 0.f, sxy = 0.f, syy = 0.f;
+  Vec4f sxc{0.f, 0.f, 0.f, 0.f}, syc{0.f, 0.f, 0.f, 0.f};
+  for (int k = 0; k < n; ++k) {
+    const float x = xs[k] - mx, y = ys[k] - my;
+    const Vec4f d{cs[k].x - mc.x, cs[k].y - mc.y, cs[k].z - mc.z, cs[k].w - mc.w};
+    sxx += x * x;
+    sxy += x * y;
+    syy += y * y;
+    sxc = Vec4f{sxc.x + x * d.x, sxc.y + x * d.y, sxc.z + x * d.z, sxc.w + x * d.w};
+    syc = Vec4f{syc.x + y * d.x, syc.y + y * d.y, syc.z + y * d.z, syc.w + y * d.w};
+  }
+  const float det = sxx * syy - sxy * sxy;
+  if (!(det > 1e-3f * sxx * syy)) return c;  // the positions lie (nearly) on a line
+  const float ixx = syy / det, ixy = -sxy / det, iyy = sxx / det;
   float u0, u1;
   RngStream rng;
   primaryJitter(fc, i, rng, u0, u1);
   const float dx = u0 - 0.5f, dy = u1 - 0.5f;
-  return Vec4f{c.x - gx.x * dx - gy.x * dy, c.y - gx.y * dx - gy.y * dy, c.z - gx.z * dx - gy.z * dy,
-               c.w - gx.w * dx - gy.w * dy};
+  // g . (x - centre) with g = S^-1 (sxc, syc): the weights of sxc and syc.
+  const float wx = ixx * dx + ixy * dy, wy = ixy * dx + iyy * dy;
+  return Vec4f{c.x - wx * sxc.x - wy * syc.x, c.y - wx * sxc.y - wy * syc.y, c.z - wx * sxc.z - wy * syc.z,
+               c.w - wx * sxc.w - wy * syc.w};
 }
 
 // Returns what the pixel adds to the convergence sums (the backends reduce them).

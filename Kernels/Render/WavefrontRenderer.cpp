@@ -83,7 +83,7 @@ TrackingOptions TrackingOptions::recommended() {
   t.maxLevel = 5;
   t.combMinimumSteps = 192.0;
   t.stratifiedJitter = true;
-  t.jitterControlFrames = 8;
+  t.jitterControlFrames = 32;
   t.pointsPerIteration = 32;
   t.fallbackMajorantScale = 8.0;
   return t;

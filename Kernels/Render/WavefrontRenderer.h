@@ -93,11 +93,12 @@ struct TrackingOptions {
   // stays unbiased, and the antialiasing's share of the error falls about as 1 / frames.
   bool stratifiedJitter = false;
   // With sub-pixel jitter, in an accumulation's first jitterControlFrames frames, each frame's
-  // pixel estimate minus the image's slope (from the neighbours' estimates of the same frame)
+  // pixel estimate minus the image's slope (a plane through the 8 neighbours' estimates of the same frame)
   // times the sample's offset from the pixel centre (Finalize.h, jitterControlled): the same
   // expectation, without the part of the jitter's noise that is linear across the pixel. Only the
   // first frames: the slope carries the neighbours' own noise, which the stratified jitter's later
-  // frames would not have (RESULTS-archive, "The sub-pixel jitter's control variate"). Not with
+  // frames would not have (RESULTS-archive, "The sub-pixel jitter's control variate", "A plane
+  // through the 8 neighbours"). Not with
   // pixel shares (the neighbours are another image's) or in the naive frame (its neighbours are
   // not traced yet). 0 = off; at most kMaxJitterControlFrames.
   static constexpr int kMaxJitterControlFrames = 1 << 20;
@@ -113,8 +114,8 @@ struct TrackingOptions {
   // delta tracking, which the regression fingerprints and the delta-specific tests pin) with the
   // estimator chosen by the time-to-a-clean-image benchmark (Benchmarks/RESULTS.md, "Time to a
   // clean image"): the debiased march (majorant scale 2, level ratio 0.25, at most 5 levels, a
-  // comb floor of 192 steps per box diagonal, stratified jitter with its control variate, 32
-  // points per iteration), and
+  // comb floor of 192 steps per box diagonal, stratified jitter with its control variate in the
+  // first 32 frames, 32 points per iteration), and
   // ratio tracking at majorant scale 8 where it falls back (shadows, shading).
   static TrackingOptions recommended();
   // recommended() with estimator `e` at its own majorant scale: fallbackMajorantScale for ratio

@@ -65,7 +65,7 @@ inr::RenderSessionOptions InrSessionOptions(const InrEngineRequest& request, con
 /// What a live session runs, read back from it (options it was created with, tracking options
 /// and query reduction it holds), one line, e.g. "backend=cpu traversal=dda cuda_device=0
 /// cpu_threads=0 dims=8x8x8 slices=16 skip_block=4 bounds_padding=0.1 ghost_passes=0 refine=1
-/// estimator=ratio majorant_scale=1 residual_scale=1 points_per_iteration=4 jitter_control_frames=8
+/// estimator=ratio majorant_scale=1 residual_scale=1 points_per_iteration=4 jitter_control_frames=32
 /// budget=stbn rho=0.5
 /// K=8 alpha=0.5 reproject=1 epsilon=0 delta=0". Fine and coarse lines differ in dims (and
 /// skip_block where it was capped) only.
