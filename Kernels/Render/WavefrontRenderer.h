@@ -3,9 +3,9 @@
 // script (renderFrame) and a leg's traverse-evaluate loop (runTrackingLoop), image settings, the
 // scene-change policy (SceneChange.h: what a new scene costs), frame numbering, the
 // accumulation's reset rules, the ghost-pass sweep and the counters of the work scene changes
-// did. The CPU (CpuWavefrontRenderer) and CUDA (CudaWavefrontRenderer)
-// backends derive from it: they own the storage (ray and pixel state from Render/RayState.h,
-// majorant grids) and run the INR_HD stage code over it, and implement the hooks below.
+// did. The CPU (CpuWavefrontRenderer) and CUDA (CudaWavefrontRenderer) backends derive from it:
+// they own the storage (ray and pixel state from Render/RayState.h, majorant grids), run the
+// INR_HD stage code over it and implement the hooks below (the frame's stages among them).
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -93,14 +93,14 @@ struct TrackingOptions {
   // stays unbiased, and the antialiasing's share of the error falls about as 1 / frames.
   bool stratifiedJitter = false;
   // With sub-pixel jitter, in an accumulation's first jitterControlFrames frames, each frame's
-  // pixel estimate minus the image's slope (a plane through the 8 neighbours' estimates of the same frame)
-  // times the sample's offset from the pixel centre (Finalize.h, jitterControlled): the same
-  // expectation, without the part of the jitter's noise that is linear across the pixel. Only the
-  // first frames: the slope carries the neighbours' own noise, which the stratified jitter's later
-  // frames would not have (RESULTS-archive, "The sub-pixel jitter's control variate", "A plane
-  // through the 8 neighbours"). Not with
-  // pixel shares (the neighbours are another image's) or in the naive frame (its neighbours are
-  // not traced yet). 0 = off; at most kMaxJitterControlFrames.
+  // pixel estimate minus the image's slope (a plane through the 8 neighbours' estimates of the
+  // same frame) times the sample's offset from the pixel centre (Finalize.h, jitterControlled):
+  // the same expectation, without the part of the jitter's noise that is linear across the
+  // pixel. Only the first frames: the slope carries the neighbours' own noise, which the
+  // stratified jitter's later frames would not have (RESULTS-archive, "The sub-pixel jitter's
+  // control variate", "A plane through the 8 neighbours"). Not with pixel shares (the neighbours
+  // are another image's) or in the naive frame (its neighbours are not traced yet). 0 = off; at
+  // most kMaxJitterControlFrames.
   static constexpr int kMaxJitterControlFrames = 1 << 20;
   int jitterControlFrames = 0;
   // Ratio tracking's majorant scale where a march (preintegrated, debiased) renders a scene as
