@@ -328,7 +328,7 @@ def test_command_row(r):
         if not m:
             raise FigureError(f"results/{rel}: no 'minutes' line")
         return float(m.group(1))
-    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36")]
+    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36", "54d2bfe")]
     busy = minutes("issue49-fresh-clone-busy-048656d/timing.txt")
     return (f"{min(quiet):.1f}–{max(quiet):.1f} min quiet, {busy:.1f} min beside one busy process "
             "(ctest, fuzz, sanitizer build and tests)")
@@ -527,7 +527,7 @@ FIGURES = [
            "target: 3× sooner than ratio K 8 to 40 dB; the FFN's is its first frame, at the "
            "reference's own error"),
     Figure("Test command (`bash Tools/run-tests.sh`, README), fresh clone, 2 cores", test_command_row,
-           "2-core dev box", "773d2ab, 87aba36, 048656d", "2026-12-07",
+           "2-core dev box", "773d2ab, 87aba36, 54d2bfe, 048656d", "2026-12-07",
            ("A shorter reference for the default-convergence test",
             "a-shorter-reference-for-the-default-convergence-test-issue-49"),
            "target: 20 min beside one busy process; earlier sessions' 44 min were on a slower machine"),
