@@ -334,6 +334,15 @@ def test_command_row(r):
             "(ctest, fuzz, sanitizer build and tests)")
 
 
+def example_row(r):
+    rel = "issue49-example-fresh-clone-5334b40/timing.txt"
+    m = re.search(r"^minutes ([\d.]+)$", r.text(rel), re.M)
+    if not m:
+        raise FigureError(f"results/{rel}: no 'minutes' line")
+    return (f"{float(m.group(1)):.1f} min on a fresh clone, the Debian packages already installed (build, ParaView "
+            "pictures at three times, CLI renders and slices)")
+
+
 def honest_estimate_row(r):
     rel = "issue47-honest-estimate/cpu-96/honesty.csv"
     rows = [x for x in r.rows(rel) if x["reference_dominates"] == "0"]
@@ -526,6 +535,12 @@ FIGURES = [
            ("A plane through the 8 neighbours", "a-plane-through-the-8-neighbours-issue-47"),
            "target: 3× sooner than ratio K 8 to 40 dB; the FFN's is its first frame, at the "
            "reference's own error"),
+    Figure("README's first command (`bash Tools/run-example.sh`), 2 cores, no GPU", example_row, "2-core dev box",
+           "5334b40", "2026-12-07",
+           ("The README's first command and the test command, fresh clones of 2026-12-07",
+            "the-readmes-first-command-and-the-test-command-fresh-clones-of-2026-12-07-issue-49"),
+           "target: 12 min on a fresh Debian 12 machine; apt's download and install on a machine without the "
+           "packages not included"),
     Figure("Test command (`bash Tools/run-tests.sh`, README), fresh clone, 2 cores", test_command_row,
            "2-core dev box", "773d2ab, 87aba36, 54d2bfe, 048656d", "2026-12-07",
            ("A shorter reference for the default-convergence test",
