@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "Render/CpuParallel.h"
@@ -98,14 +99,15 @@ double CpuWavefrontRenderer::applyDirtyMajorants() {
 // listed queries go through the query batch, and their values reach the rays in batch order.
 class CpuWavefrontRenderer::TrackingSteps final : public TrackingLoopSteps {
 public:
-  // `points`: the point storage of a ratio-tracked or marched primary leg, else null (one query
+  // `points`: the point storage of a ratio-tracked or marched primary leg, else none (one query
   // per pending ray). Times and gradient-opacity queries add to the given counters.
   TrackingSteps(CpuWavefrontRenderer& r, const FrameConstants& fc, const TrackingMedium& medium,
-                const PointStateView* points, double& traverseMs, double& evaluateMs, std::size_t& gradientQueries)
+                std::optional<PointStateView> points, double& traverseMs, double& evaluateMs,
+                std::size_t& gradientQueries)
       : r_(r), fc_(fc), medium_(medium), points_(points), rs_(r.rays_.view()), traverseMs_(traverseMs),
         evaluateMs_(evaluateMs), gradientQueries_(gradientQueries) {}
 
-  std::size_t listedQueries(int /*iteration*/) override {
+  std::size_t listedQueries(int /*iteration*/, bool /*belowCap*/) override {
     if (r_.stopRequested()) return 0;  // renderFrame returns the frame unaccumulated
     auto t0 = Clock::now();
     traversePass();
@@ -229,7 +231,7 @@ private:
   CpuWavefrontRenderer& r_;
   const FrameConstants fc_;
   const TrackingMedium medium_;
-  const PointStateView* points_;
+  const std::optional<PointStateView> points_;
   const RayStateView rs_;
   double& traverseMs_;
   double& evaluateMs_;
@@ -276,15 +278,15 @@ void CpuWavefrontRenderer::initRays(const FrameConstants& fc, FrameStats& st) {
 
 std::unique_ptr<TrackingLoopSteps> CpuWavefrontRenderer::legSteps(const FrameConstants& fc, Leg leg, FrameStats& st) {
   if (leg == Leg::Shadow)
-    return std::make_unique<TrackingSteps>(*this, fc, medium_, nullptr, st.shadowTraverseMs, st.shadowEvaluateMs,
+    return std::make_unique<TrackingSteps>(*this, fc, medium_, std::nullopt, st.shadowTraverseMs, st.shadowEvaluateMs,
                                            st.gradientOpacityQueries);
-  const bool withPoints = fc.estimator != PrimaryEstimator::Delta;
-  if (withPoints) {
-    pointsView_ = points_.view();
-    pointsView_.perRay = fc.pointsPerIteration;  // by ray (pointSlot)
+  std::optional<PointStateView> points;
+  if (fc.estimator != PrimaryEstimator::Delta) {
+    points = points_.view();
+    points->perRay = fc.pointsPerIteration;  // by ray (pointSlot)
   }
-  return std::make_unique<TrackingSteps>(*this, fc, medium_, withPoints ? &pointsView_ : nullptr, st.traverseMs,
-                                         st.evaluateMs, st.gradientOpacityQueries);
+  return std::make_unique<TrackingSteps>(*this, fc, medium_, points, st.traverseMs, st.evaluateMs,
+                                         st.gradientOpacityQueries);
 }
 
 void CpuWavefrontRenderer::spawnShadowRays(const FrameConstants& fc, FrameStats& st) {
@@ -443,10 +445,8 @@ void CpuWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, co
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (int i = 0; i < n; ++i) initGhostRay(fc, medium.grid, rs, i, stride);
   pendingRefinements_.clear();
-  TrackingSteps steps(*this, fc, medium, nullptr, total.traverseMs, total.evaluateMs, total.gradientOpacityQueries);
-  const TrackingLoopOutcome out = runTrackingLoop(steps, options_.maxIterations);
-  total.iterations += out.iterations;
-  total.queries += out.queries;
+  TrackingSteps steps(*this, fc, medium, std::nullopt, total.traverseMs, total.evaluateMs, total.gradientOpacityQueries);
+  runLeg(steps, Leg::Primary, total);
   if (stopRequested())
     pendingRefinements_.clear();
   else

@@ -89,9 +89,7 @@ private:
   // is the same as with widenings applied as they come.)
   std::vector<std::pair<int, float>> pendingRefinements_;
   std::vector<float> expectedBeforeFrame_;  // pruning's expected scalars before a stoppable frame
-  // The frame under way (prepareFrame): its medium and the primary leg's point view.
-  TrackingMedium medium_{};
-  PointStateView pointsView_{};
+  TrackingMedium medium_{};  // the frame under way's (prepareFrame)
   std::array<std::uint32_t, kResidualBins> residualHistogram_{};  // the last frame's (finalizePixels)
 };
 

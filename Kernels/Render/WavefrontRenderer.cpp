@@ -335,9 +335,10 @@ FrameStats WavefrontRenderer::beginFrame(const char* method, const char* caller)
 TrackingLoopOutcome runTrackingLoop(TrackingLoopSteps& steps, int maxIterations) {
   TrackingLoopOutcome out;
   for (int iteration = 0;; ++iteration) {
-    const std::size_t k = steps.listedQueries(iteration);
+    const bool belowCap = iteration < maxIterations;
+    const std::size_t k = steps.listedQueries(iteration, belowCap);
     if (k == 0) break;
-    if (iteration >= maxIterations) {  // bounded work: the pending rays stop here
+    if (!belowCap) {  // bounded work: the pending rays stop here
       steps.cutOff(iteration);
       out.truncated = true;
       break;
@@ -349,12 +350,15 @@ TrackingLoopOutcome runTrackingLoop(TrackingLoopSteps& steps, int maxIterations)
   return out;
 }
 
-bool WavefrontRenderer::traceLeg(const FrameConstants& fc, Leg leg, FrameStats& st) {
-  const std::unique_ptr<TrackingLoopSteps> steps = legSteps(fc, leg, st);
-  const TrackingLoopOutcome out = runTrackingLoop(*steps, options_.maxIterations);
+bool WavefrontRenderer::runLeg(TrackingLoopSteps& steps, Leg leg, FrameStats& st) {
+  const TrackingLoopOutcome out = runTrackingLoop(steps, options_.maxIterations);
   (leg == Leg::Shadow ? st.shadowIterations : st.iterations) += out.iterations;
   (leg == Leg::Shadow ? st.shadowQueries : st.queries) += out.queries;
   return out.truncated;
+}
+
+bool WavefrontRenderer::traceLeg(const FrameConstants& fc, Leg leg, FrameStats& st) {
+  return runLeg(*legSteps(fc, leg, st), leg, st);
 }
 
 // The frame's script: every estimator and backend runs these stages in this order (paper §4.1:

@@ -146,10 +146,11 @@ class TrackingLoopSteps {
 public:
   virtual ~TrackingLoopSteps() = default;
   // How many queries traversal pass `iteration` listed (0: the leg is done, or a stop request
-  // ended it). The GPU's steps run a pass ahead: when this returns, the listed queries'
-  // evaluation and the next traversal pass are already queued (below the iteration cap), so the
-  // host waits for a count while the GPU works.
-  virtual std::size_t listedQueries(int iteration) = 0;
+  // ended it). `belowCap`: the loop will consume them if there are any (the iteration cap is not
+  // reached). The GPU's steps run a pass ahead: below the cap, when this returns, the listed
+  // queries' evaluation and the next traversal pass are already queued, so the host waits for a
+  // count while the GPU works.
+  virtual std::size_t listedQueries(int iteration, bool belowCap) = 0;
   // The listed queries' values reach their rays (and the macrocells' refinement, pruning's
   // expected scalars); false: a stop request ended the leg.
   virtual bool consume(int iteration, std::size_t queries) = 0;
@@ -284,6 +285,10 @@ protected:
   // residual histogram of this frame's rendered pixels (kResidualBins counts) for the histogram
   // scheme, or null.
   virtual const std::uint32_t* finalizePixels(const FrameConstants& fc, FrameStats& st) = 0;
+  // Runs `steps` to the end (runTrackingLoop, at the options' iteration cap) and adds their
+  // iterations and queries to `st`'s counts for `leg` (a ghost pass counts as a primary leg);
+  // returns whether the cap cut rays off.
+  bool runLeg(TrackingLoopSteps& steps, Leg leg, FrameStats& st);
 
   // Backends call this at the end of their constructor (the hooks are theirs): storage for the
   // default settings' image, accumulation cleared.
@@ -321,7 +326,8 @@ protected:
   QueryReductionSettings queryReduction_;
 
 private:
-  // A leg of the frame: its steps run to the end; returns whether the iteration cap cut rays off.
+  // A leg of the frame: its steps (legSteps) run to the end; returns whether the iteration cap
+  // cut rays off.
   bool traceLeg(const FrameConstants& fc, Leg leg, FrameStats& st);
   bool stoppedMidFrame() const { return stopsMidFrame() && stopRequested(); }
 

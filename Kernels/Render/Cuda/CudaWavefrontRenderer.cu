@@ -272,7 +272,7 @@ void CudaWavefrontRenderer::Impl::growShading(std::size_t rays) {
 
 // The traverse-evaluate loop's steps on the GPU. The host never waits on the GPU mid-loop:
 // listedQueries(i) first queues iteration i's evaluation and iteration i + 1's traversal (below the
-// cap), which read iteration i's query count on the device, with grids sized by the last count
+// iteration cap), which read iteration i's query count on the device, with grids sized by the last count
 // the host knows (an upper bound: the rays a pass lists never outnumber the previous pass's
 // queries, and a ray has at most pointsPerIteration queries), and only then reads count i from
 // pinned memory. When count i is zero, the already queued iteration i + 1 is empty and costs two
@@ -282,10 +282,10 @@ public:
   // `ratio`: the leg is a ratio-tracked or marched primary leg (fc.pointsPerIteration points per
   // ray); `refine`: evaluated samples widen under-estimated macrocells.
   TrackingSteps(Impl& impl, const DeviceFieldEvaluator& evaluator, const FrameConstants& fc,
-                const TrackingMedium& medium, bool refine, const DeviceRefineView& refineView, int maxIterations,
+                const TrackingMedium& medium, bool refine, const DeviceRefineView& refineView,
                 cuda::Stage traverseStage, cuda::Stage evaluateStage, bool ratio)
-      : I(impl), evaluator_(evaluator), fc_(fc), maxIterations_(maxIterations), traverseStage_(traverseStage),
-        evaluateStage_(evaluateStage), ratio_(ratio) {
+      : I(impl), evaluator_(evaluator), fc_(fc), traverseStage_(traverseStage), evaluateStage_(evaluateStage),
+        ratio_(ratio) {
     const RayStateView rs = I.rays.view();
     perRay_ = ratio ? fc.pointsPerIteration : 1;
     slots_ = std::size_t(rs.count) * std::size_t(perRay_);
@@ -314,9 +314,9 @@ public:
     enqueueTraverse(0);
   }
 
-  std::size_t listedQueries(int it) override {
+  std::size_t listedQueries(int it, bool belowCap) override {
     const int cur = it & 1;
-    if (it < maxIterations_) {  // speculatively: evaluate iteration it, traverse iteration it + 1
+    if (belowCap) {  // speculatively: evaluate iteration it, traverse iteration it + 1
       enqueueEvaluate(cur);
       enqueueTraverse(it + 1);
     }
@@ -387,7 +387,6 @@ private:
   Impl& I;
   const DeviceFieldEvaluator& evaluator_;
   const FrameConstants fc_;
-  const int maxIterations_;
   const cuda::Stage traverseStage_, evaluateStage_;
   const bool ratio_;
   int perRay_ = 1;
@@ -606,7 +605,7 @@ std::unique_ptr<TrackingLoopSteps> CudaWavefrontRenderer::legSteps(const FrameCo
                                                                    FrameStats& /*st*/) {
   const bool shadow = leg == Leg::Shadow;
   return std::make_unique<Impl::TrackingSteps>(
-      *impl_, evaluator_, fc, frame_.medium, options_.refineMacrocells, frame_.refine, options_.maxIterations,
+      *impl_, evaluator_, fc, frame_.medium, options_.refineMacrocells, frame_.refine,
       shadow ? cuda::kShadowTraverse : cuda::kTraverse, shadow ? cuda::kShadowEvaluate : cuda::kEvaluate,
       !shadow && fc.estimator != PrimaryEstimator::Delta);
 }
@@ -725,11 +724,8 @@ void CudaWavefrontRenderer::traceGhostPass(const TransferFunctionTable& table, c
   const RayStateView rs = I.rays.view();
   ghostInitKernel<<<blocksFor(rs.count), kThreads, 0, s>>>(fc, medium.grid, rs, stride);
   INR_CUDA_CHECK_LAUNCH("ghostInitKernel");
-  Impl::TrackingSteps steps(I, evaluator_, fc, medium, true, refine, options_.maxIterations, cuda::kTraverse,
-                            cuda::kEvaluate, false);
-  const TrackingLoopOutcome out = runTrackingLoop(steps, options_.maxIterations);
-  total.iterations += out.iterations;
-  total.queries += out.queries;
+  Impl::TrackingSteps steps(I, evaluator_, fc, medium, true, refine, cuda::kTraverse, cuda::kEvaluate, false);
+  runLeg(steps, Leg::Primary, total);
 }
 
 void CudaWavefrontRenderer::endGhostPasses(FrameStats& total) {
