@@ -213,4 +213,57 @@ using IntTag = std::integral_constant<int, N>;
 template <bool B>
 using BoolTag = std::bool_constant<B>;
 
+// What a kernel knows of an instruction before it runs: RuntimeInstr (the interpreter decodes it
+// as its loop reaches it) or ConstantInstr<Desc, I> (a generated kernel: instruction I of the
+// program Desc, Evaluator/MlpKernelSource.h, a compile-time constant). For a constant one the
+// dispatchers below (withActivation, mayBe, and the kernels' block-count and residual choices)
+// instantiate only the branch it takes. A runtime switch on a constant would fold too, but only
+// after the optimiser has inlined every branch's force-inlined body: a generated kernel then
+// paid, at each of its instructions, for every activation, block count and operation, and
+// NVRTC spent most of its time removing them again.
+struct RuntimeInstr {
+  static constexpr bool kConstant = false;
+};
+template <class Desc, int I>
+struct ConstantInstr {
+  static constexpr bool kConstant = true;
+  __host__ __device__ static constexpr MlpInstr get() { return Desc::instr(I); }
+};
+
+// Whether an instruction known as K may be operation `op` (a runtime one may be any).
+template <class K>
+__host__ __device__ constexpr bool mayBe(MlpOp op) {
+  if constexpr (K::kConstant)
+    return K::get().op == op;
+  else
+    return true;
+}
+
+// Whether a GEMM known as K may write the network's output (finalOutput) or fuse the final dot
+// (dotNext).
+template <class K>
+__host__ __device__ constexpr bool mayBeFinalOutput() {
+  if constexpr (K::kConstant)
+    return K::get().finalOutput != 0;
+  else
+    return true;
+}
+template <class K>
+__host__ __device__ constexpr bool mayFuseDot() {
+  if constexpr (K::kConstant)
+    return K::get().dotNext != 0;
+  else
+    return true;
+}
+
+// f(ActTag<A>{}) for the instruction's activation `a`: the one instantiation a constant
+// instruction needs, else the runtime dispatch.
+template <class K, typename F>
+__device__ __forceinline__ void withActivation(K, MlpAct a, F&& f) {
+  if constexpr (K::kConstant)
+    f(ActTag<K::get().act>{});
+  else
+    dispatchActivation(a, f);
+}
+
 }  // namespace inr::cuda

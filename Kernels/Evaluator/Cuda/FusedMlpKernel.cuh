@@ -28,7 +28,9 @@
 // its loop runs) or ConstantProgram (a kernel generated for one network and compiled at run time
 // by NVRTC, Evaluator/MlpKernelSource.h: the instructions and the buffer layout are compile-time
 // constants, the loop over them is unrolled, and every branch on an instruction's fields folds
-// away). Both run the same code, so they compute the same bits.
+// away; where the interpreter dispatches on a field at run time (operation, activation, column
+// blocks, residual, output), a constant instruction instantiates only its own branch:
+// ConstantInstr, FusedMlpDevice.cuh). Both run the same code, so they compute the same bits.
 #include <cuda_fp16.h>
 #include <cuda_pipeline.h>
 
@@ -67,12 +69,13 @@ struct SharedMemoryProgram {
   __device__ const MlpInstr& instr(int i) const { return instrs[i]; }
   __device__ const int* bufferStart() const { return start; }
   __device__ const int* bufferLd() const { return ld; }
-  // f(in, ip) for every instruction in order (in: a copy, so its fields stay in registers).
+  // f(in, ip, RuntimeInstr{}) for every instruction in order (in: a copy, so its fields stay in
+  // registers).
   template <class F>
   __device__ __forceinline__ void forEachInstruction(F&& f) const {
     for (int ip = 0; ip < numInstrs; ++ip) {
       const MlpInstr in = instrs[ip];
-      f(in, ip);
+      f(in, ip, RuntimeInstr{});
     }
   }
   // Halves of the activation buffers and rows of the weight stage for tiles of M rows.
@@ -113,7 +116,7 @@ struct ConstantProgram {
   __device__ __forceinline__ static void unrolled(F& f) {
     if constexpr (I < Desc::kNumInstrs) {
       constexpr MlpInstr in = Desc::instr(I);
-      f(in, I);
+      f(in, I, ConstantInstr<Desc, I>{});
       unrolled<I + 1>(f);
     }
   }
@@ -159,7 +162,7 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
   float* const coords = reinterpret_cast<float*>(encStage + (Program::fusedFourier(P) ? M * (KC + 8) : 0));
   float* const dotPart = coords + M * 4;  // [colGroup][row] partial sums of the final dot
   float* const dotWeights = dotPart + M * 4;  // the final dot's weights (zero-padded), if any
-  prog.forEachInstruction([&](const MlpInstr& in, int) __attribute__((always_inline)) {
+  prog.forEachInstruction([&](const MlpInstr& in, int, auto) __attribute__((always_inline)) {
     if (in.dotNext)
       for (int c = threadIdx.x; c < in.nPad; c += THREADS) dotWeights[c] = P.floatWeights[in.dotOffset + c];
   });
@@ -178,12 +181,13 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
     loadTileCoords<M, THREADS, kTangents>(P, points, base, rows, coords, tid);
     __syncthreads();
 
-    prog.forEachInstruction([&](const MlpInstr& in, int ip) __attribute__((always_inline)) {
+    prog.forEachInstruction([&](const MlpInstr& in, int ip, auto known) __attribute__((always_inline)) {
+      using Known = decltype(known);
       // Done by a neighbouring GEMM (the final dot in its epilogue, an encoding in its operand).
       if (in.fusedIntoPrevious || in.fusedIntoNext) return;  // uniform
       if (in.op != MlpOp::Gemm) {
         runRowInstr<M, THREADS, kTangents, Program::kHashGrid>(P, in, RowTile{actBase, bufferStart, bufferLd, coords, rows, base},
-                                                               tid, points, out, scatter);
+                                                               tid, points, out, scatter, known);
         __syncthreads();
         return;
       }
@@ -283,7 +287,7 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
               const unsigned aChunk = encoded ? 0u : unsigned(chunk * KC * 2), bChunk = unsigned((chunk & 1) * stageHalves * 2);
               const int kLen = min(KC, in.kPad - chunk * KC);
               kStep(aChunk, bChunk, firstTag);  // every chunk holds at least one k step of 16
-              if (kLen == KC) {
+              if (in.kPad % KC == 0 || kLen == KC) {  // (the same; the first folds in a generated kernel)
 #pragma unroll
                 for (int kk = 16; kk < KC; kk += 16) kStep(aChunk + kk * 2, bChunk + kk * 2, BoolTag<false>{});
               } else {
@@ -300,29 +304,31 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
               firstChunkStaged = true;
             }
             // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
-            if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
-              if (colGroup == 0 && t4 == 0) {
-                if constexpr (kTangents) {  // this lane's four rows: query g's value and tangents
-                  const int q = rowGroup * 8 + g;
-                  if (q < rows)
-                    emitOutput<true>(P, in.act, [&](int d) { return acc[d >> 1][0][0][2 * (d & 1)]; }, base + q, points, out,
-                                     scatter);
-                } else {
+            if constexpr (mayBeFinalOutput<Known>()) {  // (a constant GEMM: only where it is the output)
+              if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
+                if (colGroup == 0 && t4 == 0) {
+                  if constexpr (kTangents) {  // this lane's four rows: query g's value and tangents
+                    const int q = rowGroup * 8 + g;
+                    if (q < rows)
+                      emitOutput<true>(P, in.act, [&](int d) { return acc[d >> 1][0][0][2 * (d & 1)]; }, base + q, points, out,
+                                       scatter);
+                  } else {
 #pragma unroll
-                  for (int mt = 0; mt < 2; ++mt)
+                    for (int mt = 0; mt < 2; ++mt)
 #pragma unroll
-                    for (int half = 0; half < 2; ++half) {
-                      const int row = rowBase + mt * 16 + g + half * 8;
-                      if (row < rows)
-                        emitOutput<false>(P, in.act, [&](int) { return acc[mt][0][0][2 * half]; }, base + row, points, out,
-                                          scatter);
-                    }
+                      for (int half = 0; half < 2; ++half) {
+                        const int row = rowBase + mt * 16 + g + half * 8;
+                        if (row < rows)
+                          emitOutput<false>(P, in.act, [&](int) { return acc[mt][0][0][2 * half]; }, base + row, points, out,
+                                            scatter);
+                      }
+                  }
                 }
+                return;
               }
-              return;
             }
             const int laneCol = colGroup * 16 + 2 * t4;
-            dispatchActivation(in.act, [&](auto A) {
+            withActivation(known, in.act, [&](auto A) {
               constexpr MlpAct kAct = decltype(A)::value;
               // act(acc) [+ residual], fp32; sigmoid(0) != 0, so its padding columns are masked.
               // A tangent row (kTangents: m16 tile 1, or rows g + 8 of tile 0) gets act'(z) times
@@ -363,44 +369,48 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
                     }
                   }
                 };
-                if (oRow)
+                if constexpr (Known::kConstant)
+                  loop(BoolTag<(Known::get().other >= 0)>{});
+                else if (oRow)
                   loop(BoolTag<true>{});
                 else
                   loop(BoolTag<false>{});
               };
-              if (in.dotNext) {
-                // The network's final linear (next instruction): dot of the fp32 activations with
-                // its weights, reduced over the quad's lanes, then over the 4 column warps.
-                const MlpInstr& fin = prog.instr(ip + 1);
-                float part[2][2] = {{0.f, 0.f}, {0.f, 0.f}};
-                forEachPair([&](int mt, int half, int, int, int col, float v0, float v1) {
-                  const float2 w = ldsFloat2InPlace(dotWeights + col);
-                  part[mt][half] = fmaf(v0, w.x, fmaf(v1, w.y, part[mt][half]));
-                });
+              if constexpr (mayFuseDot<Known>()) {  // (a constant GEMM: only where it fuses the dot)
+                if (in.dotNext) {
+                  // The network's final linear (next instruction): dot of the fp32 activations with
+                  // its weights, reduced over the quad's lanes, then over the 4 column warps.
+                  const MlpInstr& fin = prog.instr(ip + 1);
+                  float part[2][2] = {{0.f, 0.f}, {0.f, 0.f}};
+                  forEachPair([&](int mt, int half, int, int, int col, float v0, float v1) {
+                    const float2 w = ldsFloat2InPlace(dotWeights + col);
+                    part[mt][half] = fmaf(v0, w.x, fmaf(v1, w.y, part[mt][half]));
+                  });
 #pragma unroll
-                for (int mt = 0; mt < 2; ++mt)
+                  for (int mt = 0; mt < 2; ++mt)
 #pragma unroll
-                  for (int half = 0; half < 2; ++half) {
-                    float v = part[mt][half];
-                    v += __shfl_xor_sync(0xffffffffu, v, 1);
-                    v += __shfl_xor_sync(0xffffffffu, v, 2);
-                    if (t4 == 0) dotPart[colGroup * M + rowBase + mt * 16 + g + half * 8] = v;
+                    for (int half = 0; half < 2; ++half) {
+                      float v = part[mt][half];
+                      v += __shfl_xor_sync(0xffffffffu, v, 1);
+                      v += __shfl_xor_sync(0xffffffffu, v, 2);
+                      if (t4 == 0) dotPart[colGroup * M + rowBase + mt * 16 + g + half * 8] = v;
+                    }
+                  __syncthreads();
+                  const float dotBias = P.floatWeights[fin.biasOffset];
+                  // The column groups' partial sums, M apart (named here: NVRTC's front end crashes
+                  // on the constexpr M used inside the lambda below).
+                  const float* const part1 = dotPart + M;
+                  const float* const part2 = dotPart + 2 * M;
+                  const float* const part3 = dotPart + 3 * M;
+                  for (int q = tid; q < rows; q += THREADS) {
+                    auto pre = [&](int d) {  // direction d's dot product (the value's with the bias)
+                      const int r = Rows::row(q, d);
+                      return dotPart[r] + part1[r] + part2[r] + part3[r] + (d == 0 ? dotBias : 0.f);
+                    };
+                    emitOutput<kTangents>(P, fin.act, pre, base + q, points, out, scatter);
                   }
-                __syncthreads();
-                const float dotBias = P.floatWeights[fin.biasOffset];
-                // The column groups' partial sums, M apart (named here: NVRTC's front end crashes
-                // on the constexpr M used inside the lambda below).
-                const float* const part1 = dotPart + M;
-                const float* const part2 = dotPart + 2 * M;
-                const float* const part3 = dotPart + 3 * M;
-                for (int q = tid; q < rows; q += THREADS) {
-                  auto pre = [&](int d) {  // direction d's dot product (the value's with the bias)
-                    const int r = Rows::row(q, d);
-                    return dotPart[r] + part1[r] + part2[r] + part3[r] + (d == 0 ? dotBias : 0.f);
-                  };
-                  emitOutput<kTangents>(P, fin.act, pre, base + q, points, out, scatter);
+                  return;
                 }
-                return;
               }
               __half* const dRow = dst + (rowBase + g) * ldDst + laneCol;
               forEachPair([&](int mt, int half, int j, int h, int, float v0, float v1) {
@@ -408,11 +418,17 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
               });
             });
           };
-          switch ((c16Count + 3) / 4) {  // the same for every warp of the block
-            case 1: gemm(IntTag<1>{}); break;
-            case 2: gemm(IntTag<2>{}); break;
-            case 3: gemm(IntTag<3>{}); break;
-            default: gemm(IntTag<4>{}); break;
+          // NB, the same for every warp of the block: (c16Count + 3) / 4, at most 4.
+          if constexpr (Known::kConstant) {
+            constexpr int kBlocks = (Known::get().nPad / 16 + 3) / 4;
+            gemm(IntTag<(kBlocks >= 1 && kBlocks <= 3) ? kBlocks : 4>{});
+          } else {
+            switch ((c16Count + 3) / 4) {
+              case 1: gemm(IntTag<1>{}); break;
+              case 2: gemm(IntTag<2>{}); break;
+              case 3: gemm(IntTag<3>{}); break;
+              default: gemm(IntTag<4>{}); break;
+            }
           }
       }
       __syncthreads();

@@ -45,9 +45,9 @@ struct InstrBuffers {
 // activation; the output): one thread per (query, column) computes the value and its three
 // tangents, as emulateFusedTangents does (MlpProgramEmulation.cpp). LoadInput and Combine treat
 // every row alike (linear), so runRowInstr runs them for tangent rows too.
-template <int M, int THREADS>
+template <int M, int THREADS, class K = RuntimeInstr>
 __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
-                                          float* __restrict__ out) {
+                                          float* __restrict__ out, K = {}) {
   using L = TileRows<true>;
   constexpr int Q = M / 4;
   const InstrBuffers b(in, t);
@@ -59,6 +59,7 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
   auto store = [&](int q, int d, int c, float v) { b.dst[L::row(q, d) * b.ldDst + c] = __float2half(v); };
   switch (in.op) {
     case MlpOp::HashGrid: {
+      if constexpr (!mayBe<K>(MlpOp::HashGrid)) break;
       // The value row from the fp16 tables with the value kernels' arithmetic (hashGridLevelFused,
       // as FusedHashGrid.cuh gathers): a shaded sample's value is its unshaded value, bit for bit.
       // The other columns (included inputs, padding) and the tangents below, element by element
@@ -88,6 +89,7 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
       break;
     }
     case MlpOp::Fourier:  // every encoding, element by element (Evaluator/Encodings.h)
+      if constexpr (!mayBe<K>(MlpOp::Fourier)) break;
       for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
         const int q = idx / in.nPad, c = idx - q * in.nPad;
         auto input = [&](int k) { return x(q, 0, k); };
@@ -100,6 +102,7 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
       }
       break;
     case MlpOp::DenseFp32:
+      if constexpr (!mayBe<K>(MlpOp::DenseFp32)) break;
       for (int idx = tid; idx < Q * in.nPad; idx += THREADS) {
         const int q = idx / in.nPad, o = idx - q * in.nPad;
         float v[4] = {0.f, 0.f, 0.f, 0.f};  // zero padding columns
@@ -118,6 +121,7 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
       }
       break;
     case MlpOp::Activation:  // in place: the value row is read before it is overwritten
+      if constexpr (!mayBe<K>(MlpOp::Activation)) break;
       for (int idx = tid; idx < Q * in.outWidth; idx += THREADS) {
         const int q = idx / in.outWidth, c = idx - q * in.outWidth;
         const float pre = in.actScale * __half2float(b.dst[L::row(q, 0) * b.ldDst + c]);
@@ -128,6 +132,7 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
       break;
     case MlpOp::OutputDot:
     case MlpOp::Output:
+      if constexpr (!mayBe<K>(MlpOp::OutputDot) && !mayBe<K>(MlpOp::Output)) break;
       for (int q = tid; q < t.rows; q += THREADS) {
         const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
         float pre[4] = {0.f, 0.f, 0.f, 0.f};
@@ -150,13 +155,13 @@ __device__ __forceinline__ void runTangentRowInstr(const FusedParams& P, const M
 // template instantiations) are not compiled at all (a generated kernel: the optimiser would
 // otherwise spend about as long on them as on the rest of the kernel). Force-inlined: a generated
 // kernel calls it once per row instruction, with that instruction's constants.
-template <int M, int THREADS, bool kTangents = false, bool kHashGrid = true>
+template <int M, int THREADS, bool kTangents = false, bool kHashGrid = true, class K = RuntimeInstr>
 __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr& in, const RowTile& t, int tid,
                                    const float4* __restrict__ points, float* __restrict__ out,
-                                   const int* __restrict__ scatter) {
+                                   const int* __restrict__ scatter, K known = {}) {
   if constexpr (kTangents) {
     if (in.op != MlpOp::LoadInput && in.op != MlpOp::Combine) {
-      runTangentRowInstr<M, THREADS>(P, in, t, tid, out);
+      runTangentRowInstr<M, THREADS>(P, in, t, tid, out, known);
       return;
     }
   }
@@ -168,6 +173,7 @@ __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr
   auto input = [&](int r, int k) -> float { return in.src < 0 ? coords[r * 4 + k] : __half2float(b.src[r * b.ldSrc + k]); };
   switch (in.op) {
     case MlpOp::LoadInput:
+      if constexpr (!mayBe<K>(MlpOp::LoadInput)) break;
       if (in.splitPrecision) {  // columns hi | lo | hi | 0, one thread per (row, coordinate)
         for (int idx = tid; idx < M * 4; idx += THREADS) {
           const int r = idx >> 2, c = idx & 3;
@@ -186,6 +192,7 @@ __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr
       break;
     case MlpOp::DenseFp32:
     case MlpOp::Fourier: {
+      if constexpr (!mayBe<K>(MlpOp::DenseFp32) && !mayBe<K>(MlpOp::Fourier)) break;
       // One thread per output column (its weights in registers), looping over the rows.
       // A Fourier encoding's columns as Evaluator/Encodings.h lays them out; its projection is
       // the dense dot below with a zero bias: of the coordinates, the arithmetic of
@@ -227,7 +234,7 @@ __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr
             b.dst[r * b.ldDst + sinBase + m + o] = __float2half(cs);
           }
         } else {
-          dispatchActivation(in.act, [&](auto A) {
+          withActivation(known, in.act, [&](auto A) {
             for (int r = rStart; r < M; r += rowsPerPass) {
               float v = applyActivation(decltype(A)::value, dot(r));
               if (b.other) v = in.combineScale * (v + __half2float(b.other[r * b.ldOther + o]));
@@ -258,11 +265,13 @@ __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr
       break;
     }
     case MlpOp::Activation:
+      if constexpr (!mayBe<K>(MlpOp::Activation)) break;
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.outWidth; c += 32)
           b.dst[r * b.ldDst + c] = __float2half(applyActivation(in.act, in.actScale * __half2float(b.dst[r * b.ldDst + c])));
       break;
     case MlpOp::Combine: {
+      if constexpr (!mayBe<K>(MlpOp::Combine)) break;
       for (int r = warp; r < M; r += WARPS)
         for (int c = lane; c < in.nPad; c += 32) {
           const float v = __half2float(b.src[r * b.ldSrc + c]) + (b.other ? __half2float(b.other[r * b.ldOther + c]) : 0.f);
@@ -272,6 +281,7 @@ __device__ __forceinline__ void runRowInstr(const FusedParams& P, const MlpInstr
     }
     case MlpOp::OutputDot:
     case MlpOp::Output: {
+      if constexpr (!mayBe<K>(MlpOp::OutputDot) && !mayBe<K>(MlpOp::Output)) break;
       const float* W = in.op == MlpOp::OutputDot ? P.floatWeights + in.floatOffset : nullptr;
       for (int r = warp; r < rows; r += WARPS) {
         float acc = 0.f;
