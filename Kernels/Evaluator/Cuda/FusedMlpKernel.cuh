@@ -369,12 +369,22 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
                     }
                   }
                 };
-                if constexpr (Known::kConstant)
-                  loop(BoolTag<(Known::get().other >= 0)>{});
-                else if (oRow)
+                // A constant instruction keeps the interpreter's runtime test of oRow in front of
+                // the residual loop: it makes the loop's own test redundant, so the activation and
+                // the residual sum share a basic block there as in the interpreter, and the
+                // compiler fuses the same multiply-adds (tangent rows: act'(z) * acc + o) in both.
+                // Without it the generated kernel's tangents differed in the last fp16 bit.
+                if constexpr (Known::kConstant) {
+                  if constexpr (Known::get().other >= 0) {
+                    if (oRow) loop(BoolTag<true>{});
+                  } else {
+                    loop(BoolTag<false>{});
+                  }
+                } else if (oRow) {
                   loop(BoolTag<true>{});
-                else
+                } else {
                   loop(BoolTag<false>{});
+                }
               };
               if constexpr (mayFuseDot<Known>()) {  // (a constant GEMM: only where it fuses the dot)
                 if (in.dotNext) {
