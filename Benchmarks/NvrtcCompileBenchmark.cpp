@@ -7,7 +7,8 @@
 //   nvrtc_compile_benchmark [--arch sm_90|compute_90|...] [--kernels all|T:KC:values|tangents,...]
 //                           [--threads N] [--csv FILE] [MODEL ...]
 // MODEL: siren, ffn, coordnet (the paper-size architectures, Kernels/TestSupport/
-// PaperArchitectures.h) or an .inr file; default the three paper networks. --kernels all (the
+// PaperArchitectures.h), siren-depth-N (the paper SIREN with N hidden layers: how the time grows
+// with depth) or an .inr file; default the three paper networks. --kernels all (the
 // default) is the evaluator's whole set: tiles 128, 64, 32 x weight chunks 64, 32 x values and
 // tangent rows, of the program and, where it fuses a Fourier encoding, of its stored form too;
 // a list such as 32:32:values,32:32:tangents picks kernels (of every form). --threads 1 (the
@@ -37,7 +38,7 @@ using namespace inr;
 [[noreturn]] void usage(const std::string& why) {
   std::fprintf(stderr,
                "nvrtc_compile_benchmark: %s\nusage: nvrtc_compile_benchmark [--arch sm_90|compute_90|...] "
-               "[--kernels all|T:KC:values|tangents,...] [--threads N] [--csv FILE] [siren|ffn|coordnet|MODEL.inr ...]\n",
+               "[--kernels all|T:KC:values|tangents,...] [--threads N] [--csv FILE] [siren|ffn|coordnet|siren-depth-N|MODEL.inr ...]\n",
                why.c_str());
   std::exit(2);
 }
@@ -53,6 +54,20 @@ GeneratedKernelSpec parseKernel(const std::string& text) {
   if (k.kc != 64 && k.kc != 32) usage("a kernel's weight chunk is 64 or 32, not " + std::to_string(k.kc));
   k.tangents = std::string(kind) == "tangents";
   return k;
+}
+
+// The paper SIREN (4->256 x 5->1, sine w0 30) with `depth` hidden layers.
+InrModel sirenOfDepth(int depth) {
+  bench::ArchitectureBuilder b(1);
+  nlohmann::json layers = nlohmann::json::array();
+  int in = 4;
+  for (int i = 0; i < depth; ++i) {
+    layers.push_back(b.sirenLinear(in, 256, i == 0));
+    layers.push_back({{"type", "sine"}, {"w0", 30}});
+    in = 256;
+  }
+  layers.push_back(b.sirenLinear(256, 1, false));
+  return b.finish(layers, "SIREN 4->256x" + std::to_string(depth) + "->1");
 }
 
 struct Row {
@@ -105,6 +120,11 @@ int main(int argc, char** argv) {
   for (const std::string& name : models) {
     InrModel model;
     try {
+      int depth = 0;
+      if (std::sscanf(name.c_str(), "siren-depth-%d", &depth) == 1) {
+        if (depth < 1 || depth > 60) usage("siren-depth-N takes 1 to 60 hidden layers, not " + std::to_string(depth));
+        model = sirenOfDepth(depth);
+      } else
       model = name == "siren" ? bench::sirenPaper()
               : name == "ffn" ? bench::ffnPaper()
               : name == "coordnet" ? bench::coordNetPaper()

@@ -264,29 +264,73 @@ def tti_row(r):
     return "debiased march to 35 / 40 dB: " + ", ".join(parts)
 
 
-CV_GPU = "issue47-h100-time-to-image-2026-12-07/"
+def tti_cv_gpu(folder, cv, models):
+    """t35 / t40 of the default with and without the jitter's control variate (config suffix `cv`)
+    and ratio K 8, and the march steps, from the benchmark's printed tables (one file per model)."""
+    def row(r):
+        def t(m, config):
+            t35, t40 = r.match(folder + f"tti-{m}.txt", r"^   " + re.escape(config) + r"\s+\d+ frames\s+\S+ s\s+t35 (\S+) s\s+t40 (\S+) s")
+            ms = lambda v: "> 600" if v == "—" else f"{1000 * float(v):.0f}"  # noqa: E731
+            return ms(t35), ms(t40)
+
+        parts = []
+        for m in models:
+            with_cv, plain, k8 = (t(m, c) for c in (DEFAULT_CONFIG + ":" + cv, DEFAULT_CONFIG, "ratio:8:32:0.05"))
+            marches = []
+            for d in (64, 128, 256):
+                sec, db = r.match(folder + f"tti-{m}.txt", rf"^   raymarch step diag/{d}\s+(\S+) s\s+(\S+) dB volume")
+                marches.append((float(sec), float(db), d))
+            good = [x for x in marches if x[1] >= 40.0] or marches[-1:]
+            sec, db, d = min(good)
+            parts.append(f"{m} {with_cv[0]} / {with_cv[1]} ms (without the variate {plain[0]} / {plain[1]}; ratio K 8 "
+                         f"{k8[0]} / {k8[1]}; march diag/{d} {db:.1f} dB in {1000 * sec:.0f})")
+        return "default to 35 / 40 dB: " + ", ".join(parts)
+    return row
 
 
-def tti_cv_gpu_row(r):
-    """t35 / t40 of the default with and without the jitter's control variate and ratio K 8, and the
-    march steps, from the benchmark's printed tables (one file per model)."""
-    def t(m, config):
-        t35, t40 = r.match(CV_GPU + f"tti-{m}.txt", r"^   " + re.escape(config) + r"\s+\d+ frames\s+\S+ s\s+t35 (\S+) s\s+t40 (\S+) s")
-        ms = lambda v: "> 600" if v == "—" else f"{1000 * float(v):.0f}"  # noqa: E731
-        return ms(t35), ms(t40)
+tti_cv_gpu_row = tti_cv_gpu("issue47-h100-time-to-image-2026-12-07/", "cv8", TTI_MODELS)
+tti_plane_h200_row = tti_cv_gpu("issue47-h200-time-to-image-2026-12-07/", "cv32",
+                                ("siren_cylinder_vorticity", "ffn_mri_head", "coordnet_cylinder_u"))
+
+NVRTC_CPU = "issue50-nvrtc-dispatch-cpu/"
+
+
+def nvrtc_cpu_row(r):
+    """NVRTC's seconds for the same three kernels per paper network before and after the constant
+    dispatch (one kernel at a time), and the evaluator's whole set after it."""
+    def total(rel, model):
+        return float(r.match(NVRTC_CPU + rel, rf"^{model}\s+\d+ kernels: sum\s+(\S+) s")[0])
 
     parts = []
-    for m in TTI_MODELS:
-        cv, plain, k8 = (t(m, c) for c in (DEFAULT_CONFIG + ":cv8", DEFAULT_CONFIG, "ratio:8:32:0.05"))
-        marches = []
-        for d in (64, 128, 256):
-            sec, db = r.match(CV_GPU + f"tti-{m}.txt", rf"^   raymarch step diag/{d}\s+(\S+) s\s+(\S+) dB volume")
-            marches.append((float(sec), float(db), d))
-        good = [x for x in marches if x[1] >= 40.0] or marches[-1:]
-        sec, db, d = min(good)
-        parts.append(f"{m} {cv[0]} / {cv[1]} ms (without the variate {plain[0]} / {plain[1]}; ratio K 8 {k8[0]} / {k8[1]}; "
-                     f"march diag/{d} {db:.1f} dB in {1000 * sec:.0f})")
-    return "default to 35 / 40 dB: " + ", ".join(parts)
+    for m, before in (("siren", "before-siren-ffn.txt"), ("ffn", "before-siren-ffn.txt"), ("coordnet", "before-run1.txt")):
+        b, a = total(before, m), total("after.txt", m)
+        n, whole = r.match(NVRTC_CPU + "after-all.txt", rf"^{m}\s+(\d+) kernels: sum\s+(\S+) s")
+        parts.append(f"{m} {b:.1f} → {a:.1f} s ({b / a:.1f}×; all {n}: {float(whole):.0f} s)")
+    return "three kernels (tile 128 × K 64 values, 32 × 32 values and tangents), one at a time: " + ", ".join(parts)
+
+
+GEN_H200 = "issue50-generated-h200-2026-12-07/"
+
+
+def generated_h200_row(r):
+    """The best generated kernel (autotuned among them alone) against the built-in kernels
+    (autotuned, the wgmma kernel included) and against the built-in mma.sync kernel, at 2^21, and
+    the evaluator's cold compilation of a model's kernels on the 16-core host."""
+    compiles = re.findall(r"\[generated kernels: (\d+) kernels for sm_90, NVRTC \S+ (\S+) s \(0 from",
+                          r.text(GEN_H200 + "eval-only.txt"))
+    parts = []
+    models = ("paper_siren.inr", "paper_ffn.inr", "paper_coordnet.inr", "paper_hashgrid.inr", "paper_hashgrid3d.inr")
+    if len(compiles) != len(models):
+        raise FigureError(f"results/{GEN_H200}eval-only.txt: {len(compiles)} compile reports for {len(models)} models")
+    for m, (n, sec) in zip(models, compiles):
+        gen = r.num(GEN_H200 + "eval-only.csv", "median_qps", model=m, path="fused-fp16") / 1e9
+        best = r.num(GEN_H200 + "eval-off.csv", "median_qps", model=m, path="fused-fp16") / 1e9
+        mma = r.num_or_none(GEN_H200 + "eval-off.csv", "median_qps", model=m, path="fused-mma.sync") \
+            if any(x["path"] == "fused-mma.sync" for x in r.rows(GEN_H200 + "eval-off.csv", model=m)) else None
+        vs_mma = f", {gen / (mma / 1e9):.2f}× the built-in mma.sync" if mma else ""
+        parts.append(f"{m[:-4].replace('paper_', '')} {gen:.3f} G q/s = {gen / best:.2f}× the built-in kernels{vs_mma}, "
+                     f"{n} kernels compiled in {float(sec):.1f} s")
+    return "generated kernels alone, 2^21 random points: " + "; ".join(parts)
 
 
 def blend_gpu_row(r):
@@ -523,6 +567,18 @@ FIGURES = [
            ("GPU runs of 2026-12-07", "gpu-runs-of-2026-12-07-the-control-variate-blend-modes-the-preview-the-frame-script-issues-47-48-49-50"),
            "2048-frame reference; target: 40 dB no slower than the march's frame; met on the FFN and, within "
            "1 ms, the hash grid"),
+    Figure("Time to a clean image, 1024², shipped TFs, the shipped default (control variate from a plane, 32 frames)",
+           tti_plane_h200_row, "H200", "78d2556", "2026-12-07",
+           ("Generated kernels in seconds; the plane on an H200", "generated-kernels-in-seconds-the-plane-on-an-h200-issues-50-47"),
+           "2048-frame reference; target: 40 dB no slower than the march's frame; met on the FFN"),
+    Figure("NVRTC per generated kernel, sm_90 cubins, 2-core dev box", nvrtc_cpu_row, "2-core dev box",
+           "c5e4f0e, 78d2556", "2026-12-07",
+           ("Generated kernels in seconds; the plane on an H200", "generated-kernels-in-seconds-the-plane-on-an-h200-issues-50-47"),
+           "target: ≤ 2 s per model cold (missed)"),
+    Figure("Generated kernels against the built-in ones, paper networks, H200", generated_h200_row, "H200",
+           "78d2556", "2026-12-07",
+           ("Generated kernels in seconds; the plane on an H200", "generated-kernels-in-seconds-the-plane-on-an-h200-issues-50-47"),
+           "targets: SIREN ≥ 1.1 G q/s, cold compile ≤ 2 s per model (missed); faster on the hash grids only"),
     Figure("Isosurface and slice frames, 1024², `*_small` models", blend_gpu_row, "H100",
            "b9ba531", "2026-12-07",
            ("GPU runs of 2026-12-07", "gpu-runs-of-2026-12-07-the-control-variate-blend-modes-the-preview-the-frame-script-issues-47-48-49-50"),

@@ -8,7 +8,7 @@ SUITE_NEEDS="CPU + the CUDA toolkit's NVRTC (a build with -DINR_CUDA_COMPILE_CHE
 SUITE_BEFORE=rerun
 SUITE_HELP='ARCH=sm_90        the architecture (sm_XY: NVVM and ptxas; compute_XY: NVVM only)
 THREADS=$(nproc)  threads of the second pass (a model load on this machine)
-(-- MODEL ...: siren, ffn, coordnet or .inr files; default the three paper networks)'
+(-- MODEL ...: siren, ffn, coordnet, siren-depth-N or .inr files; default the three paper networks)'
 SUITE_TABLES="nvrtc_one_thread.txt nvrtc_threads.txt"
 
 suite_build() { bench_build nvrtc_compile_benchmark; }
