@@ -54,9 +54,10 @@ bool isInrVolume(vtkSMProxy* proxy)
 }
 
 // Asks the representation object on the render server (the process that renders; the client's
-// copy does not render in client/server mode, so information properties pulled from the client
-// would say nothing) for an int (`method` of vtkInrVolumeRepresentation); `fallback` when it
-// cannot be asked.
+// copy does not render in client/server mode) for an int (`method` of
+// vtkInrVolumeRepresentation); `fallback` when it cannot be asked. One call, without the pull
+// of every information property that UpdatePropertyInformation makes (which
+// vtkSMInrVolumeRepresentationProxy also sends to the render server).
 int askRenderServer(vtkSMProxy* proxy, const char* method, int fallback)
 {
   vtkSMProperty* prop = proxy->GetProperty("InrConverged");

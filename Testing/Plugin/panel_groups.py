@@ -28,7 +28,7 @@ def check(ok, what):
 
 
 root = ET.parse(sys.argv[1]).getroot()
-proxy = next(e for e in root.iter("RepresentationProxy") if e.get("name") == "InrVolumeRepresentation")
+proxy = next(e for e in root.iter("InrVolumeRepresentationProxy") if e.get("name") == "InrVolumeRepresentation")
 properties = {e.get("name"): e for e in proxy if e.tag.endswith("Property")}
 check(len(properties) > 20, f"{len(properties)} properties declared on InrVolumeRepresentation")
 

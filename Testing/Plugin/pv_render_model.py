@@ -20,6 +20,7 @@ ap.add_argument("--baseline", default="")
 ap.add_argument("--min-psnr", type=float, default=40.0)
 ap.add_argument("--max-abs", type=int, default=64)
 ap.add_argument("--write-baseline", action="store_true")
+ap.add_argument("--ranks", type=int, default=0, help="ranks that render (checks the Ranks In Use lines)")
 args = ap.parse_args()
 
 from paraview import simple  # noqa: E402
@@ -70,15 +71,18 @@ check(abs(view.ViewTime - args.time) < 1e-9, f"view time {view.ViewTime}")
 
 target = args.baseline if args.write_baseline else args.out
 simple.SaveScreenshot(target, view, ImageResolution=list(args.size))
-if args.connect:
-    # Information properties are pulled from the client's copy of the representation, which
-    # does not render in client/server mode (the GUI behaviour asks the render server instead).
-    print("remote rendering: frame count checked through the image only")
-else:
-    frames = C.info(display, "InrAccumulatedFrames")
-    check(frames == args.frames, f"accumulated {frames} frames (asked {args.frames})")
-    check(C.info(display, "InrConverged") == 1, "converged flag after the frame limit")
-    print("backend:", C.info(display, "InrBackendInUse"))
+# The panel's state, in client/server mode too: the information properties come from the
+# representation that renders (vtkSMInrVolumeRepresentationProxy pulls them from the render server;
+# the client's copy does not render).
+frames = C.info(display, "InrAccumulatedFrames")
+check(frames == args.frames, f"accumulated {frames} frames (asked {args.frames})")
+check(C.info(display, "InrConverged") == 1, "converged flag after the frame limit")
+state = C.info(display, "InrRefinementState") or ""
+check(state.startswith("stopped at") or state.startswith("converged"), f"refinement state '{state}' after the frame limit")
+ranks = (C.info(display, "InrRanksInUse") or "").strip().splitlines()
+print("backend:", C.info(display, "InrBackendInUse"), "| state:", state, "| ranks:", " / ".join(ranks))
+if args.ranks:
+    check(len(ranks) == args.ranks, f"{len(ranks)} lines in Ranks In Use (expected one per rank, {args.ranks})")
 
 if args.write_baseline:
     print("wrote baseline", args.baseline)
