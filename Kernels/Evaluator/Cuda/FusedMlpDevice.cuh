@@ -239,19 +239,12 @@ __host__ __device__ constexpr bool mayBe(MlpOp op) {
     return true;
 }
 
-// Whether a GEMM known as K may write the network's output (finalOutput) or fuse the final dot
-// (dotNext).
+// Whether an instruction known as K may have the flag `field` set (finalOutput: a GEMM writes the
+// network's output; dotNext: it fuses the final dot); a runtime one may.
 template <class K>
-__host__ __device__ constexpr bool mayBeFinalOutput() {
+__host__ __device__ constexpr bool mayHave(std::int32_t MlpInstr::*field) {
   if constexpr (K::kConstant)
-    return K::get().finalOutput != 0;
-  else
-    return true;
-}
-template <class K>
-__host__ __device__ constexpr bool mayFuseDot() {
-  if constexpr (K::kConstant)
-    return K::get().dotNext != 0;
+    return K::get().*field != 0;
   else
     return true;
 }

@@ -304,7 +304,7 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
               firstChunkStaged = true;
             }
             // Epilogue in registers: fragment element (row g / g+8, columns 2*t4, 2*t4+1).
-            if constexpr (mayBeFinalOutput<Known>()) {  // (a constant GEMM: only where it is the output)
+            if constexpr (mayHave<Known>(&MlpInstr::finalOutput)) {  // (a constant GEMM: only where it is the output)
               if (in.finalOutput) {  // column 0 is the network output: fp32, straight to `out`
                 if (colGroup == 0 && t4 == 0) {
                   if constexpr (kTangents) {  // this lane's four rows: query g's value and tangents
@@ -386,7 +386,7 @@ __device__ __forceinline__ void fusedMlpTiles(const Program& prog, const FusedPa
                   loop(BoolTag<false>{});
                 }
               };
-              if constexpr (mayFuseDot<Known>()) {  // (a constant GEMM: only where it fuses the dot)
+              if constexpr (mayHave<Known>(&MlpInstr::dotNext)) {  // (a constant GEMM: only where it fuses the dot)
                 if (in.dotNext) {
                   // The network's final linear (next instruction): dot of the fp32 activations with
                   // its weights, reduced over the quad's lanes, then over the 4 column warps.
