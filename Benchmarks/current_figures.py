@@ -372,7 +372,7 @@ def test_command_row(r):
         if not m:
             raise FigureError(f"results/{rel}: no 'minutes' line")
         return float(m.group(1))
-    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36", "54d2bfe")]
+    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36", "54d2bfe", "d835784")]
     busy = [minutes(f"issue49-fresh-clone-busy-{c}/timing.txt") for c in ("048656d", "4747b8f")]
     return (f"{min(quiet):.1f}–{max(quiet):.1f} min quiet, {min(busy):.1f}–{max(busy):.1f} min beside one busy process "
             "(ctest, fuzz, sanitizer build and tests)")
@@ -598,7 +598,7 @@ FIGURES = [
            "target: 12 min on a fresh Debian 12 machine; apt's download and install on a machine without the "
            "packages not included"),
     Figure("Test command (`bash Tools/run-tests.sh`, README), fresh clone, 2 cores", test_command_row,
-           "2-core dev box", "773d2ab, 87aba36, 54d2bfe, 048656d, 4747b8f", "2026-12-07",
+           "2-core dev box", "773d2ab, 87aba36, 54d2bfe, d835784, 048656d, 4747b8f", "2026-12-07",
            ("A shorter reference for the default-convergence test",
             "a-shorter-reference-for-the-default-convergence-test-issue-49"),
            "target: 20 min beside one busy process; earlier sessions' 44 min were on a slower machine"),
