@@ -56,20 +56,6 @@ GeneratedKernelSpec parseKernel(const std::string& text) {
   return k;
 }
 
-// The paper SIREN (4->256 x 5->1, sine w0 30) with `depth` hidden layers.
-InrModel sirenOfDepth(int depth) {
-  bench::ArchitectureBuilder b(1);
-  nlohmann::json layers = nlohmann::json::array();
-  int in = 4;
-  for (int i = 0; i < depth; ++i) {
-    layers.push_back(b.sirenLinear(in, 256, i == 0));
-    layers.push_back({{"type", "sine"}, {"w0", 30}});
-    in = 256;
-  }
-  layers.push_back(b.sirenLinear(256, 1, false));
-  return b.finish(layers, "SIREN 4->256x" + std::to_string(depth) + "->1");
-}
-
 struct Row {
   std::string model, kernel;
   double seconds = 0.0;
@@ -123,7 +109,7 @@ int main(int argc, char** argv) {
       int depth = 0;
       if (std::sscanf(name.c_str(), "siren-depth-%d", &depth) == 1) {
         if (depth < 1 || depth > 60) usage("siren-depth-N takes 1 to 60 hidden layers, not " + std::to_string(depth));
-        model = sirenOfDepth(depth);
+        model = bench::sirenOfDepth(depth);
       } else
       model = name == "siren" ? bench::sirenPaper()
               : name == "ffn" ? bench::ffnPaper()

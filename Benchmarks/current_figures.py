@@ -324,10 +324,9 @@ def generated_h200_row(r):
         raise FigureError(f"results/{GEN_H200}eval-only.txt: {len(compiles)} compile reports for {len(models)} models")
     for m, (n, sec) in zip(models, compiles):
         gen = r.num(GEN_H200 + "eval-only.csv", "median_qps", model=m, path="fused-fp16") / 1e9
-        best = r.num(GEN_H200 + "eval-off.csv", "median_qps", model=m, path="fused-fp16") / 1e9
-        mma = r.num_or_none(GEN_H200 + "eval-off.csv", "median_qps", model=m, path="fused-mma.sync") \
-            if any(x["path"] == "fused-mma.sync" for x in r.rows(GEN_H200 + "eval-off.csv", model=m)) else None
-        vs_mma = f", {gen / (mma / 1e9):.2f}× the built-in mma.sync" if mma else ""
+        off = {x["path"]: float(x["median_qps"]) / 1e9 for x in r.rows(GEN_H200 + "eval-off.csv", model=m)}
+        best, mma = off["fused-fp16"], off.get("fused-mma.sync")  # (no mma.sync row for a hash grid)
+        vs_mma = f", {gen / mma:.2f}× the built-in mma.sync" if mma else ""
         parts.append(f"{m[:-4].replace('paper_', '')} {gen:.3f} G q/s = {gen / best:.2f}× the built-in kernels{vs_mma}, "
                      f"{n} kernels compiled in {float(sec):.1f} s")
     return "generated kernels alone, 2^21 random points: " + "; ".join(parts)
@@ -366,24 +365,24 @@ def tti_cpu_row(r):
     return "default to 40 dB: " + ", ".join(parts)
 
 
+def run_minutes(r, rel):
+    """The 'minutes' line of a fresh-clone run's timing.txt."""
+    m = re.search(r"^minutes ([\d.]+)$", r.text(rel), re.M)
+    if not m:
+        raise FigureError(f"results/{rel}: no 'minutes' line")
+    return float(m.group(1))
+
+
 def test_command_row(r):
-    def minutes(rel):
-        m = re.search(r"^minutes ([\d.]+)$", r.text(rel), re.M)
-        if not m:
-            raise FigureError(f"results/{rel}: no 'minutes' line")
-        return float(m.group(1))
-    quiet = [minutes(f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36", "54d2bfe", "d835784")]
-    busy = [minutes(f"issue49-fresh-clone-busy-{c}/timing.txt") for c in ("048656d", "4747b8f")]
+    quiet = [run_minutes(r, f"issue49-fresh-clone-{c}/timing.txt") for c in ("773d2ab", "87aba36", "54d2bfe", "d835784")]
+    busy = [run_minutes(r, f"issue49-fresh-clone-busy-{c}/timing.txt") for c in ("048656d", "4747b8f")]
     return (f"{min(quiet):.1f}–{max(quiet):.1f} min quiet, {min(busy):.1f}–{max(busy):.1f} min beside one busy process "
             "(ctest, fuzz, sanitizer build and tests)")
 
 
 def example_row(r):
-    rel = "issue49-example-fresh-clone-5334b40/timing.txt"
-    m = re.search(r"^minutes ([\d.]+)$", r.text(rel), re.M)
-    if not m:
-        raise FigureError(f"results/{rel}: no 'minutes' line")
-    return (f"{float(m.group(1)):.1f} min on a fresh clone, the Debian packages already installed (build, ParaView "
+    minutes = run_minutes(r, "issue49-example-fresh-clone-5334b40/timing.txt")
+    return (f"{minutes:.1f} min on a fresh clone, the Debian packages already installed (build, ParaView "
             "pictures at three times, CLI renders and slices)")
 
 

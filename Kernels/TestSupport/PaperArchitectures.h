@@ -54,19 +54,24 @@ private:
   std::vector<std::uint8_t> bytes_;
 };
 
-inline InrModel sirenPaper(unsigned seed = 1, std::vector<std::uint8_t>* file = nullptr) {
+// The paper's SIREN (4->256 x depth->1, sine w0 30); other depths show how costs grow with it.
+inline InrModel sirenOfDepth(int depth, unsigned seed = 1, std::vector<std::uint8_t>* file = nullptr) {
   ArchitectureBuilder b(seed);
   nlohmann::json layers = nlohmann::json::array();
   int in = 4;
-  for (int i = 0; i < 5; ++i) {
+  for (int i = 0; i < depth; ++i) {
     layers.push_back(b.sirenLinear(in, 256, i == 0));
     layers.push_back({{"type", "sine"}, {"w0", 30}});
     in = 256;
   }
   layers.push_back(b.sirenLinear(256, 1, false));
-  InrModel m = b.finish(layers, "SIREN 4->256x5->1");
+  InrModel m = b.finish(layers, "SIREN 4->256x" + std::to_string(depth) + "->1");
   if (file) *file = b.bytes();
   return m;
+}
+
+inline InrModel sirenPaper(unsigned seed = 1, std::vector<std::uint8_t>* file = nullptr) {
+  return sirenOfDepth(5, seed, file);
 }
 
 inline InrModel ffnPaper(unsigned seed = 2, std::vector<std::uint8_t>* file = nullptr) {
