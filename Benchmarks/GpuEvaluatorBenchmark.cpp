@@ -39,12 +39,17 @@
 // tangent rows; the per-thread path again where the model cannot run them, its note says why),
 // each with the time its first call took to choose the tangent scale and configurations;
 // --tangent-autotune-batch N times those on N queries (CudaEvaluatorOptions::tangentAutotuneBatch).
-// --generated selects the kernels generated for each model (issue 50, compiled by NVRTC at
-// construction: CudaEvaluatorOptions::generatedKernels): off (the built-in kernels only), auto
-// (both, autotuned: the default, or INR_GENERATED_KERNELS), only (the generated mma.sync kernels
-// alone); run it twice, off and only, for the interpreter and the generated kernel side by side.
-// The launch report ends with what the compilation did ([generated kernels: N kernels for sm_90,
-// NVRTC ..., seconds, how many from the cache]). --kernel-cache sets their cache folder.
+// --generated selects the kernels generated for each model (issue 50, compiled by NVRTC:
+// CudaEvaluatorOptions::generatedKernels): off (the built-in kernels only), auto (the default, or
+// INR_GENERATED_KERNELS: the generated twins of the chosen mma.sync configurations compile in the
+// background and are timed against the built-in kernels when ready; every row here waits for that
+// first, waitForGeneratedKernels), only (every generated mma.sync configuration, compiled at
+// construction, alone); run it twice, off and only, for the interpreter and the generated kernel
+// side by side. The launch report ends with what the compilation did ([generated kernels: N
+// kernels for sm_90, NVRTC ..., seconds, how many from the cache]). --kernel-cache sets their
+// cache folder. --cold-start DIR measures a model's load instead (measureColdStart): the
+// constructor's seconds with the generated kernels off and on, the seconds until they are ready
+// and timed, with a cold cache (a fresh folder under DIR) and then a warm one.
 // --write-models saves the synthetic paper architectures as .inr files so the PyTorch baseline
 // (Benchmarks/pytorch_baseline.py) runs the very same networks.
 #include <cuda_runtime.h>
@@ -113,6 +118,7 @@ Row measure(const InrModel& model, const std::string& name, CudaEvaluatorPath pa
   o.path = path;
   const FusedMma mma = o.mma;
   const CudaInrEvaluator eval(model, o);
+  eval.waitForGeneratedKernels();  // the steady state: generated kernels adopted where faster
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, batch, rayOrdered));
   cuda::DeviceBuffer<float> dOut(batch);
   Row r{name, path == CudaEvaluatorPath::Generic ? "generic-fp32" : mma == FusedMma::MmaSync ? "fused-mma.sync" : "fused-fp16",
@@ -129,6 +135,7 @@ Row measureGradient(const InrModel& model, const std::string& name, CudaGradient
                     CudaEvaluatorOptions o) {
   o.gradientPath = gp;
   const CudaInrEvaluator eval(model, o);
+  eval.waitForGeneratedKernels();
   const float time = float(0.5 * (model.domain.timeBegin + model.domain.timeEnd));
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(test::randomQueryPoints(model, batch, 1, time));
   cuda::DeviceBuffer<float4> dOut(batch);
@@ -157,6 +164,7 @@ std::vector<Row> measureBatches(const InrModel& model, const std::string& name, 
                                 CudaEvaluatorOptions o, bool rayOrdered) {
   o.path = CudaEvaluatorPath::Auto;
   const CudaInrEvaluator eval(model, o);
+  eval.waitForGeneratedKernels();
   const int largest = batches.back();
   const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, largest, rayOrdered));
   cuda::DeviceBuffer<float> dOut(largest);
@@ -167,6 +175,47 @@ std::vector<Row> measureBatches(const InrModel& model, const std::string& name, 
                     spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps)), 0, n,
                     spreadOf(evaluatorRates(eval, dPts.get(), n, dOut.get(), reps, kLaunchesInRow))});
   return rows;
+}
+
+// --cold-start: what loading a model costs with the generated kernels' default (background
+// compilation) against none, on a cold and a warm disk cache (a fresh folder under `cacheRoot`):
+// the constructor's seconds (what the first frame waits), the seconds until the generated kernels
+// are compiled and timed (waitForGeneratedKernels after the constructor), which kernel runs
+// then, and the large-batch rate before and after.
+struct ColdStartRow {
+  std::string model, cache;
+  double offSeconds = 0, constructSeconds = 0, readySeconds = 0, qpsBefore = 0, qpsAfter = 0;
+  bool generatedKept = false;
+  std::string report;
+};
+
+ColdStartRow measureColdStart(const InrModel& model, const std::string& name, int batch, int reps,
+                              CudaEvaluatorOptions o, const std::string& cacheDir, bool warm) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::time_point a) { return std::chrono::duration<double>(clock::now() - a).count(); };
+  const cuda::DeviceBuffer<float4> dPts = test::devicePoints(benchmarkPoints(model, batch, false));
+  cuda::DeviceBuffer<float> dOut(batch);
+  ColdStartRow r{name, warm ? "warm" : "cold"};
+  o.kernelCacheDir = cacheDir;
+  {
+    CudaEvaluatorOptions off = o;
+    off.generatedKernels = GeneratedKernelUse::Off;
+    const auto t0 = clock::now();
+    const CudaInrEvaluator eval(model, off);
+    r.offSeconds = seconds(t0);
+  }
+  o.generatedKernels = GeneratedKernelUse::Auto;
+  const auto t0 = clock::now();
+  const CudaInrEvaluator eval(model, o);
+  r.constructSeconds = seconds(t0);
+  // Timed while compiling (the built-in kernel; with a warm cache the generated one may already run).
+  r.qpsBefore = spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps)).median;
+  eval.waitForGeneratedKernels();
+  r.readySeconds = seconds(t0);
+  r.qpsAfter = spreadOf(evaluatorRates(eval, dPts.get(), batch, dOut.get(), reps)).median;
+  r.generatedKept = eval.usesGeneratedKernel();
+  r.report = eval.generatedKernelReport();
+  return r;
 }
 
 void printRow(const Row& r, bool checksum) {
@@ -197,6 +246,7 @@ int main(int argc, char** argv) {
   bool rayOrdered = false;
   std::string csv, writeDir, only;
   bool checksum = false, gradient = false;
+  std::string coldStartRoot;
   std::vector<std::string> files;
   CudaEvaluatorOptions fixed;
   for (CommandLine cl(argc, argv); !cl.done();) {
@@ -243,6 +293,7 @@ int main(int argc, char** argv) {
       }
     }
     else if (a == "--kernel-cache") fixed.kernelCacheDir = cl.value();
+    else if (a == "--cold-start") coldStartRoot = cl.value();
     else if (a == "--mma") {
       const std::optional<FusedMma> m = bench::parseMmaOption(cl.value(), "gpu_evaluator_benchmark");
       if (!m) return 2;
@@ -283,6 +334,41 @@ int main(int argc, char** argv) {
   for (auto& m : loadModelFiles(files)) models.push_back(std::move(m));
 
   const char* pointsName = rayOrdered ? "ray-ordered points" : "random points";
+  if (!coldStartRoot.empty()) {  // the cold start alone
+    std::printf("GPU evaluator on %s: model load with the generated kernels in the background, batch %d, %d reps\n",
+                dev.reason.c_str(), batch, reps);
+    std::printf("%-24s %5s %10s %12s %12s %12s %12s %10s\n", "model", "cache", "off s", "construct s", "ready s",
+                "Gq/s before", "Gq/s after", "runs");
+    std::vector<ColdStartRow> rows;
+    int index = 0;
+    for (const auto& [name, model] : models) {
+      if (!only.empty() && name.find(only) == std::string::npos) continue;
+      const std::string dir = coldStartRoot + "/model-" + std::to_string(index++);
+      std::filesystem::remove_all(dir);
+      for (const bool warm : {false, true}) {
+        try {
+          rows.push_back(measureColdStart(model, name, batch, reps, fixed, dir, warm));
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "%s: %s\n", name.c_str(), e.what());
+          break;
+        }
+        const ColdStartRow& r = rows.back();
+        std::printf("%-24s %5s %10.3f %12.3f %12.3f %12.4f %12.4f %10s\n    %s\n", r.model.c_str(), r.cache.c_str(),
+                    r.offSeconds, r.constructSeconds, r.readySeconds, r.qpsBefore / 1e9, r.qpsAfter / 1e9,
+                    r.generatedKept ? "generated" : "built-in", r.report.c_str());
+        std::fflush(stdout);
+      }
+    }
+    if (!csv.empty()) {
+      std::ofstream out(csv);
+      out << "model,cache,off_construct_s,construct_s,ready_s,qps_before,qps_after,runs,device,report\n";
+      for (const ColdStartRow& r : rows)
+        out << r.model << ',' << r.cache << ',' << r.offSeconds << ',' << r.constructSeconds << ',' << r.readySeconds << ','
+            << r.qpsBefore << ',' << r.qpsAfter << ',' << (r.generatedKept ? "generated" : "built-in") << ",\"" << dev.name
+            << "\",\"" << r.report << "\"\n";
+    }
+    return 0;
+  }
   if (!batches.empty()) {  // the batch-size sweep alone
     std::printf("GPU evaluator on %s, batch sizes swept, %s, %d reps (median of CUDA-event timings)\n", dev.reason.c_str(),
                 pointsName, reps);

@@ -23,6 +23,7 @@
 #include "Common/Cuda/DeviceBuffer.h"
 #include "Common/DeviceMemory.h"
 #include "Evaluator/CpuInrEvaluator.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "TestSupport/RequireGpu.h"
 #include "TestSupport/TestModelBuilder.h"
 #include "TestSupport/TestScene.h"
@@ -162,6 +163,9 @@ std::unique_ptr<RenderSession> renderedSession(const InrModel& model, const Rend
   o.evaluator = evaluator;
   auto s = RenderSession::create(model, o);
   EXPECT_EQ(s->backend(), RenderBackend::Cuda) << s->description();
+  // The generated kernels' code (loaded when their background compilation ends) is not what a
+  // test here measures: waited for first.
+  if (const auto* gpu = dynamic_cast<const CudaInrEvaluator*>(&s->evaluator())) gpu->waitForGeneratedKernels();
   s->setSettings(settingsOf(w, h));
   s->setScene(scene);
   for (int f = 0; f < frames; ++f) s->renderFrame();

@@ -38,6 +38,7 @@
 #include <cuda_runtime.h>
 
 #include "Common/Cuda/CudaDevice.h"
+#include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "TestSupport/RequireGpu.h"
 #endif
 
@@ -266,6 +267,11 @@ std::unique_ptr<RenderSession> makeSession(const InrModel& model, const RenderSe
                                            std::vector<std::string>* warnings) {
   auto s = RenderSession::create(model, o);
   EXPECT_EQ(s->backend(), kBackend) << s->description();
+#ifdef INR_STRESS_CUDA
+  // The generated kernels compile in the background and load (device memory for their code)
+  // when ready: waited for here, so the memory measured after a warm-up is the steady state's.
+  if (const auto* gpu = dynamic_cast<const CudaInrEvaluator*>(&s->evaluator())) gpu->waitForGeneratedKernels();
+#endif
   if (warnings) s->setWarningHandler([warnings](const std::string& m) { warnings->push_back(m); });
   return s;
 }

@@ -3,6 +3,8 @@
 #include <cublas_v2.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -136,10 +138,12 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 GeneratedKernelUse generatedKernelUseFromEnvironment() {
   const char* v = std::getenv("INR_GENERATED_KERNELS");
-  if (!v) return GeneratedKernelUse::Off;
+  if (!v || !*v) return GeneratedKernelUse::Auto;
   const std::string s(v);
   if (s == "auto" || s == "1") return GeneratedKernelUse::Auto;
   if (s == "only") return GeneratedKernelUse::Only;
+  if (s != "off" && s != "0")
+    std::fprintf(stderr, "INR_GENERATED_KERNELS=%s: taken as off (it takes off, auto or only)\n", v);
   return GeneratedKernelUse::Off;
 }
 
@@ -148,11 +152,19 @@ struct CudaInrEvaluator::Impl {
   // The kernels generated for this model (null: not built), and what became of them.
   std::unique_ptr<cuda::GeneratedKernels> generated;
   std::string generatedReport = "off";
+  // GeneratedKernelUse::Auto: the generated twins of the fastest mma.sync configurations,
+  // compiling in the background; when they are ready the next launch loads them, times them
+  // against the configurations running (adoptGenerated) and keeps the faster. The generated
+  // kernels compute the interpreter's bits, so a frame does not change where they take over.
+  std::unique_ptr<cuda::GeneratedKernels::Pending> pendingGenerated;
+  std::atomic<bool> generatedPending{false};
+  mutable std::mutex adoptMutex;
+  std::string adoptionReport;  // what the adoption timed and kept
+  std::string choiceReport, persistenceReport;  // the constructor's autotuning; the L2 window
   MlpProgram program;
   CudaEvaluatorPath path = CudaEvaluatorPath::Fused;
   FusedConfig config;       // launches of kSmallBatchThreshold queries or more
   FusedConfig smallConfig;  // smaller launches
-  std::string launchReport;
   static constexpr int kSmallBatchThreshold = FusedLaunchAutotuner::kSmallBatchThreshold;
   cuda::FusedParams params;
   cuda::FusedParams paramsStored;  // the unfused program (FusedConfig::storedEncoding)
@@ -199,6 +211,7 @@ struct CudaInrEvaluator::Impl {
   std::optional<FusedLaunchAutotuner> tuner;
   std::vector<FusedConfig> tangentCandidates;
   int tangentAutotuneBatch = 0;  // CudaEvaluatorOptions::tangentAutotuneBatch
+  mutable bool tangentsTimed = false;  // tuneTangents has run
   Domain domain;
 
   void prepareParams(const InrModel& model);
@@ -215,6 +228,17 @@ struct CudaInrEvaluator::Impl {
                        const std::vector<FusedConfig>& candidates);
   // The tangent scale and configurations, once (tangentsTuned).
   void tuneTangents() const;
+  // The fastest of `race` (configurations with tangent rows) on the tangent batches.
+  FusedLaunchAutotuner::Choice chooseTangents(const std::vector<FusedConfig>& race) const;
+  // The background compilation's kernels, when ready (or, with wait, once ready): loaded, timed
+  // against the configurations running, the faster kept. A no-op after the first time.
+  void adoptGenerated(bool wait);
+  // The configuration a launch of n queries runs (values or tangent rows), read under
+  // adoptMutex: another thread may be adopting the generated kernels.
+  FusedConfig launchConfig(int n, bool tangents) {
+    std::lock_guard<std::mutex> lock(adoptMutex);
+    return n < kSmallBatchThreshold ? (tangents ? smallTangentConfig : smallConfig) : (tangents ? tangentConfig : config);
+  }
 };
 
 // The program's parameters for the fused kernels (params, and paramsStored with any Fourier
@@ -461,23 +485,77 @@ void CudaInrEvaluator::Impl::prepareTangents(const InrModel& model, const CudaEv
 
 void CudaInrEvaluator::Impl::tuneTangents() const {
   std::call_once(tangentsTuned, [&] {
+    std::lock_guard<std::mutex> lock(adoptMutex);  // tangentCandidates: an adoption may add to them
     // The scale from a CPU emulation of a sample (MlpProgram.h chooseTangentScale).
     tangentScale = chooseTangentScale(program, domain);
-    INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
-    cuda::DeviceBuffer<float4> results;
-    const int batch = tuner->candidatesBatch() > 0 ? tangentAutotuneBatch : 0;
-    results.growTo(std::size_t(std::max(batch, FusedLaunchAutotuner::kSmallBatch)));
-    const float time = float(domain.timeBegin);
-    const FusedLaunchAutotuner::Choice choice = tuner->choose(
-        tangentCandidates, domain,
-        [&](const FusedConfig& c, const float4* points, int n, float*) {
-          launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
-        },
-        batch);
+    const FusedLaunchAutotuner::Choice choice = chooseTangents(tangentCandidates);
     tangentConfig = choice.large;
     smallTangentConfig = choice.small;
     tangentReport = choice.report;
+    tangentsTimed = true;
   });
+}
+
+FusedLaunchAutotuner::Choice CudaInrEvaluator::Impl::chooseTangents(const std::vector<FusedConfig>& race) const {
+  INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
+  cuda::DeviceBuffer<float4> results;
+  const int batch = tuner->candidatesBatch() > 0 ? tangentAutotuneBatch : 0;
+  results.growTo(std::size_t(std::max(batch, FusedLaunchAutotuner::kSmallBatch)));
+  const float time = float(domain.timeBegin);
+  return tuner->choose(
+      race, domain,
+      [&](const FusedConfig& c, const float4* points, int n, float*) {
+        launchTangents(c, points, n, nullptr, time, results.get(), nullptr);
+      },
+      batch);
+}
+
+void CudaInrEvaluator::Impl::adoptGenerated(bool wait) {
+  if (!generatedPending.load(std::memory_order_acquire)) return;
+  std::lock_guard<std::mutex> lock(adoptMutex);
+  if (!pendingGenerated || (!wait && !pendingGenerated->ready())) return;
+  generated = pendingGenerated->take();
+  pendingGenerated.reset();
+  generatedPending = false;
+  generatedReport = generated->report();
+  if (!generated->available()) {
+    generated.reset();
+    return;
+  }
+  // The values: the configurations running now against the generated ones (twins of the
+  // fastest mma.sync configurations; a hash grid's both gather arrangements).
+  const std::vector<FusedConfig> all =
+      tuner->candidates(params, paramsStored, paramsSplit, whyNoWgmma.empty(), generated.get());
+  std::vector<FusedConfig> race{config};
+  if (!cuda::sameConfig(smallConfig, config)) race.push_back(smallConfig);
+  for (const FusedConfig& c : all)
+    if (c.generated) race.push_back(c);
+  INR_CUDA_CHECK(cudaDeviceSynchronize());  // the caller's stream may hold work the timing would count
+  const FusedLaunchAutotuner::Choice choice =
+      tuner->choose(race, domain, [&](const FusedConfig& c, const float4* points, int n, float* out) {
+        launchFused(c, points, n, nullptr, out, nullptr, nullptr);
+      });
+  config = choice.large;
+  smallConfig = choice.small;
+  adoptionReport = "generated kernels ready: " + choice.report;
+  // The tangent rows: before their first use they join the candidates; after it, they are timed
+  // against the configurations chosen then.
+  if (!fusedTangents) return;
+  std::vector<FusedConfig> generatedTangents;
+  for (const FusedConfig& c : tuner->tangentCandidates(all, generated.get()))
+    if (c.generated) generatedTangents.push_back(c);
+  if (generatedTangents.empty()) return;
+  if (!tangentsTimed) {
+    tangentCandidates.insert(tangentCandidates.end(), generatedTangents.begin(), generatedTangents.end());
+    return;
+  }
+  std::vector<FusedConfig> tangentRace{tangentConfig};
+  if (!cuda::sameConfig(smallTangentConfig, tangentConfig)) tangentRace.push_back(smallTangentConfig);
+  tangentRace.insert(tangentRace.end(), generatedTangents.begin(), generatedTangents.end());
+  const FusedLaunchAutotuner::Choice t = chooseTangents(tangentRace);
+  tangentConfig = t.large;
+  smallTangentConfig = t.small;
+  tangentReport += "; generated kernels ready: " + t.report;
 }
 
 CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions options)
@@ -516,7 +594,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
         "free GPU memory (close other views or models on this GPU) or render this model on the CPU");
     I.prepareParams(model);
   }
-  const std::string persistence = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
+  I.persistenceReport = options.hashTablesPersistInL2 ? I.persistTablesInL2() : "";
   I.output = model.output;
 
   // The path: fused where the program and a configuration fit, else generic.
@@ -533,7 +611,8 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     why = "the wgmma kernel was requested but is unavailable: " + I.whyNoWgmma;
   }
   // The kernels generated for this model (the mma.sync design: not with the wgmma kernel forced).
-  if (fused && options.generatedKernels != GeneratedKernelUse::Off && options.mma != FusedMma::Wgmma) {
+  // Only: all of them, compiled here; Auto: after the autotuning, in the background (below).
+  if (fused && options.generatedKernels == GeneratedKernelUse::Only && options.mma != FusedMma::Wgmma) {
     // (the configurations the options allow only: each kernel is a compilation)
     const std::vector<int> tiles = options.tileQueries ? std::vector<int>{options.tileQueries} : std::vector<int>{128, 64, 32};
     const std::vector<int> chunks = options.weightChunk ? std::vector<int>{options.weightChunk} : std::vector<int>{64, 32};
@@ -543,7 +622,7 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
     if (!I.generated->available()) I.generated.reset();
   } else if (options.generatedKernels == GeneratedKernelUse::Off) {
     I.generatedReport = "off (CudaEvaluatorOptions::generatedKernels / INR_GENERATED_KERNELS)";
-  } else if (fused) {
+  } else if (fused && options.mma == FusedMma::Wgmma) {
     I.generatedReport = "off (the wgmma kernel requested)";
   }
   const FusedLaunchAutotuner tuner(I.device, options);
@@ -583,11 +662,28 @@ CudaInrEvaluator::CudaInrEvaluator(const InrModel& model, CudaEvaluatorOptions o
       });
   I.config = choice.large;
   I.smallConfig = choice.small;
-  I.launchReport = choice.report;
-  if (!I.whyNoWgmma.empty()) I.launchReport += " [wgmma: " + I.whyNoWgmma + "]";
-  I.launchReport += " [generated kernels: " + I.generatedReport + "]";
-  I.launchReport += persistence;
+  I.choiceReport = choice.report;
+  I.tuner.emplace(tuner);
+  I.domain = model.domain;
   I.prepareTangents(model, options, tuner, candidates);
+  if (options.generatedKernels == GeneratedKernelUse::Auto && options.mma != FusedMma::Wgmma) {
+    if (!choice.hasMmaSync) {
+      I.generatedReport = "not built: no mma.sync configuration fits";
+    } else if (options.autotuneBatch <= 0) {
+      I.generatedReport = "not built: autotuning is off (autotuneBatch 0), so they would never be chosen";
+    } else {
+      // The twins of the fastest interpreter configurations, large and small batches.
+      std::vector<cuda::GeneratedKernelConfig> wanted;
+      for (const FusedConfig& c : {choice.mmaSyncLarge, choice.mmaSyncSmall})
+        wanted.push_back({c.tile, c.kc, c.storedEncoding});
+      std::string why;
+      I.pendingGenerated = cuda::GeneratedKernels::startInBackground(prog, I.device.major, I.device.minor,
+                                                                     options.kernelCacheDir, wanted, why);
+      I.generatedReport = I.pendingGenerated ? I.pendingGenerated->what() : why;
+      I.generatedPending = bool(I.pendingGenerated);
+      I.adoptGenerated(false);  // all from the disk cache: adopted now
+    }
+  }
 }
 
 CudaInrEvaluator::~CudaInrEvaluator() {
@@ -597,6 +693,7 @@ CudaInrEvaluator::~CudaInrEvaluator() {
 CudaEvaluatorPath CudaInrEvaluator::path() const { return impl_->path; }
 
 std::string CudaInrEvaluator::name() const {
+  std::lock_guard<std::mutex> lock(impl_->adoptMutex);
   const Impl& I = *impl_;
   return I.path == CudaEvaluatorPath::Fused
              ? "cuda-fused-fp16 (" + configName(I.config) + ", " +
@@ -608,7 +705,20 @@ std::string CudaInrEvaluator::name() const {
                    I.device.name;
 }
 
-std::string CudaInrEvaluator::launchReport() const { return impl_->launchReport; }
+std::string CudaInrEvaluator::launchReport() const {
+  const Impl& I = *impl_;
+  if (I.path != CudaEvaluatorPath::Fused) return "";
+  std::lock_guard<std::mutex> lock(impl_->adoptMutex);
+  std::string r = I.choiceReport;
+  if (!I.whyNoWgmma.empty()) r += " [wgmma: " + I.whyNoWgmma + "]";
+  r += " [generated kernels: " + I.generatedReport + "]";
+  if (!I.adoptionReport.empty()) r += " [" + I.adoptionReport + "]";
+  return r + I.persistenceReport;
+}
+
+bool CudaInrEvaluator::generatedKernelsPending() const { return impl_->generatedPending.load(); }
+
+void CudaInrEvaluator::waitForGeneratedKernels() const { impl_->adoptGenerated(true); }
 
 bool CudaInrEvaluator::usesWgmma() const {
   return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.wgmma || impl_->smallConfig.wgmma);
@@ -618,17 +728,21 @@ bool CudaInrEvaluator::usesGeneratedKernel() const {
   return impl_->path == CudaEvaluatorPath::Fused && (impl_->config.generated || impl_->smallConfig.generated);
 }
 
-std::string CudaInrEvaluator::generatedKernelReport() const { return impl_->generatedReport; }
+std::string CudaInrEvaluator::generatedKernelReport() const {
+  std::lock_guard<std::mutex> lock(impl_->adoptMutex);
+  return impl_->generatedReport;
+}
 
 std::string CudaInrEvaluator::describeProgram() const { return impl_->program.describe(); }
 
 void CudaInrEvaluator::evaluateDevice(const float4* points, const unsigned* deviceCount, int maxN, float* out,
                                       const int* scatter, cudaStream_t stream) const {
+  impl_->adoptGenerated(false);
   const Impl& I = *impl_;
   int n = maxN;
   if (n <= 0) return;
   if (I.path == CudaEvaluatorPath::Fused) {
-    I.launchFused(n < Impl::kSmallBatchThreshold ? I.smallConfig : I.config, points, n, deviceCount, out, scatter, stream);
+    I.launchFused(impl_->launchConfig(n, false), points, n, deviceCount, out, scatter, stream);
     return;
   }
   if (deviceCount) {  // the generic path sizes its cuBLAS calls on the host: read the count
@@ -724,6 +838,7 @@ void CudaInrEvaluator::evaluateWithGradient(const QueryPoint* points, std::size_
 
 void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const unsigned* deviceCount, int maxN,
                                                   float time, float4* out, cudaStream_t stream) const {
+  impl_->adoptGenerated(false);
   const Impl& I = *impl_;
   if (maxN <= 0) return;
   if (!I.fusedTangents) {
@@ -731,8 +846,7 @@ void CudaInrEvaluator::evaluateWithGradientDevice(const float4* points, const un
     return;
   }
   I.tuneTangents();
-  I.launchTangents(maxN < Impl::kSmallBatchThreshold ? I.smallTangentConfig : I.tangentConfig, points, maxN, deviceCount,
-                   time, out, stream);
+  I.launchTangents(impl_->launchConfig(maxN, true), points, maxN, deviceCount, time, out, stream);
 }
 
 std::string CudaInrEvaluator::gradientPath() const {

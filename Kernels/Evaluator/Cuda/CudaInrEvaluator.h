@@ -31,15 +31,17 @@ enum class FusedMma { Auto, MmaSync, Wgmma };
 enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 
 // Kernels generated for the model (issue 50; Evaluator/MlpKernelSource.h, Cuda/GeneratedKernels.h):
-// the fused mma.sync kernel with the network's program as compile-time constants, compiled at
-// construction by NVRTC for this GPU and cached on disk. Auto: they join the autotuned
-// candidates beside the built-in kernels (after them: without timing the built-in kernel runs);
-// Only: they are the only candidates (a Fused path throws where they cannot be built); Off: not
-// built. The environment variable INR_GENERATED_KERNELS (off, auto or only) sets the default,
-// off where it is unset: the compilation runs in the constructor, so with a cold cache it holds up
-// the first render for seconds, and the generated kernels beat the built-in ones on hash-grid
-// networks only (Benchmarks/RESULTS-archive.md, "Generated kernels: the cold start" and
-// "Generated kernels in seconds; the plane on an H200").
+// the fused mma.sync kernel with the network's program as compile-time constants, compiled by
+// NVRTC for this GPU and cached on disk. Auto (the default): after the constructor's autotuning,
+// the generated twins of the fastest mma.sync configurations compile in the background (the
+// process's compile threads, GeneratedKernels.h); the constructor does not wait for them, and
+// the first launch after they are ready loads them, times them against the configurations
+// running and keeps the faster (the same bits either way; waitForGeneratedKernels() waits for
+// that). From the disk cache they are adopted in the constructor. Only: every configuration's
+// generated kernels, compiled in the constructor, are the only candidates (a Fused path throws
+// where they cannot be built). Off: none. The environment variable INR_GENERATED_KERNELS (off,
+// auto or only) sets the default, auto where it is unset (Benchmarks/RESULTS-archive.md,
+// "Generated kernels in the background").
 enum class GeneratedKernelUse { Auto, Off, Only };
 GeneratedKernelUse generatedKernelUseFromEnvironment();
 
@@ -150,6 +152,11 @@ public:
   // what became of the generated kernels ("N kernels for sm_90, ..." or why there are none).
   bool usesGeneratedKernel() const;
   std::string generatedKernelReport() const;
+  // GeneratedKernelUse::Auto: whether the generated kernels are still compiling (not yet timed
+  // against the built-in ones); waitForGeneratedKernels() waits for them and adopts them where
+  // they are faster (benchmarks and tests that need the steady state call it).
+  bool generatedKernelsPending() const;
+  void waitForGeneratedKernels() const;
   std::string describeProgram() const;
 
 private:

@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <unistd.h>
 #include <vector>
 
 #include "Common/Cuda/CudaCheck.h"
@@ -510,6 +511,75 @@ TEST(CudaInrEvaluator, GeneratedKernelsMatchTheInterpreterBitForBit) {
       }
     EXPECT_GE(configurationsRun, 1) << name << ": no configuration of the test fits the model";
   }
+}
+
+// The default (GeneratedKernelUse::Auto): the constructor returns without waiting for NVRTC, the
+// generated twins of the chosen configuration compile in the background, the built-in kernel
+// answers meanwhile, and once they are ready they are timed against it and the faster kept: the
+// same bits before, during and after, values and gradients. From the disk cache the next
+// evaluator adopts them in its constructor; an evaluator destroyed while they compile neither
+// waits nor leaves anything that hangs the next.
+TEST(CudaInrEvaluator, GeneratedKernelsInTheBackground) {
+  REQUIRE_GPU();
+  const std::filesystem::path cache =
+      std::filesystem::temp_directory_path() / ("inr-background-kernels-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(cache);
+  for (const auto& [name, model] : {std::pair<std::string, InrModel>{"SIREN 4-256x5-1", bench::sirenPaper()},
+                                    {"HashGrid 3D + 2x64", hashGrid3d()}}) {
+    CudaEvaluatorOptions o;
+    o.path = CudaEvaluatorPath::Fused;
+    o.mma = FusedMma::MmaSync;  // one configuration, so the interpreter's and the twin's bits are one
+    o.tileQueries = 128;
+    o.weightChunk = 64;
+    o.hashGridPairs = 1;
+    o.kernelCacheDir = (cache / "a").string();
+    CudaEvaluatorOptions off = o;
+    off.generatedKernels = GeneratedKernelUse::Off;
+    o.generatedKernels = GeneratedKernelUse::Auto;
+    const CudaInrEvaluator interpreter(model, off);
+    const CudaInrEvaluator background(model, o);
+    ASSERT_TRUE(background.generatedKernelsPending()) << name << ": " << background.generatedKernelReport();
+    EXPECT_NE(background.generatedKernelReport().find("compiling in the background"), std::string::npos)
+        << background.generatedKernelReport();
+    EXPECT_FALSE(background.usesGeneratedKernel());
+    const auto pts = randomQueryPoints(model, 20011, 5);
+    const std::size_t n = 5003;
+    std::vector<float> a(pts.size()), b(pts.size()), va(n), vb(n), ga(3 * n), gb(3 * n);
+    interpreter.evaluate(pts.data(), pts.size(), a.data());
+    interpreter.evaluateWithGradient(pts.data(), n, va.data(), ga.data());
+    auto sameBits = [&](const char* when) {
+      std::fill(b.begin(), b.end(), NAN);
+      background.evaluate(pts.data(), pts.size(), b.data());
+      for (std::size_t q = 0; q < pts.size(); ++q) ASSERT_EQ(a[q], b[q]) << name << ", " << when << ", query " << q;
+      background.evaluateWithGradient(pts.data(), n, vb.data(), gb.data());
+      for (std::size_t q = 0; q < n; ++q) {
+        ASSERT_EQ(va[q], vb[q]) << name << ", " << when << ", value with gradient " << q;
+        for (int k = 0; k < 3; ++k) ASSERT_EQ(ga[3 * q + k], gb[3 * q + k]) << name << ", " << when << ", gradient " << q;
+      }
+    };
+    sameBits("while compiling");
+    background.waitForGeneratedKernels();
+    EXPECT_FALSE(background.generatedKernelsPending());
+    const std::string report = background.generatedKernelReport();
+    EXPECT_NE(report.find("2 kernels for sm_"), std::string::npos) << report;  // values and tangent rows
+    EXPECT_NE(report.find("in the background"), std::string::npos) << report;
+    EXPECT_NE(background.launchReport().find("generated kernels ready: "), std::string::npos) << background.launchReport();
+    sameBits("after the adoption");
+    std::printf("%-22s %s\n    %s\n    gradients: %s\n", name.c_str(), background.usesGeneratedKernel() ? "generated kernel kept" : "built-in kept",
+                background.launchReport().c_str(), background.gradientPath().c_str());
+    // The disk cache: adopted before the constructor returns.
+    const CudaInrEvaluator cached(model, o);
+    EXPECT_FALSE(cached.generatedKernelsPending());
+    EXPECT_NE(cached.generatedKernelReport().find("2 from the cache"), std::string::npos) << cached.generatedKernelReport();
+    EXPECT_NE(cached.launchReport().find("generated kernels ready: "), std::string::npos) << cached.launchReport();
+    // Destroyed while compiling (a cold cache of its own), then built again.
+    o.kernelCacheDir = (cache / "b").string();
+    { const CudaInrEvaluator dropped(model, o); }
+    const CudaInrEvaluator again(model, o);
+    again.waitForGeneratedKernels();
+    EXPECT_NE(again.generatedKernelReport().find("2 kernels for sm_"), std::string::npos) << again.generatedKernelReport();
+  }
+  std::filesystem::remove_all(cache);
 }
 
 // Turned off, or impossible to build, the generated kernels leave the built-in ones running and

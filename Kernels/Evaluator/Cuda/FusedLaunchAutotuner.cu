@@ -22,6 +22,13 @@ std::string configName(const FusedConfig& c) {
          (c.splitEncoding ? ", stored encoding split" : c.storedEncoding ? ", stored encoding" : "") + hash;
 }
 
+bool sameConfig(const FusedConfig& a, const FusedConfig& b) {
+  return a.wgmma == b.wgmma && a.tile == b.tile && a.kc == b.kc && a.stages == b.stages && a.pingPong == b.pingPong &&
+         a.storedEncoding == b.storedEncoding && a.splitEncoding == b.splitEncoding && a.hashGridPairs == b.hashGridPairs &&
+         a.tangents == b.tangents && a.consumers == b.consumers && a.splitColumns == b.splitColumns &&
+         a.generated == b.generated;
+}
+
 FusedLaunchAutotuner::FusedLaunchAutotuner(const CudaDeviceInfo& device, const CudaEvaluatorOptions& options)
     : device_(device), options_(options) {}
 
@@ -195,6 +202,12 @@ FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<Fuse
                                                           int largeBatch) const {
   Choice choice;
   choice.large = choice.small = candidates.front();
+  const auto interpreterMmaSync = [](const FusedConfig& c) { return !c.wgmma && !c.generated; };
+  for (const FusedConfig& c : candidates)
+    if (interpreterMmaSync(c) && !choice.hasMmaSync) {
+      choice.mmaSyncLarge = choice.mmaSyncSmall = c;
+      choice.hasMmaSync = true;
+    }
   const int batch = largeBatch < 0 ? options_.autotuneBatch : largeBatch;
   if (candidates.size() < 2 || batch <= 0) {
     choice.report = configName(choice.large) +
@@ -238,11 +251,13 @@ FusedLaunchAutotuner::Choice FusedLaunchAutotuner::choose(const std::vector<Fuse
     return double(n) * launches / (double(best) * 1e-3);
   };
   std::string report;
-  double bestLarge = 0.0, bestSmall = 0.0;
+  double bestLarge = 0.0, bestSmall = 0.0, bestMmaLarge = 0.0, bestMmaSmall = 0.0;
   for (const FusedConfig& c : candidates) {
     const double large = rate(c, batch, 1), small = rate(c, smallBatch, kSmallBatchLaunches);
     if (large > bestLarge) bestLarge = large, choice.large = c;
     if (small > bestSmall) bestSmall = small, choice.small = c;
+    if (interpreterMmaSync(c) && large > bestMmaLarge) bestMmaLarge = large, choice.mmaSyncLarge = c;
+    if (interpreterMmaSync(c) && small > bestMmaSmall) bestMmaSmall = small, choice.mmaSyncSmall = c;
     char line[128];
     std::snprintf(line, sizeof line, "%s%s: %.3f / %.3f Gq/s", report.empty() ? "" : "; ", configName(c).c_str(),
                   large * 1e-9, small * 1e-9);

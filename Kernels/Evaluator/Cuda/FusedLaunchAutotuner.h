@@ -51,6 +51,9 @@ struct FusedConfig {
   bool generated = false;
 };
 
+// Whether two configurations launch the same kernel the same way (measuredQps aside).
+bool sameConfig(const FusedConfig& a, const FusedConfig& b);
+
 // "tile 128 x K 64" (mma.sync) or "wgmma 2x64 x N 128, 2 slots, ping-pong" (1x64: one consumer), with ", hash lane
 // pairs" or ", hash lane per row" for a program with a hash grid.
 std::string configName(const FusedConfig& config);
@@ -92,6 +95,10 @@ public:
     FusedConfig large;  // launches of kSmallBatchThreshold queries or more
     FusedConfig small;  // smaller launches
     std::string report;  // what launchReport() says
+    // The fastest of the interpreter's mma.sync candidates, large and small (whose generated
+    // twins may beat the winners); hasMmaSync false where there was none.
+    FusedConfig mmaSyncLarge, mmaSyncSmall;
+    bool hasMmaSync = false;
   };
   // Times every candidate (best of 3 after a warm-up, CUDA events) on largeBatch (-1:
   // options.autotuneBatch) and on min(largeBatch, kSmallBatch) random queries in `domain`
