@@ -5,6 +5,7 @@
 // refused. The GPU twin is Render/Cuda/CudaSampleShare_test.cpp.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -98,6 +99,54 @@ TEST(SampleShare, WithRefinementTheSharesStayCloseToOneRenderer) {
   ASSERT_GT(seeds, 0.0);
   // Shares drawing the same frames would stand at about 0.7 of the other seed's distance.
   EXPECT_LT(std::sqrt(shares / seeds), 0.2);
+}
+
+// A camera move with reprojection keeps reprojectHistory frames of one renderer's history; N
+// shares keep their part of it each (frames r, r + N, ... among the last reprojectHistory), so
+// their frames after the move add up to one renderer's and the composite refines as long as one
+// renderer's image does (plugin sample shares under MPI reported the whole Maximum Frames after a
+// move while they kept N times the history).
+TEST(SampleShare, ReprojectionKeepsOneRenderersHistoryAcrossTheShares) {
+  const test::FunctionField field(test::smoothField);
+  const SceneSetup s = test::sampleShareScene(20, false);
+  QueryReductionSettings reduction;
+  reduction.reproject = true;
+  reduction.reprojectHistory = 8;
+  RenderScene moved = s.scene;
+  const std::array<double, 3> shift{0.03, -0.02, 0.0};
+  for (int k = 0; k < 3; ++k) {
+    moved.camera.position[k] += shift[k];
+    moved.camera.focalPoint[k] += shift[k];
+  }
+  TrackingOptions tracking;
+  tracking.refineMacrocells = false;
+  // Frames before and after the move.
+  const auto renderAndMove = [&](const RenderSettings& settings, int frames) {
+    MacrocellGrid grid(field, test::kCubeBox, 0, 1, test::cubeMacrocells(8, 2));
+    CpuWavefrontRenderer r(field, grid, tracking);
+    r.setQueryReduction(reduction);
+    test::renderEachFrame(r, settings, s.scene, frames);
+    const int before = r.accumulatedFrames();
+    r.setScene(moved);
+    EXPECT_EQ(r.counters().reprojections, 1);
+    return std::array<int, 2>{before, r.accumulatedFrames()};
+  };
+  for (const int total : {24, 6}) {
+    const int one = renderAndMove(s.settings, total)[1];
+    ASSERT_EQ(one, std::min(total, reduction.reprojectHistory));
+    for (const int count : {2, 3, 5}) {
+      int before = 0, after = 0;
+      for (int r = 0; r < count; ++r) {
+        RenderSettings settings = s.settings;
+        settings.sampleShare = SampleShare{r, count};
+        const std::array<int, 2> frames = renderAndMove(settings, test::sampleShareFrames(r, count, total));
+        before += frames[0];
+        after += frames[1];
+      }
+      EXPECT_EQ(before, total) << count << " shares";
+      EXPECT_EQ(after, one) << count << " shares of " << total << " frames";
+    }
+  }
 }
 
 // A jittered ray marcher keys its jitter by the frame too: its shares follow the same mapping.

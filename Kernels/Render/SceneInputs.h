@@ -283,6 +283,13 @@ inline std::uint32_t sampleShareFrame(const SampleShare& share, std::uint32_t lo
   return local * std::uint32_t(share.count) + std::uint32_t(share.index);
 }
 
+// How many of one renderer's frames 0..total-1 are `share`'s: what share r of N keeps of a
+// history of `total` frames, so that the N shares together keep `total`.
+inline int sampleShareFrameCount(const SampleShare& share, int total) {
+  const int n = (total - share.index + share.count - 1) / share.count;
+  return n > 0 ? n : 0;
+}
+
 struct RenderSettings {
   int width = 256, height = 256;
   std::uint32_t seed = 1;

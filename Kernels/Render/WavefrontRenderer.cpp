@@ -167,9 +167,13 @@ void WavefrontRenderer::setScene(const RenderScene& scene) {
   // would blend them in, so an image-space split restarts instead.
   if (change.camera && !others.resetsAccumulation() && queryReduction_.reproject && frameIndex_ > 0 &&
       settings_.pixelShare.count == 1) {
-    reprojectAccumulation(oldView, view, std::uint32_t(queryReduction_.reprojectHistory),
+    // A sample share keeps its part of the history one renderer keeps (its frames among the
+    // last reprojectHistory), so the shares' composite holds reprojectHistory frames after the
+    // move as one renderer's image does, and its refinement goes on as long.
+    const int history = std::max(1, sampleShareFrameCount(settings_.sampleShare, queryReduction_.reprojectHistory));
+    reprojectAccumulation(oldView, view, std::uint32_t(history),
                           Vec3f{scene_.background[0], scene_.background[1], scene_.background[2]});
-    frameIndex_ = std::min(frameIndex_, queryReduction_.reprojectHistory);
+    frameIndex_ = std::min(frameIndex_, history);
     ++counters_.reprojections;
   } else if (change.resetsAccumulation()) {
     resetAccumulation();

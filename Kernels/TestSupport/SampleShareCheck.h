@@ -46,7 +46,7 @@ std::vector<FrameStats> renderEachFrame(Renderer& renderer, const RenderSettings
 }
 
 // The frames share `index` of `count` renders so that the shares together render frames 0..total-1.
-inline int sampleShareFrames(int index, int count, int total) { return (total - index + count - 1) / count; }
+inline int sampleShareFrames(int index, int count, int total) { return sampleShareFrameCount(SampleShare{index, count}, total); }
 
 // The frame-weighted mean of the runs' images (what composite_bricks.py does with
 // sample shares).

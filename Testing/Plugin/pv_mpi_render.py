@@ -63,6 +63,32 @@ for shadows in (1, 0):  # each render after the first restarts the accumulation:
                           "frames": int(m.group(4)), "state": m.group(5), "backend": m.group(6)})
     report["renders"].append({"shadows": shadows, "png": png, "ranks": ranks})
 
+# A camera move with reprojection (the default): the ranks together keep one renderer's history
+# (the engine's reprojectHistory, 32 frames: QueryReductionSettings), so one render after the
+# move stands between it and Maximum Frames, not at it, and the view refines on to Maximum Frames
+# (sample shares kept the whole history on every rank, and the view reported Maximum Frames,
+# converged, after one render). Pixel shares restart instead (no reprojection across shares).
+if args.split == "samples" and args.frames > 40:
+    n_ranks = len(C.info(display, "InrRanksInUse").splitlines())
+    display.InrFramesPerRender = 1
+    display.InrRefinementTimeBudget = 0  # one new frame per rank and render, whatever the machine's speed
+    view.GetActiveCamera().Azimuth(10)
+    simple.Render(view)
+    after_move = C.info(display, "InrAccumulatedFrames")
+    display.InrFramesPerRender = args.frames  # then the rest in one render
+    renders = 1
+    while not C.info(display, "InrConverged") and renders < 10:
+        simple.Render(view)
+        renders += 1
+    refined = C.info(display, "InrAccumulatedFrames")
+    print(f"camera move: {after_move} frames after one render, {refined} after {renders} renders")
+    check(32 < after_move <= 32 + n_ranks,
+          f"one render after a camera move: {after_move} frames, the 32 reprojected and one new frame of each of "
+          f"{n_ranks} ranks")
+    check(refined == args.frames and C.info(display, "InrConverged") == 1,
+          f"after the move the view refines to Maximum Frames again ({refined} of {args.frames}, {renders} renders)")
+    report["camera_move"] = {"frames_after_one_render": after_move, "frames": refined, "renders": renders}
+
 with open(os.path.join(args.out, "ranks.json"), "w") as f:
     json.dump(report, f, indent=1)
 status = check.report()

@@ -56,7 +56,7 @@ def run(n):
             break
         print(f"np {n}: X connection race, retrying")
     print(f"---- mpirun -np {n} ({time.time() - t0:.1f} s, exit {p.returncode})")
-    print("\n".join(l for l in log.splitlines() if l.startswith(("ok:", "FAIL:", "RESULT", "shadows", "rank "))))
+    print("\n".join(l for l in log.splitlines() if l.startswith(("ok:", "FAIL:", "RESULT", "shadows", "rank ", "camera move"))))
     if p.returncode != 0:
         print(log[-4000:])
     check(p.returncode == 0, f"mpirun -np {n} pvbatch passed its own checks")
