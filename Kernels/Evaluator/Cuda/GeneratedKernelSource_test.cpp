@@ -14,6 +14,9 @@
 #include <utility>
 #include <vector>
 
+#include <unistd.h>
+
+#include "Evaluator/Cuda/GeneratedKernels.h"
 #include "Evaluator/Cuda/NvrtcCompiler.h"
 #include "Evaluator/MlpKernelSource.h"
 #include "Evaluator/MlpProgram.h"
@@ -181,6 +184,54 @@ TEST(GeneratedKernelSource, CompilesWithNvrtcForEveryModel) {
     std::printf("%s %s: %zu KB PTX, %.2f s\n", generatedKernelName(f.kernel).c_str(), f.arch, out.image.size() / 1024,
                 out.seconds);
   }
+}
+
+// The evaluator's default (GeneratedKernelUse::Auto) compiles a model's kernels in the background
+// (GeneratedKernels::startInBackground): here without a GPU, up to what needs one (take() loads
+// them). The values and tangent-row kernels of the configuration asked for compile into the disk
+// cache; a second start finds them there, ready at once; a start dropped while compiling neither
+// waits nor keeps the compile threads from a start after it.
+TEST(GeneratedKernelSource, CompilesInTheBackgroundIntoTheCache) {
+  const std::filesystem::path cache =
+      std::filesystem::temp_directory_path() / ("inr-background-source-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(cache);
+  const MlpProgram program = MlpProgram::compile(bench::sirenOfDepth(2, 5).architecture);
+  const std::vector<cuda::GeneratedKernelConfig> configs{{64, 32, false}, {64, 32, false}};  // one, asked twice
+  const auto cubins = [](const std::filesystem::path& dir) {
+    int n = 0;
+    if (std::filesystem::exists(dir))
+      for (const auto& e : std::filesystem::directory_iterator(dir)) n += e.path().extension() == ".cubin" ? 1 : 0;
+    return n;
+  };
+  std::string why;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto cold = cuda::GeneratedKernels::startInBackground(program, 9, 0, (cache / "a").string(), configs, why);
+  const double startSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(cold) << why;
+  EXPECT_NE(cold->what().find("2 kernels for sm_90: 0 from the cache, 2 compiling in the background"), std::string::npos)
+      << cold->what();
+  cold->wait();
+  const double readySeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_TRUE(cold->ready());
+  EXPECT_EQ(cubins(cache / "a"), 2);
+  std::printf("started in %.3f s, compiled in %.2f s: %s\n", startSeconds, readySeconds, cold->what().c_str());
+  auto warm = cuda::GeneratedKernels::startInBackground(program, 9, 0, (cache / "a").string(), configs, why);
+  ASSERT_TRUE(warm) << why;
+  EXPECT_TRUE(warm->ready()) << warm->what();
+  EXPECT_NE(warm->what().find("2 from the cache, 0 compiling"), std::string::npos) << warm->what();
+  // Dropped at once, then another start: it completes.
+  cuda::GeneratedKernels::startInBackground(program, 9, 0, (cache / "b").string(), configs, why).reset();
+  auto after = cuda::GeneratedKernels::startInBackground(program, 9, 0, (cache / "c").string(), configs, why);
+  ASSERT_TRUE(after) << why;
+  after->wait();
+  EXPECT_EQ(cubins(cache / "c"), 2);
+  // A program the generator refuses: no start, and why.
+  MlpProgram broken = program;
+  broken.fusable = false;
+  broken.whyNotFused = "test";
+  EXPECT_FALSE(cuda::GeneratedKernels::startInBackground(broken, 9, 0, (cache / "d").string(), configs, why));
+  EXPECT_NE(why.find("not generated"), std::string::npos) << why;
+  std::filesystem::remove_all(cache);
 }
 
 }  // namespace
