@@ -40,8 +40,8 @@
 // each with the time its first call took to choose the tangent scale and configurations;
 // --tangent-autotune-batch N times those on N queries (CudaEvaluatorOptions::tangentAutotuneBatch).
 // --generated selects the kernels generated for each model (issue 50, compiled by NVRTC:
-// CudaEvaluatorOptions::generatedKernels): off (the built-in kernels only), auto (the default, or
-// INR_GENERATED_KERNELS: the generated twins of the chosen mma.sync configurations compile in the
+// CudaEvaluatorOptions::generatedKernels; the default INR_GENERATED_KERNELS): off (the built-in
+// kernels only), auto (the generated twins of the chosen mma.sync configurations compile in the
 // background and are timed against the built-in kernels when ready; every row here waits for that
 // first, waitForGeneratedKernels), only (every generated mma.sync configuration, compiled at
 // construction, alone); run it twice, off and only, for the interpreter and the generated kernel

@@ -138,7 +138,9 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 GeneratedKernelUse generatedKernelUseFromEnvironment() {
   const char* v = std::getenv("INR_GENERATED_KERNELS");
-  if (!v || !*v) return GeneratedKernelUse::Auto;
+  // Off where unset until the background compilation has run on a GPU (RESULTS-archive,
+  // "Generated kernels in the background").
+  if (!v || !*v) return GeneratedKernelUse::Off;
   const std::string s(v);
   if (s == "auto" || s == "1") return GeneratedKernelUse::Auto;
   if (s == "only") return GeneratedKernelUse::Only;

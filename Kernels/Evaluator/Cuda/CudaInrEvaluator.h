@@ -32,7 +32,7 @@ enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 
 // Kernels generated for the model (issue 50; Evaluator/MlpKernelSource.h, Cuda/GeneratedKernels.h):
 // the fused mma.sync kernel with the network's program as compile-time constants, compiled by
-// NVRTC for this GPU and cached on disk. Auto (the default): after the constructor's autotuning,
+// NVRTC for this GPU and cached on disk. Auto: after the constructor's autotuning,
 // the generated twins of the fastest mma.sync configurations compile in the background (the
 // process's compile threads, GeneratedKernels.h); the constructor does not wait for them, and
 // the first launch after they are ready loads them, times them against the configurations
@@ -40,8 +40,8 @@ enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 // that). From the disk cache they are adopted in the constructor. Only: every configuration's
 // generated kernels, compiled in the constructor, are the only candidates (a Fused path throws
 // where they cannot be built). Off: none. The environment variable INR_GENERATED_KERNELS (off,
-// auto or only) sets the default, auto where it is unset (Benchmarks/RESULTS-archive.md,
-// "Generated kernels in the background").
+// auto or only) sets the default, off where it is unset: the background compilation has not yet
+// run on a GPU (Benchmarks/RESULTS-archive.md, "Generated kernels in the background").
 enum class GeneratedKernelUse { Auto, Off, Only };
 GeneratedKernelUse generatedKernelUseFromEnvironment();
 
