@@ -138,8 +138,8 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 GeneratedKernelUse generatedKernelUseFromEnvironment() {
   const char* v = std::getenv("INR_GENERATED_KERNELS");
-  // Off where unset until the background compilation has run on a GPU (RESULTS-archive,
-  // "Generated kernels in the background").
+  // Off where unset until the GPU suites that render have run with the kernels switching under
+  // them (RESULTS-archive, "Generated kernels in the background").
   if (!v || !*v) return GeneratedKernelUse::Off;
   const std::string s(v);
   if (s == "auto" || s == "1") return GeneratedKernelUse::Auto;
