@@ -177,8 +177,8 @@ std::vector<Row> measureBatches(const InrModel& model, const std::string& name, 
   return rows;
 }
 
-// --cold-start: what loading a model costs with the generated kernels' default (background
-// compilation) against none, on a cold and a warm disk cache (a fresh folder under `cacheRoot`):
+// --cold-start: what loading a model costs with the generated kernels compiled in the background
+// (GeneratedKernelUse::Auto) against none, on a cold and a warm disk cache (a fresh folder under `cacheRoot`):
 // the constructor's seconds (what the first frame waits), the seconds until the generated kernels
 // are compiled and timed (waitForGeneratedKernels after the constructor), which kernel runs
 // then, and the large-batch rate before and after.

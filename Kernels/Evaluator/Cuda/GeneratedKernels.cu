@@ -296,8 +296,15 @@ std::unique_ptr<GeneratedKernels::Pending> GeneratedKernels::startInBackground(
   batch->arch = "sm_" + std::to_string(major) + std::to_string(minor);
   batch->cacheDir = resolvedCacheDir(cacheDirOption);
   try {
-    ModelKernelSource all = generateModelKernels(program, {128, 64, 32}, {64, 32});
-    // Only the kernels of the configurations asked for (forms: 0 the program, 1 its stored form).
+    // Sources for the tiles and chunks asked for only (this runs on the caller's thread: the
+    // evaluator's constructor), then only their configurations' kernels (forms: 0 the program,
+    // 1 its stored form).
+    std::vector<int> tiles, chunks;
+    for (const GeneratedKernelConfig& c : configs) {
+      if (std::find(tiles.begin(), tiles.end(), c.tile) == tiles.end()) tiles.push_back(c.tile);
+      if (std::find(chunks.begin(), chunks.end(), c.kc) == chunks.end()) chunks.push_back(c.kc);
+    }
+    ModelKernelSource all = generateModelKernels(program, tiles, chunks);
     std::vector<GeneratedKernelSpec> wanted;
     for (const GeneratedKernelSpec& k : all.kernels)
       for (const GeneratedKernelConfig& c : configs)
@@ -319,10 +326,11 @@ std::unique_ptr<GeneratedKernels::Pending> GeneratedKernels::startInBackground(
   for (std::size_t i = 0; i < batch->jobs.size(); ++i)
     if (!batch->jobs[i].fromCache) toCompile.push_back(i);
   batch->remaining = int(toCompile.size());
+  const int threads = backgroundCompileThreads();
   char line[200];
   std::snprintf(line, sizeof line, "%zu kernels for %s: %zu from the cache, %zu compiling in the background on %d thread%s",
                 batch->jobs.size(), batch->arch.c_str(), batch->jobs.size() - toCompile.size(), toCompile.size(),
-                backgroundCompileThreads(), backgroundCompileThreads() == 1 ? "" : "s");
+                threads, threads == 1 ? "" : "s");
   if (!toCompile.empty()) CompileThreads::instance().submit(batch, toCompile);
   return std::make_unique<Pending>(batch, line);
 }
