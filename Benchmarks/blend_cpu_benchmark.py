@@ -2,7 +2,7 @@
 """Frame times of the isosurface and slice blend modes (issue 48) on the shipped `*_small` models.
 
 usage: blend_cpu_benchmark.py INR_EXECUTABLE DATA_DIR OUT_DIR [--size N] [--frames F] [--backend B]
-       [--models NAME ...]
+       [--models NAME ...] [--modes isosurface,slice] [--iso-args "ARGS"]
 
 For each model in DATA_DIR/real/*_small.inr (or DATA_DIR/real/NAME.inr for each --models NAME: the
 paper-size models on a GPU) with its shipped transfer function, renders
@@ -12,7 +12,8 @@ paper-size models on a GPU) with its shipped transfer function, renders
     what this one holds), else the value of that inner range where the TF is most opaque; lit
     (the CLI's default);
   - the slice through the box's centre, normal +z (ParaView's default Slice plane),
-at N x N (default 512) for F frames (default 3: the first builds the candidate macrocells at the
+(--modes: either or both; --iso-args: more `inr render` options for the isosurface runs, e.g.
+"--iso-refine-points 8") at N x N (default 512) for F frames (default 3: the first builds the candidate macrocells at the
 time; later frames are jittered and cost what any frame of a new view costs), and prints a table:
 the first frame's macrocell build (update) and the median frame time without it, queries per
 frame. Each run's `inr` output and --stats-json land in OUT_DIR, with the table (table.md).
@@ -21,6 +22,7 @@ import argparse
 import glob
 import json
 import os
+import shlex
 import statistics
 import subprocess
 import sys
@@ -70,7 +72,12 @@ def main():
     ap.add_argument("--backend", default="cpu")
     ap.add_argument("--models", nargs="*", default=None,
                     help="model names under DATA_DIR/real (default: every *_small model)")
+    ap.add_argument("--modes", default="isosurface,slice", help="comma-separated: isosurface, slice")
+    ap.add_argument("--iso-args", default="", help="more inr render options for the isosurface runs")
     a = ap.parse_args()
+    modes = [m for m in a.modes.split(",") if m]
+    if not modes or any(m not in ("isosurface", "slice") for m in modes):
+        ap.error("--modes: isosurface and/or slice, comma-separated (got %r)" % a.modes)
     os.makedirs(a.out, exist_ok=True)
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
     rows = []
@@ -83,7 +90,8 @@ def main():
                                          check=True).stdout)["sampled_value_range"]
         lo, hi = info["min"], info["max"]
         iso = choose_isovalue(tf_points(tf), lo, hi)
-        for mode, extra in (("isosurface", ["--iso", "%.6g" % iso]), ("slice", [])):
+        runs = (("isosurface", ["--iso", "%.6g" % iso, *shlex.split(a.iso_args)]), ("slice", []))
+        for mode, extra in (r for r in runs if r[0] in modes):
             stem = os.path.join(a.out, "%s_%s" % (name, mode))
             cmd = [a.inr, "render", model, "--blend", mode, *extra, "--tf", tf, "--size", "%dx%d" % (a.size, a.size),
                    "--frames", str(a.frames), "--backend", a.backend, "--stats-json", stem + ".json", "-o",

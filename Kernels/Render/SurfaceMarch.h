@@ -16,9 +16,10 @@
 // at most `step` with both ends of every candidate run included, so no part of a candidate cell
 // goes unsampled. A crossing of isovalue c between two neighbouring samples (their sides of c,
 // v >= c, differ; of several isovalues crossed, the one nearest the first sample, which a
-// monotone field crosses first) is bracketed and refined by K-section (the bracket cut into
-// K + 1 equal parts per iteration, K = samplesPerIteration, keeping the first part whose ends
-// differ in side) until it is at most `tolerance` long; the hit is then the secant point inside
+// monotone field crosses first) is bracketed and refined by R-section (the bracket cut into
+// R + 1 equal parts per iteration, R = refinePoints, or fewer parts when fewer reach the
+// tolerance; the first part whose ends differ in side is kept) until it is at most `tolerance`
+// long; the hit is then the secant point inside
 // the bracket, so it lies within `tolerance` (along the ray) of a crossing. The hit's colour and
 // opacity are the transfer function's colour map and scalar opacity at c (VTK's isosurface
 // blend); with shading on it is lit (Shading.h) from the network's gradient at the hit, one
@@ -44,8 +45,11 @@
 
 namespace inr {
 
-// The most march samples or refinement points a ray hands the evaluator per iteration.
+// The most march samples a ray hands the evaluator per iteration (the backend stores them).
 constexpr int kMaxSurfaceSamples = 32;
+// The most refinement points per round (computed where they are used, never stored): at 999 a
+// bracket one step long reaches the default tolerance (step / 1000) in one round.
+constexpr int kMaxSurfaceRefinePoints = 1024;
 
 // ---- Camera rays shared by both modes --------------------------------------------------------
 
@@ -127,9 +131,10 @@ struct SurfaceConstants {
   int isoCount = 0;
   float step = 0.f;         // longest distance between march samples (model units)
   float tolerance = 0.f;    // a hit's bracket is at most this long (model units)
-  int samplesPerIteration = 8;  // K: march samples / refinement points per ray per batch
+  int samplesPerIteration = 8;  // K: march samples per ray per batch
   int maxMarchSamples = kMaxSurfaceSamples;  // march samples per ray per batch at most (surfaceMarchSamples)
-  int maxRefinements = 24;  // K-section rounds per hit at most (float resolution can stall one)
+  int refinePoints = 8;     // R: a bracket's points per refinement round at most (surfaceRefineCount)
+  int maxRefinements = 24;  // R-section rounds per hit at most (float resolution can stall one)
   float opaqueTransmittance = 1e-3f;  // stop once the remaining transmittance is at most this
   float time = 0.f;
   int shade = 0;
@@ -267,21 +272,34 @@ INR_HD int surfaceEmitMarch(const SurfaceConstants& sc, SurfaceRay& r, float* ts
   return n;
 }
 
-// Refinement: K points cutting the bracket into K + 1 equal parts.
-INR_HD int surfaceEmitRefine(const SurfaceConstants& sc, const SurfaceRay& r, float* ts) {
-  const int k = sc.samplesPerIteration;
-  for (int j = 0; j < k; ++j) ts[j] = r.ta + (r.tb - r.ta) * (float(j + 1) / float(k + 1));
-  return k;
+// Refinement: the points of this round, cutting the bracket into equal parts: R of them (R + 1
+// parts), or the fewest whose parts are at most `tolerance` long when those are fewer (the last
+// round of a hit asks only what it needs).
+INR_HD int surfaceRefineCount(const SurfaceConstants& sc, const SurfaceRay& r) {
+  const float length = r.tb - r.ta;
+  const int R = sc.refinePoints;
+  if (!(length <= sc.tolerance * float(R + 1))) return R;
+  const int parts = int(ceilf(length / sc.tolerance));
+  return parts - 1 < 1 ? 1 : (parts - 1 > R ? R : parts - 1);
+}
+
+// Point j of the n points of a refinement round over the bracket [ta, tb].
+INR_HD float surfaceRefineT(float ta, float tb, int j, int n) {
+  return ta + (tb - ta) * (float(j + 1) / float(n + 1));
+}
+
+// Sample j of the n a ray asked for this iteration: a refinement point (computed from the
+// bracket, never stored) or a march sample (ts[j], as surfaceEmit wrote it).
+INR_HD float surfaceSampleT(const SurfaceRay& r, const float* ts, int j, int n) {
+  return r.phase == kSurfaceRefine ? surfaceRefineT(r.ta, r.tb, j, n) : ts[j];
 }
 
 // What a ray asks of the evaluator this iteration: marchSamples march samples (in
-// [1, kMaxSurfaceSamples]; surfaceMarchSamples says how many) or K refinement points; 0 when it
-// has finished (its phase is then kSurfaceDone). ts and breaks hold max(marchSamples, K) entries.
+// [1, kMaxSurfaceSamples]; surfaceMarchSamples says how many; into ts and breaks, which hold
+// marchSamples entries) or its refinement points (surfaceRefineCount; nothing written: see
+// surfaceSampleT); 0 when it has finished (its phase is then kSurfaceDone).
 INR_HD int surfaceEmit(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks, int marchSamples) {
-  if (r.phase == kSurfaceRefine) {
-    for (int j = 0; j < sc.samplesPerIteration; ++j) breaks[j] = 0;
-    return surfaceEmitRefine(sc, r, ts);
-  }
+  if (r.phase == kSurfaceRefine) return surfaceRefineCount(sc, r);
   if (r.phase != kSurfaceMarch) return 0;
   const int n = surfaceEmitMarch(sc, r, ts, breaks, marchSamples);
   if (n == 0) r.phase = kSurfaceDone;
@@ -396,12 +414,13 @@ INR_HD void surfaceConsume(const SurfaceConstants& sc, SurfaceRay& r, const floa
     for (int j = 0; j < n; ++j) {
       const float v = values[j];
       if (!isFiniteValue(v)) continue;  // no side: look on
+      const float t = surfaceRefineT(r.ta, r.tb, j, n);
       if (surfaceSide(v, c) != surfaceSide(fa, c)) {
-        tb = ts[j];
+        tb = t;
         fb = v;
         break;
       }
-      ta = ts[j];
+      ta = t;
       fa = v;
     }
     r.ta = ta;

@@ -85,6 +85,9 @@ void SurfaceOptions::validate() const {
   if (maxMarchSamples != 0 && (maxMarchSamples < samplesPerIteration || maxMarchSamples > kMaxSurfaceSamples))
     throw std::invalid_argument("surface maxMarchSamples must be 0 (the backend's choice) or in [samplesPerIteration, " +
                                 std::to_string(kMaxSurfaceSamples) + "], got " + std::to_string(maxMarchSamples));
+  if (refinePoints < 0 || refinePoints > kMaxSurfaceRefinePoints)
+    throw std::invalid_argument("surface refinePoints must be 0 (the backend's choice) or in [1, " +
+                                std::to_string(kMaxSurfaceRefinePoints) + "], got " + std::to_string(refinePoints));
   if (maxRefinements < 1) throw std::invalid_argument("surface maxRefinements must be >= 1");
   if (!(opaqueTransmittance >= 0.f && opaqueTransmittance < 1.f))
     throw std::invalid_argument("surface opaqueTransmittance must be in [0, 1)");
@@ -363,6 +366,7 @@ SurfaceConstants SurfaceRenderer::surfaceConstants() const {
   sc.tolerance = tolerance_;
   sc.samplesPerIteration = options_.samplesPerIteration;
   sc.maxMarchSamples = options_.maxMarchSamples > 0 ? options_.maxMarchSamples : options_.samplesPerIteration;
+  sc.refinePoints = options_.refinePoints > 0 ? options_.refinePoints : options_.samplesPerIteration;
   sc.maxRefinements = options_.maxRefinements;
   sc.opaqueTransmittance = options_.opaqueTransmittance;
   return sc;
@@ -421,7 +425,7 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
       for (long a = 0; a < m; ++a) {
         const SurfaceRay& r = rays[active[a]];
         for (int j = 0; j < counts[a]; ++j) {
-          const Vec3f p = surfacePoint(r, ts[std::size_t(a) * M + j]);
+          const Vec3f p = surfacePoint(r, surfaceSampleT(r, &ts[std::size_t(a) * M], j, counts[a]));
           points[std::size_t(first[a] + j)] = QueryPoint{p.x, p.y, p.z, sc.time};
         }
       }

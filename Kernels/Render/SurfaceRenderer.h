@@ -63,14 +63,19 @@ struct SurfaceOptions {
   // A hit's bracket ends at most this fraction of the step long: the hit lies within
   // tolerance = toleranceFraction * step of a crossing, along the ray.
   float toleranceFraction = 1e-3f;
-  int samplesPerIteration = 8;  // K: march samples / refinement points per ray per batch (<= 32)
+  int samplesPerIteration = 8;  // K: march samples per ray per batch (<= 32)
   // As a frame's rays finish, the march samples per remaining ray and batch grow from K up to this
   // (in [K, 32]), so the batch keeps about its size and the frame's tail takes fewer iterations.
   // The image is the same for any value; K turns it off. 0 = the backend's choice: 32 on the GPU
   // (an iteration costs launches and a host round trip), K on the CPU (an iteration costs little;
   // the samples a ray draws past a crossing are queries spent for nothing).
   int maxMarchSamples = 0;
-  int maxRefinements = 24;      // K-section rounds per hit at most
+  // R: a hit's bracket is cut into R + 1 parts per round (fewer in its last round, what reaches
+  // the tolerance), in [1, 1024]; each round is one iteration. 0 = the backend's choice: 32 on
+  // the GPU (two rounds reach the default tolerance from one step: iterations are what a GPU
+  // frame costs), K on the CPU (four rounds, fewer queries).
+  int refinePoints = 0;
+  int maxRefinements = 24;      // R-section rounds per hit at most
   float opaqueTransmittance = 1e-3f;  // a ray stops once less than this share of light passes
   int chunkPixels = 16384;      // pixels whose rays share the evaluator batches
   // The candidate cells' grid: dims, temporal slices (the time range's), padding of each cell's

@@ -244,14 +244,56 @@ std::vector<double> sphereDepth(const IsoCase& c, double r, double minChord, std
   return out;
 }
 
+// Checks the frame's hits against the sphere's exact depths; returns the frame's iterations.
+int expectHitsOnTheSphereWithinTheTolerance(const IsoCase& c);
+
+// Every refinement width (R points per round: R-section) finds the hits within the tolerance;
+// the wider, the fewer rounds (iterations) a frame takes.
 TEST(IsosurfaceBlend, HitsLieOnTheExactSurfaceWithinTheTolerance) {
-  IsoCase c;
-  c.options.toleranceFraction = 1e-2f;
+  int lastIterations = 1 << 30, firstIterations = 0;
+  for (const int refinePoints : {2, 8, 32, kMaxSurfaceRefinePoints}) {
+    SCOPED_TRACE("refinePoints " + std::to_string(refinePoints));
+    IsoCase c;
+    c.options.toleranceFraction = 1e-2f;
+    c.options.maxMarchSamples = kMaxSurfaceSamples;  // so that the march does not set the count
+    c.options.refinePoints = refinePoints;
+    const int iterations = expectHitsOnTheSphereWithinTheTolerance(c);
+    EXPECT_LE(iterations, lastIterations);
+    if (firstIterations == 0) firstIterations = iterations;
+    lastIterations = iterations;
+  }
+  EXPECT_LT(lastIterations, firstIterations);  // one round per hit against five
+}
+
+// The points of a refinement round: R while R + 1 parts are longer than the tolerance, then the
+// fewest that reach it.
+TEST(IsosurfaceBlend, RefinementRoundsAskWhatReachesTheTolerance) {
+  SurfaceConstants sc;
+  sc.tolerance = 1e-3f;
+  sc.refinePoints = 8;
+  SurfaceRay r;
+  auto count = [&](float length) {
+    r.ta = 2.f;
+    r.tb = 2.f + length;
+    return surfaceRefineCount(sc, r);
+  };
+  EXPECT_EQ(count(1.f), 8);           // 1000 tolerances long: 9 parts
+  EXPECT_EQ(count(9.5e-3f), 8);       // 9.5 tolerances: still 9 parts at most
+  EXPECT_EQ(count(3.5e-3f), 3);       // 3.5 tolerances: 4 parts
+  EXPECT_EQ(count(1.2e-3f), 1);       // 1.2 tolerances: halved
+  sc.refinePoints = 32;
+  EXPECT_EQ(count(1.f), 32);
+  EXPECT_EQ(count(1.f / 33.f), 30);   // the second round from one step: 31 parts
+  EXPECT_FLOAT_EQ(surfaceRefineT(1.f, 2.f, 0, 3), 1.25f);
+  EXPECT_FLOAT_EQ(surfaceRefineT(1.f, 2.f, 2, 3), 1.75f);
+}
+
+int expectHitsOnTheSphereWithinTheTolerance(const IsoCase& c) {
   FunctionField field(distanceField, "distance", distanceGradient);
   SurfaceRenderer renderer(field, kCubeBox, 0.0, 1.0, c.options);
   renderer.setSettings(c.settings);
   renderer.setScene(c.scene, c.blend);
-  renderer.renderFrame();
+  const int iterations = renderer.renderFrame().iterations;
   const std::vector<float>& depth = renderer.surfaceDepth();
   std::vector<int> use;
   const std::vector<double> exact = sphereDepth(c, 0.5, 2.0 * renderer.step(), use);
@@ -271,13 +313,15 @@ TEST(IsosurfaceBlend, HitsLieOnTheExactSurfaceWithinTheTolerance) {
     worst = std::max(worst, std::fabs(double(depth[i]) - exact[i]));
     if (useControl[i] && !std::isinf(wrong[i])) worstControl = std::max(worstControl, std::fabs(double(depth[i]) - wrong[i]));
   }
-  std::printf("isosurface: %d hits, max depth error %.3g (tolerance %.3g), control %.3g\n", hits, worst,
-              double(renderer.tolerance()), worstControl);
+  std::printf("isosurface, %d refinement points: %d hits, max depth error %.3g (tolerance %.3g), control %.3g, "
+              "%d iterations\n", c.options.refinePoints, hits, worst, double(renderer.tolerance()), worstControl,
+              iterations);
   EXPECT_GT(hits, 300);
   EXPECT_EQ(missesAgree, used - hits);  // no surface where the ray misses the sphere
   // Float ray parameters (about 4 units from the eye) add a few units of float rounding.
   EXPECT_LE(worst, double(renderer.tolerance()) + 4e-6);
   EXPECT_GT(worstControl, double(renderer.tolerance()) + 4e-6);
+  return iterations;
 }
 
 // The shaded sphere (white, headlight, no specular): ambient + diffuse |N.E| at the analytic hit.

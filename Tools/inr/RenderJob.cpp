@@ -143,6 +143,8 @@ std::string blendUsage() {
       "                           surfaces closer together than the step can be missed\n"
       "  --iso-tolerance F        a hit is refined to within F x step of the surface, in (0, 1]\n"
       "                           (default %g)\n"
+      "  --iso-refine-points R    a hit's bracket is cut into R + 1 parts per round, in [1, %d]\n"
+      "                           (default: 32 on the GPU, 8 on the CPU; more: fewer rounds, more queries)\n"
       "  --slice-origin X,Y,Z     --blend slice: a point of the plane, world coordinates (default: the\n"
       "                           box's centre)\n"
       "  --slice-normal X,Y,Z     --blend slice: the plane's normal (default 0,0,1)\n"
@@ -152,7 +154,7 @@ std::string blendUsage() {
       "                           Cropping): rays are clipped to it. With --blend composite (--method\n"
       "                           delta only) the camera rays are clipped as for --brick; shadow rays\n"
       "                           still cross the whole box\n",
-      d.stepFraction, d.toleranceFraction);
+      d.stepFraction, d.toleranceFraction, kMaxSurfaceRefinePoints);
   return text;
 }
 
@@ -395,7 +397,7 @@ void parseBlendOptions(const Args& args, RenderJob& job) {
       throw UsageError(std::string("--") + option + " needs --blend " + blendModeName(needs) + " (got --blend " +
                        blendModeName(mode) + ")");
   };
-  for (const char* option : {"iso", "iso-step", "iso-tolerance"}) only(option, BlendMode::Isosurface);
+  for (const char* option : {"iso", "iso-step", "iso-tolerance", "iso-refine-points"}) only(option, BlendMode::Isosurface);
   for (const char* option : {"slice-origin", "slice-normal", "slice-opaque"}) only(option, BlendMode::Slice);
   if (mode == BlendMode::Isosurface) {
     if (!args.has("iso")) throw UsageError("--blend isosurface needs --iso V[,V...] (the isovalues)");
@@ -414,6 +416,9 @@ void parseBlendOptions(const Args& args, RenderJob& job) {
     job.surface.toleranceFraction = float(args.getDouble("iso-tolerance", job.surface.toleranceFraction));
     if (!(job.surface.toleranceFraction > 0.f && job.surface.toleranceFraction <= 1.f))
       throw UsageError("--iso-tolerance must be in (0, 1] (a fraction of the step)");
+    job.surface.refinePoints = int(args.getInt("iso-refine-points", job.surface.refinePoints));
+    if (args.has("iso-refine-points") && (job.surface.refinePoints < 1 || job.surface.refinePoints > kMaxSurfaceRefinePoints))
+      throw UsageError("--iso-refine-points must be in [1, " + std::to_string(kMaxSurfaceRefinePoints) + "]");
   }
   if (mode == BlendMode::Slice) {
     if (args.has("slice-origin")) {
@@ -633,7 +638,7 @@ RenderJob parseRenderJob(const std::vector<std::string>& arguments) {
                    "budget", "budget-fraction", "budget-max-skip", "budget-alpha", "prune-epsilon", "prune-falloff",
                    "brick", "pixel-share", "estimator", "majorant-scale", "residual-scale", "points-per-iteration",
                    "roulette-threshold", "level-ratio", "max-level", "comb-minimum-steps", "comb-floor-depth", "jitter", "jitter-control", "fallback-majorant-scale", "diffuse", "specular", "specular-power", "blend", "iso", "iso-step",
-                   "iso-tolerance", "slice-origin", "slice-normal", "crop"},
+                   "iso-tolerance", "iso-refine-points", "slice-origin", "slice-normal", "crop"},
                   {"help", "shadows", "shade", "no-shade", "light-kit", "no-jitter", "eager-slices", "no-refine", "quiet",
                    "reproject", "no-reproject", "slice-opaque"});
   RenderJob job;

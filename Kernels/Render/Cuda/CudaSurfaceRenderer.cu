@@ -21,6 +21,9 @@ namespace inr {
 namespace {
 
 constexpr int kThreads = 128;
+// Refinement points per round when the options leave it to the backend: from a bracket one step
+// long, 33 parts and then the rest reach the default tolerance (step / 1000) in two rounds.
+constexpr int kGpuRefinePoints = 32;
 int blocksFor(int n) { return (n + kThreads - 1) / kThreads; }
 
 // ---- Slice ----
@@ -113,10 +116,9 @@ __global__ void surfacePointsKernel(SurfaceConstants sc, int m, const int* activ
   if (a >= m) return;
   const int c = count[a];
   if (c == 0) return;
-  const int i = active[a];
-  const Vec3f o = rays[i].o, d = rays[i].d;
+  const SurfaceRay& r = rays[active[a]];
   for (int j = 0; j < c; ++j) {
-    const Vec3f p = o + d * ts[std::size_t(a) * M + j];
+    const Vec3f p = surfacePoint(r, surfaceSampleT(r, ts + std::size_t(a) * M, j, c));
     points[offsets[a] + j] = make_float4(p.x, p.y, p.z, sc.time);
   }
 }
@@ -303,7 +305,9 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
   sc.cells.majorant = I.cells.get();
   sc.cells.blockMajorant = sc.cells.blockMajorant ? I.blocks.get() : nullptr;
   sc.isovalues = I.isovalues.get();
-  if (host_.options().maxMarchSamples == 0) sc.maxMarchSamples = kMaxSurfaceSamples;  // the GPU's choice
+  // The GPU's choices (SurfaceOptions): an iteration costs launches and a host round trip.
+  if (host_.options().maxMarchSamples == 0) sc.maxMarchSamples = kMaxSurfaceSamples;
+  if (host_.options().refinePoints == 0) sc.refinePoints = kGpuRefinePoints;
   const int n = host_.settings().width * host_.settings().height;
   const int K = sc.samplesPerIteration;
   st.pixels = std::size_t(n);
@@ -383,9 +387,10 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     st.traverseMs += msSince(t0);
     if (sc.shade) {
       t0 = Clock::now();
+      // At most one hit per active ray: launches sized for m, not for the image.
       I.valueGradients.growTo(std::size_t(n));
-      evaluator_.evaluateWithGradientDevice(I.hitPoints.get(), I.counters.get(), n, sc.time, I.valueGradients.get(), s);
-      surfaceShadeKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.hitRay.get(), I.valueGradients.get(),
+      evaluator_.evaluateWithGradientDevice(I.hitPoints.get(), I.counters.get(), m, sc.time, I.valueGradients.get(), s);
+      surfaceShadeKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.rays.get(), I.hitRay.get(), I.valueGradients.get(),
                                                            I.counters.get(), I.counters.get() + 2);
       INR_CUDA_CHECK_LAUNCH("surfaceShadeKernel");
       st.shadingMs += msSince(t0);  // launch time: the stream runs on

@@ -122,6 +122,35 @@ TEST(CudaSurface, GrowingMarchBatchesKeepTheImage) {
   EXPECT_EQ(b.surfaceDepth(), a.surfaceDepth());
 }
 
+// The GPU refines a hit with 32 points a round by default (SurfaceOptions::refinePoints): two
+// rounds from one step to the tolerance where 8 points take four, so a frame takes fewer
+// iterations; the hits move within the tolerance only.
+TEST(CudaSurface, WideRefinementRoundsTakeFewerIterations) {
+  REQUIRE_GPU();
+  test::AnalyticDeviceField field;
+  Views v(kCubeBox, 160);
+  v.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
+  BlendScene blend;
+  blend.mode = BlendMode::Isosurface;
+  blend.isovalues = {0.55, 0.7};
+  SurfaceOptions narrow;
+  narrow.refinePoints = narrow.samplesPerIteration;
+  CudaSurfaceRenderer a(field, field, kCubeBox, 0.0, 1.0, narrow), b(field, field, kCubeBox, 0.0, 1.0);
+  a.setSettings(v.settings);
+  b.setSettings(v.settings);
+  a.setScene(v.scene, blend);
+  b.setScene(v.scene, blend);
+  const FrameStats sa = a.renderFrame(), sb = b.renderFrame();
+  int covered = 0;
+  const double psnr = psnrOverCovered(a.premultipliedImage(), b.premultipliedImage(), covered);
+  std::printf("iterations %d (8 refinement points: %d), queries %zu (%zu), %.1f dB apart over %d pixels\n",
+              sb.iterations, sa.iterations, sb.queries, sa.queries, psnr, covered);
+  EXPECT_LT(sb.iterations, sa.iterations);
+  EXPECT_EQ(sb.rays, sa.rays);
+  EXPECT_GT(covered, 1000);
+  EXPECT_GE(psnr, 50.0);
+}
+
 TEST(CudaSurface, ShippedNetworkMatchesTheCpuRenderer) {
   REQUIRE_GPU();
   const InrModel model = InrModel::loadFile(std::string(INR_TEST_DATA_DIR) + "/real/siren_cylinder_vorticity_small.inr");
