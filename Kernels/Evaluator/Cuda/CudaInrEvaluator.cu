@@ -137,15 +137,13 @@ std::vector<__half> asHalves(const std::vector<std::uint16_t>& bits) {
 
 GeneratedKernelUse generatedKernelUseFromEnvironment() {
   const char* v = std::getenv("INR_GENERATED_KERNELS");
-  // Off where unset until the GPU suites that render have run with the kernels switching under
-  // them (RESULTS-archive, "Generated kernels in the background").
-  if (!v || !*v) return GeneratedKernelUse::Off;
+  if (!v || !*v) return GeneratedKernelUse::Auto;
   const std::string s(v);
   if (s == "auto" || s == "1") return GeneratedKernelUse::Auto;
   if (s == "only") return GeneratedKernelUse::Only;
-  if (s != "off" && s != "0")
-    std::fprintf(stderr, "INR_GENERATED_KERNELS=%s: taken as off (it takes off, auto or only)\n", v);
-  return GeneratedKernelUse::Off;
+  if (s == "off" || s == "0") return GeneratedKernelUse::Off;
+  std::fprintf(stderr, "INR_GENERATED_KERNELS=%s: taken as auto, the default (it takes off, auto or only)\n", v);
+  return GeneratedKernelUse::Auto;
 }
 
 struct CudaInrEvaluator::Impl {

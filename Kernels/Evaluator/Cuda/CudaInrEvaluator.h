@@ -40,8 +40,7 @@ enum class CudaGradientPath { Auto, FusedTangents, PerThread };
 // that). From the disk cache they are adopted in the constructor. Only: every configuration's
 // generated kernels, compiled in the constructor, are the only candidates (a Fused path throws
 // where they cannot be built). Off: none. The environment variable INR_GENERATED_KERNELS (off,
-// auto or only) sets the default, off where it is unset: the GPU suites that render have not yet
-// run with it (Benchmarks/RESULTS-archive.md, "Generated kernels in the background").
+// auto or only) sets the default, auto where it is unset.
 enum class GeneratedKernelUse { Auto, Off, Only };
 GeneratedKernelUse generatedKernelUseFromEnvironment();
 
