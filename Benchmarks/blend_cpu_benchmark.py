@@ -16,7 +16,7 @@ paper-size models on a GPU) with its shipped transfer function, renders
 "--iso-refine-points 8") at N x N (default 512) for F frames (default 3: the first builds the candidate macrocells at the
 time; later frames are jittered and cost what any frame of a new view costs), and prints a table:
 the first frame's macrocell build (update) and the median frame time without it, queries per
-frame. Each run's `inr` output and --stats-json land in OUT_DIR, with the table (table.md).
+frame, and a second table of where the time goes (the stages' medians). Each run's `inr` output and --stats-json land in OUT_DIR, with the table (table.md).
 """
 import argparse
 import glob
@@ -26,6 +26,9 @@ import shlex
 import statistics
 import subprocess
 import sys
+
+
+STAGES = ("init", "traverse", "evaluate", "shading", "finalize", "setup", "other")
 
 
 def tf_points(path):
@@ -109,7 +112,9 @@ def main():
                          "update_ms": update, "frame_ms": statistics.median(render),
                          "first_frame_ms": frames[0]["ms"]["total"], "queries": frames[0]["queries"],
                          "gradient_queries": frames[0]["shading_queries"], "iterations": frames[0]["iterations"],
-                         "rays": frames[0]["rays"], "threads": s["threads"]})
+                         "rays": frames[0]["rays"], "threads": s["threads"],
+                         "stages_ms": {k: statistics.median(f["ms"][k] for f in frames[1:] or frames)
+                                       for k in STAGES}})
             print("%-34s %-10s frame %8.1f ms (first %8.1f, update %7.1f) %9d queries" %
                   (name, mode, rows[-1]["frame_ms"], rows[-1]["first_frame_ms"], update, rows[-1]["queries"]),
                   flush=True)
@@ -120,6 +125,12 @@ def main():
                      (r["model"], r["mode"], "%.4g" % r["iso"] if r["iso"] is not None else "",
                       r["frame_ms"], r["first_frame_ms"], r["update_ms"], r["queries"], r["gradient_queries"],
                       r["iterations"]))
+    lines += ["", "Where a frame's time goes (median of the frames after the first, ms; on the GPU the stages "
+              "are device times and `other` the wall time no stage names: launches, host round trips):", "",
+              "| model | mode | " + " | ".join(STAGES) + " |", "| --- | --- |" + " --- |" * len(STAGES)]
+    for r in rows:
+        lines.append("| %s | %s | " % (r["model"], r["mode"]) +
+                     " | ".join("%.2f" % r["stages_ms"][k] for k in STAGES) + " |")
     table = "\n".join(lines) + "\n"
     open(os.path.join(a.out, "table.md"), "w").write(
         "%dx%d, %d frames, --backend %s, %d OpenMP threads\n\n" % (a.size, a.size, a.frames, a.backend,

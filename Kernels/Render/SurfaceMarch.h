@@ -23,8 +23,11 @@
 // the bracket, so it lies within `tolerance` (along the ray) of a crossing. The hit's colour and
 // opacity are the transfer function's colour map and scalar opacity at c (VTK's isosurface
 // blend); with shading on it is lit (Shading.h) from the network's gradient at the hit, one
-// gradient query. Several surfaces along a ray composite front to back; the march restarts at
-// the bracket's far end and stops when the remaining transmittance is at most
+// gradient query. Several surfaces along a ray composite front to back; after a hit the rest of
+// the march interval (the bracket's far end to the march sample that closed it) is checked for
+// another isovalue's crossing, and the march goes on from that sample, its next samples evaluated
+// with the bracket's last refinement round (so a hit costs its refinement rounds and no march
+// iteration of its own); it stops when the remaining transmittance is at most
 // opaqueTransmittance, at the clip box's exit or at the opaque geometry's depth.
 //
 // What can be missed: a crossing pair (in and out of a surface) between two samples, i.e. a
@@ -151,7 +154,6 @@ enum SurfacePhase : int {
   kSurfaceDone = 0,    // finished (left the clip box, opaque, or missed)
   kSurfaceMarch = 1,   // sampling candidate cells
   kSurfaceRefine = 2,  // narrowing a bracket [ta, tb]
-  kSurfaceHit = 3,     // a hit at hitT waits for its gradient (shading)
 };
 
 // One ray's state between batches (the backend keeps an array of these).
@@ -169,9 +171,16 @@ struct SurfaceRay {
   float tPrev = 0.f, vPrev = 0.f;
   int prevValid = 0;
   float ta = 0.f, tb = 0.f, fa = 0.f, fb = 0.f;  // bracket (values at its ends)
+  // The march sample that closed the bracket's march interval, and its value: the march goes on
+  // from there after the hit (the walk stands there while the bracket is refined).
+  float tOuter = 0.f, fOuter = 0.f;
   int iso = -1;               // the isovalue being refined
   int refinements = 0;
   float hitT = 0.f;
+  // A hit composited without its colour yet: it waits for its gradient (shading), which the
+  // backend evaluates at hitT in the same iteration (surfaceShadeHit adds w x lit colour).
+  int pendingShade = 0, pendingIso = -1;
+  float pendingW = 0.f;
   int phase = kSurfaceDone;
   float r = 0.f, g = 0.f, b = 0.f, T = 1.f;  // front-to-back composite (premultiplied)
   float firstHitWorld = INFINITY;           // world distance to the first hit that took colour
@@ -188,15 +197,14 @@ INR_HD RayStateView surfaceWalkerView(SurfaceRay& r) {
   return v;
 }
 
-// Starts (or restarts, after a hit) the walk at ray parameter t: the next candidate segment is
-// looked up from the cell holding t.
-INR_HD void surfaceWalkFrom(const SurfaceConstants& sc, SurfaceRay& r, float t, bool adjacent) {
+// Puts the walk at ray parameter t: the next candidate segment is looked up from the cell
+// holding t (adjacent: t is the last sample, not sampled again unless a gap follows).
+INR_HD void surfaceWalkAt(const SurfaceConstants& sc, SurfaceRay& r, float t, bool adjacent) {
   ddaStart(sc.cells, r.o, r.d, t, r.cell, r.tNext);
   r.walkT = t;
   r.segN = 0;
   r.segJ = 0;
   r.adjacent = adjacent ? 1 : 0;
-  r.phase = kSurfaceMarch;
 }
 
 // Pixel i's ray: clipped to the clip box and the opaque geometry; done at once when nothing is left.
@@ -210,7 +218,8 @@ INR_HD void surfaceInitRay(const SurfaceConstants& sc, int i, SurfaceRay& r) {
   if (sc.depthLimit) tExit = minf(tExit, sc.depthLimit[i] * r.modelPerWorld);
   if (!(tEnter < tExit)) return;
   r.tEnd = tExit;
-  surfaceWalkFrom(sc, r, tEnter, false);
+  surfaceWalkAt(sc, r, tEnter, false);
+  r.phase = kSurfaceMarch;
 }
 
 // Moves to the next candidate segment after walkT; false when the walk has ended.
@@ -288,18 +297,33 @@ INR_HD float surfaceRefineT(float ta, float tb, int j, int n) {
   return ta + (tb - ta) * (float(j + 1) / float(n + 1));
 }
 
-// Sample j of the n a ray asked for this iteration: a refinement point (computed from the
-// bracket, never stored) or a march sample (ts[j], as surfaceEmit wrote it).
-INR_HD float surfaceSampleT(const SurfaceRay& r, const float* ts, int j, int n) {
-  return r.phase == kSurfaceRefine ? surfaceRefineT(r.ta, r.tb, j, n) : ts[j];
+// Whether a round of `points` refinement points ends the bracket (its parts reach the tolerance,
+// or it is the last round allowed).
+INR_HD bool surfaceRefineIsLast(const SurfaceConstants& sc, const SurfaceRay& r, int points) {
+  return r.refinements + 1 >= sc.maxRefinements || !((r.tb - r.ta) / float(points + 1) > sc.tolerance);
+}
+
+// Sample j of those a ray asked for this iteration: a refinement point (computed from the
+// bracket, never stored), or a march sample (ts[j], or ts[j - points] after a last round's
+// refinement points, as surfaceEmit wrote them).
+INR_HD float surfaceSampleT(const SurfaceConstants& sc, const SurfaceRay& r, const float* ts, int j) {
+  if (r.phase != kSurfaceRefine) return ts[j];
+  const int points = surfaceRefineCount(sc, r);
+  return j < points ? surfaceRefineT(r.ta, r.tb, j, points) : ts[j - points];
 }
 
 // What a ray asks of the evaluator this iteration: marchSamples march samples (in
 // [1, kMaxSurfaceSamples]; surfaceMarchSamples says how many; into ts and breaks, which hold
 // marchSamples entries) or its refinement points (surfaceRefineCount; nothing written: see
-// surfaceSampleT); 0 when it has finished (its phase is then kSurfaceDone).
+// surfaceSampleT), followed in a bracket's last round by up to marchSamples march samples past
+// tOuter, where the march goes on after the hit: so the march after a hit costs no iteration of
+// its own (the samples are dropped if the round does not end the bracket after all, or a
+// crossing lies between the hit and tOuter). 0 when it has finished (phase kSurfaceDone).
 INR_HD int surfaceEmit(const SurfaceConstants& sc, SurfaceRay& r, float* ts, std::uint8_t* breaks, int marchSamples) {
-  if (r.phase == kSurfaceRefine) return surfaceRefineCount(sc, r);
+  if (r.phase == kSurfaceRefine) {
+    const int points = surfaceRefineCount(sc, r);
+    return surfaceRefineIsLast(sc, r, points) ? points + surfaceEmitMarch(sc, r, ts, breaks, marchSamples) : points;
+  }
   if (r.phase != kSurfaceMarch) return 0;
   const int n = surfaceEmitMarch(sc, r, ts, breaks, marchSamples);
   if (n == 0) r.phase = kSurfaceDone;
@@ -348,52 +372,10 @@ INR_HD float surfaceSecant(const SurfaceConstants& sc, const SurfaceRay& r) {
   return r.ta + (r.tb - r.ta) * w;
 }
 
-// Whether a hit on isovalue `iso` needs the gradient (shading of a visible surface).
-INR_HD bool surfaceHitNeedsGradient(const SurfaceConstants& sc, int iso) {
-  return sc.shade && lookupTransferFunction(sc.tf, sc.isovalues[iso]).w > 0.f;
-}
-
-// Composites the hit at r.hitT (colour and opacity of the TF at its isovalue; lit from gradient g
-// with shading) and goes on marching from the bracket's far end, or finishes when opaque.
-INR_HD void surfaceComposite(const SurfaceConstants& sc, SurfaceRay& r, Vec3f g) {
-  const Vec4f c = lookupTransferFunction(sc.tf, sc.isovalues[r.iso]);
-  const float alpha = clampf(c.w, 0.f, 1.f);
-  if (alpha > 0.f) {
-    Vec3f colour{c.x, c.y, c.z};
-    if (sc.shade)
-      colour = litColour(colour, sc.ambient, sampleLightAt(sc.camera, sc.shading, sc.toLight, surfacePoint(r, r.hitT), g),
-                         1.f);
-    const float w = r.T * alpha;
-    r.r += w * colour.x;
-    r.g += w * colour.y;
-    r.b += w * colour.z;
-    r.T *= 1.f - alpha;
-    if (!(r.firstHitWorld < INFINITY)) r.firstHitWorld = r.hitT / r.modelPerWorld;
-  }
-  if (r.T <= sc.opaqueTransmittance) {
-    r.phase = kSurfaceDone;
-    return;
-  }
-  // Resume after the crossing, from the bracket's far end (its value is on the far side).
-  r.tPrev = r.tb;
-  r.vPrev = r.fb;
-  r.prevValid = 1;
-  surfaceWalkFrom(sc, r, r.tb, true);
-}
-
-// A bracket short enough: the hit is its secant point. Composited at once unless it needs the
-// gradient (phase kSurfaceHit: the backend evaluates it and calls surfaceComposite).
-INR_HD void surfaceBracketDone(const SurfaceConstants& sc, SurfaceRay& r) {
-  r.hitT = surfaceSecant(sc, r);
-  if (surfaceHitNeedsGradient(sc, r.iso)) {
-    r.phase = kSurfaceHit;
-    return;
-  }
-  surfaceComposite(sc, r, Vec3f{0.f, 0.f, 0.f});
-}
-
-INR_HD void surfaceStartBracket(const SurfaceConstants& sc, SurfaceRay& r, float ta, float fa, float tb, float fb,
-                                int iso) {
+// A bracket from ta to tb for isovalue iso, refined from the next iteration on (a bracket already
+// within the tolerance still takes one round of one point: that round carries the march samples
+// past tOuter, so it costs no extra iteration).
+INR_HD void surfaceStartBracket(SurfaceRay& r, float ta, float fa, float tb, float fb, int iso) {
   r.ta = ta;
   r.fa = fa;
   r.tb = tb;
@@ -401,7 +383,80 @@ INR_HD void surfaceStartBracket(const SurfaceConstants& sc, SurfaceRay& r, float
   r.iso = iso;
   r.refinements = 0;
   r.phase = kSurfaceRefine;
-  if (!(tb - ta > sc.tolerance)) surfaceBracketDone(sc, r);
+}
+
+// A bracket short enough: the hit is its secant point, composited with the TF's colour and opacity
+// at its isovalue (VTK's isosurface blend). Lit hits wait for their gradient (pendingShade: the
+// backend evaluates it and calls surfaceShadeHit in the same iteration); their opacity is known,
+// so the march goes on at once: the ray finishes when opaque, else refines a crossing between the
+// bracket's far end and tOuter if there is one, else marches on from tOuter.
+INR_HD void surfaceBracketDone(const SurfaceConstants& sc, SurfaceRay& r) {
+  r.hitT = surfaceSecant(sc, r);
+  const Vec4f c = lookupTransferFunction(sc.tf, sc.isovalues[r.iso]);
+  const float alpha = clampf(c.w, 0.f, 1.f);
+  if (alpha > 0.f) {
+    const float w = r.T * alpha;
+    if (sc.shade) {
+      r.pendingShade = 1;
+      r.pendingIso = r.iso;
+      r.pendingW = w;
+    } else {
+      r.r += w * c.x;
+      r.g += w * c.y;
+      r.b += w * c.z;
+    }
+    r.T *= 1.f - alpha;
+    if (!(r.firstHitWorld < INFINITY)) r.firstHitWorld = r.hitT / r.modelPerWorld;
+  }
+  if (r.T <= sc.opaqueTransmittance) {
+    r.phase = kSurfaceDone;
+    return;
+  }
+  // [tb, tOuter]: both ends on the far side of this isovalue, maybe not of another one.
+  const int next = r.tb < r.tOuter ? surfaceCrossedIsovalue(sc, r.fb, r.fOuter) : -1;
+  if (next >= 0) {
+    surfaceStartBracket(r, r.tb, r.fb, r.tOuter, r.fOuter, next);
+    surfaceWalkAt(sc, r, r.tOuter, true);  // any march samples emitted past tOuter are dropped
+    return;
+  }
+  r.tPrev = r.tOuter;
+  r.vPrev = r.fOuter;
+  r.prevValid = 1;
+  r.phase = kSurfaceMarch;
+}
+
+// The colour of a hit that waited for its gradient g at hitT: lit, weighted as it was composited.
+INR_HD void surfaceShadeHit(const SurfaceConstants& sc, SurfaceRay& r, Vec3f g) {
+  if (!r.pendingShade) return;
+  const Vec4f c = lookupTransferFunction(sc.tf, sc.isovalues[r.pendingIso]);
+  const Vec3f colour = litColour(Vec3f{c.x, c.y, c.z}, sc.ambient,
+                                 sampleLightAt(sc.camera, sc.shading, sc.toLight, surfacePoint(r, r.hitT), g), 1.f);
+  r.r += r.pendingW * colour.x;
+  r.g += r.pendingW * colour.y;
+  r.b += r.pendingW * colour.z;
+  r.pendingShade = 0;
+}
+
+// Marching: the n march samples' values; a crossing starts a bracket (the samples after it are
+// dropped: the march resumes from it, where the walk is put back).
+INR_HD void surfaceConsumeMarch(const SurfaceConstants& sc, SurfaceRay& r, const float* ts, const std::uint8_t* breaks,
+                                const float* values, int n) {
+  for (int k = 0; k < n; ++k) {
+    const float v = values[k];
+    if (!breaks[k] && r.prevValid) {
+      const int iso = surfaceCrossedIsovalue(sc, r.vPrev, v);
+      if (iso >= 0) {
+        r.tOuter = ts[k];
+        r.fOuter = v;
+        surfaceStartBracket(r, r.tPrev, r.vPrev, ts[k], v, iso);
+        surfaceWalkAt(sc, r, ts[k], true);
+        return;
+      }
+    }
+    r.tPrev = ts[k];
+    r.vPrev = v;
+    r.prevValid = isFiniteValue(v) ? 1 : 0;
+  }
 }
 
 // Takes the values of the n samples surfaceEmit asked for (ts, breaks as it wrote them).
@@ -409,12 +464,13 @@ INR_HD void surfaceConsume(const SurfaceConstants& sc, SurfaceRay& r, const floa
                            const float* values, int n) {
   if (r.phase == kSurfaceRefine) {
     // The first part of the bracket whose ends lie on different sides of the isovalue.
+    const int points = surfaceRefineCount(sc, r);
     const float c = sc.isovalues[r.iso];
     float ta = r.ta, fa = r.fa, tb = r.tb, fb = r.fb;
-    for (int j = 0; j < n; ++j) {
+    for (int j = 0; j < points; ++j) {
       const float v = values[j];
       if (!isFiniteValue(v)) continue;  // no side: look on
-      const float t = surfaceRefineT(r.ta, r.tb, j, n);
+      const float t = surfaceRefineT(r.ta, r.tb, j, points);
       if (surfaceSide(v, c) != surfaceSide(fa, c)) {
         tb = t;
         fb = v;
@@ -428,24 +484,15 @@ INR_HD void surfaceConsume(const SurfaceConstants& sc, SurfaceRay& r, const floa
     r.tb = tb;
     r.fb = fb;
     r.refinements += 1;
-    if (!(r.tb - r.ta > sc.tolerance) || r.refinements >= sc.maxRefinements) surfaceBracketDone(sc, r);
+    if (r.tb - r.ta > sc.tolerance && r.refinements < sc.maxRefinements) {
+      if (n > points) surfaceWalkAt(sc, r, r.tOuter, true);  // not the last round after all
+      return;
+    }
+    surfaceBracketDone(sc, r);
+    if (r.phase == kSurfaceMarch) surfaceConsumeMarch(sc, r, ts, breaks, values + points, n - points);
     return;
   }
-  if (r.phase != kSurfaceMarch) return;
-  for (int k = 0; k < n; ++k) {
-    const float v = values[k];
-    if (!breaks[k] && r.prevValid) {
-      const int iso = surfaceCrossedIsovalue(sc, r.vPrev, v);
-      if (iso >= 0) {
-        // The samples after this one are dropped: the march resumes after the crossing.
-        surfaceStartBracket(sc, r, r.tPrev, r.vPrev, ts[k], v, iso);
-        return;
-      }
-    }
-    r.tPrev = ts[k];
-    r.vPrev = v;
-    r.prevValid = isFiniteValue(v) ? 1 : 0;
-  }
+  if (r.phase == kSurfaceMarch) surfaceConsumeMarch(sc, r, ts, breaks, values, n);
 }
 
 // The ray's premultiplied RGBA (alpha = 1 - transmittance).

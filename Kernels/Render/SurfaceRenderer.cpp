@@ -425,7 +425,7 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
       for (long a = 0; a < m; ++a) {
         const SurfaceRay& r = rays[active[a]];
         for (int j = 0; j < counts[a]; ++j) {
-          const Vec3f p = surfacePoint(r, surfaceSampleT(r, &ts[std::size_t(a) * M], j, counts[a]));
+          const Vec3f p = surfacePoint(r, surfaceSampleT(sc, r, &ts[std::size_t(a) * M], j));
           points[std::size_t(first[a] + j)] = QueryPoint{p.x, p.y, p.z, sc.time};
         }
       }
@@ -450,7 +450,7 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
       }
       shading.clear();
       for (int k : active)
-        if (rays[k].phase == kSurfaceHit) shading.push_back(k);
+        if (rays[k].pendingShade) shading.push_back(k);
       st.traverseMs += msSince(t0);
       if (!shading.empty()) {
         t0 = Clock::now();
@@ -468,7 +468,7 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
         const long qn = long(q);
 #pragma omp parallel for schedule(static) if (qn >= kParallelMinItems)
         for (long j = 0; j < qn; ++j)
-          surfaceComposite(sc, rays[shading[j]], Vec3f{gradients[3 * j], gradients[3 * j + 1], gradients[3 * j + 2]});
+          surfaceShadeHit(sc, rays[shading[j]], Vec3f{gradients[3 * j], gradients[3 * j + 1], gradients[3 * j + 2]});
         st.shadingMs += msSince(t0);
       }
       std::size_t kept = 0;
