@@ -94,32 +94,43 @@ TEST(CudaSurface, AnalyticFieldMatchesTheCpuRenderer) {
   }
 }
 
+// One isosurface frame of the analytic field (two isovalues, 160²) with `options` (a) and with
+// the GPU's defaults (b).
+struct DefaultsAgainst {
+  test::AnalyticDeviceField field;
+  CudaSurfaceRenderer a, b;
+  FrameStats sa, sb;
+  explicit DefaultsAgainst(const SurfaceOptions& options)
+      : a(field, field, kCubeBox, 0.0, 1.0, options), b(field, field, kCubeBox, 0.0, 1.0) {
+    Views v(kCubeBox, 160);
+    v.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
+    BlendScene blend;
+    blend.mode = BlendMode::Isosurface;
+    blend.isovalues = {0.55, 0.7};
+    for (CudaSurfaceRenderer* r : {&a, &b}) {
+      r->setSettings(v.settings);
+      r->setScene(v.scene, blend);
+    }
+    sa = a.renderFrame();
+    sb = b.renderFrame();
+  }
+};
+
 // The GPU's isosurface batches: the active rays only, with more march samples each as rays finish
 // (SurfaceOptions::maxMarchSamples, by default 32 on the GPU). The image and depth are those of
 // the frame without the growth, bit for bit (each ray's march is the same), in fewer iterations.
 TEST(CudaSurface, GrowingMarchBatchesKeepTheImage) {
   REQUIRE_GPU();
-  test::AnalyticDeviceField field;
-  Views v(kCubeBox, 160);
-  v.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
-  BlendScene blend;
-  blend.mode = BlendMode::Isosurface;
-  blend.isovalues = {0.55, 0.7};
   SurfaceOptions fixed;
   fixed.maxMarchSamples = fixed.samplesPerIteration;
-  CudaSurfaceRenderer a(field, field, kCubeBox, 0.0, 1.0, fixed), b(field, field, kCubeBox, 0.0, 1.0);
-  a.setSettings(v.settings);
-  b.setSettings(v.settings);
-  a.setScene(v.scene, blend);
-  b.setScene(v.scene, blend);
-  const FrameStats sa = a.renderFrame(), sb = b.renderFrame();
-  std::printf("iterations %d (growth off: %d), queries %zu (%zu), rays %zu (%zu)\n", sb.iterations, sa.iterations,
-              sb.queries, sa.queries, sb.rays, sa.rays);
-  EXPECT_LT(sb.iterations, sa.iterations);
-  EXPECT_EQ(sb.rays, sa.rays);
-  EXPECT_GT(sa.rays, 1000u);
-  EXPECT_EQ(b.premultipliedImage().data, a.premultipliedImage().data);
-  EXPECT_EQ(b.surfaceDepth(), a.surfaceDepth());
+  const DefaultsAgainst f(fixed);
+  std::printf("iterations %d (growth off: %d), queries %zu (%zu), rays %zu (%zu)\n", f.sb.iterations, f.sa.iterations,
+              f.sb.queries, f.sa.queries, f.sb.rays, f.sa.rays);
+  EXPECT_LT(f.sb.iterations, f.sa.iterations);
+  EXPECT_EQ(f.sb.rays, f.sa.rays);
+  EXPECT_GT(f.sa.rays, 1000u);
+  EXPECT_EQ(f.b.premultipliedImage().data, f.a.premultipliedImage().data);
+  EXPECT_EQ(f.b.surfaceDepth(), f.a.surfaceDepth());
 }
 
 // The GPU refines a hit with 32 points a round by default (SurfaceOptions::refinePoints): two
@@ -127,26 +138,15 @@ TEST(CudaSurface, GrowingMarchBatchesKeepTheImage) {
 // iterations; the hits move within the tolerance only.
 TEST(CudaSurface, WideRefinementRoundsTakeFewerIterations) {
   REQUIRE_GPU();
-  test::AnalyticDeviceField field;
-  Views v(kCubeBox, 160);
-  v.scene.transferFunction = TransferFunction::preset(0.0, 1.0, 0.8);
-  BlendScene blend;
-  blend.mode = BlendMode::Isosurface;
-  blend.isovalues = {0.55, 0.7};
   SurfaceOptions narrow;
   narrow.refinePoints = narrow.samplesPerIteration;
-  CudaSurfaceRenderer a(field, field, kCubeBox, 0.0, 1.0, narrow), b(field, field, kCubeBox, 0.0, 1.0);
-  a.setSettings(v.settings);
-  b.setSettings(v.settings);
-  a.setScene(v.scene, blend);
-  b.setScene(v.scene, blend);
-  const FrameStats sa = a.renderFrame(), sb = b.renderFrame();
+  const DefaultsAgainst f(narrow);
   int covered = 0;
-  const double psnr = psnrOverCovered(a.premultipliedImage(), b.premultipliedImage(), covered);
+  const double psnr = psnrOverCovered(f.a.premultipliedImage(), f.b.premultipliedImage(), covered);
   std::printf("iterations %d (8 refinement points: %d), queries %zu (%zu), %.1f dB apart over %d pixels\n",
-              sb.iterations, sa.iterations, sb.queries, sa.queries, psnr, covered);
-  EXPECT_LT(sb.iterations, sa.iterations);
-  EXPECT_EQ(sb.rays, sa.rays);
+              f.sb.iterations, f.sa.iterations, f.sb.queries, f.sa.queries, psnr, covered);
+  EXPECT_LT(f.sb.iterations, f.sa.iterations);
+  EXPECT_EQ(f.sb.rays, f.sa.rays);
   EXPECT_GT(covered, 1000);
   EXPECT_GE(psnr, 50.0);
 }
