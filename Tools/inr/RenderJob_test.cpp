@@ -283,11 +283,13 @@ TEST(RenderJob, BlendModesAndTheirOptions) {
   EXPECT_FALSE(composite.blend.crop);
 
   const RenderJob iso = parseRenderJob(withModel({"--blend", "isosurface", "--iso", "0.25,0.75", "--iso-step", "0.5",
-                                                  "--iso-tolerance", "0.01"}));
+                                                  "--iso-tolerance", "0.01", "--iso-refine-points", "100"}));
   EXPECT_EQ(iso.blend.mode, BlendMode::Isosurface);
   EXPECT_EQ(iso.blend.isovalues, (std::vector<double>{0.25, 0.75}));
   EXPECT_FLOAT_EQ(iso.surface.stepFraction, 0.5f);
   EXPECT_FLOAT_EQ(iso.surface.toleranceFraction, 0.01f);
+  EXPECT_EQ(iso.surface.refinePoints, 100);
+  EXPECT_EQ(parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1"})).surface.refinePoints, 0);  // backend's
   EXPECT_EQ(iso.frames, 1);               // exact in one frame
   EXPECT_TRUE(iso.shading.enabled);       // lit unless --no-shade
   EXPECT_FALSE(parseRenderJob(withModel({"--blend", "isosurface", "--iso", "1", "--no-shade"})).shading.enabled);
@@ -322,6 +324,13 @@ TEST(RenderJob, BlendUsageErrorsNameTheOption) {
   EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--iso-step", "0"})).find("--iso-step"),
             std::string::npos);
   EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--iso-tolerance", "2"})).find("--iso-tolerance"),
+            std::string::npos);
+  for (const char* bad : {"0", "1025"})
+    EXPECT_NE(usageError(withModel({"--blend", "isosurface", "--iso", "1", "--iso-refine-points", bad}))
+                  .find("--iso-refine-points must be in [1, 1024]"),
+              std::string::npos)
+        << bad;
+  EXPECT_NE(usageError(withModel({"--iso-refine-points", "8"})).find("--iso-refine-points needs --blend isosurface"),
             std::string::npos);
   EXPECT_NE(usageError(withModel({"--slice-normal", "0,0,1"})).find("--slice-normal needs --blend slice"),
             std::string::npos);
