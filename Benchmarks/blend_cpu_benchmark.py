@@ -125,8 +125,8 @@ def main():
                      (r["model"], r["mode"], "%.4g" % r["iso"] if r["iso"] is not None else "",
                       r["frame_ms"], r["first_frame_ms"], r["update_ms"], r["queries"], r["gradient_queries"],
                       r["iterations"]))
-    lines += ["", "Where a frame's time goes (median of the frames after the first, ms; on the GPU the stages "
-              "are device times and `other` the wall time no stage names: launches, host round trips):", "",
+    lines += ["", "Where a frame's time goes (median of the frames after the first, ms; the GPU's isosurface "
+              "stages are host times: launches, and the iteration's wait for the device in traverse):", "",
               "| model | mode | " + " | ".join(STAGES) + " |", "| --- | --- |" + " --- |" * len(STAGES)]
     for r in rows:
         lines.append("| %s | %s | " % (r["model"], r["mode"]) +

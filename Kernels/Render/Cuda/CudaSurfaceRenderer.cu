@@ -12,7 +12,6 @@
 #include "Evaluator/Cuda/CudaInrEvaluator.h"
 #include "Evaluator/Cuda/DeviceFieldEvaluator.h"
 #include "Render/Cuda/DeviceTransferFunction.h"
-#include "Render/Cuda/StageTimer.h"
 #include "Render/Finalize.h"
 #include "Render/RayMarch.h"
 #include "Render/SurfaceMarch.h"
@@ -189,9 +188,6 @@ struct CudaSurfaceRenderer::Impl {
   cuda::DeviceBuffer<unsigned> counters;  // [0] hits of the iteration, [1] active rays, [2] gradient queries
   cuda::PinnedHost<int> total{1};
   cuda::PinnedHost<unsigned> countersHost{2};
-  // The isosurface frame's stage times are device times (FrameStats): the stages' kernels between
-  // CUDA events, summed after the frame's last synchronisation.
-  cuda::StageTimer timer;
 };
 
 CudaSurfaceRenderer::CudaSurfaceRenderer(const CudaInrEvaluator& evaluator, const Box3f& box, double timeBegin,
@@ -315,7 +311,6 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
   const int n = host_.settings().width * host_.settings().height;
   const int K = sc.samplesPerIteration;
   st.pixels = std::size_t(n);
-  auto t0 = Clock::now();
   if (I.rays.size() < std::size_t(n)) {
     I.rays.resize(std::size_t(n));
     I.ts.resize(std::size_t(n) * K);
@@ -335,8 +330,6 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     I.ts.resize(std::size_t(n) * K);
     I.breaks.resize(std::size_t(n) * K);
   }
-  st.setupMs += msSince(t0);
-  I.timer.reset(true);
   I.counters.zero(s);
   // The rays of `from` still marching, in their order, into `to` (their count in counters[1]).
   auto select = [&](const int* from, int items, int* to) {
@@ -344,26 +337,25 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     INR_CUDA_CHECK(cub::DeviceSelect::If(I.scanTemp.get(), bytes, from, to, I.counters.get() + 1, items,
                                          SurfaceRayActive{I.rays.get()}, s));
   };
-  I.timer.begin(cuda::kInit, s);
+  auto t0 = Clock::now();
   surfaceInitKernel<<<blocksFor(n), kThreads, 0, s>>>(sc, n, I.rays.get(), I.selected.get());
   INR_CUDA_CHECK_LAUNCH("surfaceInitKernel");
   select(I.selected.get(), n, I.active.get());
-  I.timer.end(s);
+  st.initMs += msSince(t0);
   // Each iteration: the active rays' samples (M per ray, growing as rays finish), one batch, the
   // values consumed, the rays still marching selected. One host round trip per iteration (the
   // batch's size and the active count); the emit launch covers the last active count the host
   // read, an upper bound of the current one.
   int bound = n;
   for (;;) {
+    t0 = Clock::now();
     const int M = surfaceMarchSamples(K, sc.maxMarchSamples, n, bound);
-    I.timer.begin(cuda::kTraverse, s);
     surfaceEmitKernel<<<blocksFor(bound + 1), kThreads, 0, s>>>(sc, bound, I.counters.get() + 1, I.active.get(),
                                                                 I.rays.get(), M, I.ts.get(), I.breaks.get(),
                                                                 I.count.get());
     INR_CUDA_CHECK_LAUNCH("surfaceEmitKernel");
     std::size_t bytes = I.scanTemp.size();
     INR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(I.scanTemp.get(), bytes, I.count.get(), I.offsets.get(), bound + 1, s));
-    I.timer.end(s);
     INR_CUDA_CHECK(cudaMemcpyAsync(I.total.get(), I.offsets.get() + bound, sizeof(int), cudaMemcpyDeviceToHost, s));
     INR_CUDA_CHECK(cudaMemcpyAsync(I.countersHost.get() + 1, I.counters.get() + 1, sizeof(unsigned),
                                    cudaMemcpyDeviceToHost, s));
@@ -371,62 +363,52 @@ FrameStats CudaSurfaceRenderer::renderIsosurface() {
     const int total = I.total[0];
     const int m = int(I.countersHost[1]);
     if (st.iterations == 0) st.rays = std::size_t(m);  // the rays that entered a candidate cell
+    st.traverseMs += msSince(t0);
     if (total == 0) break;  // every ray has finished
+    t0 = Clock::now();
     if (I.points.size() < std::size_t(total)) {
-      t0 = Clock::now();
       I.points.resize(std::size_t(total));
       I.values.resize(std::size_t(total));
-      st.setupMs += msSince(t0);
     }
-    I.timer.begin(cuda::kTraverse, s);
     surfacePointsKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.active.get(), I.rays.get(), M, I.ts.get(),
                                                           I.count.get(), I.offsets.get(), I.points.get());
     INR_CUDA_CHECK_LAUNCH("surfacePointsKernel");
-    I.timer.end(s);
-    I.timer.begin(cuda::kEvaluate, s);
     evaluator_.evaluateDevice(I.points.get(), total, I.values.get(), nullptr, s);
-    I.timer.end(s);
     st.queries += std::size_t(total);
     st.iterations += 1;
-    I.timer.begin(cuda::kTraverse, s);
+    st.evaluateMs += msSince(t0);  // launch time: the stream runs on
+    t0 = Clock::now();
     INR_CUDA_CHECK(cudaMemsetAsync(I.counters.get(), 0, sizeof(unsigned), s));
     surfaceConsumeKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.active.get(), I.rays.get(), M, I.ts.get(),
                                                            I.breaks.get(), I.count.get(), I.offsets.get(),
                                                            I.values.get(), I.hitPoints.get(), I.hitRay.get(),
                                                            I.counters.get());
     INR_CUDA_CHECK_LAUNCH("surfaceConsumeKernel");
-    I.timer.end(s);
+    st.traverseMs += msSince(t0);
     if (sc.shade) {
-      I.valueGradients.growTo(std::size_t(n));
-      I.timer.begin(cuda::kShade, s);
+      t0 = Clock::now();
       // At most one hit per active ray: launches sized for m, not for the image.
+      I.valueGradients.growTo(std::size_t(n));
       evaluator_.evaluateWithGradientDevice(I.hitPoints.get(), I.counters.get(), m, sc.time, I.valueGradients.get(), s);
       surfaceShadeKernel<<<blocksFor(m), kThreads, 0, s>>>(sc, m, I.rays.get(), I.hitRay.get(), I.valueGradients.get(),
                                                            I.counters.get(), I.counters.get() + 2);
       INR_CUDA_CHECK_LAUNCH("surfaceShadeKernel");
-      I.timer.end(s);
+      st.shadingMs += msSince(t0);  // launch time: the stream runs on
     }
-    I.timer.begin(cuda::kTraverse, s);
+    t0 = Clock::now();
     select(I.active.get(), m, I.selected.get());  // the rays still marching, in their order
-    I.timer.end(s);
     I.active.swap(I.selected);
     bound = m;
+    st.traverseMs += msSince(t0);
   }
-  I.timer.begin(cuda::kFinalize, s);
+  t0 = Clock::now();
   surfaceFinalizeKernel<<<blocksFor(n), kThreads, 0, s>>>(n, I.rays.get(), I.accum.get(), I.depth.get(),
                                                           host_.accumulatedFrames());
   INR_CUDA_CHECK_LAUNCH("surfaceFinalizeKernel");
-  I.timer.end(s);
   INR_CUDA_CHECK(cudaMemcpyAsync(I.countersHost.get(), I.counters.get() + 2, sizeof(unsigned), cudaMemcpyDeviceToHost, s));
   INR_CUDA_CHECK(cudaStreamSynchronize(s));
   st.shadingQueries = I.countersHost[0];
-  double ms[cuda::kStages];
-  I.timer.collect(ms);
-  st.initMs = ms[cuda::kInit];
-  st.traverseMs = ms[cuda::kTraverse];
-  st.evaluateMs = ms[cuda::kEvaluate];
-  st.shadingMs = ms[cuda::kShade];
-  st.finalizeMs = ms[cuda::kFinalize];
+  st.finalizeMs += msSince(t0);
   st.closeTiming(0.0, msSince(tFrame));
   return st;
 }
