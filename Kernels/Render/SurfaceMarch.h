@@ -303,13 +303,17 @@ INR_HD bool surfaceRefineIsLast(const SurfaceConstants& sc, const SurfaceRay& r,
   return r.refinements + 1 >= sc.maxRefinements || !((r.tb - r.ta) / float(points + 1) > sc.tolerance);
 }
 
-// Sample j of those a ray asked for this iteration: a refinement point (computed from the
-// bracket, never stored), or a march sample (ts[j], or ts[j - points] after a last round's
-// refinement points, as surfaceEmit wrote them).
-INR_HD float surfaceSampleT(const SurfaceConstants& sc, const SurfaceRay& r, const float* ts, int j) {
-  if (r.phase != kSurfaceRefine) return ts[j];
-  const int points = surfaceRefineCount(sc, r);
-  return j < points ? surfaceRefineT(r.ta, r.tb, j, points) : ts[j - points];
+// How many of the samples a ray asked for this iteration are refinement points (the first ones;
+// 0 while it marches). Computed once per ray for surfaceSampleT.
+INR_HD int surfaceRefinePointsAsked(const SurfaceConstants& sc, const SurfaceRay& r) {
+  return r.phase == kSurfaceRefine ? surfaceRefineCount(sc, r) : 0;
+}
+
+// Sample j of those a ray asked for this iteration, the first `refinePoints` of them refinement
+// points (surfaceRefinePointsAsked; computed from the bracket, never stored), the rest march
+// samples (ts[j - refinePoints], as surfaceEmit wrote them).
+INR_HD float surfaceSampleT(const SurfaceRay& r, const float* ts, int j, int refinePoints) {
+  return j < refinePoints ? surfaceRefineT(r.ta, r.tb, j, refinePoints) : ts[j - refinePoints];
 }
 
 // What a ray asks of the evaluator this iteration: marchSamples march samples (in

@@ -424,8 +424,9 @@ void SurfaceRenderer::renderIsosurfaceChunks(Clock::time_point start, double bud
 #pragma omp parallel for schedule(static) if (m >= kParallelMinItems / 4)
       for (long a = 0; a < m; ++a) {
         const SurfaceRay& r = rays[active[a]];
+        const int refinePoints = surfaceRefinePointsAsked(sc, r);
         for (int j = 0; j < counts[a]; ++j) {
-          const Vec3f p = surfacePoint(r, surfaceSampleT(sc, r, &ts[std::size_t(a) * M], j));
+          const Vec3f p = surfacePoint(r, surfaceSampleT(r, &ts[std::size_t(a) * M], j, refinePoints));
           points[std::size_t(first[a] + j)] = QueryPoint{p.x, p.y, p.z, sc.time};
         }
       }

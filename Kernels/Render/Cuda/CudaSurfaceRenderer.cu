@@ -117,8 +117,9 @@ __global__ void surfacePointsKernel(SurfaceConstants sc, int m, const int* activ
   const int c = count[a];
   if (c == 0) return;
   const SurfaceRay& r = rays[active[a]];
+  const int refinePoints = surfaceRefinePointsAsked(sc, r);
   for (int j = 0; j < c; ++j) {
-    const Vec3f p = surfacePoint(r, surfaceSampleT(sc, r, ts + std::size_t(a) * M, j));
+    const Vec3f p = surfacePoint(r, surfaceSampleT(r, ts + std::size_t(a) * M, j, refinePoints));
     points[offsets[a] + j] = make_float4(p.x, p.y, p.z, sc.time);
   }
 }
